@@ -1,8 +1,8 @@
-"""7x7 Q1.15 correlation over a 64x64 window (200,704 MACs): ours vs the peers, same input, same run.
+"""7x7 Q1.15 correlation over a 64x64 window (200,704 MACs): each contender computes the same result
+(16-bit image x Q1.15 kernel, wide accumulation, round half to even, saturation to 16 bits) and is
+checked equal to ours before it is timed; the plain numba int64 loop rounds half up and does not
+saturate, so it is the floor rather than a peer doing the same work.
 
-Each contender computes the same thing (16-bit image x Q1.15 kernel, wide accumulation, round half
-to even, saturate to 16 bits) and is checked against ours before it is timed, so nobody is timed
-doing less work. The plain numba int64 loop is the floor (no rounding mode, no saturation).
 Run: ``.venv/bin/python -m pytest bench/bench_adsp2100.py --benchmark-enable``.
 """
 import numpy as np
