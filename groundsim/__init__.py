@@ -1,0 +1,21 @@
+"""groundsim: the world the UVISI flight code sees -- real Hipparcos 2 stars, satellites, launches and
+aurora, the four UVISI imagers, the MSX spacecraft and scenario files -- plus ground assessment tools
+(``groundsim.assess``). Never imports ``flightsw.ip`` / ``flightsw.tp``.
+
+Entry points: ``Scenario.load(name_or_path, seed=None)`` -> ``.frames()`` / ``.world()``;
+``RealSequence.load(path)``.
+"""
+from .imagers import IMAGER_IDS, IMAGERS, Imager, get_imager
+from .realdata import RealSequence
+from .scenario import Scenario, ScenarioError
+from .sky import StarCatalog
+
+__all__ = ["Scenario", "ScenarioError", "RealSequence", "StarCatalog", "Imager", "IMAGERS", "IMAGER_IDS",
+           "get_imager", "World"]
+
+
+def __getattr__(name):
+    if name == "World":
+        from .world import World
+        return World
+    raise AttributeError(name)

@@ -1,0 +1,109 @@
+"""Quaternion and rotation helpers (scalar-first ``(w, x, y, z)``, Hamilton product).
+
+A quaternion ``q`` rotates frame-A vectors into frame B: ``v_B = R(q) @ v_A`` (here mostly body -> ECI).
+Composition: ``q_img_to_eci = q_mul(q_body_to_eci, q_img_to_body)``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+
+def q_mul(a, b):
+    """Hamilton product ``a * b`` (apply b first, then a)."""
+    aw, ax, ay, az = a
+    bw, bx, by, bz = b
+    return np.array([aw * bw - ax * bx - ay * by - az * bz,
+                     aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw])
+
+
+def q_conj(q):
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def q_normalize(q):
+    q = np.asarray(q, dtype=float)
+    n = math.sqrt(float(q @ q))
+    if not n > 0.0:
+        raise ValueError("zero or non-finite quaternion")
+    q = q / n
+    return q if q[0] >= 0.0 else -q
+
+
+def q_to_dcm(q):
+    """3x3 rotation matrix R with ``v_out = R @ v_in``."""
+    w, x, y, z = q
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
+def dcm_to_q(m):
+    """Inverse of :func:`q_to_dcm` (Shepperd's method), scalar part >= 0."""
+    m = np.asarray(m, dtype=float)
+    tr = m[0, 0] + m[1, 1] + m[2, 2]
+    cands = [tr, m[0, 0], m[1, 1], m[2, 2]]
+    i = int(np.argmax(cands))
+    if i == 0:
+        w = 0.5 * math.sqrt(1.0 + tr)
+        q = [w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w)]
+    elif i == 1:
+        x = 0.5 * math.sqrt(1.0 + 2 * m[0, 0] - tr)
+        q = [(m[2, 1] - m[1, 2]) / (4 * x), x, (m[0, 1] + m[1, 0]) / (4 * x), (m[0, 2] + m[2, 0]) / (4 * x)]
+    elif i == 2:
+        y = 0.5 * math.sqrt(1.0 + 2 * m[1, 1] - tr)
+        q = [(m[0, 2] - m[2, 0]) / (4 * y), (m[0, 1] + m[1, 0]) / (4 * y), y, (m[1, 2] + m[2, 1]) / (4 * y)]
+    else:
+        z = 0.5 * math.sqrt(1.0 + 2 * m[2, 2] - tr)
+        q = [(m[1, 0] - m[0, 1]) / (4 * z), (m[0, 2] + m[2, 0]) / (4 * z), (m[1, 2] + m[2, 1]) / (4 * z), z]
+    return q_normalize(np.array(q))
+
+
+def q_from_rotvec(phi):
+    """Quaternion of a rotation by vector ``phi`` (axis * angle, rad)."""
+    phi = np.asarray(phi, dtype=float)
+    a = math.sqrt(float(phi @ phi))
+    if a < 1e-12:
+        return q_normalize(np.array([1.0, 0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2]]))
+    s = math.sin(0.5 * a) / a
+    return np.array([math.cos(0.5 * a), s * phi[0], s * phi[1], s * phi[2]])
+
+
+def q_to_rotvec(q):
+    q = q_normalize(q)
+    v = q[1:]
+    s = math.sqrt(float(v @ v))
+    if s < 1e-12:
+        return 2.0 * v
+    return v * (2.0 * math.atan2(s, q[0]) / s)
+
+
+def q_pointing(boresight_eci, up_eci=(0.0, 0.0, 1.0), roll=0.0):
+    """Body->ECI quaternion putting body +X on ``boresight_eci``.
+
+    Body +Z is the component of ``up_eci`` perpendicular to the boresight (falling back to ECI +X
+    when they are parallel), then the body is rolled by ``roll`` rad about +X.
+    """
+    b = np.asarray(boresight_eci, dtype=float)
+    b = b / np.linalg.norm(b)
+    u = np.asarray(up_eci, dtype=float)
+    z = u - (u @ b) * b
+    if np.linalg.norm(z) < 1e-9:
+        u = np.array([1.0, 0.0, 0.0]) if abs(b[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+        z = u - (u @ b) * b
+    z = z / np.linalg.norm(z)
+    y = np.cross(z, b)
+    m = np.column_stack([b, y, z])
+    q = dcm_to_q(m)
+    if roll:
+        q = q_mul(q, q_from_rotvec([roll, 0.0, 0.0]))
+    return q_normalize(q)
+
+
+def radec_to_vec(ra, dec):
+    cd = math.cos(dec)
+    return np.array([cd * math.cos(ra), cd * math.sin(ra), math.sin(dec)])

@@ -1,0 +1,590 @@
+"""Frame rendering: numba kernels (module level, ``@njit(cache=True)``) and the :class:`Renderer` that
+configures and calls them.
+
+Pipeline for one frame (electrons until the ADC):
+
+1. ``mean`` (float32 [244, 256]) = ``(dark + sky) * t_int`` + optional extended image (aurora, limb glow).
+2. Point sources (stars, satellite hard bodies) are added with a pixel-integrated Gaussian PSF (separable
+   Gaussian CDF from a 1/512-sigma table, linear interpolation: error < 1e-6 of the flux); a source that
+   moves during the integration (slew, target motion) is rendered as ``nsub`` equal sub-stamps spaced
+   along its start->end track (at most 0.25 px apart): smear.
+3. Elongated sources (plumes): a Gaussian with separate along/across sigmas and a position angle,
+   sampled 3x3 per pixel and renormalised to the flux.
+4. :func:`expose_kernel`: photon noise (Poisson by inversion below 12 e-, else Gaussian with the same
+   mean and variance), blooming of charge above the full well up and down its column (columns that can
+   reach the full well only), Gaussian read noise, ``DN = floor(bias + e/gain + 0.5)`` clipped to
+   ``[0, adc_max]``. Random numbers: xoshiro256** seeded with 4 words from
+   ``numpy.random.SeedSequence([seed, frame_index])``; normals from a 65536-entry inverse-CDF table.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+from scipy.special import ndtr, ndtri
+
+from .frames import R_EARTH_M
+from .imagers import COL0, ROW0, Imager
+
+# ---------------------------------------------------------------------------------------------------
+# tables
+CDF_STEP = 1.0 / 512.0                 # sigma units
+CDF_HALF = 8.0                         # table spans [-8, 8] sigma
+CDF_TABLE = ndtr(np.arange(-CDF_HALF, CDF_HALF + CDF_STEP / 2, CDF_STEP))
+GAUSS_TABLE = ndtri((np.arange(65536) + 0.5) / 65536.0).astype(np.float32)
+TAIL_START = float(-ndtri(1.0 / 65536.0))   # |z| beyond the table's extreme bins
+POISSON_GAUSS_SWITCH = 12.0            # e-: below, exact Poisson (inversion)
+
+STAR_DTYPE = np.dtype([("hip", np.int32), ("row", np.float64), ("col", np.float64),
+                       ("counts", np.float64), ("electrons", np.float64), ("mag", np.float64)])
+
+
+# ---------------------------------------------------------------------------------------------------
+# kernels
+@njit(cache=True, inline="always")
+def _cdf(u, table):
+    x = (u + CDF_HALF) * (1.0 / CDF_STEP)
+    if x <= 0.0:
+        return 0.0
+    n = table.shape[0] - 1
+    if x >= n:
+        return 1.0
+    i = int(x)
+    f = x - i
+    return table[i] + f * (table[i + 1] - table[i])
+
+
+@njit(cache=True)
+def project_kernel(uvec, m, scale_col, scale_row, rows, cols):
+    """rows/cols (n,) of ECI unit vectors ``uvec`` (n,3) through ECI->imager matrix ``m``; NaN behind."""
+    for i in range(uvec.shape[0]):
+        x = uvec[i, 0]
+        y = uvec[i, 1]
+        z = uvec[i, 2]
+        a = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z
+        b = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z
+        c = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z
+        if a > 1e-9:
+            cols[i] = b / a / scale_col + COL0
+            rows[i] = c / a / scale_row + ROW0
+        else:
+            cols[i] = np.nan
+            rows[i] = np.nan
+
+
+@njit(cache=True)
+def add_points_kernel(img, colmax, r0, c0, r1, c1, flux, sigma, table):
+    """Add point sources (electrons ``flux``) moving from (r0, c0) to (r1, c1) during the integration.
+
+    The stamp of a (sub-)source spans +-rad pixels, rad = ceil(sigma * sqrt(2 ln(f / 0.1 e-))), so
+    the light left out is below ~0.1 e- per pixel (noise is >= 4 e-). ``colmax`` is raised to every value written.
+    """
+    nr, nc = img.shape
+    inv_s = 1.0 / sigma
+    wmax = 2 * (int(math.ceil(sigma * 7.0)) + 2) + 1
+    wr = np.empty(wmax)
+    wc = np.empty(wmax)
+    for k in range(flux.shape[0]):
+        f = flux[k]
+        if not (f > 0.0) or not (r0[k] == r0[k]) or not (r1[k] == r1[k]):
+            continue
+        rad = int(math.ceil(sigma * math.sqrt(2.0 * math.log(max(f, 1.0) / 0.1))))
+        if rad > (wmax - 1) // 2:
+            rad = (wmax - 1) // 2
+        w = 2 * rad + 1
+        dr = r1[k] - r0[k]
+        dc = c1[k] - c0[k]
+        length = math.sqrt(dr * dr + dc * dc)
+        nsub = 1 + int(length / 0.25) if length > 0.02 else 1
+        if nsub > 4000:
+            nsub = 4000
+        fs = f / nsub
+        for s in range(nsub):
+            t = (s + 0.5) / nsub if nsub > 1 else 0.5
+            rc = r0[k] + t * dr
+            cc = c0[k] + t * dc
+            ir = int(math.floor(rc))
+            ic = int(math.floor(cc))
+            if ir + rad < 0 or ir - rad >= nr or ic + rad < 0 or ic - rad >= nc:
+                continue
+            prev = _cdf((ir - rad - rc) * inv_s, table)
+            for j in range(w):
+                cur = _cdf((ir - rad + j + 1 - rc) * inv_s, table)
+                wr[j] = cur - prev
+                prev = cur
+            prev = _cdf((ic - rad - cc) * inv_s, table)
+            for j in range(w):
+                cur = _cdf((ic - rad + j + 1 - cc) * inv_s, table)
+                wc[j] = (cur - prev) * fs
+                prev = cur
+            for a in range(w):
+                rr = ir - rad + a
+                if rr < 0 or rr >= nr:
+                    continue
+                wa = wr[a]
+                if wa < 1e-9:
+                    continue
+                for b in range(w):
+                    cc2 = ic - rad + b
+                    if cc2 >= 0 and cc2 < nc:
+                        v = img[rr, cc2] + wa * wc[b]
+                        img[rr, cc2] = v
+                        if v > colmax[cc2]:
+                            colmax[cc2] = v
+
+
+@njit(cache=True)
+def truth_kernel(out, idx, rows, cols, electrons, hip, mag, gain, n_rows, n_cols):
+    """Fill the structured truth array ``out`` (STAR_DTYPE) with the stars whose centre is in the frame;
+    returns their number."""
+    n = 0
+    for i in range(idx.shape[0]):
+        r = rows[i]
+        c = cols[i]
+        if r >= 0.0 and r < n_rows and c >= 0.0 and c < n_cols:
+            out[n]["hip"] = hip[idx[i]]
+            out[n]["row"] = r
+            out[n]["col"] = c
+            out[n]["electrons"] = electrons[i]
+            out[n]["counts"] = electrons[i] / gain
+            out[n]["mag"] = mag[idx[i]]
+            n += 1
+    return n
+
+
+@njit(cache=True)
+def add_elongated_kernel(img, row, col, flux, sig_along, sig_across, angle):
+    """Add a Gaussian of total ``flux`` centred at (row, col), long axis at ``angle`` (rad, from +col
+    toward +row), sampled 3x3 per pixel and renormalised over the pixels it touches in the frame."""
+    nr, nc = img.shape
+    ext = int(math.ceil(4.0 * max(sig_along, sig_across))) + 1
+    ca = math.cos(angle)
+    sa = math.sin(angle)
+    ia = 1.0 / (sig_along * sig_along)
+    ic = 1.0 / (sig_across * sig_across)
+    r_lo = max(0, int(row) - ext)
+    r_hi = min(nr, int(row) + ext + 1)
+    c_lo = max(0, int(col) - ext)
+    c_hi = min(nc, int(col) + ext + 1)
+    if r_lo >= r_hi or c_lo >= c_hi:
+        return
+    # normalisation over the full (unclipped) support so clipping at the edge loses light
+    norm = 2.0 * math.pi * sig_along * sig_across
+    scale = flux / norm / 9.0
+    for r in range(r_lo, r_hi):
+        for c in range(c_lo, c_hi):
+            acc = 0.0
+            for u in range(3):
+                dy = r + (u + 0.5) / 3.0 - row
+                for v in range(3):
+                    dx = c + (v + 0.5) / 3.0 - col
+                    p = dx * ca + dy * sa
+                    q = -dx * sa + dy * ca
+                    acc += math.exp(-0.5 * (p * p * ia + q * q * ic))
+            img[r, c] += acc * scale
+
+
+@njit(cache=True, inline="always")
+def _rotl(x, k):
+    return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
+
+
+@njit(cache=True, inline="always")
+def _xo(s0, s1, s2, s3):
+    res = _rotl(s1 * np.uint64(5), 7) * np.uint64(9)
+    t = s1 << np.uint64(17)
+    s2 ^= s0
+    s3 ^= s1
+    s1 ^= s2
+    s0 ^= s3
+    s2 ^= t
+    s3 = _rotl(s3, 45)
+    return res, s0, s1, s2, s3
+
+
+@njit(cache=True, inline="always")
+def _poisson_small(lam, u):
+    p = math.exp(-lam)
+    f = p
+    k = 0
+    while u > f and k < 200:
+        k += 1
+        p *= lam / k
+        f += p
+    return float(k)
+
+
+@njit(cache=True, inline="always")
+def _uniform(s0, s1, s2, s3):
+    y, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+    return (float(y >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0), s0, s1, s2, s3
+
+
+@njit(cache=True, inline="always")
+def _tail(k, s0, s1, s2, s3):
+    """Exact normal tail beyond TAIL_START (Marsaglia), signed by the extreme table bin ``k``. The
+    table's extreme bins (probability 2**-15 each) are replaced by it so the tails are right."""
+    t0 = TAIL_START
+    while True:
+        u1, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        u2, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        xx = -math.log(u1) / t0
+        yy = -math.log(u2)
+        if 2.0 * yy > xx * xx:
+            break
+    z = t0 + xx if k == 65535 else -(t0 + xx)
+    return z, s0, s1, s2, s3
+
+
+@njit(cache=True, inline="always")
+def _normal(s0, s1, s2, s3, gtab):
+    x, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+    k = int(x & np.uint64(0xFFFF))
+    z = float(gtab[k])
+    if k == 0 or k == 65535:
+        z, s0, s1, s2, s3 = _tail(k, s0, s1, s2, s3)
+    return z, s0, s1, s2, s3
+
+
+@njit(cache=True, inline="always")
+def _digitise(e, inv_gain, bias, hi):
+    v = bias + e * inv_gain + 0.5
+    if v < 0.0:
+        v = 0.0
+    elif v > hi:
+        v = hi
+    return np.uint16(int(v))
+
+
+@njit(cache=True)
+def extrema_kernel(mean, colmax, rowmin):
+    """Per-column maximum and per-row minimum of ``mean`` (inputs of :func:`expose_kernel`)."""
+    nr, nc = mean.shape
+    for c in range(nc):
+        colmax[c] = -1e30
+    for r in range(nr):
+        rm = np.float32(1e30)
+        for c in range(nc):
+            v = mean[r, c]
+            colmax[c] = max(colmax[c], v)
+            rm = min(rm, v)
+        rowmin[r] = rm
+
+
+@njit(cache=True)
+def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max):
+    """Noise, blooming and digitisation of ``mean`` (electrons, float32 [nr, nc]) into ``out`` (uint16).
+
+    ``work`` float64 [nr, nc] scratch; ``state`` uint64[4] xoshiro256** seed; ``gtab`` float32[65536]
+    inverse normal CDF at bin centres; ``colmax`` (nc,) / ``rowmin`` (nr,) upper / lower bounds of each
+    column's maximum and row's minimum of ``mean`` (:func:`extrema_kernel`, or tracked while rendering).
+    Returns the number of columns that could bloom.
+    """
+    nr, nc = mean.shape
+    s0 = state[0]
+    s1 = state[1]
+    s2 = state[2]
+    s3 = state[3]
+    inv_gain = 1.0 / gain
+    rn2 = read_noise * read_noise
+    hi = float(adc_max)
+    # a column can bloom when a mean reaches thr, where thr + 6 sqrt(thr) + 10 = full_well
+    sq = -3.0 + math.sqrt(9.0 + max(full_well - 10.0, 0.0))
+    thr = np.float32(sq * sq)
+    flag = colmax > thr
+    nflag = 0
+    for c in range(nc):
+        if flag[c]:
+            nflag += 1
+    last_m = -1.0
+    last_sd = 0.0
+    m16 = np.uint64(0xFFFF)
+    tails = np.empty(256, np.int64)
+    ntail = 0
+    # float32 constants of the fast path (branch-free; IEEE single, no FMA contraction: deterministic)
+    bias32 = np.float32(bias + 0.5)
+    rn2_32 = np.float32(rn2)
+    igain32 = np.float32(inv_gain)
+    zero32 = np.float32(0.0)
+    hi32 = np.float32(hi + 0.5)
+    for r in range(nr):
+        if nflag == 0 and rowmin[r] >= POISSON_GAUSS_SWITCH and nc % 4 == 0:
+            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel
+            # (extreme table bins are only noted here and redrawn from the exact tail below: keeping
+            # the rare tail sampler out of this loop halves its cost)
+            for c4 in range(0, nc, 4):
+                xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+                for j in range(4):
+                    k = int((xx >> np.uint64(16 * j)) & m16)
+                    if k == 0 or k == 65535:
+                        if ntail < tails.shape[0]:
+                            tails[ntail] = (r * nc + c4 + j) * 2 + (1 if k == 65535 else 0)
+                            ntail += 1
+                    m32 = mean[r, c4 + j]
+                    v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * gtab[k]) * igain32
+                    v32 = min(max(v32, zero32), hi32)
+                    out[r, c4 + j] = np.uint16(int(v32))
+            continue
+        for c4 in range(0, nc, 4):
+            # one 64-bit draw feeds four pixels (16 bits each)
+            xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+            for j in range(4):
+                c = c4 + j
+                if c >= nc:
+                    break
+                k = int((xx >> np.uint64(16 * j)) & m16)
+                z = float(gtab[k])
+                if k == 0 or k == 65535:
+                    z, s0, s1, s2, s3 = _tail(k, s0, s1, s2, s3)
+                m = float(mean[r, c])
+                if m >= POISSON_GAUSS_SWITCH:
+                    if not flag[c]:
+                        # Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2) in one draw
+                        if m != last_m:
+                            last_m = m
+                            last_sd = math.sqrt(m + rn2)
+                        out[r, c] = _digitise(m + last_sd * z, inv_gain, bias, hi)
+                    else:
+                        work[r, c] = m + math.sqrt(m) * z
+                else:
+                    if m < 0.0:
+                        m = 0.0
+                    u, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+                    sig = _poisson_small(m, u)
+                    if flag[c]:
+                        work[r, c] = sig
+                    else:
+                        out[r, c] = _digitise(sig + read_noise * z, inv_gain, bias, hi)
+    for t in range(ntail):
+        p = tails[t] >> 1
+        z, s0, s1, s2, s3 = _tail(65535 if tails[t] & 1 else 0, s0, s1, s2, s3)
+        r = p // nc
+        c = p - r * nc
+        m = float(mean[r, c])
+        out[r, c] = _digitise(m + math.sqrt(m + rn2) * z, inv_gain, bias, hi)
+    if nflag > 0:
+        for c in range(nc):
+            if not flag[c]:
+                continue
+            # blooming: excess above full well spills half up, half down, filling neighbours to the
+            # full well; charge spilled past the frame edge is lost
+            for r in range(nr):
+                e = work[r, c]
+                if e > full_well:
+                    ex = e - full_well
+                    work[r, c] = full_well
+                    up = 0.5 * ex
+                    down = 0.5 * ex
+                    j = r - 1
+                    while up > 0.0 and j >= 0:
+                        room = full_well - work[j, c]
+                        if room > 0.0:
+                            if room >= up:
+                                work[j, c] += up
+                                up = 0.0
+                            else:
+                                work[j, c] = full_well
+                                up -= room
+                        j -= 1
+                    j = r + 1
+                    while down > 0.0 and j < nr:
+                        room = full_well - work[j, c]
+                        if room > 0.0:
+                            if room >= down:
+                                work[j, c] += down
+                                down = 0.0
+                            else:
+                                work[j, c] = full_well
+                                down -= room
+                        j += 1
+            for r in range(nr):
+                z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3, gtab)
+                out[r, c] = _digitise(work[r, c] + read_noise * z, inv_gain, bias, hi)
+    return nflag
+
+
+# ---------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _mix_kernel(base, frame_index, stream, out):
+    # splitmix64 of (base word, frame index, stream): independent, well-mixed per-frame states
+    for i in range(4):
+        z = base[i] ^ (np.uint64(frame_index) * np.uint64(0x9E3779B97F4A7C15)) \
+            ^ (np.uint64(stream * 4 + i + 1) * np.uint64(0xD1B54A32D192ED03))
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        out[i] = z ^ (z >> np.uint64(31))
+    if out[0] == 0 and out[1] == 0 and out[2] == 0 and out[3] == 0:
+        out[0] = np.uint64(1)
+
+
+_BASE_CACHE: dict = {}
+
+
+def frame_rng_state(seed: int, frame_index: int, stream: int = 0) -> np.ndarray:
+    """uint64[4] xoshiro256** state for one frame: ``SeedSequence(seed)`` gives 4 base words (entropy
+    spread as numpy does), mixed with the frame index and stream by splitmix64. Platform independent."""
+    seed = int(seed)
+    base = _BASE_CACHE.get(seed)
+    if base is None:
+        base = np.random.SeedSequence(seed).generate_state(4, np.uint64)
+        _BASE_CACHE[seed] = base
+    out = np.empty(4, np.uint64)
+    _mix_kernel(base, int(frame_index), int(stream), out)
+    return out
+
+
+class PointSource:
+    """A source for :meth:`Renderer.render`: ECI lines of sight (unit vectors from the imager) at the
+    start, middle and end of the integration, electrons, and an optional plume (electrons, tail LOS)."""
+
+    __slots__ = ("los0", "los", "los1", "electrons", "plume_electrons", "plume_tail_los", "plume_width_rad")
+
+    def __init__(self, los0, los, los1, electrons, plume_electrons=0.0, plume_tail_los=None,
+                 plume_width_rad=0.0):
+        self.los0, self.los, self.los1 = los0, los, los1
+        self.electrons = float(electrons)
+        self.plume_electrons = float(plume_electrons)
+        self.plume_tail_los = plume_tail_los
+        self.plume_width_rad = float(plume_width_rad)
+
+
+class Renderer:
+    """Renders frames of one imager against one :class:`~groundsim.sky.SkyView`.
+
+    ``render(m0, m, m1, sources, seed, frame_index, extended=None)`` with ECI->imager rotation matrices at
+    the start, middle and end of the integration returns ``(frame uint16[244,256], stars)`` where
+    ``stars`` is a structured array (``STAR_DTYPE``: hip, row, col, counts (expected DN above bias, before
+    saturation), electrons, mag (band)) of every star whose mid-integration centre is in the frame, and
+    the projected (row, col) of each source at mid-integration.
+    """
+
+    def __init__(self, imager: Imager, sky_view, catalog=None):
+        self.imager = imager
+        self.sky = sky_view
+        cat = catalog if catalog is not None else sky_view.catalog
+        self.catalog = cat
+        self.hp_cut = cat.hp_cut_for(imager.band, imager.mag_limit)
+        self._bg = (imager.dark_e_per_s + imager.sky_e_per_s) * imager.t_int
+        self._mean = np.empty((imager.n_rows, imager.n_cols), np.float32)
+        self._work = np.empty((imager.n_rows, imager.n_cols), np.float64)
+        self._sc, self._sr = imager.scale_col, imager.scale_row
+        self._colmax = np.empty(imager.n_cols, np.float32)
+        self._rowmin = np.empty(imager.n_rows, np.float32)
+        # per-star electrons cached over the whole catalogue (cheap: one vector op per imager)
+        mag = cat.band_mag(imager.band)
+        self._mag = mag
+        self._el = imager.zp_e_per_s * np.power(10.0, -0.4 * mag) * imager.t_int
+        self._keep = mag <= imager.mag_limit
+        self.bloomed_columns = 0
+
+    def star_field(self, m0, m, m1, margin_px=0.0, observer_pos=None):
+        """Project the stars around the boresight: (idx, rows(3, n), cols(3, n)) for start/mid/end.
+        With ``observer_pos`` (ECI, m) stars behind the Earth (sphere of radius R_EARTH_M) are left out."""
+        im = self.imager
+        bore = m[0]  # ECI direction of imager +X (row 0 of ECI->imager)
+        radius = im.half_diagonal + (margin_px + 5.0 * im.psf_sigma_px + 2.0) * max(im.scale_col, im.scale_row)
+        idx = self.sky.cone(bore, radius, self.hp_cut)
+        idx = idx[self._keep[idx]]
+        u = self.sky.uvec[idx]
+        if observer_pos is not None:
+            rn = math.sqrt(float(observer_pos @ observer_pos))
+            cos_rho = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2))
+            vis = (u @ observer_pos) > -cos_rho * rn
+            if not vis.all():
+                idx, u = idx[vis], u[vis]
+        rows = np.empty((3, len(idx)))
+        cols = np.empty((3, len(idx)))
+        sc, sr = self._sc, self._sr
+        project_kernel(u, m, sc, sr, rows[1], cols[1])
+        for j, mj in ((0, m0), (2, m1)):
+            if mj is m:
+                rows[j], cols[j] = rows[1], cols[1]
+            else:
+                project_kernel(u, mj, sc, sr, rows[j], cols[j])
+        return idx, rows, cols
+
+    def project(self, m, los):
+        """(row, col) of an ECI direction through ECI->imager ``m`` (NaN behind the imager)."""
+        v = m @ los
+        if v[0] <= 1e-9:
+            return math.nan, math.nan
+        return v[2] / v[0] / self._sr + ROW0, v[1] / v[0] / self._sc + COL0
+
+    def render(self, m0, m, m1, sources=(), seed=0, frame_index=0, extended=None, out=None,
+               observer_pos=None):
+        im = self.imager
+        mean = self._mean
+        colmax, rowmin = self._colmax, self._rowmin
+        if extended is not None:
+            np.add(extended, self._bg, out=mean, casting="unsafe")
+            extrema_kernel(mean, colmax, rowmin)
+        else:
+            mean.fill(self._bg)
+            colmax.fill(self._bg)
+            rowmin.fill(self._bg)
+        idx, rows, cols = self.star_field(m0, m, m1, margin_px=self._smear_px(m0, m1), observer_pos=observer_pos)
+        el = self._el[idx]
+        add_points_kernel(mean, colmax, rows[0], cols[0], rows[2], cols[2], el, im.psf_sigma_px, CDF_TABLE)
+        src_rc = []
+        for s in sources:
+            r0, c0 = self.project(m0, s.los0)
+            r, c = self.project(m, s.los)
+            r1, c1 = self.project(m1, s.los1)
+            src_rc.append((r, c))
+            if s.electrons > 0 and r0 == r0 and r1 == r1:
+                v = np.array([r0, c0, r1, c1, s.electrons])
+                add_points_kernel(mean, colmax, v[0:1], v[1:2], v[2:3], v[3:4], v[4:5], im.psf_sigma_px, CDF_TABLE)
+            if s.plume_electrons > 0 and s.plume_tail_los is not None and r == r:
+                rt, ct = self.project(m, s.plume_tail_los)
+                if rt == rt:
+                    dr, dc = rt - r, ct - c
+                    length = math.hypot(dr, dc)
+                    width_px = s.plume_width_rad / im.scale_col
+                    sig_across = math.hypot(im.psf_sigma_px, width_px)
+                    sig_along = math.hypot(sig_across, 0.5 * length)
+                    add_elongated_kernel(mean, r + 0.5 * dr, c + 0.5 * dc, s.plume_electrons,
+                                         sig_along, sig_across, math.atan2(dr, dc))
+                    extrema_kernel(mean, colmax, rowmin)
+        frame = out if out is not None else np.empty((im.n_rows, im.n_cols), np.uint16)
+        state = frame_rng_state(seed, frame_index)
+        self.bloomed_columns = expose_kernel(mean, frame, self._work, state, GAUSS_TABLE, colmax, rowmin,
+                                             im.read_noise_e,
+                                             im.gain_e_per_dn, im.bias_dn, im.full_well_e, im.adc_max)
+        r, c = rows[1], cols[1]
+        stars = np.empty(len(idx), STAR_DTYPE)
+        n = truth_kernel(stars, idx, rows[1], cols[1], el, self.catalog.hip, self._mag, im.gain_e_per_dn,
+                         im.n_rows, im.n_cols)
+        stars = stars[:n]
+        return frame, stars, src_rc
+
+    def _smear_px(self, m0, m1):
+        # angle between the start and end boresights, in pixels (an upper bound of the star trail)
+        if m0 is m1:
+            return 0.0
+        d = float(m0[0] @ m1[0])
+        ang = math.acos(min(1.0, max(-1.0, d)))
+        e = float(m0[1] @ m1[1])
+        ang = max(ang, math.acos(min(1.0, max(-1.0, e))))
+        return ang / min(self.imager.scale_col, self.imager.scale_row)
+
+
+def expose(imager: Imager, mean_e, seed=0, frame_index=0) -> np.ndarray:
+    """Noise + blooming + ADC of a mean image (electrons, [244, 256]) through ``imager`` (tests, tools)."""
+    mean = np.ascontiguousarray(mean_e, dtype=np.float32)
+    if mean.shape != (imager.n_rows, imager.n_cols):
+        raise ValueError(f"mean image must be {(imager.n_rows, imager.n_cols)}, got {mean.shape}")
+    out = np.empty(mean.shape, np.uint16)
+    work = np.empty(mean.shape, np.float64)
+    colmax = np.empty(mean.shape[1], np.float32)
+    rowmin = np.empty(mean.shape[0], np.float32)
+    extrema_kernel(mean, colmax, rowmin)
+    expose_kernel(mean, out, work, frame_rng_state(seed, frame_index), GAUSS_TABLE, colmax, rowmin,
+                  imager.read_noise_e, imager.gain_e_per_dn, imager.bias_dn, imager.full_well_e,
+                  imager.adc_max)
+    return out
+
+
+def render_flat(imager: Imager, mean_e: float, seed=0, frame_index=0) -> np.ndarray:
+    """A flat field of ``mean_e`` electrons per pixel through the imager's noise/ADC chain (tests)."""
+    return expose(imager, np.full((imager.n_rows, imager.n_cols), mean_e, np.float32), seed, frame_index)
