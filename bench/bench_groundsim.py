@@ -24,7 +24,7 @@ SRC = [PointSource(T, T, T, 5000.0)]
 RADIUS = IM.half_diagonal
 
 
-def test_render_wfov_frame(benchmark):
+def test_ours_render_wfov_frame(benchmark):
     benchmark.group = "groundsim: WFOV visible frame (stars <= mag 8, 1 target, noise)"
     k = iter(range(10 ** 9))
     frame, stars, _ = REN.render(M, M, M, SRC, seed=1, frame_index=0)
@@ -32,7 +32,7 @@ def test_render_wfov_frame(benchmark):
     benchmark(lambda: REN.render(M, M, M, SRC, seed=1, frame_index=next(k)))
 
 
-def test_cone_query_zones(benchmark):
+def test_ours_cone_query_zones(benchmark):
     benchmark.group = "groundsim: cone query (WFOV half-diagonal, Hp <= 8)"
     n = len(VIEW.cone(ORION, RADIUS, 8.0))
     assert n > 150

@@ -1,0 +1,897 @@
+"""MIL-STD-1750A 32-bit and 48-bit floating point, bit-exact to the standard's register-transfer
+descriptions (RTL), callable from Python (validated) and from ``@njit`` code (not validated).
+
+Formats (MIL-STD-1750A section 4.1.5 / 4.1.6; bit 0 is the MSB of a word)
+--------------------------------------------------------------------------
+32-bit float, two words ``w0 w1``::
+
+    w0 = | S | mantissa bits 1..15 |          (mantissa MS 16 bits, bit 0 = sign)
+    w1 = | mantissa bits 16..23 | exponent |  (8 more mantissa bits, 8-bit 2's complement exponent)
+
+48-bit extended float, three words ``w0 w1 w2``: ``w0 w1`` as above (mantissa bits 0..23 and the
+exponent) and ``w2`` = mantissa bits 24..39.
+
+The mantissa ``M`` is a 2's complement fraction (24 or 40 bits, ``W = 23`` or ``39`` fraction bits),
+the value is ``M / 2**W * 2**E``, ``E`` in -128..127. Normalised: the sign bit differs from the next
+bit (``M`` in 400000..7FFFFF or 800000..BFFFFF for 24 bits); the only zero is all-zero words.
+
+**Packed words** (the public contract): a 32-bit float is the int ``(w0 << 16) | w1`` in
+``0..2**32-1``, a 48-bit float is ``(w0 << 32) | (w1 << 16) | w2`` in ``0..2**48-1``. Equivalently
+``p32 = (M24 & 0xFFFFFF) << 8 | (E & 0xFF)`` and ``p48 = ((M40 >> 16) & 0xFFFFFF) << 24 |
+(E & 0xFF) << 16 | (M40 & 0xFFFF)``. A 32-bit float is the 48-bit float with the same ``w0 w1`` and
+``w2 = 0`` (:func:`to48` / :func:`to32`; ``to32`` drops ``w2``, i.e. truncates toward minus infinity).
+
+Operations and the RTL sections they follow
+-------------------------------------------
+======================  ================  ==========================================
+function                1750A             standard section
+======================  ================  ==========================================
+``fa32 / fa48``         FA / EFA          5.60 / 5.61
+``fs32 / fs48``         FS / EFS          5.68 / 5.69
+``fm32 / fm48``         FM / EFM          5.74 / 5.75
+``fd32 / fd48``         FD / EFD          5.79 / 5.80
+``fabs32``              FABS              5.62 (``fabs48``: no EFABS exists, analogue)
+``fneg32``              FNEG              5.70 (``fneg48``: no EFNEG exists, = 0 EFS x)
+``fix32 / fix48``       FIX / EFIX        5.85 / 5.87
+``flt32 / flt48``       FLT / EFLT        5.86 / 5.88
+``fc32 / fc48``         FC / EFC          5.94 / 5.95
+======================  ================  ==========================================
+
+Every arithmetic op returns ``(result, flags)``: ``flags`` is a bitmask of the pending-interrupt
+(PI) register bits the instruction sets, with the standard's bit numbering (bit 0 = MSB of PI, level
+L = ``0x8000 >> L``) so it can be OR-ed into an emulated PI register:
+:data:`FLAG_FLOAT_OVERFLOW` (level 3), :data:`FLAG_FIXED_OVERFLOW` (level 4),
+:data:`FLAG_FLOAT_UNDERFLOW` (level 6). ``fc32/fc48`` return only the comparison (-1, 0, 1): FC
+never interrupts.
+
+Decisions (where the RTL is silent, ambiguous or [UNCERTAIN] in processors.md)
+-----------------------------------------------------------------------------
+* **FA/FS have no guard bits** (processors.md B marks real-chip guard bits [UNCERTAIN]): following
+  the RTL of 5.60/5.61/5.68/5.69 literally, the mantissa with the smaller exponent is shifted right
+  arithmetic (bits shifted out are lost, i.e. truncated toward minus infinity) *before* the add.
+  The result is therefore never above the exact sum and is below it by less than one unit of the
+  *larger operand's* last place, ``2**(max(Ea, Eo) - W)``; after a cancellation the normalising
+  left shift brings in zeros, so measured in the result's own ulp the error can exceed 1.
+  (``DECISION_FA_GUARD_BITS = False``.)
+* **FS negates the subtrahend before aligning it** (``DECISION_FS_NEGATE_FIRST = True``). The RTL
+  of 5.68/5.69 writes "MO shifted right arithmetic n; MA <- MA - MO": read literally, bits shifted
+  out of a positive subtrahend are truncated *before* it is subtracted, which rounds the difference
+  toward plus infinity (e.g. ``1.0 - (0.5 + 2**-23)`` would give ``0.5``), contradicting 4.1.8
+  ("all floating point results shall be truncated toward negative infinity"). We follow 4.1.8:
+  ``a FS b`` is ``a FA (-b)`` with ``-b`` formed exactly (one extra bit) and then aligned, so FS
+  obeys the same bound as FA. Results differ from the literal RTL only when ``EA > EO`` and bits
+  of ``MO`` are shifted out.
+* FM/FD: the exponent overflow/underflow checks on ``n = EA +/- EO`` happen *before* the mantissa
+  operation, exactly as in the RTL (so e.g. ``0.5*2**64 * 0.5*2**64`` overflows although
+  ``0.5*2**127`` would be representable). Result mantissas are the exact product/quotient truncated
+  toward minus infinity (FM keeps the full double-length product before truncation, 5.74/5.75).
+* FD: "shift right if ``|MQ| >= 1.0``" is read as "if the quotient does not fit the 2's complement
+  mantissa" (``MQ`` outside ``[-1, 1)``), so an exact quotient of -1.0 stays ``-1.0 * 2**n``; the one
+  quotient that is exactly -0.5 (``0.5 / -1.0``) is normalised to ``-1.0 * 2**(n-1)`` (the RTL has
+  no normalise step; 4.1.5 requires normalised results), and underflows if ``n - 1 < -128``.
+* FIX/EFIX on overflow (exponent > 0F / 1F): the standard leaves RA unchanged; the functions return
+  0 with :data:`FLAG_FIXED_OVERFLOW` set and the caller keeps its old register value.
+* Integer operands of FLT/FIX are 16/32-bit *bit patterns* (``0..0xFFFF``, ``0..0xFFFFFFFF``), as in
+  :mod:`flightsw.arith.adsp2100`; ``to_signed16``/``to_signed32`` convert.
+
+Encoding/decoding (ground side, exact; host float allowed)
+----------------------------------------------------------
+``encode32(x, rounding="floor")`` / ``encode48``: the largest representable value ``<= x`` (or the
+nearest, ties to even, with ``rounding="nearest"``). Out of range: **clamped to the standard's
+results** -- above the largest magnitude, the overflow result ``7FFFFF/7F`` (positive) or
+``800000/7F`` (negative); magnitudes too small for a normalised number (exponent below -128 after
+rounding) give floating zero, the underflow result. NaN or infinite ``x`` -> ``ValueError``.
+``decode32/decode48`` are exact (every 1750A value is a Python float).
+
+Speed: all op kernels are integer-only ``@njit(cache=True)`` functions on int64 packed words.
+"""
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from numbers import Integral, Real
+
+import numpy as np
+from numba import njit
+from numba.cpython.unsafe.numbers import leading_zeros
+from numba.extending import overload
+
+from flightsw.budget import PACE1750A, Processor, m1750_cycles
+
+__all__ = [
+    "FLAG_FLOAT_OVERFLOW", "FLAG_FIXED_OVERFLOW", "FLAG_FLOAT_UNDERFLOW", "FLAG_DOMAIN",
+    "encode32", "encode48", "decode32", "decode48", "encode32_array", "encode48_array",
+    "decode32_array", "decode48_array", "is_normalized32", "is_normalized48",
+    "fa32", "fs32", "fm32", "fd32", "fa48", "fs48", "fm48", "fd48",
+    "flt32", "fix32", "flt48", "fix48", "fabs32", "fneg32", "fabs48", "fneg48", "fc32", "fc48",
+    "to48", "to32", "unpack32", "unpack48", "pack32", "pack48",
+    "to_signed16", "to_signed32",
+    "OP_MIX", "op_mix", "op_cycles", "CYCLES",
+    "MAX32", "MIN32", "MAX48", "MIN48", "ONE32", "ONE48", "HALF32", "HALF48", "ZERO",
+]
+
+DECISION_FA_GUARD_BITS = False
+DECISION_FS_NEGATE_FIRST = True
+
+#: PI register bits (MIL-STD-1750A: bit 0 = MSB, interrupt level L -> mask 0x8000 >> L)
+FLAG_FLOAT_OVERFLOW = 0x8000 >> 3    # level 3, floating point overflow
+FLAG_FIXED_OVERFLOW = 0x8000 >> 4    # level 4, fixed point overflow
+FLAG_FLOAT_UNDERFLOW = 0x8000 >> 6   # level 6, floating point underflow
+#: software flag (not a PI bit) raised by the math library for arguments outside its domain
+FLAG_DOMAIN = 0x10000
+
+MASK32 = (1 << 32) - 1
+MASK48 = (1 << 48) - 1
+
+# special packed values
+MAX32 = 0x7FFFFF7F            # 0.9999998 * 2**127, also the positive overflow result
+MIN32 = 0x8000007F            # -1.0 * 2**127, the negative overflow result
+MAX48 = 0x7FFFFF7FFFFF
+MIN48 = 0x8000007F0000
+ONE32 = 0x40000001
+ONE48 = 0x400000010000
+HALF32 = 0x40000000
+HALF48 = 0x400000000000
+ZERO = 0
+
+
+# ================================================================================================
+# unpack / pack / normalise (inline kernels, W = fraction bits: 23 or 39)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def unpack32(p):
+    """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent)."""
+    m = ((p >> 8) & 0xFFFFFF) ^ 0x800000
+    e = (p & 0xFF) ^ 0x80
+    return m - 0x800000, e - 0x80
+
+
+@njit(cache=True, inline="always")
+def unpack48(p):
+    """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent)."""
+    m = ((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000
+    e = ((p >> 16) & 0xFF) ^ 0x80
+    return m - 0x8000000000, e - 0x80
+
+
+@njit(cache=True, inline="always")
+def pack32(m, e):
+    """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks)."""
+    return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
+
+
+@njit(cache=True, inline="always")
+def pack48(m, e):
+    """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks)."""
+    return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
+
+
+@njit(cache=True, inline="always")
+def _unpack(p, W):
+    if W == 23:
+        return unpack32(p)
+    return unpack48(p)
+
+
+@njit(cache=True, inline="always")
+def _pack(m, e, W):
+    if W == 23:
+        return pack32(m, e)
+    return pack48(m, e)
+
+
+@njit(cache=True, inline="always")
+def _norm_shift(m, W):
+    """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
+    bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift)."""
+    return leading_zeros(m ^ (m >> 63)) - (64 - W)
+
+
+@njit(cache=True, inline="always")
+def _overflow(neg, W):
+    """Standard overflow result: 7FFF..FF/7F if the result is positive, 8000..00/7F if negative."""
+    if W == 23:
+        return (MIN32 if neg else MAX32), FLAG_FLOAT_OVERFLOW
+    return (MIN48 if neg else MAX48), FLAG_FLOAT_OVERFLOW
+
+
+@njit(cache=True, inline="always")
+def _finish(m, e, W):
+    """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags)."""
+    if m == 0:
+        return 0, 0
+    s = _norm_shift(m, W)
+    m = m << s
+    e = e - s
+    if e < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    if e > 127:
+        return _overflow(m < 0, W)
+    return _pack(m, e, W), 0
+
+
+# ================================================================================================
+# FA / FS (5.60, 5.61, 5.68, 5.69)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _add_core(a, b, W, subtract):
+    ma, ea = _unpack(a, W)
+    mo, eo = _unpack(b, W)
+    if subtract:                     # negate first (exact, wide register): see DECISION_FS_*
+        mo = -mo
+    n = ea - eo
+    if ma == 0:                      # EA <- E0, if MA = 0 (no shifts)
+        ea = eo
+    elif mo != 0:
+        # n > 0: MO >>= n; n < 0: MA >>= -n, EA <- E0 (arithmetic shifts; bits shifted out are
+        # lost). Written branch-free (min/max -> conditional moves): n is data dependent.
+        so = min(max(n, 0), 63)
+        sa = min(max(-n, 0), 63)
+        mo = mo >> so
+        ma = ma >> sa
+        ea = max(ea, eo)
+    s = ma + mo
+    top = 1 << W
+    if s >= top or s < -top:         # OVM: shift right 1, restore sign, EA <- EA + 1
+        s = s >> 1
+        ea += 1
+        if ea > 127:
+            return _overflow(s < 0, W)
+    return _finish(s, ea, W)
+
+
+@njit(cache=True)
+def _fa32_k(a, b):
+    return _add_core(a, b, 23, False)
+
+
+@njit(cache=True)
+def _fs32_k(a, b):
+    return _add_core(a, b, 23, True)
+
+
+@njit(cache=True)
+def _fa48_k(a, b):
+    return _add_core(a, b, 39, False)
+
+
+@njit(cache=True)
+def _fs48_k(a, b):
+    return _add_core(a, b, 39, True)
+
+
+# ================================================================================================
+# FM (5.74, 5.75)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _mul_exp_checks(ma, mo, n, W):
+    """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags)."""
+    if n > 127:
+        p, f = _overflow((ma < 0) != (mo < 0), W)
+        return True, p, f
+    if n < -128:
+        return True, 0, FLAG_FLOAT_UNDERFLOW
+    return False, 0, 0
+
+
+@njit(cache=True)
+def _fm32_k(a, b):
+    ma, ea = unpack32(a)
+    mo, eo = unpack32(b)
+    if ma == 0 or mo == 0:
+        return 0, 0
+    n = ea + eo
+    done, p, f = _mul_exp_checks(ma, mo, n, 23)
+    if done:
+        return p, f
+    P = ma * mo                       # exact, value P / 2**46
+    if P == (1 << 46):                # (-1.0)(-1.0): MP = 8000..00 -> 4000 00, n + 1
+        n += 1
+        if n > 127:
+            return MAX32, FLAG_FLOAT_OVERFLOW
+        return pack32(0x400000, n), 0
+    s = _norm_shift(P, 46)            # normalise the double-length product, then truncate
+    n -= s
+    if n < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    return pack32((P << s) >> 23, n), 0
+
+
+@njit(cache=True)
+def _fm48_k(a, b):
+    ma, ea = unpack48(a)
+    mo, eo = unpack48(b)
+    if ma == 0 or mo == 0:
+        return 0, 0
+    n = ea + eo
+    done, p, f = _mul_exp_checks(ma, mo, n, 39)
+    if done:
+        return p, f
+    neg = (ma < 0) != (mo < 0)
+    A = -ma if ma < 0 else ma         # <= 2**39
+    B = -mo if mo < 0 else mo
+    if A == (1 << 39) and B == (1 << 39):      # (-1.0)(-1.0)
+        n += 1
+        if n > 127:
+            return MAX48, FLAG_FLOAT_OVERFLOW
+        return pack48(1 << 38, n), 0
+    # |P| = A*B = H * 2**40 + L  (80-bit product from 20-bit limbs); value |P| / 2**78
+    M20 = (1 << 20) - 1
+    a1 = A >> 20
+    a0 = A & M20
+    b1 = B >> 20
+    b0 = B & M20
+    mid = a1 * b0 + a0 * b1
+    low = ((mid & M20) << 20) + a0 * b0
+    H = a1 * b1 + (mid >> 20) + (low >> 40)
+    L = low & ((1 << 40) - 1)
+    half = 1 << 37                    # |P| = 2**77  <=>  |product| = 0.5
+    if not neg:
+        if H >= half:                 # normalised as is: floor(|P| / 2**39)
+            m = (H << 1) | (L >> 39)
+        else:                         # one left shift: floor(|P| / 2**38)
+            m = (H << 2) | (L >> 38)
+            n -= 1
+    else:
+        if H > half or (H == half and L != 0):
+            m = -(((H << 1) | (L >> 39)) + (1 if (L & ((1 << 39) - 1)) != 0 else 0))
+        elif H == half:               # exactly -0.5 -> -1.0 * 2**(n-1)
+            m = -(1 << 39)
+            n -= 1
+        else:
+            m = -(((H << 2) | (L >> 38)) + (1 if (L & ((1 << 38) - 1)) != 0 else 0))
+            n -= 1
+    if n < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    return pack48(m, n), 0
+
+
+# ================================================================================================
+# FD (5.79, 5.80)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _div_core(a, b, W):
+    ma, ea = _unpack(a, W)
+    mo, eo = _unpack(b, W)
+    n = ea - eo
+    if ma == 0:
+        n = 0
+    if mo == 0:                                   # divide by zero -> overflow, sign MA0 vs MO0
+        return _overflow(ma < 0, W)
+    if n > 127:
+        return _overflow((ma < 0) != (mo < 0), W)
+    if n < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    if ma == 0:
+        return 0, 0
+    neg = (ma < 0) != (mo < 0)
+    A = -ma if ma < 0 else ma
+    B = -mo if mo < 0 else mo
+    # Qmag = floor(|q| * 2**(W+1)), sticky = inexact; |q| = A / B in (0.5, 2]
+    if W == 23:
+        num = A << 24
+        Qmag = num // B
+        sticky = (num - Qmag * B) != 0
+    else:
+        q0 = A // B
+        r = A - q0 * B
+        t = r << 20
+        q1 = t // B
+        r = t - q1 * B
+        t = r << 20
+        q2 = t // B
+        r = t - q2 * B
+        Qmag = (q0 << 40) | (q1 << 20) | q2
+        sticky = r != 0
+    if neg:   # floor(q * 2**W) = -ceil(|q| * 2**W)
+        Q = -((Qmag >> 1) + (1 if ((Qmag & 1) != 0 or sticky) else 0))
+    else:
+        Q = Qmag >> 1
+    top = 1 << W
+    if Q >= top or Q < -top:                      # quotient does not fit the mantissa
+        Q = Q >> 1
+        n += 1
+        if n > 127:
+            return _overflow(Q < 0, W)
+    if Q == -(1 << (W - 1)):                      # exactly -0.5: normalise
+        Q = -top
+        n -= 1
+        if n < -128:
+            return 0, FLAG_FLOAT_UNDERFLOW
+    return _pack(Q, n, W), 0
+
+
+@njit(cache=True)
+def _fd32_k(a, b):
+    return _div_core(a, b, 23)
+
+
+@njit(cache=True)
+def _fd48_k(a, b):
+    return _div_core(a, b, 39)
+
+
+# ================================================================================================
+# FABS (5.62), FNEG (5.70)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _fabs_core(a, W):
+    m, e = _unpack(a, W)
+    if m >= 0:
+        return a, 0
+    if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
+        e += 1
+        if e > 127:
+            return _overflow(False, W)
+        return _pack(1 << (W - 1), e, W), 0
+    return _pack(-m, e, W), 0
+
+
+@njit(cache=True, inline="always")
+def _fneg_core(a, W):
+    m, e = _unpack(a, W)
+    if m == 0:
+        return 0, 0
+    if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
+        if e == 127:
+            return _overflow(False, W)
+        return _pack(1 << (W - 1), e + 1, W), 0
+    if m == (1 << (W - 1)):          # 0.5 * 2**e -> -1.0 * 2**(e-1)
+        if e == -128:
+            return 0, FLAG_FLOAT_UNDERFLOW
+        return _pack(-(1 << W), e - 1, W), 0
+    return _pack(-m, e, W), 0
+
+
+@njit(cache=True)
+def _fabs32_k(a):
+    return _fabs_core(a, 23)
+
+
+@njit(cache=True)
+def _fabs48_k(a):
+    return _fabs_core(a, 39)
+
+
+@njit(cache=True)
+def _fneg32_k(a):
+    return _fneg_core(a, 23)
+
+
+@njit(cache=True)
+def _fneg48_k(a):
+    return _fneg_core(a, 39)
+
+
+# ================================================================================================
+# FIX / EFIX (5.85, 5.87), FLT / EFLT (5.86, 5.88)
+# ================================================================================================
+@njit(cache=True)
+def _fix32_k(a):
+    m, e = unpack32(a)
+    if e > 15:
+        return 0, FLAG_FIXED_OVERFLOW
+    s = 23 - e
+    if s > 63:
+        s = 63
+    r = (m >> s) if m >= 0 else -((-m) >> s)      # truncate toward zero
+    return r & 0xFFFF, 0
+
+
+@njit(cache=True)
+def _fix48_k(a):
+    m, e = unpack48(a)
+    if e > 31:
+        return 0, FLAG_FIXED_OVERFLOW
+    s = 39 - e
+    if s > 63:
+        s = 63
+    r = (m >> s) if m >= 0 else -((-m) >> s)
+    return r & 0xFFFFFFFF, 0
+
+
+@njit(cache=True)
+def _flt32_k(i):
+    v = ((i & 0xFFFF) ^ 0x8000) - 0x8000
+    if v == 0:
+        return 0, 0
+    return _finish(v << 8, 15, 23)
+
+
+@njit(cache=True)
+def _flt48_k(i):
+    v = ((i & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
+    if v == 0:
+        return 0, 0
+    return _finish(v << 8, 31, 39)
+
+
+# ================================================================================================
+# FC / EFC (5.94, 5.95)
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _fc_core(a, b, W):
+    ma, ea = _unpack(a, W)
+    mo, eo = _unpack(b, W)
+    sa = -1 if ma < 0 else (1 if ma > 0 else 0)
+    so = -1 if mo < 0 else (1 if mo > 0 else 0)
+    if sa != so:
+        return 1 if sa > so else -1
+    if sa == 0:
+        return 0
+    if ea != eo:   # same sign, normalised: larger exponent -> larger magnitude
+        c = 1 if ea > eo else -1
+        return c if sa > 0 else -c
+    if ma == mo:
+        return 0
+    return 1 if ma > mo else -1
+
+
+@njit(cache=True)
+def _fc32_k(a, b):
+    return _fc_core(a, b, 23)
+
+
+@njit(cache=True)
+def _fc48_k(a, b):
+    return _fc_core(a, b, 39)
+
+
+@njit(cache=True, inline="always")
+def to48(p):
+    """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact."""
+    return (p & 0xFFFFFFFF) << 16
+
+
+@njit(cache=True, inline="always")
+def to32(p):
+    """48-bit float -> 32-bit float by dropping ``w2``: the 40-bit 2's complement mantissa is cut to
+    24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised."""
+    return (p >> 16) & 0xFFFFFFFF
+
+
+# ================================================================================================
+# Python-side validation
+# ================================================================================================
+def _int_in(name, v, hi):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (Integral, np.integer)) or not 0 <= v <= hi:
+        raise ValueError(f"{name}={v!r} is not a packed word in 0..{hi:#x}")
+    return int(v)
+
+
+def is_normalized32(p: int) -> bool:
+    """True if ``p`` (in 0..2**32-1) is floating zero (all bits 0) or a normalised 32-bit float."""
+    m = (p >> 8) & 0xFFFFFF
+    if m == 0:
+        return p == 0
+    return ((m >> 23) ^ (m >> 22)) & 1 == 1
+
+
+def is_normalized48(p: int) -> bool:
+    """True if ``p`` (in 0..2**48-1) is floating zero or a normalised 48-bit float."""
+    m = (((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)
+    if m == 0:
+        return p == 0
+    return ((m >> 39) ^ (m >> 38)) & 1 == 1
+
+
+def _f32(name, v):
+    v = _int_in(name, v, MASK32)
+    if not is_normalized32(v):
+        raise ValueError(f"{name}={v:#010x} is not a normalised 1750A 32-bit float or floating zero")
+    return v
+
+
+def _f48(name, v):
+    v = _int_in(name, v, MASK48)
+    if not is_normalized48(v):
+        raise ValueError(f"{name}={v:#014x} is not a normalised 1750A 48-bit float or floating zero")
+    return v
+
+
+def to_signed16(w: int) -> int:
+    """16-bit pattern -> signed int."""
+    w = int(w) & 0xFFFF
+    return w - 0x10000 if w & 0x8000 else w
+
+
+def to_signed32(w: int) -> int:
+    """32-bit pattern -> signed int."""
+    w = int(w) & 0xFFFFFFFF
+    return w - 0x100000000 if w & 0x80000000 else w
+
+
+# ================================================================================================
+# encode / decode (ground side)
+# ================================================================================================
+def _encode(x, W, rounding, name):
+    if rounding not in ("floor", "nearest"):
+        raise ValueError(f"rounding={rounding!r} must be 'floor' or 'nearest'")
+    if isinstance(x, (bool, np.bool_)) or not isinstance(x, (Real, np.floating, np.integer)):
+        raise ValueError(f"{name}: x={x!r} is not a real number")
+    if isinstance(x, (float, np.floating)):
+        xf = float(x)
+        if not math.isfinite(xf):
+            raise ValueError(f"{name}: x={x!r} is not finite")
+        if xf == 0.0:
+            return 0
+        f, e = math.frexp(xf)            # |f| in [0.5, 1)
+        v = math.ldexp(f, W)             # exact (|v| < 2**53)
+        if rounding == "floor":
+            mi = math.floor(v)
+        else:
+            mi = round(v)                # ties to even, exact
+    else:
+        fr = Fraction(x)
+        if fr == 0:
+            return 0
+        e = (abs(fr.numerator).bit_length() - abs(fr.denominator).bit_length())
+        while abs(fr) >= Fraction(2) ** e:
+            e += 1
+        while abs(fr) < Fraction(2) ** (e - 1):
+            e -= 1
+        v = fr * Fraction(2) ** (W - e)
+        mi = math.floor(v) if rounding == "floor" else round(v)
+    # normalise the integer mantissa mi (value mi * 2**(e - W))
+    top = 1 << W
+    if mi >= top:                        # rounded up to 1.0
+        mi >>= 1
+        e += 1
+    if mi == -(top >> 1):                # -0.5 (exact or rounded to) -> -1.0 * 2**(e-1)
+        mi = -top
+        e -= 1
+    if mi == 0:
+        return 0
+    if e > 127:
+        if W == 23:
+            return MIN32 if mi < 0 else MAX32
+        return MIN48 if mi < 0 else MAX48
+    if e < -128:
+        return 0
+    return int(pack32(mi, e) if W == 23 else pack48(mi, e))
+
+
+def encode32(x, rounding: str = "floor") -> int:
+    """Encode a real number as a packed 32-bit 1750A float ``(w0 << 16) | w1``.
+
+    ``rounding="floor"`` (default, like the arithmetic, 4.1.8): the largest representable value
+    ``<= x``. ``"nearest"``: nearest representable value, ties to even (ground tools).
+    Out of range: clamped to the standard's overflow result (``0x7FFFFF7F`` / ``0x8000007F``), and
+    magnitudes below the smallest normalised number give floating zero (the underflow result; for a
+    tiny *negative* x that zero is above x). NaN/inf -> ``ValueError``.
+    """
+    return _encode(x, 23, rounding, "encode32")
+
+
+def encode48(x, rounding: str = "floor") -> int:
+    """Encode a real number as a packed 48-bit 1750A float ``(w0 << 32) | (w1 << 16) | w2``.
+    Same rules as :func:`encode32` (overflow clamp ``0x7FFFFF7FFFFF`` / ``0x8000007F0000``)."""
+    return _encode(x, 39, rounding, "encode48")
+
+
+def decode32(p) -> float:
+    """Packed 32-bit 1750A float -> Python float (exact). Non-normalised words -> ``ValueError``."""
+    p = _f32("decode32: p", p)
+    m, e = unpack32.py_func(p)
+    return math.ldexp(float(m), e - 23)
+
+
+def decode48(p) -> float:
+    """Packed 48-bit 1750A float -> Python float (exact: 40-bit mantissas fit a double)."""
+    p = _f48("decode48: p", p)
+    m, e = unpack48.py_func(p)
+    return math.ldexp(float(m), e - 39)
+
+
+def _encode_array(x, W, rounding):
+    x = np.asarray(x, dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        bad = x[~np.isfinite(x)].flat[0]
+        raise ValueError(f"encode array: value {bad!r} is not finite")
+    f, e = np.frexp(x)
+    v = np.ldexp(f, W)
+    mi = (np.floor(v) if rounding == "floor" else np.rint(v)).astype(np.int64)
+    e = e.astype(np.int64)
+    top = np.int64(1) << W
+    up = mi >= top
+    mi = np.where(up, mi >> 1, mi)
+    e = np.where(up, e + 1, e)
+    half = mi == -(top >> 1)             # -0.5 -> -1.0
+    mi = np.where(half, -top, mi)
+    e = np.where(half, e - 1, e)
+    if W == 23:
+        p = ((mi & 0xFFFFFF) << 8) | (e & 0xFF)
+        p = np.where(e > 127, np.where(mi < 0, MIN32, MAX32), p)
+    else:
+        p = (((mi >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (mi & 0xFFFF)
+        p = np.where(e > 127, np.where(mi < 0, MIN48, MAX48), p)
+    p = np.where((e < -128) | (mi == 0), 0, p)
+    return p.astype(np.int64)
+
+
+def encode32_array(x, rounding: str = "floor") -> np.ndarray:
+    """Vectorised :func:`encode32` (float64 input) -> int64 array of packed words."""
+    if rounding not in ("floor", "nearest"):
+        raise ValueError(f"rounding={rounding!r} must be 'floor' or 'nearest'")
+    return _encode_array(x, 23, rounding)
+
+
+def encode48_array(x, rounding: str = "floor") -> np.ndarray:
+    """Vectorised :func:`encode48` (float64 input) -> int64 array of packed words."""
+    if rounding not in ("floor", "nearest"):
+        raise ValueError(f"rounding={rounding!r} must be 'floor' or 'nearest'")
+    return _encode_array(x, 39, rounding)
+
+
+def decode32_array(p) -> np.ndarray:
+    """Vectorised :func:`decode32` (no normalisation check) -> float64 array."""
+    p = np.asarray(p, dtype=np.int64)
+    m = (((p >> 8) & 0xFFFFFF) ^ 0x800000) - 0x800000
+    e = ((p & 0xFF) ^ 0x80) - 0x80
+    return np.ldexp(m.astype(np.float64), (e - 23).astype(np.int32))
+
+
+def decode48_array(p) -> np.ndarray:
+    """Vectorised :func:`decode48` (no normalisation check) -> float64 array."""
+    p = np.asarray(p, dtype=np.int64)
+    m = (((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000) - 0x8000000000
+    e = (((p >> 16) & 0xFF) ^ 0x80) - 0x80
+    return np.ldexp(m.astype(np.float64), (e - 39).astype(np.int32))
+
+
+# ================================================================================================
+# public functions: validated Python wrappers + numba overloads (unvalidated) for @njit callers
+# ================================================================================================
+def _binary(name, kern, check, doc):
+    def fn(a, b):
+        a = check(f"{name}: a", a)
+        b = check(f"{name}: b", b)
+        r, f = kern(a, b)
+        return int(r), int(f)
+    fn.__name__ = fn.__qualname__ = name
+    fn.__doc__ = doc
+    return fn
+
+
+def _unary(name, kern, check, doc):
+    def fn(a):
+        a = check(f"{name}: a", a)
+        r, f = kern(a)
+        return int(r), int(f)
+    fn.__name__ = fn.__qualname__ = name
+    fn.__doc__ = doc
+    return fn
+
+
+def _int16(name, v):
+    return _int_in(name, v, 0xFFFF)
+
+
+def _int32(name, v):
+    return _int_in(name, v, MASK32)
+
+
+_DOC_ADD = ("``{n}(a, b) -> (a {op} b, flags)``: {mn} (MIL-STD-1750A {sec}). Packed {w}-bit floats; "
+            "the mantissa with the smaller exponent is shifted right arithmetic with no guard bits "
+            "(RTL, see module docstring), mantissa overflow -> shift right and exponent + 1, "
+            "normalise; overflow -> 7FF..F/7F or 800..0/7F + FLAG_FLOAT_OVERFLOW, underflow -> 0 + "
+            "FLAG_FLOAT_UNDERFLOW.")
+
+fa32 = _binary("fa32", _fa32_k, _f32, _DOC_ADD.format(n="fa32", op="+", mn="FA", sec="5.60", w=32))
+fs32 = _binary("fs32", _fs32_k, _f32, _DOC_ADD.format(n="fs32", op="-", mn="FS", sec="5.68", w=32))
+fa48 = _binary("fa48", _fa48_k, _f48, _DOC_ADD.format(n="fa48", op="+", mn="EFA", sec="5.61", w=48))
+fs48 = _binary("fs48", _fs48_k, _f48, _DOC_ADD.format(n="fs48", op="-", mn="EFS", sec="5.69", w=48))
+_DOC_MUL = ("``{n}(a, b) -> (a * b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponents added and "
+            "checked first (> 7F overflow, < 80 underflow), exact double-length mantissa product "
+            "shifted left 1, (-1.0)(-1.0) -> 0.5 * 2**(n+m+1), normalised, truncated toward minus "
+            "infinity.")
+fm32 = _binary("fm32", _fm32_k, _f32, _DOC_MUL.format(n="fm32", mn="FM", sec="5.74"))
+fm48 = _binary("fm48", _fm48_k, _f48, _DOC_MUL.format(n="fm48", mn="EFM", sec="5.75"))
+_DOC_DIV = ("``{n}(a, b) -> (a / b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponent difference "
+            "checked first; quotient truncated toward minus infinity, shifted right once if it does "
+            "not fit the mantissa. Divide by zero -> overflow result + FLAG_FLOAT_OVERFLOW.")
+fd32 = _binary("fd32", _fd32_k, _f32, _DOC_DIV.format(n="fd32", mn="FD", sec="5.79"))
+fd48 = _binary("fd48", _fd48_k, _f48, _DOC_DIV.format(n="fd48", mn="EFD", sec="5.80"))
+fabs32 = _unary("fabs32", _fabs32_k, _f32,
+                "``fabs32(a) -> (|a|, flags)``: FABS (5.62). |-1.0*2**n| = 0.5*2**(n+1); "
+                "|-1.0*2**127| overflows to 7FFFFF/7F.")
+fabs48 = _unary("fabs48", _fabs48_k, _f48,
+                "``fabs48(a) -> (|a|, flags)``: 48-bit analogue of FABS (the standard has no EFABS).")
+fneg32 = _unary("fneg32", _fneg32_k, _f32,
+                "``fneg32(a) -> (-a, flags)``: FNEG (5.70). -(-1.0*2**n) = 0.5*2**(n+1), "
+                "-(0.5*2**n) = -1.0*2**(n-1); -(-1.0*2**127) overflows, -(0.5*2**-128) underflows.")
+fneg48 = _unary("fneg48", _fneg48_k, _f48,
+                "``fneg48(a) -> (-a, flags)``: 48-bit negate (no EFNEG exists; identical to "
+                "``0 EFS a`` and to FNEG's rules).")
+fix32 = _unary("fix32", _fix32_k, _f32,
+               "``fix32(a) -> (int16 pattern, flags)``: FIX (5.85), truncation toward zero; "
+               "exponent > 0F -> (0, FLAG_FIXED_OVERFLOW) (the hardware leaves RA unchanged).")
+fix48 = _unary("fix48", _fix48_k, _f48,
+               "``fix48(a) -> (int32 pattern, flags)``: EFIX (5.87), truncation toward zero; "
+               "exponent > 1F -> (0, FLAG_FIXED_OVERFLOW).")
+flt32 = _unary("flt32", _flt32_k, _int16,
+               "``flt32(i) -> (float32 word, 0)``: FLT (5.86) of a 16-bit pattern ``i`` "
+               "(exponent 0F, normalise). Exact.")
+flt48 = _unary("flt48", _flt48_k, _int32,
+               "``flt48(i) -> (float48 word, 0)``: EFLT (5.88) of a 32-bit pattern ``i`` "
+               "(exponent 1F, normalise). Exact.")
+
+
+def fc32(a, b) -> int:
+    """``fc32(a, b) -> -1 | 0 | 1``: FC (5.94), the condition status of ``a : b`` (a < b, =, >).
+    Never interrupts, so no flags are returned."""
+    return int(_fc32_k(_f32("fc32: a", a), _f32("fc32: b", b)))
+
+
+def fc48(a, b) -> int:
+    """``fc48(a, b) -> -1 | 0 | 1``: EFC (5.95)."""
+    return int(_fc48_k(_f48("fc48: a", a), _f48("fc48: b", b)))
+
+
+def _ov2(kern):
+    """numba overload typing function for a public 2-argument primitive: calls ``kern``."""
+    def ov(a, b):
+        def impl(a, b):
+            return kern(a, b)
+        return impl
+    return ov
+
+
+def _ov1(kern):
+    def ov(a):
+        def impl(a):
+            return kern(a)
+        return impl
+    return ov
+
+
+def _register_overloads():
+    pairs2 = [(fa32, _fa32_k), (fs32, _fs32_k), (fm32, _fm32_k), (fd32, _fd32_k),
+              (fa48, _fa48_k), (fs48, _fs48_k), (fm48, _fm48_k), (fd48, _fd48_k),
+              (fc32, _fc32_k), (fc48, _fc48_k)]
+    pairs1 = [(fabs32, _fabs32_k), (fabs48, _fabs48_k), (fneg32, _fneg32_k), (fneg48, _fneg48_k),
+              (fix32, _fix32_k), (fix48, _fix48_k), (flt32, _flt32_k), (flt48, _flt48_k)]
+    for pub, kern in pairs2:
+        overload(pub, jit_options={"cache": True})(_ov2(kern))
+    for pub, kern in pairs1:
+        overload(pub, jit_options={"cache": True})(_ov1(kern))
+
+
+_register_overloads()
+
+
+# ================================================================================================
+# cycle costs (flightsw.budget PACE1750A table; memory-operand forms)
+# ================================================================================================
+#: operation mix of each primitive in the keys of :data:`flightsw.budget.M1750_PACE_COSTS`.
+#: Memory-operand forms (FA, FM, ...) are charged: flight code takes constants and variables from
+#: memory. fabs48/fneg48 have no instruction of their own: a sign test (L, JC) and an EFS from zero.
+OP_MIX = {
+    "fa32": {"FA": 1}, "fs32": {"FS": 1}, "fm32": {"FM": 1}, "fd32": {"FD": 1},
+    "fa48": {"EFA": 1}, "fs48": {"EFS": 1}, "fm48": {"EFM": 1}, "fd48": {"EFD": 1},
+    "flt32": {"FLT": 1}, "fix32": {"FIX": 1}, "flt48": {"EFLT": 1}, "fix48": {"EFIX": 1},
+    "fabs32": {"FABS": 1}, "fneg32": {"FNEG": 1},
+    "fabs48": {"L": 1, "JC": 1, "EFS": 1}, "fneg48": {"EFS": 1},
+    "fc32": {"FC": 1}, "fc48": {"EFC": 1},
+    "to48": {"DL": 1}, "to32": {"DL": 1},
+}
+
+
+def op_mix(name: str) -> dict:
+    """The 1750A operation mix (``{budget key: count}``) of primitive or math routine ``name``."""
+    try:
+        return dict(OP_MIX[name])
+    except KeyError:
+        raise KeyError(f"no operation mix for {name!r}; known: {sorted(OP_MIX)}") from None
+
+
+def op_cycles(name: str, processor: Processor = PACE1750A) -> int:
+    """Clocks of one call of ``name`` on ``processor`` (default PACE1750A, 1 wait state)."""
+    return m1750_cycles(op_mix(name), processor)
+
+
+#: clocks per call on the default PACE1750A, for cheap charging from @njit loops
+#: (``n_fa * CYCLES["fa32"]``; module-level int constants ``CYC_FA32`` etc. are also exported).
+CYCLES = {k: op_cycles(k) for k in OP_MIX}
+CYC_FA32, CYC_FS32, CYC_FM32, CYC_FD32 = (CYCLES[k] for k in ("fa32", "fs32", "fm32", "fd32"))
+CYC_FA48, CYC_FS48, CYC_FM48, CYC_FD48 = (CYCLES[k] for k in ("fa48", "fs48", "fm48", "fd48"))

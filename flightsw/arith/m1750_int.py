@@ -1,0 +1,213 @@
+"""MIL-STD-1750A 16/32-bit integer arithmetic with the standard's overflow rules.
+
+Registers travel as bit patterns: 16-bit words as ints ``0..0xFFFF``, 32-bit double words
+``(RA << 16) | RA+1`` as ints ``0..0xFFFFFFFF`` (as :mod:`flightsw.arith.adsp2100`); use
+:func:`~flightsw.arith.m1750_float.to_signed16` / ``to_signed32`` for the signed values. Every
+function returns its result(s) and ``flags``, the PI bits set (:data:`FLAG_FIXED_OVERFLOW`, level 4).
+
+Rules (sections 4.1.3, 4.1.4, 4.1.9 and the RTL of 5.55-5.78):
+
+* Overflow keeps the low 16 / 32 bits of the exact result and sets the fixed-overflow flag.
+* ``add16/sub16/add32/sub32`` (A, S, DA, DS; 5.55, 5.63, 5.59, 5.67): overflow when the operands
+  have the same (add) / opposite (subtract) signs and the result's sign differs from the first.
+* ``neg16/neg32/abs16/abs32`` (NEG, DNEG, ABS, DABS; 5.65, 5.66, 5.57, 5.58): 8000 / 8000 0000 is
+  returned unchanged with overflow.
+* ``mul16`` (MS, 5.71): 16-bit product, overflow unless the product fits 16 bits (never when an
+  operand is 0). ``mul16x32`` (M, 5.72): exact 32-bit product, never overflows (8000 * 8000 =
+  4000 0000). ``mul32`` (DM, 5.73): 32x32, keeps the low 32 bits, overflow unless it fits.
+* ``div16`` (DV, 5.76): 16/16 -> (quotient, remainder), truncation toward zero, remainder with the
+  dividend's sign; overflow for 8000/FFFF (quotient 8000, the low 16 bits of +32768, remainder 0).
+  ``div32_16`` (D, 5.77): 32/16 -> (quotient, remainder); overflow if the quotient does not fit 16
+  bits (low 16 bits kept). ``div32`` (DD, 5.78): 32/32 -> quotient; overflow for 8000 0000 /
+  FFFF FFFF. Division by zero: fixed overflow and all-zero results (4.1.4).
+"""
+from __future__ import annotations
+
+from numbers import Integral
+
+import numpy as np
+from numba import njit
+from numba.extending import overload
+
+from flightsw.arith.m1750_float import FLAG_FIXED_OVERFLOW, _ov1, _ov2
+
+__all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32",
+           "mul16", "mul16x32", "mul32", "div16", "div32_16", "div32", "INT_OP_MIX"]
+
+
+@njit(cache=True, inline="always")
+def _s16(w):
+    return ((w & 0xFFFF) ^ 0x8000) - 0x8000
+
+
+@njit(cache=True, inline="always")
+def _s32(w):
+    return ((w & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
+
+
+@njit(cache=True)
+def _add16_k(a, b):
+    r = _s16(a) + _s16(b)
+    return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
+
+
+@njit(cache=True)
+def _sub16_k(a, b):
+    r = _s16(a) - _s16(b)
+    return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
+
+
+@njit(cache=True)
+def _add32_k(a, b):
+    r = _s32(a) + _s32(b)
+    return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
+
+
+@njit(cache=True)
+def _sub32_k(a, b):
+    r = _s32(a) - _s32(b)
+    return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
+
+
+@njit(cache=True)
+def _neg16_k(a):
+    a = a & 0xFFFF
+    if a == 0x8000:
+        return a, FLAG_FIXED_OVERFLOW
+    return (-a) & 0xFFFF, 0
+
+
+@njit(cache=True)
+def _neg32_k(a):
+    a = a & 0xFFFFFFFF
+    if a == 0x80000000:
+        return a, FLAG_FIXED_OVERFLOW
+    return (-a) & 0xFFFFFFFF, 0
+
+
+@njit(cache=True)
+def _abs16_k(a):
+    a = a & 0xFFFF
+    if a == 0x8000:
+        return a, FLAG_FIXED_OVERFLOW
+    return (-a) & 0xFFFF if a & 0x8000 else a, 0
+
+
+@njit(cache=True)
+def _abs32_k(a):
+    a = a & 0xFFFFFFFF
+    if a == 0x80000000:
+        return a, FLAG_FIXED_OVERFLOW
+    return (-a) & 0xFFFFFFFF if a & 0x80000000 else a, 0
+
+
+@njit(cache=True)
+def _mul16_k(a, b):
+    r = _s16(a) * _s16(b)
+    return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
+
+
+@njit(cache=True)
+def _mul16x32_k(a, b):
+    return (_s16(a) * _s16(b)) & 0xFFFFFFFF, 0
+
+
+@njit(cache=True)
+def _mul32_k(a, b):
+    r = _s32(a) * _s32(b)          # |r| <= 2**62: exact in int64
+    return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
+
+
+@njit(cache=True, inline="always")
+def _tdivmod(x, y):
+    """Truncating division (toward zero), remainder with the dividend's sign."""
+    ax = -x if x < 0 else x
+    ay = -y if y < 0 else y
+    q = ax // ay
+    r = ax - q * ay
+    if (x < 0) != (y < 0):
+        q = -q
+    if x < 0:
+        r = -r
+    return q, r
+
+
+@njit(cache=True)
+def _div16_k(a, b):
+    y = _s16(b)
+    if y == 0:
+        return 0, 0, FLAG_FIXED_OVERFLOW
+    q, r = _tdivmod(_s16(a), y)
+    return q & 0xFFFF, r & 0xFFFF, (FLAG_FIXED_OVERFLOW if q > 32767 else 0)
+
+
+@njit(cache=True)
+def _div32_16_k(a, b):
+    y = _s16(b)
+    if y == 0:
+        return 0, 0, FLAG_FIXED_OVERFLOW
+    q, r = _tdivmod(_s32(a), y)
+    return q & 0xFFFF, r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (q > 32767 or q < -32768) else 0)
+
+
+@njit(cache=True)
+def _div32_k(a, b):
+    y = _s32(b)
+    if y == 0:
+        return 0, FLAG_FIXED_OVERFLOW
+    q, r = _tdivmod(_s32(a), y)
+    return q & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if q > 0x7FFFFFFF else 0)
+
+
+# ------------------------------------------------------------------------------------------------
+def _w(name, v, hi):
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (Integral, np.integer)) or not 0 <= v <= hi:
+        raise ValueError(f"{name}={v!r} is not a {hi.bit_length()}-bit pattern (an int in 0..{hi:#x})")
+    return int(v)
+
+
+def _mk(name, kern, widths, doc):
+    def fn(*args):
+        if len(args) != len(widths):
+            raise TypeError(f"{name} takes {len(widths)} arguments, got {len(args)}")
+        vals = [_w(f"{name}: {'ab'[i]}", v, (1 << w) - 1) for i, (v, w) in enumerate(zip(args, widths))]
+        return tuple(int(x) for x in kern(*vals))
+    fn.__name__ = fn.__qualname__ = name
+    fn.__doc__ = doc
+    return fn
+
+
+add16 = _mk("add16", _add16_k, (16, 16), "``add16(a, b) -> (a+b, flags)``: A/AR (5.55).")
+sub16 = _mk("sub16", _sub16_k, (16, 16), "``sub16(a, b) -> (a-b, flags)``: S/SR (5.63).")
+add32 = _mk("add32", _add32_k, (32, 32), "``add32(a, b) -> (a+b, flags)``: DA/DAR (5.59).")
+sub32 = _mk("sub32", _sub32_k, (32, 32), "``sub32(a, b) -> (a-b, flags)``: DS/DSR (5.67).")
+neg16 = _mk("neg16", _neg16_k, (16,), "``neg16(a) -> (-a, flags)``: NEG (5.65).")
+neg32 = _mk("neg32", _neg32_k, (32,), "``neg32(a) -> (-a, flags)``: DNEG (5.66).")
+abs16 = _mk("abs16", _abs16_k, (16,), "``abs16(a) -> (|a|, flags)``: ABS (5.57).")
+abs32 = _mk("abs32", _abs32_k, (32,), "``abs32(a) -> (|a|, flags)``: DABS (5.58).")
+mul16 = _mk("mul16", _mul16_k, (16, 16), "``mul16(a, b) -> (low 16 bits of a*b, flags)``: MS (5.71).")
+mul16x32 = _mk("mul16x32", _mul16x32_k, (16, 16),
+               "``mul16x32(a, b) -> (32-bit a*b, 0)``: M/MR (5.72), never overflows.")
+mul32 = _mk("mul32", _mul32_k, (32, 32), "``mul32(a, b) -> (low 32 bits of a*b, flags)``: DM (5.73).")
+div16 = _mk("div16", _div16_k, (16, 16),
+            "``div16(a, b) -> (quotient, remainder, flags)``: DV/DVR (5.76).")
+div32_16 = _mk("div32_16", _div32_16_k, (32, 16),
+               "``div32_16(a, b) -> (quotient16, remainder16, flags)``: D/DR (5.77).")
+div32 = _mk("div32", _div32_k, (32, 32), "``div32(a, b) -> (quotient32, flags)``: DD/DDR (5.78).")
+
+for _pub, _k, _n in [(add16, _add16_k, 2), (sub16, _sub16_k, 2), (add32, _add32_k, 2),
+                     (sub32, _sub32_k, 2), (neg16, _neg16_k, 1), (neg32, _neg32_k, 1),
+                     (abs16, _abs16_k, 1), (abs32, _abs32_k, 1), (mul16, _mul16_k, 2),
+                     (mul16x32, _mul16x32_k, 2), (mul32, _mul32_k, 2), (div16, _div16_k, 2),
+                     (div32_16, _div32_16_k, 2), (div32, _div32_k, 2)]:
+    overload(_pub, jit_options={"cache": True})(_ov2(_k) if _n == 2 else _ov1(_k))
+
+#: budget keys of each integer primitive (memory-operand forms). MS, DM, DV, D, DD, DA, DS, NEG,
+#: ABS have no entry of their own in flightsw.budget: they are priced like the nearest listed
+#: instruction ([ASSUMED]: MS as MR, DM as 2 MR + 2 A, DV/DD as DR, DA/DS as 2 A, NEG/ABS as AR).
+INT_OP_MIX = {
+    "add16": {"A": 1}, "sub16": {"S": 1}, "add32": {"A": 2}, "sub32": {"S": 2},
+    "neg16": {"AR": 1}, "neg32": {"AR": 2}, "abs16": {"AR": 1}, "abs32": {"AR": 2},
+    "mul16": {"MR": 1}, "mul16x32": {"MR": 1}, "mul32": {"MR": 2, "A": 2},
+    "div16": {"DR": 1}, "div32_16": {"DR": 1}, "div32": {"DR": 1},
+}

@@ -1,0 +1,622 @@
+"""Flight math library written only in MIL-STD-1750A floating-point operations.
+
+Every routine takes and returns packed 1750A floats (see :mod:`flightsw.arith.m1750_float`) and
+returns ``(result, flags)``. Values are computed only with the emulated instructions (``fa32``,
+``fm32``, ``fd32``, ``fix32``, ``flt32`` ... and their 48-bit forms) plus integer/logical word
+operations a 1750A program does with its integer instructions (reading or replacing the 8-bit
+exponent field, zeroing ``w2``, sign tests, table indexing). No host floating point is used.
+
+``flags`` reports the *result*: :data:`FLAG_FLOAT_OVERFLOW` / :data:`FLAG_FLOAT_UNDERFLOW` when the
+result overflows / underflows (with the standard's overflow result / zero), :data:`FLAG_DOMAIN` for
+arguments outside the domain. Underflows of intermediate terms (e.g. ``z**k`` of a tiny argument
+flushing to zero) are absorbed, as a flight library that masks those interrupts would.
+
+Algorithms (W = 23 for 32-bit, 39 for 48-bit; polynomial coefficients are near-minimax fits rounded
+to the format, stored as packed words):
+
+* ``sqrt``: ``x = g * 4**k`` with ``g`` in [0.25, 1) by editing the exponent; linear seed, then
+  Heron steps ``y = (y + g / y) * 0.5`` (2 for 32-bit, 3 for 48-bit); exponent + k.
+* ``exp``: ``n = round(x / ln2)`` (FM, FA +-0.5, FIX), ``r = x - n*ln2`` in 48-bit with a 2-part
+  ``ln2`` whose first part makes ``n * C1`` and the subtraction exact (the FA has no guard bits);
+  ``exp(r) = 1 + r + r**2 P(r)``; exponent + n (overflow/underflow per the standard).
+* ``ln``: ``x = f * 2**E``, ``f`` in [sqrt(1/2), sqrt(2)); ``f - 1`` exact (``(f - 0.5) - 0.5`` when
+  ``f < 1``); ``s = (f-1)/(f+1)``; ``ln f = s (2 + s**2 P(s**2))``; ``+ E*ln2_hi + E*ln2_lo``.
+* ``sin``/``cos``: ``n = round(x * 2/pi)``, ``r = x - n*pi/2`` in 48-bit with a 3-part ``pi/2``
+  (23, 23, 40 bits; ``n * C1`` exact), quadrant ``n mod 4``; ``sin r = r + r z P(z)``,
+  ``cos r = 1 + z (-1/2 + z Q(z))``, ``z = r*r``. Domain ``|x| < 2**15`` (the exponent <= 0F that
+  FIX needs); beyond: ``(0, FLAG_DOMAIN)``.
+* ``atan2``: ``t = min/max`` of ``|y|, |x|``; ``k = round(8t)``, ``u = (t - k/8)/(1 + t k/8)``,
+  ``atan t = atan(k/8) + u + u z P(z)``; octant/quadrant fix-ups with ``pi/2 - a``, ``pi - a``, FNEG.
+  ``atan2(0, 0) = 0``.
+
+Accuracy: measured against numpy float64 on dense samples of the decoded inputs (the tests assert
+these bounds; ``ulp`` = one unit in the last place of the exact result in the same format,
+``2**(floor(log2|v|) - W)``):
+
+=================  ==============================  =========================================
+routine            domain sampled                  max error (measured -> stated bound)
+=================  ==============================  =========================================
+sqrt32 / sqrt48    (0, 2**127)                     1.0 / 1.0 ulp        -> 1.5 ulp
+exp32              [-88.7, 88]                     2.5 ulp              -> 3 ulp
+ln32               (0, 2**127), dense near 1       3.5 ulp              -> 4 ulp
+sin32 / cos32      |x| < 2**15                     2.86 * 2**-23 abs    -> 3.5 * 2**-23 (4.2e-7)
+sin48 / cos48      |x| < 2**15                     3.43 * 2**-39 abs    -> 4 * 2**-39 (7.3e-12)
+atan2_32           all quadrants, |r| 2**-20..2**20  6.4 ulp            -> 8 ulp
+atan2_48           all quadrants, |r| 2**-20..2**20  4.7 ulp            -> 6 ulp
+=================  ==============================  =========================================
+
+The atan2 figures are dominated by ``t`` just above 1/16 where ``atan(1/8) + atan(u)`` cancels to
+just below 1/16 (result ulp half the operands' ulp, and FA has no guard bits); elsewhere it is
+within 3 ulp. sin/cos errors are absolute (relative error is meaningless at the zeros).
+
+(The stated bounds are in :data:`MAX_ERROR`.)
+
+Cycle costs: :data:`MATH_OP_MIX` gives each routine's worst-path operation mix in
+:mod:`flightsw.budget` keys; ``op_cycles(name)`` and :data:`MATH_CYCLES` turn it into PACE1750A
+clocks (module constants ``CYC_SQRT32`` ... are plain ints usable inside ``@njit`` code).
+"""
+from __future__ import annotations
+
+from numba import njit
+from numba.extending import overload
+
+from flightsw.arith.m1750_float import (
+    FLAG_DOMAIN, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48, MIN32, MIN48, ONE32, ONE48,
+    HALF32, HALF48, OP_MIX, _f32, _f48, _ov1, _ov2, fa32, fa48, fabs32, fabs48, fc32, fc48, fd32,
+    fd48, fix32, fix48, flt32, flt48, fm32, fm48, fneg32, fneg48, fs32, fs48, m1750_cycles,
+    to32, to48, unpack32, unpack48,
+)
+from flightsw.budget import PACE1750A, Processor
+
+__all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
+           "atan2_32", "atan2_48", "MATH_OP_MIX", "MATH_CYCLES", "MAX_ERROR", "math_cycles"]
+
+# ------------------------------------------------------------------------------------------------
+# constants (packed words; generated from exact rationals / float64 fits, rounded to nearest)
+# ------------------------------------------------------------------------------------------------
+MHALF32, MHALF48 = 0x800000ff, 0x800000ff0000
+TWO32, TWO48 = 0x40000002, 0x400000020000
+EIGHT32, EIGHT48 = 0x40000004, 0x400000040000
+LOG2E32 = 0x5c551e01
+TWO_OVER_PI32, TWO_OVER_PI48 = 0x517cc200, 0x517cc100b727
+PIO2_32, PI32 = 0x6487ed01, 0x6487ed02
+PIO2_48, PI48 = 0x6487ed015111, 0x6487ed025111
+# pi/2 = C1 + C2 + C3: C1, C2 with 23 significant bits (n*C exact for |n| < 2**15), C3 40 bits
+PIO2_C1_48, PIO2_C2_48, PIO2_C3_48 = 0x6487ed010000, 0x5110b4e90000, 0x611a62d16331
+# ln2 = C1 + C2 (C1 28 bits: n*C1 exact for |n| < 2**9)
+LN2_C1_48, LN2_C2_48 = 0x58b90b00f800, 0x7d1cf7e39abd
+# ln2 = HI + LO for ln32 (HI 16 bits: E*HI exact)
+LN2_HI32, LN2_LO32 = 0x58b90000, 0x5fdf47ed
+SQRTHALF_M32 = 0x5a827a          # smallest 24-bit mantissa >= sqrt(1/2) * 2**23
+
+K8_32 = (0x00000000, 0x400000fe, 0x400000ff, 0x600000ff, 0x40000000, 0x50000000, 0x60000000,
+         0x70000000, 0x40000001)                                  # k/8, k = 0..8
+K8_48 = (0x000000000000, 0x400000fe0000, 0x400000ff0000, 0x600000ff0000, 0x400000000000,
+         0x500000000000, 0x600000000000, 0x700000000000, 0x400000010000)
+ATANK_32 = (0x00000000, 0x7f56eafd, 0x7d6dd8fe, 0x5bd865ff, 0x76b19cff, 0x47802f00, 0x525e3f00,
+            0x5c029f00, 0x6487ed00)                               # atan(k/8)
+ATANK_48 = (0x000000000000, 0x7f56eafd6ab1, 0x7d6dd7fee4b2, 0x5bd865ff0793, 0x76b19cff1587,
+            0x47802e00af7c, 0x525e3e008c9a, 0x5c029f0015e1, 0x6487ed005111)
+
+SQRT_INIT32 = (0x591f21ff, 0x569af000)                 # c0 + c1 g on [0.25, 1]
+SQRT_INIT48 = (0x591f21ff6d07, 0x569af0002129)
+# P(z) coefficients, lowest degree first
+SIN32 = (0xaaaaabfe, 0x444442fa, 0x97fc67f4, 0x5b23f5ee)
+SIN48 = (0xaaaaaafeaaab, 0x444444fa4444, 0x97f97ff49816, 0x5c778eee5359, 0x946747e7ee6c,
+         0x581311e0b600, 0xaa7071d80000)
+COS32 = (0x555555fc, 0xa4fa52f7, 0x6803eef1, 0xb706e5eb)
+COS48 = (0x555555fc5555, 0xa4fa4ff7a4fb, 0x680680f16bbf, 0xb606baeb9426, 0x47c423e4e958,
+         0x90a525dcc800, 0x514d69d8a000)
+ATAN32 = (0xaaaabcff, 0x65fd14fe)
+ATAN48 = (0xaaaaaaffaaab, 0x666666fe676c, 0xb6db6bfe5517, 0x71cb2bfdd93b, 0xa2211efdbd8f)
+LN32 = (0x55555500, 0x6666a1ff, 0x490d8aff, 0x78d791fe)
+EXP32 = (0x40000000, 0x555555fe, 0x555555fc, 0x444424fa, 0x5b069ef7, 0x6868eaf4, 0x674c95f1)
+
+
+# ------------------------------------------------------------------------------------------------
+# word-level helpers (1750A integer/logical instructions on the exponent field)
+# ------------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _set_exp32(p, e):
+    return (p & 0xFFFFFF00) | (e & 0xFF)
+
+
+@njit(cache=True, inline="always")
+def _set_exp48(p, e):
+    return (p & 0xFFFFFF00FFFF) | ((e & 0xFF) << 16)
+
+
+@njit(cache=True, inline="always")
+def _scale32(p, k):
+    """p * 2**k by exponent edit, with the standard's overflow/underflow results."""
+    m, e = unpack32(p)
+    if m == 0:
+        return 0, 0
+    e += k
+    if e > 127:
+        return (MIN32 if m < 0 else MAX32), FLAG_FLOAT_OVERFLOW
+    if e < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    return _set_exp32(p, e), 0
+
+
+@njit(cache=True, inline="always")
+def _scale48(p, k):
+    m, e = unpack48(p)
+    if m == 0:
+        return 0, 0
+    e += k
+    if e > 127:
+        return (MIN48 if m < 0 else MAX48), FLAG_FLOAT_OVERFLOW
+    if e < -128:
+        return 0, FLAG_FLOAT_UNDERFLOW
+    return _set_exp48(p, e), 0
+
+
+@njit(cache=True, inline="always")
+def _s16(w):
+    return ((w & 0xFFFF) ^ 0x8000) - 0x8000
+
+
+@njit(cache=True, inline="always")
+def _s32(w):
+    return ((w & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
+
+
+# ================================================================================================
+# sqrt
+# ================================================================================================
+@njit(cache=True)
+def _sqrt32_k(x):
+    m, e = unpack32(x)
+    if m == 0:
+        return 0, 0
+    if m < 0:
+        return 0, FLAG_DOMAIN
+    if e & 1:                                   # x = (f/2) * 2**(e+1)
+        g = _set_exp32(x, -1)
+        k = (e + 1) >> 1
+    else:
+        g = _set_exp32(x, 0)
+        k = e >> 1
+    y, _ = fm32(g, SQRT_INIT32[1])
+    y, _ = fa32(y, SQRT_INIT32[0])
+    for _i in range(2):
+        q, _ = fd32(g, y)
+        y, _ = fa32(y, q)
+        y, _ = fm32(y, HALF32)
+    return _scale32(y, k)
+
+
+@njit(cache=True)
+def _sqrt48_k(x):
+    m, e = unpack48(x)
+    if m == 0:
+        return 0, 0
+    if m < 0:
+        return 0, FLAG_DOMAIN
+    if e & 1:
+        g = _set_exp48(x, -1)
+        k = (e + 1) >> 1
+    else:
+        g = _set_exp48(x, 0)
+        k = e >> 1
+    y, _ = fm48(g, SQRT_INIT48[1])
+    y, _ = fa48(y, SQRT_INIT48[0])
+    for _i in range(3):
+        q, _ = fd48(g, y)
+        y, _ = fa48(y, q)
+        y, _ = fm48(y, HALF48)
+    return _scale48(y, k)
+
+
+# ================================================================================================
+# exp, ln (32-bit)
+# ================================================================================================
+@njit(cache=True)
+def _exp32_k(x):
+    m, e = unpack32(x)
+    if m == 0:
+        return ONE32, 0
+    if e > 8:                                   # |x| >= 256
+        if m > 0:
+            return MAX32, FLAG_FLOAT_OVERFLOW
+        return 0, FLAG_FLOAT_UNDERFLOW
+    t, _ = fm32(x, LOG2E32)
+    t, _ = fa32(t, HALF32 if m > 0 else MHALF32)
+    nw, _ = fix32(t)
+    n = _s16(nw)
+    nf, _ = flt32(nw)
+    nf48 = to48(nf)
+    a, _ = fm48(nf48, LN2_C1_48)
+    r48, _ = fs48(to48(x), a)
+    b, _ = fm48(nf48, LN2_C2_48)
+    r48, _ = fs48(r48, b)
+    r = to32(r48)
+    q = EXP32[6]
+    for i in range(5, -1, -1):
+        q, _ = fm32(q, r)
+        q, _ = fa32(q, EXP32[i])
+    z, _ = fm32(r, r)
+    w, _ = fm32(z, q)
+    s, _ = fa32(r, w)
+    p, _ = fa32(ONE32, s)
+    return _scale32(p, n)
+
+
+@njit(cache=True)
+def _ln32_k(x):
+    m, e = unpack32(x)
+    if m <= 0:
+        return MIN32, FLAG_DOMAIN
+    if m < SQRTHALF_M32:                        # f in [0.5, sqrt(1/2)) -> 2f in [1, sqrt 2)
+        f = _set_exp32(x, 1)
+        E = e - 1
+        d, _ = fs32(f, ONE32)                   # exact: same exponent
+    else:
+        f = _set_exp32(x, 0)
+        E = e
+        d, _ = fs32(f, HALF32)                  # exact
+        d, _ = fs32(d, HALF32)                  # exact: all on the 2**-23 grid
+    den, _ = fa32(f, ONE32)
+    s, _ = fd32(d, den)
+    z, _ = fm32(s, s)
+    q = LN32[3]
+    for i in range(2, -1, -1):
+        q, _ = fm32(q, z)
+        q, _ = fa32(q, LN32[i])
+    w, _ = fm32(z, q)
+    w, _ = fa32(w, TWO32)
+    lnf, _ = fm32(s, w)
+    ef, _ = flt32(E & 0xFFFF)
+    hi, _ = fm32(ef, LN2_HI32)                  # exact
+    lo, _ = fm32(ef, LN2_LO32)
+    # E*ln2 + ln f cancels for x in [1.41, 2) and [0.5, 0.71): combine in 48-bit (no guard bits)
+    t, _ = fa48(to48(lo), to48(lnf))
+    r, _ = fa48(to48(hi), t)
+    return to32(r), 0
+
+
+# ================================================================================================
+# sin, cos
+# ================================================================================================
+@njit(cache=True, inline="always")
+def _reduce_n(x48):
+    """n = round(x * 2/pi) (48-bit FM, FA +-0.5, EFIX) -> (n signed, n as 48-bit float)."""
+    t, _ = fm48(x48, TWO_OVER_PI48)
+    m, _ = unpack48(t)
+    t, _ = fa48(t, HALF48 if m >= 0 else MHALF48)
+    nw, _ = fix48(t)
+    nf, _ = flt48(nw)
+    return _s32(nw), nf
+
+
+@njit(cache=True, inline="always")
+def _reduce48(x):
+    """r = x - n*pi/2 in 48-bit, exact up to the C2/C3 terms. x is a 48-bit float, |x| < 2**15."""
+    n, nf = _reduce_n(x)
+    xhi = x & 0xFFFFFFFF0000                    # 24-bit head (zero w2): floor, same exponent
+    xlo, _ = fs48(x, xhi)                       # exact tail
+    a, _ = fm48(nf, PIO2_C1_48)                 # exact
+    r, _ = fs48(xhi, a)                         # exact (no bits shifted out)
+    b, _ = fm48(nf, PIO2_C2_48)                 # exact
+    r, _ = fs48(r, b)
+    r, _ = fa48(r, xlo)
+    c, _ = fm48(nf, PIO2_C3_48)
+    r, _ = fs48(r, c)
+    return n, r
+
+
+@njit(cache=True, inline="always")
+def _sin_poly32(r):
+    z, _ = fm32(r, r)
+    q = SIN32[3]
+    for i in range(2, -1, -1):
+        q, _ = fm32(q, z)
+        q, _ = fa32(q, SIN32[i])
+    w, _ = fm32(z, q)
+    w, _ = fm32(r, w)
+    s, _ = fa32(r, w)
+    return s
+
+
+@njit(cache=True, inline="always")
+def _cos_poly32(r):
+    z, _ = fm32(r, r)
+    q = COS32[3]
+    for i in range(2, -1, -1):
+        q, _ = fm32(q, z)
+        q, _ = fa32(q, COS32[i])
+    w, _ = fm32(z, q)
+    w, _ = fa32(w, MHALF32)
+    w, _ = fm32(z, w)
+    c, _ = fa32(ONE32, w)
+    return c
+
+
+@njit(cache=True, inline="always")
+def _sin_poly48(r):
+    z, _ = fm48(r, r)
+    q = SIN48[6]
+    for i in range(5, -1, -1):
+        q, _ = fm48(q, z)
+        q, _ = fa48(q, SIN48[i])
+    w, _ = fm48(z, q)
+    w, _ = fm48(r, w)
+    s, _ = fa48(r, w)
+    return s
+
+
+@njit(cache=True, inline="always")
+def _cos_poly48(r):
+    z, _ = fm48(r, r)
+    q = COS48[6]
+    for i in range(5, -1, -1):
+        q, _ = fm48(q, z)
+        q, _ = fa48(q, COS48[i])
+    w, _ = fm48(z, q)
+    w, _ = fa48(w, MHALF48)
+    w, _ = fm48(z, w)
+    c, _ = fa48(ONE48, w)
+    return c
+
+
+@njit(cache=True, inline="always")
+def _trig32(x, quad_shift):
+    m, e = unpack32(x)
+    if m == 0:
+        return (0 if quad_shift == 0 else ONE32), 0
+    if e > 15:
+        return 0, FLAG_DOMAIN
+    n, r48 = _reduce48(to48(x))
+    r = to32(r48)
+    q = (n + quad_shift) & 3
+    v = _sin_poly32(r) if (q & 1) == 0 else _cos_poly32(r)
+    if q >= 2:
+        v, _ = fneg32(v)
+    return v, 0
+
+
+@njit(cache=True, inline="always")
+def _trig48(x, quad_shift):
+    m, e = unpack48(x)
+    if m == 0:
+        return (0 if quad_shift == 0 else ONE48), 0
+    if e > 15:
+        return 0, FLAG_DOMAIN
+    n, r = _reduce48(x)
+    q = (n + quad_shift) & 3
+    v = _sin_poly48(r) if (q & 1) == 0 else _cos_poly48(r)
+    if q >= 2:
+        v, _ = fneg48(v)
+    return v, 0
+
+
+@njit(cache=True)
+def _sin32_k(x):
+    return _trig32(x, 0)
+
+
+@njit(cache=True)
+def _cos32_k(x):
+    return _trig32(x, 1)
+
+
+@njit(cache=True)
+def _sin48_k(x):
+    return _trig48(x, 0)
+
+
+@njit(cache=True)
+def _cos48_k(x):
+    return _trig48(x, 1)
+
+
+# ================================================================================================
+# atan2
+# ================================================================================================
+@njit(cache=True)
+def _atan2_32_k(y, x):
+    my, _ = unpack32(y)
+    mx, _ = unpack32(x)
+    if my == 0 and mx == 0:
+        return 0, 0
+    ay, _ = fabs32(y)
+    ax, _ = fabs32(x)
+    swap = fc32(ay, ax) > 0
+    if swap:
+        t, _ = fd32(ax, ay)
+    else:
+        t, _ = fd32(ay, ax)
+    k8, _ = fm32(t, EIGHT32)
+    k8, _ = fa32(k8, HALF32)
+    kw, _ = fix32(k8)
+    k = kw & 0xF
+    c = K8_32[k]
+    num, _ = fs32(t, c)
+    den, _ = fm32(t, c)
+    den, _ = fa32(den, ONE32)
+    u, _ = fd32(num, den)
+    z, _ = fm32(u, u)
+    q, _ = fm32(ATAN32[1], z)
+    q, _ = fa32(q, ATAN32[0])
+    w, _ = fm32(z, q)
+    w, _ = fm32(u, w)
+    a, _ = fa32(u, w)
+    a, _ = fa32(ATANK_32[k], a)
+    if swap:
+        a, _ = fs32(PIO2_32, a)
+    if mx < 0:
+        a, _ = fs32(PI32, a)
+    if my < 0:
+        a, _ = fneg32(a)
+    return a, 0
+
+
+@njit(cache=True)
+def _atan2_48_k(y, x):
+    my, _ = unpack48(y)
+    mx, _ = unpack48(x)
+    if my == 0 and mx == 0:
+        return 0, 0
+    ay, _ = fabs48(y)
+    ax, _ = fabs48(x)
+    swap = fc48(ay, ax) > 0
+    if swap:
+        t, _ = fd48(ax, ay)
+    else:
+        t, _ = fd48(ay, ax)
+    k8, _ = fm48(t, EIGHT48)
+    k8, _ = fa48(k8, HALF48)
+    kw, _ = fix48(k8)
+    k = kw & 0xF
+    c = K8_48[k]
+    num, _ = fs48(t, c)
+    den, _ = fm48(t, c)
+    den, _ = fa48(den, ONE48)
+    u, _ = fd48(num, den)
+    z, _ = fm48(u, u)
+    q = ATAN48[4]
+    for i in range(3, -1, -1):
+        q, _ = fm48(q, z)
+        q, _ = fa48(q, ATAN48[i])
+    w, _ = fm48(z, q)
+    w, _ = fm48(u, w)
+    a, _ = fa48(u, w)
+    a, _ = fa48(ATANK_48[k], a)
+    if swap:
+        a, _ = fs48(PIO2_48, a)
+    if mx < 0:
+        a, _ = fs48(PI48, a)
+    if my < 0:
+        a, _ = fneg48(a)
+    return a, 0
+
+
+# ================================================================================================
+# public wrappers + overloads
+# ================================================================================================
+def _pub1(name, kern, check, doc):
+    def fn(x):
+        r, f = kern(check(f"{name}: x", x))
+        return int(r), int(f)
+    fn.__name__ = fn.__qualname__ = name
+    fn.__doc__ = doc
+    overload(fn, jit_options={"cache": True})(_ov1(kern))
+    return fn
+
+
+def _pub2(name, kern, check, doc):
+    def fn(y, x):
+        r, f = kern(check(f"{name}: y", y), check(f"{name}: x", x))
+        return int(r), int(f)
+    fn.__name__ = fn.__qualname__ = name
+    fn.__doc__ = doc
+    overload(fn, jit_options={"cache": True})(_ov2(kern))
+    return fn
+
+
+sqrt32 = _pub1("sqrt32", _sqrt32_k, _f32,
+               "``sqrt32(x) -> (sqrt(x), flags)``, packed 32-bit floats. x < 0 -> (0, FLAG_DOMAIN). "
+               "Max error 1.5 ulp (see MAX_ERROR).")
+sqrt48 = _pub1("sqrt48", _sqrt48_k, _f48,
+               "``sqrt48(x) -> (sqrt(x), flags)``, packed 48-bit floats. x < 0 -> (0, FLAG_DOMAIN). "
+               "Max error 1.5 ulp.")
+exp32 = _pub1("exp32", _exp32_k, _f32,
+              "``exp32(x) -> (e**x, flags)``; overflow (x > ~88.03, e**x >= 2**127) -> (7FFFFF7F, "
+              "FLAG_FLOAT_OVERFLOW), underflow (x < ~-89.41, e**x < 2**-129) -> (0, "
+              "FLAG_FLOAT_UNDERFLOW). "
+              "Max error 3 ulp.")
+ln32 = _pub1("ln32", _ln32_k, _f32,
+             "``ln32(x) -> (ln x, flags)``; x <= 0 -> (8000007F, FLAG_DOMAIN). Max error 4 ulp.")
+sin32 = _pub1("sin32", _sin32_k, _f32,
+              "``sin32(x) -> (sin x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
+              "Max absolute error 3.5 * 2**-23.")
+cos32 = _pub1("cos32", _cos32_k, _f32,
+              "``cos32(x) -> (cos x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
+              "Max absolute error 3.5 * 2**-23.")
+sin48 = _pub1("sin48", _sin48_k, _f48,
+              "``sin48(x) -> (sin x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
+              "Max absolute error 4 * 2**-39.")
+cos48 = _pub1("cos48", _cos48_k, _f48,
+              "``cos48(x) -> (cos x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
+              "Max absolute error 4 * 2**-39.")
+atan2_32 = _pub2("atan2_32", _atan2_32_k, _f32,
+                 "``atan2_32(y, x) -> (atan2(y, x), flags)`` in [-pi, pi]; atan2(0, 0) = 0. "
+                 "Max error 8 ulp.")
+atan2_48 = _pub2("atan2_48", _atan2_48_k, _f48,
+                 "``atan2_48(y, x) -> (atan2(y, x), flags)`` in [-pi, pi]. Max error 6 ulp.")
+
+
+# ================================================================================================
+# cycle costs
+# ================================================================================================
+def _mix(*parts):
+    out = {}
+    for p in parts:
+        for k, v in p.items():
+            out[k] = out.get(k, 0) + v
+    return out
+
+
+#: integer/logical work of one exponent-field edit or sign test + branch ([ASSUMED] mix)
+_EXP_EDIT = {"SHIFT": 1, "AR": 2}
+_TEST = {"LR": 1, "JC": 1}
+_CALL = {"SJS": 1, "URS": 1}
+
+_REDUCE48 = {"EFM": 4, "EFA": 2, "EFS": 4, "EFIX": 1, "EFLT": 1}   # incl. +-0.5 and the xlo split
+_SIN48P = {"EFM": 9, "EFA": 7}
+_COS48P = {"EFM": 9, "EFA": 8}
+_SIN32P = {"FM": 6, "FA": 4}
+_COS32P = {"FM": 6, "FA": 5}
+
+#: worst-path operation mix of each math routine (flightsw.budget keys); the float-instruction
+#: counts are checked against instrumented runs of the kernels in tests/test_m1750_math.py.
+MATH_OP_MIX = {
+    "sqrt32": _mix({"FM": 3, "FA": 3, "FD": 2}, _EXP_EDIT, _EXP_EDIT, _TEST, _TEST, _CALL),
+    "sqrt48": _mix({"EFM": 4, "EFA": 4, "EFD": 3}, _EXP_EDIT, _EXP_EDIT, _TEST, _TEST, _CALL),
+    "exp32": _mix({"FM": 9, "FA": 9, "FIX": 1, "FLT": 1, "EFM": 2, "EFS": 2, "DL": 1},
+                  _EXP_EDIT, _TEST, _TEST, _CALL),
+    "ln32": _mix({"FM": 8, "FA": 5, "FS": 2, "FD": 1, "FLT": 1, "EFA": 2, "DL": 3}, _EXP_EDIT,
+                 _TEST, _TEST, _CALL),
+    "sin32": _mix(_REDUCE48, _COS32P, {"FNEG": 1, "DL": 2}, _TEST, _TEST, _TEST, _CALL),
+    "cos32": _mix(_REDUCE48, _COS32P, {"FNEG": 1, "DL": 2}, _TEST, _TEST, _TEST, _CALL),
+    "sin48": _mix(_REDUCE48, _COS48P, {"EFS": 1}, _TEST, _TEST, _TEST, _CALL),
+    "cos48": _mix(_REDUCE48, _COS48P, {"EFS": 1}, _TEST, _TEST, _TEST, _CALL),
+    "atan2_32": _mix({"FABS": 2, "FC": 1, "FD": 2, "FM": 6, "FA": 5, "FS": 3, "FIX": 1,
+                      "FNEG": 1}, _TEST, _TEST, _TEST, _TEST, _CALL),
+    # fabs48 = sign test + EFS (no EFABS), fneg48 = EFS from zero
+    "atan2_48": _mix({"L": 2, "JC": 2, "EFS": 2 + 3 + 1, "EFC": 1, "EFD": 2, "EFM": 9,
+                      "EFA": 8, "EFIX": 1}, _TEST, _TEST, _TEST, _TEST, _CALL),
+}
+
+#: float-instruction part of each mix (what the tests count by instrumenting the kernels)
+FLOAT_KEYS = ("FA", "FS", "FM", "FD", "FIX", "FLT", "FABS", "FNEG", "FC",
+              "EFA", "EFS", "EFM", "EFD", "EFIX", "EFLT", "EFC")
+
+
+def math_cycles(name: str, processor: Processor = PACE1750A) -> int:
+    """Clocks of one call of math routine ``name`` (worst path) on ``processor``."""
+    try:
+        mix = MATH_OP_MIX[name]
+    except KeyError:
+        raise KeyError(f"no operation mix for {name!r}; known: {sorted(MATH_OP_MIX)}") from None
+    return m1750_cycles(mix, processor)
+
+
+MATH_CYCLES = {k: math_cycles(k) for k in MATH_OP_MIX}
+OP_MIX.update(MATH_OP_MIX)       # op_mix()/op_cycles() of m1750_float know the math routines too
+CYC_SQRT32, CYC_SQRT48 = MATH_CYCLES["sqrt32"], MATH_CYCLES["sqrt48"]
+CYC_EXP32, CYC_LN32 = MATH_CYCLES["exp32"], MATH_CYCLES["ln32"]
+CYC_SIN32, CYC_COS32 = MATH_CYCLES["sin32"], MATH_CYCLES["cos32"]
+CYC_SIN48, CYC_COS48 = MATH_CYCLES["sin48"], MATH_CYCLES["cos48"]
+CYC_ATAN2_32, CYC_ATAN2_48 = MATH_CYCLES["atan2_32"], MATH_CYCLES["atan2_48"]
+
+#: stated max errors, ``(kind, bound)``: kind "ulp" (units in the last place of the exact result,
+#: same format) or "abs" (absolute); asserted by tests/test_m1750_math.py
+MAX_ERROR = {
+    "sqrt32": ("ulp", 1.5), "sqrt48": ("ulp", 1.5), "exp32": ("ulp", 3.0), "ln32": ("ulp", 4.0),
+    "sin32": ("abs", 3.5 * 2.0 ** -23), "cos32": ("abs", 3.5 * 2.0 ** -23),
+    "sin48": ("abs", 4.0 * 2.0 ** -39), "cos48": ("abs", 4.0 * 2.0 ** -39),
+    "atan2_32": ("ulp", 8.0), "atan2_48": ("ulp", 6.0),
+}
