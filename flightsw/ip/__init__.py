@@ -1,0 +1,15 @@
+"""UVISI image processor (flight code): front end (issue 3) and back end (issue 4)."""
+from flightsw.ip.preprocess import FRAME_SHAPE, Subimage, compact, window, window_origin
+from flightsw.ip.filters import (DEFAULT_KERNELS, correlate_q15, filter_cycles, gaussian_taps_q15,
+                                 matched_kernel, smoothing_kernel, validate_kernel)
+from flightsw.ip.detrend import (detrend_highpass, detrend_none, detrend_polynomial,
+                                 highpass_cycles, polynomial_cycles)
+from flightsw.ip.threshold import AlphaController, threshold_cycles
+from flightsw.ip.sequence import (PHASE_FEATURES, PHASE_FRONT, PHASE_LABEL, PHASE_RANK,
+                                  PHASE_THRESHOLD, STEP_REGISTRY, FieldError, IPConfig,
+                                  ProcessingSequence, SequenceError, SequenceResult, Stage,
+                                  StageOutput, load_default_sequence, register_step)
+from flightsw.ip.cycles import frontend_cycle_table
+from flightsw.ip.colour import label  # noqa: E402  (issue 4 back end)
+from flightsw.ip.features import features  # noqa: E402
+from flightsw.ip.frame import process_frame, backend  # noqa: E402

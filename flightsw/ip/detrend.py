@@ -1,0 +1,433 @@
+"""IP step 3: detrenders (high-pass, second-order polynomial surface, none).
+
+The MSX paper ("Detrending"): "The high-pass filter detrender generates an estimate of the background
+by convolving the 64x64 pixel region with a low-pass 7x7 pixel normalized Gaussian filter kernel. This
+background is subtracted from the original subimage ... The alternative detrending algorithm yields an
+estimate of the background by fitting a two-dimensional second-order polynomial surface to the data,
+which is then subtracted from the original."
+
+High-pass detrender (:func:`detrend_highpass`)
+----------------------------------------------
+The 7x7 normalised Gaussian is separable, ``K = t t^T`` with 1-D taps ``t`` (Q1.15 words, all >= 0,
+``sum t = 32768`` exactly; :func:`flightsw.ip.filters.gaussian_taps_q15`), so the DSP runs a row pass
+and a column pass: 14 instead of 49 MACs per pixel. Edges replicate (SciPy ``mode="nearest"``).
+
+1. Block headroom: ``SB = EXPADJ`` over the window (one cycle a pixel) gives ``g`` = the fewest
+   redundant sign bits of any pixel, capped at 8 (``g = 3`` for 12-bit pixels).
+2. Row pass into the intermediate ``y`` in **Q(16-g).g** (g fractional bits, Q13.3 for 12-bit data):
+   ``MR = 2**(14-g) * 1`` (a rounding tap) ``+ sum_j x[r, c+j-3] * t[j]`` (fractional MACs), then the
+   shifter extracts ``y = MR >> (16 - g)`` (SR = LSHIFT MR0, SR = SR OR ASHIFT MR1): round half up at
+   ``2**-(g+1)``. Because the taps are non-negative and sum to 1, ``|y| <= max|x| * 2**g < 2**15``: no
+   overflow is possible, so no SAT is needed.
+3. Column pass back to **Q16.0**: ``MR = 2**(14+g)`` (rounding tap ``0x4000 * 2**g``) ``+ sum_i
+   y[r+i-3, c] * t[i]``, ``lp = MR >> (16 + g)`` (round half up at 1/2), then ``AR = x - lp`` with
+   AR_SAT (the only place a full-range signed input can overflow 16 bits).
+
+Error bound (derived): the row pass is exact up to its rounding, ``|y - y_exact| <= 2**-(g+1)`` (in
+input units), which the column pass carries with gain ``sum t = 1``; the column rounding adds 1/2. So
+``|lp - lp_exact(quantised taps)| <= 1/2 + 2**-(g+1)`` (0.5625 for 12-bit data) and the detrended
+output, ``x - lp``, has the same bound. Against the ideal Gaussian (``scipy.ndimage.gaussian_filter``
+with ``truncate = 3 / sigma``) add ``max|x| * sum|t_q t_q^T / 2**30 - T T^T|`` (tap quantisation,
+:func:`highpass_bound`).
+
+Cycles per pixel: EXPADJ 1; row pass 1 rounding tap + 7 MAC + 2 shifts + 1 store + 1 pointer
+modify = 12; column pass 1 + 7 + 2 + 1 subtract + 1 store + 1 modify = 13; i.e. 26 a pixel, plus
+replicating 3 border columns (row pass) and 3 border rows (column pass): 6h + 6w words, and per-row
+loop overhead 3 per pass. See :func:`highpass_cycles`.
+
+Polynomial detrender (:func:`detrend_polynomial`)
+-------------------------------------------------
+Least squares fit of ``a0 + a1 u + a2 v + a3 u^2 + a4 uv + a5 v^2``. On the fixed window grid the
+same surface is spanned by the *orthogonal* basis (doubled, centred integer coordinates
+``U = 2c - (w-1)``, ``V = 2r - (h-1)``)::
+
+    B0 = 1, B1 = U, B2 = V, B3 = 3U^2 - (w^2-1), B4 = U V, B5 = 3V^2 - (h^2-1)
+
+whose normal matrix ``B^T B`` is constant *and diagonal* (``sum_c U = sum_c U^3 = sum_c B3 = 0``), so
+the fit is ``a_k = M_k / N_k`` with only the six image moments ``M_k = sum x B_k`` computed per frame
+and ``N_k = sum B_k^2`` precomputed on the ground for the window size. Identical to the monomial
+``numpy.linalg.lstsq`` fit (tested).
+
+* Tables: ``B'_k = B_k * 2**j_k`` (int16 words in PM), ``j_k`` chosen so ``2**14 <= max|B'_k| <
+  2**15`` (every table fits 16 bits for windows up to 128).
+* Block shift: ``s = max(0, bitlen(max|x|) - 12)`` from EXPADJ; the moments use ``x >> s`` (so
+  12-bit data, s = 0, are untouched).
+* Moments ``M_k = sum (x>>s) B_k``: one MAC per pixel and term, the row's MR added into a 48-bit memory
+  accumulator each row (a row of <= 128 products of <= 2**31 never leaves 40 bits): exact integers.
+* Coefficients in **Q1.31** double words: ``c_k = round_half_up(M_k * R_k / 2**(P_k + j_k - 31))``
+  with ``R_k = round(2**P_k / N_k)`` the 32-bit normalised reciprocal (``2**30 <= R_k < 2**31``), a
+  multiprecision multiply on the DSP; ``c_k`` saturates to 32 bits. ``c_k / 2**31 = a'_k = a_k /
+  2**j_k`` and ``|a'_k| <= 2.25 * 2**12 / 2**14 < 1`` (the orthogonal projection bound
+  ``|a_k| max|B_k| <= max|x| sum|B_k| max|B_k| / sum B_k^2 <= 2.25 max|x|``).
+* Surface per pixel, double-precision MACs: ``MR = sum_k lo(c_k) * B'_k`` (US, 6 MACs), ``MR >>= 16``
+  (MR0 = MR1, MR1 = MR2), ``MR += sum_k hi(c_k) * B'_k`` (SS, 6 MACs), (RND), IF MV SAT MR:
+  ``MR1 = round(surface)`` in units of ``2**s``; ``out = x - (MR1 << s)`` with AR_SAT.
+
+Error bound (s = 0): the reciprocal and Q1.31 roundings contribute ``< 6 * 2**15 * 2**-30`` counts,
+the ``>> 16`` truncation ``< 2**-16``, the RND 1/2: ``|out - (x - surface_lstsq)| <= 1/2 + 2**-12``.
+
+Cycles per pixel: EXPADJ 1, shift 1, 6 moment MACs; surface 6 + 2 + 6 + RND/SAT 2 + shift 1 +
+subtract 1 + store 1 = 19; per row 6 x 4 (accumulate MR into memory, clear) + 3; per frame 6
+coefficient multiprecision multiply-rounds of 40 cycles + 20. See :func:`polynomial_cycles`.
+"""
+from __future__ import annotations
+
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from flightsw.ip.filters import gaussian_taps_q15
+
+__all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
+           "polynomial_cycles", "highpass_bound", "lowpass_q15", "polynomial_basis",
+           "DEFAULT_HIGHPASS_SIGMA", "G_MAX"]
+
+DEFAULT_HIGHPASS_SIGMA = 1.5
+G_MAX = 8          # cap of the block headroom used by the high-pass intermediate
+
+
+# ---------------------------------------------------------------------------------------------
+# high-pass
+# ---------------------------------------------------------------------------------------------
+@njit(cache=True)
+def _bitlen_or(img):
+    """Bit length of the largest magnitude word (``x`` for x >= 0, ``~x`` for x < 0): EXPADJ."""
+    f = img.ravel()
+    m = np.int32(0)
+    for i in range(f.size):
+        a = np.int32(f[i])
+        m |= a ^ (a >> np.int32(15))
+    bl = 0
+    while m > 0:
+        bl += 1
+        m >>= 1
+    return bl
+
+
+@njit(cache=True)
+def _headroom(img, gmax):
+    """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``."""
+    return min(15 - _bitlen_or(img), gmax)
+
+
+@njit(cache=True)
+def _lowpass_k(img, taps, g):
+    """Separable low-pass: row pass to Q(16-g).g, column pass to Q16.0 (see module docstring).
+
+    Host speed-up: with symmetric taps the two pixels sharing a tap are added before the multiply
+    (exact: integer addition is associative and no partial sum exceeds the proven bound)."""
+    h, w = img.shape
+    n = taps.shape[0]
+    p = n // 2
+    t = np.empty(n, np.int32)
+    sym = True
+    for j in range(n):
+        t[j] = np.int32(taps[j])
+    for j in range(p):
+        if t[j] != t[n - 1 - j]:
+            sym = False
+    # replicate p border columns
+    xp = np.empty((h, w + 2 * p), np.int32)
+    for r in range(h):
+        src = img[r]
+        dst = xp[r]
+        for c in range(p):
+            dst[c] = src[0]
+            dst[w + p + c] = src[w - 1]
+        for c in range(w):
+            dst[p + c] = src[c]
+    # row pass: y = (sum x*t + 2**(14-g)) >> (15-g)     Q(16-g).g
+    y = np.empty((h + 2 * p, w), np.int32)
+    rb = np.int32(1 << (14 - g))
+    sh = np.int32(15 - g)
+    for r in range(h):
+        dst = y[r + p]
+        for c in range(w):
+            dst[c] = rb
+        if sym:
+            for j in range(p):
+                tj = t[j]
+                a = xp[r, j:j + w]
+                b = xp[r, n - 1 - j:n - 1 - j + w]
+                for c in range(w):
+                    dst[c] += (a[c] + b[c]) * tj
+            a = xp[r, p:p + w]
+            tp = t[p]
+            for c in range(w):
+                dst[c] += a[c] * tp
+        else:
+            for j in range(n):
+                tj = t[j]
+                a = xp[r, j:j + w]
+                for c in range(w):
+                    dst[c] += a[c] * tj
+        for c in range(w):
+            dst[c] = dst[c] >> sh          # SR0: |y| < 2**15 by the convexity bound, no wrap
+    for r in range(p):                     # replicate the border rows of the intermediate
+        y[r, :] = y[p]
+        y[h + p + r, :] = y[h + p - 1]
+    # column pass: lp = (sum y*t + 2**(14+g)) >> (15+g)     Q16.0
+    lp = np.empty((h, w), np.int32)
+    cb = np.int32(1 << (14 + g))
+    for r in range(h):
+        dst = lp[r]
+        for c in range(w):
+            dst[c] = cb
+        if sym:
+            for i in range(p):
+                ti = t[i]
+                a = y[r + i]
+                b = y[r + n - 1 - i]
+                for c in range(w):
+                    dst[c] += (a[c] + b[c]) * ti
+            a = y[r + p]
+            tp = t[p]
+            for c in range(w):
+                dst[c] += a[c] * tp
+        else:
+            for i in range(n):
+                ti = t[i]
+                a = y[r + i]
+                for c in range(w):
+                    dst[c] += a[c] * ti
+    return lp, np.int32(15 + g)
+
+
+@njit(cache=True)
+def _highpass_k(img, taps, gmax):
+    g = _headroom(img, gmax)
+    lp, sh2 = _lowpass_k(img, taps, g)
+    h, w = img.shape
+    out = np.empty((h, w), np.int16)
+    for r in range(h):
+        x = img[r]
+        a = lp[r]
+        o = out[r]
+        for c in range(w):
+            d = np.int32(x[c]) - (a[c] >> sh2)              # AR = x - lp (AR_SAT)
+            d = min(d, np.int32(32767))
+            d = max(d, np.int32(-32768))
+            o[c] = np.int16(d)
+    return out
+
+
+def lowpass_q15(img, taps):
+    """The high-pass detrender's background estimate (Q16.0 int32 array), for tests and figures."""
+    img = np.ascontiguousarray(img, np.int16)
+    g = _headroom(img, G_MAX)
+    lp, sh = _lowpass_k(img, np.asarray(taps, np.int16), g)
+    return lp >> sh
+
+
+def _check_taps(taps):
+    t = np.asarray(taps)
+    if t.ndim != 1 or t.shape[0] != 7:
+        raise ValueError(f"low-pass taps: need 7 Q1.15 words, got shape {t.shape}")
+    if t.min() < 0 or t.max() > 32767 or int(t.sum()) != 32768:
+        raise ValueError("low-pass taps: must be Q1.15 words >= 0 summing to exactly 32768 (1.0)")
+    return t.astype(np.int16)
+
+
+def detrend_highpass(img, taps=None, ledger=None, stage="detrend_highpass"):
+    """High-pass detrend: ``x - lowpass7x7(x)`` (separable normalised Gaussian, replicate edges).
+
+    Parameters
+    ----------
+    img : ndarray (h, w) int16 words (Q16.0)
+    taps : 7 Q1.15 words >= 0 with sum 32768; default ``gaussian_taps_q15(1.5)``
+    ledger : Ledger, optional — charged :func:`highpass_cycles` under ``("dsp", stage)``
+
+    Returns ndarray (h, w) int16 (Q16.0, saturated).
+    """
+    taps = _default_taps() if taps is None else _check_taps(taps)
+    img = np.ascontiguousarray(img, np.int16)
+    out = _highpass_k(img, taps, G_MAX)
+    if ledger is not None:
+        ledger.charge("dsp", stage, highpass_cycles(*img.shape))
+    return out
+
+
+@lru_cache(maxsize=None)
+def _default_taps_cached(sigma):
+    return gaussian_taps_q15(sigma, 7)
+
+
+def _default_taps():
+    return _default_taps_cached(DEFAULT_HIGHPASS_SIGMA)
+
+
+def highpass_bound(taps, maxabs, sigma):
+    """Bound of ``|ours - (x - gaussian_filter(x, sigma, truncate=3/sigma))|`` for 12-bit data (g=3):
+    ``1/2 + 2**-4 + maxabs * sum|t_q t_q^T / 2**30 - T T^T|`` (host float; for tests)."""
+    i = np.arange(-3, 4)
+    T = np.exp(-0.5 * (i / sigma) ** 2)
+    T /= T.sum()
+    tq = np.asarray(taps, np.float64) / 32768
+    return 0.5 + 2.0 ** -4 + maxabs * np.abs(np.outer(tq, tq) - np.outer(T, T)).sum()
+
+
+def highpass_cycles(h, w, n=7):
+    """ADSP-2100 cycles of the separable high-pass detrender on an h x w window."""
+    p = n // 2
+    expadj = h * w + 3
+    row = h * w * (n + 5) + 2 * p * h + 3 * h + 10
+    col = h * w * (n + 6) + 2 * p * w + 3 * h + 10
+    return int(expadj + row + col)
+
+
+def detrend_none(img, ledger=None, stage="detrend_none"):
+    """No detrending: the image passes unchanged (0 cycles, recorded)."""
+    if ledger is not None:
+        ledger.charge("dsp", stage, 0)
+    return np.asarray(img)
+
+
+# ---------------------------------------------------------------------------------------------
+# polynomial surface
+# ---------------------------------------------------------------------------------------------
+@lru_cache(maxsize=16)
+def polynomial_basis(h, w):
+    """Ground-precomputed constants for an h x w window.
+
+    Returns ``(tables int16 [6, h, w], j int64[6], N list[int], R list[int], P list[int])``:
+    the scaled orthogonal basis tables ``B'_k = B_k << j_k``, the exact norms ``N_k = sum B_k^2``,
+    and the 32-bit normalised reciprocals ``R_k = round(2**P_k / N_k)``."""
+    U = 2 * np.arange(w, dtype=np.int64) - (w - 1)
+    V = 2 * np.arange(h, dtype=np.int64) - (h - 1)
+    UU, VV = np.meshgrid(U, V)
+    B = [np.ones((h, w), np.int64), UU, VV, 3 * UU * UU - (w * w - 1), UU * VV,
+         3 * VV * VV - (h * h - 1)]
+    tables = np.empty((6, h, w), np.int16)
+    js, Ns, Rs, Ps = [], [], [], []
+    for k, b in enumerate(B):
+        m = int(np.abs(b).max())
+        if m == 0:                      # degenerate axis (h or w == 1): not used by the flight sizes
+            raise ValueError(f"window {h}x{w} too small for the polynomial detrender")
+        j = 0
+        while (m << (j + 1)) < 2 ** 15:
+            j += 1
+        while (m << j) >= 2 ** 15:
+            j -= 1
+        if j < 0:
+            raise ValueError(f"window {h}x{w}: basis {k} does not fit a 16-bit table")
+        tables[k] = (b << j).astype(np.int16)
+        N = int((b * b).sum())
+        P = 30 + N.bit_length()          # 2**30 <= 2**P / N < 2**31 (rounded)
+        R = (2 ** P + N // 2) // N
+        if R >= 2 ** 31:
+            P -= 1
+            R = (2 ** P + N // 2) // N
+        js.append(j)
+        Ns.append(N)
+        Rs.append(R)
+        Ps.append(P)
+    return tables, np.array(js, np.int64), Ns, Rs, Ps
+
+
+@njit(cache=True)
+def _block_shift(img):
+    return max(0, _bitlen_or(img) - 12)
+
+
+@njit(cache=True)
+def _moments_k(img, tables, js, s):
+    """Exact moments ``M_k = sum (x >> s) * B_k`` (B_k = B'_k >> j_k, exact since B'_k = B_k << j_k)."""
+    h, w = img.shape
+    M = np.zeros(6, np.int64)
+    for r in range(h):
+        for c in range(w):
+            x = np.int64(img[r, c]) >> s
+            for k in range(6):
+                M[k] += x * (np.int64(tables[k, r, c]) >> js[k])
+    return M
+
+
+@njit(cache=True)
+def _surface_sub_k(img, tables, cw, s):
+    """Surface by double-precision MACs and subtraction (see module docstring)."""
+    h, w = img.shape
+    out = np.empty((h, w), np.int16)
+    lo = np.empty(6, np.int64)
+    hi = np.empty(6, np.int64)
+    for k in range(6):
+        lo[k] = cw[k] & 0xFFFF          # unsigned low word
+        hi[k] = cw[k] >> 16             # signed high word
+    for r in range(h):
+        for c in range(w):
+            mr = np.int64(0)
+            for k in range(6):
+                mr += (lo[k] * np.int64(tables[k, r, c])) << 1       # US MACs
+            mr >>= 16                                                  # MR0 = MR1, MR1 = MR2
+            for k in range(6):
+                mr += (hi[k] * np.int64(tables[k, r, c])) << 1       # SS MACs
+            # (RND), IF MV SAT MR, MR1
+            m40 = mr & 0xFFFFFFFFFF
+            if m40 & 0x8000000000:
+                m40 -= 0x10000000000
+            low = m40 & 0xFFFF
+            m40 += 0x8000
+            if low == 0x8000:
+                m40 &= ~np.int64(0x10000)
+            if m40 >= 0x80000000:
+                sv = np.int64(32767)
+            elif m40 < -0x80000000:
+                sv = np.int64(-32768)
+            else:
+                sv = m40 >> 16
+            d = np.int64(img[r, c]) - (sv << s)                         # AR = x - surface, AR_SAT
+            out[r, c] = np.int16(min(max(d, -32768), 32767))
+    return out
+
+
+def _round_half_up_div(a, b):
+    return (a + b // 2) // b if b > 0 else None
+
+
+def polynomial_coefficients(M, h, w):
+    """Q1.31 coefficient words ``c_k`` from the moments (multiprecision integer routine; Python ints
+    stand for the DSP's double/triple words). Saturated to 32 bits."""
+    _, js, _, Rs, Ps = polynomial_basis(h, w)
+    out = np.empty(6, np.int64)
+    for k in range(6):
+        sh = Ps[k] + int(js[k]) - 31
+        prod = int(M[k]) * Rs[k]
+        if sh > 0:
+            c = (prod + (1 << (sh - 1))) >> sh
+        else:
+            c = prod << -sh
+        out[k] = min(max(c, -2 ** 31), 2 ** 31 - 1)
+    return out
+
+
+def detrend_polynomial(img, ledger=None, stage="detrend_polynomial", return_surface=False):
+    """Second-order polynomial surface-fit detrend: ``x - LSQ surface(x)``.
+
+    Parameters
+    ----------
+    img : ndarray (h, w) int16 words (Q16.0), h, w >= 3
+    ledger : Ledger, optional — charged :func:`polynomial_cycles` under ``("dsp", stage)``
+
+    Returns ndarray (h, w) int16 (Q16.0, saturated); with ``return_surface`` also the Q1.31
+    coefficient words and the block shift.
+    """
+    img = np.ascontiguousarray(img, np.int16)
+    h, w = img.shape
+    if h < 3 or w < 3:
+        raise ValueError(f"window {h}x{w} too small for a second-order surface (need >= 3x3)")
+    tables, js, _, _, _ = polynomial_basis(h, w)
+    s = _block_shift(img)
+    M = _moments_k(img, tables, js, s)
+    cw = polynomial_coefficients(M, h, w)
+    out = _surface_sub_k(img, tables, cw, s)
+    if ledger is not None:
+        ledger.charge("dsp", stage, polynomial_cycles(h, w))
+    if return_surface:
+        return out, cw, s
+    return out
+
+
+def polynomial_cycles(h, w):
+    """ADSP-2100 cycles of the polynomial detrender on an h x w window."""
+    per_pixel = 1 + 1 + 6 + 19
+    return int(h * w * per_pixel + h * (6 * 4 + 3) + 6 * 40 + 20)

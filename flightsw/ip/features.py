@@ -1,0 +1,354 @@
+"""The twelve features of each coloured blob (IP step 7) and their normalisation, in 1750A float.
+
+The MSX paper's boxed equations, with the paper's column index ``i`` and row index ``j`` (0-based
+window indices here, the pixel centre at ``+ 1/2``)::
+
+    Size_n            = sum I_n(i, j)
+    column_n          = sum (i + 1/2) p_n(i, j)          row_n = sum (j + 1/2) p_n(i, j)
+    p_n(i, j)         = Intensity(i, j) I_n(i, j) / sum Intensity I_n       (intensity flag on)
+                      = I_n(i, j) / Size_n                                   (flag off: geometric)
+    mu_pq             = sum (i + 1/2 - column_n)^p (j + 1/2 - row_n)^q p_n(i, j)
+    theta_n           = 1/2 tan^-1( 2 mu_11 / (mu_20 - mu_02) )
+    Eccentricity_n    = ((mu_20 - mu_02)^2 + 4 mu_11^2) / Size_n^2
+    Semimajor_n      ~= { 2 [mu_20 cos^2 th + 2 mu_11 cos th sin th + mu_02 sin^2 th] + 1 }^1/2
+    Semiminor_n      ~= { 2 [mu_20 sin^2 th - 2 mu_11 cos th sin th + mu_02 cos^2 th] + 1 }^1/2
+    Sigma ratio_n     = Semiminor_n / Semimajor_n
+    Total brightness  = sum Intensity I_n ;  Average = Total / Size ;  Maximum = max Intensity I_n
+    Brightness ratio  = Average / Maximum
+
+Decisions (where the paper leaves the implementation open):
+
+* ``tan^-1`` is the two-argument arctangent ``atan2(2 mu_11, mu_20 - mu_02)``, so that ``theta`` is the
+  direction of the *major* axis and Semimajor >= Semiminor always (with a one-argument arctangent
+  the two would swap whenever ``mu_02 > mu_20``).
+* The semi-axis brackets are evaluated with the double-angle identities ``cos^2 th = (1 + cos 2th)/2``,
+  ``sin 2th = 2 mu_11 / r``, ``cos 2th = (mu_20 - mu_02) / r``, ``r = ((mu_20 - mu_02)^2 + 4 mu_11^2)^1/2``,
+  which turn them into ``mu_20 + mu_02 +/- r + 1`` exactly -- the same values without a sin and a
+  cos per blob on the 1750A (``r^2`` is the eccentricity numerator anyway).
+* The moments use the same weights ``p_n`` as the centroids (intensity or geometric by the flag);
+  a blob whose intensity sum is <= 0 (possible only for signed clipped input) uses geometric weights.
+  The brightness features always use the intensities.
+* Arithmetic: the sums (exact integers, :mod:`flightsw.ip.colour`) are converted with EFLT; centroids
+  and central moments are formed in 48-bit extended float by division (``sum / W``, exact whenever
+  the quotient is representable, so a one-pixel or symmetric blob gets exactly zero moments;
+  ``mu = sum/W - mean^2`` cancels about 12 bits, 28 remain); everything after ``r^2`` in 32-bit float, with the ``flightsw.arith.m1750`` sqrt32
+  and atan2_32. Results are 32-bit 1750A floats (2 words each), i.e. relative error of a few
+  ``2**-23`` except where a feature is ill-conditioned (orientation of a round blob).
+
+Units (before normalisation, processed pixels of the window):
+
+================  ====================================================================
+size              pixels
+col, row          pixels, window frame, 0-based with centres at +0.5
+orientation       degrees in [0, 180), major axis measured from the +column axis toward
+                  the +row axis (rows grow downward); 0 for a round blob
+eccentricity      pixels^2 (the boxed formula: pixel^4 / pixel^2)
+semimajor/minor   pixels
+sigma_ratio       1
+total_brightness  counts (sum of pixel values)
+avg/max           counts per pixel
+brightness_ratio  1
+================  ====================================================================
+
+Normalisation ("Normalizing statistics"): to the reference scale, the wide-FOV visible imager at
+compaction 1. With compaction ``f`` and the imager's pixel scale relative to the WFOV pixel ``s``
+(1 for the wide imagers, 1.6/13.1 for the narrow ones) ``size *= (f s)^2``, ``semimajor, semiminor
+*= f s``, ``total_brightness *= (f s)^2`` (a compacted pixel is the mean of ``f^2`` pixels, so the
+full-resolution sum is ``f^2`` times the processed one), and the centroids are projected to the
+imager's full-resolution pixel frame: ``col_full = f * col + C0``, ``row_full = f * row + R0`` with
+``(R0, C0)`` the window's top-left corner in full-resolution pixels (a processed pixel ``k`` covers
+full-resolution pixels ``[k f, (k + 1) f)``). Other features are scale-free and unchanged.
+
+Cycle costs: :data:`FEATURE_MIX` per blob (plus the math routines) on ``"ip1750"``.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750 import (
+    ONE32, HALF48, atan2_32, decode32_array, encode32, fa32, fa48, fc32, fd32, fd48,
+    flt48, fm32, fm48, fs32, fs48, sqrt32, to32,
+)
+from flightsw.arith.m1750_math import MATH_CYCLES
+from flightsw.budget import IP1750, Ledger, m1750_cycles
+from flightsw.ip.colour import NSUM, blob_sums
+from flightsw.messages import FEATURE_NAMES, N_FEATURES
+
+__all__ = ["features", "features_words", "normalise_words", "normalise", "FEATURE_DTYPE",
+           "FEATURE_NAMES", "FEATURE_MIX", "NORMALISE_MIX", "IMAGER_SCALE", "features_cycles",
+           "words_to_struct", "struct_to_words"]
+
+#: structured dtype of a feature table (float64 fields holding exact 1750A 32-bit values)
+FEATURE_DTYPE = np.dtype([(n, np.float64) for n in FEATURE_NAMES])
+
+#: imager pixel scale relative to the wide-FOV visible pixel (paper FOVs: 13.1 deg and 1.6 deg
+#: across 256 columns); unknown imagers (e.g. "real") are taken at the reference scale.
+IMAGER_SCALE = {"wfov_vis": 1.0, "wfov_uv": 1.0, "nfov_vis": 1.6 / 13.1, "nfov_uv": 1.6 / 13.1}
+
+#: 1750A operation mix per blob (budget keys) besides the math routines in FEATURE_MATH
+FEATURE_MIX = {
+    "EFLT": 9 + 3, "EFM": 5 + 3, "EFD": 5, "EFS": 4, "EFA": 5 + 3, "DL": 8,
+    "FM": 2, "FD": 4, "FA": 4, "FS": 1, "FC": 2, "JC": 4, "L": 13, "ST": 12,
+}
+FEATURE_MATH = {"sqrt32": 3, "atan2_32": 1}
+#: per blob: 6 FM (size, two axes, total, two centroids) + 2 FA (origin) + load/store
+NORMALISE_MIX = {"FM": 6, "FA": 2, "L": 6, "ST": 6}
+
+_CYC_FEATURE = m1750_cycles(FEATURE_MIX) + sum(MATH_CYCLES[k] * n for k, n in FEATURE_MATH.items())
+_CYC_NORMALISE = m1750_cycles(NORMALISE_MIX)
+
+_DEG_PER_2RAD = encode32(90.0 / math.pi, rounding="nearest")   # (1/2 atan2) in degrees
+_C180 = encode32(180.0)
+_TWO31_48 = 0x400000200000                                     # 2**31 as a 48-bit float
+
+
+def features_cycles(count: int, normalise: bool = True) -> int:
+    """PACE1750A clocks of the features (and normalisation) of ``count`` blobs."""
+    return int(count) * (_CYC_FEATURE + (_CYC_NORMALISE if normalise else 0))
+
+
+# ------------------------------------------------------------------------------------------------
+# kernels
+# ------------------------------------------------------------------------------------------------
+@njit(cache=True, inline="always")
+def _i2f48(v):
+    """int64 sum -> 48-bit float: EFLT when it fits 32 bits, else hi * 2**31 + lo (EFLT, EFM,
+    EFLT, EFA), as a multiword flight routine would."""
+    if -2147483648 <= v <= 2147483647:
+        r, f = flt48(v & 0xFFFFFFFF)
+        return r
+    hi = v >> 31
+    lo = v & 0x7FFFFFFF
+    h, f = flt48(hi & 0xFFFFFFFF)
+    h, f = fm48(h, _TWO31_48)
+    l, f = flt48(lo)
+    r, f = fa48(h, l)
+    return r
+
+
+@njit(cache=True)
+def _features_kernel(sums, count, intensity):
+    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)."""
+    out = np.zeros((count, 12), np.int64)
+    flags = 0
+    for k in range(1, count + 1):
+        s = sums[k]
+        n = s[0]
+        if intensity and s[1] > 0:
+            w, sc, sr, scc, srr, src = s[1], s[2], s[3], s[4], s[5], s[6]
+        else:
+            w, sc, sr, scc, srr, src = n, s[7], s[8], s[9], s[10], s[11]
+        wf = _i2f48(w)
+        mc, f = fd48(_i2f48(sc), wf); flags |= f       # divisions (not a reciprocal): exact
+        mr, f = fd48(_i2f48(sr), wf); flags |= f       # whenever the quotient is representable
+        a, f = fd48(_i2f48(scc), wf); flags |= f
+        b, f = fm48(mc, mc); flags |= f
+        m20, f = fs48(a, b); flags |= f
+        a, f = fd48(_i2f48(srr), wf); flags |= f
+        b, f = fm48(mr, mr); flags |= f
+        m02, f = fs48(a, b); flags |= f
+        a, f = fd48(_i2f48(src), wf); flags |= f
+        b, f = fm48(mc, mr); flags |= f
+        m11, f = fs48(a, b); flags |= f
+        col, f = fa48(mc, HALF48); flags |= f
+        row, f = fa48(mr, HALF48); flags |= f
+        dm, f = fs48(m20, m02); flags |= f
+        t, f = fa48(m11, m11); flags |= f
+        a, f = fm48(dm, dm); flags |= f
+        b, f = fm48(t, t); flags |= f
+        q, f = fa48(a, b); flags |= f
+        sm, f = fa48(m20, m02); flags |= f
+        # ---- 32-bit part ----
+        q32 = to32(q)
+        s32 = to32(sm)
+        rq, f = sqrt32(q32); flags |= f
+        nf = to32(_i2f48(n))
+        n2, f = fm32(nf, nf); flags |= f
+        ecc, f = fd32(q32, n2); flags |= f
+        a, f = fa32(s32, rq); flags |= f
+        a, f = fa32(a, ONE32); flags |= f
+        major, f = sqrt32(a); flags |= f
+        a, f = fs32(s32, rq); flags |= f
+        a, f = fa32(a, ONE32); flags |= f
+        if fc32(a, 0) < 0:               # rounding only: s - r >= 0 in exact arithmetic
+            a = 0
+        minor, f = sqrt32(a); flags |= f
+        sig, f = fd32(minor, major); flags |= f
+        th, f = atan2_32(to32(t), to32(dm)); flags |= f
+        th, f = fm32(th, _DEG_PER_2RAD); flags |= f
+        if fc32(th, 0) < 0:
+            th, f = fa32(th, _C180); flags |= f
+        tot = to32(_i2f48(s[1]))
+        avg, f = fd32(tot, nf); flags |= f
+        mx = to32(_i2f48(s[12]))
+        if fc32(mx, 0) > 0:
+            br, f = fd32(avg, mx); flags |= f
+        else:
+            br = 0
+        o = out[k - 1]
+        o[0] = nf
+        o[1] = to32(col)
+        o[2] = to32(row)
+        o[3] = th
+        o[4] = ecc
+        o[5] = major
+        o[6] = minor
+        o[7] = sig
+        o[8] = tot
+        o[9] = avg
+        o[10] = mx
+        o[11] = br
+    return out, flags
+
+
+@njit(cache=True)
+def _normalise_kernel(words, area, lin, f, r0, c0):
+    """In place on a copy: size, total *= area; axes *= lin; col = f col + c0; row = f row + r0
+    (all packed 32-bit floats)."""
+    out = words.copy()
+    flags = 0
+    for k in range(out.shape[0]):
+        o = out[k]
+        o[0], g = fm32(o[0], area); flags |= g
+        o[8], g = fm32(o[8], area); flags |= g
+        o[5], g = fm32(o[5], lin); flags |= g
+        o[6], g = fm32(o[6], lin); flags |= g
+        x, g = fm32(o[1], f); flags |= g
+        o[1], g = fa32(x, c0); flags |= g
+        x, g = fm32(o[2], f); flags |= g
+        o[2], g = fa32(x, r0); flags |= g
+    return out, flags
+
+
+# ------------------------------------------------------------------------------------------------
+# conversions
+# ------------------------------------------------------------------------------------------------
+def words_to_struct(words) -> np.ndarray:
+    """Packed 32-bit feature words int64 [k, 12] -> structured array (k,) of FEATURE_DTYPE."""
+    w = np.asarray(words, np.int64).reshape(-1, N_FEATURES)
+    vals = decode32_array(w)
+    out = np.empty(len(w), FEATURE_DTYPE)
+    for i, name in enumerate(FEATURE_NAMES):
+        out[name] = vals[:, i]
+    return out
+
+
+def struct_to_words(feats) -> np.ndarray:
+    """Structured feature array -> packed 32-bit words int64 [k, 12] (nearest 1750A value)."""
+    from flightsw.arith.m1750 import encode32_array
+    f = np.asarray(feats)
+    if f.dtype.names is None or any(n not in f.dtype.names for n in FEATURE_NAMES):
+        raise ValueError(f"features must be a structured array with fields {FEATURE_NAMES}")
+    vals = np.stack([np.asarray(f[n], np.float64) for n in FEATURE_NAMES], axis=-1).reshape(-1, N_FEATURES)
+    return encode32_array(vals, rounding="nearest")
+
+
+# ------------------------------------------------------------------------------------------------
+# public API
+# ------------------------------------------------------------------------------------------------
+def _check_flag(name, v):
+    if v not in (True, False, 0, 1):
+        raise ValueError(f"{name}={v!r} must be a bool")
+    return bool(v)
+
+
+def features_words(sums, intensity_centroid: bool = True, ledger: Ledger | None = None,
+                   stage: str = "features"):
+    """The 12 features of every blob from its colouring sums, as packed 1750A 32-bit words.
+
+    Parameters
+    ----------
+    sums : ndarray [count + 1, NSUM] int64
+        Per-blob sums (``ColourResult.sums`` or :func:`flightsw.ip.colour.blob_sums`).
+    intensity_centroid : bool
+        The uplink intensity flag (True: intensity-weighted centroids and moments).
+    ledger : Ledger, optional
+        Charged :func:`features_cycles` (without normalisation) on ``"ip1750"``.
+
+    Returns
+    -------
+    (words int64 [count, 12], flags int)
+    """
+    s = np.asarray(sums)
+    if s.ndim != 2 or s.shape[1] != NSUM or s.shape[0] < 1 or s.dtype != np.int64:
+        raise ValueError(f"sums must be an int64 array [count + 1, {NSUM}], got {s.dtype} {s.shape}")
+    count = s.shape[0] - 1
+    words, flags = _features_kernel(s, count, _check_flag("intensity_centroid", intensity_centroid))
+    if ledger is not None:
+        ledger.charge(IP1750, stage, features_cycles(count, normalise=False))
+    return words, int(flags)
+
+
+def features(image, labels, count, intensity_centroid: bool = True) -> np.ndarray:
+    """The twelve features (before normalisation) of blobs ``1..count`` of ``image``.
+
+    Parameters
+    ----------
+    image : array_like [H, W], integer 16-bit values (or bool)
+        The thresholded/clipped window (intensities used for weights and brightness).
+    labels : array_like [H, W] int
+        Blob colours 1..count (0 = off), e.g. from :func:`flightsw.ip.label`.
+    count : int
+        Number of blobs.
+    intensity_centroid : bool
+        Intensity (True) or geometric (False) centroids and moments.
+
+    Returns
+    -------
+    ndarray (count,) of :data:`FEATURE_DTYPE`
+        Row ``k - 1`` is blob ``k``; fields in the units of the module docstring (window pixels,
+        degrees, counts); every value is an exact 1750A 32-bit float.
+    """
+    sums = blob_sums(image, labels, count)
+    words, _ = features_words(sums, intensity_centroid)
+    return words_to_struct(words)
+
+
+@lru_cache(maxsize=256)
+def _norm_consts_cached(compaction, imager):
+    scale = IMAGER_SCALE.get(imager, 1.0)
+    lin = compaction * scale
+    return (encode32(lin * lin, rounding="nearest"), encode32(lin, rounding="nearest"),
+            encode32(float(compaction), rounding="nearest"))
+
+
+def _norm_consts(compaction, imager):
+    """(area, linear, f) normalisation words for compaction f and an imager id."""
+    if isinstance(compaction, (bool, np.bool_)) or not isinstance(compaction, (int, np.integer)) \
+            or not 1 <= compaction <= 255:
+        raise ValueError(f"compaction={compaction!r} must be an int in 1..255")
+    if not isinstance(imager, str):
+        raise ValueError(f"imager={imager!r} must be an imager id string")
+    return _norm_consts_cached(int(compaction), imager)
+
+
+def normalise_words(words, compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis",
+                    ledger: Ledger | None = None, stage: str = "features"):
+    """Normalise packed feature words to the reference scale and project the centroids to the
+    imager's full-resolution frame (module docstring). ``window_origin`` = (row0, col0) of the
+    window's top-left corner in full-resolution pixels. Returns (words int64 [k, 12], flags)."""
+    w = np.asarray(words, np.int64)
+    if w.ndim != 2 or w.shape[1] != N_FEATURES:
+        raise ValueError(f"words must be int64 [k, {N_FEATURES}], got {w.shape}")
+    try:
+        r0, c0 = (float(v) for v in window_origin)
+    except (TypeError, ValueError):
+        raise ValueError(f"window_origin={window_origin!r} must be (row0, col0)") from None
+    if not (math.isfinite(r0) and math.isfinite(c0)):
+        raise ValueError(f"window_origin={window_origin!r} must be finite")
+    area, lin, f = _norm_consts(compaction, imager)
+    out, flags = _normalise_kernel(w, area, lin, f, encode32(r0, rounding="nearest"),
+                                   encode32(c0, rounding="nearest"))
+    if ledger is not None:
+        ledger.charge(IP1750, stage, len(w) * _CYC_NORMALISE)
+    return out, int(flags)
+
+
+def normalise(feats, compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis") -> np.ndarray:
+    """:func:`normalise_words` on a structured feature array -> structured array."""
+    out, _ = normalise_words(struct_to_words(feats), compaction, window_origin, imager)
+    return words_to_struct(out)

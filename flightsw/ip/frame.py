@@ -1,0 +1,519 @@
+"""One frame through the image processor: front end (the uplinked sequence) + back end (colour,
+features, normalisation, ranking) -> the IP -> TP candidate message, the stage images, the ledger.
+
+:func:`backend` runs IP steps 6-8 on a thresholded window in one jitted call (the same kernels as
+:func:`flightsw.ip.colour.colour`, :func:`flightsw.ip.features.features_words`,
+:func:`flightsw.ip.features.normalise_words` and :func:`flightsw.ip.rank.rank_words`, so the
+results are identical word for word) and charges the three stages to the ledger on ``"ip1750"``.
+
+:func:`process_frame` runs the whole frame: compaction and window (``flightsw.ip.preprocess``), the
+front-end steps of the uplinked sequence (``flightsw.ip.sequence``), then the back end, and packs the
+:class:`flightsw.messages.CandidateMessage`.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750 import decode32_array, encode32, unpack32
+from flightsw.budget import IP1750, Ledger
+from flightsw.ip.colour import _CYC as _CYC_COLOUR
+from flightsw.ip.colour import _as_int_image, _colour_kernel
+from flightsw.ip.features import (
+    _features_kernel, _norm_consts, _normalise_kernel, features_cycles, words_to_struct,
+)
+from flightsw.ip.rank import _CYC as _CYC_RANK
+from flightsw.ip.rank import _rank_kernel, _record_words
+from flightsw.messages import (
+    CANDIDATE_DTYPE, FEATURE_NAMES, MAX_CANDIDATES, CandidateMessage, Feedback,
+)
+
+__all__ = ["backend", "BackendResult", "process_frame", "process_window", "FrameResult"]
+
+
+@lru_cache(maxsize=4096)
+def _enc(x: float) -> int:
+    """float -> nearest 1750A 32-bit word (cached: window origins/centres repeat frame to frame)."""
+    return encode32(float(x), rounding="nearest")
+
+
+@njit(cache=True, inline="always")
+def _dec32(p):
+    """Packed 1750A 32-bit word -> float64, exact (format conversion, no arithmetic)."""
+    m, e = unpack32(p)
+    return math.ldexp(float(m), e - 23)
+
+
+_CYC_BLOB = features_cycles(1)
+_HEAD = 21        # pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts
+
+
+@njit(cache=True)
+def _backend_kernel(img, rec, prm):
+    """prm int64 [14]: diagonal, intensity, want_labels, area, lin, f, row0, col0 (words),
+    mean_row, mean_col (words), override, quantize, threshold word, max_out."""
+    diagonal, intensity, want_labels = prm[0] != 0, prm[1] != 0, prm[2] != 0
+    area, lin, fw, r0w, c0w = prm[3], prm[4], prm[5], prm[6], prm[7]
+    mean_row, mean_col, override, quantize = prm[8], prm[9], prm[10] != 0, prm[11] != 0
+    thr, max_out = prm[12], prm[13]
+    cyc_colour, cyc_blob, cyc_rank = _CYC_COLOUR, _CYC_BLOB, _CYC_RANK
+    labels, count, sums, cops = _colour_kernel(img, diagonal, want_labels)
+    raw, f1 = _features_kernel(sums, count, intensity)
+    words, f2 = _normalise_kernel(raw, area, lin, fw, r0w, c0w)
+    order, d, gof, f3, rops = _rank_kernel(words, rec, mean_row, mean_col, override, quantize,
+                                           thr, max_out)
+    m = order.size
+    h = _HEAD
+    pack = np.empty(h + 3 * m + count, np.int64)
+    pack[0] = count
+    pack[1] = m
+    pack[2] = f1 | f2 | f3
+    pack[3] = np.sum(cyc_colour * cops)
+    pack[4] = count * cyc_blob
+    pack[5] = np.sum(cyc_rank * rops)
+    pack[6:12] = cops
+    pack[12:21] = rops
+    pack[h:h + m] = order
+    pack[h + m:h + 2 * m] = gof
+    for q in range(m):
+        pack[h + 2 * m + q] = d[order[q]]
+    pack[h + 3 * m:] = d
+    # the candidate table (CANDIDATE_DTYPE layout: label int64, then 14 float64), decoded exactly
+    cand = np.empty((m, 15), np.int64)
+    fc = cand.view(np.float64)
+    for q in range(m):
+        k = order[q]
+        cand[q, 0] = k + 1
+        fc[q, 1] = _dec32(d[k])
+        fc[q, 2] = _dec32(gof[q])
+        for i in range(12):
+            fc[q, 3 + i] = _dec32(words[k, i])
+    return labels, words, pack, cand
+
+
+class BackendResult:
+    """What the back end produced for one window.
+
+    Attributes
+    ----------
+    labels : ndarray [H, W] int32
+        Blob colours 1..count (zeros if labels were not requested).
+    count : int
+        Number of blobs.
+    feature_words : ndarray [count, 12] int64
+        Normalised features of every blob (packed 1750A 32-bit words).
+    order : ndarray [m] int64
+        Reported candidates (0-based blob indices), best first.
+    gof_words, distance_words : ndarray [m] int64
+        Their GOF and distance words.
+    all_distance_words : ndarray [count] int64
+        Distance of every blob.
+    flags : int
+        OR of the 1750A PI flags raised.
+    cycles : dict
+        ``{"colour", "features", "rank"}`` PACE1750A clocks charged.
+    """
+
+    __slots__ = ("labels", "count", "feature_words", "order", "gof_words", "distance_words",
+                 "all_distance_words", "flags", "cycles", "_cand")
+
+    def __init__(self, labels, words, pack, cycles, cand=None):
+        self._cand = cand
+        count, m, h = int(pack[0]), int(pack[1]), _HEAD
+        self.labels = labels
+        self.count = count
+        self.feature_words = words
+        self.flags = int(pack[2])
+        self.order = pack[h:h + m]
+        self.gof_words = pack[h + m:h + 2 * m]
+        self.distance_words = pack[h + 2 * m:h + 3 * m]
+        self.all_distance_words = pack[h + 3 * m:]
+        self.cycles = cycles
+
+    @property
+    def features(self) -> np.ndarray:
+        """Normalised features of every blob, structured (FEATURE_DTYPE)."""
+        return words_to_struct(self.feature_words)
+
+    def candidates(self) -> np.ndarray:
+        """The reported candidates as a CANDIDATE_DTYPE array (best first)."""
+        if self._cand is not None:
+            return self._cand.view(CANDIDATE_DTYPE).reshape(-1)
+        m = len(self.order)
+        out = np.zeros(m, CANDIDATE_DTYPE)
+        if m:
+            out["label"] = self.order + 1
+            out["gof"] = decode32_array(self.gof_words)
+            out["distance"] = decode32_array(self.distance_words)
+            vals = decode32_array(self.feature_words[self.order])
+            for i, name in enumerate(FEATURE_NAMES):
+                out[name] = vals[:, i]
+        return out
+
+
+def backend(window, record, diagonal: bool = True, intensity_centroid: bool = True,
+            compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis",
+            centroid_mean=None, ledger: Ledger | None = None, want_labels: bool = True,
+            max_candidates: int = MAX_CANDIDATES) -> BackendResult:
+    """IP steps 6-8 on a thresholded (binary or clipped) window.
+
+    Parameters
+    ----------
+    window : array_like [H, W] integer (16-bit values)
+        The thresholded window; non-zero = on, values are the intensities.
+    record : flightsw.records.Record
+    diagonal, intensity_centroid : bool
+        The uplink flags of the colouring and feature steps.
+    compaction : int
+        Compaction factor f of the window.
+    window_origin : (row0, col0)
+        Window top-left corner in full-resolution imager pixels (compacted origin * f).
+    imager : str
+        Imager id (pixel scale for the normalisation).
+    centroid_mean : (row, col) or None
+        The record's centroid means this frame (TP prediction or window centre, full-res pixels);
+        None keeps the record's values.
+    ledger : Ledger, optional
+        Charged stages "colour", "features", "rank" on "ip1750".
+    want_labels : bool
+        Produce the final label image (a ground product: the flight keeps only the colour array).
+    """
+    from flightsw.records import Record
+    if not isinstance(record, Record):
+        raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
+    for name, v in (("diagonal", diagonal), ("intensity_centroid", intensity_centroid),
+                    ("want_labels", want_labels)):
+        if v not in (True, False, 0, 1):
+            raise ValueError(f"{name}={v!r} must be a bool")
+    if isinstance(window, np.ndarray) and window.dtype == np.int16 and window.ndim == 2 \
+            and window.flags.c_contiguous and window.size:
+        img = window                                   # hot path: DSP words, always 16-bit
+    else:
+        img = _as_int_image(window, "window")
+    area, lin, fw = _norm_consts(compaction, imager)
+    try:
+        r0, c0 = window_origin
+        r0w, c0w = _enc(float(r0)), _enc(float(c0))
+    except (TypeError, ValueError):
+        raise ValueError(f"window_origin={window_origin!r} must be (row0, col0) numbers") from None
+    if centroid_mean is None:
+        override, mr, mc = False, 0, 0
+    else:
+        try:
+            r, c = centroid_mean
+            if not (math.isfinite(r) and math.isfinite(c)):
+                raise ValueError
+            override, mr, mc = True, _enc(float(r)), _enc(float(c))
+        except (TypeError, ValueError):
+            raise ValueError(f"centroid_mean={centroid_mean!r} must be finite (row, col) or None") \
+                from None
+    if not isinstance(max_candidates, (int, np.integer)) or not 1 <= max_candidates <= 1000:
+        raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
+    prm = np.array([bool(diagonal), bool(intensity_centroid), bool(want_labels), area, lin, fw,
+                    r0w, c0w, mr, mc, override, record.quantize, _enc(record.gof_threshold),
+                    int(max_candidates)], np.int64)
+    labels, words, pack, cand = _backend_kernel(img, _record_words(record), prm)
+    cyc = {"colour": int(pack[3]), "features": int(pack[4]), "rank": int(pack[5])}
+    if ledger is not None:
+        for stage, c in cyc.items():
+            ledger.charge(IP1750, stage, c)
+    return BackendResult(labels, words, pack, cyc, cand)
+
+
+# ================================================================================================
+# the sequence steps of the back end (registered with flightsw.ip.sequence)
+# ================================================================================================
+from flightsw.ip.sequence import (  # noqa: E402
+    PHASE_FEATURES, PHASE_LABEL, PHASE_RANK, STEP_REGISTRY, FieldError, ProcessingSequence,
+    Stage, StageOutput, register_step,
+)
+
+
+@dataclass(frozen=True)
+class ColourParams:
+    diagonal: bool = True
+
+
+@dataclass(frozen=True)
+class FeatureParams:
+    intensity_centroid: bool = True
+
+
+@dataclass(frozen=True)
+class RankParams:
+    record: object = None              # a Record, or None: the record given to process_frame
+    max_candidates: int = MAX_CANDIDATES
+
+
+def _bool_field(params, name, default):
+    v = params.get(name, default)
+    if not isinstance(v, bool):
+        raise FieldError(name, f"{v!r} is not a boolean (true/false)")
+    return v
+
+
+def _only(params, allowed):
+    extra = sorted(set(params) - set(allowed))
+    if extra:
+        raise FieldError(extra[0], f"unknown field (allowed: {sorted(allowed)})")
+
+
+def _validate_colour(params, pre):
+    _only(params, {"diagonal"})
+    return ColourParams(_bool_field(params, "diagonal", True))
+
+
+def _validate_features(params, pre):
+    _only(params, {"intensity_centroid"})
+    return FeatureParams(_bool_field(params, "intensity_centroid", True))
+
+
+def _validate_rank(params, pre):
+    from flightsw.records import load_record
+    _only(params, {"record", "max_candidates"})
+    rec = None
+    if "record" in params:
+        try:
+            rec = load_record(params["record"])
+        except (ValueError, FileNotFoundError) as exc:
+            raise FieldError("record", str(exc)) from None
+    m = params.get("max_candidates", MAX_CANDIDATES)
+    if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_CANDIDATES:
+        raise FieldError("max_candidates", f"{m!r} must be an int in 1..{MAX_CANDIDATES}")
+    return RankParams(rec, m)
+
+
+def _window_geometry(ctx):
+    """(compaction, full-res origin (row0, col0), window centre (row, col)) from the context."""
+    sub = ctx.get("subimage")
+    if sub is None:
+        return 1, (0, 0), None
+    f = int(sub.factor)
+    r0, c0 = int(sub.origin[0]) * f, int(sub.origin[1]) * f
+    h, w = sub.size
+    return f, (r0, c0), (r0 + h * f / 2.0, c0 + w * f / 2.0)
+
+
+def _run_colour(image, p, ledger, ctx, stage):
+    from flightsw.ip.colour import colour
+    res = colour(image, p.diagonal, ledger, stage)
+    ctx["colour"] = res
+    return StageOutput(res.labels, data=res, forward=image)
+
+
+def _run_features(image, p, ledger, ctx, stage):
+    from flightsw.ip.colour import colour
+    from flightsw.ip.features import features_words, normalise_words
+    res = ctx.get("colour")
+    if res is None:                     # no colouring step: colour with the default flag
+        res = colour(image, True, ledger, "colour")
+        ctx["colour"] = res
+    raw, _ = features_words(res.sums, p.intensity_centroid, ledger, stage)
+    f, origin, _ = _window_geometry(ctx)
+    words, _ = normalise_words(raw, f, origin, ctx.get("imager", "wfov_vis"), ledger, stage)
+    ctx["feature_words"] = words
+    return StageOutput(res.labels, data=words_to_struct(words), forward=image)
+
+
+def _run_rank(image, p, ledger, ctx, stage):
+    from flightsw.ip.rank import rank_words
+    record = p.record if p.record is not None else ctx.get("record")
+    if record is None:
+        raise ValueError("rank step: no record (give record = ... in the step or to process_frame)")
+    words = ctx.get("feature_words")
+    if words is None:
+        _run_features(image, FeatureParams(), ledger, ctx, "features")
+        words = ctx["feature_words"]
+    _, _, centre = _window_geometry(ctx)
+    mean = ctx.get("centroid_mean", centre)
+    res = rank_words(words, record, mean, ledger, p.max_candidates, stage)
+    ctx["rank"] = res
+    labels = ctx["colour"].labels
+    ranked = np.zeros_like(labels)
+    for q, k in enumerate(res.order):          # stage image: blobs numbered by rank (1 = best)
+        ranked[labels == k + 1] = q + 1
+    return StageOutput(ranked, data=res, forward=image)
+
+
+for _op in ("colour", "label"):
+    register_step(_op, _validate_colour, _run_colour, phase=PHASE_LABEL, unique=True,
+                  label=lambda p: "colour", replace=True)
+register_step("features", _validate_features, _run_features, phase=PHASE_FEATURES, unique=True,
+              replace=True)
+register_step("rank", _validate_rank, _run_rank, phase=PHASE_RANK, unique=True, replace=True)
+
+
+# ================================================================================================
+# process_frame
+# ================================================================================================
+@dataclass
+class FrameResult:
+    """What :func:`process_frame` returns.
+
+    Attributes
+    ----------
+    message : CandidateMessage
+    stages : list of flightsw.ip.sequence.Stage
+        ``window``, every front-end step's output, then ``colour`` (label image), ``rank`` (blobs
+        numbered by rank, 1 = best) -- the panels of the paper's Figure 3.
+    ledger : Ledger
+    backend : BackendResult
+    subimage : flightsw.ip.preprocess.Subimage
+    """
+
+    message: CandidateMessage
+    stages: list
+    ledger: Ledger
+    backend: BackendResult
+    subimage: object = None
+    context: dict = field(default_factory=dict)
+
+    def __iter__(self):                         # message, stages, ledger = process_frame(...)
+        return iter((self.message, self.stages, self.ledger))
+
+
+def _frame_parts(frame):
+    """ndarray, or an object with the pixels in .image/.pixels/.data and optional .t/.time_tag,
+    .imager, .frame_count/.index."""
+    if isinstance(frame, np.ndarray):
+        return frame, {}
+    for name in ("image", "pixels", "data", "frame"):
+        img = getattr(frame, name, None)
+        if isinstance(img, np.ndarray):
+            break
+    else:
+        raise ValueError(f"frame must be an ndarray or carry one in .image/.pixels/.data, got "
+                         f"{type(frame).__name__}")
+    meta = {}
+    for key, names in (("time_tag", ("time_tag", "t")), ("imager", ("imager", "imager_id")),
+                       ("frame_count", ("frame_count", "index", "frame_index"))):
+        for n in names:
+            if getattr(frame, n, None) is not None:
+                meta[key] = getattr(frame, n)
+                break
+    return img, meta
+
+
+def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
+                  ledger: Ledger | None = None, imager: str | None = None,
+                  frame_count: int | None = None, time_tag: float | None = None,
+                  alpha_q12: int | None = None, check: bool = True,
+                  want_stages: bool = True) -> FrameResult:
+    """One frame through the IP: preprocess, the sequence's front-end steps, colour, features,
+    ranking, and the candidate message.
+
+    Parameters
+    ----------
+    frame : ndarray [244, 256] uint16 (12-bit counts), or an object carrying one (``.image`` ...)
+        with optional ``.t``/``.time_tag``, ``.imager``, ``.frame_count``.
+    sequence : flightsw.ip.sequence.ProcessingSequence
+        The uplinked sequence. Its back-end steps (``colour``/``label`` with ``diagonal``,
+        ``features`` with ``intensity_centroid``, ``rank`` with optional ``record``) set the flags;
+        absent ones run with their defaults (diagonal on, intensity centroids, ``record``).
+    record : flightsw.records.Record
+        The a priori record in force (a ``record`` in the sequence's rank step overrides it).
+    feedback : Feedback, optional
+        The TP's predicted object pixel (full resolution; NaN if none), type and lock: centres the
+        window and replaces the record's centroid means; without a prediction the window is the
+        image centre and the means are the window centre.
+    ledger : Ledger, optional
+        Charged by every stage (a new one if None).
+    imager, frame_count, time_tag : optional
+        Message header values (override the frame object's).
+    alpha_q12 : int, optional
+        Alpha from the onboard AlphaController (Q4.12), overriding the sequence's threshold alpha.
+    want_stages : bool
+        Keep the stage images (False: only the message; the label image is not formed).
+
+    Returns
+    -------
+    FrameResult (iterates as ``message, stages, ledger``)
+    """
+    from flightsw.records import Record
+    if not isinstance(sequence, ProcessingSequence):
+        raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
+    if not isinstance(record, Record):
+        raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
+    if feedback is not None and not isinstance(feedback, Feedback):
+        raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
+                         f"{type(feedback).__name__}")
+    img, meta = _frame_parts(frame)
+    imager = imager if imager is not None else str(meta.get("imager", "wfov_vis"))
+    frame_count = int(frame_count if frame_count is not None else meta.get("frame_count", 0)) & 0xFFFF
+    time_tag = float(time_tag if time_tag is not None else meta.get("time_tag", 0.0))
+    ledger = Ledger() if ledger is None else ledger
+    pred = None
+    if feedback is not None and feedback.has_prediction:
+        pred = (float(feedback.predicted_row), float(feedback.predicted_col))
+    sub = sequence.window(img, pred, ledger, check=check)
+    return process_window(sub, sequence, record, pred, ledger=ledger, imager=imager,
+                          frame_count=frame_count, time_tag=time_tag, alpha_q12=alpha_q12,
+                          want_stages=want_stages)
+
+
+def process_window(sub, sequence, record, centroid_mean=None, *, ledger: Ledger | None = None,
+                   imager: str = "wfov_vis", frame_count: int = 0, time_tag: float = 0.0,
+                   alpha_q12: int | None = None, want_stages: bool = True,
+                   max_candidates: int | None = None) -> FrameResult:
+    """The part of :func:`process_frame` after the preprocessor, on a given ``Subimage`` ``sub``
+    (used by the ground's full-frame mode, which cuts its own windows). ``centroid_mean`` (full-res
+    (row, col)) replaces the record's centroid means; None: the window centre."""
+    ledger = Ledger() if ledger is None else ledger
+    pred = centroid_mean
+    ctx = {"subimage": sub, "preprocess": sequence.preprocess, "imager": imager, "record": record}
+    if alpha_q12 is not None:
+        ctx["alpha_q12"] = int(alpha_q12)
+    # ---- front end through the registry ----
+    x = sub.image
+    stages = [Stage("window", x)] if want_stages else []
+    colour_p, feat_p, rank_p = ColourParams(), FeatureParams(), RankParams()
+    for st in sequence.steps:
+        if st.op in ("colour", "label"):
+            colour_p = st.params
+        elif st.op == "features":
+            feat_p = st.params
+        elif st.op == "rank":
+            rank_p = st.params
+        elif STEP_REGISTRY[st.op].phase < PHASE_LABEL:
+            out = STEP_REGISTRY[st.op].runner(x, st.params, ledger, ctx, st.stage)
+            if isinstance(out, StageOutput):
+                if want_stages:
+                    stages.append(Stage(st.stage, out.image, out.data))
+                x = out.image if out.forward is None else out.forward
+            else:
+                if want_stages:
+                    stages.append(Stage(st.stage, out))
+                x = out
+        else:
+            raise ValueError(f"process_frame: step {st.op!r} is not a front-end or back-end step")
+    # ---- back end (one jitted call) ----
+    rec = rank_p.record if rank_p.record is not None else record
+    f, origin, centre = _window_geometry(ctx)
+    mean = pred if pred is not None else centre
+    be = backend(x, rec, colour_p.diagonal, feat_p.intensity_centroid, f, origin, imager, mean,
+                 ledger, want_stages,
+                 rank_p.max_candidates if max_candidates is None else max_candidates)
+    if want_stages:
+        stages.append(Stage("colour", be.labels, be.count))
+        ranked = np.zeros_like(be.labels)
+        if len(be.order):
+            lut = np.zeros(be.count + 1, np.int32)
+            lut[be.order + 1] = np.arange(1, len(be.order) + 1)
+            ranked = lut[be.labels]
+        stages.append(Stage("rank", ranked, be.order))
+    th = ctx.get("threshold")
+    alpha = th["alpha_q12"] / 4096.0 if th else 0.0
+    h, w = sub.size
+    msg = CandidateMessage(frame_count=frame_count, time_tag=time_tag,
+                           imager=imager if imager in _IMAGERS else "real", compaction=f,
+                           window_row0=origin[0], window_col0=origin[1], window_rows=int(h),
+                           window_cols=int(w), alpha=alpha, record_id=rec.record_id,
+                           candidates=be.candidates())
+    return FrameResult(msg, stages, ledger, be, sub, ctx)
+
+
+from flightsw.messages import IMAGER_CODES as _IMAGERS  # noqa: E402

@@ -1,0 +1,245 @@
+"""IP step 5: adaptive threshold ``T = mean + alpha * std`` and the onboard alpha logic.
+
+The MSX paper ("Thresholding"): "Pixels that pass the threshold are either set to a constant value
+(binarized) or left pristine (clipped), whereas those that do not are set to zero ... Onboard logic
+exists that increases alpha if the number of candidates detected becomes too large (approaches 100)
+or decreases alpha if the tracking processor does not lock on track with any of the available
+candidates (useful for dim objects)."
+
+Everything runs on the ADSP-2100 in integer arithmetic (no float, no 1750A):
+
+1. Block shift ``s = max(0, bitlen(max|x|) - 12)`` (EXPADJ pass) so that ``|x >> s| <= 4096``; 12-bit
+   and detrended 12-bit data have ``s = 0``.
+2. One pass: ``S1 = sum (x >> s)`` (double-precision ALU add), ``S2 = sum (x >> s)**2`` (MAC;
+   ``2 * S2 <= 2 * 16384 * 4096**2 = 2**39`` read as an unsigned 40-bit MR: windows up to 128x128).
+3. Statistics with ``n = h*w`` (multiprecision integer routines, exact):
+   mean ``m4 = round_half_up(16 * S1 / n)``                                   # Q.4 (1/16 count)
+   variance ``v8 = round_half_up(256 * (n*S2 - S1**2) / n**2)``                # Q.8
+   std ``d4 = isqrt(v8)`` = floor(sqrt(v8))                                    # Q.4
+   The square root is an **integer square root on the DSP**: the restoring bit-pair method, 16
+   iterations of (trial = root | bit; compare; conditional subtract and set; shift) on the 32-bit
+   radicand, 6 cycles an iteration + 4: 100 cycles.
+4. ``T4 = (m4 + round_half_up(alpha_q12 * d4 / 4096)) << s``                   # Q.4, alpha Q4.12
+5. Pass ``x`` when ``16 * x > T4`` (strictly above the threshold): binarise -> 1, clip -> ``x``;
+   otherwise 0.
+
+Error bound against float64 ``T = mean + alpha * std`` (population std, ``numpy.std``), s = 0:
+``|m4/16 - mean| <= 1/32``; ``|v8/256 - var| <= 1/512``, so ``sqrt(v8)`` is within
+``1/(512 * std)`` of std (tiny for std >= 1) and the floor loses ``< 1/16``: ``d4/16`` is in
+``(std - 1/16 - eps, std]``; then ``alpha * d4`` is rounded to 1/16 with alpha exactly ``alpha_q12 /
+4096``. Hence ``|T4/16 - T| <= 1/32 + alpha * (1/16 + eps) + 1/32`` (:func:`threshold_bound`).
+
+Cycles: EXPADJ 1 + shift 1 + MAC 1 + double add 2 per pixel (stats), compare/select/store 4 per pixel,
+3 per row and pass, + 250 for the divisions (2 x 32/16 multiprecision divides), the multiprecision
+``n*S2 - S1**2``, the 100-cycle isqrt and the alpha multiply. See :func:`threshold_cycles`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from numba import njit
+
+from flightsw.budget import m1750_cycles
+
+__all__ = ["threshold", "threshold_stats", "threshold_cycles", "threshold_bound", "isqrt32",
+           "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
+           "ISQRT_CYCLES"]
+
+ALPHA_MIN = 0.0
+ALPHA_MAX = 32767 / 4096          # Q4.12 word range (7.99975)
+BINARIZE, CLIP = 0, 1
+ISQRT_CYCLES = 16 * 6 + 4
+
+
+def alpha_to_q12(alpha):
+    """Host alpha -> Q4.12 word (round half up); ``ValueError`` outside 0 .. 7.99975."""
+    a = float(alpha)
+    if not (ALPHA_MIN <= a <= ALPHA_MAX):
+        raise ValueError(f"alpha={alpha!r} out of range {ALPHA_MIN} .. {ALPHA_MAX:.5f} (Q4.12)")
+    return int(np.floor(a * 4096 + 0.5))
+
+
+@njit(cache=True)
+def isqrt32(v):
+    """floor(sqrt(v)) for 0 <= v < 2**32: the DSP's restoring bit-pair square root (16 steps)."""
+    root = np.int64(0)
+    rem = np.int64(v)
+    bit = np.int64(1) << 30
+    while bit > rem and bit > 0:
+        bit >>= 2
+    while bit != 0:
+        if rem >= root + bit:
+            rem -= root + bit
+            root = (root >> 1) + bit
+        else:
+            root >>= 1
+        bit >>= 2
+    return root
+
+
+@njit(cache=True)
+def _stats_k(img):
+    f = img.ravel()
+    m = np.int32(0)
+    for i in range(f.size):
+        a = np.int32(f[i])
+        m |= a ^ (a >> np.int32(15))
+    bl = 0
+    while m > 0:
+        bl += 1
+        m >>= 1
+    s = max(0, bl - 12)
+    s1 = np.int64(0)
+    s2 = np.int64(0)
+    if s == 0:
+        for i in range(f.size):
+            x = np.int64(f[i])
+            s1 += x
+            s2 += x * x
+    else:
+        for i in range(f.size):
+            x = np.int64(f[i]) >> s
+            s1 += x
+            s2 += x * x
+    return s, s1, s2
+
+
+@njit(cache=True)
+def _rhu_div(a, b):
+    """round_half_up(a / b) for b > 0 (floor division, exact integers)."""
+    return (2 * a + b) // (2 * b)
+
+
+@njit(cache=True)
+def _threshold_value(img, alpha_q12):
+    s, s1, s2 = _stats_k(img)
+    n = np.int64(img.shape[0] * img.shape[1])
+    m4 = _rhu_div(16 * s1, n)                                  # Q.4
+    num = n * s2 - s1 * s1                                      # >= 0, exact (< 2**53)
+    v8 = _rhu_div(256 * num, n * n)                             # Q.8
+    if v8 > 0xFFFFFFFF:
+        v8 = np.int64(0xFFFFFFFF)
+    d4 = isqrt32(v8)                                            # Q.4
+    t4 = (m4 + _rhu_div(np.int64(alpha_q12) * d4, 4096)) << s  # Q.4
+    return t4, m4, d4, s
+
+
+@njit(cache=True)
+def _apply_k(img, t4, mode):
+    h, w = img.shape
+    out = np.empty((h, w), np.int16)
+    f = img.ravel()
+    o = out.ravel()
+    t = np.int64(t4)
+    if mode == 0:
+        for i in range(f.size):
+            o[i] = np.int16(np.int64(f[i]) * 16 > t)
+    else:
+        for i in range(f.size):
+            o[i] = f[i] if np.int64(f[i]) * 16 > t else np.int16(0)
+    return out
+
+
+@njit(cache=True)
+def threshold_k(img, alpha_q12, mode):
+    t4, m4, d4, s = _threshold_value(img, alpha_q12)
+    return _apply_k(img, t4, mode), t4, m4, d4, s
+
+
+def threshold_stats(img, alpha):
+    """``(T4, m4, d4, s)``: threshold, mean, std in Q.4 (1/16 count) and the block shift."""
+    img = np.ascontiguousarray(img, np.int16)
+    t4, m4, d4, s = _threshold_value(img, alpha_to_q12(alpha))
+    return int(t4), int(m4), int(d4), int(s)
+
+
+def threshold(img, alpha, mode="binarize", ledger=None, stage="threshold", alpha_q12=None):
+    """Adaptive threshold of the subimage.
+
+    Parameters
+    ----------
+    img : ndarray (h, w) int16 (Q16.0), at most 128x128 pixels
+    alpha : float in 0 .. 7.99975 (quantised to Q4.12), ignored when ``alpha_q12`` is given
+    mode : "binarize" (passing pixels -> 1) or "clip" (passing pixels keep their value)
+
+    Returns
+    -------
+    (out int16 ndarray, T4) — the thresholded image and the threshold in Q.4 counts.
+    """
+    img = np.ascontiguousarray(img, np.int16)
+    if img.size > 16384:
+        raise ValueError(f"threshold: window {img.shape} exceeds 128x128 (the MR sum-of-squares bound)")
+    if mode not in ("binarize", "clip"):
+        raise ValueError(f"mode={mode!r} must be 'binarize' or 'clip'")
+    aq = alpha_to_q12(alpha) if alpha_q12 is None else int(alpha_q12)
+    out, t4, _, _, _ = threshold_k(img, aq, BINARIZE if mode == "binarize" else CLIP)
+    if ledger is not None:
+        ledger.charge("dsp", stage, threshold_cycles(*img.shape))
+    return out, int(t4)
+
+
+def threshold_cycles(h, w):
+    """ADSP-2100 cycles of the threshold step on an h x w window."""
+    return int(h * w * (5 + 4) + 2 * 3 * h + 250)
+
+
+def threshold_bound(alpha, std):
+    """Bound of ``|T4/16 - (mean + alpha*std)|`` (s = 0), host float for tests."""
+    eps = 1.0 / (512 * std) if std > 0 else 1 / 16
+    return 1 / 32 + alpha * (1 / 16 + eps) + 1 / 32
+
+
+@dataclass
+class AlphaController:
+    """The onboard alpha logic (1750A integer code), alpha held as a Q4.12 word.
+
+    ``update(candidate_count, tp_locked)``: when the number of candidates detected reaches
+    ``near_count`` (approaching the 100 the paper names) alpha rises by ``step_up``; otherwise, when
+    the track processor reports no lock, it falls by ``step_down`` (dim objects); always within
+    ``alpha_min .. alpha_max``. Too many candidates wins over no lock (the message cannot carry them
+    anyway). Parameters are host floats quantised to Q4.12 once at construction.
+
+    Each update charges the 1750A ``ip1750`` for 2 compares, 2 branches, one add and one store.
+    """
+
+    alpha: float = 3.0
+    alpha_min: float = 1.0
+    alpha_max: float = 7.0
+    step_up: float = 0.5
+    step_down: float = 0.25
+    near_count: int = 90
+    q12: int = field(init=False)
+
+    def __post_init__(self):
+        self._min = alpha_to_q12(self.alpha_min)
+        self._max = alpha_to_q12(self.alpha_max)
+        if self._min > self._max:
+            raise ValueError(f"alpha_min={self.alpha_min} > alpha_max={self.alpha_max}")
+        self._up = alpha_to_q12(self.step_up)
+        self._down = alpha_to_q12(self.step_down)
+        if self._up <= 0 or self._down <= 0:
+            raise ValueError("step_up and step_down must be > 0")
+        if not isinstance(self.near_count, (int, np.integer)) or not 1 <= self.near_count <= 100:
+            raise ValueError(f"near_count={self.near_count!r} must be an int in 1..100")
+        q = alpha_to_q12(self.alpha)
+        if not self._min <= q <= self._max:
+            raise ValueError(f"alpha={self.alpha} outside alpha_min..alpha_max")
+        self.q12 = q
+
+    @property
+    def value(self) -> float:
+        """Current alpha (host float view of the Q4.12 word)."""
+        return self.q12 / 4096
+
+    def update(self, candidate_count: int, tp_locked: bool, ledger=None) -> int:
+        """Apply the logic after a frame; returns the new Q4.12 alpha word."""
+        if candidate_count >= self.near_count:
+            self.q12 = min(self.q12 + self._up, self._max)
+        elif not tp_locked:
+            self.q12 = max(self.q12 - self._down, self._min)
+        if ledger is not None:
+            ledger.charge("ip1750", "alpha_logic",
+                          m1750_cycles({"C": 2, "JC": 2, "A": 1, "ST": 1}))
+        self.alpha = self.value
+        return self.q12

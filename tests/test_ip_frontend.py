@@ -1,0 +1,466 @@
+"""IP front end (issue 3) against independent float64 oracles (SciPy, NumPy) and integer numpy."""
+from pathlib import Path
+
+import numpy as np
+import pytest
+import scipy.ndimage as ndi
+
+from flightsw.arith.adsp2100 import correlate_valid_q15
+from flightsw.budget import Ledger
+from flightsw.ip import detrend as dt
+from flightsw.ip import filters as flt
+from flightsw.ip import preprocess as pp
+import flightsw.ip.threshold as th
+from flightsw.ip.sequence import (IPConfig, ProcessingSequence, SequenceError, StageOutput,
+                                  STEP_REGISTRY, load_default_sequence, register_step)
+
+ROOT = Path(__file__).resolve().parents[1]
+REAL = ROOT / "data" / "real"
+
+
+# ------------------------------------------------------------------ inputs
+def _random_frames(n=3, seed=0):
+    rng = np.random.default_rng(seed)
+    out = [rng.integers(0, 4096, pp.FRAME_SHAPE).astype(np.uint16) for _ in range(n)]
+    yy, xx = np.mgrid[:244, :256]
+    bg = 300 + 2.0 * xx + 1.5 * yy + 0.01 * (xx - 128) ** 2
+    out.append(np.clip(rng.poisson(bg), 0, 4095).astype(np.uint16))
+    return out
+
+
+def _real_frames():
+    frames = []
+    d = np.load(REAL / "wic_20000828_0928-0957_15frames.npz")["img"]
+    for i in (0, 7):
+        img = d[i].astype(np.float64)
+        img = np.round(img / img.max() * 4095)[:244, :256]
+        frames.append(img.astype(np.uint16))
+    import tifffile
+    t = (tifffile.imread(REAL / "2019-07-29T204726_Alt40_Azi-135_Try1.tiff") // 16).astype(np.uint16)
+    frames.append(np.ascontiguousarray(t[200:444, 300:556]))
+    return frames
+
+
+FRAMES = _random_frames() + _real_frames()
+WINDOWS = [pp.preprocess(f, c, None if k == 0 else (60.0 + 30 * k, 200.0), 64).image
+           for f in FRAMES for k, c in enumerate((1, 2, 4))]
+
+
+# ------------------------------------------------------------------ preprocessor
+@pytest.mark.parametrize("f", [1, 2, 4])
+def test_compaction_equals_integer_block_mean(f):
+    for frame in FRAMES:
+        h, w = 244 // f, 256 // f
+        blocks = frame[:h * f, :w * f].astype(np.int64).reshape(h, f, w, f).sum(axis=(1, 3))
+        n = f * f
+        assert np.array_equal(pp.compact(frame, f), (blocks + n // 2) // n)
+
+
+def test_compaction_rounds_halves_up_and_rejects_bad_input():
+    frame = np.zeros(pp.FRAME_SHAPE, np.uint16)
+    frame[0, 0:2] = 1                      # block sum 2 of 4 pixels -> 0.5 -> 1
+    frame[0, 2] = 1                        # sum 1 -> 0.25 -> 0
+    c = pp.compact(frame, 2)
+    assert c[0, 0] == 1 and c[0, 1] == 0
+    with pytest.raises(ValueError, match="compaction factor"):
+        pp.compact(frame, 3)
+    with pytest.raises(ValueError, match="12-bit"):
+        pp.compact(frame + 5000, 1)
+
+
+def test_window_centre_clamping_and_projection():
+    frame = _random_frames(1)[0]
+    c = pp.compact(frame, 2)                               # 122 x 128
+    s = pp.window(c, 2)
+    assert s.origin == ((122 - 64) // 2, (128 - 64) // 2) and s.size == (64, 64)
+    s = pp.window(c, 2, (100.0, 130.0))                    # centre (50, 65) compacted
+    assert s.origin == (18, 33)
+    assert np.array_equal(s.image, c[18:82, 33:97])
+    r, col = s.to_imager(32.0, 32.0)                       # window centre back to the prediction
+    assert (r, col) == (100.0, 130.0)
+    assert s.to_window(r, col) == (32.0, 32.0)
+    assert pp.window(c, 2, (-500.0, -500.0)).origin == (0, 0)
+    assert pp.window(c, 2, (5000.0, 5000.0)).origin == (122 - 64, 128 - 64)
+    s4 = pp.window(pp.compact(frame, 4), 4, (10.0, 10.0))  # 61 x 64: the whole compacted frame
+    assert s4.size == (61, 64) and s4.origin == (0, 0)
+    with pytest.raises(ValueError, match="larger than the compacted image"):
+        pp.window(c, 2, size=130)
+
+
+def test_fused_preprocess_equals_compact_then_window():
+    for frame in FRAMES:
+        for f in (1, 2, 4):
+            for pred in (None, (17.3, 240.9), (200.0, 3.0)):
+                a = pp.preprocess(frame, f, pred, 64)
+                b = pp.window(pp.compact(frame, f), f, pred, 64)
+                assert a.origin == b.origin and np.array_equal(a.image, b.image)
+
+
+# ------------------------------------------------------------------ linear filters
+KERNELS = [flt.smoothing_kernel(3), flt.smoothing_kernel(5), flt.smoothing_kernel(7),
+           flt.matched_kernel(3), flt.matched_kernel(5, 1.3), flt.matched_kernel(7, 1.8)]
+
+
+def test_default_kernels():
+    for k in (3, 5, 7):
+        assert flt.smoothing_kernel(k).astype(np.int64).sum() == 32768
+        m = flt.matched_kernel(k)
+        assert m.astype(np.int64).sum() == 0 and np.array_equal(m, m.T) and np.array_equal(m, m[::-1])
+    g = flt.matched_kernel(3) / 32768.0
+    assert abs((g * g).sum() - 1) < 1e-3 and g[1, 1] > 0 > g[0, 0]
+
+
+@pytest.mark.parametrize("ki", range(len(KERNELS)))
+def test_filter_against_scipy_correlate_nearest(ki):
+    """|ours - float64 correlate(same Q1.15 taps)| <= 1/2: the 40-bit sum is exact, only the final
+    RND rounds (no saturation for 12-bit input: max|x| * sum|k| < 2**15)."""
+    k = KERNELS[ki]
+    kf = k.astype(np.float64) / 32768
+    for img in WINDOWS:
+        ours = flt.correlate_q15(img, k)
+        ref = ndi.correlate(img.astype(np.float64), kf, mode="nearest")
+        assert np.abs(ours - ref).max() <= 0.5
+        assert np.array_equal(ours, correlate_valid_q15(flt.pad_nearest(img, k.shape[0] // 2), k))
+
+
+def test_filter_against_ideal_gaussian_kernel():
+    """Against the real-valued 7x7 binomial: add max|x| * sum|k_q - K| (here 0: exact in Q1.15)."""
+    b = np.array([1, 6, 15, 20, 15, 6, 1], float) / 64
+    for img in WINDOWS[:6]:
+        ref = ndi.correlate(img.astype(float), np.outer(b, b), mode="nearest")
+        assert np.abs(flt.correlate_q15(img, flt.smoothing_kernel(7)) - ref).max() <= 0.5
+
+
+def test_filter_saturates_and_int64_path_matches_mr_emulation():
+    rng = np.random.default_rng(3)
+    img = rng.integers(30000, 32768, (20, 24)).astype(np.int16)     # near full scale
+    img[::3] = -32768
+    big = np.full((7, 7), 32767, np.int16)                           # sum|k| ~ 49: overflow
+    ours = flt.correlate_q15(img, big)
+    assert np.array_equal(ours, flt.correlate_q15_exact(img, big))  # int64 path, bit exact
+    assert (ours == 32767).any() and (ours == -32768).any()
+    mixed = KERNELS[3]
+    assert np.array_equal(flt.correlate_q15(img, mixed), flt.correlate_q15_exact(img, mixed))
+    # int32 path on random kernels and 16-bit data, both paths vs the MR emulation
+    for _ in range(20):
+        k = rng.integers(-32768, 32768, (3, 3)).astype(np.int16)
+        x = rng.integers(-4096, 4096, (16, 16)).astype(np.int16)
+        assert np.array_equal(flt.correlate_q15(x, k), flt.correlate_q15_exact(x, k))
+        x = rng.integers(-32768, 32768, (16, 16)).astype(np.int16)
+        assert np.array_equal(flt.correlate_q15(x, k), flt.correlate_q15_exact(x, k))
+
+
+def test_rnd_ties_round_half_to_even():
+    img = np.zeros((3, 3), np.int16)
+    img[1, 1] = 1
+    k = np.zeros((3, 3), np.int16)
+    k[1, 1] = 0x4000                                      # 1 * 0.5 = 0.5 -> 0 (even)
+    assert flt.correlate_q15(img, k)[1, 1] == 0
+    img[1, 1] = 3                                         # 1.5 -> 2
+    assert flt.correlate_q15(img, k)[1, 1] == 2
+
+
+def test_filter_charges_cycles():
+    led = Ledger()
+    flt.correlate_q15(WINDOWS[0], KERNELS[0], led)
+    assert led.stages("dsp") == {"filter3x3": flt.pad_cycles(64, 64, 1) + 64 * 64 * 12 + 3 * 64 + 10}
+
+
+def test_kernel_validation():
+    with pytest.raises(ValueError, match="not 3x3, 5x5 or 7x7"):
+        flt.validate_kernel(np.zeros((9, 9)))
+    with pytest.raises(ValueError, match="Q1.15 word range"):
+        flt.validate_kernel(np.full((3, 3), 40000))
+    with pytest.raises(ValueError, match="integer Q1.15"):
+        flt.validate_kernel(np.full((3, 3), 0.25))
+
+
+# ------------------------------------------------------------------ high-pass detrender
+def test_highpass_against_quantised_and_ideal_gaussian():
+    sigma = 1.5
+    taps = flt.gaussian_taps_q15(sigma)
+    assert taps.astype(np.int64).sum() == 32768
+    tq = taps.astype(np.float64) / 32768
+    for img in WINDOWS:
+        x = img.astype(np.float64)
+        ours = dt.detrend_highpass(img, taps)
+        # same quantised taps: |err| <= 1/2 + 2**-(g+1), g = 3 for 12-bit data
+        ref_q = x - ndi.correlate(x, np.outer(tq, tq), mode="nearest")
+        assert np.abs(ours - ref_q).max() <= 0.5 + 2.0 ** -4
+        # ideal Gaussian (gaussian_filter, 7 taps): add the tap quantisation term
+        ref = x - ndi.gaussian_filter(x, sigma, mode="nearest", truncate=3.0 / sigma)
+        bound = dt.highpass_bound(taps, np.abs(x).max(), sigma)
+        assert bound < 1.5
+        assert np.abs(ours - ref).max() <= bound
+
+
+def test_highpass_signed_full_range_saturates():
+    rng = np.random.default_rng(5)
+    img = np.where(rng.random((32, 32)) < 0.5, -32768, 32767).astype(np.int16)
+    ours = dt.detrend_highpass(img)
+    lp = dt.lowpass_q15(img, dt._default_taps())
+    exact = np.clip(img.astype(np.int64) - lp, -32768, 32767)
+    assert np.array_equal(ours, exact)
+    assert (ours == 32767).any() and (ours == -32768).any()
+    # g = 0 here: the low-pass is still within 1/2 + 1/2 of the float correlation
+    t = dt._default_taps().astype(float) / 32768
+    ref = ndi.correlate(img.astype(float), np.outer(t, t), mode="nearest")
+    assert np.abs(lp - ref).max() <= 1.0
+
+
+def test_highpass_cycles_charged():
+    led = Ledger()
+    dt.detrend_highpass(WINDOWS[0], ledger=led)
+    assert led.cycles("dsp", "detrend_highpass") == dt.highpass_cycles(64, 64)
+    assert dt.highpass_cycles(64, 64) < 64 * 64 * (49 + 3)      # separable beats the 2-D kernel
+
+
+# ------------------------------------------------------------------ polynomial detrender
+def _lstsq_detrend(x):
+    h, w = x.shape
+    v, u = np.mgrid[:h, :w].astype(np.float64)
+    A = np.stack([np.ones(h * w), u.ravel(), v.ravel(), u.ravel() ** 2, (u * v).ravel(),
+                  v.ravel() ** 2], 1)
+    coef, *_ = np.linalg.lstsq(A, x.ravel(), rcond=None)
+    return x - (A @ coef).reshape(h, w)
+
+
+def test_polynomial_basis_is_orthogonal_and_fits_16_bits():
+    for h, w in ((64, 64), (61, 64), (32, 32), (96, 96), (122, 128)):
+        tables, js, N, _, _ = dt.polynomial_basis(h, w)
+        B = (tables.astype(np.int64) >> js[:, None, None]).reshape(6, -1)
+        G = B @ B.T
+        assert np.array_equal(G, np.diag(N))
+        assert np.abs(tables).max() < 2 ** 15
+
+
+def test_polynomial_against_lstsq():
+    """|ours - (x - lstsq surface)| <= 1/2 + 2**-12."""
+    for img in WINDOWS:
+        ours = dt.detrend_polynomial(img)
+        ref = _lstsq_detrend(img.astype(np.float64))
+        assert np.abs(ours - ref).max() <= 0.5 + 2.0 ** -12
+
+
+def test_polynomial_exact_surface_is_removed_and_saturation():
+    h, w = 64, 64
+    v, u = np.mgrid[:h, :w]
+    surf = 1000 + 3 * u - 2 * v + 0.02 * (u - 30) ** 2 + 0.01 * u * v - 0.03 * (v - 20) ** 2
+    img = np.round(surf).astype(np.int16)
+    out = dt.detrend_polynomial(img)
+    assert np.abs(out - _lstsq_detrend(img.astype(float))).max() <= 0.5 + 2.0 ** -12
+    big = np.where(np.random.default_rng(1).random((64, 64)) < 0.5, -32768, 32767).astype(np.int16)
+    out, cw, s = dt.detrend_polynomial(big, return_surface=True)
+    assert s == 3 and out.dtype == np.int16 and (np.abs(cw) < 2 ** 31).all()
+
+
+# ------------------------------------------------------------------ threshold
+def test_isqrt_is_floor_sqrt():
+    rng = np.random.default_rng(2)
+    vals = np.concatenate([np.arange(0, 2000), rng.integers(0, 2 ** 32, 3000),
+                           [2 ** 32 - 1, 2 ** 30, 2 ** 30 - 1]])
+    import math
+    for v in vals:
+        assert th.isqrt32(int(v)) == math.isqrt(int(v))
+
+
+@pytest.mark.parametrize("alpha", [0.0, 1.0, 2.5, 4.0, 7.9])
+def test_threshold_value_against_numpy(alpha):
+    for img in WINDOWS + [dt.detrend_highpass(w) for w in WINDOWS[:6]]:
+        x = img.astype(np.float64)
+        t4, m4, d4, s = th.threshold_stats(img, alpha)
+        assert s == 0
+        assert abs(m4 / 16 - x.mean()) <= 1 / 32
+        T = x.mean() + alpha * x.std()
+        assert abs(t4 / 16 - T) <= th.threshold_bound(alpha, x.std())
+        out, t = th.threshold(img, alpha, "binarize")
+        assert np.array_equal(out, (16 * x > t4).astype(np.int16))
+        out, _ = th.threshold(img, alpha, "clip")
+        assert np.array_equal(out, np.where(16 * x > t4, img, 0))
+
+
+def test_threshold_full_scale_block_shift():
+    rng = np.random.default_rng(9)
+    img = rng.integers(-32768, 32768, (64, 64)).astype(np.int16)
+    t4, m4, d4, s = th.threshold_stats(img, 2.0)
+    assert s == 3                                  # |x >> 3| <= 4096
+    xs = (img.astype(np.int64) >> 3).astype(float)
+    assert abs(t4 / 16 / 8 - (xs.mean() + 2 * xs.std())) <= th.threshold_bound(2.0, xs.std())
+    with pytest.raises(ValueError, match="alpha"):
+        th.threshold(img, 8.5)
+
+
+def test_alpha_controller():
+    a = th.AlphaController(alpha=3.0, alpha_min=1.0, alpha_max=4.0, step_up=0.5, step_down=0.25,
+                           near_count=90)
+    assert a.update(95, True) == 3.5 * 4096                     # too many candidates: raise
+    assert a.update(10, True) == 3.5 * 4096                     # locked, few: unchanged
+    a.update(100, False)                                        # too many wins over no lock
+    assert a.value == 4.0
+    a.update(100, True)
+    assert a.value == 4.0                                       # upper bound
+    for _ in range(20):
+        a.update(0, False)                                      # no lock: lower, dim objects
+    assert a.value == 1.0                                       # lower bound
+    led = Ledger()
+    a.update(0, True, led)
+    assert led.cycles("ip1750", "alpha_logic") > 0
+    with pytest.raises(ValueError):
+        th.AlphaController(alpha=5.0, alpha_max=4.0)
+    with pytest.raises(ValueError):
+        th.AlphaController(alpha_min=3.0, alpha_max=2.0, alpha=2.5)
+
+
+# ------------------------------------------------------------------ sequence
+GOOD = """
+name = "t"
+[preprocess]
+compaction = 2
+window = 64
+[[steps]]
+op = "detrend"
+method = "polynomial"
+[[steps]]
+op = "filter"
+kernel = "custom"
+coefficients = [[0, 4096, 0], [4096, 16384, 4096], [0, 4096, 0]]
+[[steps]]
+op = "threshold"
+alpha = 2.0
+mode = "clip"
+"""
+
+
+def test_shipped_sequences_load_and_run_with_stages():
+    frame = FRAMES[3]
+    for name in ("satellite", "aurora", "satellite_c2"):
+        seq = load_default_sequence(name)
+        led = Ledger()
+        res = seq.run_frame(frame, ledger=led)
+        names = [s.name for s in res.stages]
+        assert names[0] == "window" and names[1:] == [s.stage for s in seq.steps]
+        assert all(s.image.shape == res.subimage.size for s in res.stages)
+        assert "compaction" in led.stages("dsp") and led.cycles("dsp", "compaction") == 0
+        assert set(np.unique(res.image)) <= ({0, 1} if name != "aurora" else set(np.unique(res.image)))
+    seq = load_default_sequence("satellite")
+    assert [s.stage for s in seq.steps] == ["filter3x3_smooth", "detrend_highpass",
+                                            "filter3x3_matched", "threshold"]
+
+
+def test_sequence_steps_equal_the_kernels():
+    seq = ProcessingSequence.from_toml(GOOD)
+    sub = pp.preprocess(FRAMES[0], 2)
+    res = seq.run(sub, Ledger())
+    a = dt.detrend_polynomial(sub.image)
+    b = flt.correlate_q15(a, np.array([[0, 4096, 0], [4096, 16384, 4096], [0, 4096, 0]]))
+    c, t4 = th.threshold(b, 2.0, "clip")
+    assert np.array_equal(res.stages[1].image, a) and np.array_equal(res.stages[2].image, b)
+    assert np.array_equal(res.image, c) and res.context["threshold"]["t4"] == t4
+    # alpha override from the alpha logic
+    res2 = seq.run(sub, None, {"alpha_q12": 4096 * 5})
+    assert res2.context["threshold"]["alpha_q12"] == 4096 * 5
+    assert np.array_equal(res2.image, th.threshold(b, 5.0, "clip")[0])
+
+
+def test_skipping_and_reordering_steps():
+    frame = FRAMES[4]
+    only = ProcessingSequence([{"op": "threshold", "alpha": 3.0}])
+    assert len(only.run_frame(frame).stages) == 2
+    post = ProcessingSequence([{"op": "detrend", "method": "highpass"},
+                               {"op": "filter", "kernel": "smooth", "size": 5},
+                               {"op": "filter", "kernel": "smooth", "size": 5}])
+    assert [s.stage for s in post.steps] == ["detrend_highpass", "filter5x5_smooth",
+                                             "filter5x5_smooth#2"]
+    led = Ledger()
+    post.run_frame(frame, ledger=led)
+    assert led.cycles("dsp", "filter5x5_smooth#2") == flt.filter_cycles(64, 64, 5)
+
+
+BAD = [
+    ({"op": "median"}, "op", "unknown step"),
+    ({"op": "filter", "size": 9}, "size", "not one of 3, 5, 7"),
+    ({"op": "filter", "kernel": "custom", "coefficients": [[1] * 9] * 9}, "coefficients", "not 3x3"),
+    ({"op": "filter", "kernel": "custom", "coefficients": [[1, 2], [3]]}, "coefficients", "rectangular"),
+    ({"op": "filter", "kernel": "blur"}, "kernel", "not one of"),
+    ({"op": "threshold", "alpha": 9.0}, "alpha", "out of range"),
+    ({"op": "threshold", "alpha": -1.0}, "alpha", "out of range"),
+    ({"op": "threshold"}, "alpha", "missing"),
+    ({"op": "threshold", "alpha": 2.0, "mode": "soft"}, "mode", "not one of"),
+    ({"op": "detrend", "method": "cubic"}, "method", "not one of"),
+    ({"op": "detrend", "method": "highpass", "taps": [1, 2, 3]}, "taps", "7"),
+    ({"op": "detrend", "method": "polynomial", "sigma": 2.0}, "sigma", "only allowed"),
+    ({"op": "filter", "sise": 3}, "sise", "unknown field"),
+]
+
+
+@pytest.mark.parametrize("step,field,msg", BAD)
+def test_invalid_steps_are_rejected_naming_the_field_and_old_sequence_stays(step, field, msg):
+    cfg = IPConfig()
+    old = cfg.sequence
+    with pytest.raises(SequenceError, match=msg) as ei:
+        cfg.load_sequence({"steps": [{"op": "filter", "kernel": "smooth"}, step]})
+    assert ei.value.step == 1 and ei.value.field == field
+    assert f"step 1 {step['op']!r}" in str(ei.value) and f"field {field!r}" in str(ei.value)
+    assert cfg.sequence is old and cfg.last_error is ei.value
+
+
+def test_invalid_preprocess_and_order_rejected():
+    cfg = IPConfig()
+    old = cfg.sequence
+    with pytest.raises(SequenceError, match="larger than the compacted image") as ei:
+        cfg.load_sequence({"preprocess": {"compaction": 4, "window": 65}, "steps": []})
+    assert ei.value.field == "window"
+    with pytest.raises(SequenceError, match="compaction"):
+        cfg.load_sequence({"preprocess": {"compaction": 3}, "steps": []})
+    with pytest.raises(SequenceError, match="out of order"):
+        cfg.load_sequence({"steps": [{"op": "threshold", "alpha": 2.0},
+                                     {"op": "filter"}]})
+    with pytest.raises(SequenceError, match="only once"):
+        cfg.load_sequence({"steps": [{"op": "threshold", "alpha": 2.0},
+                                     {"op": "threshold", "alpha": 2.0}]})
+    with pytest.raises(SequenceError, match="128x128"):
+        cfg.load_sequence({"preprocess": {"window": 200}, "steps": [{"op": "threshold",
+                                                                     "alpha": 2.0}]})
+    with pytest.raises(SequenceError, match="not valid TOML"):
+        cfg.load_sequence("[[steps]\nop=")
+    with pytest.raises(SequenceError, match="cannot read"):
+        cfg.load_sequence(Path("/nonexistent/seq.toml"))
+    assert cfg.sequence is old
+    new = cfg.load_sequence(GOOD)
+    assert cfg.sequence is new and new.preprocess.compaction == 2
+
+
+def test_backend_steps_register_and_chain():
+    """The registry interface the back end (issue 4) uses: a later phase step sees the forwarded
+    thresholded image and the shared context, and may show a different image than it forwards."""
+    from scipy.ndimage import label
+
+    def validate(params, pre):
+        return bool(params.get("diagonal", True))
+
+    def run(image, diagonal, ledger, context, stage):
+        lab, n = label(image != 0, np.ones((3, 3)) if diagonal else None)
+        context["labels"] = (lab, n)
+        return StageOutput(lab.astype(np.int32), data=n, forward=image)
+
+    name = "test_label"
+    register_step(name, validate, run, phase=20, unique=True, replace=True)
+    try:
+        seq = ProcessingSequence([{"op": "threshold", "alpha": 3.0}, {"op": name}])
+        res = seq.run_frame(FRAMES[5])
+        assert res.stages[-1].name == name and res.stages[-1].data == res.context["labels"][1]
+        assert np.array_equal(res.image, res.stages[1].image)           # forwarded, not labels
+        with pytest.raises(SequenceError, match="out of order"):
+            ProcessingSequence([{"op": name}, {"op": "threshold", "alpha": 3.0}])
+    finally:
+        STEP_REGISTRY.pop(name)
+
+
+def test_cycle_table():
+    from flightsw.ip.cycles import format_cycle_table, frontend_cycle_table
+    rows = frontend_cycle_table((32, 64))
+    assert rows[1]["total"] > 3.5 * rows[0]["total"]
+    r64 = rows[1]["stages"]
+    assert r64["filter3x3_smooth"] == flt.filter_cycles(64, 64, 3)
+    assert r64["threshold"] == th.threshold_cycles(64, 64)
+    assert "| 64x64 |" in format_cycle_table(rows)
