@@ -14,8 +14,12 @@ SUBCOMMAND_MODULES = (
     "hil_harness.cli_demo",
     "hil_harness.cli_detect",
     "hil_harness.cli_event",
+    "hil_harness.cli_replay",
+    "hil_harness.cli_scenarios",
     "hil_harness.cli_budget",
     "hil_harness.cli_tune",
+    "hil_harness.cli_record",
+    "hil_harness.cli_campaign",
     "hil_harness.cli_rde",
     "hil_harness.cli_inr",
 )
