@@ -5,6 +5,12 @@
     assess a landmark CSV (schema ``uvisi-inr-landmarks/1``, documented in
     ``groundsim.assess.inr_table``): writes ``inr_report.md``, the PNG figures and ``summary.json``.
 
+``uvisi inr event RECORDING.h5 [--out DIR] [--imager ID] [--gate PX] [--csv] [report options]``
+    the landmark measurements of a ``uvisi event`` recording: the candidates the flight IP reported,
+    matched to Hipparcos stars predicted from the attitude data (NAV), with frame-to-frame
+    correlation of star chips when the recording holds the frames (FFR); assessed and reported
+    like ``report`` (``groundsim.assess.recording_stars``).
+
 ``uvisi inr synthetic [--out DIR] [--seed S] [--excursion U] [--csv]``
     the paper-scale synthetic population (1781 valid VIS landmarks with a few type-II invalid ones,
     a simultaneous IR channel) assessed and reported the same way; ``--csv`` also writes the table.
@@ -30,6 +36,18 @@ def register(sub) -> None:
                     help="inconsistency second moment M: the paper's sample moment or the robust core")
     pr.add_argument("--coreg-period", type=float, default=None, help="harmonic period of the EW "
                     "coregistration model [s] (default 86400)")
+    pe = isub.add_parser("event", help="assess the star landmarks of an event recording")
+    pe.add_argument("recording", help="recording.h5 written by uvisi event")
+    pe.add_argument("--out", default="inr_event", help="output directory (default ./inr_event)")
+    pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
+    pe.add_argument("--gate", type=float, default=3.0, help="star association gate [px] (default 3)")
+    pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
+    for a in ("--theta-nav", "--coreg-period"):
+        pe.add_argument(a, type=float, default=None)
+    pe.add_argument("--theta-ffr", action="append", default=None, metavar="SPACING:UR")
+    pe.add_argument("--veto-sigma", default=None)
+    pe.add_argument("--reference", default=None)
+    pe.add_argument("--moment", choices=("sample", "core"), default="sample")
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
     ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
     ps.add_argument("--seed", type=int, default=0)
@@ -72,10 +90,11 @@ def _print(a, paths) -> None:
     print(f"wrote {paths['report']}, {paths['summary']} and {len(paths) - 2} figures")
 
 
-def _report(args) -> int:
+def _report(args, table=None, title=None) -> int:
     from groundsim.assess.inr import InrConfig, assess, read_csv
     from groundsim.assess.inr_report import write_report
-    table = read_csv(args.csv)
+    if table is None:
+        table = read_csv(args.csv)
     kw = {"inconsistency_moment": args.moment}
     if args.theta_nav is not None:
         kw["theta_nav_urad"] = args.theta_nav
@@ -91,7 +110,8 @@ def _report(args) -> int:
     if args.coreg_period:
         kw["coreg_period_s"] = args.coreg_period
     a = assess(table, InrConfig(**kw))
-    paths = write_report(a, args.out, title=f"INR 3-sigma assessment of {os.path.basename(args.csv)}")
+    paths = write_report(a, args.out, title=title or
+                         f"INR 3-sigma assessment of {os.path.basename(args.csv)}")
     _print(a, paths)
     return 0
 
@@ -108,10 +128,23 @@ def _synthetic(args) -> int:
     return 0
 
 
+def _event(args) -> int:
+    from groundsim.assess.inr import write_csv
+    from groundsim.assess.recording_stars import inr_table_from_recording
+    table = inr_table_from_recording(args.recording, args.imager, args.gate)
+    print(f"{args.recording}: {len(table.time)} star landmark measurements")
+    if args.csv:
+        os.makedirs(args.out, exist_ok=True)
+        print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_event.csv'))}")
+    return _report(args, table, f"INR 3-sigma assessment of {os.path.basename(args.recording)}")
+
+
 def run(args) -> int:
     cmd = getattr(args, "inr_command", None)
     if cmd == "report":
         return _report(args)
+    if cmd == "event":
+        return _event(args)
     if cmd == "synthetic":
         return _synthetic(args)
     args._inr_parser.print_help()

@@ -5,11 +5,12 @@
     five-scene interval), ``rde_figure3.png`` (control-point density needed for epsilon_90 < 4.9 m at
     6.7 m vs interval length) and ``rde_study.json`` to DIR, prints the numbers.
 
-``uvisi rde reconstruct CONTROL_POINTS.npz [--out DIR] [--iterations K]``
+``uvisi rde reconstruct CONTROL_POINTS.npz|RECORDING.h5 [--out DIR] [--iterations K]``
     imager alignment + attitude-knowledge reconstruction from matched star control points (schema
     ``uvisi-rde-cp/1``, documented in ``groundsim.assess.rde_reconstruct``); prints the star
     residuals before/after and, when the file carries ground truth, the RMS pointing-knowledge error
-    before/after; writes ``rde_reconstruct.json`` (and the per-epoch correction, ``.npz``) to DIR.
+    before/after. A ``uvisi event`` recording is turned into control points first (its candidates
+    matched to Hipparcos stars, ``groundsim.assess.recording_stars``); writes ``rde_reconstruct.json`` (and the per-epoch correction, ``.npz``) to DIR.
 
 ``uvisi rde synth OUT.npz [--seed S] [--duration T]``
     writes a synthetic control-point file (star field, injected alignment + attitude-knowledge error,
@@ -31,7 +32,8 @@ def register(sub) -> None:
     ps.add_argument("--quick", action="store_true", help="reduced grid (smoke runs, tests)")
     ps.add_argument("--workers", type=int, default=2, help="worker processes (1 = serial)")
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
-    pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1)")
+    pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
+                    "event recording (.h5)")
     pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
     pr.add_argument("--iterations", type=int, default=3, help="linearisation passes (default 3)")
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
@@ -71,7 +73,11 @@ def _reconstruct(args) -> int:
     from groundsim.assess.rde_reconstruct import load_control_points, reconstruct_from_npz
     if not os.path.exists(args.control_points):
         raise FileNotFoundError(f"no such control-point file: {args.control_points}")
-    cp = load_control_points(args.control_points)
+    if args.control_points.endswith((".h5", ".hdf5")):
+        from groundsim.assess.recording_stars import control_points_from_recording
+        cp = control_points_from_recording(args.control_points)
+    else:
+        cp = load_control_points(args.control_points)
     res, rep = reconstruct_from_npz(cp, n_iter=args.iterations)
     print(f"control points {rep['n_cp']} over {rep['n_epochs']} epochs")
     print(f"RMS star residual: {rep['rms_star_residual_px_before']:.3f} px before, "

@@ -1,0 +1,133 @@
+"""Stars in an event recording -> RDE control points and INR landmarks (truth-free matching checked
+against the simulator's truth)."""
+import json
+import tomllib
+from importlib import resources
+
+import numpy as np
+import pytest
+
+from flightsw.ip import ProcessingSequence, load_default_sequence, process_frame
+from flightsw.records import load_record
+from groundsim.assess import recording_stars as RS
+from groundsim.scenario import Scenario
+from hil_harness.cli import main
+from hil_harness.recording import Recorder
+
+ALIGN_ERR_URAD = [0.0, 400.0, -300.0]
+
+
+def _write(path, raw, n, alpha):
+    """A recording in the uvisi event layout (the tables the star matching reads), made open loop:
+    the ground simulator's frames through the flight IP with the star record."""
+    scn = Scenario.from_dict(raw)
+    w = scn.world()
+    d = load_default_sequence("satellite").to_dict()
+    d["preprocess"]["compaction"] = 2
+    d["steps"][-1]["alpha"] = alpha
+    seq = ProcessingSequence.from_dict(d)
+    rec = load_record("star")
+    truths = []
+    with Recorder(path, attrs={"scenario_raw": json.dumps(raw), "seed": scn.seed}) as R:
+        for k in range(n):
+            att = w.attitude_data()
+            frame, truth = w.render()
+            truths.append(truth)
+            c = process_frame(frame, seq, rec, want_stages=False).message.candidates
+            R.append("frames", {"k": np.int32(k), "t": w.t, "imager": np.int8(0), "skip": np.int8(0)})
+            R.append("attitude", {"k": np.int32(k), "t": att.t, "q": att.q_body_to_eci,
+                                  "rate": att.rate_body, "r": att.r_eci, "v": att.v_eci,
+                                  "valid": np.int8(att.valid)})
+            R.append("truth", {"k": np.int32(k), "t": w.t,
+                               "q_imager_to_eci": truth["q_imager_to_eci"]})
+            for i in range(len(c)):
+                R.append("candidates", {"k": np.int32(k), "rank": np.int16(i + 1),
+                                        "row": c["row"][i], "col": c["col"][i]})
+            R.append_array("frames", frame)
+            w.advance(0.5)
+    return truths
+
+
+def _raw():
+    text = (resources.files("groundsim") / "scenarios" / "star_rich_slew.toml").read_text()
+    raw = tomllib.loads(text)
+    raw["faults"] = {}
+    raw["imagers"] = {"wfov_vis": {"align_error_urad": ALIGN_ERR_URAD}}
+    return raw
+
+
+@pytest.fixture(scope="module")
+def rich(tmp_path_factory):
+    path = tmp_path_factory.mktemp("rec") / "rich.h5"
+    truths = _write(path, _raw(), 20, 2.0)      # the first 10 s: inertial hold on Cygnus
+    return path, truths
+
+
+def test_matches_are_the_true_stars(rich):
+    path, truths = rich
+    m = RS.read_star_matches(path)
+    assert m["imager"] == "wfov_vis" and len(m["hip"]) >= 40
+    scale = m["scale"]
+    align_px = np.linalg.norm(ALIGN_ERR_URAD) * 1e-6 / scale.min()
+    for j in range(len(m["hip"])):
+        st = truths[m["k"][m["m_frame"][j]]]["stars"]
+        i = np.flatnonzero(st["hip"] == m["hip"][j])
+        assert len(i) == 1, "matched a star the simulator did not render"
+        true_rc = np.array([st["row"][i[0]], st["col"][i[0]]])
+        assert np.hypot(*(m["pix"][j] - true_rc)) < 1.5          # flight centroid, compaction 2
+        # predicted from the attitude data and the onboard alignment: off by the injected alignment
+        # error (and a few urad of knowledge error) only
+        assert np.hypot(*(m["pred"][j] - true_rc)) < align_px + 0.05
+    # the measured-minus-predicted mean is the alignment error's image shift
+    d_meas = (m["pix"] - m["pred"]).mean(0)
+    d_true = np.mean([np.array([truths[m["k"][m["m_frame"][j]]]["stars"]["row"][
+        truths[m["k"][m["m_frame"][j]]]["stars"]["hip"] == m["hip"][j]][0],
+        truths[m["k"][m["m_frame"][j]]]["stars"]["col"][
+        truths[m["k"][m["m_frame"][j]]]["stars"]["hip"] == m["hip"][j]][0]]) - m["pred"][j]
+        for j in range(len(m["hip"]))], axis=0)
+    assert np.hypot(*(d_meas - d_true)) < 0.25
+
+
+def test_control_points_reconstruct_the_boresight(rich):
+    from groundsim.assess.rde_reconstruct import reconstruct_from_npz
+    path, _ = rich
+    cp = RS.control_points_from_recording(path)
+    assert cp["pix"].shape == (len(cp["t"]), 2) and cp["star_eci"].shape == (len(cp["t"]), 3)
+    assert np.allclose(np.linalg.norm(cp["star_eci"], axis=1), 1.0)
+    _, rep = reconstruct_from_npz(cp)
+    print(f"\n[recording_stars] {rep['n_cp']} control points / {rep['n_epochs']} frames: LOS "
+          f"{rep['rms_los_error_urad_before']:.0f} -> {rep['rms_los_error_urad_after']:.0f} urad, "
+          f"residual {rep['rms_star_residual_px_before']:.2f} -> "
+          f"{rep['rms_star_residual_px_after']:.2f} px")
+    assert rep["rms_star_residual_px_after"] < rep["rms_star_residual_px_before"]
+    assert rep["los_improvement_factor"] > 1.5
+
+
+def test_inr_table_from_recording(rich):
+    path, _ = rich
+    m = RS.read_star_matches(path)
+    tab = RS.inr_table_from_recording(path)
+    assert len(tab.time) == len(m["hip"])
+    # absolute error is measured - predicted in urad (EW = col, NS = row)
+    order = np.lexsort((m["hip"], m["t"][m["m_frame"]]))
+    exp_ew = ((m["pix"][:, 1] - m["pred"][:, 1]) * m["scale"][1] * 1e6)[order]
+    got = np.sort(tab.abs_err[:, 0])
+    assert np.allclose(got, np.sort(exp_ew), atol=1e-6)
+    assert np.isfinite(tab.rel_err).any()          # frames recorded: FFR correlation ran
+
+
+def test_too_few_stars_is_a_clear_error(tmp_path):
+    raw = _raw()
+    path = tmp_path / "sparse.h5"
+    _write(path, raw, 6, 6.0)                       # high alpha: one star a frame at most
+    with pytest.raises(ValueError, match="unobservable"):
+        RS.control_points_from_recording(path)
+
+
+def test_cli_entries(rich, tmp_path, capsys):
+    path, _ = rich
+    assert main(["inr", "event", str(path), "--out", str(tmp_path / "inr")]) == 0
+    assert (tmp_path / "inr" / "inr_report.md").exists()
+    assert main(["rde", "reconstruct", str(path)]) == 0
+    assert "control points" in capsys.readouterr().out
+    assert main(["inr", "event", str(tmp_path / "missing.h5")]) == 2
