@@ -96,8 +96,9 @@ def q_pointing(boresight_eci, up_eci=(0.0, 0.0, 1.0), roll=0.0):
         u = np.array([1.0, 0.0, 0.0]) if abs(b[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
         z = u - (u @ b) * b
     z = z / np.linalg.norm(z)
-    y = np.cross(z, b)
-    m = np.column_stack([b, y, z])
+    y = np.array([z[1] * b[2] - z[2] * b[1], z[2] * b[0] - z[0] * b[2], z[0] * b[1] - z[1] * b[0]])
+    m = np.empty((3, 3))
+    m[:, 0], m[:, 1], m[:, 2] = b, y, z
     q = dcm_to_q(m)
     if roll:
         q = q_mul(q, q_from_rotvec([roll, 0.0, 0.0]))

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from datetime import datetime, timedelta
 
 import numpy as np
+from numba import njit
 from sgp4.api import WGS72, Satrec
 from sgp4.exporter import export_tle
 
@@ -86,6 +87,63 @@ class Orbit:
         return m @ (np.array(r) * 1e3), m @ (np.array(v) * 1e3)
 
 
+@njit(cache=True)
+def _qmul(a, b):
+    return np.array([a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3],
+                     a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2],
+                     a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1],
+                     a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]])
+
+
+@njit(cache=True)
+def _qnorm(q):
+    n = math.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    q = q / n
+    if q[0] < 0.0:
+        q = -q
+    return q
+
+
+@njit(cache=True)
+def _controller_steps(q, w, q_cmd, w_ff_eci, k, rate_limit, accel_limit, h, n, feedforward):
+    """``n`` integration substeps of length ``h`` of :meth:`AttitudeController.step` (same algebra as
+    ``groundsim.quat``: error rotation vector, proportional rate + feed-forward, rate and
+    acceleration limits, trapezoidal attitude update). Returns (q, w)."""
+    w = w.copy()
+    for _ in range(n):
+        e = _qnorm(_qmul(np.array([q[0], -q[1], -q[2], -q[3]]), q_cmd))
+        s = math.sqrt(e[1] * e[1] + e[2] * e[2] + e[3] * e[3])
+        if s < 1e-12:
+            err = 2.0 * e[1:]
+        else:
+            err = e[1:] * (2.0 * math.atan2(s, e[0]) / s)
+        w_des = k * err
+        if feedforward:
+            x, y, z, c = q[1], q[2], q[3], q[0]
+            m = np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - c * z), 2 * (x * z + c * y)],
+                          [2 * (x * y + c * z), 1 - 2 * (x * x + z * z), 2 * (y * z - c * x)],
+                          [2 * (x * z - c * y), 2 * (y * z + c * x), 1 - 2 * (x * x + y * y)]])
+            w_des = w_des + m.T @ w_ff_eci
+        nrm = math.sqrt(w_des[0] * w_des[0] + w_des[1] * w_des[1] + w_des[2] * w_des[2])
+        if nrm > rate_limit:
+            w_des = w_des * (rate_limit / nrm)
+        dw = w_des - w
+        a = math.sqrt(dw[0] * dw[0] + dw[1] * dw[1] + dw[2] * dw[2])
+        if a > accel_limit * h:
+            dw = dw * (accel_limit * h / a)
+        w_old = w
+        w = w + dw
+        phi = 0.5 * (w_old + w) * h
+        ang = math.sqrt(phi[0] * phi[0] + phi[1] * phi[1] + phi[2] * phi[2])
+        if ang < 1e-12:
+            dq = _qnorm(np.array([1.0, 0.5 * phi[0], 0.5 * phi[1], 0.5 * phi[2]]))
+        else:
+            sa = math.sin(0.5 * ang) / ang
+            dq = np.array([math.cos(0.5 * ang), sa * phi[0], sa * phi[1], sa * phi[2]])
+        q = _qnorm(_qmul(q, dq))
+    return q, w
+
+
 @dataclass
 class ControllerParams:
     rate_limit: float = math.radians(1.0)      # rad/s, per slew
@@ -114,22 +172,11 @@ class AttitudeController:
         p = self.p
         k = 4.0 / p.settle_time
         n = max(1, int(math.ceil(dt / p.substep - 1e-9)))
-        h = dt / n
-        for _ in range(n):
-            err = q_to_rotvec(q_mul(q_conj(self.q), self.q_cmd))        # body axes
-            w_des = k * err
-            if p.feedforward:
-                w_des = w_des + q_to_dcm(self.q).T @ self.w_ff_eci
-            nrm = math.sqrt(float(w_des @ w_des))
-            if nrm > p.rate_limit:
-                w_des *= p.rate_limit / nrm
-            dw = w_des - self.w
-            a = math.sqrt(float(dw @ dw))
-            if a > p.accel_limit * h:
-                dw *= p.accel_limit * h / a
-            w_old = self.w
-            self.w = self.w + dw
-            self.q = q_normalize(q_mul(self.q, q_from_rotvec(0.5 * (w_old + self.w) * h)))
+        q, w = _controller_steps(np.asarray(self.q, np.float64), np.asarray(self.w, np.float64),
+                                 np.asarray(self.q_cmd, np.float64),
+                                 np.asarray(self.w_ff_eci, np.float64), k, p.rate_limit,
+                                 p.accel_limit, dt / n, n, bool(p.feedforward))
+        self.q, self.w = q, w
 
     def attitude_at(self, dt: float):
         """Attitude ``dt`` s from now at the present rate (for exposure start/end)."""
