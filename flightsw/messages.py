@@ -294,3 +294,292 @@ class CandidateMessage:
         return (all(getattr(self, h) == getattr(other, h) for h in head)
                 and self.candidates.dtype == other.candidates.dtype
                 and np.array_equal(self.candidates, other.candidates))
+
+
+# ================================================================================================
+# TP -> attitude processor / IP: the track command (issue 7)
+# ================================================================================================
+TRACK_MSG_ID = 0x5450        # "TP"
+TRACK_WORDS = 55             # fixed length, CRC included
+
+#: object type <-> code in the track command ("" and "none": no object type)
+OBJECT_TYPE_CODES = {"": 0, "none": 1, "satellite": 2, "launch": 3, "plume": 4, "aurora": 5,
+                     "star": 6, "generic": 7}
+_OBJECT_TYPE_BY_CODE = {v: k for k, v in OBJECT_TYPE_CODES.items()}
+
+#: TrackCommand.status bits
+TC_COASTING = 0x0001             # no observation of the tracked object was used this frame
+TC_BAD_MESSAGE = 0x0002          # candidate message unusable (checksum, format, time tag, imager)
+TC_FRAME_GAP = 0x0004            # frame count or time tag skipped one or more frames
+TC_ATTITUDE_INVALID = 0x0008     # attitude data missing or out of range: propagated from the last
+TC_INNOVATION_REJECTED = 0x0010  # an EKF scalar update fell outside the innovation gate
+TC_REINITIALISED = 0x0020        # new gates (or a new opportunity track) placed on this frame
+TC_OBJECT_DECIDED = 0x0040       # a verified object is held (velocity filtering decided)
+TC_NEW_DECISION = 0x0080         # ... and it was decided on this frame
+TC_EKF_RUNNING = 0x0100          # the 6-state EKF holds an estimate (r_est, v_est valid)
+TC_EMPTY_MESSAGE = 0x0200        # the message held no candidates
+TC_OBJECT_LOST = 0x0400          # the verified object's gate stayed empty: object dropped
+TC_EKF_RESET = 0x0800            # EKF covariance reset after repeated rejections or a long gap
+TC_ARITH_FLAG = 0x1000           # a 1750A overflow/underflow/domain flag was raised this frame
+TC_NO_NOMINAL = 0x2000           # dedicated mode without a nominal trajectory: nothing to track
+TC_INTERNAL_ERROR = 0x8000       # step() caught an exception (see TrackProcessor.last_error)
+
+TC_STATUS_NAMES = {
+    TC_COASTING: "coasting", TC_BAD_MESSAGE: "bad_message", TC_FRAME_GAP: "frame_gap",
+    TC_ATTITUDE_INVALID: "attitude_invalid", TC_INNOVATION_REJECTED: "innovation_rejected",
+    TC_REINITIALISED: "reinitialised", TC_OBJECT_DECIDED: "object_decided",
+    TC_NEW_DECISION: "new_decision", TC_EKF_RUNNING: "ekf_running",
+    TC_EMPTY_MESSAGE: "empty_message", TC_OBJECT_LOST: "object_lost", TC_EKF_RESET: "ekf_reset",
+    TC_ARITH_FLAG: "arith_flag", TC_NO_NOMINAL: "no_nominal", TC_INTERNAL_ERROR: "internal_error",
+}
+
+# flag-word bits of the track command (which optional values are present)
+_TCF_LOCKED, _TCF_PRED, _TCF_EST, _TCF_DECIDED, _TCF_POINT, _TCF_OPP, _TCF_OBJIDX = (
+    0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40)
+
+
+@dataclass(eq=False)
+class TrackCommand:
+    """The MSX track processor's output of one frame (MSX paper, Figure 1): the pointing command for
+    the attitude processor, the predicted object location and type and the lock status for the IP,
+    and the track state.
+
+    Attributes
+    ----------
+    frame_count : int
+        Frame count of the candidate message this command answers (0..65535).
+    time_tag : float
+        Time of the frame, s (1750A 48-bit float).
+    q_point : ndarray (4,)
+        Commanded attitude, body -> ECI, scalar first: the current attitude turned by the minimal
+        rotation that puts the boresight (+X body) on the predicted target line of sight. NaN when
+        the TP has nothing to point at (no target, no attitude): the attitude processor keeps its
+        own command.
+    predicted_row, predicted_col : float
+        Predicted object centroid for the IP's next frame, full-resolution pixels of ``imager``
+        (0-based, centres at +0.5); NaN when there is no prediction.
+    imager : str
+        The imager the prediction is in (the current message's imager).
+    object_type : str
+        Type of the tracked object (a key of :data:`OBJECT_TYPE_CODES`).
+    locked : bool
+        True when the TP holds the object and used an observation of it this frame.
+    status : int
+        OR of the ``TC_*`` bits (:data:`TC_STATUS_NAMES`).
+    n_star_gates, n_object_gates : int
+        Live star / object gates of the velocity filter (0 for targets of opportunity).
+    decided_frame : int
+        Frame count of the frame on which the current object was verified, -1 if none.
+    object_index : int
+        Index in this frame's candidate message of the candidate used as the object, -1 if none.
+    mode : str
+        "dedicated" (velocity filtering + EKF) or "opportunity" (alpha-beta on the best candidate).
+    los_eci : ndarray (3,)
+        Predicted target line of sight (ECI unit vector) at the next frame; NaN if none.
+    r_est, v_est : ndarray (3,)
+        EKF position (m) and velocity (m/s) estimate, ECI, at ``time_tag``; NaN if the EKF is not
+        running.
+    sigma_pos, sigma_vel : float
+        sqrt of the trace of the EKF position / velocity covariance blocks (m, m/s); NaN if none.
+
+    Word layout (:meth:`to_words`, 55 16-bit words)
+    ------------------------------------------------
+    ====== =====================================================================
+    word   content
+    ====== =====================================================================
+    0      message id 0x5450 ("TP")
+    1      length in words (55)
+    2      frame count
+    3-5    time tag, 1750A 48-bit float, s
+    6      imager code << 8 | object type code (:data:`OBJECT_TYPE_CODES`)
+    7      status bits
+    8      flags: 1 locked, 2 prediction, 4 estimate, 8 decided, 0x10 pointing, 0x20 opportunity
+           mode, 0x40 object index present
+    9, 10  live star gates, live object gates
+    11     decided frame count (0 when none)
+    12     object index (0 when none)
+    13-20  q_point, 4 x 1750A 32-bit float
+    21-24  predicted row, col (32-bit)
+    25-30  los_eci (3 x 32-bit)
+    31-39  r_est (3 x 48-bit), m
+    40-48  v_est (3 x 48-bit), m/s
+    49-52  sigma_pos, sigma_vel (32-bit)
+    53     reserved (0)
+    54     CRC-16/CCITT-FALSE over words 0..53 (:func:`crc16_ccitt`)
+    ====== =====================================================================
+    Absent values (flag bit clear) are sent as zero words and decode to NaN / -1. Every float is a
+    1750A value; ``from_words(to_words(c))`` equals ``c`` when ``c``'s floats are 1750A values (the
+    TP's always are; others are rounded to nearest).
+    """
+
+    frame_count: int = 0
+    time_tag: float = 0.0
+    q_point: np.ndarray = field(default_factory=lambda: np.full(4, np.nan))
+    predicted_row: float = float("nan")
+    predicted_col: float = float("nan")
+    imager: str = "wfov_vis"
+    object_type: str = ""
+    locked: bool = False
+    status: int = 0
+    n_star_gates: int = 0
+    n_object_gates: int = 0
+    decided_frame: int = -1
+    object_index: int = -1
+    mode: str = "dedicated"
+    los_eci: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    r_est: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    v_est: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    sigma_pos: float = float("nan")
+    sigma_vel: float = float("nan")
+
+    # -- conveniences ---------------------------------------------------------------------------
+    @property
+    def decided(self) -> bool:
+        """True while a verified object is held (status bit TC_OBJECT_DECIDED)."""
+        return bool(self.status & TC_OBJECT_DECIDED)
+
+    @property
+    def coasting(self) -> bool:
+        return bool(self.status & TC_COASTING)
+
+    def status_names(self) -> list:
+        """Names of the status bits set, in bit order."""
+        return [n for b, n in sorted(TC_STATUS_NAMES.items()) if self.status & b]
+
+    def feedback(self) -> Feedback:
+        """The IP's feedback for its next frame (prediction in :attr:`imager`'s pixels)."""
+        ot = "" if self.object_type == "none" else self.object_type
+        return Feedback(predicted_row=float(self.predicted_row), predicted_col=float(self.predicted_col),
+                        object_type=ot, locked=bool(self.locked))
+
+    # -- codec ----------------------------------------------------------------------------------
+    def _check(self):
+        def rng(name, v, lo, hi):
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
+                raise ValueError(f"TrackCommand.{name}={v!r} must be an int in {lo}..{hi}")
+        rng("frame_count", self.frame_count, 0, 0xFFFF)
+        rng("status", self.status, 0, 0xFFFF)
+        rng("n_star_gates", self.n_star_gates, 0, 0xFFFF)
+        rng("n_object_gates", self.n_object_gates, 0, 0xFFFF)
+        rng("decided_frame", self.decided_frame, -1, 0xFFFF)
+        rng("object_index", self.object_index, -1, 0xFFFF)
+        if self.imager not in IMAGER_CODES:
+            raise ValueError(f"TrackCommand.imager={self.imager!r} is not one of {sorted(IMAGER_CODES)}")
+        if self.object_type not in OBJECT_TYPE_CODES:
+            raise ValueError(f"TrackCommand.object_type={self.object_type!r} is not one of "
+                             f"{sorted(OBJECT_TYPE_CODES)}")
+        if self.mode not in ("dedicated", "opportunity"):
+            raise ValueError(f"TrackCommand.mode={self.mode!r} must be 'dedicated' or 'opportunity'")
+        if not np.isfinite(self.time_tag):
+            raise ValueError("TrackCommand.time_tag must be finite")
+        for name, n in (("q_point", 4), ("los_eci", 3), ("r_est", 3), ("v_est", 3)):
+            a = np.asarray(getattr(self, name), float)
+            if a.shape != (n,):
+                raise ValueError(f"TrackCommand.{name} must have shape ({n},), got {a.shape}")
+
+    @staticmethod
+    def _present(*vals) -> bool:
+        """All finite -> True, all NaN -> False, anything else -> ValueError."""
+        a = np.concatenate([np.atleast_1d(np.asarray(v, float)) for v in vals])
+        if np.all(np.isfinite(a)):
+            return True
+        if np.all(np.isnan(a)):
+            return False
+        raise ValueError("TrackCommand: a group of values must be all finite or all NaN")
+
+    def to_words(self) -> np.ndarray:
+        """Encode as 55 uint16 words (layout in the class docstring), CRC last."""
+        from flightsw.arith.m1750 import encode32, encode48
+        self._check()
+        has_pt = self._present(self.q_point)
+        has_pred = self._present(self.predicted_row, self.predicted_col, self.los_eci)
+        has_est = self._present(self.r_est, self.v_est, self.sigma_pos, self.sigma_vel)
+        flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_PRED if has_pred else 0)
+                 | (_TCF_EST if has_est else 0) | (_TCF_DECIDED if self.decided_frame >= 0 else 0)
+                 | (_TCF_POINT if has_pt else 0) | (_TCF_OPP if self.mode == "opportunity" else 0)
+                 | (_TCF_OBJIDX if self.object_index >= 0 else 0))
+
+        def f32(vals, present):
+            out = []
+            for v in np.atleast_1d(np.asarray(vals, float)):
+                p = encode32(float(v), rounding="nearest") if present else 0
+                out += [(p >> 16) & 0xFFFF, p & 0xFFFF]
+            return out
+
+        def f48(vals, present):
+            out = []
+            for v in np.atleast_1d(np.asarray(vals, float)):
+                p = encode48(float(v), rounding="nearest") if present else 0
+                out += [(p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF]
+            return out
+
+        t = encode48(float(self.time_tag), rounding="nearest")
+        w = [TRACK_MSG_ID, TRACK_WORDS, int(self.frame_count), (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF,
+             t & 0xFFFF, (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
+             int(self.status), flags, int(self.n_star_gates), int(self.n_object_gates),
+             max(int(self.decided_frame), 0), max(int(self.object_index), 0)]
+        w += f32(self.q_point, has_pt)
+        w += f32([self.predicted_row, self.predicted_col], has_pred)
+        w += f32(self.los_eci, has_pred)
+        w += f48(self.r_est, has_est) + f48(self.v_est, has_est)
+        w += f32([self.sigma_pos, self.sigma_vel], has_est)
+        w.append(0)
+        assert len(w) == TRACK_WORDS - 1
+        return np.array(w + [crc16_ccitt(w)], np.uint16)
+
+    @classmethod
+    def from_words(cls, words) -> "TrackCommand":
+        """Decode :meth:`to_words` output; wrong id, length, checksum or codes -> ``ValueError``."""
+        from flightsw.arith.m1750 import decode32, decode48
+        w = np.asarray(words)
+        if w.ndim != 1 or w.size != TRACK_WORDS:
+            raise ValueError(f"track command: {w.size} words, expected {TRACK_WORDS}")
+        if not np.issubdtype(w.dtype, np.integer) or w.min() < 0 or w.max() > 0xFFFF:
+            raise ValueError("track command: words must be integers 0..0xFFFF")
+        w = [int(x) for x in w]
+        if w[0] != TRACK_MSG_ID or w[1] != TRACK_WORDS:
+            raise ValueError(f"track command: id 0x{w[0]:04X} / length {w[1]}, expected "
+                             f"0x{TRACK_MSG_ID:04X} / {TRACK_WORDS}")
+        crc = crc16_ccitt(w[:-1])
+        if crc != w[-1]:
+            raise ValueError(f"track command: bad checksum (CRC-16/CCITT 0x{crc:04X} computed, "
+                             f"0x{w[-1]:04X} received)")
+        code, otype = w[6] >> 8, w[6] & 0xFF
+        if code not in _IMAGER_BY_CODE or otype not in _OBJECT_TYPE_BY_CODE:
+            raise ValueError(f"track command: unknown imager code {code} or object type code {otype}")
+        flags = w[8]
+
+        def f32(i, n, present):
+            return np.array([decode32((w[i + 2 * k] << 16) | w[i + 2 * k + 1]) if present else np.nan
+                             for k in range(n)])
+
+        def f48(i, n, present):
+            return np.array([decode48((w[i + 3 * k] << 32) | (w[i + 3 * k + 1] << 16) | w[i + 3 * k + 2])
+                             if present else np.nan for k in range(n)])
+
+        pred = f32(21, 2, flags & _TCF_PRED)
+        sig = f32(49, 2, flags & _TCF_EST)
+        return cls(frame_count=w[2], time_tag=decode48((w[3] << 32) | (w[4] << 16) | w[5]),
+                   q_point=f32(13, 4, flags & _TCF_POINT), predicted_row=float(pred[0]),
+                   predicted_col=float(pred[1]), imager=_IMAGER_BY_CODE[code],
+                   object_type=_OBJECT_TYPE_BY_CODE[otype], locked=bool(flags & _TCF_LOCKED),
+                   status=w[7], n_star_gates=w[9], n_object_gates=w[10],
+                   decided_frame=w[11] if flags & _TCF_DECIDED else -1,
+                   object_index=w[12] if flags & _TCF_OBJIDX else -1,
+                   mode="opportunity" if flags & _TCF_OPP else "dedicated",
+                   los_eci=f32(25, 3, flags & _TCF_PRED), r_est=f48(31, 3, flags & _TCF_EST),
+                   v_est=f48(40, 3, flags & _TCF_EST), sigma_pos=float(sig[0]), sigma_vel=float(sig[1]))
+
+    def __eq__(self, other):
+        if not isinstance(other, TrackCommand):
+            return NotImplemented
+        for name in ("frame_count", "time_tag", "imager", "object_type", "locked", "status",
+                     "n_star_gates", "n_object_gates", "decided_frame", "object_index", "mode"):
+            if getattr(self, name) != getattr(other, name):
+                return False
+        for name in ("q_point", "predicted_row", "predicted_col", "los_eci", "r_est", "v_est",
+                     "sigma_pos", "sigma_vel"):
+            if not np.array_equal(np.asarray(getattr(self, name), float),
+                                  np.asarray(getattr(other, name), float), equal_nan=True):
+                return False
+        return True

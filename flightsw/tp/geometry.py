@@ -1,0 +1,293 @@
+"""Boresight geometry: imager pixels <-> angles from the boresight in spacecraft body coordinates.
+
+MSX paper, "Track processing algorithms": *"Each observation is converted from UVISI imager pixel
+centroids to two angles from boresight in the spacecraft body coordinates."* and, for the filter,
+*"Blob centroid data from the UVISI IP are transformed into a unit vector in the imager coordinate
+system. Because the angles measure deviation from the sensor boresight, the measurement unit vectors
+will have the form (~1, e1, e2)."*
+
+Conventions (:mod:`flightsw.messages`): pixel ``(row, col)`` (0-based, centres at +0.5) -> imager
+direction ``(1, x, y)`` with ``x = (col - 128) * scale_col``, ``y = (row - 122) * scale_row``
+(gnomonic); body direction ``v = A (1, x, y)`` with ``A = R(q_imager_to_body)``; boresight +X body.
+
+The two "angles from boresight" the velocity filter works in are the body tangent-plane coordinates
+``(a, b) = (v_y / v_x, v_z / v_x)`` (radians for small angles; exact gnomonic coordinates of the
+body frame, so a rotation of the spacecraft maps them exactly through ``T(dR (1, a, b))``). The
+EKF's measurement is the imager unit vector ``(1, x, y) / |(1, x, y)|``, components 2 and 3.
+
+Arithmetic: 1750A 32-bit float throughout (24-bit mantissa: 6e-9 rad at 0.1 rad off boresight,
+far below a 0.11 mrad NFOV pixel). For the gate tests the coordinates are also held as 16-bit
+integers ``ia = FIX(a * 2**16)`` (LSB 2**-16 rad = 15.3 urad, range +-0.5 rad): an integer
+compare (C, 5 clocks) instead of FS + FABS + FC (88 clocks) per gate-observation pair, as a 1750A
+programmer would; the gate edges are quantised to one LSB.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750 import encode32, fa32, fd32, fix32, fm32, fs32, sqrt32
+from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, qdcm
+from flightsw.tp.f1750 import cycles as _cycles
+
+__all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
+           "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
+           "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX"]
+
+COL0, ROW0 = 128.0, 122.0
+N_ROWS, N_COLS = 244, 256
+ANGLE_LSB = 2.0 ** -16            # rad per LSB of the integer gate coordinates
+_C2_16 = 0x40000011               # 65536.0 (2**16) as a packed 32-bit float
+
+# imager table row: A (9, imager->body, row-major), scale_col, scale_row, 1/scale_col, 1/scale_row,
+# COL0, ROW0 (all packed 32-bit)
+IMG_A, IMG_SC, IMG_SR, IMG_ISC, IMG_ISR, IMG_C0, IMG_R0 = 0, 9, 10, 11, 12, 13, 14
+IMG_WORDS = 16
+
+PIX_TO_TAN_MIX = {"FS": 2, "FM": 10, "FA": 6, "FD": 1, "L": 12, "ST": 2}
+INT_COORD_MIX = {"FM": 2, "FIX": 2, "ST": 2}
+TAN_TO_PIX_MIX = mix(mix({"FM": 3, "FA": 2}, times=3), {"FD": 1, "FM": 4, "FA": 2, "L": 6})
+IMG_UNIT_MIX = {"FS": 2, "FM": 6, "FA": 2, "FD": 1, "sqrt32": 1, "L": 6}
+CYC_PIX_TO_TAN = _cycles(mix(PIX_TO_TAN_MIX, INT_COORD_MIX))
+CYC_TAN_TO_PIX = _cycles(TAN_TO_PIX_MIX)
+CYC_IMG_UNIT = _cycles(IMG_UNIT_MIX)
+
+
+@dataclass(frozen=True)
+class ImagerGeometry:
+    """One UVISI imager as the track processor knows it (256 x 244 pixels).
+
+    Parameters
+    ----------
+    q_imager_to_body : array-like (4,)
+        Alignment quaternion, scalar first, imager frame -> body frame (the on-board value).
+        Normalised here; a norm outside 1 +- 1e-3 is a ``ValueError``.
+    scale_col, scale_row : float
+        Tangent-plane radians per pixel along columns / rows (> 0).
+    """
+
+    q_imager_to_body: np.ndarray
+    scale_col: float
+    scale_row: float
+
+    def __post_init__(self):
+        q = np.asarray(self.q_imager_to_body, dtype=float)
+        if q.shape != (4,) or not np.all(np.isfinite(q)):
+            raise ValueError(f"ImagerGeometry.q_imager_to_body must be 4 finite numbers (w, x, y, z), "
+                             f"got {self.q_imager_to_body!r}")
+        n = float(np.linalg.norm(q))
+        if abs(n - 1.0) > 1e-3:
+            raise ValueError(f"ImagerGeometry.q_imager_to_body has norm {n:.6g}; expected a unit "
+                             f"quaternion (norm 1 +- 1e-3)")
+        object.__setattr__(self, "q_imager_to_body", q / n)
+        for name in ("scale_col", "scale_row"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, float, np.floating, np.integer)) \
+                    or not math.isfinite(float(v)) or not 0.0 < float(v) < 0.05:
+                raise ValueError(f"ImagerGeometry.{name}={v!r} must be a finite tangent-plane "
+                                 f"radians-per-pixel value in (0, 0.05)")
+            object.__setattr__(self, name, float(v))
+
+    def table_row(self) -> np.ndarray:
+        """The imager's row of the kernels' imager table (packed 32-bit words, see IMG_*)."""
+        row = np.zeros(IMG_WORDS, np.int64)
+        q = [encode32(float(v), rounding="nearest") for v in self.q_imager_to_body]
+        R = np.zeros(9, np.int64)
+        f = qdcm(q[0], q[1], q[2], q[3], R)
+        if f:
+            raise ValueError("ImagerGeometry: 1750A flag raised forming the alignment matrix")
+        row[IMG_A:IMG_A + 9] = R
+        row[IMG_SC] = encode32(self.scale_col, rounding="nearest")
+        row[IMG_SR] = encode32(self.scale_row, rounding="nearest")
+        row[IMG_ISC] = encode32(1.0 / self.scale_col, rounding="nearest")   # uplinked constants
+        row[IMG_ISR] = encode32(1.0 / self.scale_row, rounding="nearest")
+        row[IMG_C0] = encode32(COL0)
+        row[IMG_R0] = encode32(ROW0)
+        return row
+
+
+# ------------------------------------------------------------------------------------------------
+# kernels (packed 32-bit words)
+# ------------------------------------------------------------------------------------------------
+@njit(cache=True)
+def pix_to_tan(img, row, col):
+    """Pixel (packed row, col) -> body tangent coordinates (a, b), v_x -> (a, b, vx, flags).
+    ``img`` is the imager's table row. ``v = A (1, x, y)``, ``a = v_y / v_x``, ``b = v_z / v_x``."""
+    f = 0
+    dx, g = fs32(col, img[IMG_C0]); f |= g
+    x, g = fm32(dx, img[IMG_SC]); f |= g
+    dy, g = fs32(row, img[IMG_R0]); f |= g
+    y, g = fm32(dy, img[IMG_SR]); f |= g
+    # v_i = A[i,0] + A[i,1] x + A[i,2] y
+    p, g = fm32(img[1], x); f |= g
+    v0, g = fa32(img[0], p); f |= g
+    p, g = fm32(img[2], y); f |= g
+    v0, g = fa32(v0, p); f |= g
+    p, g = fm32(img[4], x); f |= g
+    v1, g = fa32(img[3], p); f |= g
+    p, g = fm32(img[5], y); f |= g
+    v1, g = fa32(v1, p); f |= g
+    p, g = fm32(img[7], x); f |= g
+    v2, g = fa32(img[6], p); f |= g
+    p, g = fm32(img[8], y); f |= g
+    v2, g = fa32(v2, p); f |= g
+    inv, g = fd32(0x40000001, v0); f |= g
+    a, g = fm32(v1, inv); f |= g
+    b, g = fm32(v2, inv); f |= g
+    return a, b, v0, f
+
+
+@njit(cache=True)
+def tan_int(a):
+    """Packed tangent coordinate -> 16-bit integer, LSB 2**-16 rad (FM by 2**16, FIX), saturated
+    to +-32767 when the FIX overflows (|a| >= 0.5 rad, outside every imager)."""
+    s, f = fm32(a, _C2_16)
+    i, g = fix32(s)
+    if g != 0:
+        return -32767 if (a >> 31) & 1 else 32767
+    i = i & 0xFFFF
+    return i - 0x10000 if i & 0x8000 else i
+
+
+@njit(cache=True)
+def vec_to_pix(img, v0, v1, v2):
+    """Body direction (packed, any length, v must point forward of the imager) -> (row, col, ok,
+    flags): ``p = A.T v``, ``col = p_y / p_x / scale_col + COL0``, ``row = p_z / p_x / scale_row +
+    ROW0``; ``ok`` False when ``p_x <= 0`` (behind the imager)."""
+    f = 0
+    p0, p1, p2, g = mtv3(img[0:9], v0, v1, v2); f |= g
+    if p0 == 0 or (p0 >> 31) & 1:
+        return 0, 0, False, f
+    inv, g = fd32(0x40000001, p0); f |= g
+    t, g = fm32(p1, inv); f |= g
+    t, g = fm32(t, img[IMG_ISC]); f |= g
+    col, g = fa32(t, img[IMG_C0]); f |= g
+    t, g = fm32(p2, inv); f |= g
+    t, g = fm32(t, img[IMG_ISR]); f |= g
+    row, g = fa32(t, img[IMG_R0]); f |= g
+    return row, col, True, f
+
+
+@njit(cache=True)
+def pix_unit(img, row, col):
+    """Pixel -> imager-frame unit vector components 2 and 3 (the paper's e1, e2):
+    ``(x, y) / sqrt(1 + x^2 + y^2)`` -> (e1, e2, flags)."""
+    f = 0
+    dx, g = fs32(col, img[IMG_C0]); f |= g
+    x, g = fm32(dx, img[IMG_SC]); f |= g
+    dy, g = fs32(row, img[IMG_R0]); f |= g
+    y, g = fm32(dy, img[IMG_SR]); f |= g
+    n2, g = fm32(x, x); f |= g
+    p, g = fm32(y, y); f |= g
+    n2, g = fa32(n2, p); f |= g
+    n2, g = fa32(n2, 0x40000001); f |= g
+    n, g = sqrt32(n2); f |= g
+    inv, g = fd32(0x40000001, n); f |= g
+    e1, g = fm32(x, inv); f |= g
+    e2, g = fm32(y, inv); f |= g
+    return e1, e2, f
+
+
+# ------------------------------------------------------------------------------------------------
+# Python surface (decoded floats; for tests, tools and the ground)
+# ------------------------------------------------------------------------------------------------
+def _row(geom: ImagerGeometry) -> np.ndarray:
+    if not isinstance(geom, ImagerGeometry):
+        raise ValueError(f"expected an ImagerGeometry, got {type(geom).__name__}")
+    return geom.table_row()
+
+
+@njit(cache=True)
+def _p2t_many(img, rows, cols, out):
+    fl = 0
+    for i in range(rows.shape[0]):
+        r, g1 = enc32(rows[i])
+        c, g2 = enc32(cols[i])
+        a, b, vx, g = pix_to_tan(img, r, c)
+        fl |= g | g1 | g2
+        out[i, 0] = dec32(a)
+        out[i, 1] = dec32(b)
+    return fl
+
+
+@njit(cache=True)
+def _t2p_many(img, vecs, out):
+    fl = 0
+    for i in range(vecs.shape[0]):
+        v0, g0 = enc32(vecs[i, 0])
+        v1, g1 = enc32(vecs[i, 1])
+        v2, g2 = enc32(vecs[i, 2])
+        r, c, ok, g = vec_to_pix(img, v0, v1, v2)
+        fl |= g | g0 | g1 | g2
+        out[i, 0] = dec32(r) if ok else np.nan
+        out[i, 1] = dec32(c) if ok else np.nan
+    return fl
+
+
+@njit(cache=True)
+def _unit_many(img, rows, cols, out):
+    fl = 0
+    for i in range(rows.shape[0]):
+        r, g1 = enc32(rows[i])
+        c, g2 = enc32(cols[i])
+        e1, e2, g = pix_unit(img, r, c)
+        fl |= g | g1 | g2
+        out[i, 0] = dec32(e1)
+        out[i, 1] = dec32(e2)
+    return fl
+
+
+def _rc(row, col):
+    r = np.atleast_1d(np.asarray(row, dtype=float))
+    c = np.atleast_1d(np.asarray(col, dtype=float))
+    if r.shape != c.shape or r.ndim != 1:
+        raise ValueError(f"row and col must be scalars or 1-D arrays of one shape, got {r.shape}, "
+                         f"{c.shape}")
+    if not (np.all(np.isfinite(r)) and np.all(np.isfinite(c))):
+        raise ValueError("row and col must be finite")
+    return r, c
+
+
+def pixel_to_tangent(geom: ImagerGeometry, row, col) -> np.ndarray:
+    """Pixel centroids -> body tangent coordinates ``(a, b) = (v_y/v_x, v_z/v_x)``, rad, computed in
+    1750A 32-bit float (inputs rounded to 32-bit). Returns an (n, 2) float64 array."""
+    r, c = _rc(row, col)
+    out = np.empty((len(r), 2))
+    _p2t_many(_row(geom), r, c, out)
+    return out
+
+
+def pixel_to_body(geom: ImagerGeometry, row, col) -> np.ndarray:
+    """Pixel centroids -> body unit vectors (n, 3) (from :func:`pixel_to_tangent`)."""
+    ab = pixel_to_tangent(geom, row, col)
+    v = np.column_stack([np.ones(len(ab)), ab])
+    return v / np.linalg.norm(v, axis=1, keepdims=True)
+
+
+def tangent_to_pixel(geom: ImagerGeometry, a, b) -> np.ndarray:
+    """Body tangent coordinates -> pixel ``(row, col)`` (n, 2), 1750A 32-bit float."""
+    a = np.atleast_1d(np.asarray(a, dtype=float))
+    b = np.atleast_1d(np.asarray(b, dtype=float))
+    return body_to_pixel(geom, np.column_stack([np.ones(len(a)), a, b]))
+
+
+def body_to_pixel(geom: ImagerGeometry, vecs) -> np.ndarray:
+    """Body direction(s) (n, 3) -> pixel ``(row, col)`` (n, 2), NaN behind the imager."""
+    v = np.atleast_2d(np.asarray(vecs, dtype=float))
+    if v.shape[-1] != 3 or not np.all(np.isfinite(v)):
+        raise ValueError("body_to_pixel: vecs must be finite (n, 3)")
+    out = np.empty((len(v), 2))
+    _t2p_many(_row(geom), np.ascontiguousarray(v), out)
+    return out
+
+
+def imager_unit_vector(geom: ImagerGeometry, row, col) -> np.ndarray:
+    """Pixel centroids -> the paper's measurement components ``(e1, e2)`` (n, 2): components 2 and 3
+    of the imager-frame unit vector ``(1, x, y) / |(1, x, y)|``, 1750A 32-bit float."""
+    r, c = _rc(row, col)
+    out = np.empty((len(r), 2))
+    _unit_many(_row(geom), r, c, out)
+    return out

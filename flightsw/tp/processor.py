@@ -1,0 +1,300 @@
+"""The MSX track processor (TP) as a flight module: ``reset()`` and ``step(message, attitude)``.
+
+The object owns the TP's memory (packed 1750A words in small int64 arrays), turns its inputs into
+the kernel's arguments, runs :func:`flightsw.tp.frame.tp_frame` once per frame, charges the emulated
+cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
+:data:`flightsw.tp.frame.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
+
+Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
+checksum, wrong length, unknown or unconfigured imager), a time tag not after the last frame's, a
+frame-count jump, missing or out-of-range attitude data, an empty candidate list, an innovation far
+outside the EKF's gate -- each coasts on prediction and sets its status bit. An unexpected exception
+inside ``step`` is caught too (status ``TC_INTERNAL_ERROR``, :attr:`TrackProcessor.last_error`).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from flightsw.arith.m1750 import encode32, encode48
+from flightsw.budget import TP1750
+from flightsw.messages import (
+    IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
+)
+from flightsw.tp import frame as F
+from flightsw.tp.config import TPConfig
+from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, _UT, ekf_params, ekf_predict_step_cycles
+
+__all__ = ["TrackProcessor"]
+
+_IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
+
+
+class TrackProcessor:
+    """The track processor.
+
+    Parameters
+    ----------
+    config : TPConfig
+
+    Usage::
+
+        tp = TrackProcessor(TPConfig(imagers={"wfov_vis": geom}, nominal=nominal))
+        tp.reset()
+        cmd = tp.step(candidate_message_or_words, attitude_data, ledger=None)
+        cmd.feedback()        # for the IP's next frame
+    """
+
+    def __init__(self, config: TPConfig):
+        if not isinstance(config, TPConfig):
+            raise ValueError(f"TrackProcessor needs a TPConfig, got {type(config).__name__}")
+        config.validate()
+        self.config = cfg = config
+        self._img_names = [k for k in _IMAGER_ORDER if k in cfg.imagers]
+        self._img_index = {k: i for i, k in enumerate(self._img_names)}
+        self.IMG = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
+        nom = cfg.nominal if cfg.mode == "dedicated" else None
+        self._nominal = nom
+        self.D = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
+                           0.0 if nom is None else nom.t0)
+        self.K = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma, cfg.ekf_sigma_pos0,
+                            cfg.ekf_sigma_vel0)
+        self.C = self._constants(cfg, nom)
+        self.S = np.zeros(F.S_WORDS, np.int64)
+        self.G = np.zeros((F.NG, F.GC), np.int64)
+        self.N = np.zeros(F.N_WORDS, np.int64)
+        self.E = np.zeros(E_WORDS, np.int64)
+        self.OBS = np.zeros((F.MAX_OBS, F.OBS_C), np.int64)
+        self.PW = np.zeros((F.NG * F.MAX_OBS, 3), np.int64)
+        self.TAKEN = np.zeros(F.MAX_OBS, np.int64)
+        self.wk = np.zeros(80, np.int64)
+        self.RM = np.zeros(9, np.int64)
+        self.dR = np.zeros(9, np.int64)
+        self.M = np.zeros(9, np.int64)
+        self.out = np.zeros(F.O_WORDS)
+        self.cyc = np.zeros(len(F.STAGES), np.int64)
+        self.att = np.zeros(16)
+        self.rows = np.zeros(F.MAX_OBS)           # the message's centroids (one kernel signature)
+        self.cols = np.zeros(F.MAX_OBS)
+        self.last_error = ""
+        self.last_cycles: dict = {}
+        self._object_type = cfg.object_type
+        self._mode = cfg.mode
+        self.reset()
+
+    @staticmethod
+    def _constants(cfg: TPConfig, nom) -> np.ndarray:
+        e32 = lambda v: encode32(float(v), rounding="nearest")  # noqa: E731
+        e48 = lambda v: encode48(float(v), rounding="nearest")  # noqa: E731
+        C = np.zeros(F.C_WORDS, np.int64)
+        C[F.C_MODE] = 1 if cfg.mode == "opportunity" else 0
+        C[F.C_HAVE_NOM] = 1 if nom is not None else 0
+        C[F.C_ALPHA] = e32(cfg.alpha)
+        C[F.C_BETA] = e32(cfg.beta)
+        C[F.C_GATE_PX] = e32(cfg.gate_px)
+        C[F.C_THR_OBJ] = e32(cfg.residual_threshold_px2)
+        thr_s = cfg.residual_threshold_px2 if cfg.residual_threshold_star_px2 is None \
+            else cfg.residual_threshold_star_px2
+        C[F.C_THR_STAR] = e32(thr_s)
+        C[F.C_N_EMPTY] = cfg.n_empty
+        C[F.C_N_EMPTY_OBJ] = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
+        C[F.C_N_LOST] = cfg.n_lost
+        C[F.C_FRAME_DT] = e48(cfg.frame_dt)
+        C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
+        C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)
+        C[F.C_OPP_ALPHA] = e32(cfg.opp_alpha)
+        C[F.C_OPP_BETA] = e32(cfg.opp_beta)
+        C[F.C_OPP_GATE_PX] = e32(cfg.opp_gate_px)
+        C[F.C_OPP_N_LOST] = cfg.opp_n_lost
+        C[F.C_MAX_RATE2] = e32(cfg.max_rate ** 2)
+        C[F.C_QTOL] = e32(cfg.quat_norm_tol)
+        C[F.C_MAX_SKEW] = e48(cfg.max_time_skew)
+        C[F.C_EKF_MAX_REJ] = cfg.ekf_max_rejects
+        C[F.C_RMIN2] = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
+        C[F.C_RMAX2] = e32(1.0e8 ** 2)
+        C[F.C_VMAX2] = e32(2.0e4 ** 2)            # m/s
+        C[F.C_GAP] = e48(1.5 * cfg.frame_dt)
+        k = 0 if nom is None or nom.accel_coeffs is None else nom.accel_coeffs.shape[1]
+        C[F.C_CYC_RK4] = rk4_step_cycles(cfg.j2, k)
+        C[F.C_CYC_EKF_STEP] = ekf_predict_step_cycles(cfg.j2, k)
+        return C
+
+    # ---------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Forget every track: no gates, no object, EKF stopped, nominal back at its epoch."""
+        for a in (self.S, self.G, self.N, self.E, self.OBS, self.wk):
+            a[...] = 0
+        self.S[F.S_FRAME] = -1
+        self.S[F.S_DEC] = -1
+        self.S[F.S_DEC_FRAME] = -1
+        if self._nominal is not None:
+            self.N[F.N_X:F.N_X + 6] = self._nominal.state_words()
+            self.N[F.N_T] = encode48(self._nominal.t0, rounding="nearest")
+        self.last_error = ""
+        self._last_cmd = None
+
+    # ---------------------------------------------------------------------------------------------
+    def step(self, message, attitude, ledger=None) -> TrackCommand:
+        """Process one frame -> :class:`~flightsw.messages.TrackCommand`. Never raises.
+
+        Parameters
+        ----------
+        message : CandidateMessage or array of uint16 words (its :meth:`to_words` form)
+        attitude : AttitudeData (or None: no attitude this frame)
+        ledger : flightsw.budget.Ledger, optional
+            Charged with the frame's emulated PACE1750A cycles per stage on ``"tp1750"``.
+        """
+        try:
+            return self._step(message, attitude, ledger)
+        except Exception as exc:  # never raise out of step: coast and say so
+            self.last_error = f"{type(exc).__name__}: {exc}"
+            return self._error_command()
+
+    def _step(self, message, attitude, ledger):
+        msg = None
+        if isinstance(message, CandidateMessage):
+            msg = message
+        elif message is not None and not isinstance(message, (str, bytes)):
+            try:
+                msg = CandidateMessage.from_words(message)
+            except (ValueError, TypeError):
+                msg = None
+        ok = msg is not None
+        img_idx = 0
+        n = 0
+        t_msg = 0.0
+        fc = 0
+        if ok:
+            idx = self._img_index.get(msg.imager)
+            cand = msg.candidates
+            if idx is None or not isinstance(cand, np.ndarray) or cand.dtype.names is None \
+                    or "row" not in cand.dtype.names or "col" not in cand.dtype.names \
+                    or not isinstance(msg.frame_count, (int, np.integer)):
+                ok = False
+            else:
+                img_idx = idx
+                n = min(len(cand), F.MAX_OBS)
+                self.rows[:n] = cand["row"][:n]
+                self.cols[:n] = cand["col"][:n]
+                t_msg = float(msg.time_tag)
+                fc = int(msg.frame_count) & 0xFFFF
+        att = self.att
+        att[1] = 0.0
+        if attitude is not None:
+            try:
+                att[0] = attitude.t
+                att[2:6] = attitude.q_body_to_eci
+                att[6:9] = attitude.rate_body
+                att[9:12] = attitude.r_eci
+                att[12:15] = attitude.v_eci
+                att[1] = 1.0 if attitude.valid else 0.0
+            except (AttributeError, TypeError, ValueError):
+                att[1] = 0.0
+        status = F.tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
+                            self.OBS, self.PW, self.TAKEN, self.wk, self.RM, self.dR, self.M, ok,
+                            img_idx, t_msg, fc, self.rows, self.cols, n, att, self.out, self.cyc)
+        if ledger is not None:
+            for name, c in zip(F.STAGES, self.cyc):
+                if c:
+                    ledger.charge(TP1750, name, int(c))
+        return self._command(int(status))
+
+    def _command(self, status: int) -> TrackCommand:
+        o = self.out
+        cmd = TrackCommand(
+            frame_count=int(o[F.O_FRAME]), time_tag=float(o[F.O_T]),
+            q_point=o[F.O_QP:F.O_QP + 4].copy(), predicted_row=float(o[F.O_PROW]),
+            predicted_col=float(o[F.O_PCOL]), imager=self._img_names[int(o[F.O_IMG])],
+            object_type=self._object_type, locked=bool(o[F.O_LOCKED]), status=status,
+            n_star_gates=int(o[F.O_NSTAR]), n_object_gates=int(o[F.O_NOBJ]),
+            decided_frame=int(o[F.O_DECF]), object_index=int(o[F.O_OBJIDX]), mode=self._mode,
+            los_eci=o[F.O_LOS:F.O_LOS + 3].copy(), r_est=o[F.O_R:F.O_R + 3].copy(),
+            v_est=o[F.O_V:F.O_V + 3].copy(), sigma_pos=float(o[F.O_SP]), sigma_vel=float(o[F.O_SV]))
+        self._last_cmd = cmd
+        return cmd
+
+    def _error_command(self) -> TrackCommand:
+        last = self._last_cmd
+        if last is None:
+            return TrackCommand(imager=self._img_names[0], object_type=self._object_type,
+                                status=TC_INTERNAL_ERROR | TC_COASTING | TC_BAD_MESSAGE, mode=self._mode)
+        return TrackCommand(
+            frame_count=last.frame_count, time_tag=last.time_tag, q_point=last.q_point.copy(),
+            predicted_row=last.predicted_row, predicted_col=last.predicted_col, imager=last.imager,
+            object_type=last.object_type, locked=False,
+            status=(last.status & ~0x00A0) | TC_INTERNAL_ERROR | TC_COASTING,
+            n_star_gates=last.n_star_gates, n_object_gates=last.n_object_gates,
+            decided_frame=last.decided_frame, object_index=-1, mode=last.mode,
+            los_eci=last.los_eci.copy(), r_est=last.r_est.copy(), v_est=last.v_est.copy(),
+            sigma_pos=last.sigma_pos, sigma_vel=last.sigma_vel)
+
+    # ---------------------------------------------------------------------------------------------
+    @property
+    def cycles(self) -> dict:
+        """PACE1750A clocks of the last frame per stage."""
+        return {name: int(c) for name, c in zip(F.STAGES, self.cyc)}
+
+    @property
+    def ekf_running(self) -> bool:
+        return bool(self.E[E_RUN])
+
+    def snapshot(self) -> dict:
+        """The TP's state after the last frame, for the recording: fixed-size arrays and scalars
+        (decoded 1750A values, NaN where absent).
+
+        Keys: ``gate_alive`` (46,) int8, ``gate_kind`` (46,) int8 (0 star, 1 object; row 2p is the
+        star gate and 2p+1 the object gate of pair p), ``gate_pos`` (46, 2) body tangent
+        coordinates (rad), ``gate_vel`` (46, 2) rad/s (last apparent velocity), ``gate_resid``
+        (46,) accumulated squared residuals (rad^2), ``gate_missed`` (46,) successive empty frames,
+        ``gate_obs`` (46,) candidate used this frame (-1), ``gate_seed`` (46,) candidate index the
+        pair was placed on, ``gate_pixel`` (46, 2) gate centre in pixels of the last imager;
+        ``object_pair`` (-1 none), ``decided_frame``, ``decision_rule`` (1-4, 0 none), counters
+        ``n_decisions``, ``n_reinit``, ``n_spurious``, ``n_lost``, ``rule_counts`` (4,) (conclusions by
+        rules 1-4 since reset), ``n_undecided_deleted`` (pairs deleted without a conclusion); ``ekf_running``, ``ekf_x`` (6,),
+        ``ekf_p_diag`` (6,), ``ekf_t``; ``opp_alive``, ``opp_pos`` (2,), ``opp_vel`` (2,),
+        ``opp_missed``; ``status``, ``mode``, ``imager``.
+        """
+        from flightsw.arith.m1750 import decode32_array, decode48_array
+        from flightsw.tp.geometry import _t2p_many
+        G = self.G
+        alive = G[:, F.G_ALIVE] != 0
+        pos = np.where(alive[:, None], decode32_array(G[:, [F.G_A, F.G_B]]), np.nan)
+        vel = np.where(alive[:, None], decode32_array(G[:, [F.G_VA, F.G_VB]]), np.nan)
+        res = np.where(alive, decode32_array(G[:, F.G_RES]), np.nan)
+        img = self.IMG[int(self.S[F.S_IMG])]
+        pix = np.full((F.NG, 2), np.nan)
+        if alive.any():
+            v = np.column_stack([np.ones(F.NG), np.nan_to_num(pos)])
+            _t2p_many(img, v, pix)
+            pix[~alive] = np.nan
+        run = bool(self.E[E_RUN])
+        ex = decode48_array(self.E[E_X:E_X + 6]) if run else np.full(6, np.nan)
+        ep = decode48_array(self.E[E_P + np.diag(_UT)]) if run else np.full(6, np.nan)
+        S = self.S
+        oa = bool(S[F.S_OPP_ALIVE])
+        return {
+            "gate_alive": alive.astype(np.int8),
+            "gate_kind": (np.arange(F.NG) & 1).astype(np.int8),
+            "gate_pos": pos, "gate_vel": vel, "gate_resid": res,
+            "gate_missed": np.where(alive, G[:, F.G_MISS], 0).astype(np.int16),
+            "gate_obs": np.where(alive, G[:, F.G_OBS], -1).astype(np.int16),
+            "gate_seed": np.where(alive, G[:, F.G_SEED], -1).astype(np.int16),
+            "gate_pixel": pix,
+            "object_pair": np.int16(S[F.S_DEC]),
+            "decided_frame": np.int32(S[F.S_DEC_FRAME] if S[F.S_DEC] >= 0 else -1),
+            "decision_rule": np.int8(S[F.S_RULE]),
+            "n_decisions": np.int32(S[F.S_NDEC]), "n_reinit": np.int32(S[F.S_NREINIT]),
+            "n_spurious": np.int32(S[F.S_NSPURIOUS]), "n_lost": np.int32(S[F.S_NLOST]),
+            "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
+            "n_undecided_deleted": np.int32(S[F.S_NSTALE]),
+            "ekf_running": np.int8(run), "ekf_x": ex, "ekf_p_diag": ep,
+            "ekf_t": float(decode48_array(self.E[E_T:E_T + 1])[0]) if run else math.nan,
+            "opp_alive": np.int8(oa),
+            "opp_pos": decode32_array(S[F.S_OPP_X:F.S_OPP_X + 2]) if oa else np.full(2, np.nan),
+            "opp_vel": decode32_array(S[F.S_OPP_V:F.S_OPP_V + 2]) if oa else np.full(2, np.nan),
+            "opp_missed": np.int16(S[F.S_OPP_MISS]),
+            "status": np.int32(S[F.S_STATUS]), "mode": self._mode,
+            "imager": self._img_names[int(S[F.S_IMG])],
+        }
