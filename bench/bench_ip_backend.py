@@ -1,10 +1,14 @@
 """IP back end (issue 4): blob colouring, the twelve features and GOF ranking in emulated 1750A
-arithmetic on a 64x64 window holding 50 Gaussian blobs, and the whole ``process_frame`` (preprocess,
-threshold, back end, message) beside SEP's ``sep.extract`` on the same window. Peers for labelling
-(scipy.ndimage.label, skimage.measure.label, cv2.connectedComponents) and for detection + features
-(skimage label + regionprops_table, cv2.connectedComponentsWithStats + cv2.moments, scipy label +
-bincount moments) are float64/host-integer code; each is checked to find the same objects as ours
-(same count, same labels or centroids within 0.1 px) before it is timed. photutils is not installed.
+arithmetic on a 64x64 window holding 50 Gaussian blobs, and the whole ``process_frame`` (compaction
+and window, threshold statistics, back end, message) beside the detection + feature libraries on the
+same window. Peers for labelling: scipy.ndimage.label, skimage.measure.label, cv2.connectedComponents;
+for features (from the thresholded window) and for detection (from the window and our threshold,
+so the peers skip the threshold statistics ours computes): skimage label + regionprops_table,
+cv2.connectedComponentsWithStats + cv2.moments, scipy label + bincount moments + ndimage.maximum,
+photutils detect_sources + SourceCatalog, and sep.extract (detection only). Each peer completes the
+twelve features in float64 numpy from its moments (orientation, eccentricity, axes, brightness
+ratios: nobody is timed doing less work) and is checked to find the same objects as ours (same
+count, centroids within 0.1 px; labelling: the same partition) before it is timed.
 
 Run: ``.venv/bin/python -m pytest bench/bench_ip_backend.py --benchmark-enable -q``.
 """
@@ -22,8 +26,39 @@ from flightsw.records import load_record
 
 G_LABEL = "IP back end: blob colouring / labelling, 64x64 window, 50 blobs"
 G_BACK = "IP back end: colouring + 12 features + ranking, 64x64 window, 50 blobs"
-G_FRAME = "IP whole frame: process_frame vs sep.extract, 64x64 window, 50 blobs"
+G_FRAME = "IP detection + 12 features: process_frame vs the detection libraries, 64x64 window, 50 blobs"
 RECORD = load_record("aurora")
+
+GROUP_DOCS = {
+    G_LABEL: """Blob colouring (the paper's raster scan with the intermediate colour array; ours is
+        `flightsw.ip.label`, the same scan without the per-blob sums) against the labelling
+        functions of SciPy, scikit-image and OpenCV on the clipped 64x64 window with 50 blobs; every
+        peer is checked to give the same partition (SciPy and scikit-image: the same numbering).
+        Target (issue 5): ours no slower than 2x `cv2.connectedComponents`.""",
+    G_BACK: """IP steps 6-8 on the clipped 64x64 window with 50 blobs: colouring, the twelve
+        features in bit-exact emulated 1750A float (48-bit moments, sqrt32, atan2_32), the
+        normalisation and the GOF ranking against the aurora record (23 reported), in one jitted call,
+        charged to a fresh ledger. Peers compute the twelve features in float64 from their moments
+        (same objects: count and centroids within 0.1 px). Target (issue 4): ours <= 40 us median.
+        About 28 us of ours is the 1750A float emulation itself (features ~17 us: ~340 ns a blob,
+        of which sqrt32 x3 ~90 ns and atan2_32 ~80 ns; distances ~7 us: 500 terms of FS, FM, FM,
+        FA at ~3 ns an emulated op; 23 exp32 ~2 us), the colouring ~6 us.""",
+    G_FRAME: """Detection + the twelve features: ours is the whole `process_frame` on a 256x244
+        frame (compaction 1, 64x64 window, threshold statistics, the fused back end, the candidate
+        message); the peers get the float64 window and our threshold (so they skip the threshold
+        statistics) and compute the twelve features in float64 from their moments: `sep.extract`
+        (no deblending, deblend_cont = 1, so its objects are the connected components),
+        photutils `detect_sources` + `SourceCatalog`, scikit-image label + regionprops_table,
+        OpenCV connectedComponentsWithStats + moments, SciPy label + bincount moments +
+        ndimage.maximum. Each finds the same 50 objects (centroids within 0.1 px of ours).
+        Targets (issues 4, 5): ours <= 60 us, >= 4x faster than sep.extract, >= 10x faster than
+        SciPy label + moments. The SciPy target is NOT met (about 4.5-5x, i.e. 2x short): py-spy
+        puts ~60 % of ours in the back-end kernel, ~28 us of it the bit-exact 1750A float emulation
+        of the features and distances (see the back-end group), which the float64 peers do in
+        hardware; the float emulation is a faithful-arithmetic requirement, so the remaining
+        factor is out of reach without a faster 1750A float emulator
+        (`flightsw.arith.m1750`).""",
+}
 S8 = np.ones((3, 3), int)
 
 
@@ -46,10 +81,11 @@ _IMG, _POS = _blobs()
 WINDOW = np.where(_IMG > 150, np.rint(_IMG), 0).astype(np.int32)      # clipped threshold output
 _LAB, _N = ndimage.label(WINDOW > 0, structure=S8)
 assert _N == 50
+WINDOW16 = WINDOW.astype(np.int16)          # the DSP words the front end forwards
 
 
 def _ours_backend():
-    return backend(WINDOW, RECORD, compaction=1, window_origin=(90, 96),
+    return backend(WINDOW16, RECORD, compaction=1, window_origin=(90, 96),
                    centroid_mean=(122.0, 128.0), ledger=Ledger(), want_labels=False)
 
 
@@ -58,11 +94,25 @@ def _ours_centroids():
     return np.stack([f["row"] - 90.0, f["col"] - 96.0], 1)       # window pixels, centres +0.5
 
 
-def _same_objects(rows_cols, name):
-    ours = _ours_centroids()
-    assert len(rows_cols) == len(ours) == 50, name
+def _same_objects(rows_cols, name, ours=None, n=50):
+    """Same count and every centroid within 0.1 px of one of the peer's (window pixels, +0.5)."""
+    ours = _ours_centroids() if ours is None else ours
+    assert len(rows_cols) == len(ours) == n, (name, len(rows_cols), len(ours))
     d = np.hypot(ours[:, None, 0] - rows_cols[None, :, 0], ours[:, None, 1] - rows_cols[None, :, 1])
-    assert np.all(d.min(1) < 0.1), (name, d.min(1).max())
+    assert np.all(d.min(1) < 0.1) and np.all(d.min(0) < 0.1), (name, d.min(1).max())
+
+
+def _twelve(n, tot, r, c, mu20, mu02, mu11, mx):
+    """The twelve features in float64 numpy from a peer's per-blob moments (as ours define them:
+    intensity-weighted central moments mu = sum I (x - mean)^2 / sum I)."""
+    dm = mu20 - mu02
+    rr = np.sqrt(dm * dm + 4 * mu11 * mu11)
+    major = np.sqrt(2 * (mu20 + mu02 + rr) / 2 + 1)
+    minor = np.sqrt(np.maximum(2 * (mu20 + mu02 - rr) / 2 + 1, 0))
+    theta = np.degrees(0.5 * np.arctan2(2 * mu11, dm)) % 180.0
+    avg = tot / n
+    return np.stack([n, c, r, theta, rr * rr / (n * n), major, minor, minor / major, tot, avg, mx,
+                     avg / mx], 1)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -77,6 +127,8 @@ def test_label_ours(benchmark):
 
 @pytest.mark.benchmark(group=G_LABEL)
 def test_label_scipy_ndimage(benchmark):
+    lab, n = ndimage.label(WINDOW, S8)
+    assert n == _N and np.array_equal(lab, ip.label(WINDOW)[0])
     benchmark(ndimage.label, WINDOW, S8)
 
 
@@ -113,62 +165,71 @@ def test_backend_ours(benchmark):
     benchmark(_ours_backend)
 
 
-def _skimage_features(img):
+def _skimage_features(img, on=None):
     skm = pytest.importorskip("skimage.measure")
-    lab = skm.label(img > 0, connectivity=2)
-    return skm.regionprops_table(lab, intensity_image=img.astype(np.float64),
-                                 properties=("area", "centroid_weighted",
-                                             "moments_weighted_central", "intensity_max",
-                                             "intensity_mean"))
+    lab = skm.label(img > 0 if on is None else on, connectivity=2)
+    t = skm.regionprops_table(lab, intensity_image=img.astype(np.float64),
+                              properties=("area", "centroid_weighted", "moments_weighted_central",
+                                          "intensity_max", "intensity_mean"))
+    m00 = t["moments_weighted_central-0-0"]
+    return _twelve(t["area"], t["intensity_mean"] * t["area"], t["centroid_weighted-0"] + 0.5,
+                   t["centroid_weighted-1"] + 0.5, t["moments_weighted_central-0-2"] / m00,
+                   t["moments_weighted_central-2-0"] / m00,
+                   t["moments_weighted_central-1-1"] / m00, t["intensity_max"])
 
 
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_skimage_regionprops(benchmark):
-    t = _skimage_features(WINDOW)
-    _same_objects(np.stack([t["centroid_weighted-0"] + 0.5, t["centroid_weighted-1"] + 0.5], 1),
-                  "skimage")
+    f = _skimage_features(WINDOW)
+    _same_objects(f[:, [2, 1]], "skimage")
     benchmark(_skimage_features, WINDOW)
 
 
-def _cv2_features(img):
+def _cv2_features(img, on=None):
     import cv2
-    n, lab, stats, _ = cv2.connectedComponentsWithStats((img > 0).astype(np.uint8), connectivity=8)
+    on = img > 0 if on is None else on
+    n, lab, stats, _ = cv2.connectedComponentsWithStats(on.astype(np.uint8), connectivity=8)
     f = img.astype(np.float32)
-    out = []
+    out = np.empty((n - 1, 8))
     for k in range(1, n):
-        x, y, w, h, _a = stats[k]
+        x, y, w, h, a = stats[k]
         roi = np.where(lab[y:y + h, x:x + w] == k, f[y:y + h, x:x + w], 0.0)
+        if h < 2 or w < 3:             # cv2 reads an (N, 2) or 1-row array as a point set: pad
+            roi = np.pad(roi, ((0, max(0, 2 - h)), (0, max(0, 3 - w))))
         m = cv2.moments(roi)
-        out.append((y + m["m01"] / m["m00"] + 0.5, x + m["m10"] / m["m00"] + 0.5,
-                    m["mu20"], m["mu02"], m["mu11"], roi.max()))
-    return np.array(out)
+        out[k - 1] = (a, m["m00"], y + m["m01"] / m["m00"] + 0.5, x + m["m10"] / m["m00"] + 0.5,
+                      m["mu20"] / m["m00"], m["mu02"] / m["m00"], m["mu11"] / m["m00"], roi.max())
+    return _twelve(*out.T)
 
 
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_cv2_stats_moments(benchmark):
     pytest.importorskip("cv2")
-    _same_objects(_cv2_features(WINDOW)[:, :2], "cv2")
+    _same_objects(_cv2_features(WINDOW)[:, [2, 1]], "cv2")
     benchmark(_cv2_features, WINDOW)
 
 
-def _scipy_features(img):
-    lab, n = ndimage.label(img > 0, structure=S8)
-    rr, cc = np.indices(img.shape)
+_RR, _CC = (a.ravel() + 0.5 for a in np.indices((64, 64)))
+
+
+def _scipy_features(img, on=None):
+    lab, n = ndimage.label(img > 0 if on is None else on, structure=S8)
     w = img.astype(np.float64).ravel()
     lb = lab.ravel()
+    cnt = np.bincount(lb, None, n + 1)[1:]
     s = np.bincount(lb, w, n + 1)[1:]
-    r = np.bincount(lb, w * (rr.ravel() + 0.5), n + 1)[1:] / s
-    c = np.bincount(lb, w * (cc.ravel() + 0.5), n + 1)[1:] / s
-    rr2 = np.bincount(lb, w * (rr.ravel() + 0.5) ** 2, n + 1)[1:] / s - r * r
-    cc2 = np.bincount(lb, w * (cc.ravel() + 0.5) ** 2, n + 1)[1:] / s - c * c
-    rc = np.bincount(lb, w * (rr.ravel() + 0.5) * (cc.ravel() + 0.5), n + 1)[1:] / s - r * c
+    r = np.bincount(lb, w * _RR, n + 1)[1:] / s
+    c = np.bincount(lb, w * _CC, n + 1)[1:] / s
+    rr2 = np.bincount(lb, w * _RR ** 2, n + 1)[1:] / s - r * r
+    cc2 = np.bincount(lb, w * _CC ** 2, n + 1)[1:] / s - c * c
+    rc = np.bincount(lb, w * _RR * _CC, n + 1)[1:] / s - r * c
     mx = ndimage.maximum(img, lab, np.arange(1, n + 1))
-    return np.stack([r, c, rr2, cc2, rc, mx], 1)
+    return _twelve(cnt, s, r, c, cc2, rr2, rc, mx)
 
 
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_scipy_bincount(benchmark):
-    _same_objects(_scipy_features(WINDOW)[:, :2], "scipy")
+    _same_objects(_scipy_features(WINDOW)[:, [2, 1]], "scipy")
     benchmark(_scipy_features, WINDOW)
 
 
@@ -200,26 +261,78 @@ def _sep_extract(win, thresh):
                        clean=False)
 
 
+def _sep_features(win, thresh):
+    o = _sep_extract(win, thresh)
+    # sep's second moments (x2, y2, xy) are intensity weighted over the thresholded pixels
+    return _twelve(o["npix"].astype(float), o["flux"], o["y"] + 0.5, o["x"] + 0.5, o["x2"],
+                   o["y2"], o["xy"], o["peak"])
+
+
+def _photutils_features(win, thresh):
+    from photutils.segmentation import SourceCatalog, detect_sources
+    segm = detect_sources(win, thresh, 1, connectivity=8)
+    cat = SourceCatalog(win, segm)
+    mu = cat.covariance.value                            # [[mu20 (x), mu11], [mu11, mu02 (y)]]
+    return _twelve(cat.area.value, cat.segment_flux, cat.ycentroid + 0.5, cat.xcentroid + 0.5,
+                   mu[:, 0, 0], mu[:, 1, 1], mu[:, 0, 1], cat.max_value)
+
+
+_REF = process_frame(FRAME, SEQ, RECORD)
+_T4 = _REF.context["threshold"]["t4"]
+_WIN = np.ascontiguousarray(_REF.subimage.image, dtype=np.float64)
+_THRESH = _T4 / 16.0 + 1e-6                          # ours passes 16 x > T4 (strictly above)
+_ON = _WIN > _THRESH
+_FRAME_CENTROIDS = np.stack([_REF.backend.features["row"] - 90.0,
+                             _REF.backend.features["col"] - 96.0], 1)
+
+
+def _frame_same(rows_cols, name):
+    _same_objects(rows_cols, name, _FRAME_CENTROIDS, _REF.backend.count)
+
+
 @pytest.mark.benchmark(group=G_FRAME)
 def test_process_frame_ours(benchmark):
     res = process_frame(FRAME, SEQ, RECORD)
     assert res.backend.count >= 50 and res.message.count == 23
+    b = _ours_frame()
+    assert b.message == res.message                     # the fast path = the stages path
     benchmark(_ours_frame)
 
 
 @pytest.mark.benchmark(group=G_FRAME)
 def test_process_frame_sep_extract(benchmark):
-    sep = pytest.importorskip("sep")
-    res = process_frame(FRAME, SEQ, RECORD)
-    t4 = res.context["threshold"]["t4"]
-    win = np.ascontiguousarray(res.subimage.image, dtype=np.float64)
-    thresh = t4 / 16.0 + 1e-6                         # ours passes 16 x > T4 (strictly above)
-    objs = _sep_extract(win, thresh)
-    f = res.backend.features
-    ours = np.stack([f["row"] - 90.0, f["col"] - 96.0], 1)
-    theirs = np.stack([objs["y"] + 0.5, objs["x"] + 0.5], 1)          # SEP centres at 0
-    assert len(objs) == len(ours), (len(objs), len(ours))
-    d = np.hypot(ours[:, None, 0] - theirs[None, :, 0], ours[:, None, 1] - theirs[None, :, 1])
-    assert np.all(d.min(1) < 0.1)
-    assert sep is not None
-    benchmark(_sep_extract, win, thresh)
+    pytest.importorskip("sep")
+    f = _sep_features(_WIN, _THRESH)
+    _frame_same(f[:, [2, 1]], "sep (no deblending: deblend_cont=1)")
+    benchmark(_sep_features, _WIN, _THRESH)
+
+
+@pytest.mark.benchmark(group=G_FRAME)
+def test_process_frame_photutils_segmentation(benchmark):
+    pytest.importorskip("photutils")
+    f = _photutils_features(_WIN, _THRESH)
+    _frame_same(f[:, [2, 1]], "photutils")
+    benchmark(_photutils_features, _WIN, _THRESH)
+
+
+@pytest.mark.benchmark(group=G_FRAME)
+def test_process_frame_skimage_label_regionprops(benchmark):
+    pytest.importorskip("skimage")
+    f = _skimage_features(_WIN, _ON)
+    _frame_same(f[:, [2, 1]], "skimage")
+    benchmark(lambda: _skimage_features(_WIN, _WIN > _THRESH))
+
+
+@pytest.mark.benchmark(group=G_FRAME)
+def test_process_frame_cv2_stats_moments(benchmark):
+    pytest.importorskip("cv2")
+    f = _cv2_features(_WIN, _ON)
+    _frame_same(f[:, [2, 1]], "cv2")
+    benchmark(lambda: _cv2_features(_WIN, _WIN > _THRESH))
+
+
+@pytest.mark.benchmark(group=G_FRAME)
+def test_process_frame_scipy_label_bincount(benchmark):
+    f = _scipy_features(_WIN, _ON)
+    _frame_same(f[:, [2, 1]], "scipy")
+    benchmark(lambda: _scipy_features(_WIN, _WIN > _THRESH))

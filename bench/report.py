@@ -64,14 +64,20 @@ def run_suites(k: str | None, json_path: Path) -> int:
     return subprocess.call(cmd, cwd=ROOT, env=env)
 
 
-def _group_doc(fullname: str) -> str:
+def _group_doc(fullname: str, group: str | None = None) -> str:
+    """The group's description: the suite module's ``GROUP_DOCS[group]`` if it has one (targets and
+    notes per group), else the first paragraph of the module docstring."""
     module = fullname.split("::")[0].replace("/", ".").removesuffix(".py")
     if module.startswith("bench.") is False and "bench." in module:
         module = module[module.index("bench."):]
     try:
-        doc = importlib.import_module(module).__doc__ or ""
+        mod = importlib.import_module(module)
     except Exception:  # a broken suite must not stop the report
         return ""
+    notes = getattr(mod, "GROUP_DOCS", {})
+    if group in notes:
+        return " ".join(notes[group].split())
+    doc = mod.__doc__ or ""
     return doc.strip().split("\n\n")[0].replace("\n", " ")
 
 
@@ -80,7 +86,7 @@ def collect(json_file: Path) -> dict:
     groups: dict[str, dict] = {}
     for b in raw["benchmarks"]:
         g = b.get("group") or b["fullname"].split("::")[0]
-        entry = groups.setdefault(g, {"doc": _group_doc(b["fullname"]), "rows": [],
+        entry = groups.setdefault(g, {"doc": _group_doc(b["fullname"], g), "rows": [],
                                       "module": b["fullname"].split("::")[0]})
         entry["rows"].append({"name": b["name"], "median_s": b["stats"]["median"],
                               "rounds": b["stats"]["rounds"]})

@@ -89,6 +89,47 @@ def test_label_counts_and_cycles():
     assert set(COLOUR_MIX) == {"pixel", "on_pixel", "new_colour", "merge", "find_step", "fold"}
 
 
+def test_mask_scan_equals_pixel_scan_event_for_event():
+    """The host's bitmask scan (windows <= 64 columns) and the pixel-by-pixel scan produce the same
+    runs, provisional colours, colour array and event counts (hence labels, sums and cycles)."""
+    from flightsw.ip.colour import _scan_masks, _scan_pixels
+    rng = np.random.default_rng(12)
+    for im in _random_images(rng, 1500):
+        im = im.astype(np.int16) * rng.integers(1, 4000, im.shape).astype(np.int16)
+        h, w = im.shape
+        if w > 64:                      # the bitmask scan serves windows up to 64 columns
+            continue
+        for diagonal in (True, False):
+            outs = []
+            for scan in (_scan_masks, _scan_pixels):
+                raw = np.zeros((h + 1, w + 2), np.int32)
+                parent = np.zeros((h * w + 1) // 2 + 2, np.int32)
+                rr, ra, rb = (np.zeros(h * ((w + 1) // 2) + 1, np.int32) for _ in range(3))
+                res = scan(im, diagonal, raw, parent, rr, ra, rb)
+                n, nrun = res[0], res[1]
+                starts = raw[rr[:nrun] + 1, ra[:nrun] + 1]     # each run's provisional colour
+                outs.append((parent[:n + 1], rr[:nrun], ra[:nrun], rb[:nrun], starts, res))
+            for a, b in zip(outs[0], outs[1]):
+                assert np.array_equal(np.asarray(a), np.asarray(b)), (im.shape, diagonal)
+
+
+def test_label_wide_windows_and_input_dtypes():
+    """Windows wider than 64 columns (the pixel scan) and every direct dtype equal scipy."""
+    rng = np.random.default_rng(13)
+    for shape in [(30, 65), (20, 130), (3, 257), (90, 100)]:
+        for p in (0.2, 0.5, 0.7):
+            im = rng.random(shape) < p
+            for diagonal in (True, False):
+                ref, n = ndimage.label(im, structure=S8 if diagonal else None)
+                for a in (im, im.astype(np.uint8), im.astype(np.int16) * 7, im.astype(np.int64)):
+                    lab, cnt = ip.label(a, diagonal)
+                    assert cnt == n and np.array_equal(lab, ref)
+    with pytest.raises(ValueError, match="16-bit"):
+        ip.label(np.full((2, 70), 70000, np.int32))
+    with pytest.raises(ValueError, match="16-bit"):
+        backend(np.full((4, 4), -40000, np.int64), load_record("star"))
+
+
 def test_label_validation():
     with pytest.raises(ValueError, match="2-D"):
         ip.label(np.zeros(5))
@@ -430,6 +471,31 @@ def test_process_frame_end_to_end():
     th = [s for s in stages if s.name == "threshold"][0].image
     be = backend(th, rec, compaction=1, window_origin=(90, 96), centroid_mean=(122.0, 128.0))
     assert np.array_equal(be.order, res.backend.order)
+
+
+def test_process_frame_fast_path_equals_the_stages_path():
+    """want_stages=False runs the front end fused in one jitted call: the same message, ledger and
+    threshold as the step-by-step path, for the shipped sequences, predictions and alpha overrides."""
+    rng = np.random.default_rng(9)
+    rec = load_record("star").replace(gof_threshold=0.0)
+    for name in ("satellite", "satellite_c2", "aurora"):
+        seq = load_default_sequence(name)
+        assert seq.fusable
+        for k in range(3):
+            frame, truth = _star_frame(rng, 50)
+            fb = None if k == 0 else Feedback(predicted_row=float(truth[k, 0]),
+                                              predicted_col=float(truth[k, 1]))
+            aq = None if k < 2 else 3 * 4096
+            l1, l2 = Ledger(), Ledger()
+            a = process_frame(frame, seq, rec, fb, ledger=l1, alpha_q12=aq)
+            b = process_frame(frame, seq, rec, fb, ledger=l2, alpha_q12=aq, want_stages=False)
+            assert a.message == b.message and b.stages == []
+            cands = b.backend.candidates()
+            assert cands.tobytes() == b.backend._candidates_decoded().tobytes()
+            assert l1.stages("dsp") == l2.stages("dsp") and l1.stages("ip1750") == l2.stages("ip1750")
+            assert a.context["threshold"] == b.context["threshold"]
+            assert np.array_equal(a.subimage.image, b.subimage.image)
+            assert a.subimage.origin == b.subimage.origin
 
 
 def test_process_frame_feedback_moves_window_and_means():

@@ -175,6 +175,114 @@ def test_kernel_validation():
         flt.validate_kernel(np.full((3, 3), 0.25))
 
 
+# ------------------------------------------------------------------ frequency-domain filter
+from flightsw.ip import fftfilter as fft  # noqa: E402
+
+FFT_CASES = [(fft.gaussian_kernel_q15(9, 1.8), None), (fft.gaussian_kernel_q15(15, 3.0), None),
+             (flt.matched_kernel_any(11, 2.0), 16), (fft.gaussian_kernel_q15(21, 4.0), 64),
+             (np.random.default_rng(5).integers(-2000, 2000, (13, 13)).astype(np.int16), 32)]
+
+
+def _fft_oracles(img, k):
+    """Two independent float64 oracles of the replicate-edge correlation with the same taps."""
+    from scipy.signal import fftconvolve
+    kf = k.astype(np.float64) / 32768
+    a = ndi.correlate(img.astype(np.float64), kf, mode="nearest")
+    p = k.shape[0] // 2
+    b = fftconvolve(np.pad(img.astype(np.float64), p, mode="edge"), kf[::-1, ::-1], mode="valid")
+    assert np.abs(a - b).max() < 1e-6 * max(1.0, np.abs(a).max())
+    return a
+
+
+@pytest.mark.parametrize("ci", range(len(FFT_CASES)))
+def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
+    """Every pixel within the rigorous bound the block exponents give, every tile's RMS within its L2
+    form, and the RMS as the statistical rounding model predicts (module docstring)."""
+    k, tile = FFT_CASES[ci]
+    worst, rms_ratio, rmss = 0.0, [], []
+    for img in WINDOWS[::2]:
+        ours, info = fft.fft_correlate(img, k, tile=tile, return_info=True)
+        ref = _fft_oracles(img, k)
+        err = np.abs(ours - np.clip(ref, -32768, 32767))
+        assert np.all(err <= fft.bound_map(info, img.shape)), (err.max(), info["bound"])
+        V = info["valid"]
+        for i, j in np.ndindex(info["bounds"].shape):
+            e = err[i * V:(i + 1) * V, j * V:(j + 1) * V]
+            rms = np.sqrt((e ** 2).mean())
+            assert rms <= info["rms_bounds"][i, j]
+        rmss.append(np.sqrt((err ** 2).mean()))
+        rms_ratio.append(rmss[-1] / np.sqrt((info["rms_predicted"] ** 2).mean()))
+        worst = max(worst, err.max())
+    assert max(rms_ratio) < 1.25, rms_ratio          # the model does not underestimate
+    print(f"\n[fft filter] {k.shape[0]}x{k.shape[0]} tile {info['tile']}: max err {worst:.3f} "
+          f"counts, RMS {min(rmss):.2f}..{max(rmss):.2f}, RMS/predicted {min(rms_ratio):.2f}.."
+          f"{max(rms_ratio):.2f}, rigorous bound (last window) {info['bound']:.1f}")
+
+
+def test_fft_filter_saturation_constant_and_no_dc_removal():
+    rng = np.random.default_rng(11)
+    # near full scale with a kernel of gain 2: both directions saturate, still within the bound
+    img = rng.integers(20000, 32768, (40, 48)).astype(np.int16)
+    img[:, :24] = rng.integers(-32768, -20000, (40, 24))
+    img[0, :2] = (-32768, 32767)
+    k = (fft.gaussian_kernel_q15(9, 2.0).astype(np.int64) * 2).clip(-32768, 32767).astype(np.int16)
+    ours, info = fft.fft_correlate(img, k, return_info=True)
+    ref = _fft_oracles(img, k)
+    assert (ours == 32767).any() and (ours == -32768).any()
+    assert np.all(np.abs(ours - np.clip(ref, -32768, 32767)) <= fft.bound_map(info, img.shape))
+    assert info["mean"] == 0                    # x - m would not fit 16 bits: no DC removal
+    # a constant window: all in the DC removal, exact
+    c = np.full((64, 64), 1234, np.int16)
+    k = fft.gaussian_kernel_q15(15, 3.0)
+    assert np.array_equal(fft.fft_correlate(c, k), flt.correlate_q15_k(c, flt.smoothing_kernel(3)))
+    # without DC removal the same window is still within its (larger) bound
+    img = WINDOWS[3]
+    ours, info = fft.fft_correlate(img, k, return_info=True, remove_mean=False)
+    assert np.all(np.abs(ours - _fft_oracles(img, k)) <= fft.bound_map(info, img.shape))
+
+
+def test_fft_path_equals_spatial_within_bound_and_charges_cycles():
+    img = WINDOWS[1]
+    k = flt.smoothing_kernel(5)
+    ours, info = fft.fft_correlate(img, k, tile=16, return_info=True)
+    assert np.abs(ours.astype(int) - flt.correlate_q15(img, k)).max() <= info["bound"] + 0.5
+    led = Ledger()
+    fft.fft_correlate(img, fft.gaussian_kernel_q15(9, 2.0), ledger=led)
+    c = led.cycles("dsp", "filter_fft9x9")
+    assert c == fft.fft_filter_cycles(64, 64, 9, 32) > flt.filter_cycles(64, 64, 7)
+    assert fft.fft_cycles_1d(32) == 16 * 16 * 5 + 4 * 31 + 14 * 5 + 10
+    with pytest.raises(ValueError, match="odd size"):
+        fft.fft_correlate(img, np.zeros((8, 8), np.int16))
+
+
+def test_filter_fft_sequence_step():
+    seq = ProcessingSequence([{"op": "filter_fft", "kernel": "gaussian", "size": 15, "sigma": 3.0},
+                              {"op": "filter_fft", "kernel": "custom", "tile": 16,
+                               "coefficients": flt.smoothing_kernel(3).tolist()},
+                              {"op": "threshold", "alpha": 3.0}])
+    assert [s.stage for s in seq.steps] == ["filter_fft15x15_gaussian", "filter_fft3x3_custom",
+                                            "threshold"]
+    led = Ledger()
+    res = seq.run_frame(FRAMES[4], ledger=led)
+    a = fft.fft_correlate(res.subimage.image, fft.gaussian_kernel_q15(15, 3.0), tile=32)
+    assert np.array_equal(res.stages[1].image, a)
+    assert np.array_equal(res.stages[2].image,
+                          fft.fft_correlate(a, flt.smoothing_kernel(3), tile=16))
+    assert led.cycles("dsp", "filter_fft15x15_gaussian") == fft.fft_filter_cycles(64, 64, 15, 32)
+    for step, fld, msg in [({"op": "filter_fft", "size": 10}, "size", "not odd"),
+                           ({"op": "filter_fft", "size": 33, "tile": 32}, "tile", "larger than"),
+                           ({"op": "filter_fft", "kernel": "smooth", "size": 9}, "size", "gaussian"),
+                           ({"op": "filter_fft", "kernel": "custom",
+                             "coefficients": [[1] * 8] * 8}, "coefficients", "odd"),
+                           ({"op": "filter", "kernel": "gaussian", "size": 9}, "kernel",
+                            "not one of")]:
+        with pytest.raises(SequenceError, match=msg) as ei:
+            ProcessingSequence([step])
+        assert ei.value.field == fld
+    with pytest.raises(SequenceError, match="filter_fft"):
+        ProcessingSequence([{"op": "filter", "size": 9}])
+
+
 # ------------------------------------------------------------------ high-pass detrender
 def test_highpass_against_quantised_and_ideal_gaussian():
     sigma = 1.5
@@ -454,6 +562,57 @@ def test_backend_steps_register_and_chain():
             ProcessingSequence([{"op": name}, {"op": "threshold", "alpha": 3.0}])
     finally:
         STEP_REGISTRY.pop(name)
+
+
+FUSABLE = [
+    [{"op": "filter", "kernel": "smooth", "size": 3}, {"op": "detrend", "method": "highpass"},
+     {"op": "filter", "kernel": "matched", "size": 3}, {"op": "threshold", "alpha": 4.0}],
+    [{"op": "detrend", "method": "highpass", "sigma": 2.2},
+     {"op": "filter", "kernel": "matched", "size": 7, "sigma": 1.7},
+     {"op": "threshold", "alpha": 2.5, "mode": "clip"}],
+    [{"op": "filter", "kernel": "custom", "coefficients": [[0, 4096, 0], [4096, 16384, 4096],
+                                                           [0, 4096, 0]]},
+     {"op": "filter", "kernel": "smooth", "size": 5}, {"op": "detrend", "method": "none"}],
+    [{"op": "detrend", "method": "highpass", "taps": [1000, 4000, 7000, 8768, 7000, 4000, 1000]},
+     {"op": "threshold", "alpha": 0.0, "mode": "clip"}],
+    [],
+]
+
+
+@pytest.mark.parametrize("si", range(len(FUSABLE)))
+def test_fused_front_end_is_bit_identical_to_the_steps(si):
+    """run_frame_fast (one jitted call) == run_frame (step by step): image, threshold context and
+    cycles, for every compaction, window positions and alpha overrides."""
+    for comp in (1, 2, 4):
+        seq = ProcessingSequence(FUSABLE[si], {"compaction": comp, "window": 64})
+        assert seq.fusable
+        for fi, frame in enumerate(FRAMES):
+            pred = None if fi % 2 == 0 else (40.0 + 25 * fi, 30.0 + 31 * fi)
+            ctx1 = {} if fi % 3 else {"alpha_q12": 5000}
+            ctx2 = dict(ctx1)
+            l1, l2 = Ledger(), Ledger()
+            ref = seq.run_frame(frame, pred, l1, ctx1)
+            sub, img, ctx2 = seq.run_frame_fast(frame, pred, l2, ctx2)
+            assert np.array_equal(img, ref.image) and img.dtype == ref.image.dtype
+            assert np.array_equal(sub.image, ref.subimage.image) and sub.origin == ref.subimage.origin
+            assert ctx1.get("threshold") == ctx2.get("threshold")
+            assert l1.stages("dsp") == l2.stages("dsp")
+    # sequences with an unfused step fall back to the steps
+    seq = ProcessingSequence([{"op": "detrend", "method": "polynomial"},
+                              {"op": "filter_fft", "size": 9}, {"op": "threshold", "alpha": 3.0}])
+    assert not seq.fusable
+    ref = seq.run_frame(FRAMES[0])
+    assert np.array_equal(seq.run_frame_fast(FRAMES[0])[1], ref.image)
+
+
+def test_budget_tables_render():
+    from flightsw.ip.budget_tables import frontend_cycle_markdown, frontend_step_rows
+    md = frontend_cycle_markdown(host_times=False)
+    assert "| 64x64 |" in md and "| 128x128 |" in md and "filter_fft 15x15" in md
+    assert "PACE1750A" in md and "| 50 |" in md
+    rows = {r["step"]: r for r in frontend_step_rows(host_times=False)}
+    assert rows["filter 3x3 smooth"]["cycles"] == flt.filter_cycles(64, 64, 3)
+    assert rows["threshold (mean + alpha std, binarise)"]["cycles"] == th.threshold_cycles(64, 64)
 
 
 def test_cycle_table():

@@ -10,6 +10,7 @@ from flightsw.ip.sequence import (PHASE_FEATURES, PHASE_FRONT, PHASE_LABEL, PHAS
                                   ProcessingSequence, SequenceError, SequenceResult, Stage,
                                   StageOutput, load_default_sequence, register_step)
 from flightsw.ip.cycles import frontend_cycle_table
+from flightsw.ip.fftfilter import fft_correlate, fft_filter_cycles, gaussian_kernel_q15
 from flightsw.ip.colour import label  # noqa: E402  (issue 4 back end)
 from flightsw.ip.features import features  # noqa: E402
 from flightsw.ip.frame import process_frame, backend  # noqa: E402

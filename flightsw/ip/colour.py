@@ -44,6 +44,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 
@@ -159,23 +160,17 @@ def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
 
 
 @njit(cache=True)
-def _colour_kernel(img, diagonal, want_labels):
-    """Raster-scan blob colouring of ``img`` (int32 [H, W]; non-zero = on).
-
-    Returns (labels int32 [H, W] final colours 1..N (all zero if not ``want_labels``), N,
-    sums int64 [N + 1, NSUM] (row 0 unused), ops int64 [6] event counts).
-
-    Host implementation note: the flight accumulates the sums of each pixel's provisional colour
-    during the scan and folds them through the colour array at the end (what :data:`COLOUR_MIX`
-    charges); the host adds the same integers per final colour in a second sweep over the
-    provisional colours (which also writes the label image). Integer sums do not depend on the
-    order of addition, so the results are identical."""
+def _scan_pixels(img, diagonal, raw, parent, run_r, run_a, run_b):
+    """The raster scan, pixel by pixel (any width). Returns (ncol, nrun, n_on, n_merge, n_steps,
+    bad) with ``bad`` set when a pixel is outside the 16-bit word range -32768..65535."""
     H, W = img.shape
-    # provisional colours, with a zero border: row 0 above the first row, columns 0 and W + 1
-    # beside the first and last columns (the paper's special cases: those neighbours are off)
-    raw = np.zeros((H + 1, W + 2), np.int32)
-    cap = (H * W + 1) // 2 + 2                   # most colours a window can need (checkerboard)
-    parent = np.empty(cap, np.int32)             # the intermediate colour array
+    bad = False
+    for r in range(H):
+        src = img[r]
+        for c in range(W):
+            v = src[c]
+            bad |= (v < -32768) | (v > 65535)
+    nrun = 0
     n_on = 0
     n_merge = 0
     n_steps = 0
@@ -183,12 +178,18 @@ def _colour_kernel(img, diagonal, want_labels):
     for r in range(H):
         up_row = raw[r]
         row = raw[r + 1]
-        for c in range(W):
-            if img[r, c] == 0:
+        src = img[r]
+        c = 0
+        while c < W:
+            if src[c] == 0:
+                c += 1
                 continue
-            n_on += 1
-            # n = (abcd): a = left, b = upper left, c = upper, d = upper right
-            a = row[c]
+            # ---- first pixel of a run: the left neighbour a is off. The case statement on
+            # n = (abcd) (a = left, b = upper left, c = upper, d = upper right), its 16 cases grouped
+            # by action (module docstring): the colour is that of the first on neighbour in the
+            # order a, c, b, d; a merge partner exists only for n = 5, 9, 13 (and n = 10 without
+            # diagonals); a new colour only for n = 0 ----
+            c0 = c
             up = up_row[c + 1]
             if diagonal:
                 b = up_row[c]
@@ -196,31 +197,199 @@ def _colour_kernel(img, diagonal, want_labels):
             else:
                 b = 0
                 d = 0
-            # ---- the case statement on n, its 16 cases grouped by action (module docstring):
-            # the colour is that of the first on neighbour in the order a, c, b, d, a merge
-            # partner exists only for n = 5, 9, 13 (and n = 10 without diagonals), a new colour
-            # only for n = 0 ----
             k = d
             if b != 0:
                 k = b
             if up != 0:
                 k = up
-            if a != 0:
-                k = a
-            m = 0
-            if diagonal:
-                if up == 0 and d != k:               # n = 5, 9, 13 (k is then b or a, d on)
-                    m = d
-            elif a != 0 and up != a:                 # n = 10 without diagonals
-                m = up
-            if m != 0:
-                n_steps += _merge(parent, k, m)
+            if diagonal and up == 0 and d != 0 and d != k:     # n = 5 (b, d on, c off)
+                n_steps += _merge(parent, k, d)
                 n_merge += 1
             elif k == 0:                             # n = 0: a new colour
                 ncol += 1
                 parent[ncol] = ncol
                 k = ncol
             row[c + 1] = k
+            c += 1
+            # ---- the rest of the run: a is on, so k = a; only the merge cases remain
+            # (n = 9, 13 with diagonals: c off, d on with another colour; n = 10 without) ----
+            if diagonal:
+                while c < W and src[c] != 0:
+                    d = up_row[c + 2]
+                    if d != 0 and d != k and up_row[c + 1] == 0:
+                        n_steps += _merge(parent, k, d)
+                        n_merge += 1
+                    row[c + 1] = k
+                    c += 1
+            else:
+                while c < W and src[c] != 0:
+                    up = up_row[c + 1]
+                    if up != 0 and up != k:
+                        n_steps += _merge(parent, k, up)
+                        n_merge += 1
+                    row[c + 1] = k
+                    c += 1
+            n_on += c - c0
+            run_r[nrun] = r
+            run_a[nrun] = c0
+            run_b[nrun] = c
+            nrun += 1
+    return ncol, nrun, n_on, n_merge, n_steps, bad
+
+
+_ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
+
+
+@njit(cache=True, inline="always")
+def _low(n):
+    """uint64 with bits 0..n-1 set (0 <= n <= 64)."""
+    if n >= 64:
+        return _ONES
+    return (np.uint64(1) << np.uint64(n)) - np.uint64(1)
+
+
+@njit(cache=True, inline="always")
+def _colour_at(U, S, srow, x):
+    """Provisional colour of pixel ``x`` (-1 <= x <= 64) of the row above, from its on mask ``U``,
+    its run-start mask ``S`` and its run-start colours ``srow`` (``srow[p + 1]`` = colour of the run
+    starting at ``p``; ``srow[0]`` = 0): 0 if the pixel is off. Branch-free."""
+    if x < 0 or x >= 64:
+        return np.int32(0)
+    on = (U >> np.uint64(x)) & np.uint64(1)
+    p = 63 - np.int64(leading_zeros(S & _low(x + 1)))      # the last run start <= x (-1: none)
+    return srow[p + 1] if on != 0 else np.int32(0)
+
+
+@njit(cache=True)
+def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
+    """The same raster scan for windows up to 64 columns, a row at a time through its on-pixel
+    bitmask: the runs come from the mask (trailing-zero counts), the first pixel of a run gets the
+    full case statement, the rest of the run only the merge cases, looked up where the mask of the
+    row above says they can occur (diagonal: upper pixel off and upper-right on, n = 9/13; without
+    diagonals: upper pixel on, n = 10) -- the same pixels, in the same order, as
+    :func:`_scan_pixels` (the host needs fewer unpredictable branches; the events are identical).
+    A run holds one provisional colour (its first pixel's), so ``raw`` keeps it only at the run's
+    first pixel and the row above is read through its masks (:func:`_colour_at`); ``raw`` need not
+    be cleared (only column 0, the "no run" slot, which this function zeroes).
+    Returns (ncol, nrun, n_on, n_merge, n_steps, bad)."""
+    H, W = img.shape
+    bad = False
+    nrun = 0
+    n_on = 0
+    n_merge = 0
+    n_steps = 0
+    ncol = 0
+    one = np.uint64(1)
+    U = np.uint64(0)                  # the row above: on mask, run-start mask
+    S = np.uint64(0)
+    raw[0, 0] = 0
+    for r in range(H):
+        src = img[r]
+        M = np.uint64(0)
+        for c in range(W):
+            v = src[c]
+            M |= np.uint64(v != 0) << np.uint64(c)
+            bad |= (v < -32768) | (v > 65535)
+        Mrow = M
+        up_row = raw[r]
+        row = raw[r + 1]
+        row[0] = 0
+        while M != 0:
+            s = np.int64(trailing_zeros(M))
+            rest = ~(M >> np.uint64(s))
+            e = np.int64(64) if rest == 0 else s + np.int64(trailing_zeros(rest))
+            M &= ~_low(e)
+            # ---- first pixel: a off; the case statement (see _scan_pixels) ----
+            up = _colour_at(U, S, up_row, s)
+            if diagonal:
+                b = _colour_at(U, S, up_row, s - 1)
+                d = _colour_at(U, S, up_row, s + 1)
+            else:
+                b = np.int32(0)
+                d = np.int32(0)
+            k = d
+            k = b if b != 0 else k
+            k = up if up != 0 else k
+            if diagonal and up == 0 and d != 0 and d != k:     # n = 5
+                n_steps += _merge(parent, k, d)
+                n_merge += 1
+            elif k == 0:                                         # n = 0: a new colour
+                ncol += 1
+                parent[ncol] = ncol
+                k = ncol
+            row[s + 1] = k
+            # ---- the rest of the run: k = a; the merge cases where the row above allows ----
+            if e - s > 1:
+                inner = _low(e) & ~_low(s + 1)
+                if diagonal:
+                    # upper pixel c off, c + 1 on: c + 1 starts a run above, colour up_row[c + 2]
+                    cand = (~U) & (U >> one) & inner
+                    while cand != 0:
+                        c = np.int64(trailing_zeros(cand))
+                        cand &= cand - one
+                        d = up_row[c + 2]
+                        if d != k:                               # n = 9, 13
+                            n_steps += _merge(parent, k, d)
+                            n_merge += 1
+                else:
+                    cand = U & inner
+                    while cand != 0:
+                        c = np.int64(trailing_zeros(cand))
+                        up = _colour_at(U, S, up_row, c)
+                        if up == k:          # the whole overlap with this run above: no event
+                            cand &= ~_low(_run_end(U, c))
+                            continue
+                        cand &= cand - one
+                        n_steps += _merge(parent, k, up)         # n = 10
+                        n_merge += 1
+            n_on += e - s
+            run_r[nrun] = r
+            run_a[nrun] = s
+            run_b[nrun] = e
+            nrun += 1
+        U = Mrow
+        S = Mrow & ~(Mrow << one)
+    return ncol, nrun, n_on, n_merge, n_steps, bad
+
+
+@njit(cache=True, inline="always")
+def _run_end(U, c):
+    """One past the last pixel of the run of mask ``U`` that contains pixel ``c``."""
+    rest = ~(U >> np.uint64(c))
+    return np.int64(64) if rest == 0 else c + np.int64(trailing_zeros(rest))
+
+
+@njit(cache=True)
+def _colour_kernel(img, diagonal, want_labels, want_sums=True):
+    """Raster-scan blob colouring of ``img`` (integer or bool [H, W]; non-zero = on).
+
+    Returns (labels int32 [H, W] final colours 1..N (an empty [0, 0] array if not ``want_labels``), N,
+    sums int64 [N + 1, NSUM] (row 0 unused; zeros if not ``want_sums``), ops int64 [6] event counts,
+    bad: a pixel lies outside the 16-bit word range -32768..65535 -- the callers raise).
+
+    Host implementation note: the flight accumulates the sums of each pixel's provisional colour
+    during the scan and folds them through the colour array at the end (what :data:`COLOUR_MIX`
+    charges); the host records each run of on pixels of a row during the scan (a run is connected
+    through the left neighbours, so it holds one provisional colour, that of its first pixel) and
+    adds the same integers per run into the final colour's sums afterwards (which also writes the
+    label image). Integer sums do not depend on the order of addition, so the results are
+    identical."""
+    H, W = img.shape
+    # provisional colours, with a zero border: row 0 above the first row, columns 0 and W + 1
+    # beside the first and last columns (the paper's special cases: those neighbours are off)
+    raw = np.empty((H + 1, W + 2), np.int32) if W <= 64 else np.zeros((H + 1, W + 2), np.int32)
+    cap = (H * W + 1) // 2 + 2                   # most colours a window can need (checkerboard)
+    parent = np.empty(cap, np.int32)             # the intermediate colour array
+    rcap = H * ((W + 1) // 2) + 1                # most runs a window can hold
+    run_r = np.empty(rcap, np.int32)             # the runs: row, first and one-past-last column
+    run_a = np.empty(rcap, np.int32)
+    run_b = np.empty(rcap, np.int32)
+    if W <= 64:
+        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_masks(img, diagonal, raw, parent, run_r,
+                                                              run_a, run_b)
+    else:
+        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_pixels(img, diagonal, raw, parent, run_r,
+                                                               run_a, run_b)
     # ---- end of scan: resolve the colour array, number blobs in order of their first pixel ----
     final = np.zeros(ncol + 1, np.int32)
     nblob = 0
@@ -239,50 +408,38 @@ def _colour_kernel(img, diagonal, want_labels):
     ops[3] = n_merge
     ops[4] = n_steps
     ops[5] = ncol
-    # ---- the sums, per run of one colour in a row (registers), added per final colour ----
+    # ---- the labels and the sums, per run (one final colour each) ----
     sums = np.zeros((nblob + 1, NSUM), np.int64)
-    labels = np.zeros((H, W), np.int32)
-    for r in range(H):
-        row = raw[r + 1]
-        run_k = 0
-        cnt = 0
-        sv = 0
-        svc = 0
-        svcc = 0
-        sc = 0
-        scc = 0
-        vmax = 0
-        for c in range(W):
-            k = row[c + 1]
-            if k == 0:
-                continue
-            f = final[k]
-            if want_labels:
-                labels[r, c] = f
-            if f != run_k:
-                if run_k != 0:
-                    _flush(sums, run_k, r, cnt, sv, svc, svcc, sc, scc, vmax)
-                run_k = f
-                cnt = 0
-                sv = 0
-                svc = 0
-                svcc = 0
-                sc = 0
-                scc = 0
-                vmax = np.int64(img[r, c])
-            vi = np.int64(img[r, c])
-            cnt += 1
-            sv += vi
-            vc = vi * c
-            svc += vc
-            svcc += vc * c
-            sc += c
-            scc += c * c
-            if vi > vmax:
-                vmax = vi
-        if run_k != 0:
-            _flush(sums, run_k, r, cnt, sv, svc, svcc, sc, scc, vmax)
-    return labels, nblob, sums, ops
+    labels = np.zeros((H, W) if want_labels else (0, 0), np.int32)
+    for q in range(nrun):
+        r = run_r[q]
+        c0 = run_a[q]
+        c1 = run_b[q]
+        f = final[raw[r + 1, c0 + 1]]
+        if want_labels:
+            lrow = labels[r]
+            for c in range(c0, c1):
+                lrow[c] = f
+        if want_sums:
+            src = img[r]
+            sv = np.int64(0)
+            svc = np.int64(0)
+            svcc = np.int64(0)
+            vmax = np.int64(src[c0])
+            for c in range(c0, c1):
+                vi = np.int64(src[c])
+                vc = vi * c
+                sv += vi
+                svc += vc
+                svcc += vc * c
+                if vi > vmax:
+                    vmax = vi
+            cnt = np.int64(c1 - c0)
+            # sum c and sum c^2 over c0..c1-1 (closed forms of the same integers)
+            sc = (np.int64(c1) * (c1 - 1) - np.int64(c0) * (c0 - 1)) // 2
+            scc = (np.int64(c1 - 1) * c1 * (2 * c1 - 1) - np.int64(c0 - 1) * c0 * (2 * c0 - 1)) // 6
+            _flush(sums, f, r, cnt, sv, svc, svcc, sc, scc, vmax)
+    return labels, nblob, sums, ops, bad
 
 
 @njit(cache=True)
@@ -349,6 +506,20 @@ def _as_int_image(image, name="image") -> np.ndarray:
     raise ValueError(f"{name} has unsupported dtype {a.dtype}")
 
 
+#: dtypes the kernels take as they are (no copy); others go through :func:`_as_int_image`
+_DIRECT = (np.bool_, np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64)
+_RANGE_MSG = "holds values outside the 16-bit word range -32768..65535"
+
+
+def _direct(image):
+    """``image`` itself when the kernels can read it without a copy (C-contiguous 2-D, non-empty,
+    an integer or bool dtype; the 16-bit range is checked inside the scan), else the checked copy."""
+    if isinstance(image, np.ndarray) and image.ndim == 2 and image.size \
+            and image.dtype.type in _DIRECT and image.flags.c_contiguous:
+        return image
+    return _as_int_image(image)
+
+
 def colour(image, diagonal: bool = True, ledger: Ledger | None = None,
            stage: str = "colour") -> ColourResult:
     """Colour the blobs of a thresholded (binary) or clipped image and accumulate their sums.
@@ -368,8 +539,10 @@ def colour(image, diagonal: bool = True, ledger: Ledger | None = None,
     """
     if diagonal not in (True, False, 0, 1):
         raise ValueError(f"diagonal={diagonal!r} must be a bool")
-    img = _as_int_image(image)
-    labels, n, sums, ops = _colour_kernel(img, bool(diagonal), True)
+    img = _direct(image)
+    labels, n, sums, ops, bad = _colour_kernel(img, bool(diagonal), True)
+    if bad:
+        raise ValueError(f"image {_RANGE_MSG}")
     cyc = int(np.dot(_CYC, ops))
     if ledger is not None:
         ledger.charge(IP1750, stage, cyc)
@@ -381,10 +554,15 @@ def label(image, diagonal: bool = True):
 
     Non-zero pixels are on; labels are 1..count in order of each blob's first pixel in raster
     order (0 = off), the numbering of ``scipy.ndimage.label`` with the 8-connected structure when
-    ``diagonal`` is True and the 4-connected one when False.
+    ``diagonal`` is True and the 4-connected one when False. The same scan as :func:`colour`
+    without the per-blob sums.
     """
-    res = colour(image, diagonal)
-    return res.labels, res.count
+    if diagonal is not True and diagonal is not False and diagonal not in (0, 1):
+        raise ValueError(f"diagonal={diagonal!r} must be a bool")
+    labels, n, _, _, bad = _colour_kernel(_direct(image), bool(diagonal), True, False)
+    if bad:
+        raise ValueError(f"image {_RANGE_MSG}")
+    return labels, n
 
 
 def blob_sums(image, labels, count) -> np.ndarray:

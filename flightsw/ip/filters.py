@@ -29,7 +29,8 @@ Host fast path: the accumulation ``A = sum x*k`` (without the fractional x2) is 
 Cycles (charged to ``"dsp"``): border replication ``(h+2p)(w+2p) - h*w`` moves + 4, then
 :func:`flightsw.arith.adsp2100.correlate_cycles` ``h*w*(k*k + 3) + 3h + 10``.
 
-Frequency-domain path (:func:`fft_correlate`): see :mod:`flightsw.ip.fftfilter`.
+Frequency-domain path for larger kernels (sequence op ``filter_fft``):
+:func:`flightsw.ip.fftfilter.fft_correlate`.
 """
 from __future__ import annotations
 
@@ -42,7 +43,7 @@ from flightsw.arith.adsp2100 import correlate_cycles
 
 __all__ = ["SPATIAL_SIZES", "DEFAULT_KERNELS", "smoothing_kernel", "matched_kernel",
            "validate_kernel", "correlate_q15", "correlate_q15_exact", "filter_cycles", "pad_cycles",
-           "gaussian_taps_q15"]
+           "gaussian_taps_q15", "matched_kernel_any"]
 
 SPATIAL_SIZES = (3, 5, 7)
 
@@ -70,9 +71,17 @@ def matched_kernel(size=3, sigma=1.0):
     """The paper's matched filter (Figure 3): a zero-mean circularly symmetric Gaussian, here
     ``g = exp(-r^2 / 2 sigma^2) - mean(g)`` scaled to unit L2 norm (white noise keeps its standard
     deviation), quantised to Q1.15 with the integer sum forced to exactly 0 (the residual of the
-    rounding goes into the centre tap). Returns int16 Q1.15 words."""
+    rounding goes into the centre tap). Returns int16 Q1.15 words. Spatial sizes 3/5/7 only; the
+    frequency path (:mod:`flightsw.ip.fftfilter`) takes any odd size through :func:`matched_kernel_any`."""
     if size not in SPATIAL_SIZES:
         raise ValueError(f"size={size!r} must be one of {SPATIAL_SIZES}")
+    return matched_kernel_any(size, sigma)
+
+
+def matched_kernel_any(size, sigma=1.0):
+    """:func:`matched_kernel` for any odd ``size >= 3``."""
+    if isinstance(size, bool) or not isinstance(size, (int, np.integer)) or size < 3 or size % 2 == 0:
+        raise ValueError(f"size={size!r} must be an odd int >= 3")
     p = size // 2
     y, x = np.mgrid[-p:p + 1, -p:p + 1]
     g = np.exp(-(x * x + y * y) / (2.0 * sigma * sigma))

@@ -8,7 +8,9 @@ results are identical word for word) and charges the three stages to the ledger 
 
 :func:`process_frame` runs the whole frame: compaction and window (``flightsw.ip.preprocess``), the
 front-end steps of the uplinked sequence (``flightsw.ip.sequence``), then the back end, and packs the
-:class:`flightsw.messages.CandidateMessage`.
+:class:`flightsw.messages.CandidateMessage`. Without stage images (``want_stages=False``, the hot
+path) the front end runs fused in one jitted call (``ProcessingSequence.run_frame_fast``,
+bit-identical to the steps: tested), so a frame is two jitted calls.
 """
 from __future__ import annotations
 
@@ -22,7 +24,7 @@ from numba import njit
 from flightsw.arith.m1750 import decode32_array, encode32, unpack32
 from flightsw.budget import IP1750, Ledger
 from flightsw.ip.colour import _CYC as _CYC_COLOUR
-from flightsw.ip.colour import _as_int_image, _colour_kernel
+from flightsw.ip.colour import _DIRECT, _as_int_image, _colour_kernel
 from flightsw.ip.features import (
     _features_kernel, _norm_consts, _normalise_kernel, features_cycles, words_to_struct,
 )
@@ -49,26 +51,32 @@ def _dec32(p):
 
 
 _CYC_BLOB = features_cycles(1)
-_HEAD = 21        # pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts
+_HEAD = 22        # pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts, bad
 
 
 @njit(cache=True)
-def _backend_kernel(img, rec, prm):
-    """prm int64 [14]: diagonal, intensity, want_labels, area, lin, f, row0, col0 (words),
-    mean_row, mean_col (words), override, quantize, threshold word, max_out."""
+def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
+    """prm int64 [10] (per record and flags, cached): diagonal, intensity, want_labels, area, lin, f,
+    quantize, threshold word, max_out, unused; then the per-frame words: window row0, col0, the mean
+    row, col and the override flag.
+
+    Returns (labels, pack): ``pack`` int64 holds the header (_HEAD words), then order [m], gof [m],
+    the reported distances [m], every distance [count], the feature words [count, 12] and the
+    candidate table [m, 15] (CANDIDATE_DTYPE layout, decoded exactly) -- one array to box."""
     diagonal, intensity, want_labels = prm[0] != 0, prm[1] != 0, prm[2] != 0
-    area, lin, fw, r0w, c0w = prm[3], prm[4], prm[5], prm[6], prm[7]
-    mean_row, mean_col, override, quantize = prm[8], prm[9], prm[10] != 0, prm[11] != 0
-    thr, max_out = prm[12], prm[13]
+    area, lin, fw = prm[3], prm[4], prm[5]
+    quantize, thr, max_out = prm[6] != 0, prm[7], prm[8]
     cyc_colour, cyc_blob, cyc_rank = _CYC_COLOUR, _CYC_BLOB, _CYC_RANK
-    labels, count, sums, cops = _colour_kernel(img, diagonal, want_labels)
+    labels, count, sums, cops, bad = _colour_kernel(img, diagonal, want_labels)
     raw, f1 = _features_kernel(sums, count, intensity)
     words, f2 = _normalise_kernel(raw, area, lin, fw, r0w, c0w)
-    order, d, gof, f3, rops = _rank_kernel(words, rec, mean_row, mean_col, override, quantize,
-                                           thr, max_out)
+    order, d, gof, f3, rops = _rank_kernel(words, rec, mean_row, mean_col, override != 0,
+                                           quantize, thr, max_out)
     m = order.size
     h = _HEAD
-    pack = np.empty(h + 3 * m + count, np.int64)
+    o_words = h + 3 * m + count
+    o_cand = o_words + 12 * count
+    pack = np.empty(o_cand + 15 * m, np.int64)
     pack[0] = count
     pack[1] = m
     pack[2] = f1 | f2 | f3
@@ -77,22 +85,25 @@ def _backend_kernel(img, rec, prm):
     pack[5] = np.sum(cyc_rank * rops)
     pack[6:12] = cops
     pack[12:21] = rops
+    pack[21] = 1 if bad else 0
     pack[h:h + m] = order
     pack[h + m:h + 2 * m] = gof
     for q in range(m):
         pack[h + 2 * m + q] = d[order[q]]
-    pack[h + 3 * m:] = d
+    pack[h + 3 * m:o_words] = d
+    pack[o_words:o_cand] = words.ravel()
     # the candidate table (CANDIDATE_DTYPE layout: label int64, then 14 float64), decoded exactly
-    cand = np.empty((m, 15), np.int64)
+    cand = pack[o_cand:]
     fc = cand.view(np.float64)
     for q in range(m):
         k = order[q]
-        cand[q, 0] = k + 1
-        fc[q, 1] = _dec32(d[k])
-        fc[q, 2] = _dec32(gof[q])
+        b = 15 * q
+        cand[b] = k + 1
+        fc[b + 1] = _dec32(d[k])
+        fc[b + 2] = _dec32(gof[q])
         for i in range(12):
-            fc[q, 3 + i] = _dec32(words[k, i])
-    return labels, words, pack, cand
+            fc[b + 3 + i] = _dec32(words[k, i])
+    return labels, pack
 
 
 class BackendResult:
@@ -101,7 +112,7 @@ class BackendResult:
     Attributes
     ----------
     labels : ndarray [H, W] int32
-        Blob colours 1..count (zeros if labels were not requested).
+        Blob colours 1..count (an empty [0, 0] array if labels were not requested).
     count : int
         Number of blobs.
     feature_words : ndarray [count, 12] int64
@@ -118,21 +129,38 @@ class BackendResult:
         ``{"colour", "features", "rank"}`` PACE1750A clocks charged.
     """
 
-    __slots__ = ("labels", "count", "feature_words", "order", "gof_words", "distance_words",
-                 "all_distance_words", "flags", "cycles", "_cand")
+    __slots__ = ("labels", "count", "flags", "cycles", "_pack", "_m")
 
-    def __init__(self, labels, words, pack, cycles, cand=None):
-        self._cand = cand
-        count, m, h = int(pack[0]), int(pack[1]), _HEAD
+    def __init__(self, labels, pack, cycles):
+        self._pack = pack
+        self.count = int(pack[0])
+        self._m = int(pack[1])
         self.labels = labels
-        self.count = count
-        self.feature_words = words
         self.flags = int(pack[2])
-        self.order = pack[h:h + m]
-        self.gof_words = pack[h + m:h + 2 * m]
-        self.distance_words = pack[h + 2 * m:h + 3 * m]
-        self.all_distance_words = pack[h + 3 * m:]
         self.cycles = cycles
+
+    # the arrays are views of the kernel's pack, cut on first use
+    @property
+    def order(self):
+        return self._pack[_HEAD:_HEAD + self._m]
+
+    @property
+    def gof_words(self):
+        return self._pack[_HEAD + self._m:_HEAD + 2 * self._m]
+
+    @property
+    def distance_words(self):
+        return self._pack[_HEAD + 2 * self._m:_HEAD + 3 * self._m]
+
+    @property
+    def all_distance_words(self):
+        o = _HEAD + 3 * self._m
+        return self._pack[o:o + self.count]
+
+    @property
+    def feature_words(self):
+        o = _HEAD + 3 * self._m + self.count
+        return self._pack[o:o + 12 * self.count].reshape(self.count, 12)
 
     @property
     def features(self) -> np.ndarray:
@@ -141,8 +169,12 @@ class BackendResult:
 
     def candidates(self) -> np.ndarray:
         """The reported candidates as a CANDIDATE_DTYPE array (best first)."""
-        if self._cand is not None:
-            return self._cand.view(CANDIDATE_DTYPE).reshape(-1)
+        o = _HEAD + 3 * self._m + 13 * self.count
+        # a structured view of the pack's tail (the ndarray constructor skips view()'s checks)
+        return np.ndarray((self._m,), CANDIDATE_DTYPE, self._pack, 8 * o)
+
+    def _candidates_decoded(self) -> np.ndarray:
+        """:meth:`candidates` rebuilt from the words on the host (a cross-check for tests)."""
         m = len(self.order)
         out = np.zeros(m, CANDIDATE_DTYPE)
         if m:
@@ -182,46 +214,79 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
     want_labels : bool
         Produce the final label image (a ground product: the flight keeps only the colour array).
     """
-    from flightsw.records import Record
-    if not isinstance(record, Record):
+    if not isinstance(record, _record_class()):
         raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
     for name, v in (("diagonal", diagonal), ("intensity_centroid", intensity_centroid),
                     ("want_labels", want_labels)):
-        if v not in (True, False, 0, 1):
+        if v is not True and v is not False and v not in (0, 1):
             raise ValueError(f"{name}={v!r} must be a bool")
-    if isinstance(window, np.ndarray) and window.dtype == np.int16 and window.ndim == 2 \
-            and window.flags.c_contiguous and window.size:
-        img = window                                   # hot path: DSP words, always 16-bit
-    else:
-        img = _as_int_image(window, "window")
-    area, lin, fw = _norm_consts(compaction, imager)
+    img = _direct(window, "window")
     try:
         r0, c0 = window_origin
         r0w, c0w = _enc(float(r0)), _enc(float(c0))
     except (TypeError, ValueError):
         raise ValueError(f"window_origin={window_origin!r} must be (row0, col0) numbers") from None
     if centroid_mean is None:
-        override, mr, mc = False, 0, 0
+        override, mr, mc = 0, 0, 0
     else:
         try:
             r, c = centroid_mean
             if not (math.isfinite(r) and math.isfinite(c)):
                 raise ValueError
-            override, mr, mc = True, _enc(float(r)), _enc(float(c))
+            override, mr, mc = 1, _enc(float(r)), _enc(float(c))
         except (TypeError, ValueError):
             raise ValueError(f"centroid_mean={centroid_mean!r} must be finite (row, col) or None") \
                 from None
-    if not isinstance(max_candidates, (int, np.integer)) or not 1 <= max_candidates <= 1000:
-        raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
-    prm = np.array([bool(diagonal), bool(intensity_centroid), bool(want_labels), area, lin, fw,
-                    r0w, c0w, mr, mc, override, record.quantize, _enc(record.gof_threshold),
-                    int(max_candidates)], np.int64)
-    labels, words, pack, cand = _backend_kernel(img, _record_words(record), prm)
+    prm = _static_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
+                         compaction, imager, max_candidates)
+    labels, pack = _backend_kernel(img, _record_words(record), prm, r0w, c0w, mr, mc, override)
+    if pack[21]:
+        raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     cyc = {"colour": int(pack[3]), "features": int(pack[4]), "rank": int(pack[5])}
     if ledger is not None:
-        for stage, c in cyc.items():
-            ledger.charge(IP1750, stage, c)
-    return BackendResult(labels, words, pack, cyc, cand)
+        ledger.charge(IP1750, "colour", cyc["colour"])
+        ledger.charge(IP1750, "features", cyc["features"])
+        ledger.charge(IP1750, "rank", cyc["rank"])
+    return BackendResult(labels, pack, cyc)
+
+
+def _static_params(record, diagonal, intensity, want_labels, compaction, imager, max_candidates):
+    """The kernel's per-record, per-flag parameter words (validated and built once, kept on the
+    record object like its packed words)."""
+    key = (diagonal, intensity, want_labels, compaction, imager, max_candidates)
+    cache = record.__dict__.get("_backend_prm")
+    if cache is None:
+        cache = {}
+        object.__setattr__(record, "_backend_prm", cache)
+    prm = cache.get(key)
+    if prm is None:
+        area, lin, fw = _norm_consts(compaction, imager)
+        if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)) \
+                or not 1 <= max_candidates <= 1000:
+            raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
+        prm = np.array((diagonal, intensity, want_labels, area, lin, fw, record.quantize,
+                        _enc(record.gof_threshold), int(max_candidates), 0), np.int64)
+        if len(cache) > 64:
+            cache.clear()
+        cache[key] = prm
+    return prm
+
+
+_RECORD = []
+
+
+def _record_class():
+    if not _RECORD:
+        from flightsw.records import Record
+        _RECORD.append(Record)
+    return _RECORD[0]
+
+
+def _direct(window, name):
+    if isinstance(window, np.ndarray) and window.ndim == 2 and window.size \
+            and window.dtype.type in _DIRECT and window.flags.c_contiguous:
+        return window                                  # the kernel checks the 16-bit range
+    return _as_int_image(window, name)
 
 
 # ================================================================================================
@@ -449,6 +514,14 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     pred = None
     if feedback is not None and feedback.has_prediction:
         pred = (float(feedback.predicted_row), float(feedback.predicted_col))
+    if not want_stages and sequence.fusable:
+        # hot path: the front end in one jitted call (bit-identical to the steps, tested)
+        ctx = {"imager": imager, "record": record}
+        if alpha_q12 is not None:
+            ctx["alpha_q12"] = int(alpha_q12)
+        sub, x, ctx = sequence.run_frame_fast(img, pred, ledger, ctx, check)
+        return _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count,
+                         time_tag, False, [], None)
     sub = sequence.window(img, pred, ledger, check=check)
     return process_window(sub, sequence, record, pred, ledger=ledger, imager=imager,
                           frame_count=frame_count, time_tag=time_tag, alpha_q12=alpha_q12,
@@ -470,15 +543,8 @@ def process_window(sub, sequence, record, centroid_mean=None, *, ledger: Ledger 
     # ---- front end through the registry ----
     x = sub.image
     stages = [Stage("window", x)] if want_stages else []
-    colour_p, feat_p, rank_p = ColourParams(), FeatureParams(), RankParams()
     for st in sequence.steps:
-        if st.op in ("colour", "label"):
-            colour_p = st.params
-        elif st.op == "features":
-            feat_p = st.params
-        elif st.op == "rank":
-            rank_p = st.params
-        elif STEP_REGISTRY[st.op].phase < PHASE_LABEL:
+        if STEP_REGISTRY[st.op].phase < PHASE_LABEL:
             out = STEP_REGISTRY[st.op].runner(x, st.params, ledger, ctx, st.stage)
             if isinstance(out, StageOutput):
                 if want_stages:
@@ -488,9 +554,35 @@ def process_window(sub, sequence, record, centroid_mean=None, *, ledger: Ledger 
                 if want_stages:
                     stages.append(Stage(st.stage, out))
                 x = out
-        else:
-            raise ValueError(f"process_frame: step {st.op!r} is not a front-end or back-end step")
-    # ---- back end (one jitted call) ----
+    return _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count, time_tag,
+                     want_stages, stages, max_candidates)
+
+
+def _backend_params(sequence):
+    """(ColourParams, FeatureParams, RankParams) of a sequence's back-end steps (defaults for the
+    absent ones), computed once per sequence."""
+    bp = sequence.__dict__.get("_backend_params")
+    if bp is None:
+        colour_p, feat_p, rank_p = ColourParams(), FeatureParams(), RankParams()
+        for st in sequence.steps:
+            if st.op in ("colour", "label"):
+                colour_p = st.params
+            elif st.op == "features":
+                feat_p = st.params
+            elif st.op == "rank":
+                rank_p = st.params
+            elif STEP_REGISTRY[st.op].phase >= PHASE_LABEL:
+                raise ValueError(f"process_frame: step {st.op!r} is not a front-end or back-end "
+                                 f"step")
+        bp = (colour_p, feat_p, rank_p)
+        sequence.__dict__["_backend_params"] = bp
+    return bp
+
+
+def _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count, time_tag,
+              want_stages, stages, max_candidates):
+    """The back end (one jitted call) and the message, after the front end forwarded ``x``."""
+    colour_p, feat_p, rank_p = _backend_params(sequence)
     rec = rank_p.record if rank_p.record is not None else record
     f, origin, centre = _window_geometry(ctx)
     mean = pred if pred is not None else centre

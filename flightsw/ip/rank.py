@@ -122,21 +122,30 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
     kg, f = fd32(_LN2, n2); flags |= f
     ops[0] += 1
     # ---- distances ----
+    # Each candidate's d is the same chain of FS, FM, FM, FA over its features in record order; the
+    # host runs the chains of all candidates side by side (feature-major loop) so that they overlap
+    # in the CPU pipeline: every candidate sees the identical operations in the identical order.
     d = np.zeros(k, np.int64)
-    for c in range(k):
-        acc = 0
-        for j in range(n):
-            i = idx[j]
-            x = fw[c, i]
-            if quantize:
-                x, f = _sigmoid(x, a2[i], ops); flags |= f
-                ops[4] += 1
-            t, f = fs32(x, mean[i]); flags |= f
-            t, f = fm32(t, t); flags |= f
-            t, f = fm32(t, coef[i]); flags |= f
-            acc, f = fa32(acc, t); flags |= f
-            ops[3] += 1
-        d[c] = acc
+    for j in range(n):
+        i = idx[j]
+        mi = mean[i]
+        ci = coef[i]
+        if quantize:
+            ai = a2[i]
+            for c in range(k):
+                x, f = _sigmoid(fw[c, i], ai, ops); flags |= f
+                t, f = fs32(x, mi); flags |= f
+                t, f = fm32(t, t); flags |= f
+                t, f = fm32(t, ci); flags |= f
+                d[c], f = fa32(d[c], t); flags |= f
+            ops[4] += k
+        else:
+            for c in range(k):
+                t, f = fs32(fw[c, i], mi); flags |= f
+                t, f = fm32(t, t); flags |= f
+                t, f = fm32(t, ci); flags |= f
+                d[c], f = fa32(d[c], t); flags |= f
+        ops[3] += k
     # ---- keep the best max_out by d (insertion into a sorted list; ties keep blob order) ----
     m = 0
     order = np.zeros(min(k, max_out), np.int64)

@@ -25,6 +25,15 @@ loadable from TOML::
     alpha = 3.0             # 0 .. 7.99975 (Q4.12)
     mode = "binarize"       # | "clip"
 
+The frequency-domain filter (the paper's slow path, :mod:`flightsw.ip.fftfilter`) is its own op, so
+the spatial ``filter`` keeps rejecting anything but 3/5/7::
+
+    [[steps]]
+    op = "filter_fft"
+    kernel = "gaussian"     # "gaussian" (sigma, default size/6) | "matched" | "smooth" (3/5/7) | "custom"
+    size = 15               # odd, 3..63
+    tile = 32               # optional FFT tile 16 | 32 | 64 (default: the cheaper that fits DM)
+
 Ordering rules (what the paper allows): filters and detrenders in any order and number (a filter
 "before detrending for noise smoothing ... after detrending to help compensate for any artifacts"),
 any of them may be skipped; at most one threshold, after every front-end step; the back-end steps
@@ -62,12 +71,14 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
+from numba import njit
 
 import flightsw.ip.detrend as _dt
+import flightsw.ip.fftfilter as _fft
 import flightsw.ip.filters as _flt
 import flightsw.ip.threshold as _th
-from flightsw.ip.preprocess import (COMPACTION_FACTORS, FRAME_SHAPE, Subimage, _compact_k,
-                                    preprocess, window_origin, window_shape)
+from flightsw.ip.preprocess import (COMPACTION_FACTORS, FRAME_SHAPE, Subimage, _check_frame,
+                                    _compact_k, preprocess, window_origin, window_shape)
 
 __all__ = ["ProcessingSequence", "IPConfig", "SequenceError", "FieldError", "StepType", "Step",
            "Stage", "StageOutput", "SequenceResult", "Preprocess", "register_step", "STEP_REGISTRY",
@@ -245,7 +256,11 @@ def _validate_filter(params, pre):
         return FilterParams(k, "custom")
     if "coefficients" in params:
         raise FieldError("coefficients", f"only allowed with kernel = 'custom', not {kind!r}")
-    size = _int_field(params, "size", 3, choices=_flt.SPATIAL_SIZES)
+    try:
+        size = _int_field(params, "size", 3, choices=_flt.SPATIAL_SIZES)
+    except FieldError as exc:
+        raise FieldError("size", f"{exc} (the spatial path; larger kernels: op = 'filter_fft')") \
+            from None
     if kind == "matched":
         sigma = _float_field(params, "sigma", 1.0, 0.3, 5.0)
         return FilterParams(_flt.matched_kernel(size, sigma), "matched")
@@ -272,6 +287,77 @@ def _run_filter(image, p, ledger, context, stage):
 def _label_filter(p):
     k = p.kernel.shape[0]
     return f"filter{k}x{k}_{p.name}"
+
+
+@dataclass(frozen=True)
+class FilterFFTParams:
+    kernel: Any = field(repr=False)            # flightsw.ip.fftfilter.FFTKernel
+    name: str = "gaussian"
+
+
+def _validate_filter_fft(params, pre):
+    """The frequency-domain filter (the paper's slow path): any odd kernel 3..63, usually > 7x7."""
+    _fields(params, {"kernel", "size", "sigma", "coefficients", "tile"})
+    kind = _choice(params, "kernel", "gaussian", ("gaussian", "matched", "smooth", "custom"))
+    if kind == "custom":
+        if "coefficients" not in params:
+            raise FieldError("coefficients", "a custom kernel needs coefficients (Q1.15 words)")
+        try:
+            k = np.asarray(params["coefficients"])
+        except Exception as exc:  # ragged lists
+            raise FieldError("coefficients", f"not a rectangular array ({exc})") from None
+        if k.dtype == object or k.ndim != 2 or k.shape[0] != k.shape[1] or k.shape[0] % 2 == 0 \
+                or not 3 <= k.shape[0] <= _fft.MAX_FFT_KERNEL:
+            raise FieldError("coefficients", f"kernel shape {k.shape} must be square with an odd "
+                                             f"size 3..{_fft.MAX_FFT_KERNEL}")
+        if not np.issubdtype(k.dtype, np.integer) or k.min() < -32768 or k.max() > 32767:
+            raise FieldError("coefficients", "must be integer Q1.15 words -32768..32767")
+        if "size" in params and params["size"] != k.shape[0]:
+            raise FieldError("size", f"{params['size']!r} does not match the {k.shape[0]}x"
+                                     f"{k.shape[0]} coefficients")
+        taps = k.astype(np.int16)
+    else:
+        if "coefficients" in params:
+            raise FieldError("coefficients", f"only allowed with kernel = 'custom', not {kind!r}")
+        size = _int_field(params, "size", 9, lo=3, hi=_fft.MAX_FFT_KERNEL)
+        if size % 2 == 0:
+            raise FieldError("size", f"{size} is not odd")
+        if kind == "smooth":
+            if "sigma" in params:
+                raise FieldError("sigma", "the smoothing kernel is the fixed binomial; no sigma")
+            if size not in _flt.SPATIAL_SIZES:
+                raise FieldError("size", f"the binomial smoothing kernel exists for 3, 5, 7; use "
+                                         f"kernel = 'gaussian' for {size}x{size}")
+            taps = _flt.smoothing_kernel(size)
+        elif kind == "matched":
+            sigma = _float_field(params, "sigma", 1.0, 0.3, 16.0)
+            taps = _flt.matched_kernel_any(size, sigma)
+        else:
+            sigma = _float_field(params, "sigma", size / 6.0, 0.3, 32.0)
+            try:
+                taps = _fft.gaussian_kernel_q15(size, sigma)
+            except ValueError as exc:
+                raise FieldError("sigma", str(exc)) from None
+    k = taps.shape[0]
+    h, w = pre.window_shape
+    if "tile" in params:
+        tile = _int_field(params, "tile", None, choices=_fft.FFT_TILES)
+        if tile <= k:
+            raise FieldError("tile", f"a {k}x{k} kernel needs an FFT tile larger than {tile}")
+    else:
+        tile = _fft.choose_tile(h, w, k) or _fft.choose_tile(h, w, k, _fft.FFT_TILES)
+        if tile is None:
+            raise FieldError("size", f"no FFT tile fits a {k}x{k} kernel")
+    return FilterFFTParams(_fft.fft_kernel(taps, tile), kind)
+
+
+def _run_filter_fft(image, p, ledger, context, stage):
+    return _fft.fft_correlate(_words(image), p.kernel, ledger=ledger, stage=stage)
+
+
+def _label_filter_fft(p):
+    k = p.kernel.size
+    return f"filter_fft{k}x{k}_{p.name}"
 
 
 @dataclass(frozen=True)
@@ -345,9 +431,97 @@ def _run_threshold(image, p, ledger, context, stage):
 
 
 register_step("filter", _validate_filter, _run_filter, phase=PHASE_FRONT, label=_label_filter)
+register_step("filter_fft", _validate_filter_fft, _run_filter_fft, phase=PHASE_FRONT,
+              label=_label_filter_fft)
 register_step("detrend", _validate_detrend, _run_detrend, phase=PHASE_FRONT,
               label=lambda p: f"detrend_{p.method}")
 register_step("threshold", _validate_threshold, _run_threshold, phase=PHASE_THRESHOLD, unique=True)
+
+
+# ---------------------------------------------------------------------------------------------
+# the fused front end: a validated sequence's front-end steps in one jitted call
+# ---------------------------------------------------------------------------------------------
+OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD = 1, 2, 3, 4
+
+
+@njit(cache=True)
+def _front_fast_k(frame, f, r0, c0, h, w, ops, kbuf, ksz, tbuf, alpha_q12, mode):
+    """Compaction + window, then the ops (``ops[i]``: OP_FILTER with the ``ksz[i]``-square kernel
+    ``kbuf[i]``, OP_HIGHPASS with the taps ``tbuf[i]``, OP_NONE, OP_THRESHOLD). The very kernels of
+    the step-by-step path, called in the same order on the same words: bit-identical results.
+    Returns (window, image, t4, m4, d4, s)."""
+    win = _compact_k(frame, f, r0, c0, h, w)
+    img = win
+    t4 = np.int64(0)
+    m4 = np.int64(0)
+    d4 = np.int64(0)
+    sh = 0
+    for i in range(ops.size):
+        op = ops[i]
+        if op == 1:
+            k = ksz[i]
+            img = _flt.correlate_q15_k(img, np.ascontiguousarray(kbuf[i, :k, :k]))
+        elif op == 2:
+            img = _dt._highpass_k(img, tbuf[i], _dt.G_MAX)
+        elif op == 4:
+            img, t4, m4, d4, sh = _th.threshold_k(img, alpha_q12, mode)
+    return win, img, t4, m4, d4, sh
+
+
+class _FastFront:
+    """The arrays :func:`_front_fast_k` runs, built once per sequence (None if a front-end step has
+    no fused form, e.g. the polynomial detrender or ``filter_fft``: those sequences run step by
+    step)."""
+
+    __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "cycles",
+                 "threshold_stage", "stages")
+
+    @classmethod
+    def build(cls, steps, pre):
+        ops, kb, ks, tb = [], [], [], []
+        self = cls()
+        self.alpha_q12, self.mode, self.mode_name, self.threshold_stage = 0, 0, "binarize", None
+        h, w = pre.window_shape
+        self.cycles = [("compaction", 0)]
+        self.stages = []
+        zk, zt = np.zeros((7, 7), np.int16), np.zeros(7, np.int16)
+        for st in steps:
+            if STEP_REGISTRY[st.op].phase >= PHASE_LABEL:
+                continue
+            p = st.params
+            k, t = zk, zt
+            if st.op == "filter" and isinstance(p, FilterParams):
+                op = OP_FILTER
+                n = p.kernel.shape[0]
+                k = np.zeros((7, 7), np.int16)
+                k[:n, :n] = p.kernel
+                cyc = _flt.filter_cycles(h, w, n)
+                ks.append(n)
+            elif st.op == "detrend" and isinstance(p, DetrendParams) and p.method == "highpass":
+                op, t, cyc = OP_HIGHPASS, np.asarray(p.taps, np.int16), _dt.highpass_cycles(h, w)
+                ks.append(0)
+            elif st.op == "detrend" and isinstance(p, DetrendParams) and p.method == "none":
+                op, cyc = OP_NONE, 0
+                ks.append(0)
+            elif st.op == "threshold" and isinstance(p, ThresholdParams):
+                op, cyc = OP_THRESHOLD, _th.threshold_cycles(h, w)
+                self.alpha_q12, self.mode_name = p.alpha_q12, p.mode
+                self.mode = _th.BINARIZE if p.mode == "binarize" else _th.CLIP
+                self.threshold_stage = st.stage
+                ks.append(0)
+            else:
+                return None
+            ops.append(op)
+            kb.append(k)
+            tb.append(t)
+            self.cycles.append((st.stage, int(cyc)))
+            self.stages.append(st.stage)
+        n = len(ops)
+        self.ops = np.array(ops, np.int64)
+        self.kbuf = np.stack(kb) if n else np.zeros((0, 7, 7), np.int16)
+        self.ksz = np.array(ks, np.int64)
+        self.tbuf = np.stack(tb) if n else np.zeros((0, 7), np.int16)
+        return self
 
 
 # ---------------------------------------------------------------------------------------------
@@ -427,6 +601,7 @@ class ProcessingSequence:
         self._default_window = (pre.window_shape,
                                 window_origin(pre.compacted_shape, pre.compaction, None, pre.window))
         self._runners = tuple((STEP_REGISTRY[st.op].runner, st) for st in built)
+        self._fast = _FastFront.build(built, pre)
         self.steps = tuple(built)
         self.name = str(name)
         self.description = str(description)
@@ -510,6 +685,56 @@ class ProcessingSequence:
         """Preprocess a full frame and run the steps."""
         sub = self.window(frame, predicted_rowcol_fullres, ledger, check)
         return self.run(sub, ledger, context)
+
+
+    @property
+    def fusable(self):
+        """True when the front end runs as one jitted call (:meth:`run_frame_fast`)."""
+        return self._fast is not None
+
+    def run_frame_fast(self, frame, predicted_rowcol_fullres=None, ledger=None, context=None,
+                       check=True):
+        """The front end of :meth:`run_frame` (preprocessor and every step before the labelling)
+        in one jitted call, without the intermediate stage images: ``(subimage, image, context)``,
+        ``image`` bit-identical to ``run_frame(...).image`` up to the threshold (tested); the same
+        cycles are charged and ``context["threshold"]`` is set the same way. Falls back to the
+        step-by-step path when a step has no fused form (:attr:`fusable`)."""
+        fast = self._fast
+        ctx = {} if context is None else context
+        if fast is None:
+            front = ProcessingSequence(
+                [st.raw for st in self.steps if STEP_REGISTRY[st.op].phase < PHASE_LABEL],
+                self.preprocess, self.name) if any(STEP_REGISTRY[st.op].phase >= PHASE_LABEL
+                                                   for st in self.steps) else self
+            res = front.run_frame(frame, predicted_rowcol_fullres, ledger, ctx, check)
+            return res.subimage, res.image, ctx
+        pre = self.preprocess
+        if check:
+            frame = _check_frame(frame)
+        if frame.shape != pre.frame_shape or frame.dtype.kind not in "ui":
+            raise ValueError(f"frame must be a {pre.frame_shape} integer array, got {frame.dtype} "
+                             f"{frame.shape}")
+        if not frame.flags.c_contiguous:
+            frame = np.ascontiguousarray(frame)
+        if predicted_rowcol_fullres is None:
+            (h, w), (r0, c0) = self._default_window
+        else:
+            h, w = pre.window_shape
+            r0, c0 = window_origin(pre.compacted_shape, pre.compaction, predicted_rowcol_fullres,
+                                   pre.window)
+        aq = ctx.get("alpha_q12", fast.alpha_q12)
+        win, img, t4, m4, d4, s = _front_fast_k(frame, pre.compaction, r0, c0, h, w, fast.ops,
+                                                fast.kbuf, fast.ksz, fast.tbuf, aq, fast.mode)
+        sub = Subimage(win, (r0, c0), pre.compaction, (h, w))
+        ctx["subimage"] = sub
+        ctx["preprocess"] = pre
+        if fast.threshold_stage is not None:
+            ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
+                                "mode": fast.mode_name}
+        if ledger is not None:
+            for stage, c in fast.cycles:
+                ledger.charge("dsp", stage, c)
+        return sub, img, ctx
 
 
 def load_default_sequence(name="satellite"):
