@@ -1,0 +1,183 @@
+"""``uvisi tune``: tune an a priori feature record on labelled frames (``hil_harness.tuning``).
+
+``uvisi tune set SPEC.toml -o SET.npz [--workers N]``
+    build a labelled training set (every blob's flight features) and save it; every other command
+    takes either a set spec (TOML, built on the fly) or a saved ``.npz`` set.
+
+``uvisi tune fit SET -o FIT.toml [--base aurora] [--name N] [--id K] [--version V]``
+    feature means and sigmas from the object's candidates, quantisation thresholds from the object
+    and non-object distributions; weights, flag and GOF threshold from ``--base``.
+
+``uvisi tune optimise SET -o TUNED.toml [--words TUNED.words] [--base aurora|FILE] [--frr 0.005]
+[--quantize auto|on|off] [--folds 5] [--seed 0] [--maxiter 60] [--popsize 12] [--json OUT.json]``
+    fit + weights maximising the training top-1 rate (SciPy differential evolution), quantisation
+    flag by grouped cross-validation (reported), GOF rejection threshold for the stated
+    false-rejection rate; writes the TOML record and (``--words``) the uplink image.
+
+``uvisi tune validate SET --record TUNED.toml [--compare aurora ...] --report DIR
+[--require-top1 0.98]``
+    top-1 / top-3 identification, false lock on frames without the object, rank over time,
+    confusion summary; ``DIR/report.md`` + ``metrics.json`` + PNG plots. ``--require-top1``: exit
+    status 1 when the record's top-1 rate is below it.
+"""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("tune", help="fit, optimise and validate a priori feature records",
+                       description=__doc__.split("\n\n")[0])
+    ts = p.add_subparsers(dest="tune_command", metavar="TUNE_COMMAND")
+
+    def common(q):
+        q.add_argument("set", help="set spec (.toml) or saved set (.npz)")
+        q.add_argument("--workers", type=int, default=None,
+                       help="processes used to build a set from a spec (default: the spec's)")
+        q.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+    q = ts.add_parser("set", help="build and save a labelled training set")
+    common(q)
+    q.add_argument("-o", "--out", required=True, help="output .npz")
+    q.set_defaults(func=_set)
+
+    q = ts.add_parser("fit", help="means, sigmas and quantisation thresholds from a set")
+    common(q)
+    q.add_argument("-o", "--out", required=True, help="output record TOML")
+    q.add_argument("--base", default="aurora",
+                   help="record giving weights, type, id (shipped name or TOML; default aurora)")
+    _naming(q)
+    q.add_argument("--save-set", default=None, help="also save the built set (.npz)")
+    q.set_defaults(func=_fit)
+
+    q = ts.add_parser("optimise", aliases=["optimize"],
+                      help="fit + optimise weights (cross-validated) + GOF threshold")
+    common(q)
+    q.add_argument("-o", "--out", required=True, help="output record TOML")
+    q.add_argument("--words", default=None,
+                   help="also write the uplink image (.words hex text, .bin big-endian binary)")
+    q.add_argument("--base", default="aurora",
+                   help="starting weights, type, id (shipped name or TOML; default aurora)")
+    q.add_argument("--frr", type=float, default=0.005,
+                   help="false-rejection rate for the GOF threshold (default 0.005)")
+    q.add_argument("--quantize", default="auto", choices=("auto", "on", "off"),
+                   help="quantisation flag: chosen by cross-validation (auto) or forced")
+    q.add_argument("--folds", type=int, default=5,
+                   help="cross-validation folds, grouped by run (default 5; 1 = none)")
+    q.add_argument("--seed", type=int, default=0, help="optimiser seed")
+    q.add_argument("--maxiter", type=int, default=60, help="differential-evolution generations")
+    q.add_argument("--popsize", type=int, default=12, help="population per free weight")
+    q.add_argument("--json", default=None, help="write the optimisation summary (JSON)")
+    _naming(q)
+    q.set_defaults(func=_optimise)
+
+    q = ts.add_parser("validate", help="identification rates and report on a held-out set")
+    common(q)
+    q.add_argument("--record", required=True, help="record to validate (TOML or shipped name)")
+    q.add_argument("--compare", nargs="*", default=["aurora"],
+                   help="records reported beside it on the same frames (default: aurora, Table 1)")
+    q.add_argument("--report", required=True, help="output directory")
+    q.add_argument("--title", default=None)
+    q.add_argument("--require-top1", type=float, default=None,
+                   help="exit status 1 if the record's top-1 rate is below this")
+    q.set_defaults(func=_validate)
+    p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
+
+
+def _naming(q):
+    q.add_argument("--name", default=None, help="record name (default: <base>_tuned)")
+    q.add_argument("--id", type=int, default=None, help="record id (default: the base's)")
+    q.add_argument("--version", type=int, default=None,
+                   help="record version (default: the base's + 1)")
+
+
+def _get_set(args):
+    from hil_harness.tuning_data import build_set
+    p = Path(args.set)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such set spec or set")
+    t0 = time.perf_counter()
+    ts = build_set(p, progress=not args.no_progress, workers=args.workers)
+    print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
+          f"({time.perf_counter() - t0:.1f} s)")
+    return ts
+
+
+def _names(args):
+    from flightsw.records import load_record
+    base = load_record(args.base)
+    name = args.name or f"{base.name}_tuned"
+    rid = base.record_id if args.id is None else args.id
+    ver = min(base.version + 1, 0xFFFF) if args.version is None else args.version
+    return base, name, rid, ver
+
+
+def _set(args) -> int:
+    ts = _get_set(args)
+    ts.save(args.out)
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _fit(args) -> int:
+    from hil_harness.tuning_export import export_record
+    from hil_harness.tuning_fit import fit_record, top1_rate
+    ts = _get_set(args)
+    if args.save_set:
+        ts.save(args.save_set)
+    base, name, rid, ver = _names(args)
+    rec = fit_record(ts, base=base, name=name, record_id=rid, version=ver)
+    export_record(rec, args.out, comment=f"uvisi tune fit {args.set} (base {base.name})")
+    print(f"[tune] fitted {name}: training top-1 (base weights) {top1_rate(ts, rec):.4f}")
+    print(f"wrote {args.out}")
+    return 0
+
+
+def _optimise(args) -> int:
+    from hil_harness.tuning_export import export_record
+    from hil_harness.tuning_fit import optimise_record
+    if not 0.0 <= args.frr < 1.0:
+        raise ValueError(f"--frr {args.frr} must be in [0, 1)")
+    if args.folds < 1 or args.maxiter < 1 or args.popsize < 1:
+        raise ValueError("--folds, --maxiter and --popsize must be >= 1")
+    ts = _get_set(args)
+    base, name, rid, ver = _names(args)
+    t0 = time.perf_counter()
+    res = optimise_record(ts, base=base, frr=args.frr, quantize=args.quantize, folds=args.folds,
+                          seed=args.seed, maxiter=args.maxiter, popsize=args.popsize, name=name,
+                          record_id=rid, version=ver)
+    dt = time.perf_counter() - t0
+    comment = (f"uvisi tune optimise {args.set} (base {base.name}, frr {args.frr:g}, quantize "
+               f"{args.quantize}, {args.folds} folds, seed {args.seed})\n"
+               f"cross-validated top-1 {res.cv['top1']:.4f}; training top-1 "
+               f"{res.train_top1_flight:.4f}; GOF threshold for false-rejection rate {args.frr:g}")
+    out = export_record(res.record, args.out, args.words, comment)
+    print(f"[tune] optimised in {dt:.1f} s; cross-validated top-1 {res.cv['top1']:.4f}, "
+          f"training top-1 {res.train_top1_flight:.4f}, n = {res.record.n_weighted}, uplink CRC "
+          f"{out['crc']}")
+    print("wrote " + ", ".join(v for k, v in out.items() if k != "crc"))
+    if args.json:
+        from hil_harness.tuning_validate import _atomic_text
+        _atomic_text(args.json, json.dumps(res.as_dict(), indent=1, default=str))
+    return 0
+
+
+def _validate(args) -> int:
+    from flightsw.records import load_record
+    from hil_harness.tuning_validate import validate
+    rec = load_record(args.record)
+    ts = _get_set(args)
+    records = {rec.name: rec}
+    for c in args.compare or []:
+        r = load_record(c)
+        label = r.name if r.name not in records else f"{r.name} ({c})"
+        records[label] = r
+    m = validate(ts, records, args.report,
+                 title=args.title or f"Validation of record {rec.name} on {Path(args.set).name}")
+    print(f"wrote {Path(args.report) / 'report.md'}")
+    if args.require_top1 is not None and not m[rec.name]["top1"] >= args.require_top1:
+        print(f"[tune] top-1 {m[rec.name]['top1']:.4f} is below the required {args.require_top1}")
+        return 1
+    return 0

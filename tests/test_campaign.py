@@ -1,0 +1,259 @@
+"""Monte Carlo campaigns (hil_harness.campaign): spec expansion, Dask and serial runs, the Parquet
+table, resume after a kill (no finished run redone), failures, and the shipped jobs.
+
+The resume oracle is the job's own trace: the ``sleep`` job leaves one file per execution, so
+after killing a campaign halfway and resuming it, every run committed before the kill must have
+been executed exactly once.
+"""
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pyarrow.parquet as pq
+import pytest
+
+from hil_harness.campaign import (CampaignSpec, finished_runs, merge_parts, run_campaign,
+                                  run_id_of)
+from hil_harness.campaign_jobs import identification, split_overrides
+from hil_harness.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _spec(tmp_path, n=6, seconds=0.0, extra="", name="t"):
+    p = tmp_path / f"{name}.toml"
+    p.write_text(f"""
+[campaign]
+name = "{name}"
+job = "hil_harness.campaign_jobs:sleep"
+seeds = {{ start = 0, count = {n} }}
+[params]
+seconds = {seconds}
+log_dir = "{tmp_path / 'log'}"
+{extra}
+""")
+    (tmp_path / "log").mkdir(exist_ok=True)
+    return p
+
+
+def _executions(tmp_path):
+    out = {}
+    for f in (tmp_path / "log").iterdir():
+        seed = int(f.name.split(".")[0][4:])
+        out[seed] = out.get(seed, 0) + 1
+    return out
+
+
+# ------------------------------------------------------------------------------------------------
+# spec
+# ------------------------------------------------------------------------------------------------
+def test_spec_expands_seeds_times_axes():
+    spec = CampaignSpec.from_dict({
+        "campaign": {"name": "x", "seeds": [3, 4, 5], "job": "hil_harness.campaign_jobs:sleep"},
+        "params": {"frames": 4},
+        "axes": {"record": ["aurora", "star"], "target.spot_kR": [10.0, 20.0]}})
+    assert len(spec.runs) == 3 * 2 * 2
+    combos = {(r["seed"], r["record"], r["target.spot_kR"]) for r in spec.runs}
+    assert len(combos) == 12 and all(r["frames"] == 4 for r in spec.runs)
+    ids = spec.run_ids
+    assert len(set(ids)) == 12
+    # ids are a pure function of the parameters (stable across processes and key order)
+    assert ids[0] == run_id_of(dict(reversed(list(spec.runs[0].items()))))
+    again = CampaignSpec.from_dict(spec.raw)
+    assert again.run_ids == ids and again.digest == spec.digest
+
+
+@pytest.mark.parametrize("bad, msg", [
+    ({"campaign": {"name": "x", "job": "nosuch.module:f"}}, "cannot import"),
+    ({"campaign": {"name": "x", "job": "hil_harness.campaign_jobs:nope"}}, "no function"),
+    ({"campaign": {"name": "x", "job": "justaname"}}, "module:function"),
+    ({"campaign": {"name": "x", "seeds": [1, 1]}}, "duplicates"),
+    ({"campaign": {"name": "x", "seeds": {"count": 0}}}, "count >= 1"),
+    ({"campaign": {"name": "x"}, "params": {"seed": 3}}, "seed"),
+    ({"campaign": {"name": "x"}, "axes": {"record": []}}, "non-empty"),
+    ({"campaign": {"name": "x"}, "params": {"a": 1}, "axes": {"a": [1]}}, "both"),
+    ({"campaign": {"name": "x", "bogus": 1}}, "unknown"),
+    ({"campaign": {"name": "x"}, "extra": {}}, "unknown top-level"),
+])
+def test_spec_errors(bad, msg):
+    with pytest.raises(ValueError, match=msg):
+        CampaignSpec.from_dict(bad)
+
+
+def test_split_overrides():
+    plain, over = split_overrides({"seed": 1, "target.spot_kR": 2.0, "target.arcs": [],
+                                   "pointing.lat_deg": 60.0})
+    assert plain == {"seed": 1}
+    assert over == {"target": {"spot_kR": 2.0, "arcs": []}, "pointing": {"lat_deg": 60.0}}
+
+
+# ------------------------------------------------------------------------------------------------
+# running
+# ------------------------------------------------------------------------------------------------
+def test_serial_and_dask_give_the_same_table(tmp_path):
+    spec = _spec(tmp_path, n=8, extra='[axes]\nmode = ["a", "b"]\n')
+    s1 = run_campaign(spec, tmp_path / "serial", serial=True, progress=False)
+    t0 = time.perf_counter()
+    s2 = run_campaign(spec, tmp_path / "dask", workers=2, progress=False)
+    print(f"\n[campaign] 16 null runs on a 2-worker LocalCluster: {time.perf_counter() - t0:.1f} s "
+          f"including cluster start-up")
+    assert s1["done"] == s2["done"] == 16 and s1["failed"] == s2["failed"] == 0
+    ta = pq.read_table(tmp_path / "serial" / "results.parquet").to_pylist()
+    tb = pq.read_table(tmp_path / "dask" / "results.parquet").to_pylist()
+    assert [r["run_id"] for r in ta] == [r["run_id"] for r in tb]
+    assert [r["value"] for r in ta] == [r["value"] for r in tb] == [2 * r["seed"] for r in ta]
+    assert set(("run_id", "run", "status", "elapsed_s", "worker", "seed", "mode", "seconds",
+                "slept_s")) <= set(ta[0])
+    assert all(r["status"] == "ok" for r in tb)
+    assert len({r["worker"] for r in tb}) == 2          # both workers took runs
+    assert len(finished_runs(tmp_path / "dask")) == 16
+
+
+def test_resume_after_kill_redoes_no_finished_run(tmp_path):
+    """Kill a 2-worker campaign halfway (SIGKILL to its whole process group), resume it: every
+    run committed before the kill runs exactly once; the table ends complete."""
+    n = 24
+    spec = _spec(tmp_path, n=n, seconds=0.4)
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-m", "hil_harness.cli", "campaign", str(spec),
+                             "--workers", "2", "--out", str(out), "--no-progress"],
+                            cwd=ROOT, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL,
+                            start_new_session=True)
+    try:
+        deadline = time.time() + 120
+        while time.time() < deadline and len(finished_runs(out)) < n // 3:
+            time.sleep(0.05)
+        assert len(finished_runs(out)) >= n // 3, "campaign did not start"
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+    time.sleep(0.3)
+    before = finished_runs(out)
+    mtimes = {r: (out / "parts" / f"{r}.parquet").stat().st_mtime_ns for r in before}
+    print(f"\n[campaign] killed with {len(before)} of {n} runs committed")
+    assert 0 < len(before) < n
+    assert not (out / "results.parquet").exists()          # never merged: it was killed
+    # no half-written part is visible under a final name
+    for p in (out / "parts").glob("*.parquet"):
+        assert pq.read_table(p).num_rows == 1
+    with pytest.raises(ValueError, match="--resume"):
+        run_campaign(spec, out, workers=2, progress=False)
+    s = run_campaign(spec, out, workers=2, resume=True, progress=False)
+    assert s["skipped"] == len(before) and s["ran"] == n - len(before) and s["done"] == n
+    ex = _executions(tmp_path)
+    spec_obj = CampaignSpec.load(spec)
+    seed_of = dict(zip(spec_obj.run_ids, (r["seed"] for r in spec_obj.runs)))
+    for rid in before:
+        assert ex[seed_of[rid]] == 1, f"finished run {rid} was redone"
+        assert (out / "parts" / f"{rid}.parquet").stat().st_mtime_ns == mtimes[rid]
+    assert set(ex) == set(range(n))
+    rows = pq.read_table(out / "results.parquet").to_pylist()
+    assert sorted(r["seed"] for r in rows) == list(range(n))
+    # a second resume has nothing to do
+    s = run_campaign(spec, out, serial=True, resume=True, progress=False)
+    assert s["ran"] == 0 and s["done"] == n
+
+
+def test_resume_refuses_a_changed_spec(tmp_path):
+    spec = _spec(tmp_path, n=3)
+    run_campaign(spec, tmp_path / "o", serial=True, progress=False)
+    spec2 = _spec(tmp_path, n=4, name="t")
+    with pytest.raises(ValueError, match="differ"):
+        run_campaign(spec2, tmp_path / "o", serial=True, resume=True, progress=False)
+
+
+def test_failed_runs_are_recorded_and_retried(tmp_path):
+    spec = _spec(tmp_path, n=2, extra='[axes]\nfail = [false, true]\n')
+    s = run_campaign(spec, tmp_path / "o", serial=True, progress=False)
+    assert s["failed"] == 2 and s["done"] == 2
+    rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
+    bad = [r for r in rows if r["status"] == "error"]
+    assert len(bad) == 2 and all("asked to fail" in r["error"] for r in bad)
+    assert len(list((tmp_path / "o" / "errors").glob("*.json"))) == 2
+    s = run_campaign(spec, tmp_path / "o", serial=True, resume=True, progress=False)
+    assert s["ran"] == 2 and s["skipped"] == 2          # the errors are retried, the rest kept
+
+
+def test_merge_is_atomic_and_complete(tmp_path):
+    spec = _spec(tmp_path, n=5)
+    run_campaign(spec, tmp_path / "o", serial=True, progress=False)
+    (tmp_path / "o" / "results.parquet").unlink()
+    t = merge_parts(tmp_path / "o")
+    assert t.num_rows == 5 and not list((tmp_path / "o").glob(".*tmp"))
+
+
+# ------------------------------------------------------------------------------------------------
+# jobs and the CLI
+# ------------------------------------------------------------------------------------------------
+def test_identification_job_agrees_with_the_tuning_path():
+    """The job (candidate messages of process_frame) and the tuning path (stored features re-ranked
+    by the flight kernel) count the same top-1 / top-3 frames."""
+    from flightsw.records import load_record
+    from hil_harness.tuning import build_set, evaluate
+    params = {"seed": 4, "frames": 10, "every": 3, "record": "aurora", "radius_px": 24.0}
+    r = identification(params)
+    ts = build_set({"set": {"radius_px": 24.0, "predict": "truth", "predict_noise_px": 3.0},
+                    "scenario": [{"name": "aurora_surge_wfov_uv", "seeds": [4], "frames": 10,
+                                  "every": 3}]})
+    ev = evaluate(ts, load_record("aurora"))
+    assert r["frames"] == r["frames_with_object"] == 10
+    assert r["top1"] == ev["confusion_object"]["top-1"]
+    assert r["top3"] == round(ev["top3"] * 10)
+    assert r["segmented"] == round(ev["segmented"] * 10)
+    assert 0 <= r["top1"] <= r["top3"] <= r["segmented"] <= 10
+    assert r["ip_cycles_mean"] > 0 and r["record_id"] == 1
+    empty = identification({"seed": 4, "frames": 4, "object": False,
+                            "target.spot_kR": 0.0, "target.surge_kR": 0.0})
+    assert empty["frames_with_object"] == 0 and 0 <= empty["false_lock"] <= 4
+    assert np.isnan(empty["top1_rate"])
+    with pytest.raises(ValueError, match="unknown parameter"):
+        identification({"bogus": 1})
+
+
+def test_cli_campaign_with_the_identification_job(tmp_path, capsys):
+    spec = tmp_path / "id.toml"
+    spec.write_text("""
+[campaign]
+name = "id"
+seeds = [1, 2]
+[params]
+frames = 3
+every = 5
+[axes]
+record = ["aurora", "star"]
+""")
+    t0 = time.perf_counter()
+    assert main(["campaign", str(spec), "--serial", "--out", str(tmp_path / "o"),
+                 "--no-progress", "--json", str(tmp_path / "s.json")]) == 0
+    dt = time.perf_counter() - t0
+    s = json.loads((tmp_path / "s.json").read_text())
+    print(f"\n[campaign] 4 identification runs (3 frames each) serial: {dt:.1f} s, "
+          f"{s['runs_per_s']:.2f} runs/s")
+    rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
+    assert len(rows) == 4 and {r["record"] for r in rows} == {"aurora", "star"}
+    assert all(r["status"] == "ok" and r["frames"] == 3 for r in rows)
+    assert {r["record_id"] for r in rows} == {1, 2}
+    out = capsys.readouterr().out
+    assert "4 runs of hil_harness.campaign_jobs:identification" in out
+    # errors are one line, exit 2
+    assert main(["campaign", str(tmp_path / "nope.toml")]) == 2
+    assert main(["campaign", str(spec), "--out", str(tmp_path / "o"), "--serial"]) == 2
+    assert "--resume" in capsys.readouterr().err
+    assert main(["campaign", str(spec), "--job", "os:nope", "--serial"]) == 2
+
+
+def test_event_job_when_the_event_runner_exists():
+    mod = pytest.importorskip("hil_harness.event")
+    if not hasattr(mod, "run_event"):
+        pytest.skip("hil_harness.event.run_event not there yet")
+    from hil_harness.campaign_jobs import event
+    r = event({"scenario": "aurora_surge_wfov_uv", "seed": 1, "frames": 4})
+    assert isinstance(r, dict) and r
+    assert all(isinstance(v, (bool, int, float, str)) for v in r.values())
