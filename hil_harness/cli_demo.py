@@ -1,8 +1,10 @@
-"""``uvisi demo``: the product's main job on its built-in default.
+"""``uvisi demo [--out DIR] [--arith]``: the product's main job on its built-in default.
 
-Until the closed loop lands, the demo is the arithmetic and budget self-report: it runs the flight
-arithmetic on the cases the processors' documents pin down, checks each against its reference, and
-prints the emulated cycle budget of the image processor's heaviest vector step.
+Runs ``uvisi event satellite_over_stars`` (a satellite crossing a star field in the wide-FOV visible
+imager, 90 s at 2 Hz, closed loop) into DIR (default ``./events/satellite_over_stars``) and prints
+where the recording, summary and figures are. ``--arith`` prints instead the flight-arithmetic
+self-report: the cases the processors' documents pin down, each checked against its reference, and
+the emulated cycle budget of the image processor's heaviest vector step.
 """
 from __future__ import annotations
 
@@ -15,6 +17,8 @@ import numpy as np
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the product's main job on the built-in default",
                        description=__doc__)
+    p.add_argument("--out", default="events/satellite_over_stars", help="output directory")
+    p.add_argument("--arith", action="store_true", help="flight-arithmetic self-report instead")
     p.set_defaults(func=run)
 
 
@@ -50,11 +54,20 @@ def _m1750_report() -> list[tuple[str, str, bool]]:
 
 
 def run(args) -> int:
+    if not getattr(args, "arith", False):
+        import argparse
+        from .cli_event import run as run_event
+        return run_event(argparse.Namespace(
+            scenario="satellite_over_stars", seed=None, frames=None, out=args.out, no_frames=False,
+            no_figures=False, sequence=None, record=None, handover=False, json=False))
+    return _arith_report()
+
+
+def _arith_report() -> int:
     from flightsw.arith.adsp2100 import correlate_cycles, correlate_valid_q15
     from flightsw.budget import ADSP2100, FRAME_PERIOD_S
 
-    print("uvisi demo: flight arithmetic self-report (the closed-loop event demo replaces this "
-          "once the loop lands)\n")
+    print("uvisi demo --arith: flight arithmetic self-report\n")
     rows = _adsp_report() + _m1750_report()
     width = max(len(r[0]) for r in rows)
     for name, got, ok in rows:

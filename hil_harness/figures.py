@@ -51,14 +51,27 @@ def stages(images: list[tuple[str, np.ndarray]], path, title: str = "") -> Path:
 
 
 def centroid_track(t, rows, cols, path, truth_rows=None, truth_cols=None,
-                   shape=(244, 256), title: str = "Tracked object centroid") -> Path:
-    """The tracked object's centroid over the frames in imager pixels, like the paper's Figure 6."""
+                   shape=(244, 256), title: str = "Tracked object centroid",
+                   zoom: bool = False) -> Path:
+    """The tracked object's centroid over the frames in imager pixels, like the paper's Figure 6.
+    ``zoom``: limits to the points (plus a 3-pixel margin) instead of the whole imager."""
     fig, ax = plt.subplots(figsize=(6, 5))
     sc = ax.scatter(cols, rows, c=t, cmap="viridis", s=14, marker="+", label="top candidate / track")
     if truth_rows is not None:
         ax.plot(truth_cols, truth_rows, "-", color="tab:red", lw=1, label="truth")
     ax.set_xlim(0, shape[1])
     ax.set_ylim(shape[0], 0)
+    if zoom:
+        pts_c = np.concatenate([np.ravel(cols), np.ravel(truth_cols if truth_cols is not None else [])])
+        pts_r = np.concatenate([np.ravel(rows), np.ravel(truth_rows if truth_rows is not None else [])])
+        ok = np.isfinite(pts_c) & np.isfinite(pts_r)
+        if ok.any():
+            c0, c1 = pts_c[ok].min() - 3, pts_c[ok].max() + 3
+            r0, r1 = pts_r[ok].min() - 3, pts_r[ok].max() + 3
+            h = max(c1 - c0, r1 - r0) / 2
+            cc, rc = (c0 + c1) / 2, (r0 + r1) / 2
+            ax.set_xlim(cc - h, cc + h)
+            ax.set_ylim(rc + h, rc - h)
     ax.set_xlabel("column (px)")
     ax.set_ylabel("row (px)")
     ax.set_aspect("equal")

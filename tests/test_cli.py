@@ -20,8 +20,8 @@ def test_unknown_subcommand_exits_2():
     assert exc.value.code == 2
 
 
-def test_demo_runs_and_every_check_agrees(capsys):
-    assert main(["demo"]) == 0
+def test_demo_arith_every_check_agrees(capsys):
+    assert main(["demo", "--arith"]) == 0
     out = capsys.readouterr().out
     assert "BAD" not in out and "checks agree" in out
 

@@ -1,0 +1,390 @@
+"""The closed loop: one tracking event, frame by frame at 2 Hz (Basilisk style ``reset`` / ``step``).
+
+One frame::
+
+    world.render()            -> frame uint16[244, 256], truth           (groundsim)
+    flightsw.ip.process_frame -> CandidateMessage  --(16-bit words, CRC)-->
+    flightsw.tp.TrackProcessor.step(words, attitude data) -> TrackCommand --(16-bit words, CRC)-->
+    world.command(q_point)  (attitude processor)   and   Feedback -> the IP's next window / record
+    world.advance(0.5 s)
+
+Two clocks are kept: the emulated flight processors (a :class:`flightsw.budget.Ledger` per frame: the
+ADSP-2100, the IP's 1750A and the TP's 1750A against the 500 ms frame) and the host (wall time per
+stage, real-time factor).
+
+Overrun policy (``EventConfig.overrun_policy = "skip"``, the only one): the flight IP is frame-driven;
+when the IP's DSP or 1750A needs more than the 500 ms period, its candidate message for that frame is
+still delivered, late, and the *next* frame is not processed (the IP is still busy: no message, the
+TP coasts). When the TP's 1750A overruns, its command reaches the attitude processor one frame late
+(applied after the next frame) and the TP does not run the next frame. Every skipped frame is recorded
+with its reason.
+
+Frames the scenario drops (``[faults] dropped_frames``) never reach the IP; the TP sees the gap in the
+frame count of the next message. Attitude-data gaps reach the TP as ``AttitudeData.valid = False``.
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flightsw.budget import DSP, IP1750, TP1750, Ledger
+from flightsw.messages import CandidateMessage, Feedback, IMAGER_CODES
+
+from .selection import ImagerSelector, SelectionParams, Switch, convert_pixel, record_name_for
+
+FRAME_DT = 0.5
+#: longest candidate message (23 candidates): recorded padded to this many words
+MAX_MESSAGE_WORDS = 15 + 29 * 23 + 1
+
+SKIP_NONE, SKIP_DROPPED, SKIP_OVERRUN = 0, 1, 2
+SKIP_REASONS = {SKIP_NONE: "", SKIP_DROPPED: "frame dropped", SKIP_OVERRUN: "IP busy (overrun)"}
+
+
+@dataclass
+class EventConfig:
+    """What to run.
+
+    Attributes
+    ----------
+    scenario : str or Path
+        A shipped scenario name (``groundsim/scenarios``) or a TOML file.
+    seed : int, optional
+        Overrides the scenario's seed.
+    frames : int, optional
+        Stop after this many frames (default: the scenario's duration).
+    sequence : str or Path, optional
+        Processing sequence: a shipped name ("satellite", "satellite_c2", "aurora") or a TOML file;
+        default by the target type, at the scenario's compaction.
+    record : str or Path, optional
+        A priori record (shipped name or TOML); default by the object type
+        (:data:`hil_harness.selection.RECORD_FOR_TYPE`).
+    selection : SelectionParams
+        Imager hand-over criteria.
+    overrun_policy : str
+        "skip" (see the module docstring).
+    processors : dict, optional
+        Ledger processor models (e.g. a slower DSP to study overruns).
+    tp : dict
+        Overrides of :class:`flightsw.tp.TPConfig` fields.
+    stage_frame : int, optional
+        Frame whose stage images are kept for the Figure-3 panel (default: the 11th processed frame).
+    """
+
+    scenario: str | Path = "satellite_over_stars"
+    seed: int | None = None
+    frames: int | None = None
+    sequence: str | Path | None = None
+    record: str | Path | None = None
+    selection: SelectionParams = field(default_factory=SelectionParams)
+    overrun_policy: str = "skip"
+    processors: dict | None = None
+    tp: dict = field(default_factory=dict)
+    stage_frame: int | None = None
+
+    def __post_init__(self):
+        if self.overrun_policy != "skip":
+            raise ValueError(f"overrun_policy={self.overrun_policy!r}: only 'skip' is implemented")
+        if self.frames is not None and (not isinstance(self.frames, (int, np.integer)) or self.frames < 1):
+            raise ValueError(f"frames={self.frames!r} must be a positive integer")
+        if self.seed is not None and (not isinstance(self.seed, (int, np.integer)) or self.seed < 0):
+            raise ValueError(f"seed={self.seed!r} must be a non-negative integer")
+
+
+@dataclass
+class FrameOutcome:
+    """What happened in one frame (host objects; the recorder flattens them)."""
+
+    k: int
+    t: float
+    imager: str
+    skip: int
+    truth: dict
+    attitude: object
+    message: CandidateMessage | None = None
+    message_words: np.ndarray | None = None
+    command: object = None
+    command_words: np.ndarray | None = None
+    ledger: Ledger | None = None
+    n_blobs: int = 0
+    alpha: float = float("nan")
+    pred_row: float = float("nan")      # the prediction made for this frame (this frame's imager)
+    pred_col: float = float("nan")
+    track_row: float = float("nan")     # the tracked object's centroid this frame (TP's choice)
+    track_col: float = float("nan")
+    error_urad: float = float("nan")
+    switches: list = field(default_factory=list)
+    host_us: dict = field(default_factory=dict)
+    overrun: bool = False
+    frame: np.ndarray | None = None
+    stages: list | None = None
+
+
+def _shipped_sequence(name):
+    from flightsw.ip import ProcessingSequence, load_default_sequence
+    from flightsw.ip.sequence import DEFAULT_SEQUENCES
+    if isinstance(name, ProcessingSequence):
+        return name
+    s = str(name)
+    if s in DEFAULT_SEQUENCES:
+        return load_default_sequence(s)
+    p = Path(s)
+    if not p.exists():
+        raise FileNotFoundError(f"sequence {s!r}: not a shipped sequence ({sorted(DEFAULT_SEQUENCES)}) "
+                                f"nor a file")
+    return ProcessingSequence.from_toml(p)
+
+
+def _with_compaction(seq, compaction):
+    from flightsw.ip import ProcessingSequence
+    d = seq.to_dict()
+    d["preprocess"]["compaction"] = int(compaction)
+    return ProcessingSequence.from_dict(d)
+
+
+def nominal_trajectory(world, duration: float):
+    """The TP's uplinked nominal trajectory from the ground's nominal state: the state at t = 0 and,
+    for a boosting target, a cubic fit per axis of the non-gravitational acceleration over the event
+    (``accel_coeffs`` (3, 4), highest power first, m/s^2 vs s). None when the target has none."""
+    from flightsw.tp import NominalTrajectory
+    st = world.nominal_target_state(0.0)
+    if st is None:
+        return None
+    r0, v0 = (np.asarray(x, float) for x in st)
+    coeffs = None
+    if world.target_type == "launch":
+        ts = np.arange(0.0, duration + 1.0, 1.0)
+        h = 0.05
+        acc = []
+        for t in ts:
+            (r1, v1), (r2, v2) = world.nominal_target_state(t - h), world.nominal_target_state(t + h)
+            a = (np.asarray(v2) - np.asarray(v1)) / (2 * h)
+            r = np.asarray(world.nominal_target_state(t)[0])
+            g = -3.986004418e14 * r / np.linalg.norm(r) ** 3
+            acc.append(a - g)
+        acc = np.array(acc)
+        coeffs = np.array([np.polyfit(ts, acc[:, i], 3) for i in range(3)])
+    return NominalTrajectory(0.0, r0, v0, accel_coeffs=coeffs)
+
+
+class Event:
+    """One closed-loop event. ``reset()``, then ``step()`` until ``done``; ``outcomes`` holds every
+    frame's :class:`FrameOutcome`."""
+
+    def __init__(self, config: EventConfig | None = None, *, keep_frames: bool = True):
+        from flightsw.ip import AlphaController
+        from flightsw.records import load_record
+        from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
+        from groundsim.scenario import Scenario
+        self.config = cfg = config or EventConfig()
+        if isinstance(cfg.scenario, Scenario):
+            scn = cfg.scenario
+        else:
+            scn = Scenario.load(cfg.scenario, seed=cfg.seed)
+        self.scenario = scn
+        self.world = scn.world()
+        n = scn.n_frames if cfg.frames is None else min(int(cfg.frames), scn.n_frames)
+        self.n_frames = n
+        ttype = scn.target_type
+        self.object_type = ttype or "none"
+        seq = cfg.sequence or ("aurora" if ttype == "aurora" else "satellite")
+        self.sequence = _with_compaction(_shipped_sequence(seq), scn.compaction) \
+            if cfg.sequence is None else _shipped_sequence(seq)
+        self.record_name = str(cfg.record) if cfg.record is not None else record_name_for(ttype)
+        self.record = load_record(self.record_name)
+        self.geometry = {}
+        tp_imagers = {}
+        for iid, im in scn.imagers.items():
+            q = np.asarray(im.align_onboard, float)
+            self.geometry[iid] = (float(im.scale_col), float(im.scale_row), q)
+            tp_imagers[iid] = ImagerGeometry(q_imager_to_body=q, scale_col=float(im.scale_col),
+                                             scale_row=float(im.scale_row))
+        mode = "opportunity" if ttype == "aurora" else "dedicated"
+        nominal = nominal_trajectory(self.world, scn.duration) if mode == "dedicated" else None
+        tp_kw = dict(imagers=tp_imagers, mode=mode, object_type=self.object_type, nominal=nominal)
+        tp_kw.update(cfg.tp)
+        self.tp = TrackProcessor(TPConfig(**tp_kw))
+        self._alpha_proto = dict(alpha=self._sequence_alpha())
+        self.alpha = AlphaController(**self._alpha_proto)
+        ground = [(float(t), str(i)) for t, i in scn.faults.imager_switch]
+        self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
+        self.keep_frames = keep_frames
+        self.stage_frame = cfg.stage_frame
+        self.reset()
+
+    def _sequence_alpha(self) -> float:
+        for st in self.sequence.steps:
+            if st.op == "threshold":
+                a = st.raw.get("alpha")
+                if a is not None:
+                    return float(a)
+        return 3.0
+
+    # ------------------------------------------------------------------------------------------
+    def reset(self):
+        from flightsw.ip import AlphaController
+        self.world.reset()
+        self.tp.reset()
+        self.selector.reset()
+        self.alpha = AlphaController(**self._alpha_proto)
+        self.world.imager = self.selector.current
+        self.outcomes: list[FrameOutcome] = []
+        self.feedback = Feedback()
+        self._feedback_imager = self.selector.current
+        self._ip_busy = False
+        self._tp_busy = False
+        self._late_command = None
+        self._processed = 0
+        self._host_loop_s = 0.0
+
+    @property
+    def done(self) -> bool:
+        return len(self.outcomes) >= self.n_frames or self.world.done
+
+    def _ledger(self) -> Ledger:
+        return Ledger(self.config.processors) if self.config.processors else Ledger()
+
+    def _acquire(self, k: int, imager: str):
+        """(attitude data, frame, truth, dropped) of frame ``k`` from the ground simulator (a replay
+        overrides this with the recorded ones)."""
+        w = self.world
+        if w.imager != imager:
+            w.imager = imager
+        att = w.attitude_data()
+        frame, truth = w.render()
+        return att, frame, truth, bool(w.frame_dropped)
+
+    def step(self) -> FrameOutcome:
+        """Run one frame; returns its outcome."""
+        w = self.world
+        k, t = len(self.outcomes), w.t
+        host = {}
+        t0 = time.perf_counter()
+        imager = self.selector.current
+        att, frame, truth, dropped = self._acquire(k, imager)
+        t1 = time.perf_counter()
+        host["render"] = 1e6 * (t1 - t0)
+        out = FrameOutcome(k=k, t=t, imager=imager, skip=SKIP_NONE, truth=truth, attitude=att)
+        # the prediction made last frame, in this frame's imager
+        pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
+        if self._feedback_imager != imager:
+            pr, pc = convert_pixel(pr, pc, self.geometry[self._feedback_imager], self.geometry[imager])
+        out.pred_row, out.pred_col = pr, pc
+        fb = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
+        if self._late_command is not None:            # a TP overrun's command lands now
+            w.command(self._late_command)
+            self._late_command = None
+        ledger = self._ledger()
+        out.ledger = ledger
+        if dropped:
+            out.skip = SKIP_DROPPED
+        elif self._ip_busy:
+            out.skip = SKIP_OVERRUN
+            self._ip_busy = False
+        if out.skip == SKIP_NONE:
+            self._processed += 1
+            want = (self.stage_frame == k) if self.stage_frame is not None else (self._processed == 11)
+            from flightsw.ip import process_frame
+            res = process_frame(frame, self.sequence, self.record, fb, ledger=ledger, imager=imager,
+                                frame_count=k & 0xFFFF, time_tag=t, alpha_q12=self.alpha.q12,
+                                want_stages=want)
+            t2 = time.perf_counter()
+            host["ip"] = 1e6 * (t2 - t1)
+            out.message = res.message
+            out.message_words = res.message.to_words()
+            out.n_blobs = int(res.backend.count)
+            out.alpha = float(res.message.alpha)
+            if want:
+                out.stages = [(s.name, s.image) for s in res.stages]
+            self.alpha.update(out.n_blobs, self.feedback.locked, ledger)
+            ip_over = ledger.seconds(DSP) > ledger.period_s or ledger.seconds(IP1750) > ledger.period_s
+            if self._tp_busy:
+                self._tp_busy = False
+                cmd = None
+            else:
+                t3 = time.perf_counter()
+                cmd = self.tp.step(out.message_words, att, ledger=ledger)
+                host["tp"] = 1e6 * (time.perf_counter() - t3)
+            if cmd is not None:
+                from flightsw.messages import TrackCommand
+                out.command_words = cmd.to_words()
+                cmd = TrackCommand.from_words(out.command_words)     # what crosses the bus
+                out.command = cmd
+                tp_over = ledger.seconds(TP1750) > ledger.period_s
+                q = np.asarray(cmd.q_point, float)
+                if np.all(np.isfinite(q)) and np.linalg.norm(q) > 0.5:
+                    if tp_over:
+                        self._late_command = q
+                        self._tp_busy = True
+                    else:
+                        w.command(q)
+                self.feedback = cmd.feedback()
+                self._feedback_imager = cmd.imager if cmd.imager in self.geometry else imager
+                out.track_row, out.track_col = _tracked_centroid(cmd, res.message)
+            if ip_over:
+                self._ip_busy = True
+            out.overrun = ledger.overrun()
+        tg = truth.get("target") if truth else None
+        if tg is not None and tg.get("in_field") and np.isfinite(out.pred_row):
+            sc, sr, _ = self.geometry[imager]
+            out.error_urad = 1e6 * float(np.hypot((out.pred_col - tg["col"]) * sc,
+                                                  (out.pred_row - tg["row"]) * sr))
+        # imager selection for the next frame
+        sw = self.selector.update(k, t, bool(self.feedback.locked), self.feedback.predicted_row,
+                                  self.feedback.predicted_col)
+        if sw is not None:
+            out.switches.append(sw)
+        t4 = time.perf_counter()
+        w.advance(FRAME_DT)
+        host["world"] = 1e6 * (time.perf_counter() - t4)
+        host["total"] = 1e6 * (time.perf_counter() - t0)
+        self._host_loop_s += host["total"] * 1e-6
+        out.host_us = host
+        out.frame = frame                 # dropped after on_frame unless keep_frames (memory)
+        self.outcomes.append(out)
+        return out
+
+    def run(self, progress: bool = False, on_frame=None) -> list:
+        """Step to the end; ``on_frame(outcome)`` after each frame (the recorder)."""
+        it = range(self.n_frames - len(self.outcomes))
+        bar = None
+        if progress:
+            from tqdm import tqdm
+            bar = tqdm(total=self.n_frames, desc=f"event {self.scenario.name}", unit="frame",
+                       leave=False)
+        try:
+            for _ in it:
+                if self.done:
+                    break
+                o = self.step()
+                if on_frame is not None:
+                    on_frame(o)
+                if not self.keep_frames:
+                    o.frame = None
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
+        return self.outcomes
+
+    @property
+    def switches(self) -> list[Switch]:
+        return [s for o in self.outcomes for s in o.switches]
+
+
+def _tracked_centroid(cmd, message) -> tuple[float, float]:
+    """The centroid of the candidate the TP used as the object this frame (NaN if none)."""
+    i = getattr(cmd, "object_index", -1)
+    if i is None or i < 0 or message is None or i >= message.count:
+        return float("nan"), float("nan")
+    c = message.candidates[i]
+    return float(c["row"]), float(c["col"])
+
+
+def run_event(scenario="satellite_over_stars", **kw) -> dict:
+    """Run one event and write its products: see :func:`hil_harness.event_io.run_event`."""
+    from .event_io import run_event as _run
+    return _run(scenario, **kw)

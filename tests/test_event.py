@@ -1,0 +1,174 @@
+"""The closed loop end to end: lock and track error against truth, faults, determinism, replay,
+the overrun policy and the command line."""
+import json
+
+import h5py
+import numpy as np
+import pytest
+
+from flightsw.budget import ADSP2100, DSP, IP1750, PACE1750A, TP1750, Processor
+from hil_harness.cli import main
+from hil_harness.event import SKIP_DROPPED, SKIP_OVERRUN, Event, EventConfig, run_event
+from hil_harness.event_io import replay
+
+
+@pytest.fixture(scope="module")
+def sat(tmp_path_factory):
+    out = tmp_path_factory.mktemp("sat")
+    s = run_event("satellite_over_stars", frames=80, out=out, figures=True)
+    return out, s
+
+
+def test_satellite_locks_and_tracks_within_a_processed_pixel(sat):
+    _, s = sat
+    print(f"\n[event] satellite: lock frame {s['lock_frame']}, decision {s['decision']}, "
+          f"error {s['track_error_urad']}, host {s['host']['median_frame_us']:.0f} us/frame")
+    # the TP verifies the object with the star/object rules: synthetic streams decide in a median
+    # 4 frames (tests/test_tp.py); here the gates start from a cold window with stars around the
+    # target, so allow 30 frames (15 s of a 90 s pass)
+    assert s["lock_frame"] is not None and s["lock_frame"] <= 30
+    assert s["decision"]["correct"] is True
+    assert s["locked_fraction_after_lock"] > 0.95
+    pix = s["processed_pixel_urad"]["wfov_vis"]               # compaction 2: ~1780 urad
+    te = s["track_error_urad"]
+    assert te["n"] >= 40
+    assert te["p997"] < pix                                  # issue 8's bound
+    assert te["median"] < 0.25 * pix
+    assert s["budget"]["overruns"] == 0
+    assert s["budget"][DSP]["worst_ms"] < 500 and s["budget"][IP1750]["worst_ms"] < 500
+
+
+def test_recording_figures_and_summary_written(sat):
+    out, s = sat
+    assert json.loads((out / "summary.json").read_text())["lock_frame"] == s["lock_frame"]
+    for name in ("stages.png", "centroid_track.png", "track_error.png", "gates.png", "budget.png",
+                 "event.gif"):
+        assert (out / name).stat().st_size > 1000, name
+    assert not list(out.glob("*.tmp"))
+    with h5py.File(out / "recording.h5") as f:
+        n = f["tables/frames"].shape[0]
+        assert n == 80 and f["arrays/frames"].shape == (80, 244, 256)
+        assert f["arrays/message_words"].shape[0] == 80 and "host/timing" in f
+        fr = f["tables/frames"][()]
+        # the recorded bus words decode to the recorded candidate counts
+        from flightsw.messages import CandidateMessage
+        k = int(np.flatnonzero(fr["n_candidates"] > 0)[0])
+        msg = CandidateMessage.from_words(f["arrays/message_words"][k][:fr["msg_len"][k]])
+        assert msg.count == fr["n_candidates"][k]
+
+
+def test_replay_is_bit_identical(sat):
+    out, _ = sat
+    r = replay(out / "recording.h5")
+    assert r["identical"], r["mismatches"][:5]
+    assert r["compared"] == 160
+
+
+def test_replay_detects_a_changed_word(sat, tmp_path):
+    import shutil
+    out, _ = sat
+    p = tmp_path / "tampered.h5"
+    shutil.copy(out / "recording.h5", p)
+    with h5py.File(p, "r+") as f:
+        fr = f["tables/frames"][()]
+        k = int(np.flatnonzero(fr["cmd_len"] > 0)[5])
+        f["arrays/command_words"][k, 20] ^= 1
+    r = replay(p)
+    assert not r["identical"] and r["mismatches"][0]["k"] == k
+    assert main(["replay", str(p)]) == 1
+
+
+def _content(path):
+    """Everything in a recording except the host timings."""
+    out = {}
+    with h5py.File(path) as f:
+        def visit(name, obj):
+            if isinstance(obj, h5py.Dataset) and not name.startswith("host"):
+                out[name] = obj[()]
+        f.visititems(visit)
+        out["attrs"] = {k: f.attrs[k] for k in f.attrs}
+    return out
+
+
+def test_same_seed_same_recording(tmp_path):
+    a = run_event("star_rich_slew", frames=24, out=tmp_path / "a", figures=False)
+    b = run_event("star_rich_slew", frames=24, out=tmp_path / "b", figures=False)
+    ca, cb = _content(a["recording"]), _content(b["recording"])
+    assert ca.keys() == cb.keys()
+    for k in ca:
+        if k == "attrs":
+            for ak in ca[k]:
+                if ak != "summary":              # the summary holds host timings
+                    assert ca[k][ak] == cb[k][ak], ak
+        else:
+            assert ca[k].tobytes() == cb[k].tobytes(), k
+    c = run_event("star_rich_slew", seed=99, frames=24, out=tmp_path / "c", figures=False)
+    assert _content(c["recording"])["arrays/frames"].tobytes() != ca["arrays/frames"].tobytes()
+
+
+def test_star_rich_slew_faults_no_false_lock():
+    s = run_event("star_rich_slew")               # dropped frame 25, imager switch at 50 s
+    assert s["frames"] == 121 and s["frames_skipped"]["dropped"] == 1
+    assert s["lock_frame"] is None and s["decision"]["frame"] is None     # no target: nothing locked
+    assert s["switches"] == [{"frame": 100, "t": 50.0, "kind": "imager", "from": "wfov_vis",
+                              "to": "nfov_vis", "reason": "ground command"}]
+
+
+def test_aurora_attitude_gap_and_dropped_frame_tracked():
+    ev = Event(EventConfig("aurora_surge_wfov_uv"))
+    ev.run()
+    from hil_harness.event_io import summarise
+    s = summarise(ev)
+    assert s["attitude_invalid_frames"] == 4                  # gap 30-32 s
+    assert [o.skip for o in ev.outcomes].count(SKIP_DROPPED) == 1
+    gap = [o for o in ev.outcomes if not o.attitude.valid]
+    assert all("attitude_invalid" in o.command.status_names() for o in gap
+               if o.command is not None)
+    assert s["lock_frame"] is not None and s["lock_frame"] <= 10
+    pix = s["processed_pixel_urad"]["wfov_uv"]
+    # target of opportunity: the tracked surge blob's centroid is not the hot spot the truth gives
+    # (the surge is tens of km across); it stays within a few processed pixels of it
+    assert s["track_error_urad"]["median"] < 3 * pix
+    print(f"\n[event] aurora: lock {s['lock_frame']}, error {s['track_error_urad']}")
+
+
+def test_launch_runs_to_the_end():
+    s = run_event("launch_nfov", frames=40)
+    assert s["frames"] == 40 and s["frames_processed"] == 40
+
+
+def test_overrun_skips_the_next_frame():
+    slow = {DSP: Processor("ADSP-2100 @ 0.4 MHz", 0.4e6, ADSP2100.costs), IP1750: PACE1750A,
+            TP1750: PACE1750A}
+    ev = Event(EventConfig("satellite_over_stars", frames=12, processors=slow))
+    ev.run()
+    skips = [o.skip for o in ev.outcomes]
+    # 244,405 DSP cycles at 0.4 MHz = 611 ms > 500 ms: every processed frame overruns, the next is
+    # skipped, so frames alternate
+    assert skips == [0, SKIP_OVERRUN] * 6
+    assert all(o.overrun for o in ev.outcomes if o.skip == 0)
+
+
+def test_event_cli(tmp_path, capsys):
+    assert main(["event", "satellite_over_stars", "--frames", "6", "--out", str(tmp_path / "e"),
+                 "--no-frames", "--no-figures"]) == 0
+    out = capsys.readouterr().out
+    assert "lock frame" in out and "recording:" in out
+    assert main(["replay", str(tmp_path / "e" / "recording.h5")]) == 2       # no frames stored
+    assert "no frames" in capsys.readouterr().err
+    assert main(["event", "no_such_scenario"]) == 2
+    assert "not a shipped scenario" in capsys.readouterr().err
+    assert main(["event", "--frames", "0"]) == 2
+    assert main(["scenarios"]) == 0
+    assert "satellite_over_stars" in capsys.readouterr().out
+
+
+def test_crc_table_matches_bitwise():
+    from flightsw.messages import crc16_ccitt, crc16_ccitt_bytes
+    rng = np.random.default_rng(1)
+    for n in (1, 7, 683):
+        w = rng.integers(0, 1 << 16, n)
+        b = b"".join(bytes((int(x) >> 8, int(x) & 0xFF)) for x in w)
+        assert crc16_ccitt(w) == crc16_ccitt_bytes(b)
+    with pytest.raises(ValueError, match="16-bit"):
+        crc16_ccitt([0x10000])
