@@ -271,10 +271,12 @@ def _plot(path, img, cands, title):
     ax.imshow(img, cmap="gray", vmin=lo, vmax=max(hi, lo + 1), origin="upper",
               extent=(0, W, H, 0), interpolation="nearest")
     for c in cands:
-        r = max(4.0, 2.5 * c["features"]["semimajor"])
+        # marker radius from the blob's semimajor axis, capped so an extended blob (a sunlit limb)
+        # does not hide the picture; the label sits on the marker and is clipped to the axes
+        r = min(max(4.0, 2.5 * c["features"]["semimajor"]), 0.06 * max(H, W))
         ax.add_patch(plt.Circle((c["col"], c["row"]), r, fill=False, color="#ff4040", lw=1.0))
         ax.text(c["col"] + r * 0.8, c["row"] - r * 0.8, str(c["rank"]), color="#ffdd33",
-                fontsize=8, fontweight="bold")
+                fontsize=8, fontweight="bold", clip_on=True)
     ax.set_title(title, fontsize=9)
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)

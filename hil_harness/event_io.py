@@ -34,6 +34,8 @@ from .event import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_O
 from .recording import Recorder, Recording
 
 MAX_COMMAND_WORDS = 128
+#: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
+GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
 
 
@@ -336,7 +338,8 @@ def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
                             title=f"{ev.scenario.name}: emulated flight time per frame"))
     if gif:
         frames, marks = [], []
-        for o in outs:
+        stride = max(1, -(-len(outs) // GIF_MAX_FRAMES))
+        for o in outs[::stride]:
             if o.frame is None:
                 continue
             frames.append(o.frame)
@@ -352,7 +355,8 @@ def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
                 m["truth"] = (tg["row"], tg["col"])
             marks.append(m)
         if frames:
-            paths.append(fig.event_gif(frames, out_dir / "event.gif", marks))
+            paths.append(fig.event_gif(frames, out_dir / "event.gif", marks, fps=4 * stride // 2 or 2,
+                                       scale=1))
     return paths
 
 

@@ -151,12 +151,14 @@ def budget_bars(stage_ms: dict[str, float], path, title: str = "",
     return _save(fig, path)
 
 
-def event_gif(frames, path, marks=None, fps: int = 4, max_frames: int = 240) -> Path:
+def event_gif(frames, path, marks=None, fps: int = 4, max_frames: int = 240, scale: int = 2) -> Path:
     """An animated GIF of the event: frames with candidates, gates and the tracked object marked.
 
     frames : sequence of 2-D uint16 arrays (12-bit).
     marks : per frame a dict with optional keys ``candidates`` (K, 2) [row, col] array,
         ``tracked`` (row, col), ``gate`` (row, col, radius_px), ``truth`` (row, col).
+    scale : int
+        Display pixels per imager pixel (1 keeps the file small).
     """
     from PIL import Image, ImageDraw
 
@@ -170,21 +172,21 @@ def event_gif(frames, path, marks=None, fps: int = 4, max_frames: int = 240) -> 
     pictures = []
     for img, m in zip(stack, marks):
         g = np.clip((img - lo) / (hi - lo) * 255, 0, 255).astype(np.uint8)
-        im = Image.fromarray(g).convert("RGB").resize((img.shape[1] * 2, img.shape[0] * 2),
+        im = Image.fromarray(g).convert("RGB").resize((img.shape[1] * scale, img.shape[0] * scale),
                                                       Image.NEAREST)
         d = ImageDraw.Draw(im)
         for r, c in np.asarray(m.get("candidates", np.zeros((0, 2))), float).reshape(-1, 2):
-            d.rectangle([2 * c - 5, 2 * r - 5, 2 * c + 5, 2 * r + 5], outline=(255, 200, 0))
+            d.rectangle([scale * c - 5, scale * r - 5, scale * c + 5, scale * r + 5], outline=(255, 200, 0))
         if m.get("gate") is not None:
             r, c, rad = m["gate"]
-            d.ellipse([2 * (c - rad), 2 * (r - rad), 2 * (c + rad), 2 * (r + rad)], outline=(0, 160, 255))
+            d.ellipse([scale * (c - rad), scale * (r - rad), scale * (c + rad), scale * (r + rad)], outline=(0, 160, 255))
         if m.get("truth") is not None and np.all(np.isfinite(m["truth"])):
             r, c = m["truth"]
-            d.ellipse([2 * c - 3, 2 * r - 3, 2 * c + 3, 2 * r + 3], outline=(255, 60, 60))
+            d.ellipse([scale * c - 3, scale * r - 3, scale * c + 3, scale * r + 3], outline=(255, 60, 60))
         if m.get("tracked") is not None and np.all(np.isfinite(m["tracked"])):
             r, c = m["tracked"]
-            d.line([2 * c - 9, 2 * r, 2 * c + 9, 2 * r], fill=(0, 255, 0), width=2)
-            d.line([2 * c, 2 * r - 9, 2 * c, 2 * r + 9], fill=(0, 255, 0), width=2)
+            d.line([scale * c - 9, scale * r, scale * c + 9, scale * r], fill=(0, 255, 0), width=2)
+            d.line([scale * c, scale * r - 9, scale * c, scale * r + 9], fill=(0, 255, 0), width=2)
         if m.get("label"):
             d.text((4, 4), str(m["label"]), fill=(255, 255, 255))
         pictures.append(im)
