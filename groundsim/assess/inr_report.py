@@ -125,7 +125,7 @@ def plot_type2(path, marks: dict | None = None) -> Path:
     ax.set_ylabel("threshold type-II probability P*")
     ax.set_title("Threshold type-II error probability to avoid expected failure (eq. 4-1)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
-    if marks:
+    if marks and ax.get_legend_handles_labels()[0]:
         ax.legend(fontsize=7)
     return _save(fig, path)
 
