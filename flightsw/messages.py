@@ -12,6 +12,7 @@ Conventions shared by every message (``shared/DESIGN.md``):
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -124,6 +125,183 @@ def crc16_ccitt_bytes(data: bytes) -> int:
         for _ in range(8):
             crc = ((crc << 1) ^ 0x1021) & 0xFFFF if crc & 0x8000 else (crc << 1) & 0xFFFF
     return crc
+
+
+# -- jitted codec kernels (fast paths of the to_words / from_words methods; anything unusual falls
+#    back to the plain implementations, which validate and raise) ----------------------------------
+from flightsw.arith.m1750_float import _dec32_k, _dec48_k, _enc_k, _norm48_k  # noqa: E402
+
+
+def _is_int_in(v, lo, hi) -> bool:
+    return (not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer))
+            and lo <= v <= hi)
+
+
+_REALS = (float, int, np.floating, np.integer)
+
+
+@njit(cache=True)
+def _cand_encode_k(head, iv, fv, out, table):
+    """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words, ``iv``/``fv``
+    int64/float64 views (k, 15) of the candidates. 1: a label out of range, 2: a non-finite value
+    (nothing useful written), 0: done."""
+    k = iv.shape[0]
+    for i in range(k):
+        if iv[i, 0] < 0 or iv[i, 0] > 0xFFFF:
+            return 1
+    for i in range(k):
+        for j in range(1, 15):
+            if not math.isfinite(fv[i, j]):
+                return 2
+    crc = 0xFFFF
+    n = 0
+    for i in range(15):
+        w = head[i]
+        out[n] = w
+        n += 1
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
+    for i in range(k):
+        w = iv[i, 0]
+        out[n] = w
+        n += 1
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
+        for j in range(1, 15):
+            p = _enc_k(fv[i, j], 23, True)
+            for w in ((p >> 16) & 0xFFFF, p & 0xFFFF):
+                out[n] = w
+                n += 1
+                crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
+                crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
+    out[n] = crc
+    return 0
+
+
+@njit(cache=True)
+def _crc_range(w, n, table):
+    crc = 0xFFFF
+    for i in range(n):
+        x = w[i]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((x >> 8) & 0xFF)) & 0xFF]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (x & 0xFF)) & 0xFF]
+    return crc
+
+
+@njit(cache=True)
+def _cand_decode_k(w, table):
+    """Checks of :meth:`CandidateMessage.from_words` on int64 words ``w``: (status, k, time tag,
+    alpha); status 0 when the message is well formed (else the plain decoder reports it)."""
+    n = w.shape[0]
+    for i in range(n):
+        if w[i] < 0 or w[i] > 0xFFFF:
+            return 1, 0, 0.0, 0.0
+    k = w[14]
+    if w[0] != 0x4950 or k > 23 or w[1] != 15 + 29 * k + 1 or n != 15 + 29 * k + 1:
+        return 2, 0, 0.0, 0.0
+    if _crc_range(w, n - 1, table) != w[n - 1]:
+        return 3, 0, 0.0, 0.0
+    pt = (w[3] << 32) | (w[4] << 16) | w[5]
+    if not _norm48_k(pt):
+        return 4, 0, 0.0, 0.0
+    return 0, k, _dec48_k(pt), _dec32_k((w[11] << 16) | w[12])
+
+
+@njit(cache=True)
+def _cand_fill_k(w, iv, fv):
+    for i in range(iv.shape[0]):
+        b = 15 + 29 * i
+        iv[i, 0] = w[b]
+        for j in range(14):
+            fv[i, 1 + j] = _dec32_k((w[b + 1 + 2 * j] << 16) | w[b + 2 + 2 * j])
+
+
+@njit(cache=True)
+def _group(v, lo, hi):
+    """1 all finite, 0 all NaN, -1 mixed (TrackCommand._present)."""
+    nf = 0
+    nn = 0
+    for i in range(lo, hi):
+        if math.isfinite(v[i]):
+            nf += 1
+        elif v[i] != v[i]:
+            nn += 1
+    if nf == hi - lo:
+        return 1
+    if nn == hi - lo:
+        return 0
+    return -1
+
+
+@njit(cache=True)
+def _track_encode_k(head, v, out, table):
+    """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
+    presence bits), ``v`` float64[17] = q_point, predicted row/col, los_eci, r_est, v_est, sigma_pos,
+    sigma_vel. False when a group is partly present (the plain encoder reports it)."""
+    gp = _group(v, 0, 4)
+    gr = _group(v, 4, 9)
+    ge = _group(v, 9, 17)
+    if gp < 0 or gr < 0 or ge < 0:
+        return False
+    for i in range(13):
+        out[i] = head[i]
+    out[8] = head[8] | (0x02 if gr else 0) | (0x04 if ge else 0) | (0x10 if gp else 0)
+    n = 13
+    for i in range(17):
+        present = gp if i < 4 else (gr if i < 9 else ge)
+        if 9 <= i < 15:
+            p = _enc_k(v[i], 39, True) if present else 0
+            out[n] = (p >> 32) & 0xFFFF
+            out[n + 1] = (p >> 16) & 0xFFFF
+            out[n + 2] = p & 0xFFFF
+            n += 3
+        else:
+            p = _enc_k(v[i], 23, True) if present else 0
+            out[n] = (p >> 16) & 0xFFFF
+            out[n + 1] = p & 0xFFFF
+            n += 2
+    out[53] = 0
+    out[54] = _crc_range(out, 54, table)
+    return True
+
+
+@njit(cache=True)
+def _track_decode_k(w, v, table):
+    """Checks and values of :meth:`TrackCommand.from_words` (int64[55] words): fills ``v`` (as in
+    :func:`_track_encode_k`, NaN when absent); returns (status, time tag), status 0 when well formed."""
+    for i in range(55):
+        if w[i] < 0 or w[i] > 0xFFFF:
+            return 1, 0.0
+    if w[0] != 0x5450 or w[1] != 55:
+        return 2, 0.0
+    if _crc_range(w, 54, table) != w[54]:
+        return 3, 0.0
+    pt = (w[3] << 32) | (w[4] << 16) | w[5]
+    if not _norm48_k(pt):
+        return 4, 0.0
+    flags = w[8]
+    n = 13
+    for i in range(17):
+        if i < 4:
+            present = flags & 0x10
+        elif i < 9:
+            present = flags & 0x02
+        else:
+            present = flags & 0x04
+        if 9 <= i < 15:
+            p = (w[n] << 32) | (w[n + 1] << 16) | w[n + 2]
+            n += 3
+            if present:
+                if not _norm48_k(p):
+                    return 5, 0.0
+                v[i] = _dec48_k(p)
+            else:
+                v[i] = np.nan
+        else:
+            p = (w[n] << 16) | w[n + 1]
+            n += 2
+            v[i] = _dec32_k(p) if present else np.nan
+    return 0, _dec48_k(pt)
 
 
 def _f32_words(x: float) -> tuple[int, int]:
@@ -251,8 +429,44 @@ class CandidateMessage:
         if not (np.isfinite(self.time_tag) and np.isfinite(self.alpha)):
             raise ValueError("CandidateMessage.time_tag and alpha must be finite")
 
+    def _fast_ok(self) -> bool:
+        """The cheap checks of :meth:`_check` that the jitted encoder does not repeat."""
+        c = self.candidates
+        return (_is_int_in(self.frame_count, 0, 0xFFFF) and _is_int_in(self.compaction, 1, 255)
+                and _is_int_in(self.window_row0, -32768, 32767)
+                and _is_int_in(self.window_col0, -32768, 32767)
+                and _is_int_in(self.window_rows, 0, 0xFFFF) and _is_int_in(self.window_cols, 0, 0xFFFF)
+                and _is_int_in(self.record_id, 0, 0xFFFF) and self.imager in IMAGER_CODES
+                and type(c) is np.ndarray and c.dtype == CANDIDATE_DTYPE and c.ndim == 1
+                and len(c) <= MAX_CANDIDATES and isinstance(self.time_tag, _REALS)
+                and isinstance(self.alpha, _REALS)
+                and math.isfinite(self.time_tag) and math.isfinite(self.alpha))
+
     def to_words(self) -> np.ndarray:
         """Encode as 16-bit words (layout in the class docstring) -> uint16 array."""
+        if self._fast_ok():
+            c = np.ascontiguousarray(self.candidates)
+            k = len(c)
+            t = _enc_k(float(self.time_tag), 39, True)
+            a = _enc_k(float(np.float64(self.alpha)), 23, True)
+            head = np.array([CANDIDATE_MSG_ID, CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1,
+                             self.frame_count, (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF, t & 0xFFFF,
+                             (IMAGER_CODES[self.imager] << 8) | self.compaction,
+                             self.window_row0 & 0xFFFF, self.window_col0 & 0xFFFF, self.window_rows,
+                             self.window_cols, (a >> 16) & 0xFFFF, a & 0xFFFF, self.record_id, k],
+                            np.int64)
+            out = np.empty(CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1, np.uint16)
+            if k:
+                iv = c.view(np.int64).reshape(k, 15)
+                fv = c.view(np.float64).reshape(k, 15)
+            else:
+                iv = np.zeros((0, 15), np.int64)
+                fv = np.zeros((0, 15), np.float64)
+            if _cand_encode_k(head, iv, fv, out, _CRC_TABLE) == 0:
+                return out
+        return self._to_words_plain()
+
+    def _to_words_plain(self) -> np.ndarray:
         from flightsw.arith.m1750 import encode32_array, encode48
         self._check()
         c = self.candidates
@@ -279,6 +493,25 @@ class CandidateMessage:
     @classmethod
     def from_words(cls, words) -> "CandidateMessage":
         """Decode :meth:`to_words` output; a wrong id, length or checksum -> ``ValueError``."""
+        w = np.asarray(words)
+        if w.ndim == 1 and w.size >= CANDIDATE_HEADER_WORDS + 1 and w.dtype.kind in "iu":
+            wi = w.astype(np.int64)
+            st, k, t, alpha = _cand_decode_k(wi, _CRC_TABLE)
+            if st == 0 and (wi[6] >> 8) in _IMAGER_BY_CODE:
+                h = wi[:CANDIDATE_HEADER_WORDS].tolist()
+                cand = np.zeros(k, CANDIDATE_DTYPE)
+                if k:
+                    _cand_fill_k(wi, cand.view(np.int64).reshape(k, 15),
+                                 cand.view(np.float64).reshape(k, 15))
+                s16 = lambda v: v - 0x10000 if v & 0x8000 else v  # noqa: E731
+                return cls(frame_count=h[2], time_tag=t, imager=_IMAGER_BY_CODE[h[6] >> 8],
+                           compaction=h[6] & 0xFF, window_row0=s16(h[7]), window_col0=s16(h[8]),
+                           window_rows=h[9], window_cols=h[10], alpha=alpha, record_id=h[13],
+                           candidates=cand)
+        return cls._from_words_plain(w)
+
+    @classmethod
+    def _from_words_plain(cls, words) -> "CandidateMessage":
         w = np.asarray(words)
         if w.ndim != 1 or w.size < CANDIDATE_HEADER_WORDS + 1:
             raise ValueError(f"candidate message: {w.size} words, need at least "
@@ -517,8 +750,51 @@ class TrackCommand:
             return False
         raise ValueError("TrackCommand: a group of values must be all finite or all NaN")
 
+    def _fast_values(self):
+        """float64[17] of the codec's values when every field is of the usual kind and valid for
+        :meth:`_check`, else None (the plain encoder then validates and reports)."""
+        if not (_is_int_in(self.frame_count, 0, 0xFFFF) and _is_int_in(self.status, 0, 0xFFFF)
+                and _is_int_in(self.n_star_gates, 0, 0xFFFF)
+                and _is_int_in(self.n_object_gates, 0, 0xFFFF)
+                and _is_int_in(self.decided_frame, -1, 0xFFFF)
+                and _is_int_in(self.object_index, -1, 0xFFFF)
+                and self.imager in IMAGER_CODES and self.object_type in OBJECT_TYPE_CODES
+                and self.mode in ("dedicated", "opportunity")
+                and isinstance(self.time_tag, _REALS) and math.isfinite(self.time_tag)):
+            return None
+        v = np.empty(17)
+        for name, lo, n in (("q_point", 0, 4), ("los_eci", 6, 3), ("r_est", 9, 3), ("v_est", 12, 3)):
+            a = getattr(self, name)
+            if type(a) is not np.ndarray or a.shape != (n,) or a.dtype.kind != "f":
+                return None
+            v[lo:lo + n] = a
+        for name, i in (("predicted_row", 4), ("predicted_col", 5), ("sigma_pos", 15),
+                        ("sigma_vel", 16)):
+            x = getattr(self, name)
+            if not isinstance(x, _REALS) or isinstance(x, (bool, np.bool_)):
+                return None
+            v[i] = x
+        return v
+
     def to_words(self) -> np.ndarray:
         """Encode as 55 uint16 words (layout in the class docstring), CRC last."""
+        v = self._fast_values()
+        if v is not None:
+            t = _enc_k(float(self.time_tag), 39, True)
+            flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_DECIDED if self.decided_frame >= 0 else 0)
+                     | (_TCF_OPP if self.mode == "opportunity" else 0)
+                     | (_TCF_OBJIDX if self.object_index >= 0 else 0))
+            head = np.array([TRACK_MSG_ID, TRACK_WORDS, int(self.frame_count), (t >> 32) & 0xFFFF,
+                             (t >> 16) & 0xFFFF, t & 0xFFFF,
+                             (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
+                             int(self.status), flags, int(self.n_star_gates), int(self.n_object_gates),
+                             max(int(self.decided_frame), 0), max(int(self.object_index), 0)], np.int64)
+            out = np.empty(TRACK_WORDS, np.uint16)
+            if _track_encode_k(head, v, out, _CRC_TABLE):
+                return out
+        return self._to_words_plain()
+
+    def _to_words_plain(self) -> np.ndarray:
         from flightsw.arith.m1750 import encode32_array, encode48
         self._check()
         has_pt = self._present(self.q_point)
@@ -559,6 +835,28 @@ class TrackCommand:
     @classmethod
     def from_words(cls, words) -> "TrackCommand":
         """Decode :meth:`to_words` output; wrong id, length, checksum or codes -> ``ValueError``."""
+        w = np.asarray(words)
+        if w.ndim == 1 and w.size == TRACK_WORDS and w.dtype.kind in "iu":
+            wi = w.astype(np.int64)
+            v = np.empty(17)
+            st, t = _track_decode_k(wi, v, _CRC_TABLE)
+            code, otype = int(wi[6]) >> 8, int(wi[6]) & 0xFF
+            if st == 0 and code in _IMAGER_BY_CODE and otype in _OBJECT_TYPE_BY_CODE:
+                h = wi[:13].tolist()
+                flags = h[8]
+                return cls(frame_count=h[2], time_tag=t, q_point=v[0:4].copy(),
+                           predicted_row=float(v[4]), predicted_col=float(v[5]),
+                           imager=_IMAGER_BY_CODE[code], object_type=_OBJECT_TYPE_BY_CODE[otype],
+                           locked=bool(flags & _TCF_LOCKED), status=h[7], n_star_gates=h[9],
+                           n_object_gates=h[10], decided_frame=h[11] if flags & _TCF_DECIDED else -1,
+                           object_index=h[12] if flags & _TCF_OBJIDX else -1,
+                           mode="opportunity" if flags & _TCF_OPP else "dedicated",
+                           los_eci=v[6:9].copy(), r_est=v[9:12].copy(), v_est=v[12:15].copy(),
+                           sigma_pos=float(v[15]), sigma_vel=float(v[16]))
+        return cls._from_words_plain(w)
+
+    @classmethod
+    def _from_words_plain(cls, words) -> "TrackCommand":
         from flightsw.arith.m1750 import decode32_array, decode48
         w = np.asarray(words)
         if w.ndim != 1 or w.size != TRACK_WORDS:

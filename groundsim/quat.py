@@ -10,8 +10,20 @@ import math
 import numpy as np
 
 
+def _is_f64(v):
+    return type(v) is np.ndarray and v.dtype == np.float64 and v.ndim == 1
+
+
+def _f64_items(v):
+    """Python floats of a float64 ndarray (the same IEEE double arithmetic as numpy's float64
+    scalars, without their overhead); anything else unchanged."""
+    return v.tolist() if _is_f64(v) else v
+
+
 def q_mul(a, b):
     """Hamilton product ``a * b`` (apply b first, then a)."""
+    if _is_f64(a) and _is_f64(b):       # Python floats: the same IEEE double arithmetic, faster
+        a, b = a.tolist(), b.tolist()
     aw, ax, ay, az = a
     bw, bx, by, bz = b
     return np.array([aw * bw - ax * bx - ay * by - az * bz,
@@ -21,7 +33,8 @@ def q_mul(a, b):
 
 
 def q_conj(q):
-    return np.array([q[0], -q[1], -q[2], -q[3]])
+    v = _f64_items(q)
+    return np.array([v[0], -v[1], -v[2], -v[3]])
 
 
 def q_normalize(q):
@@ -35,7 +48,7 @@ def q_normalize(q):
 
 def q_to_dcm(q):
     """3x3 rotation matrix R with ``v_out = R @ v_in``."""
-    w, x, y, z = q
+    w, x, y, z = _f64_items(q)
     return np.array([
         [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
         [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],

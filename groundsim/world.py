@@ -68,6 +68,11 @@ def _epoch_shift(sat, epoch):
     return sat.no_kozai * dt_min
 
 
+def _copy_attitude(a: AttitudeData) -> AttitudeData:
+    return AttitudeData(t=a.t, q_body_to_eci=a.q_body_to_eci.copy(), rate_body=a.rate_body.copy(),
+                        r_eci=a.r_eci.copy(), v_eci=a.v_eci.copy(), valid=a.valid)
+
+
 class World:
     def __init__(self, scenario):
         self.scn = sc = scenario
@@ -100,6 +105,7 @@ class World:
         from .frames import gmst82
         self._theta0 = gmst82(*jd_utc(sc.epoch))
         self._renderers = {}
+        self._att_cache = None
         self.reset()
 
     # -- life cycle ---------------------------------------------------------------------------------
@@ -246,10 +252,23 @@ class World:
 
     # -- outputs --------------------------------------------------------------------------------------
     def attitude_data(self) -> AttitudeData:
+        # a pure function of (t, frame index, true attitude and rate): the closed loop asks twice per
+        # frame (the harness, then render() for the truth); the second gets a copy of the first
+        c = self.ctrl
+        q, w = np.asarray(c.q), np.asarray(c.w)
+        kn = self.knowledge
+        key = (self._t, self._k, q.dtype.str, q.tobytes(), w.dtype.str, w.tobytes(), self.scn.seed,
+               np.asarray(kn.bias, float).tobytes(), kn.noise, kn.rate_noise, kn.position_noise)
+        ac = self._att_cache
+        if (ac is not None and ac[0] == key and ac[2] is kn and ac[3] is self.orbit
+                and ac[4] is self.scn.faults):
+            return _copy_attitude(self._att_cache[1])
         r, v = self.orbit.state(self._t)
         rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([self.scn.seed, self._k, 1])))
-        return self.knowledge.apply(self._t, self.ctrl.q, self.ctrl.w, r, v, rng,
-                                    valid=self.scn.faults.attitude_valid(self._t))
+        a = self.knowledge.apply(self._t, c.q, c.w, r, v, rng,
+                                 valid=self.scn.faults.attitude_valid(self._t))
+        self._att_cache = (key, _copy_attitude(a), kn, self.orbit, self.scn.faults)
+        return a
 
     def _renderer(self, iid):
         r = self._renderers.get(iid)

@@ -605,6 +605,8 @@ def to_signed32(w: int) -> int:
 # encode / decode (ground side)
 # ================================================================================================
 def _encode(x, W, rounding, name):
+    if type(x) is float and (rounding == "nearest" or rounding == "floor") and math.isfinite(x):
+        return int(_enc_k(x, W, rounding == "nearest"))     # fast path, same arithmetic
     if rounding not in ("floor", "nearest"):
         raise ValueError(f"rounding={rounding!r} must be 'floor' or 'nearest'")
     if isinstance(x, (bool, np.bool_)) or not isinstance(x, (Real, np.floating, np.integer)):
@@ -683,30 +685,86 @@ def decode48(p) -> float:
     return math.ldexp(float(m), e - 39)
 
 
+@njit(cache=True)
+def _enc_k(x, W, nearest):
+    """One finite float64 -> packed 1750A word (W = 23: 32-bit, 39: 48-bit); exactly
+    :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding)."""
+    if x == 0.0:
+        return 0
+    f, e = math.frexp(x)
+    v = math.ldexp(f, W)
+    fl = math.floor(v)
+    if nearest:
+        d = v - fl                       # exact (|v| < 2**40)
+        if d > 0.5 or (d == 0.5 and (int(fl) & 1) == 1):
+            fl += 1.0
+    mi = int(fl)
+    top = 1 << W
+    if mi >= top:
+        mi >>= 1
+        e += 1
+    if mi == -(top >> 1):
+        mi = -top
+        e -= 1
+    if mi == 0 or e < -128:
+        return 0
+    if W == 23:
+        if e > 127:
+            return MIN32 if mi < 0 else MAX32
+        return ((mi & 0xFFFFFF) << 8) | (e & 0xFF)
+    if e > 127:
+        return MIN48 if mi < 0 else MAX48
+    return (((mi >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (mi & 0xFFFF)
+
+
+@njit(cache=True)
+def _enc_array_k(x, W, nearest, out):
+    """Encode the flat float64 ``x`` into ``out`` (int64); False (nothing written) if any is not finite."""
+    for i in range(x.shape[0]):
+        if not math.isfinite(x[i]):
+            return False
+    for i in range(x.shape[0]):
+        out[i] = _enc_k(x[i], W, nearest)
+    return True
+
+
+@njit(cache=True)
+def _dec32_k(p):
+    m = (((p >> 8) & 0xFFFFFF) ^ 0x800000) - 0x800000
+    e = ((p & 0xFF) ^ 0x80) - 0x80
+    return math.ldexp(float(m), e - 23)
+
+
+@njit(cache=True)
+def _dec48_k(p):
+    m = (((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000) - 0x8000000000
+    e = (((p >> 16) & 0xFF) ^ 0x80) - 0x80
+    return math.ldexp(float(m), e - 39)
+
+
+@njit(cache=True)
+def _norm48_k(p):
+    """:func:`is_normalized48` of a 48-bit pattern (in range)."""
+    m = (((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)
+    if m == 0:
+        return p == 0
+    return ((m >> 39) ^ (m >> 38)) & 1 == 1
+
+
+@njit(cache=True)
+def _dec_array_k(p, W, out):
+    for i in range(p.shape[0]):
+        out[i] = _dec32_k(p[i]) if W == 23 else _dec48_k(p[i])
+
+
 def _encode_array(x, W, rounding):
     x = np.asarray(x, dtype=np.float64)
-    if not np.all(np.isfinite(x)):
+    flat = np.ascontiguousarray(x).reshape(-1)
+    out = np.empty(flat.shape[0], np.int64)
+    if not _enc_array_k(flat, W, rounding != "floor", out):
         bad = x[~np.isfinite(x)].flat[0]
         raise ValueError(f"encode array: value {bad!r} is not finite")
-    f, e = np.frexp(x)
-    v = np.ldexp(f, W)
-    mi = (np.floor(v) if rounding == "floor" else np.rint(v)).astype(np.int64)
-    e = e.astype(np.int64)
-    top = np.int64(1) << W
-    up = mi >= top
-    mi = np.where(up, mi >> 1, mi)
-    e = np.where(up, e + 1, e)
-    half = mi == -(top >> 1)             # -0.5 -> -1.0
-    mi = np.where(half, -top, mi)
-    e = np.where(half, e - 1, e)
-    if W == 23:
-        p = ((mi & 0xFFFFFF) << 8) | (e & 0xFF)
-        p = np.where(e > 127, np.where(mi < 0, MIN32, MAX32), p)
-    else:
-        p = (((mi >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (mi & 0xFFFF)
-        p = np.where(e > 127, np.where(mi < 0, MIN48, MAX48), p)
-    p = np.where((e < -128) | (mi == 0), 0, p)
-    return p.astype(np.int64)
+    return out.reshape(x.shape)
 
 
 def encode32_array(x, rounding: str = "floor") -> np.ndarray:
@@ -726,17 +784,17 @@ def encode48_array(x, rounding: str = "floor") -> np.ndarray:
 def decode32_array(p) -> np.ndarray:
     """Vectorised :func:`decode32` (no normalisation check) -> float64 array."""
     p = np.asarray(p, dtype=np.int64)
-    m = (((p >> 8) & 0xFFFFFF) ^ 0x800000) - 0x800000
-    e = ((p & 0xFF) ^ 0x80) - 0x80
-    return np.ldexp(m.astype(np.float64), (e - 23).astype(np.int32))
+    out = np.empty(p.shape, np.float64)
+    _dec_array_k(np.ascontiguousarray(p).reshape(-1), 23, out.reshape(-1))
+    return out
 
 
 def decode48_array(p) -> np.ndarray:
     """Vectorised :func:`decode48` (no normalisation check) -> float64 array."""
     p = np.asarray(p, dtype=np.int64)
-    m = (((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000) - 0x8000000000
-    e = (((p >> 16) & 0xFF) ^ 0x80) - 0x80
-    return np.ldexp(m.astype(np.float64), (e - 39).astype(np.int32))
+    out = np.empty(p.shape, np.float64)
+    _dec_array_k(np.ascontiguousarray(p).reshape(-1), 39, out.reshape(-1))
+    return out
 
 
 # ================================================================================================
