@@ -1,5 +1,6 @@
 """RDE speed: Kalman filter + RTS smoother over 10,000 epochs of the paper's 18-state model, ours
-(groundsim.assess.rde, numba) against filterpy's batch_filter + rts_smoother, in the same run.
+(groundsim.assess.rde, numba) against filterpy's batch_filter + rts_smoother and Stone Soup's
+KalmanPredictor/KalmanUpdater + KalmanSmoother, in the same run.
 
 Run: ``.venv/bin/python -m pytest bench/bench_rde.py --benchmark-enable -q``.
 Each epoch carries one control point (a 2-vector cross/along-track dislocation) at a random
@@ -20,6 +21,12 @@ N_EPOCHS = 10_000
 
 @pytest.fixture(scope="module")
 def problem():
+    return make_problem(N_EPOCHS)
+
+
+def make_problem(n_epochs):
+    """The benchmark's linear system: 18-state model, one 2-vector control point per epoch."""
+    N_EPOCHS = n_epochs
     rng = np.random.default_rng(0)
     m = model_18()
     Phi1, Q1 = m.discretise(m.geometry.scene_time / 20)
@@ -62,6 +69,76 @@ def test_rde_filter_smoother_ours(benchmark, problem):
 def test_rde_filter_smoother_filterpy(benchmark, problem):
     xs, _ = benchmark.pedantic(theirs, args=(problem,), rounds=3, iterations=1)
     assert xs.shape == (N_EPOCHS, 18)
+
+
+def stonesoup(p):
+    """The same filter + smoother with Stone Soup's KalmanPredictor/KalmanUpdater/KalmanSmoother
+    (a fixed linear transition model, a per-epoch linear measurement model with the epoch's H)."""
+    from datetime import datetime, timedelta
+
+    from stonesoup.base import Property
+    from stonesoup.models.measurement.linear import LinearGaussian
+    from stonesoup.models.transition.linear import LinearGaussianTransitionModel
+    from stonesoup.predictor.kalman import KalmanPredictor
+    from stonesoup.smoother.kalman import KalmanSmoother
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.state import GaussianState
+    from stonesoup.types.track import Track
+    from stonesoup.updater.kalman import KalmanUpdater
+
+    class Fixed(LinearGaussianTransitionModel):
+        F: np.ndarray = Property(doc="transition matrix")
+        Qm: np.ndarray = Property(doc="process noise")
+
+        @property
+        def ndim_state(self):
+            return self.F.shape[0]
+
+        def matrix(self, **kw):
+            return self.F
+
+        def covar(self, **kw):
+            return self.Qm
+
+    class PerEpoch(LinearGaussian):
+        H: np.ndarray = Property(doc="measurement matrix")
+
+        @property
+        def ndim_meas(self):
+            return self.H.shape[0]
+
+        def matrix(self, **kw):
+            return self.H
+
+    tm = Fixed(F=p["Phi"][0], Qm=p["Q"][0])
+    pred, upd = KalmanPredictor(tm), KalmanUpdater(None)
+    t0 = datetime(2000, 1, 1)
+    prior = GaussianState(p["x0"].reshape(-1, 1), p["P0"], timestamp=t0)
+    track = Track()
+    for k, (H, R, z) in enumerate(zip(p["Hs"], p["Rs"], p["zs"])):
+        t = t0 + timedelta(seconds=k + 1)
+        mm = PerEpoch(ndim_state=18, mapping=tuple(range(18)), noise_covar=R, H=np.asarray(H))
+        pr = pred.predict(prior, timestamp=t)
+        prior = upd.update(SingleHypothesis(pr, Detection(np.asarray(z).reshape(-1, 1), timestamp=t,
+                                                          measurement_model=mm)))
+        track.append(prior)
+    sm = KalmanSmoother(tm).smooth(track)
+    return np.array([s.state_vector.ravel() for s in sm], float)
+
+
+@pytest.mark.benchmark(group=GROUP)
+def test_rde_filter_smoother_stonesoup(benchmark, problem):
+    xs = benchmark.pedantic(stonesoup, args=(problem,), rounds=1, iterations=1)
+    assert xs.shape == (N_EPOCHS, 18)
+
+
+def test_rde_same_answer_as_stonesoup():
+    p = make_problem(300)
+    r, s = ours(p)
+    xs = stonesoup(p)
+    scale = np.sqrt(np.diagonal(s.Ps, axis1=1, axis2=2))
+    assert np.max(np.abs(s.xs - xs) / scale) < 1e-6
 
 
 def test_rde_same_answer_as_filterpy(problem):
