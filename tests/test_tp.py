@@ -225,8 +225,10 @@ class Stream:
     """One synthetic dedicated event (see the module docstring)."""
 
     def __init__(self, seed, mode="track", n_frames=30, p_miss=0.05, n_clutter=2.0, sigma_px=0.2,
-                 n_stars=15.0, rate=(1e-3, 8e-3), range_m=(5e5, 2.5e6), att_noise=5e-6, dt=0.5):
+                 n_stars=15.0, rate=(1e-3, 8e-3), range_m=(5e5, 2.5e6), att_noise=5e-6, dt=0.5,
+                 scale=SCALE):
         rng = self.rng = np.random.default_rng(seed)
+        self.scale = scale
         self.n_frames, self.dt, self.mode = n_frames, dt, mode
         self.p_miss, self.n_clutter, self.sigma = p_miss, n_clutter, sigma_px
         t = self.t = np.arange(n_frames) * dt
@@ -257,7 +259,7 @@ class Stream:
         self.nominal = NominalTrajectory(0.0, x0[:3] + rng.normal(0, 200.0, 3), x0[3:] + rng.normal(0, 0.2, 3))
         # attitude: boresight on the target (track) or on its first position (stare), the target
         # offset in the field by up to 40 px
-        off = rng.uniform(-40, 40, 2) * SCALE
+        off = rng.uniform(-40, 40, 2) * scale
         Roff = _pointing(np.array([[1.0, -off[0], -off[1]]]), np.array([[0.0, 0.0, 1.0]]))[0]
         h = 1e-3
         if mode == "track":
@@ -280,7 +282,7 @@ class Stream:
         b0, b1 = self.R[0][:, 0], self.R[-1][:, 0]
         axis = _unit(b0 + b1)
         half = math.radians(9.5) + math.acos(min(1.0, b0 @ b1)) / 2
-        n_cone = rng.poisson(n_stars * 2 * math.pi * (1 - math.cos(half)) / (256 * 244 * SCALE ** 2))
+        n_cone = rng.poisson(n_stars * 2 * math.pi * (1 - math.cos(half)) / (256 * 244 * scale ** 2))
         cz = rng.uniform(math.cos(half), 1.0, n_cone)
         ph = rng.uniform(0, 2 * math.pi, n_cone)
         a = _unit(np.cross(axis, [0.0, 0.0, 1.0]))
@@ -291,8 +293,8 @@ class Stream:
     def project(self, k, vecs):
         v = vecs @ self.R[k]
         with np.errstate(divide="ignore", invalid="ignore"):
-            col = v[:, 1] / v[:, 0] / SCALE + 128.0
-            row = v[:, 2] / v[:, 0] / SCALE + 122.0
+            col = v[:, 1] / v[:, 0] / self.scale + 128.0
+            row = v[:, 2] / v[:, 0] / self.scale + 122.0
         return row, col, (v[:, 0] > 0) & (col >= 0) & (col < 256) & (row >= 0) & (row < 244)
 
     def truth_pixel(self, k):
@@ -324,7 +326,8 @@ class Stream:
         return msg, att, lab[order]
 
     def processor(self, **kw):
-        cfg = dict(imagers={"wfov_vis": GEOM}, nominal=self.nominal, j2=False, object_type="satellite")
+        geom = GEOM if self.scale == SCALE else ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), self.scale, self.scale)
+        cfg = dict(imagers={"wfov_vis": geom}, nominal=self.nominal, j2=False, object_type="satellite")
         cfg.update(kw)
         return TrackProcessor(TPConfig(**cfg))
 
@@ -423,6 +426,40 @@ def test_rules_one_to_four_and_reinitialisation_on_controlled_streams():
     assert tp.snapshot()["object_pair"] >= 0 and lab[keep].size == msg.count
     assert cmd.status & TC_NEW_DECISION and s.truth_pixel(k) == pytest.approx(
         (cmd.predicted_row, cmd.predicted_col), abs=3.0)
+
+
+def test_launch_like_stream_without_stars_at_a_fast_stepwise_slew_decides_the_object():
+    # launch_nfov: narrow field (101 urad/px), no stars, the attitude follows the object at ~5 mrad/s
+    # (~25 px per frame) so the object stays put in the image, the nominal a few px off; the
+    # controller, commanded once per frame, slews faster just after each command than at the frame
+    # time, so the sampled body rate is ~20 % below the rate implied by successive attitudes. The
+    # gates must be propagated with the attitude change: with the sampled rate the object gate
+    # drifts ~5 px per frame away from the object and the pair is never decided.
+    nfov = 2 * math.tan(math.radians(1.5) / 2) / 256
+    decided = []
+    for seed in range(300, 310):
+        s = Stream(seed, "track", n_frames=16, p_miss=0.0, n_clutter=0.0, n_stars=0.0,
+                   rate=(4e-3, 5e-3), range_m=(6e5, 1.2e6), scale=nfov)
+        los = _unit(s.r_t[0] - s.r_sc[0])
+        perp = _unit(np.cross(los, [0.0, 0.0, 1.0]))
+        dist = np.linalg.norm(s.r_t[0] - s.r_sc[0])
+        s.nominal = NominalTrajectory(0.0, s.nominal.r0_eci + 6.0 * nfov * dist * perp, s.nominal.v0_eci)
+        tp = s.processor()
+        k_dec = None
+        for k in range(s.n_frames):
+            msg, att, lab = s.frame(k)
+            assert msg.count == 1 and lab[0] == 1
+            att.rate_body = 0.8 * att.rate_body          # sampled mid-sawtooth
+            cmd = tp.step(msg, att)
+            assert not cmd.status & TC_INTERNAL_ERROR, tp.last_error
+            if cmd.status & TC_NEW_DECISION:
+                assert cmd.object_index == 0 and cmd.locked
+                k_dec = k
+                break
+        decided.append(k_dec)
+        snap = tp.snapshot()
+        assert k_dec is not None and k_dec <= 6, (seed, decided, snap["n_reinit"], snap["rule_counts"])
+        assert snap["n_reinit"] == 1 and snap["decision_rule"] in (1, 3)
 
 
 # ================================================================================================

@@ -16,10 +16,15 @@ observation(s) inside the gate using an alpha-beta tracker, and the squared diff
 residuals between the observation and the gate center are accumulated."*
 
 * Gate position = body tangent coordinates ``(a, b)`` (:mod:`flightsw.tp.geometry`).
-* Star gate prediction: the body rotates by ``theta = w dt`` (``w`` the mean of this and the last
-  frame's body rate), an inertially fixed direction moves by ``dR = exp(-[theta]x) ~ I - [theta]x +
-  [theta]x^2 / 2`` (third-order error ``|theta|^3/6``, 2e-8 rad at 10 mrad/s): ``(a, b) <-
-  T(dR (1, a, b))``, ``T(v) = (v_y/v_x, v_z/v_x)``.
+* Star gate prediction: an inertially fixed direction moves in body axes by the attitude change
+  since the last frame, ``dR = R_t^T R_prev = DCM(q_t* (x) q_prev)`` (the previous attitude measured,
+  or coasted on its rate): ``(a, b) <- T(dR (1, a, b))``, ``T(v) = (v_y/v_x, v_z/v_x)``. The body
+  rate sampled at the frame times is not the interval's mean rate when the attitude controller's
+  rate varies within the frame (a slew commanded once per frame: on ``launch_nfov`` the sampled rate
+  is ~20 % below the mean, 5 NFOV px per frame, which pushed the plume out of its object gate every
+  frame and no pair was ever decided). Without a previous attitude: ``theta = w dt`` (``w`` the mean
+  of this and the last frame's body rate), ``dR = exp(-[theta]x) ~ I - [theta]x + [theta]x^2 / 2``
+  (third-order error ``|theta|^3/6``, 2e-8 rad at 10 mrad/s).
 * Object gate prediction: the star prediction plus the a priori object motion: the change of the
   nominal line of sight in body tangent coordinates, ``T(R^T l_nom(t)) - T(R^T l_nom(t_prev))``
   (``R`` the attitude at t); for the verified object with the EKF running, the EKF's line of sight.
@@ -85,7 +90,8 @@ Outputs
 The target line of sight for the next frame (``t + frame_dt``): the EKF's (else the nominal's)
 ``r + v T`` from the spacecraft's ``r_sc + v_sc T``, or the opportunity track's ``x + v T``; in the
 current body frame ``u``. Predicted pixel: ``u`` turned by the attitude motion over ``T`` at the
-measured rate, through the imager. Pointing: ``q_point = q (x) d``, ``d`` the minimal rotation
+last interval's mean rate (the skew part of ``dR`` over dt; the measured rate when there is no
+previous attitude), through the imager. Pointing: ``q_point = q (x) d``, ``d`` the minimal rotation
 taking +X to ``u`` (``d = normalise(1 + u_x, 0, -u_z, u_y)``).
 
 Inputs are checked in 1750A arithmetic: the attitude is "out of range" when ``| |q|^2 - 1 | >
@@ -180,7 +186,10 @@ _PI_FLAGS = 0x8000 >> 3 | 0x8000 >> 4 | 0x8000 >> 6 | FLAG_DOMAIN   # arithmetic
 
 # ---- cycle costs of the blocks (PACE1750A clocks) ------------------------------------------------
 DR_MIX = {"FM": 15, "FA": 6, "FS": 6, "ST": 9}
-CYC_INPUT = cycles(mix(QNORM_MIX, mix(DOT3_MIX, times=3), QDCM_MIX, DR_MIX,
+CYC_DR = cycles(DR_MIX)
+CYC_DQ = cycles(mix(QMUL_MIX, QDCM_MIX, {"FS": 3}))
+CYC_PRATE = cycles({"FD": 1, "FS": 3, "FM": 3, "ST": 3})
+CYC_INPUT = cycles(mix(QNORM_MIX, mix(DOT3_MIX, times=3), QDCM_MIX,
                        {"FC": 6, "EFS": 2, "EFC": 2, "JC": 10, "DL": 14, "DST": 14, "FA": 3, "FM": 3}))
 CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 CYC_LOS_DELTA = cycles(mix({"EFS": 3, "DL": 3}, UNIT3_MIX, MV3_MIX, MV3_MIX,
@@ -403,6 +412,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
             if fc48(sk, C[C_MAX_SKEW]) > 0:
                 att_ok = False
     cyc[ST_INPUT] += CYC_INPUT
+    had_att = S[S_HAVE_ATT] != 0 and have_prev        # last frame's attitude (measured or coasted)
     wm0 = w0
     wm1 = w1
     wm2 = w2
@@ -452,7 +462,18 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
             S[S_STATUS] = status
             return status
     fl |= qdcm(q0, q1, q2, q3, RM)
-    fl |= make_dR(wm0, wm1, wm2, dt, dR)
+    if had_att:
+        # the attitude change since the last frame, R_t^T R_prev = DCM(q_t* (x) q_prev): the
+        # body rate sampled at the frame times is not the interval's mean rate when the
+        # controller's rate varies within the frame (a stepwise-commanded slew: 20 % low on the
+        # launch, i.e. 5 px per frame in the narrow field)
+        e0, e1, e2, e3, g = qmul(q0, _neg32(q1), _neg32(q2), _neg32(q3),
+                                 S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3]); fl |= g
+        fl |= qdcm(e0, e1, e2, e3, dR)
+        cyc[ST_INPUT] += CYC_DQ
+    else:
+        fl |= make_dR(wm0, wm1, wm2, dt, dR)
+        cyc[ST_INPUT] += CYC_DR
     evidence = ok_msg and att_ok
     # ---------------------------------------------------------------------- geometry
     nuse = 0
@@ -917,8 +938,21 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
     have_q = False
     qp0 = qp1 = qp2 = qp3 = 0
     if have_u:
-        # predicted pixel: u turned by the attitude motion over T at the current rate
-        fl |= make_dR(w0, w1, w2, to32(T), wk[64:73])
+        # predicted pixel: u turned by the attitude motion over T at the last interval's mean
+        # rate (from the attitude change; the sampled rate when there is none)
+        pw0, pw1, pw2 = w0, w1, w2
+        if had_att and dt != 0 and not long_gap:
+            # the mean rate of the last interval (from the attitude change) rather than the rate
+            # sampled at the frame time
+            idt, g = fd32(_HALF32, dt); fl |= g
+            p, g = fs32(dR[5], dR[7]); fl |= g
+            pw0, g = fm32(p, idt); fl |= g
+            p, g = fs32(dR[6], dR[2]); fl |= g
+            pw1, g = fm32(p, idt); fl |= g
+            p, g = fs32(dR[1], dR[3]); fl |= g
+            pw2, g = fm32(p, idt); fl |= g
+            cyc[ST_CMD] += CYC_PRATE
+        fl |= make_dR(pw0, pw1, pw2, to32(T), wk[64:73])
         n0, n1, n2_, g = _mv(wk[64:73], u0, u1, u2); fl |= g
         prow, pcol, have_pix, g = vec_to_pix(img, n0, n1, n2_); fl |= g
         # pointing: q (x) d, d = normalise(1 + u_x, 0, -u_z, u_y)
