@@ -181,3 +181,15 @@ def test_crc_table_matches_bitwise():
         assert crc16_ccitt(w) == crc16_ccitt_bytes(b)
     with pytest.raises(ValueError, match="16-bit"):
         crc16_ccitt([0x10000])
+
+
+def test_handover_to_the_narrow_field_keeps_the_lock():
+    from hil_harness.selection import SelectionParams
+    s = run_event("satellite_over_stars", frames=60,
+                  selection=SelectionParams(handover=True, handover_lock_frames=10))
+    sw = s["switches"]
+    assert len(sw) == 1 and sw[0]["to"] == "nfov_vis" and "locked 10 frames" in sw[0]["reason"]
+    assert sw[0]["frame"] >= s["lock_frame"] + 9
+    assert s["locked_fraction_after_lock"] == 1.0
+    # after the hand-over the error is measured in narrow-field pixels (~110 urad)
+    assert s["track_error_urad"]["median"] < 110
