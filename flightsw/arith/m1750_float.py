@@ -686,11 +686,10 @@ def decode48(p) -> float:
 
 
 @njit(cache=True)
-def _enc_k(x, W, nearest):
-    """One finite float64 -> packed 1750A word (W = 23: 32-bit, 39: 48-bit); exactly
-    :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding)."""
-    if x == 0.0:
-        return 0
+def enc_mantissa(x, W, nearest):
+    """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
+    32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.
+    The one normalisation every jitted encoder uses (:func:`_enc_k`, ``flightsw.tp.f1750.enc32``)."""
     f, e = math.frexp(x)
     v = math.ldexp(f, W)
     fl = math.floor(v)
@@ -706,6 +705,16 @@ def _enc_k(x, W, nearest):
     if mi == -(top >> 1):
         mi = -top
         e -= 1
+    return mi, e
+
+
+@njit(cache=True)
+def _enc_k(x, W, nearest):
+    """One finite float64 -> packed 1750A word (W = 23: 32-bit, 39: 48-bit); exactly
+    :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding)."""
+    if x == 0.0:
+        return 0
+    mi, e = enc_mantissa(x, W, nearest)
     if mi == 0 or e < -128:
         return 0
     if W == 23:
@@ -730,15 +739,15 @@ def _enc_array_k(x, W, nearest, out):
 
 @njit(cache=True)
 def _dec32_k(p):
-    m = (((p >> 8) & 0xFFFFFF) ^ 0x800000) - 0x800000
-    e = ((p & 0xFF) ^ 0x80) - 0x80
+    """Packed 32-bit float -> float64 (exact), in jitted code."""
+    m, e = unpack32(p)
     return math.ldexp(float(m), e - 23)
 
 
 @njit(cache=True)
 def _dec48_k(p):
-    m = (((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000) - 0x8000000000
-    e = (((p >> 16) & 0xFF) ^ 0x80) - 0x80
+    """Packed 48-bit float -> float64 (exact), in jitted code."""
+    m, e = unpack48(p)
     return math.ldexp(float(m), e - 39)
 
 

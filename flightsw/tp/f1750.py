@@ -19,8 +19,9 @@ from numba import njit
 
 from flightsw.arith.m1750 import (
     FLAG_DOMAIN, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48, MIN32, MIN48,
-    fa32, fd32, fm32, fs32, pack32, pack48, sqrt32, unpack32, unpack48,
+    fa32, fd32, fm32, fs32, pack32, pack48, sqrt32,
 )
+from flightsw.arith.m1750_float import _dec32_k, _dec48_k, enc_mantissa
 from flightsw.arith.m1750_math import MATH_OP_MIX
 from flightsw.budget import m1750_cycles
 
@@ -53,29 +54,12 @@ def cycles(m: dict) -> int:
 # boundary: host float64 <-> packed words (nearest, ties to even; as encode32/48(rounding="nearest"))
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True)
-def _round_even(v):
-    f = math.floor(v)
-    d = v - f
-    if d > 0.5 or (d == 0.5 and (int(f) & 1) == 1):
-        f += 1.0
-    return int(f)
-
-
-@njit(cache=True)
 def _enc(x, W):
     if not math.isfinite(x):
         return 0, FLAG_DOMAIN
     if x == 0.0:
         return 0, 0
-    f, e = math.frexp(x)
-    mi = _round_even(math.ldexp(f, W))
-    top = 1 << W
-    if mi >= top:
-        mi >>= 1
-        e += 1
-    if mi == -(top >> 1):
-        mi = -top
-        e -= 1
+    mi, e = enc_mantissa(x, W, True)
     if e > 127:
         if W == 23:
             return (MIN32 if mi < 0 else MAX32), FLAG_FLOAT_OVERFLOW
@@ -99,18 +83,10 @@ def enc48(x):
     return _enc(x, 39)
 
 
-@njit(cache=True)
-def dec32(p):
-    """Packed 32-bit float -> float64 (exact)."""
-    m, e = unpack32(p)
-    return math.ldexp(float(m), e - 23)
+dec32 = _dec32_k          # packed 32-bit float -> float64 (exact)
 
 
-@njit(cache=True)
-def dec48(p):
-    """Packed 48-bit float -> float64 (exact)."""
-    m, e = unpack48(p)
-    return math.ldexp(float(m), e - 39)
+dec48 = _dec48_k          # packed 48-bit float -> float64 (exact)
 
 
 # ------------------------------------------------------------------------------------------------
