@@ -527,6 +527,23 @@ def _divide_unsigned_ov(hi, lo, divisor):
 # array kernels: the multiply-accumulate loops of the image processor
 # --------------------------------------------------------------------------------------------
 @njit(cache=True)
+def block_bitlen(img):
+    """Bit length of the largest-magnitude 16-bit word of ``img`` (``x`` for x >= 0, ``~x`` for
+    x < 0): the block exponent an EXPADJ pass over the block yields, as a count of significant
+    bits (0..15). ``img``: integer array, any shape, values in 16-bit range."""
+    f = img.ravel()
+    m = np.int32(0)
+    for i in range(f.size):
+        a = np.int32(f[i])
+        m |= a ^ (a >> np.int32(15))
+    bl = 0
+    while m > 0:
+        bl += 1
+        m >>= 1
+    return bl
+
+
+@njit(cache=True)
 def finish_mr(acc, rnd, sat):
     """Store step of a MAC loop: the 40-bit accumulation ``acc`` (signed int) -> the word MR1 holds
     after ``(RND)`` on the last MAC and ``IF MV SAT MR``. Returns a signed 16-bit value."""

@@ -77,6 +77,7 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.ip.filters import gaussian_taps_q15
 
 __all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
@@ -90,25 +91,11 @@ G_MAX = 8          # cap of the block headroom used by the high-pass intermediat
 # ---------------------------------------------------------------------------------------------
 # high-pass
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
-def _bitlen_or(img):
-    """Bit length of the largest magnitude word (``x`` for x >= 0, ``~x`` for x < 0): EXPADJ."""
-    f = img.ravel()
-    m = np.int32(0)
-    for i in range(f.size):
-        a = np.int32(f[i])
-        m |= a ^ (a >> np.int32(15))
-    bl = 0
-    while m > 0:
-        bl += 1
-        m >>= 1
-    return bl
-
 
 @njit(cache=True)
 def _headroom(img, gmax):
     """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``."""
-    return min(15 - _bitlen_or(img), gmax)
+    return min(15 - block_bitlen(img), gmax)
 
 
 @njit(cache=True)
@@ -327,7 +314,7 @@ def polynomial_basis(h, w):
 
 @njit(cache=True)
 def _block_shift(img):
-    return max(0, _bitlen_or(img) - 12)
+    return max(0, block_bitlen(img) - 12)
 
 
 @njit(cache=True)

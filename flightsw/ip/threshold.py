@@ -40,6 +40,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from numba import njit
 
+from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.budget import m1750_cycles
 
 __all__ = ["threshold", "threshold_stats", "threshold_cycles", "threshold_bound", "isqrt32",
@@ -81,15 +82,7 @@ def isqrt32(v):
 @njit(cache=True)
 def _stats_k(img):
     f = img.ravel()
-    m = np.int32(0)
-    for i in range(f.size):
-        a = np.int32(f[i])
-        m |= a ^ (a >> np.int32(15))
-    bl = 0
-    while m > 0:
-        bl += 1
-        m >>= 1
-    s = max(0, bl - 12)
+    s = max(0, block_bitlen(img) - 12)
     s1 = np.int64(0)
     s2 = np.int64(0)
     if s == 0:
