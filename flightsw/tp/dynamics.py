@@ -251,6 +251,27 @@ def grav_gradient_h(D, r0, r1, r2, h):
 
 
 @njit(cache=True)
+def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
+    """One RK4 intermediate state ``(r + c k_r, v + c k_v)``: position in 48-bit (``c`` packed
+    48-bit, ``k`` the previous stage's velocity), velocity increment ``c32 * a`` formed in 32-bit
+    and added in 48-bit -> (s0, s1, s2, w0, w1, w2, flags)."""
+    f = 0
+    p, g = fm48(c, k0); f |= g
+    s0, g = fa48(r0, p); f |= g
+    p, g = fm48(c, k1); f |= g
+    s1, g = fa48(r1, p); f |= g
+    p, g = fm48(c, k2); f |= g
+    s2, g = fa48(r2, p); f |= g
+    q, g = fm32(c32, a0); f |= g
+    w0, g = fa48(v0, to48(q)); f |= g
+    q, g = fm32(c32, a1); f |= g
+    w1, g = fa48(v1, to48(q)); f |= g
+    q, g = fm32(c32, a2); f |= g
+    w2, g = fa48(v2, to48(q)); f |= g
+    return s0, s1, s2, w0, w1, w2, f
+
+
+@njit(cache=True)
 def rk4_step(D, X, o, t, h):
     """One classical RK4 step of ``h`` (packed 48-bit, s) from time ``t`` (packed 48-bit) of the
     state ``X[o:o+6]`` (r, v; packed 48-bit), in place -> flags."""
@@ -269,47 +290,15 @@ def rk4_step(D, X, o, t, h):
     v0, v1, v2 = X[o + 3], X[o + 4], X[o + 5]
     # stage 1
     a10, a11, a12, g = accel(D, to32(r0), to32(r1), to32(r2), tau1); f |= g
-    # stage 2: y + h/2 k1
-    p, g = fm48(h2, v0); f |= g
-    s0, g = fa48(r0, p); f |= g
-    p, g = fm48(h2, v1); f |= g
-    s1, g = fa48(r1, p); f |= g
-    p, g = fm48(h2, v2); f |= g
-    s2, g = fa48(r2, p); f |= g
-    q, g = fm32(h2s, a10); f |= g
-    w20, g = fa48(v0, to48(q)); f |= g
-    q, g = fm32(h2s, a11); f |= g
-    w21, g = fa48(v1, to48(q)); f |= g
-    q, g = fm32(h2s, a12); f |= g
-    w22, g = fa48(v2, to48(q)); f |= g
+    # stages 2-4: y + h/2 k1, y + h/2 k2, y + h k3
+    s0, s1, s2, w20, w21, w22, g = _stage(r0, r1, r2, v0, v1, v2, h2, h2s, v0, v1, v2,
+                                          a10, a11, a12); f |= g
     a20, a21, a22, g = accel(D, to32(s0), to32(s1), to32(s2), tau2); f |= g
-    # stage 3: y + h/2 k2
-    p, g = fm48(h2, w20); f |= g
-    s0, g = fa48(r0, p); f |= g
-    p, g = fm48(h2, w21); f |= g
-    s1, g = fa48(r1, p); f |= g
-    p, g = fm48(h2, w22); f |= g
-    s2, g = fa48(r2, p); f |= g
-    q, g = fm32(h2s, a20); f |= g
-    w30, g = fa48(v0, to48(q)); f |= g
-    q, g = fm32(h2s, a21); f |= g
-    w31, g = fa48(v1, to48(q)); f |= g
-    q, g = fm32(h2s, a22); f |= g
-    w32, g = fa48(v2, to48(q)); f |= g
+    s0, s1, s2, w30, w31, w32, g = _stage(r0, r1, r2, v0, v1, v2, h2, h2s, w20, w21, w22,
+                                          a20, a21, a22); f |= g
     a30, a31, a32, g = accel(D, to32(s0), to32(s1), to32(s2), tau2); f |= g
-    # stage 4: y + h k3
-    p, g = fm48(h, w30); f |= g
-    s0, g = fa48(r0, p); f |= g
-    p, g = fm48(h, w31); f |= g
-    s1, g = fa48(r1, p); f |= g
-    p, g = fm48(h, w32); f |= g
-    s2, g = fa48(r2, p); f |= g
-    q, g = fm32(hs, a30); f |= g
-    w40, g = fa48(v0, to48(q)); f |= g
-    q, g = fm32(hs, a31); f |= g
-    w41, g = fa48(v1, to48(q)); f |= g
-    q, g = fm32(hs, a32); f |= g
-    w42, g = fa48(v2, to48(q)); f |= g
+    s0, s1, s2, w40, w41, w42, g = _stage(r0, r1, r2, v0, v1, v2, h, hs, w30, w31, w32,
+                                          a30, a31, a32); f |= g
     a40, a41, a42, g = accel(D, to32(s0), to32(s1), to32(s2), tau4); f |= g
     # combination: r += h/6 (v + 2 w2 + 2 w3 + w4), v += h/6 (a1 + 2 a2 + 2 a3 + a4)
     for i in range(3):
