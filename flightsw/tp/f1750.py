@@ -129,6 +129,26 @@ def mtv3(R, x0, x1, x2):
 
 
 @njit(cache=True)
+def mv1ab(R, a, b):
+    """R @ (1, a, b) for R int64[9] row-major (no multiply by the leading 1): v_i = R[i,0] +
+    R[i,1] a + R[i,2] b -> (v0, v1, v2, flags)."""
+    f = 0
+    p, g = fm32(R[1], a); f |= g
+    v0, g = fa32(R[0], p); f |= g
+    p, g = fm32(R[2], b); f |= g
+    v0, g = fa32(v0, p); f |= g
+    p, g = fm32(R[4], a); f |= g
+    v1, g = fa32(R[3], p); f |= g
+    p, g = fm32(R[5], b); f |= g
+    v1, g = fa32(v1, p); f |= g
+    p, g = fm32(R[7], a); f |= g
+    v2, g = fa32(R[6], p); f |= g
+    p, g = fm32(R[8], b); f |= g
+    v2, g = fa32(v2, p); f |= g
+    return v0, v1, v2, f
+
+
+@njit(cache=True)
 def unit3(x0, x1, x2):
     """x / |x| -> (u0, u1, u2, |x|, flags); |x| = 0 -> zeros with FLAG_DOMAIN."""
     n2, f = dot3(x0, x1, x2, x0, x1, x2)

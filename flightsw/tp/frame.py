@@ -136,7 +136,7 @@ from flightsw.tp.ekf import (
 )
 from flightsw.tp.f1750 import (
     DOT3_MIX, MV3_MIX, QDCM_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, dec32, dec48, dot3, enc32,
-    enc48, mix, mtv3, qdcm, qmul, qnormalize, unit3,
+    enc48, mix, mtv3, mv1ab, mv3, qdcm, qmul, qnormalize, unit3,
 )
 from flightsw.tp.geometry import (
     CYC_IMG_UNIT, CYC_PIX_TO_TAN, IMG_SC, IMG_SR, pix_to_tan, pix_unit, tan_int,
@@ -260,19 +260,7 @@ def make_dR(w0, w1, w2, dt, R):
 @njit(cache=True)
 def rot_tan(R, a, b):
     """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0."""
-    f = 0
-    p, g = fm32(R[1], a); f |= g
-    v0, g = fa32(R[0], p); f |= g
-    p, g = fm32(R[2], b); f |= g
-    v0, g = fa32(v0, p); f |= g
-    p, g = fm32(R[4], a); f |= g
-    v1, g = fa32(R[3], p); f |= g
-    p, g = fm32(R[5], b); f |= g
-    v1, g = fa32(v1, p); f |= g
-    p, g = fm32(R[7], a); f |= g
-    v2, g = fa32(R[6], p); f |= g
-    p, g = fm32(R[8], b); f |= g
-    v2, g = fa32(v2, p); f |= g
+    v0, v1, v2, f = mv1ab(R, a, b)
     if v0 == 0 or (v0 >> 31) & 1:
         return a, b, f | FLAG_DOMAIN
     inv, g = fd32(_ONE32, v0); f |= g
@@ -931,7 +919,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
         p, g = fm32(S[S_OPP_V + 1], T32); fl |= g
         b, g = fa32(S[S_OPP_X + 1], p); fl |= g
         u0, u1, u2, nn, g = unit3(_ONE32, a, b); fl |= g
-        l0, l1, l2, g = _mv(RM, u0, u1, u2); fl |= g
+        l0, l1, l2, g = mv3(RM, u0, u1, u2); fl |= g
         have_u = True
     prow = pcol = 0
     have_pix = False
@@ -953,7 +941,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
             pw2, g = fm32(p, idt); fl |= g
             cyc[ST_CMD] += CYC_PRATE
         fl |= make_dR(pw0, pw1, pw2, to32(T), wk[64:73])
-        n0, n1, n2_, g = _mv(wk[64:73], u0, u1, u2); fl |= g
+        n0, n1, n2_, g = mv3(wk[64:73], u0, u1, u2); fl |= g
         prow, pcol, have_pix, g = vec_to_pix(img, n0, n1, n2_); fl |= g
         # pointing: q (x) d, d = normalise(1 + u_x, 0, -u_z, u_y)
         c0, g = fa32(_ONE32, u0); fl |= g
@@ -1015,14 +1003,6 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
     S[S_NFRAMES] += 1
     S[S_STATUS] = status
     return status
-
-
-@njit(cache=True)
-def _mv(R, x0, x1, x2):
-    y0, f0 = dot3(R[0], R[1], R[2], x0, x1, x2)
-    y1, f1 = dot3(R[3], R[4], R[5], x0, x1, x2)
-    y2, f2 = dot3(R[6], R[7], R[8], x0, x1, x2)
-    return y0, y1, y2, f0 | f1 | f2
 
 
 @njit(cache=True)

@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import encode32, fa32, fd32, fix32, fm32, fs32, sqrt32
-from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, qdcm
+from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
 
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
@@ -45,6 +45,7 @@ _C2_16 = 0x40000011               # 65536.0 (2**16) as a packed 32-bit float
 # imager table row: A (9, imager->body, row-major), scale_col, scale_row, 1/scale_col, 1/scale_row,
 # COL0, ROW0 (all packed 32-bit)
 IMG_A, IMG_SC, IMG_SR, IMG_ISC, IMG_ISR, IMG_C0, IMG_R0 = 0, 9, 10, 11, 12, 13, 14
+assert IMG_A == 0, "pix_to_tan reads the alignment matrix from the row's first nine words"
 IMG_WORDS = 16
 
 PIX_TO_TAN_MIX = {"FS": 2, "FM": 10, "FA": 6, "FD": 1, "L": 12, "ST": 2}
@@ -121,19 +122,7 @@ def pix_to_tan(img, row, col):
     x, g = fm32(dx, img[IMG_SC]); f |= g
     dy, g = fs32(row, img[IMG_R0]); f |= g
     y, g = fm32(dy, img[IMG_SR]); f |= g
-    # v_i = A[i,0] + A[i,1] x + A[i,2] y
-    p, g = fm32(img[1], x); f |= g
-    v0, g = fa32(img[0], p); f |= g
-    p, g = fm32(img[2], y); f |= g
-    v0, g = fa32(v0, p); f |= g
-    p, g = fm32(img[4], x); f |= g
-    v1, g = fa32(img[3], p); f |= g
-    p, g = fm32(img[5], y); f |= g
-    v1, g = fa32(v1, p); f |= g
-    p, g = fm32(img[7], x); f |= g
-    v2, g = fa32(img[6], p); f |= g
-    p, g = fm32(img[8], y); f |= g
-    v2, g = fa32(v2, p); f |= g
+    v0, v1, v2, g = mv1ab(img, x, y); f |= g     # v = A (1, x, y): A is img[0:9] (IMG_A = 0)
     inv, g = fd32(0x40000001, v0); f |= g
     a, g = fm32(v1, inv); f |= g
     b, g = fm32(v2, inv); f |= g
