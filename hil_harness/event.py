@@ -31,7 +31,12 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
-from flightsw.messages import CandidateMessage, Feedback, IMAGER_CODES
+from flightsw.ip import AlphaController, ProcessingSequence, load_default_sequence, process_frame
+from flightsw.ip.sequence import DEFAULT_SEQUENCES
+from flightsw.messages import CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
+from flightsw.records import load_record
+from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
+from groundsim.scenario import Scenario
 
 from .selection import ImagerSelector, SelectionParams, Switch, convert_pixel, record_name_for
 
@@ -123,8 +128,6 @@ class FrameOutcome:
 
 
 def _shipped_sequence(name):
-    from flightsw.ip import ProcessingSequence, load_default_sequence
-    from flightsw.ip.sequence import DEFAULT_SEQUENCES
     if isinstance(name, ProcessingSequence):
         return name
     s = str(name)
@@ -138,7 +141,6 @@ def _shipped_sequence(name):
 
 
 def _with_compaction(seq, compaction):
-    from flightsw.ip import ProcessingSequence
     d = seq.to_dict()
     d["preprocess"]["compaction"] = int(compaction)
     return ProcessingSequence.from_dict(d)
@@ -148,7 +150,6 @@ def nominal_trajectory(world, duration: float):
     """The TP's uplinked nominal trajectory from the ground's nominal state: the state at t = 0 and,
     for a boosting target, a cubic fit per axis of the non-gravitational acceleration over the event
     (``accel_coeffs`` (3, 4), highest power first, m/s^2 vs s). None when the target has none."""
-    from flightsw.tp import NominalTrajectory
     st = world.nominal_target_state(0.0)
     if st is None:
         return None
@@ -174,10 +175,6 @@ class Event:
     frame's :class:`FrameOutcome`."""
 
     def __init__(self, config: EventConfig | None = None, *, keep_frames: bool = True):
-        from flightsw.ip import AlphaController
-        from flightsw.records import load_record
-        from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
-        from groundsim.scenario import Scenario
         self.config = cfg = config or EventConfig()
         if isinstance(cfg.scenario, Scenario):
             scn = cfg.scenario
@@ -224,7 +221,6 @@ class Event:
 
     # ------------------------------------------------------------------------------------------
     def reset(self):
-        from flightsw.ip import AlphaController
         self.world.reset()
         self.tp.reset()
         self.selector.reset()
@@ -286,7 +282,6 @@ class Event:
         if out.skip == SKIP_NONE:
             self._processed += 1
             want = (self.stage_frame == k) if self.stage_frame is not None else (self._processed == 11)
-            from flightsw.ip import process_frame
             res = process_frame(frame, self.sequence, self.record, fb, ledger=ledger, imager=imager,
                                 frame_count=k & 0xFFFF, time_tag=t, alpha_q12=self.alpha.q12,
                                 want_stages=want)
@@ -308,7 +303,6 @@ class Event:
                 cmd = self.tp.step(out.message_words, att, ledger=ledger)
                 host["tp"] = 1e6 * (time.perf_counter() - t3)
             if cmd is not None:
-                from flightsw.messages import TrackCommand
                 out.command_words = cmd.to_words()
                 cmd = TrackCommand.from_words(out.command_words)     # what crosses the bus
                 out.command = cmd
