@@ -85,12 +85,13 @@ _CRC_TABLE = _crc_table()
 
 
 @njit(cache=True)
-def _crc16_words(words, table):
+def _crc_range(w, n, table):
+    """Table-driven CRC-16/CCITT-FALSE of the first ``n`` 16-bit words of ``w`` (MSB first)."""
     crc = 0xFFFF
-    for i in range(words.shape[0]):
-        w = words[i]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
+    for i in range(n):
+        x = w[i]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((x >> 8) & 0xFF)) & 0xFF]
+        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (x & 0xFF)) & 0xFF]
     return crc
 
 
@@ -113,7 +114,8 @@ def crc16_ccitt(words) -> int:
     bad = (w < 0) | (w > 0xFFFF)
     if np.any(bad):
         raise ValueError(f"crc16_ccitt: word {int(w[bad][0])!r} is not a 16-bit word")
-    return int(_crc16_words(np.ascontiguousarray(w, dtype=np.int64).ravel(), _CRC_TABLE))
+    w = np.ascontiguousarray(w, dtype=np.int64).ravel()
+    return int(_crc_range(w, w.shape[0], _CRC_TABLE))
 
 
 def crc16_ccitt_bytes(data: bytes) -> int:
@@ -153,39 +155,21 @@ def _cand_encode_k(head, iv, fv, out, table):
         for j in range(1, 15):
             if not math.isfinite(fv[i, j]):
                 return 2
-    crc = 0xFFFF
     n = 0
     for i in range(15):
-        w = head[i]
-        out[n] = w
+        out[n] = head[i]
         n += 1
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
     for i in range(k):
-        w = iv[i, 0]
-        out[n] = w
+        out[n] = iv[i, 0]
         n += 1
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
         for j in range(1, 15):
             p = _enc_k(fv[i, j], 23, True)
-            for w in ((p >> 16) & 0xFFFF, p & 0xFFFF):
-                out[n] = w
-                n += 1
-                crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((w >> 8) & 0xFF)) & 0xFF]
-                crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (w & 0xFF)) & 0xFF]
+            out[n] = (p >> 16) & 0xFFFF
+            out[n + 1] = p & 0xFFFF
+            n += 2
+    crc = _crc_range(out, n, table)
     out[n] = crc
     return 0
-
-
-@njit(cache=True)
-def _crc_range(w, n, table):
-    crc = 0xFFFF
-    for i in range(n):
-        x = w[i]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ ((x >> 8) & 0xFF)) & 0xFF]
-        crc = ((crc << 8) & 0xFFFF) ^ table[((crc >> 8) ^ (x & 0xFF)) & 0xFF]
-    return crc
 
 
 @njit(cache=True)
