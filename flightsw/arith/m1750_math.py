@@ -57,6 +57,7 @@ clocks (module constants ``CYC_SQRT32`` ... are plain ints usable inside ``@njit
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 from numba.extending import overload
 
@@ -69,7 +70,7 @@ from flightsw.arith.m1750_float import (
 from flightsw.budget import PACE1750A, Processor
 
 __all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
-           "atan2_32", "atan2_48", "MATH_OP_MIX", "MATH_CYCLES", "MAX_ERROR", "math_cycles"]
+           "atan2_32", "atan2_48", "sqrt32_lanes", "atan2_32_lanes", "MATH_OP_MIX", "MATH_CYCLES", "MAX_ERROR", "math_cycles"]
 
 # ------------------------------------------------------------------------------------------------
 # constants (packed words; generated from exact rationals / float64 fits, rounded to nearest)
@@ -99,6 +100,7 @@ ATANK_48 = (0x000000000000, 0x7f56eafd6ab1, 0x7d6dd7fee4b2, 0x5bd865ff0793, 0x76
             0x47802e00af7c, 0x525e3e008c9a, 0x5c029f0015e1, 0x6487ed005111)
 
 SQRT_INIT32 = (0x591f21ff, 0x569af000)                 # c0 + c1 g on [0.25, 1]
+SQRT32_STEPS = 2                                       # Heron steps (3 for 48-bit)
 SQRT_INIT48 = (0x591f21ff6d07, 0x569af0002129)
 # P(z) coefficients, lowest degree first
 SIN32 = (0xaaaaabfe, 0x444442fa, 0x97fc67f4, 0x5b23f5ee)
@@ -166,13 +168,15 @@ def _s32(w):
 # ================================================================================================
 # sqrt
 # ================================================================================================
-@njit(cache=True)
-def _sqrt32_k(x):
+@njit(cache=True, inline="always")
+def _sqrt32_start(x):
+    """sqrt32 up to the Heron steps: (special, result, flags, g, k, y0); ``special`` = the result
+    is already final (zero, domain error)."""
     m, e = unpack32(x)
     if m == 0:
-        return 0, 0
+        return True, 0, 0, 0, 0, 0
     if m < 0:
-        return 0, FLAG_DOMAIN
+        return True, 0, FLAG_DOMAIN, 0, 0, 0
     if e & 1:                                   # x = (f/2) * 2**(e+1)
         g = _set_exp32(x, -1)
         k = (e + 1) >> 1
@@ -181,11 +185,53 @@ def _sqrt32_k(x):
         k = e >> 1
     y, _ = fm32(g, SQRT_INIT32[1])
     y, _ = fa32(y, SQRT_INIT32[0])
-    for _i in range(2):
-        q, _ = fd32(g, y)
-        y, _ = fa32(y, q)
-        y, _ = fm32(y, HALF32)
+    return False, 0, 0, g, k, y
+
+
+@njit(cache=True, inline="always")
+def _heron32(g, y):
+    """One Heron step y <- (y + g / y) * 0.5."""
+    q, _ = fd32(g, y)
+    y, _ = fa32(y, q)
+    y, _ = fm32(y, HALF32)
+    return y
+
+
+@njit(cache=True)
+def _sqrt32_k(x):
+    special, r, f, g, k, y = _sqrt32_start(x)
+    if special:
+        return r, f
+    for _i in range(SQRT32_STEPS):
+        y = _heron32(g, y)
     return _scale32(y, k)
+
+
+@njit(cache=True)
+def sqrt32_lanes(xs, out):
+    """sqrt32 of every word of ``xs`` int64 [K] into ``out`` int64 [K]; returns the OR of the flags.
+
+    The same instructions as :func:`sqrt32` for each element, run lane by lane: each step is
+    applied to all elements before the next, so the host overlaps the independent chains."""
+    K = xs.size
+    sp = np.empty(K, np.bool_)
+    fl = np.empty(K, np.int64)
+    g = np.empty(K, np.int64)
+    k = np.empty(K, np.int64)
+    y = np.empty(K, np.int64)
+    for i in range(K):
+        sp[i], out[i], fl[i], g[i], k[i], y[i] = _sqrt32_start(xs[i])
+    for _i in range(SQRT32_STEPS):
+        for i in range(K):
+            y[i] = _heron32(g[i], y[i])
+    flags = 0
+    for i in range(K):
+        if sp[i]:
+            flags |= fl[i]
+        else:
+            out[i], f = _scale32(y[i], k[i])
+            flags |= f
+    return flags
 
 
 @njit(cache=True)
@@ -415,12 +461,9 @@ def _cos48_k(x):
 # ================================================================================================
 # atan2
 # ================================================================================================
-@njit(cache=True)
-def _atan2_32_k(y, x):
-    my, _ = unpack32(y)
-    mx, _ = unpack32(x)
-    if my == 0 and mx == 0:
-        return 0, 0
+@njit(cache=True, inline="always")
+def _atan2_32_reduce(y, x):
+    """atan2_32 step 1: t = min/max of |y|, |x| (FD) and whether they were swapped."""
     ay, _ = fabs32(y)
     ax, _ = fabs32(x)
     swap = fc32(ay, ax) > 0
@@ -428,6 +471,12 @@ def _atan2_32_k(y, x):
         t, _ = fd32(ax, ay)
     else:
         t, _ = fd32(ay, ax)
+    return t, swap
+
+
+@njit(cache=True, inline="always")
+def _atan2_32_table(t):
+    """atan2_32 step 2: k = round(8t) and u = (t - k/8) / (1 + t k/8) -> (k, u)."""
     k8, _ = fm32(t, EIGHT32)
     k8, _ = fa32(k8, HALF32)
     kw, _ = fix32(k8)
@@ -437,6 +486,12 @@ def _atan2_32_k(y, x):
     den, _ = fm32(t, c)
     den, _ = fa32(den, ONE32)
     u, _ = fd32(num, den)
+    return k, u
+
+
+@njit(cache=True, inline="always")
+def _atan2_32_finish(k, u, swap, y, x):
+    """atan2_32 step 3: atan t = atan(k/8) + u + u z P(z), then the octant/quadrant fix-ups."""
     z, _ = fm32(u, u)
     q, _ = fm32(ATAN32[1], z)
     q, _ = fa32(q, ATAN32[0])
@@ -446,11 +501,42 @@ def _atan2_32_k(y, x):
     a, _ = fa32(ATANK_32[k], a)
     if swap:
         a, _ = fs32(PIO2_32, a)
-    if mx < 0:
+    if x & 0x80000000:                          # sign of the mantissa of x
         a, _ = fs32(PI32, a)
-    if my < 0:
+    if y & 0x80000000:
         a, _ = fneg32(a)
-    return a, 0
+    return a
+
+
+@njit(cache=True)
+def _atan2_32_k(y, x):
+    if (y & 0xFFFFFF00) == 0 and (x & 0xFFFFFF00) == 0:       # both mantissas zero
+        return 0, 0
+    t, swap = _atan2_32_reduce(y, x)
+    k, u = _atan2_32_table(t)
+    return _atan2_32_finish(k, u, swap, y, x), 0
+
+
+@njit(cache=True)
+def atan2_32_lanes(ys, xs, out):
+    """atan2_32 of every pair (ys[i], xs[i]) into ``out`` int64 [K]; returns the OR of the flags
+    (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, run
+    step by step over all elements (see :func:`sqrt32_lanes`)."""
+    K = ys.size
+    t = np.empty(K, np.int64)
+    sw = np.empty(K, np.bool_)
+    k = np.empty(K, np.int64)
+    u = np.empty(K, np.int64)
+    for i in range(K):
+        t[i], sw[i] = _atan2_32_reduce(ys[i], xs[i])
+    for i in range(K):
+        k[i], u[i] = _atan2_32_table(t[i])
+    for i in range(K):
+        if (ys[i] & 0xFFFFFF00) == 0 and (xs[i] & 0xFFFFFF00) == 0:
+            out[i] = 0
+        else:
+            out[i] = _atan2_32_finish(k[i], u[i], sw[i], ys[i], xs[i])
+    return 0
 
 
 @njit(cache=True)

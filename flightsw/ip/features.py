@@ -70,10 +70,10 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
-    ONE32, HALF48, atan2_32, decode32_array, encode32, fa32, fa48, fc32, fd32, fd48,
-    flt48, fm32, fm48, fs32, fs48, sqrt32, to32,
+    ONE32, HALF48, decode32_array, encode32, fa32, fa48, fc32, fd32, fd48, flt48, fm32, fm48,
+    fs32, fs48, to32,
 )
-from flightsw.arith.m1750_math import MATH_CYCLES
+from flightsw.arith.m1750_math import MATH_CYCLES, atan2_32_lanes, sqrt32_lanes
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.ip.colour import NSUM, blob_sums
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
@@ -132,72 +132,114 @@ def _i2f48(v):
 
 @njit(cache=True)
 def _features_kernel(sums, count, intensity):
-    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)."""
+    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR).
+
+    Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
+    routine). The host runs it *blob-parallel*: each operation of the sequence is applied to all
+    blobs before the next one (intermediates in [count] arrays), so the independent chains of
+    different blobs overlap in the CPU pipeline instead of waiting on each emulated operation's
+    latency. Per blob the operations, their operands and their order are those of the routine, so
+    the words are the same; the PI flags are OR-ed (order-free)."""
     out = np.zeros((count, 12), np.int64)
     flags = 0
-    for k in range(1, count + 1):
-        s = sums[k]
-        n = s[0]
+    K = count
+    wf = np.empty(K, np.int64)
+    sc = np.empty(K, np.int64)
+    sr = np.empty(K, np.int64)
+    scc = np.empty(K, np.int64)
+    srr = np.empty(K, np.int64)
+    src = np.empty(K, np.int64)
+    for k in range(K):
+        s = sums[k + 1]
         if intensity and s[1] > 0:
-            w, sc, sr, scc, srr, src = s[1], s[2], s[3], s[4], s[5], s[6]
+            w, a, b, c, d, e = s[1], s[2], s[3], s[4], s[5], s[6]
         else:
-            w, sc, sr, scc, srr, src = n, s[7], s[8], s[9], s[10], s[11]
-        wf = _i2f48(w)
-        mc, f = fd48(_i2f48(sc), wf); flags |= f       # divisions (not a reciprocal): exact
-        mr, f = fd48(_i2f48(sr), wf); flags |= f       # whenever the quotient is representable
-        a, f = fd48(_i2f48(scc), wf); flags |= f
-        b, f = fm48(mc, mc); flags |= f
-        m20, f = fs48(a, b); flags |= f
-        a, f = fd48(_i2f48(srr), wf); flags |= f
-        b, f = fm48(mr, mr); flags |= f
-        m02, f = fs48(a, b); flags |= f
-        a, f = fd48(_i2f48(src), wf); flags |= f
-        b, f = fm48(mc, mr); flags |= f
-        m11, f = fs48(a, b); flags |= f
-        col, f = fa48(mc, HALF48); flags |= f
-        row, f = fa48(mr, HALF48); flags |= f
-        dm, f = fs48(m20, m02); flags |= f
-        t, f = fa48(m11, m11); flags |= f
+            w, a, b, c, d, e = s[0], s[7], s[8], s[9], s[10], s[11]
+        wf[k] = _i2f48(w)
+        sc[k] = _i2f48(a)
+        sr[k] = _i2f48(b)
+        scc[k] = _i2f48(c)
+        srr[k] = _i2f48(d)
+        src[k] = _i2f48(e)
+    mc = np.empty(K, np.int64)
+    mr = np.empty(K, np.int64)
+    m20 = np.empty(K, np.int64)
+    m02 = np.empty(K, np.int64)
+    m11 = np.empty(K, np.int64)
+    for k in range(K):                 # divisions (not a reciprocal): exact whenever the quotient
+        mc[k], f = fd48(sc[k], wf[k]); flags |= f      # is representable
+        mr[k], f = fd48(sr[k], wf[k]); flags |= f
+    for k in range(K):
+        a, f = fd48(scc[k], wf[k]); flags |= f
+        b, f = fm48(mc[k], mc[k]); flags |= f
+        m20[k], f = fs48(a, b); flags |= f
+    for k in range(K):
+        a, f = fd48(srr[k], wf[k]); flags |= f
+        b, f = fm48(mr[k], mr[k]); flags |= f
+        m02[k], f = fs48(a, b); flags |= f
+    for k in range(K):
+        a, f = fd48(src[k], wf[k]); flags |= f
+        b, f = fm48(mc[k], mr[k]); flags |= f
+        m11[k], f = fs48(a, b); flags |= f
+    q32 = np.empty(K, np.int64)
+    s32 = np.empty(K, np.int64)
+    t32 = np.empty(K, np.int64)
+    dm32 = np.empty(K, np.int64)
+    for k in range(K):
+        o = out[k]
+        col, f = fa48(mc[k], HALF48); flags |= f
+        row, f = fa48(mr[k], HALF48); flags |= f
+        o[1] = to32(col)
+        o[2] = to32(row)
+        dm, f = fs48(m20[k], m02[k]); flags |= f
+        t, f = fa48(m11[k], m11[k]); flags |= f
         a, f = fm48(dm, dm); flags |= f
         b, f = fm48(t, t); flags |= f
         q, f = fa48(a, b); flags |= f
-        sm, f = fa48(m20, m02); flags |= f
+        sm, f = fa48(m20[k], m02[k]); flags |= f
         # ---- 32-bit part ----
-        q32 = to32(q)
-        s32 = to32(sm)
-        rq, f = sqrt32(q32); flags |= f
-        nf = to32(_i2f48(n))
+        q32[k] = to32(q)
+        s32[k] = to32(sm)
+        t32[k] = to32(t)
+        dm32[k] = to32(dm)
+    rq = np.empty(K, np.int64)
+    flags |= sqrt32_lanes(q32, rq)
+    for k in range(K):
+        o = out[k]
+        nf = to32(_i2f48(sums[k + 1, 0]))
+        o[0] = nf
         n2, f = fm32(nf, nf); flags |= f
-        ecc, f = fd32(q32, n2); flags |= f
-        a, f = fa32(s32, rq); flags |= f
-        a, f = fa32(a, ONE32); flags |= f
-        major, f = sqrt32(a); flags |= f
-        a, f = fs32(s32, rq); flags |= f
+        o[4], f = fd32(q32[k], n2); flags |= f
+        a, f = fa32(s32[k], rq[k]); flags |= f
+        q32[k], f = fa32(a, ONE32); flags |= f          # major^2 (q32 reused)
+        a, f = fs32(s32[k], rq[k]); flags |= f
         a, f = fa32(a, ONE32); flags |= f
         if fc32(a, 0) < 0:               # rounding only: s - r >= 0 in exact arithmetic
             a = 0
-        minor, f = sqrt32(a); flags |= f
-        sig, f = fd32(minor, major); flags |= f
-        th, f = atan2_32(to32(t), to32(dm)); flags |= f
-        th, f = fm32(th, _DEG_PER_2RAD); flags |= f
+        s32[k] = a                                      # minor^2 (s32 reused)
+    major = np.empty(K, np.int64)
+    minor = np.empty(K, np.int64)
+    th2 = np.empty(K, np.int64)
+    flags |= sqrt32_lanes(q32, major)
+    flags |= sqrt32_lanes(s32, minor)
+    flags |= atan2_32_lanes(t32, dm32, th2)
+    for k in range(K):
+        o = out[k]
+        o[5] = major[k]
+        o[6] = minor[k]
+        o[7], f = fd32(minor[k], major[k]); flags |= f
+        th, f = fm32(th2[k], _DEG_PER_2RAD); flags |= f
         if fc32(th, 0) < 0:
             th, f = fa32(th, _C180); flags |= f
+        o[3] = th
+        s = sums[k + 1]
         tot = to32(_i2f48(s[1]))
-        avg, f = fd32(tot, nf); flags |= f
+        avg, f = fd32(tot, o[0]); flags |= f
         mx = to32(_i2f48(s[12]))
         if fc32(mx, 0) > 0:
             br, f = fd32(avg, mx); flags |= f
         else:
             br = 0
-        o = out[k - 1]
-        o[0] = nf
-        o[1] = to32(col)
-        o[2] = to32(row)
-        o[3] = th
-        o[4] = ecc
-        o[5] = major
-        o[6] = minor
-        o[7] = sig
         o[8] = tot
         o[9] = avg
         o[10] = mx

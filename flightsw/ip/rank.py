@@ -126,14 +126,16 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
     # host runs the chains of all candidates side by side (feature-major loop) so that they overlap
     # in the CPU pipeline: every candidate sees the identical operations in the identical order.
     d = np.zeros(k, np.int64)
+    fwt = np.ascontiguousarray(fw.T)     # feature-major: each chain reads one contiguous row
     for j in range(n):
         i = idx[j]
         mi = mean[i]
         ci = coef[i]
+        col = fwt[i]
         if quantize:
             ai = a2[i]
             for c in range(k):
-                x, f = _sigmoid(fw[c, i], ai, ops); flags |= f
+                x, f = _sigmoid(col[c], ai, ops); flags |= f
                 t, f = fs32(x, mi); flags |= f
                 t, f = fm32(t, t); flags |= f
                 t, f = fm32(t, ci); flags |= f
@@ -141,7 +143,7 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
             ops[4] += k
         else:
             for c in range(k):
-                t, f = fs32(fw[c, i], mi); flags |= f
+                t, f = fs32(col[c], mi); flags |= f
                 t, f = fm32(t, t); flags |= f
                 t, f = fm32(t, ci); flags |= f
                 d[c], f = fa32(d[c], t); flags |= f
