@@ -5,12 +5,18 @@
     five-scene interval), ``rde_figure3.png`` (control-point density needed for epsilon_90 < 4.9 m at
     6.7 m vs interval length) and ``rde_study.json`` to DIR, prints the numbers.
 
-``uvisi rde reconstruct CONTROL_POINTS.npz|RECORDING.h5 [--out DIR] [--iterations K]``
+``uvisi rde reconstruct CONTROL_POINTS.npz|RECORDING.h5 [--out DIR] [--iterations K]
+[--min-significance S] [--flight-centroids] [--keep-blends]``
     imager alignment + attitude-knowledge reconstruction from matched star control points (schema
     ``uvisi-rde-cp/1``, documented in ``groundsim.assess.rde_reconstruct``); prints the star
-    residuals before/after and, when the file carries ground truth, the RMS pointing-knowledge error
-    before/after. A ``uvisi event`` recording is turned into control points first (its candidates
-    matched to Hipparcos stars, ``groundsim.assess.recording_stars``); writes ``rde_reconstruct.json`` (and the per-epoch correction, ``.npz``) to DIR.
+    residuals before/after, the consistency of the fit (normalised innovations, 2 per star
+    expected), the correction and about which imager axes it was applied (only where at least S
+    sigma from zero, default 3: roll about the boresight is often not), and, when the file carries
+    ground truth, the RMS pointing-knowledge error before/after. A ``uvisi event`` recording is turned
+    into control points first (its candidates matched to Hipparcos stars, blends left out and, when
+    the recording holds the frames, the centroids re-measured on the full-resolution frames unless
+    ``--flight-centroids``; ``groundsim.assess.recording_stars``); writes ``rde_reconstruct.json``
+    (and the per-epoch correction, ``.npz``) to DIR.
 
 ``uvisi rde synth OUT.npz [--seed S] [--duration T]``
     writes a synthetic control-point file (star field, injected alignment + attitude-knowledge error,
@@ -36,6 +42,13 @@ def register(sub) -> None:
                     "event recording (.h5)")
     pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
     pr.add_argument("--iterations", type=int, default=3, help="linearisation passes (default 3)")
+    pr.add_argument("--min-significance", type=float, default=3.0,
+                    help="apply the correction about an imager axis only if its mean is at least this "
+                    "many sigma from zero (default 3; 0 applies it everywhere)")
+    pr.add_argument("--flight-centroids", action="store_true",
+                    help="recording: use the IP's centroids, not ones re-measured on the frames")
+    pr.add_argument("--keep-blends", action="store_true",
+                    help="recording: keep stars with a catalogue neighbour within 4 px")
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
     pn.add_argument("output", help="output .npz")
     pn.add_argument("--seed", type=int, default=0)
@@ -74,16 +87,30 @@ def _reconstruct(args) -> int:
     if not os.path.exists(args.control_points):
         raise FileNotFoundError(f"no such control-point file: {args.control_points}")
     if args.control_points.endswith((".h5", ".hdf5")):
-        from groundsim.assess.recording_stars import control_points_from_recording
-        cp = control_points_from_recording(args.control_points)
+        from groundsim.assess.recording_stars import BLEND_PX, control_points_from_recording
+        cp = control_points_from_recording(args.control_points,
+                                           refine=False if args.flight_centroids else None,
+                                           blend_px=None if args.keep_blends else BLEND_PX)
     else:
         cp = load_control_points(args.control_points)
-    res, rep = reconstruct_from_npz(cp, n_iter=args.iterations)
-    print(f"control points {rep['n_cp']} over {rep['n_epochs']} epochs")
+    res, rep = reconstruct_from_npz(cp, n_iter=args.iterations, min_significance=args.min_significance)
+    extra = ""
+    if "refined" in cp:
+        extra = (f" ({int(np.sum(cp['refined']))} centroids re-measured on the frames, "
+                 f"{int(cp.get('n_blends_dropped', 0))} blended stars left out)")
+    print(f"control points {rep['n_cp']} over {rep['n_epochs']} epochs{extra}")
     print(f"RMS star residual: {rep['rms_star_residual_px_before']:.3f} px before, "
-          f"{rep['rms_star_residual_px_after']:.3f} px after")
-    print("mean pointing correction (imager x,y,z) [urad]: "
-          + ", ".join(f"{v:.1f}" for v in rep["theta_mean_urad"]))
+          f"{rep['rms_star_residual_px_after']:.3f} px after; {rep['n_rejected']} gated out")
+    nis = f"normalised innovations {rep['nis_per_star']:.2f} per star (2 expected"
+    if "nis_per_star_frame" in rep:
+        nis += f"; {rep['nis_per_star_frame']:.2f} with single-frame centroid sigmas"
+    print(nis + ")")
+    print("estimated correction (imager x = boresight roll, y, z) [urad]: "
+          + ", ".join(f"{v:.1f} +- {s:.1f}" for v, s in zip(rep["theta_estimated_mean_urad"],
+                                                              rep["theta_sigma_median_urad"]))
+          + "; applied about " + (", ".join(a for a, ok in zip("xyz", rep["theta_applied"]) if ok)
+                                  or "no axis")
+          + f" (>= {args.min_significance:g} sigma)")
     if "improvement_factor" in rep:
         print(f"RMS pointing-knowledge error vs truth: {rep['rms_pointing_error_urad_before']:.1f} urad "
               f"before, {rep['rms_pointing_error_urad_after']:.1f} urad after "

@@ -26,6 +26,13 @@ that times ``Exp(a) C_ib`` for x1..x3. The pinhole projection is non-linear, so 
 iterates the linearisation about the previous smoothed trajectory (``n_iter`` passes, iterated
 Kalman smoothing: ``z' = z - h(x_bar) + H x_bar``). Alignment and attitude error are only separable
 through their dynamics; the *total* pointing correction ``theta`` is what the stars determine.
+The measurement covariance of a frame is the centroid variances plus the frame-common white
+attitude-knowledge noise (``PointingErrorModel.sigma_att_white``) mapped through the attitude columns.
+Control points whose smoothed residual fails a chi-square gate are dropped between passes, the fit's
+consistency is reported as the normalised innovations squared (NIS, 2 per star expected), and the
+correction is applied only about the imager axes where it is significant (``min_significance``):
+roll about the boresight is weakly observable from stars near the centre of a wide field, and a
+correction that is noise would make the knowledge worse.
 
 Control-point file (``.npz``, schema ``uvisi-rde-cp/1``), one row per matched star:
 
@@ -40,7 +47,9 @@ key                shape          meaning
                                   ``Rotation.from_quat(q).as_matrix() @ v_eci = v_body``
 ``q_ib``           (4,)           nominal imager-from-body alignment quaternion (same convention)
 ``imager``         (6,)           ``[f_row, f_col, n_rows, n_cols, r0, c0]`` (pixels)
-``sigma_px``       () or (M,)     optional centroid 1-sigma [px] (default 0.1)
+``sigma_px``       () or (M,)     optional centroid 1-sigma [px] the filter uses (default 0.1)
+``sigma_px_frame`` () or (M,)     optional single-measurement 1-sigma [px] when ``sigma_px`` is
+                                  inflated for errors repeating across frames (NIS check only)
 ``frame_t``        (K,)           optional: all frame times to report at (stars or not)
 ``frame_q_bi``     (K, 4)         optional: attitude data at ``frame_t`` (required with it)
 ``truth_q_ii``     (K, 4)         optional: true imager-from-inertial at ``frame_t`` (ground
@@ -150,7 +159,9 @@ class PointingErrorModel:
 
     alignment (eq. 9, per imager axis): sigma_align0 (eta prior), sigma_align_rate0 (stationary xi),
     tau_align T; attitude knowledge (eq. 8, per body axis): sigma_att0, sigma_drift0 (gyro drift
-    prior), q_att_angle = sigma1^2 [rad^2/s], q_att_drift = sigma2^2 [rad^2/s^3], omega [rad/s].
+    prior), q_att_angle = sigma1^2 [rad^2/s], q_att_drift = sigma2^2 [rad^2/s^3], omega [rad/s];
+    sigma_att_white [rad per axis]: white attitude-knowledge noise, independent from frame to frame
+    but common to all stars of a frame (a measurement-noise term, correlated within the frame).
     """
     sigma_align0: float = 3.0e-3
     sigma_align_rate0: float = 1.0e-7
@@ -160,6 +171,7 @@ class PointingErrorModel:
     q_att_angle: float = (2.0e-6) ** 2
     q_att_drift: float = (1.0e-8) ** 2
     omega: float = 0.0
+    sigma_att_white: float = 5.0e-6
 
     def matrices(self):
         """(A, Qc, P0), each (12, 12): state [eta(3), xi(3), att(3), drift(3)]."""
@@ -179,8 +191,10 @@ class PointingErrorModel:
 class ReconstructionResult:
     """Smoothed reconstruction at the epochs ``t`` (K,) [s].
 
-    x (K, 12), P (K, 12, 12): smoothed state (eqs. 15-16); theta (K, 3): total pointing correction
-    ``a + Exp(a) C_ib e`` in imager axes [rad]; theta_sigma (K, 3) its 1-sigma [rad];
+    x (K, 12), P (K, 12, 12): smoothed state (eqs. 15-16); theta (K, 3): the total pointing
+    correction applied, ``C_ii_est = Exp(theta) C_ii_nominal`` (to first order ``a + Exp(a) C_ib e``)
+    in imager axes [rad], zero about axes where it was not significant (the estimate itself is
+    ``extras["theta_estimated"]``); theta_sigma (K, 3) its 1-sigma [rad];
     C_ii_est (K, 3, 3): corrected imager-from-inertial DCM; C_ii_nominal (K, 3, 3): the uncorrected
     one (attitude data + nominal alignment); rms_px_before / rms_px_after: RMS star residual
     (measured - predicted) [px] before and after the correction; n_cp: control points used.
@@ -223,16 +237,62 @@ def _corrected(x, C_ib, C_bi) -> np.ndarray:
     return Ea @ C_ib @ Ee @ C_bi
 
 
+def _rotvec(C) -> np.ndarray:
+    return Rotation.from_matrix(np.asarray(C, dtype=float).reshape(-1, 3, 3)).as_rotvec()
+
+
+def _pack(ep, K, H, sig, model):
+    """Packed measurement layout (see ``kalman_filter_packed``) of the control points with epochs
+    ``ep`` (sorted): per epoch the (2n, 2n) covariance ``diag(sig^2)`` plus the frame-common white
+    attitude-knowledge noise ``Ha Ha^T sigma_att_white^2`` (Ha: the attitude columns of H)."""
+    counts = np.bincount(ep, minlength=K)
+    zoff = np.zeros(K + 1, dtype=np.int64)
+    zoff[1:] = np.cumsum(2 * counts)
+    roff = np.zeros(K + 1, dtype=np.int64)
+    roff[1:] = np.cumsum((2 * counts) ** 2)
+    start = np.concatenate([[0], np.cumsum(counts)])
+    blocks = []
+    for k in np.flatnonzero(counts):
+        s = slice(start[k], start[k + 1])
+        Ha = H[s, :, 6:9].reshape(-1, 3)
+        blocks.append((np.diag(np.repeat(sig[s] ** 2, 2)) + model.sigma_att_white ** 2 * Ha @ Ha.T).ravel())
+    Rf = np.concatenate(blocks) if blocks else np.zeros(0)
+    return zoff, roff, Rf
+
+
 def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_px=0.1,
                          model: PointingErrorModel | None = None, frame_t=None, frame_C_bi=None,
-                         n_iter: int = 3) -> ReconstructionResult:
+                         n_iter: int = 3, gate_chi2: float | None = 16.0,
+                         min_significance: float = 3.0, sigma_px_frame=None) -> ReconstructionResult:
     """Estimate imager alignment + attitude-knowledge error from star control points.
 
     t (M,) [s]; pix (M, 2) measured [row, col]; star_eci (M, 3) catalogue unit vectors;
     C_bi (M, 3, 3) attitude data at each control point; imager: :class:`Imager`; C_ib (3, 3) nominal
-    alignment; sigma_px scalar or (M,) centroid noise [px]; frame_t (K,) / frame_C_bi (K, 3, 3)
-    optional extra epochs (e.g. every frame, also those without stars) to report at.
-    Epochs are the sorted union of ``t`` and ``frame_t``; epochs without stars are prediction-only.
+    alignment; sigma_px scalar or (M,) centroid noise [px] the filter uses; frame_t (K,) /
+    frame_C_bi (K, 3, 3) optional extra epochs (e.g. every frame, also those without stars) to report
+    at. Epochs are the sorted union of ``t`` and ``frame_t``; epochs without stars are prediction-only.
+    sigma_px_frame scalar or (M,): optional single-measurement centroid sigma [px] for the
+    consistency check only, when ``sigma_px`` has been inflated for errors that repeat from frame to
+    frame (see :func:`groundsim.assess.recording_stars.centroid_sigmas`).
+
+    Robustness and decision rules (``None`` / 0 switch them off):
+
+    * ``gate_chi2``: after each linearisation pass, control points whose smoothed residual has
+      ``r^T R^-1 r`` above this (2 degrees of freedom; 16 is p = 3e-4) are left out of the next
+      pass (mis-centroided blends, wrong matches); the last pass uses the survivors.
+    * ``min_significance``: the total correction ``theta`` (imager axes) is applied about an axis
+      only if its event mean is at least this many (median) smoothed 1-sigma from zero; about the
+      other axes the attitude data + nominal alignment are kept. Roll about the boresight is only
+      weakly observable in a wide field (a 1 px centroid error at 50 px from the centre is 20 mrad
+      of roll): when the stars cannot determine it, a correction that is noise would make the
+      knowledge worse, not better.
+
+    ``extras`` of the result: ``theta_estimated`` (K, 3) the smoothed total correction before the
+    decision rule, ``applied`` (3,) bool, ``significance`` (3,), ``used`` (M,) bool (gated
+    control points, in input order), ``nis_per_star`` (mean normalised innovation squared of the
+    final filter pass per control point, 2 expected for a consistent model; lower when the
+    centroid sigmas are conservative), ``nis_per_star_frame`` (the same with ``sigma_px_frame`` in
+    place of ``sigma_px`` in the innovation covariance, when given), ``n_rejected``.
     """
     t = np.asarray(t, dtype=float)
     pix = np.asarray(pix, dtype=float).reshape(-1, 2)
@@ -245,7 +305,11 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
         raise ValueError("t, pix, star_eci and attitude data must have one row per control point")
     if M == 0:
         raise ValueError("no control points")
-    sig = np.broadcast_to(np.asarray(sigma_px, dtype=float), (M,))
+    sig = np.array(np.broadcast_to(np.asarray(sigma_px, dtype=float), (M,)))
+    sig1 = None if sigma_px_frame is None else np.array(
+        np.broadcast_to(np.asarray(sigma_px_frame, dtype=float), (M,)))
+    if not np.all(np.isfinite(sig) & (sig > 0)) or (sig1 is not None and not np.all(sig1 > 0)):
+        raise ValueError("sigma_px (and sigma_px_frame) must be finite and > 0")
     model = model or PointingErrorModel()
     A, Qc, P0 = model.matrices()
 
@@ -262,13 +326,8 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
     ep = np.searchsorted(epochs, t)
     order = np.argsort(ep, kind="stable")
     ep, pix, s, C_cp, sig = ep[order], pix[order], s[order], C_bi[order], sig[order]
-    counts = np.bincount(ep, minlength=K)
-    zoff = np.zeros(K + 1, dtype=np.int64)
-    zoff[1:] = np.cumsum(2 * counts)
-    roff = np.zeros(K + 1, dtype=np.int64)
-    roff[1:] = np.cumsum((2 * counts) ** 2)
-    Rf = np.concatenate([np.diag(np.repeat(sig[ep == k] ** 2, 2)).ravel()
-                         for k in np.flatnonzero(counts)])
+    if sig1 is not None:
+        sig1 = sig1[order]
 
     dt = np.diff(epochs)
     Phi = np.empty((K, 12, 12))
@@ -280,7 +339,9 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
     u_nom = np.einsum("ij,pjk,pk->pi", C_ib, C_cp, s)
     rms_before = float(np.sqrt(np.mean(np.sum((pix - imager.project(u_nom)) ** 2, axis=1))))
     x_bar = np.zeros((K, 12))
-    for _ in range(max(1, int(n_iter))):
+    used = np.ones(M, dtype=bool)
+    n_pass = max(1, int(n_iter))
+    for it in range(n_pass):
         xb = x_bar[ep]                                           # (M, 12)
         Ea = _exp(xb[:, 0:3])
         C_pred = Ea @ C_ib @ _exp(xb[:, 6:9]) @ C_cp
@@ -291,23 +352,54 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
         H[:, :, 0:3] = G
         H[:, :, 6:9] = G @ (Ea @ C_ib)
         z = (pix - h) + np.einsum("pij,pj->pi", H, xb)
-        xf, Pf, xp, Pp = kalman_filter_packed(np.zeros(12), P0, Phi, Q,
-                                              np.ascontiguousarray(H.reshape(-1, 12)), z.ravel(),
-                                              Rf, zoff, roff)
+        zoff, roff, Rf = _pack(ep[used], K, H[used], sig[used], model)
+        Hu = np.ascontiguousarray(H[used].reshape(-1, 12))
+        zu = np.ascontiguousarray(z[used].ravel())
+        xf, Pf, xp, Pp = kalman_filter_packed(np.zeros(12), P0, Phi, Q, Hu, zu, Rf, zoff, roff)
         x_s, P_s = rts_smooth(xf, Pf, xp, Pp, Phi)
         x_bar = x_s
-    C_est = _corrected(x_bar, C_ib, C_epoch)
+        if gate_chi2 and it < n_pass - 1:
+            u1 = np.einsum("pij,pj->pi", _corrected(x_bar[ep], C_ib, C_cp), s)
+            r = pix - imager.project(u1)
+            chi2 = np.sum(r ** 2, axis=1) / sig ** 2
+            keep = chi2 <= gate_chi2
+            if keep.sum() >= 3:
+                used = keep
+    # consistency of the final pass: NIS = nu^T S^-1 nu per epoch, nu = z - H x-, S = H P- H^T + R
+    nis, nis1 = 0.0, 0.0
+    dR = None if sig1 is None else np.repeat(sig1[used] ** 2 - sig[used] ** 2, 2)
+    for k in np.flatnonzero(np.diff(zoff)):
+        Hk = Hu[zoff[k]:zoff[k + 1]]
+        m = Hk.shape[0]
+        Sk = Hk @ Pp[k] @ Hk.T + Rf[roff[k]:roff[k + 1]].reshape(m, m)
+        nu = zu[zoff[k]:zoff[k + 1]] - Hk @ xp[k]
+        nis += float(nu @ np.linalg.solve(Sk, nu))
+        if dR is not None:
+            nis1 += float(nu @ np.linalg.solve(Sk + np.diag(dR[zoff[k]:zoff[k + 1]]), nu))
+    # the total correction theta (imager axes, C_est = Exp(theta) C_nom) and its sigma
     C_nom = np.einsum("ij,kjl->kil", C_ib, C_epoch)
-    # total correction theta (imager axes) and its sigma: theta ~ a + Exp(a) C_ib e
+    C_full = _corrected(x_bar, C_ib, C_epoch)
+    theta_est = _rotvec(C_full @ np.swapaxes(C_nom, 1, 2))
     T = np.zeros((K, 3, 12))
     T[:, :, 0:3] = np.eye(3)
     T[:, :, 6:9] = _exp(x_bar[:, 0:3]) @ C_ib
-    theta = np.einsum("kij,kj->ki", T, x_bar)
     cov = T @ P_s @ np.swapaxes(T, 1, 2)
-    u_after = np.einsum("pij,pj->pi", _corrected(x_bar[ep], C_ib, C_cp), s)
+    theta_sigma = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
+    signif = np.abs(theta_est.mean(axis=0)) / np.median(theta_sigma, axis=0)
+    applied = signif >= (min_significance or 0.0)
+    theta = theta_est * applied
+    C_est = _exp(theta) @ C_nom
+    u_after = np.einsum("pij,pj->pi", C_est[ep] @ np.swapaxes(C_nom[ep], 1, 2) @ C_ib @ C_cp, s)
     rms_after = float(np.sqrt(np.mean(np.sum((pix - imager.project(u_after)) ** 2, axis=1))))
-    return ReconstructionResult(epochs, x_bar, P_s, theta, np.sqrt(np.diagonal(cov, axis1=1, axis2=2)),
-                                C_est, C_nom, rms_before, rms_after, int(M))
+    used_in = np.empty(M, dtype=bool)
+    used_in[order] = used
+    extras = {"theta_estimated": theta_est, "applied": applied, "significance": signif,
+              "used": used_in, "n_rejected": int(M - used.sum()),
+              "nis_per_star": nis / max(int(used.sum()), 1)}
+    if sig1 is not None:
+        extras["nis_per_star_frame"] = nis1 / max(int(used.sum()), 1)
+    return ReconstructionResult(epochs, x_bar, P_s, theta, theta_sigma, C_est, C_nom, rms_before,
+                                rms_after, int(M), extras)
 
 
 def pointing_errors(C_est, C_true):
@@ -455,12 +547,17 @@ def load_control_points(path) -> dict:
     return cp
 
 
-def reconstruct_from_npz(cp: dict, *, n_iter: int = 3, model: PointingErrorModel | None = None):
+def reconstruct_from_npz(cp: dict, *, n_iter: int = 3, model: PointingErrorModel | None = None,
+                         min_significance: float = 3.0, gate_chi2: float | None = 16.0):
     """Run :func:`reconstruct_pointing` on a loaded control-point dict; returns (result, report).
 
-    report: dict with n_cp, epochs, RMS star residual before/after [px], and -- when ``truth_q_ii``
-    is present -- RMS pointing-knowledge error before/after [urad] (total rotation and boresight LOS)
-    and their ratio; when targets are present, their corrected LOS (inertial unit vectors).
+    report: dict with n_cp, epochs, RMS star residual before/after [px], the control points the
+    residual gate left out, the consistency check (``nis_per_star``, 2 expected; and
+    ``nis_per_star_frame`` when the file has ``sigma_px_frame``), the estimated total correction
+    (event mean, imager axes x = boresight roll, y, z) with its median 1-sigma and significance and
+    the axes it was applied about, and -- when ``truth_q_ii`` is present -- RMS pointing-knowledge
+    error before/after [urad] (total rotation and boresight LOS) and their ratio; when targets are
+    present, their corrected LOS (inertial unit vectors).
     """
     imager = Imager.from_array(cp["imager"])
     C_ib = Rotation.from_quat(cp["q_ib"]).as_matrix()
@@ -469,11 +566,20 @@ def reconstruct_from_npz(cp: dict, *, n_iter: int = 3, model: PointingErrorModel
     if "frame_t" in cp:
         kw = dict(frame_t=cp["frame_t"], frame_C_bi=Rotation.from_quat(cp["frame_q_bi"]).as_matrix())
     res = reconstruct_pointing(cp["t"], cp["pix"], cp["star_eci"], C_bi, imager=imager, C_ib=C_ib,
-                               sigma_px=cp.get("sigma_px", 0.1), model=model, n_iter=n_iter, **kw)
+                               sigma_px=cp.get("sigma_px", 0.1), model=model, n_iter=n_iter,
+                               min_significance=min_significance, gate_chi2=gate_chi2,
+                               sigma_px_frame=cp.get("sigma_px_frame"), **kw)
+    ex = res.extras
     rep = {"n_cp": res.n_cp, "n_epochs": int(res.t.size), "rms_star_residual_px_before":
            res.rms_px_before, "rms_star_residual_px_after": res.rms_px_after,
            "theta_mean_urad": (res.theta.mean(axis=0) * 1e6).tolist(),
-           "theta_sigma_median_urad": (np.median(res.theta_sigma, axis=0) * 1e6).tolist()}
+           "theta_sigma_median_urad": (np.median(res.theta_sigma, axis=0) * 1e6).tolist(),
+           "theta_estimated_mean_urad": (ex["theta_estimated"].mean(axis=0) * 1e6).tolist(),
+           "theta_significance": np.asarray(ex["significance"]).tolist(),
+           "theta_applied": np.asarray(ex["applied"]).tolist(),
+           "n_rejected": ex["n_rejected"], "nis_per_star": ex["nis_per_star"]}
+    if "nis_per_star_frame" in ex:
+        rep["nis_per_star_frame"] = ex["nis_per_star_frame"]
     if "truth_q_ii" in cp and "frame_t" in cp:
         idx = np.searchsorted(res.t, cp["frame_t"])
         C_true = Rotation.from_quat(cp["truth_q_ii"]).as_matrix()
