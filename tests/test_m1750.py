@@ -269,9 +269,12 @@ def test_encode_arrays_match_scalar():
     for rnd in ("floor", "nearest"):
         assert [m.encode32(float(v), rnd) for v in x] == list(m.encode32_array(x, rnd))
         assert [m.encode48(float(v), rnd) for v in x] == list(m.encode48_array(x, rnd))
-    p = m.encode32_array(x)
+    # the jitted decoders scale by a power-of-two table: check the exponent extremes too
+    ext32 = [0x40000080, 0x80000080, 0xBFFFFF80, 0x7FFFFF7F, 0x8000007F, 0x4000007F]
+    ext48 = [0x400000800000, 0x800000800000, 0xBFFFFF80FFFF, 0x7FFFFF7FFFFF, 0x8000007F0000]
+    p = np.concatenate([m.encode32_array(x), ext32])
     assert np.array_equal(m.decode32_array(p), [m.decode32(int(w)) for w in p])
-    p = m.encode48_array(x)
+    p = np.concatenate([m.encode48_array(x), ext48])
     assert np.array_equal(m.decode48_array(p), [m.decode48(int(w)) for w in p])
 
 

@@ -751,18 +751,24 @@ def _enc_array_k(x, W, nearest, out):
     return True
 
 
+#: exact powers of two 2**-192 .. 2**191 (index k + 192): scaling by a table entry is one exact
+#: multiplication, where math.ldexp is a libm call in jitted code
+_POW2 = np.ldexp(1.0, np.arange(-192, 192))
+
+
 @njit(cache=True)
 def _dec32_k(p):
-    """Packed 32-bit float -> float64 (exact), in jitted code."""
+    """Packed 32-bit float -> float64 (exact: 24-bit mantissa times a power of two, no subnormals
+    in the 1750A range), in jitted code."""
     m, e = unpack32(p)
-    return math.ldexp(float(m), e - 23)
+    return float(m) * _POW2[e + (192 - 23)]
 
 
 @njit(cache=True)
 def _dec48_k(p):
     """Packed 48-bit float -> float64 (exact), in jitted code."""
     m, e = unpack48(p)
-    return math.ldexp(float(m), e - 39)
+    return float(m) * _POW2[e + (192 - 39)]
 
 
 @njit(cache=True)

@@ -21,7 +21,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from flightsw.arith.m1750 import decode32_array, encode32, unpack32
+from flightsw.arith.m1750 import decode32_array, encode32
+from flightsw.arith.m1750_float import _dec32_k
 from flightsw.budget import IP1750, Ledger
 from flightsw.ip.colour import _CYC as _CYC_COLOUR
 from flightsw.ip.colour import _DIRECT, _as_int_image, _colour_kernel
@@ -41,13 +42,6 @@ __all__ = ["backend", "BackendResult", "process_frame", "process_window", "Frame
 def _enc(x: float) -> int:
     """float -> nearest 1750A 32-bit word (cached: window origins/centres repeat frame to frame)."""
     return encode32(float(x), rounding="nearest")
-
-
-@njit(cache=True, inline="always")
-def _dec32(p):
-    """Packed 1750A 32-bit word -> float64, exact (format conversion, no arithmetic)."""
-    m, e = unpack32(p)
-    return math.ldexp(float(m), e - 23)
 
 
 _CYC_BLOB = features_cycles(1)
@@ -99,10 +93,10 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
         k = order[q]
         b = 15 * q
         cand[b] = k + 1
-        fc[b + 1] = _dec32(d[k])
-        fc[b + 2] = _dec32(gof[q])
+        fc[b + 1] = _dec32_k(d[k])
+        fc[b + 2] = _dec32_k(gof[q])
         for i in range(12):
-            fc[b + 3 + i] = _dec32(words[k, i])
+            fc[b + 3 + i] = _dec32_k(words[k, i])
     return labels, pack
 
 
