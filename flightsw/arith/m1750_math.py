@@ -214,11 +214,8 @@ def sqrt32_lanes(xs, out):
     The same instructions as :func:`sqrt32` for each element, run lane by lane: each step is
     applied to all elements before the next, so the host overlaps the independent chains."""
     K = xs.size
-    sp = np.empty(K, np.bool_)
-    fl = np.empty(K, np.int64)
-    g = np.empty(K, np.int64)
-    k = np.empty(K, np.int64)
-    y = np.empty(K, np.int64)
+    buf = np.empty((5, K), np.int64)             # one allocation: special, flags, g, k, y
+    sp, fl, g, k, y = buf[0], buf[1], buf[2], buf[3], buf[4]
     for i in range(K):
         sp[i], out[i], fl[i], g[i], k[i], y[i] = _sqrt32_start(xs[i])
     for _i in range(SQRT32_STEPS):
@@ -226,7 +223,7 @@ def sqrt32_lanes(xs, out):
             y[i] = _heron32(g[i], y[i])
     flags = 0
     for i in range(K):
-        if sp[i]:
+        if sp[i] != 0:
             flags |= fl[i]
         else:
             out[i], f = _scale32(y[i], k[i])
@@ -523,10 +520,8 @@ def atan2_32_lanes(ys, xs, out):
     (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, run
     step by step over all elements (see :func:`sqrt32_lanes`)."""
     K = ys.size
-    t = np.empty(K, np.int64)
-    sw = np.empty(K, np.bool_)
-    k = np.empty(K, np.int64)
-    u = np.empty(K, np.int64)
+    buf = np.empty((4, K), np.int64)             # one allocation: t, swap, k, u
+    t, sw, k, u = buf[0], buf[1], buf[2], buf[3]
     for i in range(K):
         t[i], sw[i] = _atan2_32_reduce(ys[i], xs[i])
     for i in range(K):
@@ -535,7 +530,7 @@ def atan2_32_lanes(ys, xs, out):
         if (ys[i] & 0xFFFFFF00) == 0 and (xs[i] & 0xFFFFFF00) == 0:
             out[i] = 0
         else:
-            out[i] = _atan2_32_finish(k[i], u[i], sw[i], ys[i], xs[i])
+            out[i] = _atan2_32_finish(k[i], u[i], sw[i] != 0, ys[i], xs[i])
     return 0
 
 

@@ -136,19 +136,18 @@ def _features_kernel(sums, count, intensity):
 
     Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
     routine). The host runs it *blob-parallel*: each operation of the sequence is applied to all
-    blobs before the next one (intermediates in [count] arrays), so the independent chains of
+    blobs before the next one (intermediates in rows of one [19, count] array), so the independent chains of
     different blobs overlap in the CPU pipeline instead of waiting on each emulated operation's
     latency. Per blob the operations, their operands and their order are those of the routine, so
     the words are the same; the PI flags are OR-ed (order-free)."""
     out = np.zeros((count, 12), np.int64)
     flags = 0
     K = count
-    wf = np.empty(K, np.int64)
-    sc = np.empty(K, np.int64)
-    sr = np.empty(K, np.int64)
-    scc = np.empty(K, np.int64)
-    srr = np.empty(K, np.int64)
-    src = np.empty(K, np.int64)
+    buf = np.empty((19, K), np.int64)            # the intermediates, one allocation
+    wf, sc, sr, scc, srr, src = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
+    mc, mr, m20, m02, m11 = buf[6], buf[7], buf[8], buf[9], buf[10]
+    q32, s32, t32, dm32, rq = buf[11], buf[12], buf[13], buf[14], buf[15]
+    major, minor, th2 = buf[16], buf[17], buf[18]
     for k in range(K):
         s = sums[k + 1]
         if intensity and s[1] > 0:
@@ -161,11 +160,6 @@ def _features_kernel(sums, count, intensity):
         scc[k] = _i2f48(c)
         srr[k] = _i2f48(d)
         src[k] = _i2f48(e)
-    mc = np.empty(K, np.int64)
-    mr = np.empty(K, np.int64)
-    m20 = np.empty(K, np.int64)
-    m02 = np.empty(K, np.int64)
-    m11 = np.empty(K, np.int64)
     for k in range(K):                 # divisions (not a reciprocal): exact whenever the quotient
         mc[k], f = fd48(sc[k], wf[k]); flags |= f      # is representable
         mr[k], f = fd48(sr[k], wf[k]); flags |= f
@@ -181,10 +175,6 @@ def _features_kernel(sums, count, intensity):
         a, f = fd48(src[k], wf[k]); flags |= f
         b, f = fm48(mc[k], mr[k]); flags |= f
         m11[k], f = fs48(a, b); flags |= f
-    q32 = np.empty(K, np.int64)
-    s32 = np.empty(K, np.int64)
-    t32 = np.empty(K, np.int64)
-    dm32 = np.empty(K, np.int64)
     for k in range(K):
         o = out[k]
         col, f = fa48(mc[k], HALF48); flags |= f
@@ -202,7 +192,6 @@ def _features_kernel(sums, count, intensity):
         s32[k] = to32(sm)
         t32[k] = to32(t)
         dm32[k] = to32(dm)
-    rq = np.empty(K, np.int64)
     flags |= sqrt32_lanes(q32, rq)
     for k in range(K):
         o = out[k]
@@ -217,9 +206,6 @@ def _features_kernel(sums, count, intensity):
         if fc32(a, 0) < 0:               # rounding only: s - r >= 0 in exact arithmetic
             a = 0
         s32[k] = a                                      # minor^2 (s32 reused)
-    major = np.empty(K, np.int64)
-    minor = np.empty(K, np.int64)
-    th2 = np.empty(K, np.int64)
     flags |= sqrt32_lanes(q32, major)
     flags |= sqrt32_lanes(s32, minor)
     flags |= atan2_32_lanes(t32, dm32, th2)
