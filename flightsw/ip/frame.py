@@ -234,6 +234,11 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
     prm = _static_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
                          compaction, imager, max_candidates)
     labels, pack = _backend_kernel(img, _record_words(record), prm, r0w, c0w, mr, mc, override)
+    return _backend_result(labels, pack, ledger)
+
+
+def _backend_result(labels, pack, ledger):
+    """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged."""
     if pack[21]:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     cyc = {"colour": int(pack[3]), "features": int(pack[4]), "rank": int(pack[5])}
@@ -288,7 +293,7 @@ def _direct(window, name):
 # ================================================================================================
 from flightsw.ip.sequence import (  # noqa: E402
     PHASE_FEATURES, PHASE_LABEL, PHASE_RANK, STEP_REGISTRY, FieldError, ProcessingSequence,
-    Stage, StageOutput, register_step,
+    Stage, StageOutput, _front_fast_k, register_step,
 )
 
 
@@ -492,10 +497,9 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     -------
     FrameResult (iterates as ``message, stages, ledger``)
     """
-    from flightsw.records import Record
     if not isinstance(sequence, ProcessingSequence):
         raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
-    if not isinstance(record, Record):
+    if not isinstance(record, _record_class()):
         raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
     if feedback is not None and not isinstance(feedback, Feedback):
         raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
@@ -509,13 +513,9 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     if feedback is not None and feedback.has_prediction:
         pred = (float(feedback.predicted_row), float(feedback.predicted_col))
     if not want_stages and sequence.fusable:
-        # hot path: the front end in one jitted call (bit-identical to the steps, tested)
-        ctx = {"imager": imager, "record": record}
-        if alpha_q12 is not None:
-            ctx["alpha_q12"] = int(alpha_q12)
-        sub, x, ctx = sequence.run_frame_fast(img, pred, ledger, ctx, check)
-        return _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count,
-                         time_tag, False, [], None)
+        # hot path: front end and back end in one jitted call (bit-identical to the steps, tested)
+        return _process_fused(img, sequence, record, pred, ledger, imager, frame_count, time_tag,
+                              alpha_q12, check)
     sub = sequence.window(img, pred, ledger, check=check)
     return process_window(sub, sequence, record, pred, ledger=ledger, imager=imager,
                           frame_count=frame_count, time_tag=time_tag, alpha_q12=alpha_q12,
@@ -573,6 +573,55 @@ def _backend_params(sequence):
     return bp
 
 
+@njit(cache=True)
+def _frame_kernel(frame, compaction, r0, c0, h, w, ops, kbuf, ksz, tbuf, aq, mode, rec, prm, r0w,
+                  c0w, mean_row, mean_col):
+    """:func:`flightsw.ip.sequence._front_fast_k` then :func:`_backend_kernel` (centroid means
+    overridden) in one call: (window int16 [h, w], pack, t4, mean4, std4, shift)."""
+    win, img, t4, m4, d4, s = _front_fast_k(frame, compaction, r0, c0, h, w, ops, kbuf, ksz, tbuf,
+                                            aq, mode)
+    _, pack = _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, 1)
+    return win, pack, t4, m4, d4, s
+
+
+def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, time_tag, alpha_q12,
+                   check):
+    """:func:`process_frame` without stage images for a sequence whose front end is fusable: the
+    same words, context and cycles as the step path (tested), with one jitted call."""
+    fast = sequence._fast
+    frame, (h, w), (r0, c0) = sequence._fast_window(img, pred, check)
+    aq = fast.alpha_q12 if alpha_q12 is None else int(alpha_q12)
+    colour_p, feat_p, rank_p = _backend_params(sequence)
+    rec = rank_p.record if rank_p.record is not None else record
+    f = sequence.preprocess.compaction
+    origin = (r0 * f, c0 * f)
+    mean = pred if pred is not None else (origin[0] + h * f / 2.0, origin[1] + w * f / 2.0)
+    prm = _static_params(rec, colour_p.diagonal, feat_p.intensity_centroid, False, f, imager,
+                         rank_p.max_candidates)
+    win, pack, t4, m4, d4, s = _frame_kernel(
+        frame, f, r0, c0, h, w, fast.ops, fast.kbuf, fast.ksz, fast.tbuf, aq, fast.mode,
+        _record_words(rec), prm, _enc(origin[0]), _enc(origin[1]), _enc(mean[0]), _enc(mean[1]))
+    ctx = {"imager": imager, "record": record}
+    sub = sequence._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
+    be = _backend_result(_NO_LABELS, pack, ledger)
+    msg = _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag)
+    return FrameResult(msg, [], ledger, be, sub, ctx)
+
+
+_NO_LABELS = np.zeros((0, 0), np.int32)
+
+
+def _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag):
+    """The candidate message of a frame."""
+    th = ctx.get("threshold")
+    h, w = sub.size
+    return CandidateMessage(frame_count=frame_count, time_tag=time_tag,
+                            imager=imager if imager in _IMAGERS else "real", compaction=f,
+                            window_row0=origin[0], window_col0=origin[1], window_rows=int(h),
+                            window_cols=int(w), alpha=th["alpha_q12"] / 4096.0 if th else 0.0,
+                            record_id=rec.record_id, candidates=be.candidates())
+
+
 def _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count, time_tag,
               want_stages, stages, max_candidates):
     """The back end (one jitted call) and the message, after the front end forwarded ``x``."""
@@ -591,14 +640,7 @@ def _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count, 
             lut[be.order + 1] = np.arange(1, len(be.order) + 1)
             ranked = lut[be.labels]
         stages.append(Stage("rank", ranked, be.order))
-    th = ctx.get("threshold")
-    alpha = th["alpha_q12"] / 4096.0 if th else 0.0
-    h, w = sub.size
-    msg = CandidateMessage(frame_count=frame_count, time_tag=time_tag,
-                           imager=imager if imager in _IMAGERS else "real", compaction=f,
-                           window_row0=origin[0], window_col0=origin[1], window_rows=int(h),
-                           window_cols=int(w), alpha=alpha, record_id=rec.record_id,
-                           candidates=be.candidates())
+    msg = _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag)
     return FrameResult(msg, stages, ledger, be, sub, ctx)
 
 

@@ -708,6 +708,17 @@ class ProcessingSequence:
                                                    for st in self.steps) else self
             res = front.run_frame(frame, predicted_rowcol_fullres, ledger, ctx, check)
             return res.subimage, res.image, ctx
+        frame, (h, w), (r0, c0) = self._fast_window(frame, predicted_rowcol_fullres, check)
+        aq = ctx.get("alpha_q12", fast.alpha_q12)
+        win, img, t4, m4, d4, s = _front_fast_k(frame, self.preprocess.compaction, r0, c0, h, w,
+                                                fast.ops, fast.kbuf, fast.ksz, fast.tbuf, aq,
+                                                fast.mode)
+        sub = self._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
+        return sub, img, ctx
+
+    def _fast_window(self, frame, predicted_rowcol_fullres, check):
+        """The fused path's checked frame (C-contiguous integers), window shape and origin
+        (compacted pixels)."""
         pre = self.preprocess
         if check:
             frame = _check_frame(frame)
@@ -717,24 +728,24 @@ class ProcessingSequence:
         if not frame.flags.c_contiguous:
             frame = np.ascontiguousarray(frame)
         if predicted_rowcol_fullres is None:
-            (h, w), (r0, c0) = self._default_window
-        else:
-            h, w = pre.window_shape
-            r0, c0 = window_origin(pre.compacted_shape, pre.compaction, predicted_rowcol_fullres,
-                                   pre.window)
-        aq = ctx.get("alpha_q12", fast.alpha_q12)
-        win, img, t4, m4, d4, s = _front_fast_k(frame, pre.compaction, r0, c0, h, w, fast.ops,
-                                                fast.kbuf, fast.ksz, fast.tbuf, aq, fast.mode)
-        sub = Subimage(win, (r0, c0), pre.compaction, (h, w))
+            return (frame,) + self._default_window
+        return frame, pre.window_shape, window_origin(pre.compacted_shape, pre.compaction,
+                                                      predicted_rowcol_fullres, pre.window)
+
+    def _fast_finish(self, win, origin, size, t4, m4, d4, s, aq, ledger, ctx):
+        """After the fused front end: the Subimage, ``ctx`` (subimage, preprocess, threshold) and
+        the front end's cycles charged, as the step-by-step path does."""
+        fast = self._fast
+        sub = Subimage(win, origin, self.preprocess.compaction, size)
         ctx["subimage"] = sub
-        ctx["preprocess"] = pre
+        ctx["preprocess"] = self.preprocess
         if fast.threshold_stage is not None:
             ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
                                 "mode": fast.mode_name}
         if ledger is not None:
             for stage, c in fast.cycles:
                 ledger.charge("dsp", stage, c)
-        return sub, img, ctx
+        return sub
 
 
 def load_default_sequence(name="satellite"):
