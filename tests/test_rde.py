@@ -287,3 +287,10 @@ def test_cli_rde_study_quick(tmp_path, capsys, monkeypatch):
                  "--out", str(tmp_path)]) == 0
     assert "Figure 3" in capsys.readouterr().out
     assert (tmp_path / "rde_figure3.png").exists()
+
+
+def test_empty_interval_filters_and_smooths_to_nothing():
+    r = kalman_filter(np.zeros(3), np.eye(3), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), [], [], [])
+    assert r.xf.shape == (0, 3) and r.Pf.shape == (0, 3, 3)
+    s = rts_smooth(r.xf, r.Pf, r.xp, r.Pp, np.zeros((0, 3, 3)))
+    assert s.xs.shape == (0, 3) and s.Ps.shape == (0, 3, 3)

@@ -10,29 +10,42 @@ linear(ised) model, float64 ground code::
 * filtering    residual ``z - H x-`` (eq. 10), gain ``K = P- H^T (H P- H^T + R)^-1`` (eq. 11),
   ``x+ = x- + K (z - H x-)`` (eq. 12). The covariance update is the **Joseph form**
   ``P+ = (I - K H) P- (I - K H)^T + K R K^T``, algebraically equal to eq. 13 for the optimal gain
-  but insensitive to first order to errors in K and symmetric positive semi-definite by
-  construction. It is evaluated as a product in O(n^2 m + n m^2) without forming ``I - K H``:
-  ``M = P- - K (H P-)``, ``P+ = M - (M H^T) K^T + K R K^T``, then symmetrised. The gain is obtained
+  but insensitive to first order to errors in K. It is evaluated expanded, without forming
+  ``I - K H``: with ``B = H P-`` (so ``P- H^T = B^T``),
+  ``P+ = P- - K B - B^T K^T + K (B H^T + R) K^T``, i.e. row i of P+ is
+  ``P-_i + sum_a (G_ia K^T_a - K_ia B_a)`` with ``G = K (B H^T + R) - B^T`` -- O(n^2 m + n m^2);
+  only the upper triangle is kept and mirrored, so P+ is exactly symmetric. The gain is obtained
   from a Cholesky factorisation of the innovation covariance ``S`` (never an explicit inverse).
-* smoothing    ``C_k = P+_k Phi_k+1^T (P-_k+1)^-1`` (eq. 14, by Cholesky solve),
+* smoothing    ``C_k = P+_k Phi_k+1^T (P-_k+1)^-1`` (eq. 14: ``C_k^T`` solved from ``P-_k+1 C_k^T =
+  Phi_k+1 P+_k`` with the Cholesky factor of ``P-_k+1``, two triangular solves),
   ``x^s_k = x+_k + C_k (x^s_k+1 - x-_k+1)`` (eq. 15),
-  ``P^s_k = P+_k + C_k (P^s_k+1 - P-_k+1) C_k^T`` (eq. 16), for k = N-2 ... 0.
+  ``P^s_k = P+_k + C_k (P^s_k+1 - P-_k+1) C_k^T`` (eq. 16, upper triangle mirrored), for
+  k = N-2 ... 0.
 
 Indexing convention (the same as filterpy's ``batch_filter``/``rts_smoother``): step ``k`` first
 predicts from step ``k-1`` (from ``x0, P0`` at ``k = 0``) with ``Phi[k], Q[k]`` and then updates with
 ``z[k]``; a step whose measurement is ``None`` or of length 0 is prediction only (``x+ = x-``).
 Any number of measurements per step is allowed (``H[k]`` of shape ``(m_k, n)``).
 
-The kernels are numba ``@njit(cache=True)`` loops that skip the zero entries of ``Phi`` and ``H``
-(the paper's models are block sparse: ~40 of the 324 entries of the 18-state ``Phi`` are non-zero),
-so the cost per step is dominated by the dense smoother algebra.
+The kernels are numba ``@njit(cache=True)`` loops, compiled per state dimension n (passed as a
+tuple of length n, so that loop bounds are compile-time constants; the first call for a new n
+compiles for some seconds, later runs load the cache) and IEEE (no fastmath). They work on
+C-contiguous float64 scratch rows padded to a multiple of 4, the inner loops written as row updates
+``y[j] = y[j] + sum_t c_t X[r_t, j]`` over a chunk of rows (4 rows of a sparsity pattern, 6 rows of a
+triangular solve, all n rows of a dense product), which LLVM vectorises over j without reassociating
+any sum; no row views and no allocation inside the loops. ``Phi`` and ``H`` are applied through
+their non-zero pattern (the paper's models are block sparse: ~40 of the 324 entries of the 18-state
+``Phi`` are non-zero; the pattern of ``Phi`` is rebuilt only when ``Phi`` changes). The smoother
+gains of two steps (Cholesky factorisation and solves, which do not depend on the smoothed values)
+are computed together, and every step starts loading the data of a later step so that memory
+latency overlaps arithmetic. The Python wrappers allocate the outputs with numpy.
 """
 from __future__ import annotations
 
 from typing import NamedTuple, Sequence
 
 import numpy as np
-from numba import njit
+from numba import njit, uint64
 
 __all__ = [
     "FilterResult", "SmootherResult", "kalman_filter", "rts_smooth", "pack_measurements",
@@ -60,238 +73,412 @@ class SmootherResult(NamedTuple):
 
 # ----------------------------------------------------------------------------- numba kernels
 @njit(cache=True)
-def _sparse_left_mm(A, B, out):
-    """out = A @ B, skipping the zero entries of A (A (n, p), B (p, q))."""
-    n, p = A.shape
-    q = B.shape[1]
-    for i in range(n):
-        for j in range(q):
-            out[i, j] = 0.0
-        for k in range(p):
-            a = A[i, k]
-            if a != 0.0:
-                for j in range(q):
-                    out[i, j] += a * B[k, j]
-
-
-@njit(cache=True)
-def _predict_cov(Phi, P, Q, tmp, out):
-    """out = Phi P Phi^T + Q (eq. 6), symmetrised; tmp is (n, n) scratch."""
-    n = P.shape[0]
-    _sparse_left_mm(Phi, P, tmp)           # tmp = Phi P
-    tt = tmp.T.copy()                      # (Phi P)^T = P Phi^T
-    _sparse_left_mm(Phi, tt, out)          # out = Phi P Phi^T
-    for i in range(n):
-        for j in range(i, n):
-            v = 0.5 * (out[i, j] + out[j, i]) + 0.5 * (Q[i, j] + Q[j, i])
-            out[i, j] = v
-            out[j, i] = v
-
-
-@njit(cache=True)
-def _cholesky_inplace(S):
-    """Lower Cholesky factor of S, in place (upper triangle left untouched); False if not PD."""
-    m = S.shape[0]
-    for j in range(m):
-        d = S[j, j]
-        for k in range(j):
-            d -= S[j, k] * S[j, k]
-        if not d > 0.0:
-            return False
-        d = np.sqrt(d)
-        S[j, j] = d
-        for i in range(j + 1, m):
-            s = S[i, j]
-            for k in range(j):
-                s -= S[i, k] * S[j, k]
-            S[i, j] = s / d
-    return True
-
-
-@njit(cache=True)
-def _cholesky_solve_inplace(L, B):
-    """Solve (L L^T) X = B in place for B (m, q), L lower triangular (m, m)."""
-    m = L.shape[0]
-    q = B.shape[1]
-    for i in range(m):                      # forward: L Y = B
-        for k in range(i):
-            lik = L[i, k]
-            if lik != 0.0:
-                for j in range(q):
-                    B[i, j] -= lik * B[k, j]
-        inv = 1.0 / L[i, i]
-        for j in range(q):
-            B[i, j] *= inv
-    for i in range(m - 1, -1, -1):          # backward: L^T X = Y
-        for k in range(i + 1, m):
-            lki = L[k, i]
-            if lki != 0.0:
-                for j in range(q):
-                    B[i, j] -= lki * B[k, j]
-        inv = 1.0 / L[i, i]
-        for j in range(q):
-            B[i, j] *= inv
-
-
-@njit(cache=True)
-def _update(x, P, H, z, R):
-    """Joseph-form update of (x, P) in place with z (m,), H (m, n), R (m, m) (eqs. 10-13)."""
-    n = x.shape[0]
-    m = z.shape[0]
-    B = np.empty((m, n))
-    _sparse_left_mm(H, P, B)                # B = H P
-    S = np.empty((m, m))
-    for i in range(m):                      # S = H P H^T + R = B H^T + R
-        for j in range(m):
-            s = 0.5 * (R[i, j] + R[j, i])
-            for k in range(n):
-                s += B[i, k] * H[j, k]
-            S[i, j] = s
-    for i in range(m):
-        for j in range(i + 1, m):
-            v = 0.5 * (S[i, j] + S[j, i])
-            S[i, j] = v
-            S[j, i] = v
-    if not _cholesky_inplace(S):
-        raise ValueError("innovation covariance H P H^T + R is not positive definite")
-    Kt = B.copy()                           # K^T = S^-1 H P  (eq. 11)
-    _cholesky_solve_inplace(S, Kt)
-    y = z.copy()                            # residual (eq. 10)
-    for i in range(m):
-        for k in range(n):
-            y[i] -= H[i, k] * x[k]
-    for k in range(n):                      # eq. 12
-        s = 0.0
-        for i in range(m):
-            s += Kt[i, k] * y[i]
-        x[k] += s
-    # Joseph: M = P - K B ; P+ = M - (M H^T) K^T + K R K^T
-    M = P.copy()
-    for a in range(m):
-        for i in range(n):
-            kai = Kt[a, i]
-            if kai != 0.0:
-                for j in range(n):
-                    M[i, j] -= kai * B[a, j]
-    MH = np.empty((n, m))
-    for i in range(n):
-        for a in range(m):
-            s = 0.0
-            for k in range(n):
-                s += M[i, k] * H[a, k]
-            MH[i, a] = s
-    KR = np.zeros((n, m))                   # K R
-    for i in range(n):
-        for a in range(m):
-            kia = Kt[a, i]
-            if kia != 0.0:
-                for b in range(m):
-                    KR[i, b] += kia * R[a, b]
-    for i in range(n):
-        for a in range(m):
-            g = KR[i, a] - MH[i, a]
-            if g != 0.0:
-                for j in range(n):
-                    M[i, j] += g * Kt[a, j]
-    for i in range(n):
-        for j in range(i, n):
-            v = 0.5 * (M[i, j] + M[j, i])
-            P[i, j] = v
-            P[j, i] = v
-
-
-@njit(cache=True)
-def kalman_filter_packed(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff):
-    """Kalman filter over packed measurements (see :func:`pack_measurements`).
-
-    x0 (n,), P0 (n, n), Phi, Q (N, n, n); Hf (M, n), zf (M,) the stacked rows of all steps, step k
-    owning rows ``zoff[k]:zoff[k+1]``; Rf the row-major (m_k, m_k) blocks concatenated, step k owning
-    ``Rf[roff[k]:roff[k+1]]``. Returns (xf, Pf, xp, Pp) as :class:`FilterResult` fields.
-    """
+def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr):
+    """Kalman filter (eqs. 5-6, 10-13) over packed measurements, writing into preallocated xf, Pf,
+    xp, Pp (the other arguments as for :func:`kalman_filter_packed`). nt is a tuple of length n (the
+    state dimension, so that numba compiles it as a constant); Wr = 4 ceil(n / 4), the padded row
+    length of the scratch matrices, as a run-time value: loops with small bodies run to Wr (or to n as
+    a run-time value), so that LLVM vectorises them instead of unrolling them into scalar code."""
+    n = len(nt)
+    W = (n + 3) // 4 * 4
+    uWr = uint64(Wr)
+    uN = uint64(x0.shape[0])                # n as a run-time value
     N = Phi.shape[0]
-    n = x0.shape[0]
-    xf = np.empty((N, n))
-    Pf = np.empty((N, n, n))
-    xp = np.empty((N, n))
-    Pp = np.empty((N, n, n))
-    x = x0.copy()
-    P = P0.copy()
-    tmp = np.empty((n, n))
-    Pn = np.empty((n, n))
-    xn = np.empty(n)
+    mmax = 0
     for k in range(N):
-        Phik = Phi[k]
-        for i in range(n):                  # eq. 5
-            s = 0.0
+        mmax = max(mmax, zoff[k + 1] - zoff[k])
+    mb = (mmax + 3) // 4 * 4                # measurement rows (padded)
+    R = n + 4
+    cnt = np.zeros(n, np.int64)             # sparsity pattern of Phi, rows padded to 4 terms
+    idx = np.zeros((n, n + 3), np.int64)
+    val = np.zeros((n, n + 3))
+    Phi0 = np.full((n, n), np.nan)
+    hcnt = np.zeros(mb, np.int64)           # sparsity pattern of H, rows padded to 4 terms
+    hidx = np.zeros((mb, n + 3), np.int64)
+    hval = np.zeros((mb, n + 3))
+    P = np.zeros((R, W))                    # P+ (symmetric, padded)
+    Pn = np.zeros((R, W))                   # P- (symmetric, padded)
+    T = np.zeros((R, W))
+    TT = np.zeros((R, W))
+    B = np.zeros((mb, W))                   # H P-
+    Kt = np.zeros((mb, W))                  # K^T
+    S = np.zeros((mb, mb))
+    BH = np.zeros((mb, mb))
+    dS = np.zeros(mb)
+    y = np.zeros(mb)
+    cv = np.zeros(mb)
+    g = np.zeros(mb)
+    acc = np.zeros((1, W))
+    x = np.zeros(n)
+    for i in range(n):
+        x[i] = x0[i]
+        for j in range(n):
+            P[i, j] = 0.5 * (P0[i, j] + P0[j, i])
+    touch = 0.0
+    for k in range(N):
+        kt = min(k + 2, N - 1)              # a later step: its data are loaded during this one
+        # sparsity pattern of Phi_k (rebuilt only when Phi changes)
+        nd = 0
+        for i in range(n):
             for j in range(n):
-                a = Phik[i, j]
-                if a != 0.0:
-                    s += a * x[j]
-            xn[i] = s
-        _predict_cov(Phik, P, Q[k], tmp, Pn)   # eq. 6
-        x, xn = xn, x
-        P, Pn = Pn, P
-        xp[k] = x
-        Pp[k] = P
+                nd += Phi[k, i, j] != Phi0[i, j]
+        if nd:
+            for i in range(n):
+                q = 0
+                for j in range(n):
+                    v = Phi[k, i, j]
+                    Phi0[i, j] = v
+                    idx[i, q] = j
+                    val[i, q] = v
+                    q += v != 0.0
+                for t in range(q, n + 3):
+                    idx[i, t] = 0
+                    val[i, t] = 0.0
+                cnt[i] = (q + 3) // 4 * 4
+        # eq. 5: x- = Phi x
+        for i in range(n):
+            s = 0.0
+            for t in range(cnt[i]):
+                s += val[i, t] * x[idx[i, t]]
+            xp[k, i] = s
+        # eq. 6: T = Phi P, P- = Phi T^T + Q (rows in chunks of 4 terms of the pattern, zero padded)
+        for i in range(n):
+            for t in range(0, max(cnt[i], 4), 4):
+                c0 = val[i, t]
+                c1 = val[i, t + 1]
+                c2 = val[i, t + 2]
+                c3 = val[i, t + 3]
+                r0 = idx[i, t]
+                r1 = idx[i, t + 1]
+                r2 = idx[i, t + 2]
+                r3 = idx[i, t + 3]
+                for j in range(uWr):
+                    s = (c0 * P[r0, j] + c1 * P[r1, j]) + (c2 * P[r2, j] + c3 * P[r3, j])
+                    T[i, j] = s if t == 0 else T[i, j] + s
+        for i in range(n):
+            for j in range(n):
+                TT[j, i] = T[i, j]
+        for i in range(n):
+            for t in range(0, max(cnt[i], 4), 4):
+                c0 = val[i, t]
+                c1 = val[i, t + 1]
+                c2 = val[i, t + 2]
+                c3 = val[i, t + 3]
+                r0 = idx[i, t]
+                r1 = idx[i, t + 1]
+                r2 = idx[i, t + 2]
+                r3 = idx[i, t + 3]
+                for j in range(uWr):
+                    s = (c0 * TT[r0, j] + c1 * TT[r1, j]) + (c2 * TT[r2, j] + c3 * TT[r3, j])
+                    Pn[i, j] = s if t == 0 else Pn[i, j] + s
+        for i in range(n):                  # + Q, symmetric: upper triangle mirrored
+            for j in range(i, n):
+                v = Pn[i, j] + 0.5 * (Q[k, i, j] + Q[k, j, i])
+                Pn[i, j] = v
+                Pn[j, i] = v
+        for i in range(n):
+            for j in range(uN):
+                Pp[k, i, j] = Pn[i, j]
         a0 = zoff[k]
-        a1 = zoff[k + 1]
-        m = a1 - a0
-        if m > 0:
-            R = Rf[roff[k]:roff[k + 1]].reshape((m, m))
-            _update(x, P, Hf[a0:a1], zf[a0:a1], R)
-        xf[k] = x
-        Pf[k] = P
-    return xf, Pf, xp, Pp
+        m = zoff[k + 1] - a0
+        if m == 0:
+            for i in range(n):
+                xf[k, i] = xp[k, i]
+                x[i] = xp[k, i]
+                for j in range(uN):
+                    Pf[k, i, j] = Pn[i, j]
+                for j in range(uWr):
+                    P[i, j] = Pn[i, j]
+            continue
+        r0_ = roff[k]
+        # sparsity pattern of H_k
+        for a in range(m):
+            q = 0
+            for j in range(n):
+                v = Hf[a0 + a, j]
+                hidx[a, q] = j
+                hval[a, q] = v
+                q += v != 0.0
+            for t in range(q, n + 3):
+                hidx[a, t] = 0
+                hval[a, t] = 0.0
+            hcnt[a] = (q + 3) // 4 * 4
+        # B = H P-
+        for a in range(m):
+            for t in range(0, max(hcnt[a], 4), 4):
+                c0 = hval[a, t]
+                c1 = hval[a, t + 1]
+                c2 = hval[a, t + 2]
+                c3 = hval[a, t + 3]
+                r0 = hidx[a, t]
+                r1 = hidx[a, t + 1]
+                r2 = hidx[a, t + 2]
+                r3 = hidx[a, t + 3]
+                for j in range(uWr):
+                    s = (c0 * Pn[r0, j] + c1 * Pn[r1, j]) + (c2 * Pn[r2, j] + c3 * Pn[r3, j])
+                    B[a, j] = s if t == 0 else B[a, j] + s
+        # S = H P- H^T + R = B H^T + R (symmetrised)
+        for a in range(m):
+            for b in range(m):
+                s = 0.0
+                for t in range(hcnt[b]):
+                    s += B[a, hidx[b, t]] * hval[b, t]
+                BH[a, b] = s
+        for a in range(m):
+            for b in range(a, m):
+                v = 0.5 * (BH[a, b] + BH[b, a]) + 0.5 * (Rf[r0_ + a * m + b] + Rf[r0_ + b * m + a])
+                S[a, b] = v
+                S[b, a] = v
+        # Cholesky S = L L^T (lower, in place), then K^T = S^-1 B (eq. 11)
+        for j in range(m):
+            d = S[j, j]
+            for p in range(j):
+                d -= S[j, p] * S[j, p]
+            if not d > 0.0:
+                raise ValueError("innovation covariance H P H^T + R is not positive definite")
+            d = np.sqrt(d)
+            S[j, j] = d
+            dS[j] = 1.0 / d
+            for i in range(j + 1, m):
+                s = S[i, j]
+                for p in range(j):
+                    s -= S[i, p] * S[j, p]
+                S[i, j] = s / d
+        for a in range(m):
+            for j in range(uWr):
+                Kt[a, j] = B[a, j]
+        for a in range(m):                  # forward: L Y = B
+            for p in range(a):
+                c0 = -S[a, p]
+                for j in range(uWr):
+                    Kt[a, j] += c0 * Kt[p, j]
+            c0 = dS[a]
+            for j in range(uWr):
+                Kt[a, j] *= c0
+        for a in range(m - 1, -1, -1):      # backward: L^T X = Y
+            for p in range(a + 1, m):
+                c0 = -S[p, a]
+                for j in range(uWr):
+                    Kt[a, j] += c0 * Kt[p, j]
+            c0 = dS[a]
+            for j in range(uWr):
+                Kt[a, j] *= c0
+        # eq. 10 residual, eq. 12 x+ = x- + K y
+        for a in range(m):
+            s = zf[a0 + a]
+            for t in range(hcnt[a]):
+                s -= hval[a, t] * xp[k, hidx[a, t]]
+            y[a] = s
+        for j in range(n):
+            s = xp[k, j]
+            for a in range(m):
+                s += Kt[a, j] * y[a]
+            xf[k, j] = s
+            x[j] = s
+        # Joseph form (I - K H) P- (I - K H)^T + K R K^T, expanded with B = H P- (P- symmetric):
+        # P+ = P- - K B - B^T K^T + K (B H^T + R) K^T, i.e. row i: P-_i + sum_a (G_ia K^T_a - K_ia B_a)
+        # with G = K (B H^T + R) - B^T (first order insensitive to errors in K, as the product form)
+        for a in range(m):
+            for b in range(m):
+                BH[a, b] += Rf[r0_ + a * m + b]
+        m2 = (m + 1) // 2 * 2
+        for i in range(n):
+            for j in range(0, n, 8):        # one load per cache line of row i of step kt
+                touch += Phi[kt, i, j] + Q[kt, i, j] + Pf[kt, i, j] + Pp[kt, i, j]
+            for a in range(m):
+                s = -B[a, i]
+                for b in range(m):
+                    s += Kt[b, i] * BH[b, a]
+                g[a] = s
+                cv[a] = -Kt[a, i]
+            for a in range(m, m2):
+                g[a] = 0.0
+                cv[a] = 0.0
+            for a in range(0, m2, 2):
+                c0 = cv[a]
+                c1 = cv[a + 1]
+                g0 = g[a]
+                g1 = g[a + 1]
+                if a == 0:
+                    for j in range(uWr):
+                        acc[0, j] = Pn[i, j] + ((g0 * Kt[0, j] + c0 * B[0, j])
+                                                + (g1 * Kt[1, j] + c1 * B[1, j]))
+                else:
+                    for j in range(uWr):
+                        acc[0, j] += (g0 * Kt[a, j] + c0 * B[a, j]) \
+                            + (g1 * Kt[a + 1, j] + c1 * B[a + 1, j])
+            for j in range(uN):
+                P[i, j] = acc[0, j]
+        for i in range(n):                  # symmetric: upper triangle mirrored
+            for j in range(i + 1, n):
+                P[j, i] = P[i, j]
+            for j in range(uN):
+                Pf[k, i, j] = P[i, j]
+    y[0] = touch                            # keeps those loads
 
 
 @njit(cache=True)
-def _rts_kernel(xf, Pf, xp, Pp, Phi):
-    N, n = xf.shape
-    xs = xf.copy()
-    Ps = np.empty_like(Pf)                  # every entry written below (no copy of Pf)
-    Ps[N - 1] = Pf[N - 1]
-    A = np.empty((n, n))
-    L = np.empty((n, n))
-    D = np.empty((n, n))
-    CD = np.empty((n, n))
-    dx = np.empty(n)
-    for k in range(N - 2, -1, -1):
-        # C^T = (P-_{k+1})^-1 Phi_{k+1} P+_k   (eq. 14; P- symmetric)
-        _sparse_left_mm(Phi[k + 1], Pf[k], A)
-        for i in range(n):
-            for j in range(n):
-                L[i, j] = Pp[k + 1, i, j]
-        if not _cholesky_inplace(L):
-            raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
-        _cholesky_solve_inplace(L, A)       # A = C^T
-        for i in range(n):
-            dx[i] = xs[k + 1, i] - xp[k + 1, i]
-            for j in range(n):
-                D[i, j] = Ps[k + 1, i, j] - Pp[k + 1, i, j]
-        for i in range(n):                  # eq. 15
-            s = 0.0
-            for j in range(n):
-                s += A[j, i] * dx[j]
-            xs[k, i] += s
-        for i in range(n):                  # CD = C D = A^T D
-            for j in range(n):
-                CD[i, j] = 0.0
-        for a in range(n):
+def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
+    """RTS smoother (eqs. 14-16) writing into preallocated xs, Ps (N >= 1); nt, Wr as for
+    :func:`_filter_into`."""
+    n = len(nt)
+    W = (n + 3) // 4 * 4
+    R = n + 6                               # scratch rows: triangular reductions in chunks of 6
+    uW = uint64(W)
+    uW2 = uint64(2 * W)
+    uWr = uint64(Wr)
+    uN = uint64(xf.shape[1])                # n as a run-time value
+    N = xf.shape[0]
+    for i in range(n):
+        xs[N - 1, i] = xf[N - 1, i]
+        for j in range(n):
+            Ps[N - 1, i, j] = Pf[N - 1, i, j]
+    NL = 2                                  # gains of two steps computed together (independent)
+    cnt = np.zeros((NL, n), np.int64)       # sparsity pattern of Phi, rows padded to 4 terms
+    idx = np.zeros((NL, n, n + 3), np.int64)
+    val = np.zeros((NL, n, n + 3))
+    Phi0 = np.full((NL, n, n), np.nan)      # the Phi the pattern was built for
+    Pfp = np.zeros((NL, R, W))              # P+_kk (padded)
+    G = np.zeros((NL, R, 2 * W))            # [P-_kk+1 | Phi P+_kk] -> [U | U^-T Phi P+] -> [. | C^T]
+    acc = np.zeros((NL, 2 * W))
+    dinv = np.zeros((NL, n))
+    cv = np.zeros((NL, R))
+    D = np.zeros((R, W))
+    CD = np.zeros((R, W))
+    Psn = np.zeros((R, W))                  # P^s_kk+1 (padded)
+    Psk = np.zeros((R, W))                  # P^s_kk (padded)
+    for i in range(n):
+        for j in range(n):
+            Psn[i, j] = Pf[N - 1, i, j]
+    touch = 0.0
+    k = N - 2
+    while k >= 0:
+        nl = min(NL, k + 1)                 # lane l: step kk = k - l
+        for kk in range(max(k - 2 * NL + 1, 0), k - NL + 1):
+            for i in range(n):              # start loading the next steps' inputs and outputs
+                for j in range(0, n, 8):
+                    touch += Pf[kk, i, j] + Pp[kk + 1, i, j] + Phi[kk + 1, i, j] + Ps[kk, i, j]
+        for l in range(nl):
+            kk = k - l
             for i in range(n):
-                c = A[a, i]
-                if c != 0.0:
+                for j in range(uN):
+                    Pfp[l, i, j] = Pf[kk, i, j]
+                for j in range(uN):
+                    G[l, i, j] = Pp[kk + 1, i, j]
+            # sparsity pattern of Phi_{kk+1} (rebuilt only when Phi changes)
+            nd = 0
+            for i in range(n):
+                for j in range(n):
+                    nd += Phi[kk + 1, i, j] != Phi0[l, i, j]
+            if nd:
+                for i in range(n):
+                    q = 0
                     for j in range(n):
-                        CD[i, j] += c * D[a, j]
-        Ct = A.T.copy()                     # rows of C
-        for i in range(n):                  # eq. 16: Ps = Pf + CD C^T (symmetric half)
-            for j in range(i, n):
-                s = 0.0
+                        v = Phi[kk + 1, i, j]
+                        Phi0[l, i, j] = v
+                        idx[l, i, q] = j
+                        val[l, i, q] = v
+                        q += v != 0.0
+                    for t in range(q, n + 3):
+                        idx[l, i, t] = 0
+                        val[l, i, t] = 0.0
+                    cnt[l, i] = (q + 3) // 4 * 4
+            # Phi_{kk+1} P+_kk (sparse Phi), into the right half of G
+            for i in range(n):
+                for t in range(0, max(cnt[l, i], 4), 4):
+                    c0 = val[l, i, t]
+                    c1 = val[l, i, t + 1]
+                    c2 = val[l, i, t + 2]
+                    c3 = val[l, i, t + 3]
+                    r0 = idx[l, i, t]
+                    r1 = idx[l, i, t + 1]
+                    r2 = idx[l, i, t + 2]
+                    r3 = idx[l, i, t + 3]
+                    for j in range(uWr):
+                        s = (c0 * Pfp[l, r0, j] + c1 * Pfp[l, r1, j]) \
+                            + (c2 * Pfp[l, r2, j] + c3 * Pfp[l, r3, j])
+                        G[l, i, W + j] = s if t == 0 else G[l, i, W + j] + s
+        # Cholesky P-_{kk+1} = U^T U (U upper triangular; only its strict upper part and 1/diag are
+        # used) and forward solve U^T Y = Phi P+ together, row by row on [P- | Phi P+] (the same
+        # coefficients), the lanes interleaved; the row sums run in chunks of 6 terms (zero padded)
+        for i in range(n):
+            L = max((i + 5) // 6 * 6, 6)
+            jb = uint64(i // 4 * 4)         # columns left of the diagonal block are not needed
+            for l in range(nl):
+                for p in range(i):
+                    cv[l, p] = -G[l, p, i]
+                for p in range(i, L):
+                    cv[l, p] = 0.0
+                for a in range(0, L, 6):
+                    for j in range(jb, uW2):
+                        s = G[l, i, j] if a == 0 else acc[l, j]
+                        for r in range(6):
+                            s += cv[l, a + r] * G[l, a + r, j]
+                        acc[l, j] = s
+                d = acc[l, i]
+                if not d > 0.0:
+                    raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
+                inv = 1.0 / np.sqrt(d)
+                dinv[l, i] = inv
+                for j in range(jb, uW2):
+                    G[l, i, j] = acc[l, j] * inv
+        # backward solve U X = Y: X = C^T = (P-)^-1 Phi P+ (eq. 14), in place in the right half of G
+        for i in range(n - 1, -1, -1):
+            a0 = i + 1
+            m = n - a0
+            L = max((m + 5) // 6 * 6, 6)
+            for l in range(nl):
+                for t in range(m):
+                    cv[l, t] = -G[l, i, a0 + t]
+                for t in range(m, L):
+                    cv[l, t] = 0.0
+                for a in range(0, L, 6):
+                    for j in range(uW):
+                        s = G[l, i, W + j] if a == 0 else acc[l, j]
+                        for r in range(6):
+                            s += cv[l, a + r] * G[l, a0 + a + r, W + j]
+                        acc[l, j] = s
+                inv = dinv[l, i]
+                for j in range(uW):
+                    G[l, i, W + j] = acc[l, j] * inv
+        for l in range(nl):
+            kk = k - l
+            # eq. 15: xs = xf + C (xs_{kk+1} - x-_{kk+1}) = xf + X^T dx, X = C^T
+            for i in range(n):
+                cv[l, i] = xs[kk + 1, i] - xp[kk + 1, i]
+            for j in range(n):
+                s = xf[kk, j]
                 for a in range(n):
-                    s += CD[i, a] * Ct[j, a]
-                v = 0.5 * (Pf[k, i, j] + Pf[k, j, i]) + s
-                Ps[k, i, j] = v
-                Ps[k, j, i] = v
-    return xs, Ps
+                    s += cv[l, a] * G[l, a, W + j]
+                xs[kk, j] = s
+            # eq. 16: Ps = Pf + C (Ps_{kk+1} - P-_{kk+1}) C^T = Pf + (X^T D) X
+            for i in range(n):
+                for j in range(uN):
+                    D[i, j] = Psn[i, j] - Pp[kk + 1, i, j]
+            for i in range(n):
+                for a in range(n):
+                    cv[l, a] = G[l, a, W + i]
+                for j in range(uW):
+                    s = 0.0
+                    for a in range(n):
+                        s += cv[l, a] * D[a, j]
+                    CD[i, j] = s
+            for i in range(n):
+                for j in range(uW):
+                    s = Pfp[l, i, j]
+                    for a in range(n):
+                        s += CD[i, a] * G[l, a, W + j]
+                    Psk[i, j] = s
+            for i in range(n):              # symmetric: upper triangle mirrored
+                for j in range(i + 1, n):
+                    Psk[j, i] = Psk[i, j]
+                for j in range(uN):
+                    Ps[kk, i, j] = Psk[i, j]
+            for i in range(n):
+                for j in range(uWr):
+                    Psn[i, j] = Psk[i, j]
+        k -= nl
+    dinv[0, 0] = touch                      # keeps the prefetching loads
 
 
 # ----------------------------------------------------------------------------- Python surface
@@ -323,7 +510,13 @@ def _pack_uniform(H, R, zs, n: int):
         Hs = np.broadcast_to(Hs, (N, m, n))
     if Hs.shape != (N, m, n):
         return None
-    Rs = np.asarray(R, dtype=np.float64)
+    R0 = None
+    if isinstance(R, (list, tuple)) and len(R) == N and all(r is R[0] for r in R):
+        R0 = np.asarray(R[0], dtype=np.float64)     # the same (m, m) matrix object at every step
+    if R0 is not None and R0.shape == (m, m):
+        Rs = np.broadcast_to(R0, (N, m, m))
+    else:
+        Rs = np.asarray(R, dtype=np.float64)
     if Rs.ndim == 0:
         Rs = np.broadcast_to(np.eye(m) * float(Rs), (N, m, m))
     elif Rs.shape == (m, m) and not isinstance(R, (list, tuple)):
@@ -336,6 +529,38 @@ def _pack_uniform(H, R, zs, n: int):
     roff = np.arange(N + 1, dtype=np.int64) * (m * m)
     return (np.ascontiguousarray(Hs.reshape(N * m, n)), np.ascontiguousarray(Z.ravel()),
             np.ascontiguousarray(Rs.reshape(-1)), zoff, roff)
+
+
+def _padded(n: int) -> int:
+    """Row length of the kernels' scratch matrices."""
+    return (n + 3) // 4 * 4
+
+
+def kalman_filter_packed(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff):
+    """Kalman filter over packed measurements (see :func:`pack_measurements`).
+
+    x0 (n,), P0 (n, n), Phi, Q (N, n, n) (or (n, n)); Hf (M, n), zf (M,) the stacked rows of all
+    steps, step k owning rows ``zoff[k]:zoff[k+1]`` (zoff, roff of length N + 1); Rf the row-major
+    (m_k, m_k) blocks concatenated, step k owning ``Rf[roff[k]:roff[k+1]]``. Returns
+    (xf, Pf, xp, Pp) as :class:`FilterResult` fields. The outputs are allocated here (numpy gives
+    large blocks transparent huge pages: fewer page faults than allocating inside the kernel) and
+    filled by the numba kernel ``_filter_into``.
+    """
+    x0 = np.ascontiguousarray(x0, dtype=np.float64).ravel()
+    n = x0.size
+    P0 = np.ascontiguousarray(P0, dtype=np.float64).reshape(n, n)
+    zoff = np.ascontiguousarray(zoff, dtype=np.int64)
+    roff = np.ascontiguousarray(roff, dtype=np.int64)
+    N = zoff.size - 1
+    Phi = _per_step_matrices(Phi, N, n, "Phi")
+    Q = _per_step_matrices(Q, N, n, "Q")
+    Hf = np.ascontiguousarray(Hf, dtype=np.float64).reshape(-1, n)
+    zf = np.ascontiguousarray(zf, dtype=np.float64).ravel()
+    Rf = np.ascontiguousarray(Rf, dtype=np.float64).ravel()
+    xf, xp = np.empty((N, n)), np.empty((N, n))
+    Pf, Pp = np.empty((N, n, n)), np.empty((N, n, n))
+    _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, (0,) * n, _padded(n))
+    return xf, Pf, xp, Pp
 
 
 def pack_measurements(H, R, zs, n: int):
@@ -422,10 +647,16 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     """
     xf = np.ascontiguousarray(xf, dtype=np.float64)
     N = xf.shape[0]
+    if N == 0:                                  # an empty interval smooths to nothing
+        n = xf.shape[1] if xf.ndim == 2 else 0
+        return SmootherResult(np.zeros((0, n)), np.zeros((0, n, n)))
     xf = xf.reshape(N, -1)
     n = xf.shape[1]
     Pf = np.ascontiguousarray(Pf, dtype=np.float64).reshape(N, n, n)
     xp = np.ascontiguousarray(xp, dtype=np.float64).reshape(N, n)
     Pp = np.ascontiguousarray(Pp, dtype=np.float64).reshape(N, n, n)
     Phi = _per_step_matrices(Phi, N, n, "Phi")
-    return SmootherResult(*_rts_kernel(xf, Pf, xp, Pp, Phi))
+    xs, Ps = np.empty((N, n)), np.empty((N, n, n))
+    if N:
+        _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, (0,) * n, _padded(n))
+    return SmootherResult(xs, Ps)
