@@ -72,6 +72,44 @@ class SmootherResult(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- numba kernels
+@njit(cache=True, inline="always")
+def _row_patterns(A, rows, n, idx, val, cnt):
+    """Sparsity pattern of rows 0..rows-1 of A (rows, n): row i's non-zero columns idx[i, :q] and
+    values val[i, :q], zero padded to cnt[i] = q rounded up to a multiple of 4 (for
+    :func:`_sparse_rows_mm`)."""
+    for i in range(rows):
+        q = 0
+        for j in range(n):
+            v = A[i, j]
+            idx[i, q] = j
+            val[i, q] = v
+            q += v != 0.0
+        for t in range(q, n + 3):
+            idx[i, t] = 0
+            val[i, t] = 0.0
+        cnt[i] = (q + 3) // 4 * 4
+
+
+@njit(cache=True, inline="always")
+def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
+    """out[i, :uWr] = sum_t val[i, t] X[idx[i, t], :uWr] for i < rows: a sparse (pattern) matrix
+    times the dense padded rows of X, four pattern terms at a time (patterns are zero padded to a
+    multiple of 4, at least 4), each term added in the same order (no reassociation)."""
+    for i in range(rows):
+        for t in range(0, max(cnt[i], 4), 4):
+            c0 = val[i, t]
+            c1 = val[i, t + 1]
+            c2 = val[i, t + 2]
+            c3 = val[i, t + 3]
+            r0 = idx[i, t]
+            r1 = idx[i, t + 1]
+            r2 = idx[i, t + 2]
+            r3 = idx[i, t + 3]
+            for j in range(uWr):
+                s = (c0 * X[r0, j] + c1 * X[r1, j]) + (c2 * X[r2, j] + c3 * X[r3, j])
+                out[i, j] = s if t == 0 else out[i, j] + s
+
+
 @njit(cache=True)
 def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr):
     """Kalman filter (eqs. 5-6, 10-13) over packed measurements, writing into preallocated xf, Pf,
@@ -124,17 +162,9 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
                 nd += Phi[k, i, j] != Phi0[i, j]
         if nd:
             for i in range(n):
-                q = 0
                 for j in range(n):
-                    v = Phi[k, i, j]
-                    Phi0[i, j] = v
-                    idx[i, q] = j
-                    val[i, q] = v
-                    q += v != 0.0
-                for t in range(q, n + 3):
-                    idx[i, t] = 0
-                    val[i, t] = 0.0
-                cnt[i] = (q + 3) // 4 * 4
+                    Phi0[i, j] = Phi[k, i, j]
+            _row_patterns(Phi0, n, n, idx, val, cnt)
         # eq. 5: x- = Phi x
         for i in range(n):
             s = 0.0
@@ -142,35 +172,11 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
                 s += val[i, t] * x[idx[i, t]]
             xp[k, i] = s
         # eq. 6: T = Phi P, P- = Phi T^T + Q (rows in chunks of 4 terms of the pattern, zero padded)
-        for i in range(n):
-            for t in range(0, max(cnt[i], 4), 4):
-                c0 = val[i, t]
-                c1 = val[i, t + 1]
-                c2 = val[i, t + 2]
-                c3 = val[i, t + 3]
-                r0 = idx[i, t]
-                r1 = idx[i, t + 1]
-                r2 = idx[i, t + 2]
-                r3 = idx[i, t + 3]
-                for j in range(uWr):
-                    s = (c0 * P[r0, j] + c1 * P[r1, j]) + (c2 * P[r2, j] + c3 * P[r3, j])
-                    T[i, j] = s if t == 0 else T[i, j] + s
+        _sparse_rows_mm(n, cnt, idx, val, P, T, uWr)
         for i in range(n):
             for j in range(n):
                 TT[j, i] = T[i, j]
-        for i in range(n):
-            for t in range(0, max(cnt[i], 4), 4):
-                c0 = val[i, t]
-                c1 = val[i, t + 1]
-                c2 = val[i, t + 2]
-                c3 = val[i, t + 3]
-                r0 = idx[i, t]
-                r1 = idx[i, t + 1]
-                r2 = idx[i, t + 2]
-                r3 = idx[i, t + 3]
-                for j in range(uWr):
-                    s = (c0 * TT[r0, j] + c1 * TT[r1, j]) + (c2 * TT[r2, j] + c3 * TT[r3, j])
-                    Pn[i, j] = s if t == 0 else Pn[i, j] + s
+        _sparse_rows_mm(n, cnt, idx, val, TT, Pn, uWr)
         for i in range(n):                  # + Q, symmetric: upper triangle mirrored
             for j in range(i, n):
                 v = Pn[i, j] + 0.5 * (Q[k, i, j] + Q[k, j, i])
@@ -192,31 +198,9 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
             continue
         r0_ = roff[k]
         # sparsity pattern of H_k
-        for a in range(m):
-            q = 0
-            for j in range(n):
-                v = Hf[a0 + a, j]
-                hidx[a, q] = j
-                hval[a, q] = v
-                q += v != 0.0
-            for t in range(q, n + 3):
-                hidx[a, t] = 0
-                hval[a, t] = 0.0
-            hcnt[a] = (q + 3) // 4 * 4
+        _row_patterns(Hf[a0:a0 + m], m, n, hidx, hval, hcnt)
         # B = H P-
-        for a in range(m):
-            for t in range(0, max(hcnt[a], 4), 4):
-                c0 = hval[a, t]
-                c1 = hval[a, t + 1]
-                c2 = hval[a, t + 2]
-                c3 = hval[a, t + 3]
-                r0 = hidx[a, t]
-                r1 = hidx[a, t + 1]
-                r2 = hidx[a, t + 2]
-                r3 = hidx[a, t + 3]
-                for j in range(uWr):
-                    s = (c0 * Pn[r0, j] + c1 * Pn[r1, j]) + (c2 * Pn[r2, j] + c3 * Pn[r3, j])
-                    B[a, j] = s if t == 0 else B[a, j] + s
+        _sparse_rows_mm(m, hcnt, hidx, hval, Pn, B, uWr)
         # S = H P- H^T + R = B H^T + R (symmetrised)
         for a in range(m):
             for b in range(m):
