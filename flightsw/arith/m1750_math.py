@@ -70,7 +70,8 @@ from flightsw.arith.m1750_float import (
 from flightsw.budget import PACE1750A, Processor
 
 __all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
-           "atan2_32", "atan2_48", "sqrt32_lanes", "atan2_32_lanes", "MATH_OP_MIX", "MATH_CYCLES", "MAX_ERROR", "math_cycles"]
+           "atan2_32", "atan2_48", "sqrt32_lanes", "atan2_32_lanes", "MATH_OP_MIX", "MATH_CYCLES",
+           "MAX_ERROR", "math_cycles"]
 
 # ------------------------------------------------------------------------------------------------
 # constants (packed words; generated from exact rationals / float64 fits, rounded to nearest)
@@ -523,7 +524,10 @@ def atan2_32_lanes(ys, xs, out):
     buf = np.empty((4, K), np.int64)             # one allocation: t, swap, k, u
     t, sw, k, u = buf[0], buf[1], buf[2], buf[3]
     for i in range(K):
-        t[i], sw[i] = _atan2_32_reduce(ys[i], xs[i])
+        if (ys[i] & 0xFFFFFF00) == 0 and (xs[i] & 0xFFFFFF00) == 0:
+            t[i], sw[i] = 0, 0                  # atan2(0, 0) = 0: no division by zero
+        else:
+            t[i], sw[i] = _atan2_32_reduce(ys[i], xs[i])
     for i in range(K):
         k[i], u[i] = _atan2_32_table(t[i])
     for i in range(K):

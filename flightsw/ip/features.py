@@ -136,10 +136,10 @@ def _features_kernel(sums, count, intensity):
 
     Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
     routine). The host runs it *blob-parallel*: each operation of the sequence is applied to all
-    blobs before the next one (intermediates in rows of one [19, count] array), so the independent chains of
-    different blobs overlap in the CPU pipeline instead of waiting on each emulated operation's
-    latency. Per blob the operations, their operands and their order are those of the routine, so
-    the words are the same; the PI flags are OR-ed (order-free)."""
+    blobs before the next one (intermediates in the rows of one [19, count] array), so the
+    independent chains of different blobs overlap in the CPU pipeline instead of waiting on each
+    emulated operation's latency. Per blob the operations, their operands and their order are
+    those of the routine, so the words are the same; the PI flags are OR-ed (order-free)."""
     out = np.zeros((count, 12), np.int64)
     flags = 0
     K = count
