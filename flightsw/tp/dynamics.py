@@ -157,14 +157,10 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True)
-def accel(D, r0, r1, r2, tau):
-    """Plant acceleration at position (packed 32-bit, m) and ``tau = t - t0`` (packed 32-bit, s)
-    -> (a0, a1, a2, flags) (packed 32-bit, m/s^2)::
-
-        a = -mu r / |r|^3 [1 + k (1 - 5 z^2/r^2), same, 1 + k (3 - 5 z^2/r^2)] + a_fit(tau),
-        k = 1.5 J2 Re^2 / r^2 (J2 on).
-    """
+@njit(cache=True, inline="always")
+def _radius_terms(D, r0, r1, r2):
+    """The radius terms the gravity routines share, from a position (packed 32-bit, m):
+    (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3)."""
     f = 0
     x2, g = fm32(r0, r0); f |= g
     y2, g = fm32(r1, r1); f |= g
@@ -176,6 +172,18 @@ def accel(D, r0, r1, r2, tau):
     inv2, g = fm32(inv, inv); f |= g
     m3, g = fm32(D[D_NMU], inv); f |= g
     m3, g = fm32(m3, inv2); f |= g              # -mu / r^3
+    return z2, inv, inv2, m3, f
+
+
+@njit(cache=True)
+def accel(D, r0, r1, r2, tau):
+    """Plant acceleration at position (packed 32-bit, m) and ``tau = t - t0`` (packed 32-bit, s)
+    -> (a0, a1, a2, flags) (packed 32-bit, m/s^2)::
+
+        a = -mu r / |r|^3 [1 + k (1 - 5 z^2/r^2), same, 1 + k (3 - 5 z^2/r^2)] + a_fit(tau),
+        k = 1.5 J2 Re^2 / r^2 (J2 on).
+    """
+    z2, inv, inv2, m3, f = _radius_terms(D, r0, r1, r2)
     cxy = m3
     cz = m3
     if D[D_J2] != 0:
@@ -214,20 +222,10 @@ def accel(D, r0, r1, r2, tau):
 def grav_gradient_h(D, r0, r1, r2, h):
     """``C = h G`` of two-body gravity at r (packed 32-bit), ``G = mu/r^3 (3 u u^T - I)``; returns
     the six distinct elements (c00, c01, c02, c11, c12, c22, flags), packed 32-bit, 1/s."""
-    f = 0
-    x2, g = fm32(r0, r0); f |= g
-    y2, g = fm32(r1, r1); f |= g
-    z2, g = fm32(r2, r2); f |= g
-    s, g = fa32(x2, y2); f |= g
-    s, g = fa32(s, z2); f |= g
-    rn, g = sqrt32(s); f |= g
-    inv, g = fd32(_ONE32, rn); f |= g
+    _, inv, _, c, f = _radius_terms(D, r0, r1, r2)         # c = -mu/r^3
     u0, g = fm32(r0, inv); f |= g
     u1, g = fm32(r1, inv); f |= g
     u2, g = fm32(r2, inv); f |= g
-    inv2, g = fm32(inv, inv); f |= g
-    c, g = fm32(D[D_NMU], inv); f |= g
-    c, g = fm32(c, inv2); f |= g            # -mu/r^3
     c, g = fm32(c, h); f |= g               # -h mu / r^3
     c3, g = fm32(c, D[D_THREE]); f |= g     # -3 h mu / r^3
     # C_ij = h mu/r^3 (3 u_i u_j - d_ij) = -(c3 u_i u_j) + c d_ij ... signs: c < 0

@@ -281,6 +281,20 @@ def los_tan(RM, l0, l1, l2):
     return a, b, True, f
 
 
+@njit(cache=True, inline="always")
+def los_delta(RM, l0, l1, l2, p0, p1, p2):
+    """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
+    both seen in the current attitude RM -> (da, db, flags); (0, 0) if either is behind the
+    tangent plane."""
+    an, bn, okn, f = los_tan(RM, l0, l1, l2)
+    ap, bp, okp, g = los_tan(RM, p0, p1, p2); f |= g
+    if not (okn and okp):
+        return 0, 0, f
+    da, g = fs32(an, ap); f |= g
+    db, g = fs32(bn, bp); f |= g
+    return da, db, f
+
+
 @njit(cache=True)
 def _i16abs(x):
     return -x if x < 0 else x
@@ -502,11 +516,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
         d2, g = fs48(N[N_X + 2], rs2); fl |= g
         l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
         if S[S_NL_OK] != 0 and have_prev:
-            an, bn, okn, g = los_tan(RM, l0, l1, l2); fl |= g
-            ap, bp, okp, g = los_tan(RM, S[S_NL], S[S_NL + 1], S[S_NL + 2]); fl |= g
-            if okn and okp:
-                dn_a, g = fs32(an, ap); fl |= g
-                dn_b, g = fs32(bn, bp); fl |= g
+            dn_a, dn_b, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1], S[S_NL + 2]); fl |= g
         S[S_NL], S[S_NL + 1], S[S_NL + 2] = l0, l1, l2
         S[S_NL_OK] = 1
         cyc[ST_NOM] += CYC_LOS_DELTA
@@ -521,11 +531,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, TAKEN, wk, RM, dR, M, msg_ok, im
         cyc[ST_EKF_PRED] += nsteps * C[C_CYC_EKF_STEP]
         l0, l1, l2, rho, g = ekf_los(E, rs0, rs1, rs2); fl |= g
         if E[E_HAVE_LOS] != 0 and have_prev:
-            an, bn, okn, g = los_tan(RM, l0, l1, l2); fl |= g
-            ap, bp, okp, g = los_tan(RM, E[E_LOS], E[E_LOS + 1], E[E_LOS + 2]); fl |= g
-            if okn and okp:
-                de_a, g = fs32(an, ap); fl |= g
-                de_b, g = fs32(bn, bp); fl |= g
+            de_a, de_b, g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1], E[E_LOS + 2]); fl |= g
         E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
         E[E_HAVE_LOS] = 1
         cyc[ST_EKF_PRED] += CYC_LOS_DELTA
