@@ -536,11 +536,17 @@ def block_bitlen(img):
     for i in range(f.size):
         a = np.int32(f[i])
         m |= a ^ (a >> np.int32(15))
-    bl = 0
-    while m > 0:
-        bl += 1
-        m >>= 1
-    return bl
+    return bitlen(m)
+
+
+@njit(cache=True, inline="always")
+def bitlen(v):
+    """Number of significant bits of a non-negative integer (0 for 0)."""
+    n = 0
+    while v > 0:
+        n += 1
+        v >>= 1
+    return n
 
 
 @njit(cache=True)

@@ -104,6 +104,8 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
+from flightsw.arith.adsp2100 import bitlen
+
 __all__ = ["FFT_TILES", "FLIGHT_TILES", "MAX_FFT_KERNEL", "FFTKernel", "fft_kernel",
            "fft_correlate", "fft_filter_cycles", "fft_cycles_1d", "twiddles_q15",
            "gaussian_kernel_q15", "choose_tile", "fft_dm_words", "bound_map"]
@@ -291,15 +293,6 @@ def _rnd15(a):
     return q
 
 
-@njit(cache=True, inline="always")
-def _bitlen(v):
-    n = 0
-    while v > 0:
-        n += 1
-        v >>= 1
-    return n
-
-
 @njit(cache=True)
 def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
     """Radix-2 DIT FFT along axis 1 of rows 0..nv-1 (stage by stage over the whole block, one block
@@ -365,7 +358,7 @@ def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
         log[nst, 2] = sh
         nst += 1
         shifts += sh
-        bl = _bitlen(orv)
+        bl = bitlen(orv)
         L <<= 1
     return bl, E, Vv, shifts
 
@@ -385,7 +378,7 @@ def _block_bitlen(re, im, nv, T):
             a = re[r, c]
             b = im[r, c]
             orv |= (a ^ (a >> 63)) | (b ^ (b >> 63))
-    return _bitlen(orv)
+    return bitlen(orv)
 
 
 @njit(cache=True)
@@ -482,7 +475,7 @@ def _fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, 
                 + math.sqrt(xsq) * dk / 32768.0 + 0.5 * math.sqrt(2.0 * nn)
             Vv = (Vv / 4.0 ** shm + 2.0 * nn * _floor_m2(shm)) * k2mean / 2.0 ** 30 \
                 + xsq * dk * dk / 2.0 ** 30 + 2.0 * nn / 12.0
-            bl = _bitlen(orv)
+            bl = bitlen(orv)
             # ---- inverse FFT: all columns, then the valid rows ----
             vr = min(V, h - ti * V)
             vc = min(V, w - tj * V)
