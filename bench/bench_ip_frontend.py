@@ -20,6 +20,7 @@ import scipy.ndimage as ndi
 from flightsw.budget import Ledger
 from flightsw.ip import detrend as dt
 from flightsw.ip import filters as flt
+from flightsw.ip.budget_tables import _frame  # the realistic frame the budget tables use too
 from flightsw.ip.preprocess import _compact_k, preprocess
 from flightsw.ip.sequence import load_default_sequence
 import flightsw.ip.threshold as th
@@ -41,21 +42,6 @@ GROUP_DOCS = {
         ADSP-2100 cycles of each step are in the budget tables below), including the
         frequency-domain 15x15 filter in 32x32 tiles (the paper's slow path).""",
 }
-
-
-def _frame(seed=11):
-    rng = np.random.default_rng(seed)
-    yy, xx = np.mgrid[:244, :256].astype(np.float64)
-    img = np.full((244, 256), 100.0)
-    for _ in range(30):
-        r, c = rng.uniform(0, 244), rng.uniform(0, 256)
-        amp = rng.uniform(200, 3000)
-        img += amp * np.exp(-((yy - r) ** 2 + (xx - c) ** 2) / (2 * 0.8 ** 2))
-    th_ = 0.5
-    u = (xx - 130) * np.cos(th_) + (yy - 118) * np.sin(th_)
-    v = -(xx - 130) * np.sin(th_) + (yy - 118) * np.cos(th_)
-    img += 2500 * np.exp(-(u / 9.0) ** 2 / 2 - (v / 2.5) ** 2 / 2)
-    return np.clip(rng.poisson(img), 0, 4095).astype(np.uint16)
 
 
 FRAME = _frame()
