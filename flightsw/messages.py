@@ -139,6 +139,12 @@ def _is_int_in(v, lo, hi) -> bool:
             and lo <= v <= hi)
 
 
+def _require_int_in(name, v, lo, hi) -> None:
+    """ValueError unless ``v`` is an int (not a bool) in ``lo..hi``."""
+    if not _is_int_in(v, lo, hi):
+        raise ValueError(f"{name}={v!r} must be an int in {lo}..{hi}")
+
+
 _REALS = (float, int, np.floating, np.integer)
 
 
@@ -392,8 +398,7 @@ class CandidateMessage:
 
     def _check(self):
         def rng(name, v, lo, hi):
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
-                raise ValueError(f"CandidateMessage.{name}={v!r} must be an int in {lo}..{hi}")
+            _require_int_in(f"CandidateMessage.{name}", v, lo, hi)
         rng("frame_count", self.frame_count, 0, 0xFFFF)
         rng("compaction", self.compaction, 1, 255)
         rng("window_row0", self.window_row0, -32768, 32767)
@@ -702,8 +707,7 @@ class TrackCommand:
     # -- codec ----------------------------------------------------------------------------------
     def _check(self):
         def rng(name, v, lo, hi):
-            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or not lo <= v <= hi:
-                raise ValueError(f"TrackCommand.{name}={v!r} must be an int in {lo}..{hi}")
+            _require_int_in(f"TrackCommand.{name}", v, lo, hi)
         rng("frame_count", self.frame_count, 0, 0xFFFF)
         rng("status", self.status, 0, 0xFFFF)
         rng("n_star_gates", self.n_star_gates, 0, 0xFFFF)
