@@ -40,11 +40,12 @@ GROUP_DOCS = {
         normalisation and the GOF ranking against the aurora record (23 reported), in one jitted call,
         charged to a fresh ledger. Peers compute the twelve features in float64 from their moments
         (same objects: count and centroids within 0.1 px). Target (issue 4): ours <= 40 us median.
-        Most of ours is the 1750A float emulation itself (~8,300 emulated instructions a frame):
-        features ~14 us (~280 ns a blob: three sqrt32 ~26 ns each and atan2_32 ~54 ns, run
-        blob-parallel, five EFD ~6 ns and five EFM ~6 ns), distances ~4 us (500 terms of FS, FM,
-        FM, FA at ~2 ns an emulated op), 23 exp32 ~2 us, normalisation ~1 us; the colouring
-        ~6.8 us.""",
+        Most of ours is the 1750A float emulation itself (~8,300 emulated instructions a frame),
+        run blob-parallel in the branch-free lane forms of the instructions
+        (`flightsw.arith.m1750_lanes`, compiled to AVX-512 on this host): features ~9.5 us
+        (~190 ns a blob: three sqrt32 ~9 ns each and atan2_32 ~23 ns per lane, five EFD ~4 ns and
+        the other 48-bit operations ~2 ns per lane), distances (500 terms of FS, FM, FM, FA) and
+        23 exp32 in the ranking ~7 us; the colouring ~11 us.""",
     G_FRAME: """Detection + the twelve features: ours is the whole `process_frame` on a 256x244
         frame (compaction 1, 64x64 window, threshold statistics, the fused back end, the candidate
         message); the peers get the float64 window and our threshold (so they skip the threshold
@@ -54,12 +55,13 @@ GROUP_DOCS = {
         OpenCV connectedComponentsWithStats + moments, SciPy label + bincount moments +
         ndimage.maximum. Each finds the same 50 objects (centroids within 0.1 px of ours).
         Targets (issues 4, 5): ours <= 60 us, >= 4x faster than sep.extract, >= 10x faster than
-        SciPy label + moments. The SciPy ratio is at the edge of its target: runs on this machine
-        (2026-11-23) gave 9.5-10.4x; the table below is one of them. py-spy:
-        ~29 us of ours is the one jitted call (front end ~2 us, colouring ~7 us, the 1750A float
-        emulation of features, normalisation, distances and GOF ~20 us, see the back-end group),
-        ~8 us the Python around it (sequence, ledger, candidate message objects); the float64 peers
-        do their arithmetic in hardware.""",
+        SciPy label + moments. py-spy and timings of the parts (2026-11-23): ~30 us of ours is the
+        one jitted call (front end ~3 us, colouring ~11 us, the 1750A float emulation of
+        features, normalisation, distances and GOF ~16 us, see the back-end group), ~10 us the
+        Python around it (sequence, ledger, candidate message objects); the float64 peers do their
+        arithmetic in hardware. The ratio to SciPy depends on the host: 9.5-10.4x on the
+        2026-11-23 morning machine before the lane forms, 5.8-6.1x on this afternoon's machine
+        before and 7.5x after them.""",
 }
 S8 = np.ones((3, 3), int)
 

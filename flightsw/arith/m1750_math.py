@@ -67,6 +67,10 @@ from flightsw.arith.m1750_float import (
     fd48, fix32, fix48, flt32, flt48, fm32, fm48, fneg32, fneg48, fs32, fs48, m1750_cycles,
     to32, to48, unpack32, unpack48,
 )
+from flightsw.arith.m1750_lanes import (
+    fa32_lanes, fabs32_lanes, fc32_v, fd32_lanes, fix32_lanes, fm32_lanes, fneg32_lanes,
+    fs32_lanes, scale32_v,
+)
 from flightsw.budget import PACE1750A, Processor
 
 __all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
@@ -212,23 +216,30 @@ def _sqrt32_k(x):
 def sqrt32_lanes(xs, out):
     """sqrt32 of every word of ``xs`` int64 [K] into ``out`` int64 [K]; returns the OR of the flags.
 
-    The same instructions as :func:`sqrt32` for each element, run lane by lane: each step is
-    applied to all elements before the next, so the host overlaps the independent chains."""
+    The same instructions as :func:`sqrt32` for each element, each applied to all elements at once
+    in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`: SIMD on the host); the zero
+    and domain cases are selected at the end."""
     K = xs.size
-    buf = np.empty((5, K), np.int64)             # one allocation: special, flags, g, k, y
-    sp, fl, g, k, y = buf[0], buf[1], buf[2], buf[3], buf[4]
+    buf = np.empty((4, K), np.int64)             # g, k, y, z (q is out; no op writes its input)
+    g, k, y, z = buf[0], buf[1], buf[2], buf[3]
     for i in range(K):
-        sp[i], out[i], fl[i], g[i], k[i], y[i] = _sqrt32_start(xs[i])
-    for _i in range(SQRT32_STEPS):
-        for i in range(K):
-            y[i] = _heron32(g[i], y[i])
+        x = xs[i]
+        m, e = unpack32(x)
+        odd = (e & 1) != 0                       # x = (f/2) * 2**(e+1): g in [0.25, 0.5)
+        g[i] = _set_exp32(x, -1 if odd else 0)
+        k[i] = (e + 1) >> 1 if odd else e >> 1
+    fm32_lanes(g, SQRT_INIT32[1], z)
+    fa32_lanes(z, SQRT_INIT32[0], y)
+    for _j in range(SQRT32_STEPS):
+        fd32_lanes(g, y, out)
+        fa32_lanes(y, out, z)
+        fm32_lanes(z, HALF32, y)
     flags = 0
     for i in range(K):
-        if sp[i] != 0:
-            flags |= fl[i]
-        else:
-            out[i], f = _scale32(y[i], k[i])
-            flags |= f
+        m, _ = unpack32(xs[i])
+        r, f = scale32_v(y[i], k[i])
+        out[i] = 0 if m <= 0 else r
+        flags |= (FLAG_DOMAIN if m < 0 else 0) if m <= 0 else f
     return flags
 
 
@@ -515,26 +526,56 @@ def _atan2_32_k(y, x):
     return _atan2_32_finish(k, u, swap, y, x), 0
 
 
+_K8_32 = np.array(K8_32 + (0,) * 7, np.int64)           # k = 0..15 (fix & 0xF): no bounds check
+_ATANK_32 = np.array(ATANK_32 + (0,) * 7, np.int64)
+
+
 @njit(cache=True)
 def atan2_32_lanes(ys, xs, out):
     """atan2_32 of every pair (ys[i], xs[i]) into ``out`` int64 [K]; returns the OR of the flags
-    (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, run
-    step by step over all elements (see :func:`sqrt32_lanes`)."""
+    (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, each
+    applied to all elements at once in its lane form (see :func:`sqrt32_lanes`); the octant
+    choices are computed for every element and selected, ``atan2(0, 0) = 0`` at the end."""
     K = ys.size
-    buf = np.empty((4, K), np.int64)             # one allocation: t, swap, k, u
-    t, sw, k, u = buf[0], buf[1], buf[2], buf[3]
+    buf = np.empty((10, K), np.int64)
+    ay, ax, t, c, ak, num, den, u, z, swap = (buf[0], buf[1], buf[2], buf[3], buf[4], buf[5],
+                                              buf[6], buf[7], buf[8], buf[9])
+    fabs32_lanes(ys, ay)
+    fabs32_lanes(xs, ax)
     for i in range(K):
-        if (ys[i] & 0xFFFFFF00) == 0 and (xs[i] & 0xFFFFFF00) == 0:
-            t[i], sw[i] = 0, 0                  # atan2(0, 0) = 0: no division by zero
-        else:
-            t[i], sw[i] = _atan2_32_reduce(ys[i], xs[i])
+        sw = fc32_v(ay[i], ax[i]) > 0
+        num[i] = ax[i] if sw else ay[i]
+        den[i] = ay[i] if sw else ax[i]
+        swap[i] = sw
+    fd32_lanes(num, den, t)
+    fm32_lanes(t, EIGHT32, u)
+    fa32_lanes(u, HALF32, c)
+    fix32_lanes(c, z)
     for i in range(K):
-        k[i], u[i] = _atan2_32_table(t[i])
+        kk = z[i] & 0xF
+        c[i] = _K8_32[kk]
+        ak[i] = _ATANK_32[kk]
+    fs32_lanes(t, c, num)
+    fm32_lanes(t, c, ay)
+    fa32_lanes(ay, ONE32, den)
+    fd32_lanes(num, den, u)
+    fm32_lanes(u, u, z)
+    fm32_lanes(ATAN32[1], z, c)
+    fa32_lanes(c, ATAN32[0], ax)
+    fm32_lanes(z, ax, num)
+    fm32_lanes(u, num, t)
+    fa32_lanes(u, t, ay)
+    fa32_lanes(ak, ay, den)                      # a = atan(k/8) + u + u z P(z)
+    fs32_lanes(PIO2_32, den, num)
     for i in range(K):
-        if (ys[i] & 0xFFFFFF00) == 0 and (xs[i] & 0xFFFFFF00) == 0:
-            out[i] = 0
-        else:
-            out[i] = _atan2_32_finish(k[i], u[i], sw[i] != 0, ys[i], xs[i])
+        den[i] = num[i] if swap[i] != 0 else den[i]
+    fs32_lanes(PI32, den, num)
+    for i in range(K):
+        den[i] = num[i] if (xs[i] & 0x80000000) != 0 else den[i]   # sign of the mantissa of x
+    fneg32_lanes(den, num)
+    for i in range(K):
+        a = num[i] if (ys[i] & 0x80000000) != 0 else den[i]
+        out[i] = 0 if ((ys[i] & 0xFFFFFF00) == 0) & ((xs[i] & 0xFFFFFF00) == 0) else a
     return 0
 
 

@@ -70,8 +70,11 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
-    ONE32, HALF48, decode32_array, encode32, fa32, fa48, fc32, fd32, fd48, flt48, fm32, fm48,
-    fs32, fs48, to32,
+    ONE32, HALF48, decode32_array, encode32, fa48, flt48, fm48, to32,
+)
+from flightsw.arith.m1750_lanes import (
+    fa32_lanes, fa32_v, fa48_lanes, fc32_v, fd32_lanes, fd32_v, fd48_lanes, fm32_lanes, fm32_v,
+    fm48_lanes, flt48_lanes, fs32_lanes, fs48_lanes,
 )
 from flightsw.arith.m1750_math import MATH_CYCLES, atan2_32_lanes, sqrt32_lanes
 from flightsw.budget import IP1750, Ledger, m1750_cycles
@@ -135,120 +138,132 @@ def _features_kernel(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR).
 
     Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
-    routine). The host runs it *blob-parallel*: each operation of the sequence is applied to all
-    blobs before the next one (intermediates in the rows of one [19, count] array), so the
-    independent chains of different blobs overlap in the CPU pipeline instead of waiting on each
-    emulated operation's latency. Per blob the operations, their operands and their order are
-    those of the routine, so the words are the same; the PI flags are OR-ed (order-free)."""
-    out = np.zeros((count, 12), np.int64)
-    flags = 0
+    routine). The host runs it *blob-parallel*: each instruction of the routine is applied to all
+    blobs before the next one, in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`),
+    so the blobs run side by side in SIMD lanes (the intermediates are rows of one array). Per
+    blob the operations, their operands and their order are those of the routine, so the words
+    are the same; the PI flags are OR-ed (order-free)."""
     K = count
-    buf = np.empty((19, K), np.int64)            # the intermediates, one allocation
-    wf, sc, sr, scc, srr, src = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
-    mc, mr, m20, m02, m11 = buf[6], buf[7], buf[8], buf[9], buf[10]
-    q32, s32, t32, dm32, rq = buf[11], buf[12], buf[13], buf[14], buf[15]
-    major, minor, th2 = buf[16], buf[17], buf[18]
+    buf = np.empty((44, K), np.int64)            # the intermediates and the output, one allocation
+    iw, ia, ib, ic, idd, ie = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]      # integer sums
+    wf, sc, sr, scc, srr, src = buf[6], buf[7], buf[8], buf[9], buf[10], buf[11]  # their EFLT
+    mc, mr, m20, m02, m11 = buf[12], buf[13], buf[14], buf[15], buf[16]
+    ta, tb, dm, t, q, sm = buf[17], buf[18], buf[19], buf[20], buf[21], buf[22]
+    q32, s32, t32, dm32, rq = buf[23], buf[24], buf[25], buf[26], buf[27]
+    n2, major, minor, th2 = buf[28], buf[29], buf[30], buf[31]
+    o = buf[32:44]                               # o[i] = feature i of every blob
+    wide = False
     for k in range(K):
         s = sums[k + 1]
-        if intensity and s[1] > 0:
-            w, a, b, c, d, e = s[1], s[2], s[3], s[4], s[5], s[6]
-        else:
-            w, a, b, c, d, e = s[0], s[7], s[8], s[9], s[10], s[11]
-        wf[k] = _i2f48(w)
-        sc[k] = _i2f48(a)
-        sr[k] = _i2f48(b)
-        scc[k] = _i2f48(c)
-        srr[k] = _i2f48(d)
-        src[k] = _i2f48(e)
-    for k in range(K):                 # divisions (not a reciprocal): exact whenever the quotient
-        mc[k], f = fd48(sc[k], wf[k]); flags |= f      # is representable
-        mr[k], f = fd48(sr[k], wf[k]); flags |= f
+        geo = not (intensity and s[1] > 0)       # geometric weights (flag off, or sum I <= 0)
+        iw[k] = s[0] if geo else s[1]
+        ia[k] = s[7] if geo else s[2]
+        ib[k] = s[8] if geo else s[3]
+        ic[k] = s[9] if geo else s[4]
+        idd[k] = s[10] if geo else s[5]
+        ie[k] = s[11] if geo else s[6]
+        o[0, k] = s[0]                           # N, sum I, max I (converted below)
+        o[8, k] = s[1]
+        o[10, k] = s[12]
+    for r in range(6):
+        for k in range(K):
+            wide |= (buf[r, k] < -2147483648) | (buf[r, k] > 2147483647)
+    for r in (0, 8, 10):
+        for k in range(K):
+            wide |= (o[r, k] < -2147483648) | (o[r, k] > 2147483647)
+    if wide:                           # a sum beyond 32 bits (windows larger than the flight's):
+        for k in range(K):             # the multiword conversion
+            wf[k] = _i2f48(iw[k])
+            sc[k] = _i2f48(ia[k])
+            sr[k] = _i2f48(ib[k])
+            scc[k] = _i2f48(ic[k])
+            srr[k] = _i2f48(idd[k])
+            src[k] = _i2f48(ie[k])
+            for r in (0, 8, 10):
+                o[r, k] = to32(_i2f48(o[r, k]))
+    else:                              # EFLT (exact: no flags)
+        for r in range(6):
+            flt48_lanes(buf[r], buf[r + 6])
+        for r in (0, 8, 10):
+            flt48_lanes(o[r], ta)
+            for k in range(K):
+                o[r, k] = to32(ta[k])
+    fl = 0
+    # centroids and central moments (48-bit): divisions, not a reciprocal, so that they are exact
+    # whenever the quotient is representable
+    fl |= fd48_lanes(sc, wf, mc)
+    fl |= fd48_lanes(sr, wf, mr)
+    fl |= fd48_lanes(scc, wf, ta)
+    fl |= fm48_lanes(mc, mc, tb)
+    fl |= fs48_lanes(ta, tb, m20)
+    fl |= fd48_lanes(srr, wf, ta)
+    fl |= fm48_lanes(mr, mr, tb)
+    fl |= fs48_lanes(ta, tb, m02)
+    fl |= fd48_lanes(src, wf, ta)
+    fl |= fm48_lanes(mc, mr, tb)
+    fl |= fs48_lanes(ta, tb, m11)
+    fl |= fa48_lanes(mc, HALF48, ta)             # col, row: pixel centres at + 1/2
+    fl |= fa48_lanes(mr, HALF48, tb)
+    fl |= fs48_lanes(m20, m02, dm)
+    fl |= fa48_lanes(m11, m11, t)
+    fl |= fm48_lanes(dm, dm, sm)
+    fl |= fm48_lanes(t, t, n2)
+    fl |= fa48_lanes(sm, n2, q)                  # r^2 = (mu20 - mu02)^2 + (2 mu11)^2
+    fl |= fa48_lanes(m20, m02, sm)
+    for k in range(K):                           # ---- 32-bit part ----
+        o[1, k] = to32(ta[k])
+        o[2, k] = to32(tb[k])
+        q32[k] = to32(q[k])
+        s32[k] = to32(sm[k])
+        t32[k] = to32(t[k])
+        dm32[k] = to32(dm[k])
+    fl |= sqrt32_lanes(q32, rq)
+    fl |= fm32_lanes(o[0], o[0], n2)
+    fl |= fd32_lanes(q32, n2, o[4])              # eccentricity r^2 / N^2
+    fl |= fa32_lanes(s32, rq, ta)
+    fl |= fa32_lanes(ta, ONE32, q32)             # major^2 (q32 reused)
+    fl |= fs32_lanes(s32, rq, ta)
+    fl |= fa32_lanes(ta, ONE32, s32)             # minor^2 (s32 reused)
+    for k in range(K):                           # rounding only: s - r >= 0 exactly
+        s32[k] = 0 if fc32_v(s32[k], 0) < 0 else s32[k]
+    fl |= sqrt32_lanes(q32, major)
+    fl |= sqrt32_lanes(s32, minor)
+    fl |= atan2_32_lanes(t32, dm32, th2)
+    o[5, :] = major
+    o[6, :] = minor
+    fl |= fd32_lanes(minor, major, o[7])
+    fl |= fm32_lanes(th2, _DEG_PER_2RAD, ta)     # theta in degrees, [0, 180)
+    fl |= fd32_lanes(o[8], o[0], o[9])           # average = total / N
     for k in range(K):
-        a, f = fd48(scc[k], wf[k]); flags |= f
-        b, f = fm48(mc[k], mc[k]); flags |= f
-        m20[k], f = fs48(a, b); flags |= f
-    for k in range(K):
-        a, f = fd48(srr[k], wf[k]); flags |= f
-        b, f = fm48(mr[k], mr[k]); flags |= f
-        m02[k], f = fs48(a, b); flags |= f
-    for k in range(K):
-        a, f = fd48(src[k], wf[k]); flags |= f
-        b, f = fm48(mc[k], mr[k]); flags |= f
-        m11[k], f = fs48(a, b); flags |= f
-    for k in range(K):
-        o = out[k]
-        col, f = fa48(mc[k], HALF48); flags |= f
-        row, f = fa48(mr[k], HALF48); flags |= f
-        o[1] = to32(col)
-        o[2] = to32(row)
-        dm, f = fs48(m20[k], m02[k]); flags |= f
-        t, f = fa48(m11[k], m11[k]); flags |= f
-        a, f = fm48(dm, dm); flags |= f
-        b, f = fm48(t, t); flags |= f
-        q, f = fa48(a, b); flags |= f
-        sm, f = fa48(m20[k], m02[k]); flags |= f
-        # ---- 32-bit part ----
-        q32[k] = to32(q)
-        s32[k] = to32(sm)
-        t32[k] = to32(t)
-        dm32[k] = to32(dm)
-    flags |= sqrt32_lanes(q32, rq)
-    for k in range(K):
-        o = out[k]
-        nf = to32(_i2f48(sums[k + 1, 0]))
-        o[0] = nf
-        n2, f = fm32(nf, nf); flags |= f
-        o[4], f = fd32(q32[k], n2); flags |= f
-        a, f = fa32(s32[k], rq[k]); flags |= f
-        q32[k], f = fa32(a, ONE32); flags |= f          # major^2 (q32 reused)
-        a, f = fs32(s32[k], rq[k]); flags |= f
-        a, f = fa32(a, ONE32); flags |= f
-        if fc32(a, 0) < 0:               # rounding only: s - r >= 0 in exact arithmetic
-            a = 0
-        s32[k] = a                                      # minor^2 (s32 reused)
-    flags |= sqrt32_lanes(q32, major)
-    flags |= sqrt32_lanes(s32, minor)
-    flags |= atan2_32_lanes(t32, dm32, th2)
-    for k in range(K):
-        o = out[k]
-        o[5] = major[k]
-        o[6] = minor[k]
-        o[7], f = fd32(minor[k], major[k]); flags |= f
-        th, f = fm32(th2[k], _DEG_PER_2RAD); flags |= f
-        if fc32(th, 0) < 0:
-            th, f = fa32(th, _C180); flags |= f
-        o[3] = th
-        s = sums[k + 1]
-        tot = to32(_i2f48(s[1]))
-        avg, f = fd32(tot, o[0]); flags |= f
-        mx = to32(_i2f48(s[12]))
-        if fc32(mx, 0) > 0:
-            br, f = fd32(avg, mx); flags |= f
-        else:
-            br = 0
-        o[8] = tot
-        o[9] = avg
-        o[10] = mx
-        o[11] = br
-    return out, flags
+        th = ta[k]
+        r, g = fa32_v(th, _C180)
+        neg = fc32_v(th, 0) < 0
+        o[3, k] = r if neg else th
+        fl |= g if neg else 0
+        mx = o[10, k]
+        br, g = fd32_v(o[9, k], mx)              # brightness ratio = average / max (max > 0)
+        pos = fc32_v(mx, 0) > 0
+        o[11, k] = br if pos else 0
+        fl |= g if pos else 0
+    return np.ascontiguousarray(o.T), fl
 
 
 @njit(cache=True)
 def _normalise_kernel(words, area, lin, f, r0, c0):
     """In place on a copy: size, total *= area; axes *= lin; col = f col + c0; row = f row + r0
-    (all packed 32-bit floats)."""
+    (all packed 32-bit floats; branch-free instruction forms, blobs side by side)."""
     out = words.copy()
     flags = 0
     for k in range(out.shape[0]):
         o = out[k]
-        o[0], g = fm32(o[0], area); flags |= g
-        o[8], g = fm32(o[8], area); flags |= g
-        o[5], g = fm32(o[5], lin); flags |= g
-        o[6], g = fm32(o[6], lin); flags |= g
-        x, g = fm32(o[1], f); flags |= g
-        o[1], g = fa32(x, c0); flags |= g
-        x, g = fm32(o[2], f); flags |= g
-        o[2], g = fa32(x, r0); flags |= g
+        o[0], g = fm32_v(o[0], area); flags |= g
+        o[8], g = fm32_v(o[8], area); flags |= g
+        o[5], g = fm32_v(o[5], lin); flags |= g
+        o[6], g = fm32_v(o[6], lin); flags |= g
+        x, g = fm32_v(o[1], f); flags |= g
+        o[1], g = fa32_v(x, c0); flags |= g
+        x, g = fm32_v(o[2], f); flags |= g
+        o[2], g = fa32_v(x, r0); flags |= g
     return out, flags
 
 

@@ -36,6 +36,7 @@ from numba import njit
 from flightsw.arith.m1750 import (
     ONE32, decode32_array, encode32, exp32, fa32, fc32, fd32, flt32, fm32, fneg32, fs32,
 )
+from flightsw.arith.m1750_lanes import fa32_lanes, fm32_lanes, fs32_lanes
 from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
@@ -125,7 +126,8 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
     # Each candidate's d is the same chain of FS, FM, FM, FA over its features in record order; the
     # host runs the chains of all candidates side by side (feature-major loop) so that they overlap
     # in the CPU pipeline: every candidate sees the identical operations in the identical order.
-    d = np.zeros(k, np.int64)
+    dbuf = np.zeros((4, k), np.int64)
+    d, d2, t1, t2 = dbuf[0], dbuf[1], dbuf[2], dbuf[3]
     fwt = np.ascontiguousarray(fw.T)     # feature-major: each chain reads one contiguous row
     for j in range(n):
         i = idx[j]
@@ -141,12 +143,12 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
                 t, f = fm32(t, ci); flags |= f
                 d[c], f = fa32(d[c], t); flags |= f
             ops[4] += k
-        else:
-            for c in range(k):
-                t, f = fs32(col[c], mi); flags |= f
-                t, f = fm32(t, t); flags |= f
-                t, f = fm32(t, ci); flags |= f
-                d[c], f = fa32(d[c], t); flags |= f
+        else:                            # the same four instructions in their lane forms (SIMD)
+            flags |= fs32_lanes(col, mi, t1)
+            flags |= fm32_lanes(t1, t1, t2)
+            flags |= fm32_lanes(t2, ci, t1)
+            flags |= fa32_lanes(d, t1, d2)
+            d, d2 = d2, d
         ops[3] += k
     # ---- keep the best max_out by d (insertion into a sorted list; ties keep blob order) ----
     m = 0

@@ -1,0 +1,475 @@
+"""Branch-free forms of the MIL-STD-1750A float instructions, for loops that run one instruction
+over many independent operands (the blob-parallel feature routine, the distance terms of the
+ranking): the host compiles such a loop to SIMD instructions only when its body has no branches.
+
+Each ``xxx_v`` returns exactly what its namesake in :mod:`flightsw.arith.m1750_float` returns (the
+result word and the PI flags) for every pair of normalised operands: it evaluates every case of the
+standard's register-transfer description (zero operands, the exponent pre-checks, the overflow
+shift, normalisation, underflow, overflow) and *selects* the result the RTL would branch to, in the
+RTL's order of precedence. The scalar forms stay the reference and the faster choice for a single
+dependent chain (a select costs every case, a predicted branch only one); the tests compare the
+two on random and adversarial operands (``tests/test_m1750_lanes.py``).
+
+Two host details differ from the scalar forms without changing a result:
+
+* FD's quotient comes from one float64 division for both widths (the scalar 32-bit form divides
+  integers; there is no SIMD integer division): ``A * 2**24 / B`` with ``A, B <= 2**23`` is below
+  ``2**25``, so the float64 rounding error (``<= 2**-29``) is smaller than the distance
+  (``>= 2**-23``) of a non-integral quotient from an integer and the truncation is the exact floor;
+  the 40-bit form keeps the exact remainder fix-up of ``m1750_float._quotient_floor``.
+* Divisors of zero are replaced by one before the division (the result is then selected away), so
+  the caller's loop can be compiled with ``error_model="numpy"`` (no division-by-zero branch).
+
+Every function is ``inline="always"``: it is meant to be the body of a caller's loop.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, types
+from numba.cpython.unsafe.numbers import leading_zeros
+from numba.extending import overload
+
+from flightsw.arith.m1750_float import (
+    FLAG_FIXED_OVERFLOW, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48, MIN32, MIN48,
+    pack32, pack48, unpack32, unpack48,
+)
+
+__all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fa48_v", "fs48_v", "fm48_v", "fd48_v",
+           "flt48_v", "fc32_v", "fabs32_v", "fneg32_v", "fix32_v", "scale32_v",
+           "fa32_lanes", "fs32_lanes", "fm32_lanes", "fd32_lanes", "fa48_lanes", "fs48_lanes",
+           "fm48_lanes", "fd48_lanes", "flt48_lanes", "fabs32_lanes", "fneg32_lanes",
+           "fix32_lanes"]
+
+_FOV = FLAG_FLOAT_OVERFLOW
+_FUN = FLAG_FLOAT_UNDERFLOW
+
+
+@njit(cache=True, inline="always")
+def _unp(p, W):
+    if W == 23:
+        return unpack32(p)
+    return unpack48(p)
+
+
+@njit(cache=True, inline="always")
+def _pk(m, e, W):
+    if W == 23:
+        return pack32(m, e)
+    return pack48(m, e)
+
+
+@njit(cache=True, inline="always")
+def _ovr(neg, W):
+    """The standard's overflow result word (positive 7FFF..FF/7F, negative 8000..00/7F)."""
+    if W == 23:
+        return MIN32 if neg else MAX32
+    return MIN48 if neg else MAX48
+
+
+@njit(cache=True, inline="always")
+def _finish_v(m, e, W):
+    """m1750_float._finish without branches: normalise (m, e), underflow/overflow, pack."""
+    s = np.int64(leading_zeros(m ^ (m >> 63))) - (64 - W)
+    s = s if m != 0 else 0
+    m2 = m << s
+    e2 = e - s
+    p = _pk(m2, e2, W)
+    hi = e2 > 127
+    lo = e2 < -128
+    p = _ovr(m2 < 0, W) if hi else p
+    f = _FOV if hi else 0
+    p = 0 if lo else p
+    f = _FUN if lo else f
+    p = 0 if m == 0 else p
+    f = 0 if m == 0 else f
+    return p, f
+
+
+@njit(cache=True, inline="always")
+def _add_v(a, b, W, subtract):
+    """FA/FS (5.60, 5.61, 5.68, 5.69; m1750_float._add_core)."""
+    ma, ea = _unp(a, W)
+    mo, eo = _unp(b, W)
+    if subtract:                               # a compile-time constant: not a data branch
+        mo = -mo
+    both = (ma != 0) & (mo != 0)               # only then are the mantissas aligned
+    n = ea - eo
+    so = min(max(n, 0), 63) if both else 0
+    sa = min(max(-n, 0), 63) if both else 0
+    e = max(ea, eo) if both else (eo if ma == 0 else ea)
+    s = (ma >> sa) + (mo >> so)
+    top = np.int64(1) << W
+    ov = (s >= top) | (s < -top)               # OVM: shift right 1, EA + 1 (normalised after it)
+    s = (s >> 1) if ov else s
+    e = e + 1 if ov else e
+    return _finish_v(s, e, W)
+
+
+@njit(cache=True, inline="always")
+def fa32_v(a, b):
+    """FA (5.60), branch-free."""
+    return _add_v(a, b, 23, False)
+
+
+@njit(cache=True, inline="always")
+def fs32_v(a, b):
+    """FS (5.68), branch-free."""
+    return _add_v(a, b, 23, True)
+
+
+@njit(cache=True, inline="always")
+def fa48_v(a, b):
+    """EFA (5.61), branch-free."""
+    return _add_v(a, b, 39, False)
+
+
+@njit(cache=True, inline="always")
+def fs48_v(a, b):
+    """EFS (5.69), branch-free."""
+    return _add_v(a, b, 39, True)
+
+
+@njit(cache=True, inline="always")
+def _mul_pre_v(p, f, ma, mo, n, W):
+    """The RTL's checks before the multiply, applied over (p, f): n overflow/underflow, then a zero
+    operand (the highest precedence)."""
+    p = _ovr((ma < 0) != (mo < 0), W) if n > 127 else p
+    f = _FOV if n > 127 else f
+    p = 0 if n < -128 else p
+    f = _FUN if n < -128 else f
+    z = (ma == 0) | (mo == 0)
+    p = 0 if z else p
+    f = 0 if z else f
+    return p, f
+
+
+@njit(cache=True, inline="always")
+def fm32_v(a, b):
+    """FM (5.74), branch-free (m1750_float._fm32_k)."""
+    ma, ea = unpack32(a)
+    mo, eo = unpack32(b)
+    n = ea + eo
+    P = ma * mo                                # exact, value P / 2**46
+    s = np.int64(leading_zeros(P ^ (P >> 63))) - 18
+    s = s if P != 0 else 0
+    n2 = n - s
+    p = pack32((P << s) >> 23, n2)
+    f = 0
+    p = 0 if n2 < -128 else p
+    f = _FUN if n2 < -128 else f
+    sp = P == (np.int64(1) << 46)              # (-1.0)(-1.0) -> 0.5 * 2**(n + 1)
+    p = (MAX32 if n + 1 > 127 else pack32(0x400000, n + 1)) if sp else p
+    f = (_FOV if n + 1 > 127 else 0) if sp else f
+    return _mul_pre_v(p, f, ma, mo, n, 23)
+
+
+@njit(cache=True, inline="always")
+def fm48_v(a, b):
+    """EFM (5.75), branch-free (m1750_float._fm48_k: the 80-bit product from 20-bit limbs)."""
+    ma, ea = unpack48(a)
+    mo, eo = unpack48(b)
+    n = ea + eo
+    neg = (ma < 0) != (mo < 0)
+    A = -ma if ma < 0 else ma
+    B = -mo if mo < 0 else mo
+    M20 = (np.int64(1) << 20) - 1
+    a1 = A >> 20
+    a0 = A & M20
+    b1 = B >> 20
+    b0 = B & M20
+    mid = a1 * b0 + a0 * b1
+    low = ((mid & M20) << 20) + a0 * b0
+    H = a1 * b1 + (mid >> 20) + (low >> 40)
+    L = low & ((np.int64(1) << 40) - 1)
+    half = np.int64(1) << 37
+    mA = (H << 1) | (L >> 39)                  # floor(|P| / 2**39), normalised as is
+    mB = (H << 2) | (L >> 38)                  # floor(|P| / 2**38), one left shift
+    stA = np.int64((L & ((np.int64(1) << 39) - 1)) != 0)
+    stB = np.int64((L & ((np.int64(1) << 38) - 1)) != 0)
+    # positive: |P| >= 2**77 keeps the exponent; negative: floor(-x) = -ceil(x), and an exact
+    # -0.5 becomes -1.0 * 2**(n-1), which is the one-shift formula's value for L = 0
+    big = (H > half) | ((H == half) & ((L != 0) | (not neg)))
+    m = (-(mA + stA) if neg else mA) if big else (-(mB + stB) if neg else mB)
+    n2 = n if big else n - 1
+    p = pack48(m, n2)
+    f = 0
+    p = 0 if n2 < -128 else p
+    f = _FUN if n2 < -128 else f
+    sp = (A == (np.int64(1) << 39)) & (B == (np.int64(1) << 39))      # (-1.0)(-1.0)
+    p = (MAX48 if n + 1 > 127 else pack48(np.int64(1) << 38, n + 1)) if sp else p
+    f = (_FOV if n + 1 > 127 else 0) if sp else f
+    return _mul_pre_v(p, f, ma, mo, n, 39)
+
+
+@njit(cache=True, inline="always")
+def _div_v(a, b, W):
+    """FD/EFD (5.79, 5.80; m1750_float._div_core)."""
+    ma, ea = _unp(a, W)
+    mo, eo = _unp(b, W)
+    n = ea - eo if ma != 0 else 0
+    neg = (ma < 0) != (mo < 0)
+    A = -ma if ma < 0 else ma
+    B = -mo if mo < 0 else mo
+    Bs = B if B != 0 else 1                    # no division by zero (selected away below)
+    if W == 23:
+        num = A << 24
+        Qm = np.int64(float(num) / float(Bs))  # the exact floor (module docstring)
+        sticky = Qm * Bs != num
+    else:
+        Qm = np.int64(float(A) / float(Bs) * 1099511627776.0)       # 2**40
+        r = (A << 40) - Qm * Bs                # exact modulo 2**64 (true value in (-B, 2B))
+        lo = r < 0
+        hi = r >= Bs
+        Qm = Qm - 1 if lo else (Qm + 1 if hi else Qm)
+        r = r + Bs if lo else (r - Bs if hi else r)
+        sticky = r != 0
+    Q = -((Qm >> 1) + np.int64(((Qm & 1) != 0) | sticky)) if neg else Qm >> 1
+    top = np.int64(1) << W
+    fit = (Q >= top) | (Q < -top)
+    Q = (Q >> 1) if fit else Q
+    n2 = n + 1 if fit else n
+    p = _pk(Q, n2, W)
+    f = 0
+    p = _ovr(Q < 0, W) if n2 > 127 else p
+    f = _FOV if n2 > 127 else f
+    mh = Q == -(np.int64(1) << (W - 1))        # exactly -0.5 -> -1.0 * 2**(n-1)
+    p = (0 if n2 - 1 < -128 else _pk(-top, n2 - 1, W)) if mh else p
+    f = (_FUN if n2 - 1 < -128 else 0) if mh else f
+    # the RTL's checks before the division, highest precedence last
+    p = 0 if ma == 0 else p
+    f = 0 if ma == 0 else f
+    p = 0 if n < -128 else p
+    f = _FUN if n < -128 else f
+    p = _ovr(neg, W) if n > 127 else p
+    f = _FOV if n > 127 else f
+    p = _ovr(ma < 0, W) if mo == 0 else p
+    f = _FOV if mo == 0 else f
+    return p, f
+
+
+@njit(cache=True, inline="always")
+def fd32_v(a, b):
+    """FD (5.79), branch-free."""
+    return _div_v(a, b, 23)
+
+
+@njit(cache=True, inline="always")
+def fd48_v(a, b):
+    """EFD (5.80), branch-free."""
+    return _div_v(a, b, 39)
+
+
+@njit(cache=True, inline="always")
+def flt48_v(i):
+    """EFLT (5.88) of a 32-bit pattern, branch-free."""
+    v = ((i & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
+    return _finish_v(v << 8, 31, 39)
+
+
+@njit(cache=True, inline="always")
+def fc32_v(a, b):
+    """FC (5.94) -> -1, 0, 1, branch-free."""
+    ma, ea = unpack32(a)
+    mo, eo = unpack32(b)
+    sa = np.int64(ma > 0) - np.int64(ma < 0)
+    so = np.int64(mo > 0) - np.int64(mo < 0)
+    ce = (np.int64(ea > eo) - np.int64(ea < eo)) * sa      # same sign: larger exponent, larger |x|
+    cm = np.int64(ma > mo) - np.int64(ma < mo)
+    same = ce if ea != eo else cm
+    same = 0 if sa == 0 else same
+    return (np.int64(sa > so) - np.int64(sa < so)) if sa != so else same
+
+
+@njit(cache=True, inline="always")
+def fabs32_v(a):
+    """FABS (5.62), branch-free."""
+    m, e = unpack32(a)
+    mn = m == -(np.int64(1) << 23)             # -1.0 * 2**e -> 0.5 * 2**(e+1)
+    p = pack32(-m, e) if m < 0 else a
+    p = (MAX32 if e + 1 > 127 else pack32(np.int64(1) << 22, e + 1)) if mn else p
+    f = _FOV if (mn & (e + 1 > 127)) else 0
+    return p, f
+
+
+@njit(cache=True, inline="always")
+def fneg32_v(a):
+    """FNEG (5.70), branch-free."""
+    m, e = unpack32(a)
+    p = pack32(-m, e)
+    f = 0
+    mn = m == -(np.int64(1) << 23)             # -1.0 * 2**e -> 0.5 * 2**(e+1)
+    p = (MAX32 if e == 127 else pack32(np.int64(1) << 22, e + 1)) if mn else p
+    f = _FOV if (mn & (e == 127)) else f
+    mh = m == (np.int64(1) << 22)              # 0.5 * 2**e -> -1.0 * 2**(e-1)
+    p = (0 if e == -128 else pack32(-(np.int64(1) << 23), e - 1)) if mh else p
+    f = _FUN if (mh & (e == -128)) else f
+    p = 0 if m == 0 else p
+    return p, f
+
+
+@njit(cache=True, inline="always")
+def fix32_v(a):
+    """FIX (5.85) -> 16-bit pattern, branch-free (overflow: 0 and the fixed-overflow flag)."""
+    m, e = unpack32(a)
+    s = min(max(23 - e, 0), 63)
+    am = -m if m < 0 else m
+    r = (m >> s) if m >= 0 else -(am >> s)     # truncate toward zero
+    return (0 if e > 15 else r & 0xFFFF), (FLAG_FIXED_OVERFLOW if e > 15 else 0)
+
+
+@njit(cache=True, inline="always")
+def scale32_v(p, k):
+    """p * 2**k by exponent edit with the standard's overflow/underflow results, branch-free
+    (m1750_math._scale32)."""
+    m, e = unpack32(p)
+    e2 = e + k
+    r = (p & 0xFFFFFF00) | (e2 & 0xFF)
+    r = _ovr(m < 0, 23) if e2 > 127 else r
+    f = _FOV if e2 > 127 else 0
+    r = 0 if e2 < -128 else r
+    f = _FUN if e2 < -128 else f
+    r = 0 if m == 0 else r
+    f = 0 if m == 0 else f
+    return r, f
+
+
+# ================================================================================================
+# array forms: one instruction over every lane (each compiled once, the loop in SIMD)
+# ================================================================================================
+def _el(b, i):
+    """b[i] for an array operand, b itself for a scalar one (both operand kinds in one op)."""
+
+
+@overload(_el, inline="always")
+def _el_ov(b, i):
+    if isinstance(b, types.Array):
+        return lambda b, i: b[i]
+    return lambda b, i: b
+
+
+@njit(cache=True, error_model="numpy")
+def fa32_lanes(a, b, out):
+    """FA of every lane, ``out[i] = fa32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fa32_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fs32_lanes(a, b, out):
+    """FS of every lane, ``out[i] = fs32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fs32_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fm32_lanes(a, b, out):
+    """FM of every lane, ``out[i] = fm32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fm32_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fd32_lanes(a, b, out):
+    """FD of every lane, ``out[i] = fd32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fd32_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fa48_lanes(a, b, out):
+    """EFA of every lane, ``out[i] = fa48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fa48_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fs48_lanes(a, b, out):
+    """EFS of every lane, ``out[i] = fs48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fs48_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fm48_lanes(a, b, out):
+    """EFM of every lane, ``out[i] = fm48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fm48_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fd48_lanes(a, b, out):
+    """EFD of every lane, ``out[i] = fd48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
+    for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fd48_v(_el(a, i), _el(b, i))
+        fl |= f
+    return fl
+
+
+@njit(cache=True)
+def flt48_lanes(a, out):
+    """EFLT of every lane, ``out[i] = flt48(a[i])`` (int64 [K]). Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = flt48_v(a[i])
+        fl |= f
+    return fl
+
+
+@njit(cache=True)
+def fabs32_lanes(a, out):
+    """FABS of every lane, ``out[i] = fabs32(a[i])`` (int64 [K]). Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fabs32_v(a[i])
+        fl |= f
+    return fl
+
+
+@njit(cache=True)
+def fneg32_lanes(a, out):
+    """FNEG of every lane, ``out[i] = fneg32(a[i])`` (int64 [K]). Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fneg32_v(a[i])
+        fl |= f
+    return fl
+
+
+@njit(cache=True)
+def fix32_lanes(a, out):
+    """FIX of every lane, ``out[i] = fix32(a[i])`` (int64 [K]). Returns the OR of the PI flags."""
+    fl = 0
+    for i in range(out.size):
+        out[i], f = fix32_v(a[i])
+        fl |= f
+    return fl
