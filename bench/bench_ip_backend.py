@@ -59,9 +59,10 @@ GROUP_DOCS = {
         one jitted call (front end ~3 us, colouring ~11 us, the 1750A float emulation of
         features, normalisation, distances and GOF ~16 us, see the back-end group), ~10 us the
         Python around it (sequence, ledger, candidate message objects); the float64 peers do their
-        arithmetic in hardware. The ratio to SciPy depends on the host: 9.5-10.4x on the
-        2026-11-23 morning machine before the lane forms, 5.8-6.1x on this afternoon's machine
-        before and 7.5x after them.""",
+        arithmetic in hardware. The SciPy ratio misses its target here and varies from run to
+        run: after the lane forms, six runs on this machine (2026-11-23 afternoon) gave 5.5-10.1x
+        (ours 30-43 us, bimodal between processes; SciPy 224-324 us); before them 5.8-6.1x here
+        and 9.5-10.4x on the morning's machine. The table below is one of these runs.""",
 }
 S8 = np.ones((3, 3), int)
 
