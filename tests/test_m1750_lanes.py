@@ -14,15 +14,6 @@ import flightsw.arith.m1750_lanes as ml
 N = 200_000
 
 
-def _words(m, e, W):
-    """Normalised mantissas m (W + 1 bit signed) and exponents e -> packed words."""
-    m = np.asarray(m, np.int64)
-    e = np.asarray(e, np.int64)
-    if W == 23:
-        return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
-    return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
-
-
 def _operands(W, n, seed):
     """n normalised words: random mantissas, a quarter each with full-range, small, extreme and
     equal-to-a-neighbour exponents; specials spliced in."""
@@ -39,86 +30,56 @@ def _operands(W, n, seed):
     sm = rng.choice(np.array([0, top // 2, -top, top - 1, -top // 2 - 1, top // 2 + 1, -top + 1],
                              np.int64), n)
     m = np.where(special, sm, m)
-    w = _words(m, e, W)
+    w = mf.pack32(m, e) if W == 23 else mf.pack48(m, e)
     return np.where(m == 0, 0, w)
 
 
 def _pairs(W, seed):
+    """Operand pairs; an eighth each with b = a, b = -a, b = a with its low bits changed
+    (cancellations) and a = b * (small integer) (exact quotients)."""
     a = _operands(W, N, seed)
     b = _operands(W, N, seed + 1)
     rng = np.random.default_rng(seed + 2)
-    # cancellations and exact relations: b = a, b = -a, b = a with the last bits changed
     k = N // 8
     b[:k] = a[:k]
-    neg = a[k:2 * k].copy()
-    mask = (1 << 32) - 1 if W == 23 else (1 << 48) - 1
-    b[k:2 * k] = neg                            # patched to -a below through the reference op
-    b[2 * k:3 * k] = a[2 * k:3 * k] ^ (rng.integers(0, 256, k) << (8 if W == 23 else 0)) & mask
-    b[2 * k:3 * k] = np.where(a[2 * k:3 * k] == 0, 0, b[2 * k:3 * k])
+    _apply1(mf._fneg32_k if W == 23 else mf._fneg48_k, a[k:2 * k], b[k:2 * k],
+            np.empty(k, np.int64))
+    low = rng.integers(0, 256, k) << (8 if W == 23 else 0)
+    b[2 * k:3 * k] = np.where(a[2 * k:3 * k] == 0, 0, a[2 * k:3 * k] ^ low)
+    small = (mf.encode32_array if W == 23 else mf.encode48_array)(np.arange(k) % 13 + 1.0)
+    _apply2(mf._fm32_k if W == 23 else mf._fm48_k, b[3 * k:4 * k], small, a[3 * k:4 * k],
+            np.empty(k, np.int64))
     return a, b
 
 
 @njit(cache=True)
-def _neg_all(a, W):
-    out = np.empty_like(a)
+def _apply2(op, a, b, out, flags):
+    """out[i], flags[i] = op(a[i], b[i]) for a scalar kernel or a lane form (FC: flags 0)."""
     for i in range(a.size):
-        out[i] = mf._fneg32_k(a[i])[0] if W == 23 else mf._fneg48_k(a[i])[0]
-    return out
+        r = op(a[i], b[i])
+        if isinstance(r, tuple):
+            out[i], flags[i] = r
+        else:
+            out[i], flags[i] = r, 0
 
 
 @njit(cache=True)
-def _run2(op, a, b, ref, res, fref, fres):
+def _apply1(op, a, out, flags):
     for i in range(a.size):
-        if op == 0:
-            ref[i], fref[i] = mf._fa32_k(a[i], b[i])
-            res[i], fres[i] = ml.fa32_v(a[i], b[i])
-        elif op == 1:
-            ref[i], fref[i] = mf._fs32_k(a[i], b[i])
-            res[i], fres[i] = ml.fs32_v(a[i], b[i])
-        elif op == 2:
-            ref[i], fref[i] = mf._fm32_k(a[i], b[i])
-            res[i], fres[i] = ml.fm32_v(a[i], b[i])
-        elif op == 3:
-            ref[i], fref[i] = mf._fd32_k(a[i], b[i])
-            res[i], fres[i] = ml.fd32_v(a[i], b[i])
-        elif op == 4:
-            ref[i], fref[i] = mf._fa48_k(a[i], b[i])
-            res[i], fres[i] = ml.fa48_v(a[i], b[i])
-        elif op == 5:
-            ref[i], fref[i] = mf._fs48_k(a[i], b[i])
-            res[i], fres[i] = ml.fs48_v(a[i], b[i])
-        elif op == 6:
-            ref[i], fref[i] = mf._fm48_k(a[i], b[i])
-            res[i], fres[i] = ml.fm48_v(a[i], b[i])
-        elif op == 7:
-            ref[i], fref[i] = mf._fd48_k(a[i], b[i])
-            res[i], fres[i] = ml.fd48_v(a[i], b[i])
-        elif op == 8:
-            ref[i], fref[i] = mf._fc32_k(a[i], b[i]), 0
-            res[i], fres[i] = ml.fc32_v(a[i], b[i]), 0
+        out[i], flags[i] = op(a[i])
 
 
 @njit(cache=True)
-def _run1(op, a, k, ref, res, fref, fres):
+def _apply_scale(op, a, k, out, flags):
     for i in range(a.size):
-        if op == 0:
-            ref[i], fref[i] = mf._flt48_k(a[i])
-            res[i], fres[i] = ml.flt48_v(a[i])
-        elif op == 1:
-            ref[i], fref[i] = mf._fabs32_k(a[i])
-            res[i], fres[i] = ml.fabs32_v(a[i])
-        elif op == 2:
-            ref[i], fref[i] = mf._fneg32_k(a[i])
-            res[i], fres[i] = ml.fneg32_v(a[i])
-        elif op == 3:
-            ref[i], fref[i] = mf._fix32_k(a[i])
-            res[i], fres[i] = ml.fix32_v(a[i])
-        elif op == 4:
-            ref[i], fref[i] = mm._scale32(a[i], k[i])
-            res[i], fres[i] = ml.scale32_v(a[i], k[i])
+        out[i], flags[i] = op(a[i], k[i])
 
 
-OPS2 = ["fa32", "fs32", "fm32", "fd32", "fa48", "fs48", "fm48", "fd48", "fc32"]
+OPS2 = {"fa32": (mf._fa32_k, ml.fa32_v, ml.fa32_lanes), "fs32": (mf._fs32_k, ml.fs32_v, ml.fs32_lanes),
+        "fm32": (mf._fm32_k, ml.fm32_v, ml.fm32_lanes), "fd32": (mf._fd32_k, ml.fd32_v, ml.fd32_lanes),
+        "fa48": (mf._fa48_k, ml.fa48_v, ml.fa48_lanes), "fs48": (mf._fs48_k, ml.fs48_v, ml.fs48_lanes),
+        "fm48": (mf._fm48_k, ml.fm48_v, ml.fm48_lanes), "fd48": (mf._fd48_k, ml.fd48_v, ml.fd48_lanes),
+        "fc32": (mf._fc32_k, ml.fc32_v, None)}
 
 
 def _check(name, a, ref, res, fref, fres, b=None):
@@ -130,36 +91,41 @@ def _check(name, a, ref, res, fref, fres, b=None):
                     f"{res[i]:#x}/{fres[i]:#x} ({bad.size} of {len(a)} differ)")
 
 
-@pytest.mark.parametrize("op", range(len(OPS2)), ids=OPS2)
-def test_binary_equal_reference(op):
-    name = OPS2[op]
+def _results(n):
+    return [np.empty(n, np.int64) for _ in range(4)]
+
+
+@pytest.mark.parametrize("name", OPS2)
+def test_binary_equal_reference(name):
+    """Element by element (words and flags), then the array form (words and the flags' OR)."""
+    ref_k, v_k, lanes = OPS2[name]
     W = 39 if "48" in name else 23
-    a, b = _pairs(W, 10 + op)
-    k = N // 8
-    b[k:2 * k] = _neg_all(a[k:2 * k], W)
-    if name.startswith("fd"):                   # exact quotients: a = b * (small integer) / 2**j
-        c = _operands(W, k, 99)
-        small = mf.encode32_array(np.arange(1, k + 1) % 13 + 1.0) if W == 23 else \
-            mf.encode48_array(np.arange(1, k + 1) % 13 + 1.0)
-        mul = mf._fm32_k if W == 23 else mf._fm48_k
-        a[3 * k:4 * k] = [mul(int(x), int(y))[0] for x, y in zip(c, small)]
-        b[3 * k:4 * k] = c
-    ref, res = np.empty(N, np.int64), np.empty(N, np.int64)
-    fref, fres = np.empty(N, np.int64), np.empty(N, np.int64)
-    _run2(op, a, b, ref, res, fref, fres)
+    a, b = _pairs(W, 10 + list(OPS2).index(name))
+    ref, res, fref, fres = _results(N)
+    _apply2(ref_k, a, b, ref, fref)
+    _apply2(v_k, a, b, res, fres)
     _check(name, a, ref, res, fref, fres, b)
+    if lanes is not None:
+        out = np.empty(N, np.int64)
+        assert lanes(a, b, out) == np.bitwise_or.reduce(fref)
+        assert np.array_equal(out, ref)
     # the operand mix reaches the paths that matter
     if name[:2] in ("fa", "fm", "fd"):
         assert np.any(fref == mf.FLAG_FLOAT_OVERFLOW) and np.any(fref == mf.FLAG_FLOAT_UNDERFLOW)
     assert np.any(ref == 0)
 
 
-OPS1 = ["flt48", "fabs32", "fneg32", "fix32", "scale32"]
+OPS1 = {"flt48": (mf._flt48_k, ml.flt48_v, ml.flt48_lanes),
+        "fabs32": (mf._fabs32_k, ml.fabs32_v, ml.fabs32_lanes),
+        "fneg32": (mf._fneg32_k, ml.fneg32_v, ml.fneg32_lanes),
+        "fix32": (mf._fix32_k, ml.fix32_v, ml.fix32_lanes),
+        "scale32": (mm._scale32, ml.scale32_v, None)}
 
 
-@pytest.mark.parametrize("op", range(len(OPS1)), ids=OPS1)
-def test_unary_equal_reference(op):
-    name = OPS1[op]
+@pytest.mark.parametrize("name", OPS1)
+def test_unary_equal_reference(name):
+    ref_k, v_k, lanes = OPS1[name]
+    op = list(OPS1).index(name)
     rng = np.random.default_rng(50 + op)
     if name == "flt48":
         a = np.concatenate([rng.integers(0, 1 << 32, N - 8, dtype=np.int64),
@@ -167,8 +133,15 @@ def test_unary_equal_reference(op):
                                       0xC0000000, 0xBFFFFFFF], np.int64)])
     else:
         a = _operands(23, N, 60 + op)
-    k = rng.integers(-300, 300, N)
-    ref, res = np.empty(N, np.int64), np.empty(N, np.int64)
-    fref, fres = np.empty(N, np.int64), np.empty(N, np.int64)
-    _run1(op, a, k, ref, res, fref, fres)
+    ref, res, fref, fres = _results(N)
+    if lanes is None:                            # scale32: p * 2**k
+        k = rng.integers(-300, 300, N)
+        _apply_scale(ref_k, a, k, ref, fref)
+        _apply_scale(v_k, a, k, res, fres)
+    else:
+        _apply1(ref_k, a, ref, fref)
+        _apply1(v_k, a, res, fres)
+        out = np.empty(N, np.int64)
+        assert lanes(a, out) == np.bitwise_or.reduce(fref)
+        assert np.array_equal(out, ref)
     _check(name, a, ref, res, fref, fres)

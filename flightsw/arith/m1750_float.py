@@ -188,11 +188,18 @@ def _norm_shift(m, W):
 
 
 @njit(cache=True, inline="always")
-def _overflow(neg, W):
-    """Standard overflow result: 7FFF..FF/7F if the result is positive, 8000..00/7F if negative."""
+def _overflow_word(neg, W):
+    """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
+    negative."""
     if W == 23:
-        return (MIN32 if neg else MAX32), FLAG_FLOAT_OVERFLOW
-    return (MIN48 if neg else MAX48), FLAG_FLOAT_OVERFLOW
+        return MIN32 if neg else MAX32
+    return MIN48 if neg else MAX48
+
+
+@njit(cache=True, inline="always")
+def _overflow(neg, W):
+    """Standard overflow result and its PI flag."""
+    return _overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
 @njit(cache=True, inline="always")

@@ -173,15 +173,13 @@ def _s32(w):
 # ================================================================================================
 # sqrt
 # ================================================================================================
-@njit(cache=True, inline="always")
-def _sqrt32_start(x):
-    """sqrt32 up to the Heron steps: (special, result, flags, g, k, y0); ``special`` = the result
-    is already final (zero, domain error)."""
+@njit(cache=True)
+def _sqrt32_k(x):
     m, e = unpack32(x)
     if m == 0:
-        return True, 0, 0, 0, 0, 0
+        return 0, 0
     if m < 0:
-        return True, 0, FLAG_DOMAIN, 0, 0, 0
+        return 0, FLAG_DOMAIN
     if e & 1:                                   # x = (f/2) * 2**(e+1)
         g = _set_exp32(x, -1)
         k = (e + 1) >> 1
@@ -190,25 +188,10 @@ def _sqrt32_start(x):
         k = e >> 1
     y, _ = fm32(g, SQRT_INIT32[1])
     y, _ = fa32(y, SQRT_INIT32[0])
-    return False, 0, 0, g, k, y
-
-
-@njit(cache=True, inline="always")
-def _heron32(g, y):
-    """One Heron step y <- (y + g / y) * 0.5."""
-    q, _ = fd32(g, y)
-    y, _ = fa32(y, q)
-    y, _ = fm32(y, HALF32)
-    return y
-
-
-@njit(cache=True)
-def _sqrt32_k(x):
-    special, r, f, g, k, y = _sqrt32_start(x)
-    if special:
-        return r, f
     for _i in range(SQRT32_STEPS):
-        y = _heron32(g, y)
+        q, _ = fd32(g, y)
+        y, _ = fa32(y, q)
+        y, _ = fm32(y, HALF32)
     return _scale32(y, k)
 
 
@@ -470,9 +453,12 @@ def _cos48_k(x):
 # ================================================================================================
 # atan2
 # ================================================================================================
-@njit(cache=True, inline="always")
-def _atan2_32_reduce(y, x):
-    """atan2_32 step 1: t = min/max of |y|, |x| (FD) and whether they were swapped."""
+@njit(cache=True)
+def _atan2_32_k(y, x):
+    my, _ = unpack32(y)
+    mx, _ = unpack32(x)
+    if my == 0 and mx == 0:
+        return 0, 0
     ay, _ = fabs32(y)
     ax, _ = fabs32(x)
     swap = fc32(ay, ax) > 0
@@ -480,12 +466,6 @@ def _atan2_32_reduce(y, x):
         t, _ = fd32(ax, ay)
     else:
         t, _ = fd32(ay, ax)
-    return t, swap
-
-
-@njit(cache=True, inline="always")
-def _atan2_32_table(t):
-    """atan2_32 step 2: k = round(8t) and u = (t - k/8) / (1 + t k/8) -> (k, u)."""
     k8, _ = fm32(t, EIGHT32)
     k8, _ = fa32(k8, HALF32)
     kw, _ = fix32(k8)
@@ -495,12 +475,6 @@ def _atan2_32_table(t):
     den, _ = fm32(t, c)
     den, _ = fa32(den, ONE32)
     u, _ = fd32(num, den)
-    return k, u
-
-
-@njit(cache=True, inline="always")
-def _atan2_32_finish(k, u, swap, y, x):
-    """atan2_32 step 3: atan t = atan(k/8) + u + u z P(z), then the octant/quadrant fix-ups."""
     z, _ = fm32(u, u)
     q, _ = fm32(ATAN32[1], z)
     q, _ = fa32(q, ATAN32[0])
@@ -510,20 +484,11 @@ def _atan2_32_finish(k, u, swap, y, x):
     a, _ = fa32(ATANK_32[k], a)
     if swap:
         a, _ = fs32(PIO2_32, a)
-    if x & 0x80000000:                          # sign of the mantissa of x
+    if mx < 0:
         a, _ = fs32(PI32, a)
-    if y & 0x80000000:
+    if my < 0:
         a, _ = fneg32(a)
-    return a
-
-
-@njit(cache=True)
-def _atan2_32_k(y, x):
-    if (y & 0xFFFFFF00) == 0 and (x & 0xFFFFFF00) == 0:       # both mantissas zero
-        return 0, 0
-    t, swap = _atan2_32_reduce(y, x)
-    k, u = _atan2_32_table(t)
-    return _atan2_32_finish(k, u, swap, y, x), 0
+    return a, 0
 
 
 _K8_32 = np.array(K8_32 + (0,) * 7, np.int64)           # k = 0..15 (fix & 0xF): no bounds check

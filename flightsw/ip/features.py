@@ -144,14 +144,14 @@ def _features_kernel(sums, count, intensity):
     blob the operations, their operands and their order are those of the routine, so the words
     are the same; the PI flags are OR-ed (order-free)."""
     K = count
-    buf = np.empty((44, K), np.int64)            # the intermediates and the output, one allocation
+    buf = np.empty((42, K), np.int64)            # the intermediates and the output, one allocation
     iw, ia, ib, ic, idd, ie = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]      # integer sums
     wf, sc, sr, scc, srr, src = buf[6], buf[7], buf[8], buf[9], buf[10], buf[11]  # their EFLT
     mc, mr, m20, m02, m11 = buf[12], buf[13], buf[14], buf[15], buf[16]
     ta, tb, dm, t, q, sm = buf[17], buf[18], buf[19], buf[20], buf[21], buf[22]
     q32, s32, t32, dm32, rq = buf[23], buf[24], buf[25], buf[26], buf[27]
-    n2, major, minor, th2 = buf[28], buf[29], buf[30], buf[31]
-    o = buf[32:44]                               # o[i] = feature i of every blob
+    n2, th2 = buf[28], buf[29]
+    o = buf[30:42]                               # o[i] = feature i of every blob
     wide = False
     for k in range(K):
         s = sums[k + 1]
@@ -226,12 +226,10 @@ def _features_kernel(sums, count, intensity):
     fl |= fa32_lanes(ta, ONE32, s32)             # minor^2 (s32 reused)
     for k in range(K):                           # rounding only: s - r >= 0 exactly
         s32[k] = 0 if fc32_v(s32[k], 0) < 0 else s32[k]
-    fl |= sqrt32_lanes(q32, major)
-    fl |= sqrt32_lanes(s32, minor)
+    fl |= sqrt32_lanes(q32, o[5])                # semimajor
+    fl |= sqrt32_lanes(s32, o[6])                # semiminor
     fl |= atan2_32_lanes(t32, dm32, th2)
-    o[5, :] = major
-    o[6, :] = minor
-    fl |= fd32_lanes(minor, major, o[7])
+    fl |= fd32_lanes(o[6], o[5], o[7])           # sigma ratio
     fl |= fm32_lanes(th2, _DEG_PER_2RAD, ta)     # theta in degrees, [0, 180)
     fl |= fd32_lanes(o[8], o[0], o[9])           # average = total / N
     for k in range(K):
