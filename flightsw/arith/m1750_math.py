@@ -68,14 +68,14 @@ from flightsw.arith.m1750_float import (
     to32, to48, unpack32, unpack48,
 )
 from flightsw.arith.m1750_lanes import (
-    fa32_lanes, fabs32_lanes, fc32_v, fd32_lanes, fix32_lanes, flt48_lanes, fm32_lanes, fm48_lanes,
-    fneg32_lanes, fs32_lanes, fs48_lanes, scale32_v,
+    fa32_lanes, fabs32_lanes, fc32_v, fd32_lanes, fix32_lanes, fm32_lanes, fneg32_lanes,
+    fs32_lanes, scale32_v,
 )
 from flightsw.budget import PACE1750A, Processor
 
 __all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
-           "atan2_32", "atan2_48", "sqrt32_lanes", "exp32_lanes", "atan2_32_lanes", "MATH_OP_MIX",
-           "MATH_CYCLES", "MAX_ERROR", "math_cycles"]
+           "atan2_32", "atan2_48", "sqrt32_lanes", "atan2_32_lanes", "MATH_OP_MIX", "MATH_CYCLES",
+           "MAX_ERROR", "math_cycles"]
 
 # ------------------------------------------------------------------------------------------------
 # constants (packed words; generated from exact rationals / float64 fits, rounded to nearest)
@@ -280,55 +280,6 @@ def _exp32_k(x):
     s, _ = fa32(r, w)
     p, _ = fa32(ONE32, s)
     return _scale32(p, n)
-
-
-
-@njit(cache=True)
-def exp32_lanes(xs, out):
-    """exp32 of every word of ``xs`` int64 [K] into ``out`` int64 [K]; returns the OR of the flags.
-
-    The same instructions as :func:`exp32` for each element (see :func:`sqrt32_lanes`): the
-    reduction ``n = FIX(x log2 e +- 1/2)``, ``r = x - n C1 - n C2`` in 48-bit, the polynomial
-    ``1 + r + r**2 P(r)`` and the exponent edit, each applied to all elements at once; the zero and
-    out-of-range (``|x| >= 256``) cases are selected at the end. ``FLT`` of the 16-bit ``n`` enters
-    only through its 48-bit form, so it is taken as ``EFLT`` of ``n`` sign-extended (both exact)."""
-    K = xs.size
-    buf = np.empty((6, K), np.int64)             # no op writes one of its own inputs
-    t, u, v, nw, n48, a = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]
-    fm32_lanes(xs, LOG2E32, t)
-    for i in range(K):
-        u[i] = HALF32 if (xs[i] & 0x80000000) == 0 else MHALF32     # +-1/2 by the sign of x
-    fa32_lanes(t, u, v)
-    fix32_lanes(v, nw)                           # n (16-bit word)
-    for i in range(K):
-        u[i] = _s16(nw[i]) & 0xFFFFFFFF
-        v[i] = to48(xs[i])
-    flt48_lanes(u, n48)
-    fm48_lanes(n48, LN2_C1_48, a)
-    fs48_lanes(v, a, t)
-    fm48_lanes(n48, LN2_C2_48, a)
-    fs48_lanes(t, a, v)                          # r (48-bit)
-    for i in range(K):
-        u[i] = to32(v[i])                        # r
-    fm32_lanes(EXP32[6], u, t)                   # q = P(r), Horner from the top
-    fa32_lanes(t, EXP32[5], a)
-    for j in range(4, -1, -1):
-        fm32_lanes(a, u, t)
-        fa32_lanes(t, EXP32[j], a)
-    fm32_lanes(u, u, t)                          # z = r*r
-    fm32_lanes(t, a, v)                          # w = z q
-    fa32_lanes(u, v, t)                          # s = r + w
-    fa32_lanes(ONE32, t, a)                      # p = 1 + s
-    flags = 0
-    for i in range(K):
-        m, e = unpack32(xs[i])
-        r, f = scale32_v(a[i], _s16(nw[i]))
-        big = e > 8                              # |x| >= 256: overflow / underflow outright
-        r = (MAX32 if m > 0 else 0) if big else r
-        f = (FLAG_FLOAT_OVERFLOW if m > 0 else FLAG_FLOAT_UNDERFLOW) if big else f
-        out[i] = ONE32 if m == 0 else r
-        flags |= 0 if m == 0 else f
-    return flags
 
 
 @njit(cache=True)

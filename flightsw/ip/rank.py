@@ -36,8 +36,8 @@ from numba import njit
 from flightsw.arith.m1750 import (
     ONE32, decode32_array, encode32, exp32, fa32, fc32, fd32, flt32, fm32, fneg32, fs32,
 )
-from flightsw.arith.m1750_lanes import fa32_lanes, fm32_lanes, fneg32_lanes, fs32_lanes
-from flightsw.arith.m1750_math import MATH_CYCLES, exp32_lanes
+from flightsw.arith.m1750_lanes import fa32_lanes, fm32_lanes, fs32_lanes
+from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
 
@@ -171,24 +171,21 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
         if m < max_out:
             m += 1
     # ---- GOF of the kept candidates, rejection below the threshold ----
-    # (FM, FM, FNEG, exp32 per kept candidate, the candidates side by side in lane form)
-    gbuf = np.empty((4, m), np.int64)
-    dk, t1, t2, gof = gbuf[0], gbuf[1], gbuf[2], gbuf[3]
-    for q in range(m):
-        dk[q] = d[order[q]]
-    flags |= fm32_lanes(dk, dk, t1)
-    flags |= fm32_lanes(t1, kg, t2)
-    flags |= fneg32_lanes(t2, t1)
-    exp32_lanes(t1, gof)                 # underflow -> GOF 0 (absorbed)
-    ops[8] += m
-    ops[7] += m
     keep = np.zeros(m, np.int64)
+    gof = np.zeros(m, np.int64)
     r = 0
     for q in range(m):
-        if fc32(gof[q], thr) < 0:
+        dc = d[order[q]]
+        t, f = fm32(dc, dc); flags |= f
+        t, f = fm32(t, kg); flags |= f
+        t, f = fneg32(t); flags |= f
+        g, f = exp32(t)                  # underflow -> GOF 0 (absorbed)
+        ops[8] += 1
+        ops[7] += 1
+        if fc32(g, thr) < 0:
             continue
         keep[r] = order[q]
-        gof[r] = gof[q]
+        gof[r] = g
         r += 1
     return keep[:r], d, gof[:r], flags, ops
 
