@@ -408,18 +408,13 @@ def _colour_kernel(img, diagonal, want_labels, want_sums=True):
     ops[3] = n_merge
     ops[4] = n_steps
     ops[5] = ncol
-    # ---- the labels and the sums, per run (one final colour each) ----
+    # ---- the sums and the labels, per run (one final colour each) ----
     sums = np.zeros((nblob + 1, NSUM), np.int64)
-    labels = np.zeros((H, W) if want_labels else (0, 0), np.int32)
     for q in range(nrun):
         r = run_r[q]
         c0 = run_a[q]
         c1 = run_b[q]
         f = final[raw[r + 1, c0 + 1]]
-        if want_labels:
-            lrow = labels[r]
-            for c in range(c0, c1):
-                lrow[c] = f
         if want_sums:
             src = img[r]
             sv = np.int64(0)
@@ -439,6 +434,16 @@ def _colour_kernel(img, diagonal, want_labels, want_sums=True):
             sc = (np.int64(c1) * (c1 - 1) - np.int64(c0) * (c0 - 1)) // 2
             scc = (np.int64(c1 - 1) * c1 * (2 * c1 - 1) - np.int64(c0 - 1) * c0 * (2 * c0 - 1)) // 6
             _flush(sums, f, r, cnt, sv, svc, svcc, sc, scc, vmax)
+    # the label image in a loop of its own: its int32 stores inside the sums loop would keep the
+    # compiler from holding the sums in registers (they might alias; measured 8.3 vs 4.6 us)
+    labels = np.zeros((H, W) if want_labels else (0, 0), np.int32)
+    if want_labels:
+        for q in range(nrun):
+            r = run_r[q]
+            f = final[raw[r + 1, run_a[q] + 1]]
+            lrow = labels[r]
+            for c in range(run_a[q], run_b[q]):
+                lrow[c] = f
     return labels, nblob, sums, ops, bad
 
 
