@@ -133,13 +133,21 @@ class Ledger:
 
     def charge(self, processor: str, stage: str, cycles: int) -> None:
         """Add ``cycles`` (>= 0) spent by ``processor`` in ``stage``."""
-        if processor not in self.processors:
-            raise KeyError(f"unknown processor {processor!r}; known: {sorted(self.processors)}")
-        cycles = int(cycles)
-        if cycles < 0:
-            raise ValueError(f"negative cycle charge {cycles} for {processor}/{stage}")
-        key = (processor, stage)
-        self._entries[key] = self._entries.get(key, 0) + cycles
+        self.charge_many(((processor, stage, cycles),))
+
+    def charge_many(self, charges) -> None:
+        """:meth:`charge` each ``(processor, stage, cycles)`` of ``charges`` in order (one call for
+        the several stages of a frame: it is on the per-frame path)."""
+        procs, entries = self.processors, self._entries
+        for processor, stage, cycles in charges:
+            if type(cycles) is not int or cycles < 0 or processor not in procs:
+                if processor not in procs:
+                    raise KeyError(f"unknown processor {processor!r}; known: {sorted(procs)}")
+                cycles = int(cycles)                  # numpy integers and the like
+                if cycles < 0:
+                    raise ValueError(f"negative cycle charge {cycles} for {processor}/{stage}")
+            key = (processor, stage)
+            entries[key] = entries.get(key, 0) + cycles
 
     def merge(self, other: "Ledger") -> None:
         """Add every entry of ``other`` to this ledger."""

@@ -37,6 +37,25 @@ def test_ledger_sums_per_processor_and_stage():
     assert "TOTAL" in led.table() and led.as_dict()["dsp"]["cycles"] == 1800
 
 
+def test_charge_many_is_the_same_as_charging_one_by_one():
+    import numpy as np
+    items = [("dsp", "compaction", 0), ("dsp", "threshold", np.int64(37498)),
+             ("ip1750", "colour", 1200), ("ip1750", "features", 5), ("dsp", "threshold", True)]
+    one, many = Ledger(), Ledger()
+    for p, s, c in items:
+        one.charge(p, s, c)
+    many.charge_many(items)
+    assert many.as_dict() == one.as_dict()
+    assert list(many.stages("dsp").items()) == [("compaction", 0), ("threshold", 37499)]
+    assert all(type(c) is int for c in many.stages("dsp").values())     # numpy ints converted
+    bad = Ledger()
+    with pytest.raises(KeyError, match="gpu"):
+        bad.charge_many([("dsp", "x", 1), ("gpu", "y", 2)])
+    with pytest.raises(ValueError, match="negative"):
+        bad.charge_many([("dsp", "x", np.int64(-1))])
+    assert bad.stages("dsp") == {"x": 1}                 # charges before the bad one stay
+
+
 def test_overrun_is_per_processor():
     led = Ledger()
     led.charge("ip1750", "features", int(20e6 * 0.5) + 1)     # one clock past 500 ms at 20 MHz

@@ -145,3 +145,22 @@ def test_unary_equal_reference(name):
         assert lanes(a, out) == np.bitwise_or.reduce(fref)
         assert np.array_equal(out, ref)
     _check(name, a, ref, res, fref, fres)
+
+
+@njit(cache=True)
+def _key_signs(a, b, out):
+    for i in range(a.size):
+        d = ml.fc32_key(a[i]) - ml.fc32_key(b[i])
+        out[i] = (d > 0) - (d < 0)
+
+
+def test_fc32_key_orders_as_fc():
+    """The ranking sorts by fc32_key: its integer order must be FC's on every pair."""
+    a, b = _pairs(23, 90)
+    ref, res, fref, fres = _results(N)
+    _apply2(mf._fc32_k, a, b, ref, fref)
+    _key_signs(a, b, res)
+    _check("fc32_key", a, ref, res, fref, fref, b)
+    keys = np.array([ml.fc32_key.py_func(int(w)) for w in a[:2000]])
+    vals = mf.decode32_array(a[:2000])
+    assert np.array_equal(np.argsort(keys, kind="stable"), np.argsort(vals, kind="stable"))

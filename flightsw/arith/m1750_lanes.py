@@ -34,7 +34,7 @@ from flightsw.arith.m1750_float import (
 )
 
 __all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fa48_v", "fs48_v", "fm48_v", "fd48_v",
-           "flt48_v", "fc32_v", "fabs32_v", "fneg32_v", "fix32_v", "scale32_v",
+           "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v", "fix32_v", "scale32_v",
            "fa32_lanes", "fs32_lanes", "fm32_lanes", "fd32_lanes", "fa48_lanes", "fs48_lanes",
            "fm48_lanes", "fd48_lanes", "flt48_lanes", "fabs32_lanes", "fneg32_lanes",
            "fix32_lanes"]
@@ -253,6 +253,17 @@ def fc32_v(a, b):
     same = ce if ea != eo else cm
     same = 0 if sa == 0 else same
     return (np.int64(sa > so) - np.int64(sa < so)) if sa != so else same
+
+
+@njit(cache=True, inline="always")
+def fc32_key(a):
+    """int64 key of a normalised 32-bit word (or zero) whose integer order is FC's order:
+    ``sign(fc32_key(a) - fc32_key(b)) == fc32(a, b)``. ``|key| = (e + 128) 2**24 + |m|`` orders
+    equal signs by exponent, then mantissa (a normalised value has one representation); the sign
+    is the mantissa's. For sorting many words with one integer compare each (the ranking)."""
+    m, e = unpack32(a)
+    mag = ((e + 128) << 24) + (-m if m < 0 else m)
+    return 0 if m == 0 else (-mag if m < 0 else mag)
 
 
 @njit(cache=True, inline="always")

@@ -135,7 +135,16 @@ def _i2f48(v):
 
 @njit(cache=True)
 def _features_kernel(sums, count, intensity):
-    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR).
+    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)
+    (:func:`_features_fm`, blob-major)."""
+    o, fl = _features_fm(sums, count, intensity)
+    return np.ascontiguousarray(o.T), fl
+
+
+@njit(cache=True)
+def _features_fm(sums, count, intensity):
+    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [12, count], feature-major: row i
+    = feature i of every blob; PI flags OR).
 
     Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
     routine). The host runs it *blob-parallel*: each instruction of the routine is applied to all
@@ -243,25 +252,24 @@ def _features_kernel(sums, count, intensity):
         pos = fc32_v(mx, 0) > 0
         o[11, k] = br if pos else 0
         fl |= g if pos else 0
-    return np.ascontiguousarray(o.T), fl
+    return o, fl
 
 
 @njit(cache=True)
-def _normalise_kernel(words, area, lin, f, r0, c0):
-    """In place on a copy: size, total *= area; axes *= lin; col = f col + c0; row = f row + r0
-    (all packed 32-bit floats; branch-free instruction forms, blobs side by side)."""
+def _normalise_fm(words, area, lin, f, r0, c0):
+    """Feature-major words int64 [12, K] -> (normalised copy [12, K], flags): size, total *= area;
+    axes *= lin; col = f col + c0; row = f row + r0 (packed 32-bit floats; the blobs side by side in
+    the instructions' lane forms)."""
     out = words.copy()
-    flags = 0
-    for k in range(out.shape[0]):
-        o = out[k]
-        o[0], g = fm32_v(o[0], area); flags |= g
-        o[8], g = fm32_v(o[8], area); flags |= g
-        o[5], g = fm32_v(o[5], lin); flags |= g
-        o[6], g = fm32_v(o[6], lin); flags |= g
-        x, g = fm32_v(o[1], f); flags |= g
-        o[1], g = fa32_v(x, c0); flags |= g
-        x, g = fm32_v(o[2], f); flags |= g
-        o[2], g = fa32_v(x, r0); flags |= g
+    tmp = np.empty(words.shape[1], np.int64)
+    flags = fm32_lanes(words[0], area, out[0])
+    flags |= fm32_lanes(words[8], area, out[8])
+    flags |= fm32_lanes(words[5], lin, out[5])
+    flags |= fm32_lanes(words[6], lin, out[6])
+    flags |= fm32_lanes(words[1], f, tmp)
+    flags |= fa32_lanes(tmp, c0, out[1])
+    flags |= fm32_lanes(words[2], f, tmp)
+    flags |= fa32_lanes(tmp, r0, out[2])
     return out, flags
 
 
@@ -382,8 +390,9 @@ def normalise_words(words, compaction: int = 1, window_origin=(0, 0), imager: st
     if not (math.isfinite(r0) and math.isfinite(c0)):
         raise ValueError(f"window_origin={window_origin!r} must be finite")
     area, lin, f = _norm_consts(compaction, imager)
-    out, flags = _normalise_kernel(w, area, lin, f, encode32(r0, rounding="nearest"),
-                                   encode32(c0, rounding="nearest"))
+    out, flags = _normalise_fm(np.ascontiguousarray(w.T), area, lin, f,
+                               encode32(r0, rounding="nearest"), encode32(c0, rounding="nearest"))
+    out = np.ascontiguousarray(out.T)
     if ledger is not None:
         ledger.charge(IP1750, stage, len(w) * _CYC_NORMALISE)
     return out, int(flags)

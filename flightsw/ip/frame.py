@@ -27,7 +27,7 @@ from flightsw.budget import IP1750, Ledger
 from flightsw.ip.colour import _CYC as _CYC_COLOUR
 from flightsw.ip.colour import _DIRECT, _as_int_image, _colour_kernel
 from flightsw.ip.features import (
-    _features_kernel, _norm_consts, _normalise_kernel, features_cycles, words_to_struct,
+    _features_fm, _norm_consts, _normalise_fm, features_cycles, words_to_struct,
 )
 from flightsw.ip.rank import _CYC as _CYC_RANK
 from flightsw.ip.rank import _rank_kernel, _record_words
@@ -42,6 +42,12 @@ __all__ = ["backend", "BackendResult", "process_frame", "process_window", "Frame
 def _enc(x: float) -> int:
     """float -> nearest 1750A 32-bit word (cached: window origins/centres repeat frame to frame)."""
     return encode32(float(x), rounding="nearest")
+
+
+@lru_cache(maxsize=4096)
+def _enc4(r0: float, c0: float, mr: float, mc: float) -> tuple:
+    """:func:`_enc` of a window origin (row0, col0) and centroid mean (row, col) in one look-up."""
+    return _enc(r0), _enc(c0), _enc(mr), _enc(mc)
 
 
 _CYC_BLOB = features_cycles(1)
@@ -62,8 +68,8 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     quantize, thr, max_out = prm[6] != 0, prm[7], prm[8]
     cyc_colour, cyc_blob, cyc_rank = _CYC_COLOUR, _CYC_BLOB, _CYC_RANK
     labels, count, sums, cops, bad = _colour_kernel(img, diagonal, want_labels)
-    raw, f1 = _features_kernel(sums, count, intensity)
-    words, f2 = _normalise_kernel(raw, area, lin, fw, r0w, c0w)
+    raw, f1 = _features_fm(sums, count, intensity)               # feature-major [12, count]
+    words, f2 = _normalise_fm(raw, area, lin, fw, r0w, c0w)
     order, d, gof, f3, rops = _rank_kernel(words, rec, mean_row, mean_col, override != 0,
                                            quantize, thr, max_out)
     m = order.size
@@ -85,7 +91,9 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     for q in range(m):
         pack[h + 2 * m + q] = d[order[q]]
     pack[h + 3 * m:o_words] = d
-    pack[o_words:o_cand] = words.ravel()
+    fwp = pack[o_words:o_cand]                                    # blob-major [count, 12]
+    for i in range(12):
+        fwp[i::12] = words[i]
     # the candidate table (CANDIDATE_DTYPE layout: label int64, then 14 float64), decoded exactly
     cand = pack[o_cand:]
     fc = cand.view(np.float64)
@@ -96,7 +104,7 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
         fc[b + 1] = _dec32_k(d[k])
         fc[b + 2] = _dec32_k(gof[q])
         for i in range(12):
-            fc[b + 3 + i] = _dec32_k(words[k, i])
+            fc[b + 3 + i] = _dec32_k(words[i, k])
     return labels, pack
 
 
@@ -125,12 +133,10 @@ class BackendResult:
 
     __slots__ = ("labels", "count", "flags", "cycles", "_pack", "_m")
 
-    def __init__(self, labels, pack, cycles):
+    def __init__(self, labels, pack, cycles, head=None):
         self._pack = pack
-        self.count = int(pack[0])
-        self._m = int(pack[1])
+        self.count, self._m, self.flags = pack[:3].tolist() if head is None else head[:3]
         self.labels = labels
-        self.flags = int(pack[2])
         self.cycles = cycles
 
     # the arrays are views of the kernel's pack, cut on first use
@@ -237,16 +243,17 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
     return _backend_result(labels, pack, ledger)
 
 
-def _backend_result(labels, pack, ledger):
-    """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged."""
-    if pack[21]:
+def _backend_result(labels, pack, ledger, charges=()):
+    """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged
+    (after ``charges``, (processor, stage, cycles) triples of the steps before it)."""
+    head = pack[:_HEAD].tolist()
+    if head[21]:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
-    cyc = {"colour": int(pack[3]), "features": int(pack[4]), "rank": int(pack[5])}
+    c, f, r = head[3:6]
     if ledger is not None:
-        ledger.charge(IP1750, "colour", cyc["colour"])
-        ledger.charge(IP1750, "features", cyc["features"])
-        ledger.charge(IP1750, "rank", cyc["rank"])
-    return BackendResult(labels, pack, cyc)
+        ledger.charge_many(charges + ((IP1750, "colour", c), (IP1750, "features", f),
+                                      (IP1750, "rank", r)))
+    return BackendResult(labels, pack, {"colour": c, "features": f, "rank": r}, head)
 
 
 def _static_params(record, diagonal, intensity, want_labels, compaction, imager, max_candidates):
@@ -600,10 +607,10 @@ def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, tim
                          rank_p.max_candidates)
     win, pack, t4, m4, d4, s = _frame_kernel(
         frame, f, r0, c0, h, w, fast.ops, fast.kbuf, fast.ksz, fast.tbuf, aq, fast.mode,
-        _record_words(rec), prm, _enc(origin[0]), _enc(origin[1]), _enc(mean[0]), _enc(mean[1]))
+        _record_words(rec), prm, *_enc4(origin[0], origin[1], mean[0], mean[1]))
     ctx = {"imager": imager, "record": record}
-    sub = sequence._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
-    be = _backend_result(_NO_LABELS, pack, ledger)
+    sub = sequence._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, None, ctx)
+    be = _backend_result(_NO_LABELS, pack, ledger, fast.charges)    # front end's cycles first
     msg = _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag)
     return FrameResult(msg, [], ledger, be, sub, ctx)
 
@@ -615,11 +622,13 @@ def _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag):
     """The candidate message of a frame."""
     th = ctx.get("threshold")
     h, w = sub.size
-    return CandidateMessage(frame_count=frame_count, time_tag=time_tag,
-                            imager=imager if imager in _IMAGERS else "real", compaction=f,
-                            window_row0=origin[0], window_col0=origin[1], window_rows=int(h),
-                            window_cols=int(w), alpha=th["alpha_q12"] / 4096.0 if th else 0.0,
-                            record_id=rec.record_id, candidates=be.candidates())
+    # positional, in the field order (frame_count, time_tag, imager, compaction, window_row0,
+    # window_col0, window_rows, window_cols, alpha, record_id, candidates): a third of the time of
+    # the keyword form, on the per-frame path
+    return CandidateMessage(frame_count, time_tag, imager if imager in _IMAGERS else "real", f,
+                            origin[0], origin[1], int(h), int(w),
+                            th["alpha_q12"] / 4096.0 if th else 0.0, rec.record_id,
+                            be.candidates())
 
 
 def _back_end(sub, x, ctx, sequence, record, pred, ledger, imager, frame_count, time_tag,

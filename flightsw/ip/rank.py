@@ -36,7 +36,7 @@ from numba import njit
 from flightsw.arith.m1750 import (
     ONE32, decode32_array, encode32, exp32, fa32, fc32, fd32, flt32, fm32, fneg32, fs32,
 )
-from flightsw.arith.m1750_lanes import fa32_lanes, fm32_lanes, fs32_lanes
+from flightsw.arith.m1750_lanes import fa32_lanes, fc32_key, fm32_lanes, fs32_lanes
 from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
@@ -84,13 +84,13 @@ def _sigmoid(x, a2, ops):
 
 
 @njit(cache=True)
-def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
-    """fw int64 [k, 12] normalised feature words; rec int64 [5, 12] (mean, sigma, weight, lower,
-    upper words). Returns (order int64 [m], d words int64 [k], gof words int64 [m], flags,
-    ops int64 [9])."""
+def _rank_kernel(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
+    """fwt int64 [12, k] normalised feature words, feature-major (row i = feature i of every
+    candidate); rec int64 [5, 12] (mean, sigma, weight, lower, upper words). Returns (order int64
+    [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9])."""
     ops = np.zeros(9, np.int64)
     flags = 0
-    k = fw.shape[0]
+    k = fwt.shape[1]
     # ---- per-frame set-up ----
     mean = rec[0].copy()
     if override:
@@ -128,7 +128,6 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
     # in the CPU pipeline: every candidate sees the identical operations in the identical order.
     dbuf = np.zeros((4, k), np.int64)
     d, d2, t1, t2 = dbuf[0], dbuf[1], dbuf[2], dbuf[3]
-    fwt = np.ascontiguousarray(fw.T)     # feature-major: each chain reads one contiguous row
     for j in range(n):
         i = idx[j]
         mi = mean[i]
@@ -151,13 +150,18 @@ def _rank_kernel(fw, rec, mean_row, mean_col, override, quantize, thr, max_out):
             d, d2 = d2, d
         ops[3] += k
     # ---- keep the best max_out by d (insertion into a sorted list; ties keep blob order) ----
+    # (each FC on the host as one integer compare of fc32_key, the same outcome)
+    key = t1                             # free after the distances
+    for c in range(k):
+        key[c] = fc32_key(d[c])
     m = 0
     order = np.zeros(min(k, max_out), np.int64)
     for c in range(k):
         pos = m
+        kc = key[c]
         while pos > 0:
             ops[5] += 1
-            if fc32(d[order[pos - 1]], d[c]) > 0:
+            if key[order[pos - 1]] > kc:
                 pos -= 1
             else:
                 break
@@ -257,7 +261,7 @@ def rank_words(feature_words, record, centroid_mean=None, ledger: Ledger | None 
             raise ValueError(f"centroid_mean={centroid_mean!r} must be finite (use None)")
         override, mr, mc = True, encode32(r, rounding="nearest"), encode32(c, rounding="nearest")
     rec = _record_words(record)
-    order, d, g, flags, ops = _rank_kernel(np.ascontiguousarray(fw, np.int64), rec, mr, mc,
+    order, d, g, flags, ops = _rank_kernel(np.ascontiguousarray(fw.T, np.int64), rec, mr, mc,
                                            override, record.quantize,
                                            encode32(record.gof_threshold), int(max_candidates))
     cyc = rank_cycles(ops)

@@ -474,7 +474,7 @@ class _FastFront:
     step)."""
 
     __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "cycles",
-                 "threshold_stage", "stages")
+                 "charges", "threshold_stage", "stages")
 
     @classmethod
     def build(cls, steps, pre):
@@ -516,6 +516,7 @@ class _FastFront:
             tb.append(t)
             self.cycles.append((st.stage, int(cyc)))
             self.stages.append(st.stage)
+        self.charges = tuple(("dsp", stage, c) for stage, c in self.cycles)
         n = len(ops)
         self.ops = np.array(ops, np.int64)
         self.kbuf = np.stack(kb) if n else np.zeros((0, 7, 7), np.int16)
@@ -743,8 +744,7 @@ class ProcessingSequence:
             ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
                                 "mode": fast.mode_name}
         if ledger is not None:
-            for stage, c in fast.cycles:
-                ledger.charge("dsp", stage, c)
+            ledger.charge_many(fast.charges)
         return sub
 
 
