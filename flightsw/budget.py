@@ -130,6 +130,7 @@ class Ledger:
             raise ValueError(f"period_s must be positive, got {period_s!r}")
         self.period_s = float(period_s)
         self._entries: dict[tuple[str, str], int] = {}
+        self._queued: list = []          # checked charge blocks not yet in _entries (_queue)
 
     def charge(self, processor: str, stage: str, cycles: int) -> None:
         """Add ``cycles`` (>= 0) spent by ``processor`` in ``stage``."""
@@ -138,6 +139,8 @@ class Ledger:
     def charge_many(self, charges) -> None:
         """:meth:`charge` each ``(processor, stage, cycles)`` of ``charges`` in order (one call for
         the several stages of a frame: it is on the per-frame path)."""
+        if self._queued:
+            self._settle()
         procs, entries = self.processors, self._entries
         for processor, stage, cycles in charges:
             if type(cycles) is not int or cycles < 0 or processor not in procs:
@@ -149,18 +152,36 @@ class Ledger:
             key = (processor, stage)
             entries[key] = entries.get(key, 0) + cycles
 
+    def _queue(self, keys, cycles) -> None:
+        """Queue charges the caller has checked: ``keys`` (processor, stage) pairs whose processors
+        are in :attr:`processors`, ``cycles`` non-negative Python ints, as many. They join the
+        entries, in order, before anything reads or adds to them. The per-frame path of
+        ``process_frame`` (one list append instead of the per-charge checks)."""
+        self._queued.append((keys, cycles))
+
+    def _settle(self) -> None:
+        entries = self._entries
+        for keys, cycles in self._queued:
+            for key, c in zip(keys, cycles):
+                entries[key] = entries.get(key, 0) + c
+        self._queued.clear()
+
     def merge(self, other: "Ledger") -> None:
         """Add every entry of ``other`` to this ledger."""
-        for (p, s), c in other._entries.items():
-            self.charge(p, s, c)
+        other._settle()
+        self.charge_many((p, s, c) for (p, s), c in other._entries.items())
 
     def cycles(self, processor: str | None = None, stage: str | None = None) -> int:
         """Sum of cycles, optionally restricted to one processor and/or stage."""
+        if self._queued:
+            self._settle()
         return sum(c for (p, s), c in self._entries.items()
                    if (processor is None or p == processor) and (stage is None or s == stage))
 
     def stages(self, processor: str) -> dict[str, int]:
         """Stage -> cycles for one processor, in charge order."""
+        if self._queued:
+            self._settle()
         return {s: c for (p, s), c in self._entries.items() if p == processor}
 
     def seconds(self, processor: str) -> float:

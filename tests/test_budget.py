@@ -56,6 +56,24 @@ def test_charge_many_is_the_same_as_charging_one_by_one():
     assert bad.stages("dsp") == {"x": 1}                 # charges before the bad one stay
 
 
+def test_queued_blocks_join_in_charge_order():
+    """process_frame queues its checked charges (Ledger._queue); every reader sees them in order."""
+    led, ref = Ledger(), Ledger()
+    led.charge("dsp", "compaction", 0)
+    led._queue((("dsp", "threshold"), ("ip1750", "colour")), (10, 20))
+    led.charge("dsp", "threshold", 5)                    # after the queued block
+    led._queue((("ip1750", "colour"),), (1,))
+    for p, s, c in [("dsp", "compaction", 0), ("dsp", "threshold", 10), ("ip1750", "colour", 20),
+                    ("dsp", "threshold", 5), ("ip1750", "colour", 1)]:
+        ref.charge(p, s, c)
+    assert list(led.stages("dsp").items()) == [("compaction", 0), ("threshold", 15)]
+    assert led.as_dict() == ref.as_dict() and led.table() == ref.table()
+    led._queue((("ip1750", "rank"),), (7,))
+    merged = Ledger()
+    merged.merge(led)                                    # reads the other's queued charges too
+    assert merged.cycles("ip1750") == 28 and merged.cycles(stage="rank") == 7
+
+
 def test_overrun_is_per_processor():
     led = Ledger()
     led.charge("ip1750", "features", int(20e6 * 0.5) + 1)     # one clock past 500 ms at 20 MHz

@@ -379,11 +379,10 @@ def _colour_kernel(img, diagonal, want_labels, want_sums=True):
     # beside the first and last columns (the paper's special cases: those neighbours are off)
     raw = np.empty((H + 1, W + 2), np.int32) if W <= 64 else np.zeros((H + 1, W + 2), np.int32)
     cap = (H * W + 1) // 2 + 2                   # most colours a window can need (checkerboard)
-    parent = np.empty(cap, np.int32)             # the intermediate colour array
     rcap = H * ((W + 1) // 2) + 1                # most runs a window can hold
-    run_r = np.empty(rcap, np.int32)             # the runs: row, first and one-past-last column
-    run_a = np.empty(rcap, np.int32)
-    run_b = np.empty(rcap, np.int32)
+    work = np.empty((4, max(cap, rcap)), np.int32)    # one allocation for:
+    parent = work[0]                             # the intermediate colour array
+    run_r, run_a, run_b = work[1], work[2], work[3]   # the runs: row, first, one-past-last column
     if W <= 64:
         ncol, nrun, n_on, n_merge, n_steps, bad = _scan_masks(img, diagonal, raw, parent, run_r,
                                                               run_a, run_b)

@@ -80,9 +80,13 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     pack[0] = count
     pack[1] = m
     pack[2] = f1 | f2 | f3
-    pack[3] = np.sum(cyc_colour * cops)
+    pack[3] = 0
+    for i in range(cops.size):
+        pack[3] += cyc_colour[i] * cops[i]
     pack[4] = count * cyc_blob
-    pack[5] = np.sum(cyc_rank * rops)
+    pack[5] = 0
+    for i in range(rops.size):
+        pack[5] += cyc_rank[i] * rops[i]
     pack[6:12] = cops
     pack[12:21] = rops
     pack[21] = 1 if bad else 0
@@ -243,16 +247,25 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
     return _backend_result(labels, pack, ledger)
 
 
-def _backend_result(labels, pack, ledger, charges=()):
+_BACK_KEYS = ((IP1750, "colour"), (IP1750, "features"), (IP1750, "rank"))
+
+
+def _backend_result(labels, pack, ledger, front=None):
     """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged
-    (after ``charges``, (processor, stage, cycles) triples of the steps before it)."""
+    (after those of the fused front end ``front``, a sequence's _FastFront)."""
     head = pack[:_HEAD].tolist()
     if head[21]:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     c, f, r = head[3:6]
     if ledger is not None:
-        ledger.charge_many(charges + ((IP1750, "colour", c), (IP1750, "features", f),
-                                      (IP1750, "rank", r)))
+        procs = ledger.processors
+        if "dsp" in procs and IP1750 in procs:         # the keys are known, the cycles ints >= 0
+            if front is not None:
+                ledger._queue(front.charge_keys, front.charge_cycles)
+            ledger._queue(_BACK_KEYS, (c, f, r))
+        else:                                          # the ledger's own error
+            ledger.charge_many((front.charges if front is not None else ()) +
+                               tuple(k + (v,) for k, v in zip(_BACK_KEYS, (c, f, r))))
     return BackendResult(labels, pack, {"colour": c, "features": f, "rank": r}, head)
 
 
@@ -610,7 +623,7 @@ def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, tim
         _record_words(rec), prm, *_enc4(origin[0], origin[1], mean[0], mean[1]))
     ctx = {"imager": imager, "record": record}
     sub = sequence._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, None, ctx)
-    be = _backend_result(_NO_LABELS, pack, ledger, fast.charges)    # front end's cycles first
+    be = _backend_result(_NO_LABELS, pack, ledger, fast)      # the front end's cycles first
     msg = _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag)
     return FrameResult(msg, [], ledger, be, sub, ctx)
 

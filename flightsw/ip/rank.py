@@ -96,9 +96,8 @@ def _rank_kernel(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out)
     if override:
         mean[1] = mean_col
         mean[2] = mean_row
-    coef = np.zeros(12, np.int64)
-    a2 = np.zeros(12, np.int64)
-    idx = np.zeros(12, np.int64)
+    setup = np.zeros((3, 12), np.int64)
+    coef, a2, idx = setup[0], setup[1], setup[2]
     n = 0
     for i in range(12):
         w = rec[2, i]

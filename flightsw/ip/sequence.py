@@ -474,7 +474,7 @@ class _FastFront:
     step)."""
 
     __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "cycles",
-                 "charges", "threshold_stage", "stages")
+                 "charges", "charge_keys", "charge_cycles", "threshold_stage", "stages")
 
     @classmethod
     def build(cls, steps, pre):
@@ -517,6 +517,8 @@ class _FastFront:
             self.cycles.append((st.stage, int(cyc)))
             self.stages.append(st.stage)
         self.charges = tuple(("dsp", stage, c) for stage, c in self.cycles)
+        self.charge_keys = tuple(("dsp", stage) for stage, _ in self.cycles)
+        self.charge_cycles = tuple(c for _, c in self.cycles)
         n = len(ops)
         self.ops = np.array(ops, np.int64)
         self.kbuf = np.stack(kb) if n else np.zeros((0, 7, 7), np.int16)
