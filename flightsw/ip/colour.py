@@ -447,6 +447,13 @@ def _colour_kernel(img, diagonal, want_labels, want_sums=True):
 
 
 @njit(cache=True)
+def _label_kernel(img, diagonal):
+    """:func:`_colour_kernel` without the sums: (labels, N, bad) (fewer arrays to hand back)."""
+    labels, n, _, _, bad = _colour_kernel(img, diagonal, True, False)
+    return labels, n, bad
+
+
+@njit(cache=True)
 def _sums_from_labels(img, labels, count):
     """Per-blob sums (as :func:`_colour_kernel`) of an image given its labels 1..count."""
     H, W = img.shape
@@ -563,7 +570,7 @@ def label(image, diagonal: bool = True):
     """
     if diagonal is not True and diagonal is not False and diagonal not in (0, 1):
         raise ValueError(f"diagonal={diagonal!r} must be a bool")
-    labels, n, _, _, bad = _colour_kernel(_direct(image), bool(diagonal), True, False)
+    labels, n, bad = _label_kernel(_direct(image), bool(diagonal))
     if bad:
         raise ValueError(f"image {_RANGE_MSG}")
     return labels, n
