@@ -139,7 +139,9 @@ class BackendResult:
 
     def __init__(self, labels, pack, cycles, head=None):
         self._pack = pack
-        self.count, self._m, self.flags = pack[:3].tolist() if head is None else head[:3]
+        if head is None:
+            head = pack[:3].tolist()
+        self.count, self._m, self.flags = head[0], head[1], head[2]
         self.labels = labels
         self.cycles = cycles
 
@@ -261,8 +263,9 @@ def _backend_result(labels, pack, ledger, front=None):
         procs = ledger.processors
         if "dsp" in procs and IP1750 in procs:         # the keys are known, the cycles ints >= 0
             if front is not None:
-                ledger._queue(front.charge_keys, front.charge_cycles)
-            ledger._queue(_BACK_KEYS, (c, f, r))
+                ledger._queue(front.charge_keys + _BACK_KEYS, front.charge_cycles + (c, f, r))
+            else:
+                ledger._queue(_BACK_KEYS, (c, f, r))
         else:                                          # the ledger's own error
             ledger.charge_many((front.charges if front is not None else ()) +
                                tuple(k + (v,) for k, v in zip(_BACK_KEYS, (c, f, r))))
