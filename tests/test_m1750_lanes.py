@@ -164,3 +164,20 @@ def test_fc32_key_orders_as_fc():
     keys = np.array([ml.fc32_key.py_func(int(w)) for w in a[:2000]])
     vals = mf.decode32_array(a[:2000])
     assert np.array_equal(np.argsort(keys, kind="stable"), np.argsort(vals, kind="stable"))
+
+
+def test_fd32_pos_equals_fd_on_positive_operands():
+    """fd32_pos_lanes (sqrt32's Heron division) is FD for positive mantissas and exponent
+    differences the format holds: normalised and unnormalised operands, exponents -60..60."""
+    rng = np.random.default_rng(91)
+    top = 1 << 23
+    ma = np.where(rng.random(N) < 0.9, rng.integers(top // 2, top, N), rng.integers(1, top, N))
+    mo = np.where(rng.random(N) < 0.9, rng.integers(top // 2, top, N), rng.integers(1, top, N))
+    mo[:1000] = ma[:1000]                                        # exact quotients of 1
+    a = mf.pack32(ma, rng.integers(-60, 61, N))
+    b = mf.pack32(mo, rng.integers(-60, 61, N))
+    ref, res, fref, fres = _results(N)
+    _apply2(mf._fd32_k, a, b, ref, fref)
+    ml.fd32_pos_lanes(a, b, res)
+    assert not fref.any()
+    _check("fd32_pos", a, ref, res, fref, fref, b)

@@ -33,11 +33,11 @@ from flightsw.arith.m1750_float import (
     _norm_shift, _overflow_word, _pack, _unpack, pack32, pack48, unpack32, unpack48,
 )
 
-__all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fa48_v", "fs48_v", "fm48_v", "fd48_v",
-           "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v", "fix32_v", "scale32_v",
-           "fa32_lanes", "fs32_lanes", "fm32_lanes", "fd32_lanes", "fa48_lanes", "fs48_lanes",
-           "fm48_lanes", "fd48_lanes", "flt48_lanes", "fabs32_lanes", "fneg32_lanes",
-           "fix32_lanes"]
+__all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fd32_pos_v", "fa48_v", "fs48_v", "fm48_v",
+           "fd48_v", "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v", "fix32_v",
+           "scale32_v", "fa32_lanes", "fs32_lanes", "fm32_lanes", "fd32_lanes", "fd32_pos_lanes",
+           "fa48_lanes", "fs48_lanes", "fm48_lanes", "fd48_lanes", "flt48_lanes", "fabs32_lanes",
+           "fneg32_lanes", "fix32_lanes"]
 
 _FOV = FLAG_FLOAT_OVERFLOW
 _FUN = FLAG_FLOAT_UNDERFLOW
@@ -229,6 +229,20 @@ def fd32_v(a, b):
 
 
 @njit(cache=True, inline="always")
+def fd32_pos_v(a, b):
+    """FD of two words with *positive* mantissas whose exponent difference is within -127..126
+    (the caller guarantees it: the Heron steps of sqrt32, ``g`` in [1/4, 1) over ``y`` near 1).
+    Then none of the RTL's special cases can occur (no zero, no sign, the quotient shifted once
+    at most, no overflow or underflow) and FD is the truncated quotient of :func:`_div_v` alone:
+    the same word, no flags, a third of the instructions."""
+    ma, ea = unpack32(a)
+    mo, eo = unpack32(b)
+    Q = np.int64(float(ma << 24) / float(mo)) >> 1     # exact floor (module docstring)
+    fit = Q >= (np.int64(1) << 23)
+    return pack32(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
+
+
+@njit(cache=True, inline="always")
 def fd48_v(a, b):
     """EFD (5.80), branch-free."""
     return _div_v(a, b, 39)
@@ -375,6 +389,14 @@ def fd32_lanes(a, b, out):
         out[i], f = fd32_v(_el(a, i), _el(b, i))
         fl |= f
     return fl
+
+
+@njit(cache=True, error_model="numpy")
+def fd32_pos_lanes(a, b, out):
+    """:func:`fd32_pos_v` of every lane (positive operands only, see there);
+    ``a``, ``b``, ``out`` int64 [K]. No flags can arise."""
+    for i in range(out.size):
+        out[i] = fd32_pos_v(a[i], b[i])
 
 
 @njit(cache=True, error_model="numpy")

@@ -68,8 +68,8 @@ from flightsw.arith.m1750_float import (
     to32, to48, unpack32, unpack48,
 )
 from flightsw.arith.m1750_lanes import (
-    fa32_lanes, fabs32_lanes, fc32_v, fd32_lanes, fix32_lanes, fm32_lanes, fneg32_lanes,
-    fs32_lanes, scale32_v,
+    fa32_lanes, fabs32_lanes, fc32_v, fd32_lanes, fd32_pos_lanes, fix32_lanes, fm32_lanes,
+    fneg32_lanes, fs32_lanes, scale32_v,
 )
 from flightsw.budget import PACE1750A, Processor
 
@@ -209,12 +209,13 @@ def sqrt32_lanes(xs, out):
         x = xs[i]
         m, e = unpack32(x)
         odd = (e & 1) != 0                       # x = (f/2) * 2**(e+1): g in [0.25, 0.5)
-        g[i] = _set_exp32(x, -1 if odd else 0)
+        # (x <= 0 lanes, selected away at the end, divide 1/2 instead: fd32_pos needs g > 0)
+        g[i] = _set_exp32(x, -1 if odd else 0) if m > 0 else HALF32
         k[i] = (e + 1) >> 1 if odd else e >> 1
     fm32_lanes(g, SQRT_INIT32[1], z)
     fa32_lanes(z, SQRT_INIT32[0], y)
     for _j in range(SQRT32_STEPS):
-        fd32_lanes(g, y, out)
+        fd32_pos_lanes(g, y, out)                # g in [1/4, 1), y near 1: both positive
         fa32_lanes(y, out, z)
         fm32_lanes(z, HALF32, y)
     flags = 0
