@@ -42,10 +42,11 @@ GROUP_DOCS = {
         (same objects: count and centroids within 0.1 px). Target (issue 4): ours <= 40 us median.
         Most of ours is the 1750A float emulation itself (~8,300 emulated instructions a frame),
         run blob-parallel in the branch-free lane forms of the instructions
-        (`flightsw.arith.m1750_lanes`, compiled to AVX-512 on this host): features ~9.5 us
-        (~190 ns a blob: three sqrt32 ~9 ns each and atan2_32 ~23 ns per lane, five EFD ~4 ns and
-        the other 48-bit operations ~2 ns per lane), distances (500 terms of FS, FM, FM, FA) and
-        23 exp32 in the ranking ~7 us; the colouring ~11 us.""",
+        (`flightsw.arith.m1750_lanes`, compiled to AVX-512 on this host). Parts timed in a jitted
+        loop (2026-11-23 evening): colouring 4.6 us (1.7 us of it the per-run sums), features
+        5.4 us (~110 ns a blob: per lane FA/FM ~0.75 ns, FD 2.5 ns, EFD 3.4 ns; three sqrt32,
+        whose Heron divisions take the positive-operand FD, and an atan2_32), normalisation
+        0.6 us, ranking 2.5 us (the distances, 40 lane instructions, 1.5 us).""",
     G_FRAME: """Detection + the twelve features: ours is the whole `process_frame` on a 256x244
         frame (compaction 1, 64x64 window, threshold statistics, the fused back end, the candidate
         message); the peers get the float64 window and our threshold (so they skip the threshold
@@ -55,14 +56,17 @@ GROUP_DOCS = {
         OpenCV connectedComponentsWithStats + moments, SciPy label + bincount moments +
         ndimage.maximum. Each finds the same 50 objects (centroids within 0.1 px of ours).
         Targets (issues 4, 5): ours <= 60 us, >= 4x faster than sep.extract, >= 10x faster than
-        SciPy label + moments. py-spy and timings of the parts (2026-11-23): ~30 us of ours is the
-        one jitted call (front end ~3 us, colouring ~11 us, the 1750A float emulation of
-        features, normalisation, distances and GOF ~16 us, see the back-end group), ~10 us the
-        Python around it (sequence, ledger, candidate message objects); the float64 peers do their
-        arithmetic in hardware. The SciPy ratio misses its target here and varies from run to
-        run: after the lane forms, six runs on this machine (2026-11-23 afternoon) gave 5.5-10.1x
-        (ours 30-43 us, bimodal between processes; SciPy 224-324 us); before them 5.8-6.1x here
-        and 9.5-10.4x on the morning's machine. The table below is one of these runs.""",
+        SciPy label + moments. Profile of ours (2026-11-23 evening; the parts timed in a jitted
+        loop, the Python with the kernel stubbed): ~16.5 us is the one jitted call (front end 1.2
+        us, colouring 4.6 us, features 5.4 us, normalisation 0.6 us, ranking 2.5 us, the message
+        table 0.8 us, the call and its boxing ~1 us), ~5 us the Python around it (the Subimage,
+        BackendResult, CandidateMessage and FrameResult objects, the ledger); the float64 peers
+        do their arithmetic in hardware. The SciPy ratio is at its target with little margin and
+        moves with this host's noise: six runs of the pair (2026-11-23, 17:00 UTC) gave
+        10.0-10.25x (ours 21.3-21.8 us, SciPy 216-221 us); the same day before the colouring's
+        label stores left its sums loop (8.3 -> 4.6 us), the feature-major back end, the
+        integer-key sort, the queued ledger charges and the positive-operand FD: 5.5-10.1x (ours
+        30-43 us). The table below is another run.""",
 }
 S8 = np.ones((3, 3), int)
 
