@@ -493,6 +493,7 @@ def test_process_frame_fast_path_equals_the_stages_path():
             cands = b.backend.candidates()
             assert cands.tobytes() == b.backend._candidates_decoded().tobytes()
             assert l1.stages("dsp") == l2.stages("dsp") and l1.stages("ip1750") == l2.stages("ip1750")
+            assert l1.table() == l2.table()                      # the same charges, same order
             assert a.context["threshold"] == b.context["threshold"]
             assert np.array_equal(a.subimage.image, b.subimage.image)
             assert a.subimage.origin == b.subimage.origin
@@ -550,6 +551,11 @@ def test_process_frame_validation():
         process_frame(np.zeros((244, 256), np.uint16), seq, rec, feedback=(1, 2))
     with pytest.raises(ValueError, match="12-bit"):
         process_frame(np.full((244, 256), 5000, np.uint16), seq, rec)
+    from flightsw.budget import PACE1750A
+    for stages in (True, False):                 # a ledger without the DSP: its own KeyError
+        with pytest.raises(KeyError, match="dsp"):
+            process_frame(np.zeros((244, 256), np.uint16), seq, rec,
+                          ledger=Ledger({"ip1750": PACE1750A}), want_stages=stages)
 
 
 def test_report(capsys):
