@@ -230,7 +230,7 @@ def fd32_v(a, b):
 
 @njit(cache=True, inline="always")
 def fd32_pos_v(a, b):
-    """FD of two words with *positive* mantissas whose exponent difference is within -127..126
+    """FD of two words with *positive* mantissas whose exponent difference is within -128..126
     (the caller guarantees it: the Heron steps of sqrt32, ``g`` in [1/4, 1) over ``y`` near 1).
     Then none of the RTL's special cases can occur (no zero, no sign, the quotient shifted once
     at most, no overflow or underflow) and FD is the truncated quotient of :func:`_div_v` alone:

@@ -200,8 +200,9 @@ def sqrt32_lanes(xs, out):
     """sqrt32 of every word of ``xs`` int64 [K] into ``out`` int64 [K]; returns the OR of the flags.
 
     The same instructions as :func:`sqrt32` for each element, each applied to all elements at once
-    in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`: SIMD on the host); the zero
-    and domain cases are selected at the end."""
+    in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`: SIMD on the host; the Heron
+    division, whose operands are positive, in FD's positive-operand form ``fd32_pos``, the same
+    words); the zero and domain cases are selected at the end."""
     K = xs.size
     buf = np.empty((4, K), np.int64)             # g, k, y, z (q is out; no op writes its input)
     g, k, y, z = buf[0], buf[1], buf[2], buf[3]
