@@ -1,4 +1,5 @@
 """The budget model against the timing facts processors.md quotes, and the Ledger's bookkeeping."""
+import numpy as np
 import pytest
 
 from flightsw import budget
@@ -38,7 +39,6 @@ def test_ledger_sums_per_processor_and_stage():
 
 
 def test_charge_many_is_the_same_as_charging_one_by_one():
-    import numpy as np
     items = [("dsp", "compaction", 0), ("dsp", "threshold", np.int64(37498)),
              ("ip1750", "colour", 1200), ("ip1750", "features", 5), ("dsp", "threshold", True)]
     one, many = Ledger(), Ledger()

@@ -10,7 +10,7 @@ from scipy.special import erf
 
 import flightsw.ip as ip
 from flightsw.arith.m1750 import decode32_array, encode32
-from flightsw.budget import Ledger
+from flightsw.budget import PACE1750A, Ledger
 from flightsw.ip.colour import colour, blob_sums, COLOUR_MIX, colour_cycles
 from flightsw.ip.features import (FEATURE_DTYPE, features_words, normalise, normalise_words,
                                   struct_to_words, words_to_struct)
@@ -551,7 +551,6 @@ def test_process_frame_validation():
         process_frame(np.zeros((244, 256), np.uint16), seq, rec, feedback=(1, 2))
     with pytest.raises(ValueError, match="12-bit"):
         process_frame(np.full((244, 256), 5000, np.uint16), seq, rec)
-    from flightsw.budget import PACE1750A
     for stages in (True, False):                 # a ledger without the DSP: its own KeyError
         with pytest.raises(KeyError, match="dsp"):
             process_frame(np.zeros((244, 256), np.uint16), seq, rec,
