@@ -30,7 +30,7 @@ from numba.extending import overload
 
 from flightsw.arith.m1750_float import (
     FLAG_FIXED_OVERFLOW, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48,
-    _norm_shift, _overflow_word, _pack, _unpack, pack32, pack48, unpack32, unpack48,
+    _norm_shift, _overflow_word, _pack, _prod80, _unpack, pack32, pack48, unpack32, unpack48,
 )
 
 __all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fd32_pos_v", "fa48_v", "fs48_v", "fm48_v",
@@ -147,15 +147,7 @@ def fm48_v(a, b):
     neg = (ma < 0) != (mo < 0)
     A = -ma if ma < 0 else ma
     B = -mo if mo < 0 else mo
-    M20 = (np.int64(1) << 20) - 1
-    a1 = A >> 20
-    a0 = A & M20
-    b1 = B >> 20
-    b0 = B & M20
-    mid = a1 * b0 + a0 * b1
-    low = ((mid & M20) << 20) + a0 * b0
-    H = a1 * b1 + (mid >> 20) + (low >> 40)
-    L = low & ((np.int64(1) << 40) - 1)
+    H, L = _prod80(A, B)
     half = np.int64(1) << 37
     mA = (H << 1) | (L >> 39)                  # floor(|P| / 2**39), normalised as is
     mB = (H << 2) | (L >> 38)                  # floor(|P| / 2**38), one left shift

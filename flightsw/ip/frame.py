@@ -260,15 +260,14 @@ def _backend_result(labels, pack, ledger, front=None):
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     c, f, r = head[3:6]
     if ledger is not None:
+        keys, cycles = _BACK_KEYS, (c, f, r)
+        if front is not None:
+            keys, cycles = front.charge_keys + keys, front.charge_cycles + cycles
         procs = ledger.processors
         if "dsp" in procs and IP1750 in procs:         # the keys are known, the cycles ints >= 0
-            if front is not None:
-                ledger._queue(front.charge_keys + _BACK_KEYS, front.charge_cycles + (c, f, r))
-            else:
-                ledger._queue(_BACK_KEYS, (c, f, r))
+            ledger._queue(keys, cycles)
         else:                                          # the ledger's own error
-            ledger.charge_many((front.charges if front is not None else ()) +
-                               tuple(k + (v,) for k, v in zip(_BACK_KEYS, (c, f, r))))
+            ledger.charge_many(k + (n,) for k, n in zip(keys, cycles))
     return BackendResult(labels, pack, {"colour": c, "features": f, "rank": r}, head)
 
 

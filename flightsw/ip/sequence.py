@@ -474,7 +474,7 @@ class _FastFront:
     step)."""
 
     __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "cycles",
-                 "charges", "charge_keys", "charge_cycles", "threshold_stage", "stages")
+                 "charge_keys", "charge_cycles", "threshold_stage", "stages")
 
     @classmethod
     def build(cls, steps, pre):
@@ -516,7 +516,6 @@ class _FastFront:
             tb.append(t)
             self.cycles.append((st.stage, int(cyc)))
             self.stages.append(st.stage)
-        self.charges = tuple(("dsp", stage, c) for stage, c in self.cycles)
         self.charge_keys = tuple(("dsp", stage) for stage, _ in self.cycles)
         self.charge_cycles = tuple(c for _, c in self.cycles)
         n = len(ops)
@@ -746,7 +745,7 @@ class ProcessingSequence:
             ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
                                 "mode": fast.mode_name}
         if ledger is not None:
-            ledger.charge_many(fast.charges)
+            ledger.charge_many(("dsp", stage, c) for stage, c in fast.cycles)
         return sub
 
 
