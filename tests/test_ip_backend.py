@@ -499,6 +499,26 @@ def test_process_frame_fast_path_equals_the_stages_path():
             assert a.subimage.origin == b.subimage.origin
 
 
+def test_process_frame_fast_path_follows_record_and_imager_changes():
+    """The fused path keeps what does not change frame to frame per (sequence, record, imager):
+    switching the record (a new object with the same id, too) or the imager between frames must
+    give the stages path's message every time, never a stale record's or pixel scale's."""
+    rng = np.random.default_rng(21)
+    frame, _ = _star_frame(rng, 40)
+    seq = load_default_sequence("satellite")
+    star = load_record("star").replace(gof_threshold=0.0)
+    sat = load_record("satellite").replace(gof_threshold=0.0)
+    star_tight = star.replace(gof_threshold=0.5)                 # same record_id, other words
+    seen = set()
+    for rec, imager in ((star, "wfov_vis"), (sat, "wfov_vis"), (star, "nfov_uv"),
+                        (star_tight, "nfov_uv"), (star, "wfov_vis"), (sat, "nfov_uv")):
+        a = process_frame(frame, seq, rec, imager=imager).message
+        b = process_frame(frame, seq, rec, imager=imager, want_stages=False).message
+        assert a == b, (rec.record_id, imager)
+        assert b.record_id == rec.record_id and b.imager == imager
+        seen.add(b.candidates.tobytes())
+    assert len(seen) >= 4           # the records and pixel scales do change the candidates
+
 def test_process_frame_feedback_moves_window_and_means():
     rng = np.random.default_rng(4)
     frame, truth = _star_frame(rng, 60)

@@ -29,6 +29,8 @@ from flightsw.ip.colour import _DIRECT, _as_int_image, _colour_kernel
 from flightsw.ip.features import (
     _features_fm, _norm_consts, _normalise_fm, features_cycles, words_to_struct,
 )
+from flightsw.ip.preprocess import _new_subimage
+from flightsw.ip.preprocess import window_origin as _window_origin
 from flightsw.ip.rank import _CYC as _CYC_RANK
 from flightsw.ip.rank import _rank_kernel, _record_words
 from flightsw.messages import (
@@ -135,15 +137,15 @@ class BackendResult:
         ``{"colour", "features", "rank"}`` PACE1750A clocks charged.
     """
 
-    __slots__ = ("labels", "count", "flags", "cycles", "_pack", "_m")
+    __slots__ = ("labels", "count", "flags", "_cyc", "_pack", "_m")
 
-    def __init__(self, labels, pack, cycles, head=None):
-        self._pack = pack
-        if head is None:
-            head = pack[:3].tolist()
-        self.count, self._m, self.flags = head[0], head[1], head[2]
-        self.labels = labels
-        self.cycles = cycles
+    def __init__(self, labels, pack, count, m, flags, cycles):
+        self.labels, self._pack, self.count, self._m, self.flags = labels, pack, count, m, flags
+        self._cyc = cycles
+
+    @property
+    def cycles(self) -> dict:
+        return dict(zip(("colour", "features", "rank"), self._cyc))
 
     # the arrays are views of the kernel's pack, cut on first use
     @property
@@ -268,7 +270,7 @@ def _backend_result(labels, pack, ledger, front=None):
             ledger._queue(keys, cycles)
         else:                                          # the ledger's own error
             ledger.charge_many(k + (n,) for k, n in zip(keys, cycles))
-    return BackendResult(labels, pack, {"colour": c, "features": f, "rank": r}, head)
+    return BackendResult(labels, pack, head[0], head[1], head[2], (c, f, r))
 
 
 def _static_params(record, diagonal, intensity, want_labels, compaction, imager, max_candidates):
@@ -599,34 +601,107 @@ def _backend_params(sequence):
 def _frame_kernel(frame, compaction, r0, c0, h, w, ops, kbuf, ksz, tbuf, aq, mode, rec, prm, r0w,
                   c0w, mean_row, mean_col):
     """:func:`flightsw.ip.sequence._front_fast_k` then :func:`_backend_kernel` (centroid means
-    overridden) in one call: (window int16 [h, w], pack, t4, mean4, std4, shift)."""
+    overridden) in one call: (window int16 [h, w], pack, then the header words the host reads:
+    count, m, flags, the colour, features and rank cycles, the range flag, and the threshold's t4,
+    mean4, std4 and shift) -- a flat tuple boxes faster than a header slice turned into a list."""
     win, img, t4, m4, d4, s = _front_fast_k(frame, compaction, r0, c0, h, w, ops, kbuf, ksz, tbuf,
                                             aq, mode)
     _, pack = _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, 1)
-    return win, pack, t4, m4, d4, s
+    return (win, pack, pack[0], pack[1], pack[2], pack[3], pack[4], pack[5], pack[21], t4, m4, d4,
+            s)
+
+
+class _FusedPlan:
+    """Everything the fused frame path needs that does not change from frame to frame for one
+    (sequence, record, imager): built on the first frame and kept on the sequence, so that a frame
+    costs the jitted call plus the few objects of its result."""
+
+    __slots__ = ("record", "rec", "recw", "prm", "f", "pre", "ops", "kbuf", "ksz", "tbuf", "mode",
+                 "aq", "mode_name", "threshold", "keys", "front_cycles", "default", "imager",
+                 "record_id")
+
+    def __init__(self, sequence, record, imager):
+        fast = sequence._fast
+        colour_p, feat_p, rank_p = _backend_params(sequence)
+        rec = rank_p.record if rank_p.record is not None else record
+        f = sequence.preprocess.compaction
+        self.record, self.rec, self.f, self.pre = record, rec, f, sequence.preprocess
+        self.prm = _static_params(rec, colour_p.diagonal, feat_p.intensity_centroid, False, f,
+                                  imager, rank_p.max_candidates)
+        self.recw = _record_words(rec)
+        self.ops, self.kbuf, self.ksz, self.tbuf, self.mode = (fast.ops, fast.kbuf, fast.ksz,
+                                                               fast.tbuf, fast.mode)
+        self.aq, self.mode_name = fast.alpha_q12, fast.mode_name
+        self.threshold = fast.threshold_stage is not None
+        self.keys = fast.charge_keys + _BACK_KEYS             # the front end's cycles first
+        self.front_cycles = fast.charge_cycles
+        (h, w), (r0, c0) = sequence._default_window
+        self.default = (h, w, r0, c0) + _geometry_words(f, r0, c0, h, w, None)
+        self.imager = imager if imager in _IMAGERS else "real"
+        self.record_id = rec.record_id
+
+
+def _geometry_words(f, r0, c0, h, w, pred):
+    """(origin row, origin col (full-res pixels), then the 1750A words of the origin and of the
+    centroid means: the prediction ``pred``, or the window centre if None)."""
+    o0, o1 = r0 * f, c0 * f
+    if pred is None:
+        return (o0, o1) + _enc4(o0, o1, o0 + h * f / 2.0, o1 + w * f / 2.0)
+    return (o0, o1) + _enc4(o0, o1, pred[0], pred[1])
+
+
+def _fused_plan(sequence, record, imager):
+    plans = sequence.__dict__.get("_fused_plans")
+    if plans is None:
+        plans = sequence.__dict__["_fused_plans"] = {}
+    plan = plans.get((id(record), imager))
+    if plan is None or plan.record is not record:
+        plan = _FusedPlan(sequence, record, imager)
+        if len(plans) > 64:
+            plans.clear()
+        plans[(id(record), imager)] = plan
+    return plan
 
 
 def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, time_tag, alpha_q12,
                    check):
     """:func:`process_frame` without stage images for a sequence whose front end is fusable: the
     same words, context and cycles as the step path (tested), with one jitted call."""
-    fast = sequence._fast
-    frame, (h, w), (r0, c0) = sequence._fast_window(img, pred, check)
-    aq = fast.alpha_q12 if alpha_q12 is None else int(alpha_q12)
-    colour_p, feat_p, rank_p = _backend_params(sequence)
-    rec = rank_p.record if rank_p.record is not None else record
-    f = sequence.preprocess.compaction
-    origin = (r0 * f, c0 * f)
-    mean = pred if pred is not None else (origin[0] + h * f / 2.0, origin[1] + w * f / 2.0)
-    prm = _static_params(rec, colour_p.diagonal, feat_p.intensity_centroid, False, f, imager,
-                         rank_p.max_candidates)
-    win, pack, t4, m4, d4, s = _frame_kernel(
-        frame, f, r0, c0, h, w, fast.ops, fast.kbuf, fast.ksz, fast.tbuf, aq, fast.mode,
-        _record_words(rec), prm, *_enc4(origin[0], origin[1], mean[0], mean[1]))
-    ctx = {"imager": imager, "record": record}
-    sub = sequence._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, None, ctx)
-    be = _backend_result(_NO_LABELS, pack, ledger, fast)      # the front end's cycles first
-    msg = _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag)
+    plan = _fused_plan(sequence, record, imager)
+    frame = sequence._fast_frame(img, check)
+    if pred is None:
+        h, w, r0, c0, o0, o1, r0w, c0w, mr, mc = plan.default
+    else:
+        pre = plan.pre
+        h, w = pre.window_shape
+        r0, c0 = _window_origin(pre.compacted_shape, plan.f, pred, pre.window)
+        o0, o1, r0w, c0w, mr, mc = _geometry_words(plan.f, r0, c0, h, w, pred)
+    aq = plan.aq if alpha_q12 is None else int(alpha_q12)
+    f = plan.f
+    win, pack, count, m, flags, c, fe, rk, bad, t4, m4, d4, s = _frame_kernel(
+        frame, f, r0, c0, h, w, plan.ops, plan.kbuf, plan.ksz, plan.tbuf, aq, plan.mode, plan.recw,
+        plan.prm, r0w, c0w, mr, mc)
+    if bad:
+        raise ValueError("window holds values outside the 16-bit word range -32768..65535")
+    sub = _new_subimage(win, (r0, c0), f, (h, w))
+    ctx = {"imager": imager, "record": record, "subimage": sub, "preprocess": plan.pre}
+    if plan.threshold:
+        ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
+                            "mode": plan.mode_name}
+        alpha = aq / 4096.0
+    else:
+        alpha = 0.0
+    procs = ledger.processors
+    if "dsp" in procs and IP1750 in procs:             # the keys are known, the cycles ints >= 0
+        ledger._queue(plan.keys, plan.front_cycles + (c, fe, rk))
+    else:                                              # the ledger's own error
+        ledger.charge_many(k + (n,) for k, n in zip(plan.keys, plan.front_cycles + (c, fe, rk)))
+    be = BackendResult(_NO_LABELS, pack, count, m, flags, (c, fe, rk))
+    # positional, in the field order (frame_count, time_tag, imager, compaction, window_row0,
+    # window_col0, window_rows, window_cols, alpha, record_id, candidates): a third of the time of
+    # the keyword form, on the per-frame path
+    msg = CandidateMessage(frame_count, time_tag, plan.imager, f, o0, o1, h, w, alpha,
+                           plan.record_id, be.candidates())
     return FrameResult(msg, [], ledger, be, sub, ctx)
 
 

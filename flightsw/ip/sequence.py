@@ -78,7 +78,8 @@ import flightsw.ip.fftfilter as _fft
 import flightsw.ip.filters as _flt
 import flightsw.ip.threshold as _th
 from flightsw.ip.preprocess import (COMPACTION_FACTORS, FRAME_SHAPE, Subimage, _check_frame,
-                                    _compact_k, preprocess, window_origin, window_shape)
+                                    _compact_k, _new_subimage, preprocess, window_origin,
+                                    window_shape)
 
 __all__ = ["ProcessingSequence", "IPConfig", "SequenceError", "FieldError", "StepType", "Step",
            "Stage", "StageOutput", "SequenceResult", "Preprocess", "register_step", "STEP_REGISTRY",
@@ -718,19 +719,23 @@ class ProcessingSequence:
         sub = self._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
         return sub, img, ctx
 
-    def _fast_window(self, frame, predicted_rowcol_fullres, check):
-        """The fused path's checked frame (C-contiguous integers), window shape and origin
-        (compacted pixels)."""
-        pre = self.preprocess
+    def _fast_frame(self, frame, check):
+        """The fused path's checked frame (a C-contiguous integer array of the frame shape)."""
         if check:
             frame = _check_frame(frame)
-        if frame.shape != pre.frame_shape or frame.dtype.kind not in "ui":
-            raise ValueError(f"frame must be a {pre.frame_shape} integer array, got {frame.dtype} "
-                             f"{frame.shape}")
+        if frame.shape != self.preprocess.frame_shape or frame.dtype.kind not in "ui":
+            raise ValueError(f"frame must be a {self.preprocess.frame_shape} integer array, got "
+                             f"{frame.dtype} {frame.shape}")
         if not frame.flags.c_contiguous:
             frame = np.ascontiguousarray(frame)
+        return frame
+
+    def _fast_window(self, frame, predicted_rowcol_fullres, check):
+        """The fused path's checked frame, window shape and origin (compacted pixels)."""
+        frame = self._fast_frame(frame, check)
         if predicted_rowcol_fullres is None:
             return (frame,) + self._default_window
+        pre = self.preprocess
         return frame, pre.window_shape, window_origin(pre.compacted_shape, pre.compaction,
                                                       predicted_rowcol_fullres, pre.window)
 
@@ -738,7 +743,7 @@ class ProcessingSequence:
         """After the fused front end: the Subimage, ``ctx`` (subimage, preprocess, threshold) and
         the front end's cycles charged, as the step-by-step path does."""
         fast = self._fast
-        sub = Subimage(win, origin, self.preprocess.compaction, size)
+        sub = _new_subimage(win, origin, self.preprocess.compaction, size)
         ctx["subimage"] = sub
         ctx["preprocess"] = self.preprocess
         if fast.threshold_stage is not None:
