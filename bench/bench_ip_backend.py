@@ -56,17 +56,19 @@ GROUP_DOCS = {
         OpenCV connectedComponentsWithStats + moments, SciPy label + bincount moments +
         ndimage.maximum. Each finds the same 50 objects (centroids within 0.1 px of ours).
         Targets (issues 4, 5): ours <= 60 us, >= 4x faster than sep.extract, >= 10x faster than
-        SciPy label + moments. Profile of ours (2026-11-23 evening; the parts timed in a jitted
-        loop, the Python with the kernel stubbed): ~16.5 us is the one jitted call (front end 1.2
-        us, colouring 4.6 us, features 5.4 us, normalisation 0.6 us, ranking 2.5 us, the message
-        table 0.8 us, the call and its boxing ~1 us), ~5 us the Python around it (the Subimage,
-        BackendResult, CandidateMessage and FrameResult objects, the ledger); the float64 peers
-        do their arithmetic in hardware. The SciPy ratio is at its target with little margin and
-        moves with this host's noise: six runs of the pair (2026-11-23, 17:00 UTC) gave
-        10.0-10.25x (ours 21.3-21.8 us, SciPy 216-221 us); the same day before the colouring's
-        label stores left its sums loop (8.3 -> 4.6 us), the feature-major back end, the
-        integer-key sort, the queued ledger charges and the positive-operand FD: 5.5-10.1x (ours
-        30-43 us). The table below is another run.""",
+        SciPy label + moments. Profile of ours (2026-11-23, 17:40 UTC; the parts timed in a
+        jitted loop, the Python with the kernel stubbed): ~16 us is the one jitted call (front end
+        1.2 us, colouring 4.6 us, features 5.5 us, normalisation 0.6 us, ranking 2.5 us, the
+        message table 0.8 us, the call with its 18 arguments and the boxing of its result ~1.3
+        us), ~3.1 us the Python around it (what does not change frame to frame is built once per
+        sequence, record and imager; left are the Subimage, BackendResult, CandidateMessage and
+        FrameResult objects, the ledger and the candidate table's structured view); the float64
+        peers do their arithmetic in hardware. Six runs of the pair (2026-11-23, 17:43 UTC):
+        10.99-11.11x (ours 19.1-19.6 us, SciPy 211-216 us); earlier the same day 10.0-10.25x
+        (ours 21.3-21.8 us, before the per-frame plan), and in the morning 5.5-10.1x (ours 30-43
+        us, before the colouring's label stores left its sums loop, the feature-major back end,
+        the integer-key sort, the queued ledger charges and the positive-operand FD). The table
+        below is another run.""",
 }
 S8 = np.ones((3, 3), int)
 
