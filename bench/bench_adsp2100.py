@@ -1,7 +1,8 @@
 """7x7 Q1.15 correlation over a 64x64 window (200,704 MACs): each contender computes the same result
 (16-bit image x Q1.15 kernel, wide accumulation, round half to even, saturation to 16 bits) and is
-checked equal to ours before it is timed; the plain numba int64 loop rounds half up and does not
-saturate, so it is the floor rather than a peer doing the same work.
+checked equal to ours before it is timed (plain numpy int64 too: whole-array shifted windows); the
+plain numba int64 loop rounds half up and does not saturate, so it is the floor rather than a peer
+doing the same work.
 
 Run: ``.venv/bin/python -m pytest bench/bench_adsp2100.py --benchmark-enable``.
 """
@@ -41,6 +42,21 @@ def plain_numba_int64(img, kern):
     return out
 
 
+def plain_numpy_int64(img, kern):
+    """The same arithmetic in whole-array numpy int64: 49 shifted-window multiply-adds of the
+    fractional-mode products, round half to even at bit 16, saturation to 16 bits."""
+    x = img.astype(np.int64)
+    kh, kw = kern.shape
+    h, w = x.shape[0] - kh + 1, x.shape[1] - kw + 1
+    acc = np.zeros((h, w), np.int64)
+    for i in range(kh):
+        for j in range(kw):
+            acc += x[i:i + h, j:j + w] * (int(kern[i, j]) << 1)
+    q = (acc + 0x8000) >> 16
+    q -= ((acc & 0xFFFF) == 0x8000) & (q & 1 == 1)               # a tie goes to the even word
+    return np.clip(q, -32768, 32767).astype(np.int16)
+
+
 def apytypes_correlate(img, kern):
     import apytypes as apy
     x = apy.APyFixedArray.from_float(img.astype(np.float64), int_bits=16, frac_bits=0)
@@ -78,6 +94,12 @@ def test_ours_uvisi(benchmark):
 def test_plain_numba_int64(benchmark):
     out = benchmark(plain_numba_int64, IMG, KERN)
     assert np.abs(out - EXPECT).max() <= 1                     # same sums, round-half-up
+
+
+@pytest.mark.benchmark(group=GROUP)
+def test_plain_numpy_int64(benchmark):
+    out = benchmark(plain_numpy_int64, IMG, KERN)
+    np.testing.assert_array_equal(out, EXPECT)
 
 
 @pytest.mark.benchmark(group=GROUP)
