@@ -254,23 +254,26 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
 _BACK_KEYS = ((IP1750, "colour"), (IP1750, "features"), (IP1750, "rank"))
 
 
-def _backend_result(labels, pack, ledger, front=None):
-    """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged
-    (after those of the fused front end ``front``, a sequence's _FastFront)."""
+def _backend_result(labels, pack, ledger):
+    """BackendResult of a kernel's (labels, pack), with the range check and the cycles charged."""
     head = pack[:_HEAD].tolist()
     if head[21]:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     c, f, r = head[3:6]
     if ledger is not None:
-        keys, cycles = _BACK_KEYS, (c, f, r)
-        if front is not None:
-            keys, cycles = front.charge_keys + keys, front.charge_cycles + cycles
-        procs = ledger.processors
-        if "dsp" in procs and IP1750 in procs:         # the keys are known, the cycles ints >= 0
-            ledger._queue(keys, cycles)
-        else:                                          # the ledger's own error
-            ledger.charge_many(k + (n,) for k, n in zip(keys, cycles))
+        _charge(ledger, _BACK_KEYS, (c, f, r))
     return BackendResult(labels, pack, head[0], head[1], head[2], (c, f, r))
+
+
+def _charge(ledger, keys, cycles):
+    """Charge ``cycles`` (non-negative ints) to ``keys`` ((processor, stage) pairs on "dsp" and
+    "ip1750"): queued in one block when the ledger knows both processors, else through
+    ``charge_many`` so that the ledger raises its own error."""
+    procs = ledger.processors
+    if "dsp" in procs and IP1750 in procs:
+        ledger._queue(keys, cycles)
+    else:
+        ledger.charge_many(k + (n,) for k, n in zip(keys, cycles))
 
 
 def _static_params(record, diagonal, intensity, want_labels, compaction, imager, max_candidates):
@@ -617,8 +620,8 @@ class _FusedPlan:
     costs the jitted call plus the few objects of its result."""
 
     __slots__ = ("record", "rec", "recw", "prm", "f", "pre", "ops", "kbuf", "ksz", "tbuf", "mode",
-                 "aq", "mode_name", "threshold", "keys", "front_cycles", "default", "imager",
-                 "record_id")
+                 "aq", "mode_name", "threshold", "keys", "front_cycles", "default",
+                 "msg_imager", "record_id")
 
     def __init__(self, sequence, record, imager):
         fast = sequence._fast
@@ -633,11 +636,11 @@ class _FusedPlan:
                                                                fast.tbuf, fast.mode)
         self.aq, self.mode_name = fast.alpha_q12, fast.mode_name
         self.threshold = fast.threshold_stage is not None
-        self.keys = fast.charge_keys + _BACK_KEYS             # the front end's cycles first
+        self.keys = fast.charge_keys + _BACK_KEYS
         self.front_cycles = fast.charge_cycles
         (h, w), (r0, c0) = sequence._default_window
         self.default = (h, w, r0, c0) + _geometry_words(f, r0, c0, h, w, None)
-        self.imager = imager if imager in _IMAGERS else "real"
+        self.msg_imager = imager if imager in _IMAGERS else "real"
         self.record_id = rec.record_id
 
 
@@ -691,16 +694,12 @@ def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, tim
         alpha = aq / 4096.0
     else:
         alpha = 0.0
-    procs = ledger.processors
-    if "dsp" in procs and IP1750 in procs:             # the keys are known, the cycles ints >= 0
-        ledger._queue(plan.keys, plan.front_cycles + (c, fe, rk))
-    else:                                              # the ledger's own error
-        ledger.charge_many(k + (n,) for k, n in zip(plan.keys, plan.front_cycles + (c, fe, rk)))
+    _charge(ledger, plan.keys, plan.front_cycles + (c, fe, rk))    # the front end's cycles first
     be = BackendResult(_NO_LABELS, pack, count, m, flags, (c, fe, rk))
     # positional, in the field order (frame_count, time_tag, imager, compaction, window_row0,
     # window_col0, window_rows, window_cols, alpha, record_id, candidates): a third of the time of
     # the keyword form, on the per-frame path
-    msg = CandidateMessage(frame_count, time_tag, plan.imager, f, o0, o1, h, w, alpha,
+    msg = CandidateMessage(frame_count, time_tag, plan.msg_imager, f, o0, o1, h, w, alpha,
                            plan.record_id, be.candidates())
     return FrameResult(msg, [], ledger, be, sub, ctx)
 
@@ -709,12 +708,10 @@ _NO_LABELS = np.zeros((0, 0), np.int32)
 
 
 def _message(be, rec, ctx, sub, f, origin, imager, frame_count, time_tag):
-    """The candidate message of a frame."""
+    """The candidate message of a frame (the stages path; :func:`_process_fused` builds it the same
+    way from its plan)."""
     th = ctx.get("threshold")
     h, w = sub.size
-    # positional, in the field order (frame_count, time_tag, imager, compaction, window_row0,
-    # window_col0, window_rows, window_cols, alpha, record_id, candidates): a third of the time of
-    # the keyword form, on the per-frame path
     return CandidateMessage(frame_count, time_tag, imager if imager in _IMAGERS else "real", f,
                             origin[0], origin[1], int(h), int(w),
                             th["alpha_q12"] / 4096.0 if th else 0.0, rec.record_id,
