@@ -1,8 +1,9 @@
 """Track processor (issue 7): host speed of the emulated 1750A flight code. ``TrackProcessor.step`` on
 a frame of 23 candidates (22 stars + the object) with all 45 gates live and populated and the EKF
 running (target <= 30 us median, one core); the 6-state EKF step -- RK4 predict + two sequential
-scalar updates, 1750A 48/32-bit -- beside ``filterpy.kalman.ExtendedKalmanFilter`` with the same
-model in float64 (target >= 5x); and the alpha-beta step beside Stone Soup's Kalman predictor +
+scalar updates, 1750A 48/32-bit -- beside ``filterpy.kalman.ExtendedKalmanFilter`` and Stone Soup's
+``ExtendedKalmanPredictor`` + ``ExtendedKalmanUpdater`` with the same model in float64 (target >= 5x
+filterpy); and the alpha-beta step beside Stone Soup's Kalman predictor +
 updater on a 1-D constant-velocity model at its steady-state gain (the alpha-beta filter is that
 filter with the gains frozen). Each pair is checked to produce the same estimates before it is
 timed. Run: ``.venv/bin/python -m pytest bench/bench_tp.py --benchmark-enable -q``.
@@ -163,6 +164,41 @@ P0 = np.diag([1e6] * 3 + [25.0] * 3)
 Q_PSD, SIG = 1e-3, 3e-5
 
 
+def _q6():
+    """White-acceleration process noise over one frame, float64 [6, 6]."""
+    Q = np.zeros((6, 6))
+    for i in range(3):
+        Q[i, i], Q[i, i + 3], Q[i + 3, i], Q[i + 3, i + 3] = (
+            Q_PSD * DT ** 3 / 3, Q_PSD * DT ** 2 / 2, Q_PSD * DT ** 2 / 2, Q_PSD * DT)
+    return Q
+
+
+def _jac_f(x):
+    """Two-body transition Jacobian over one frame at state ``x`` [6] (m, m/s)."""
+    rn = np.linalg.norm(x[:3])
+    u = x[:3] / rn
+    F = np.eye(6)
+    F[:3, 3:] = DT * np.eye(3)
+    F[3:, :3] = DT * MU / rn ** 3 * (3 * np.outer(u, u) - np.eye(3))
+    return F
+
+
+def _los(x, M, r_sc, c):
+    """Component ``c`` (1 or 2) of the line of sight to ``x[:3]`` in the boresight frame ``M``."""
+    d = x[:3] - r_sc
+    return (M @ (d / np.linalg.norm(d)))[c]
+
+
+def _los_jac(x, M, r_sc, c):
+    """d _los / d x, float64 [1, 6]."""
+    d = x[:3] - r_sc
+    rho = np.linalg.norm(d)
+    ll = d / rho
+    H = np.zeros((1, 6))
+    H[0, :3] = (M[c] - (M[c] @ ll) * ll) / rho
+    return H
+
+
 def _ours_filter(x0):
     f = EKF1750(j2=False, accel_psd=Q_PSD, max_step=DT, gate_sigma=1e3)
     f.init(0.0, x0[:3], x0[3:], P=P0)
@@ -184,47 +220,103 @@ def _filterpy_filter(x0):
     f = Ref(dim_x=6, dim_z=1)
     f.x = x0.reshape(6, 1).copy()
     f.P = P0.copy()
-    Q = np.zeros((6, 6))
-    for i in range(3):
-        Q[i, i], Q[i, i + 3], Q[i + 3, i], Q[i + 3, i + 3] = Q_PSD * DT ** 3 / 3, Q_PSD * DT ** 2 / 2, Q_PSD * DT ** 2 / 2, Q_PSD * DT
-    f.Q = Q
+    f.Q = _q6()
     f.R = np.array([[SIG ** 2]])
     return f
 
 
 def _filterpy_step(f, m):
     t, z, M, r_sc = m
-    x = f.x.ravel()
-    rn = np.linalg.norm(x[:3])
-    u = x[:3] / rn
-    F = np.eye(6)
-    F[:3, 3:] = DT * np.eye(3)
-    F[3:, :3] = DT * MU / rn ** 3 * (3 * np.outer(u, u) - np.eye(3))
-    f.F = F
+    f.F = _jac_f(f.x.ravel())
     f.predict()
     for comp in (1, 2):
         def hx(xx, c=comp):
-            d = xx.ravel()[:3] - r_sc
-            return np.array([[(M @ (d / np.linalg.norm(d)))[c]]])
+            return np.array([[_los(xx.ravel(), M, r_sc, c)]])
 
         def hj(xx, c=comp):
-            d = xx.ravel()[:3] - r_sc
-            rho = np.linalg.norm(d)
-            ll = d / rho
-            H = np.zeros((1, 6))
-            H[0, :3] = (M[c] - (M[c] @ ll) * ll) / rho
-            return H
+            return _los_jac(xx.ravel(), M, r_sc, c)
         f.update(np.array([z[comp - 1]]), hj, hx)
+
+
+def _stonesoup_ekf(x0):
+    """Stone Soup's ExtendedKalmanPredictor + ExtendedKalmanUpdater with the same model: a
+    two-body RK4 transition model (Jacobian at the prior, the white-acceleration Q) and, per frame,
+    one scalar line-of-sight measurement model for each of the two components, applied in turn.
+    Returns (step, state) with state[0] the current GaussianState."""
+    from stonesoup.base import Property
+    from stonesoup.models.base import GaussianModel
+    from stonesoup.models.measurement.nonlinear import NonLinearGaussianMeasurement
+    from stonesoup.models.transition.base import TransitionModel
+    from stonesoup.predictor.kalman import ExtendedKalmanPredictor
+    from stonesoup.types.array import CovarianceMatrix, StateVector
+    from stonesoup.types.detection import Detection
+    from stonesoup.types.hypothesis import SingleHypothesis
+    from stonesoup.types.state import GaussianState
+    from stonesoup.updater.kalman import ExtendedKalmanUpdater
+
+    Q = CovarianceMatrix(_q6())
+
+    class TwoBodyRK4(TransitionModel, GaussianModel):
+        @property
+        def ndim_state(self):
+            return 6
+
+        def function(self, state, noise=False, **kwargs):
+            return StateVector(_rk4(np.asarray(state.state_vector, float).ravel(), DT))
+
+        def jacobian(self, state, **kwargs):
+            return _jac_f(np.asarray(state.state_vector, float).ravel())
+
+        def covar(self, **kwargs):
+            return Q
+
+    class LosComponent(NonLinearGaussianMeasurement):
+        M: np.ndarray = Property(doc="ECI -> boresight frame")
+        r_sc: np.ndarray = Property(doc="spacecraft position, m")
+        comp: int = Property(doc="1 or 2: the boresight-frame component measured")
+
+        @property
+        def ndim_meas(self):
+            return 1
+
+        def function(self, state, noise=False, **kwargs):
+            x = np.asarray(state.state_vector, float).ravel()
+            return StateVector([_los(x, self.M, self.r_sc, self.comp)])
+
+        def jacobian(self, state, **kwargs):
+            return _los_jac(np.asarray(state.state_vector, float).ravel(), self.M, self.r_sc,
+                            self.comp)
+
+    pred, upd = ExtendedKalmanPredictor(TwoBodyRK4()), ExtendedKalmanUpdater(None)
+    t0 = datetime.datetime(2026, 1, 1)
+    state = [GaussianState(StateVector(x0), CovarianceMatrix(P0), timestamp=t0)]
+
+    def step(m):
+        t, z, M, r_sc = m
+        ts = t0 + datetime.timedelta(seconds=float(t))
+        s = pred.predict(state[0], timestamp=ts)
+        for comp in (1, 2):
+            mm = LosComponent(ndim_state=6, mapping=(0, 1, 2), noise_covar=np.array([[SIG ** 2]]),
+                              M=M, r_sc=r_sc, comp=comp)
+            s = upd.update(SingleHypothesis(s, Detection(StateVector([z[comp - 1]]),
+                                                         timestamp=ts, measurement_model=mm)))
+        state[0] = s
+        return s
+    return step, state
 
 
 def _check_ekf_agree():
     x0, meas = _pass(60)
     a, b = _ours_filter(x0), _filterpy_filter(_ours_filter(x0).x)
+    step, state = _stonesoup_ekf(_ours_filter(x0).x)
     for m in meas[1:]:
         _ours_step(a, m)
         _filterpy_step(b, m)
+        step(m)
     sig = np.sqrt(np.diag(b.P))
     assert np.max(np.abs(a.x - b.x.ravel()) / sig) < 1e-2
+    c = np.asarray(state[0].state_vector, float).ravel()
+    assert np.max(np.abs(c - b.x.ravel()) / sig) < 1e-6                 # the same float64 filter
 
 
 @pytest.mark.benchmark(group=G_EKF)
@@ -244,6 +336,15 @@ def test_filterpy_ekf_predict_two_scalar_updates(benchmark):
     it = iter(meas[1:])
     benchmark.pedantic(lambda m: _filterpy_step(f, m), setup=lambda: ((next(it),), {}), rounds=300,
                        iterations=1)
+
+
+@pytest.mark.benchmark(group=G_EKF)
+def test_stonesoup_ekf_predict_two_scalar_updates(benchmark):
+    pytest.importorskip("stonesoup")
+    x0, meas = _pass()
+    step, _ = _stonesoup_ekf(_ours_filter(x0).x)
+    it = iter(meas[1:])
+    benchmark.pedantic(step, setup=lambda: ((next(it),), {}), rounds=300, iterations=1)
 
 
 # ------------------------------------------------------------------------------------------------
