@@ -181,3 +181,64 @@ def test_fd32_pos_equals_fd_on_positive_operands():
     ml.fd32_pos_lanes(a, b, res)
     assert not fref.any()
     _check("fd32_pos", a, ref, res, fref, fref, b)
+
+
+@njit(cache=True)
+def _in_nn_domain(a, b, W):
+    """Every lane inside fd32_lanes'/fd48_lanes' positive-form domain?"""
+    ok = True
+    for i in range(a.size):
+        ma, ea = ml.unpack32(a[i]) if W == 23 else ml.unpack48(a[i])
+        mo, eo = ml.unpack32(b[i]) if W == 23 else ml.unpack48(b[i])
+        ok &= ml._nn_domain(ma, ea, mo, eo)
+    return ok
+
+
+@pytest.mark.parametrize("W", [23, 39])
+def test_fd_lanes_positive_form_equals_fd(W):
+    """A block whose lanes all have a dividend >= 0, a divisor > 0 and (non-zero dividends) an
+    exponent difference in -128..126 takes the positive form: the same words as FD/EFD, no flags,
+    zero dividends with any exponent difference, the boundaries -128 and 126 included. One lane
+    outside (difference 127: overflow) sends the block through the general form, flags and all."""
+    rng = np.random.default_rng(40 + W)
+    top = 1 << W
+    ma = rng.integers(top // 2, top, N, dtype=np.int64)
+    mo = rng.integers(top // 2, top, N, dtype=np.int64)
+    mo[:2000] = ma[:2000]                                         # exact quotients of 1
+    ea = rng.integers(-128, 128, N)
+    eo = np.clip(ea - rng.integers(-128, 127, N), -128, 127)
+    n = ea - eo
+    n[:4] = (-128, -128, 126, 126)
+    eo[:4] = ea[:4] - n[:4]
+    keep = (eo >= -128) & (eo <= 127)
+    ma, mo, ea, eo = ma[keep], mo[keep], ea[keep], eo[keep]
+    ma[rng.random(ma.size) < 0.1] = 0                             # zero dividends, any exponents
+    pack = mf.pack32 if W == 23 else mf.pack48
+    a = np.where(ma == 0, 0, pack(ma, ea))
+    b = pack(mo, eo)
+    assert _in_nn_domain(a, b, W) and (ea - eo >= -128).all() and (ea - eo <= 126).all()
+    ref_k, _, lanes = OPS2["fd32" if W == 23 else "fd48"]
+    ref, res, fref, _ = _results(a.size)
+    _apply2(ref_k, a, b, ref, fref)
+    assert not fref.any() and lanes(a, b, res) == 0
+    _check(f"fd{W + 9}_lanes positive form", a, ref, res, fref, fref, b)
+    a[7] = pack(np.int64(top // 2), np.int64(127))                 # 127 - 0: overflow
+    b[7] = pack(np.int64(top // 2), np.int64(0))
+    assert not _in_nn_domain(a, b, W)
+    _apply2(ref_k, a, b, ref, fref)
+    assert lanes(a, b, res) == mf.FLAG_FLOAT_OVERFLOW == np.bitwise_or.reduce(fref)
+    _check(f"fd{W + 9}_lanes general form", a, ref, res, fref, fref, b)
+
+
+def test_atan2_lanes_zero_pairs_keep_the_positive_division():
+    """atan2_32_lanes on a block of moderate magnitudes with atan2(0, 0), (0, x) and (y, 0) lanes:
+    the scalar routine's words (its first division runs in fd32_lanes' positive form)."""
+    rng = np.random.default_rng(12)
+    v = rng.uniform(-500, 500, 4000)
+    x = mf.encode32_array(v)
+    y = mf.encode32_array(rng.permutation(v))
+    x[:10] = 0
+    y[5:15] = 0
+    out = np.empty_like(x)
+    assert mm.atan2_32_lanes(y, x, out) == 0
+    assert out.tolist() == [mm.atan2_32(int(p), int(q))[0] for p, q in zip(y, x)]

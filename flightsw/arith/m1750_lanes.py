@@ -19,6 +19,12 @@ Two host details differ from the scalar forms without changing a result:
   the 40-bit form keeps the exact remainder fix-up of ``m1750_float._quotient_floor``.
 * Divisors of zero are replaced by one before the division (the result is then selected away), so
   the caller's loop can be compiled with ``error_model="numpy"`` (no division-by-zero branch).
+* ``fd32_lanes`` and ``fd48_lanes`` first check whether every lane has a dividend >= 0, a divisor
+  > 0 and, for a non-zero dividend, an exponent difference in -128..126; then none of the RTL's
+  special cases can fire and the block runs the positive form (``fd32_pos_v``/``fd48_pos_v``: the
+  quotient alone, the same words, no flags) at about a third of the cost. Any other block runs
+  the full form. The feature routine's divisions (moments by the weight sum, r^2 by N^2, totals by
+  N) are of the first kind.
 
 Every function is ``inline="always"``: it is meant to be the body of a caller's loop.
 """
@@ -34,7 +40,7 @@ from flightsw.arith.m1750_float import (
 )
 
 __all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fd32_pos_v", "fa48_v", "fs48_v", "fm48_v",
-           "fd48_v", "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v", "fix32_v",
+           "fd48_v", "fd48_pos_v", "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v", "fix32_v",
            "scale32_v", "fa32_lanes", "fs32_lanes", "fm32_lanes", "fd32_lanes", "fd32_pos_lanes",
            "fa48_lanes", "fs48_lanes", "fm48_lanes", "fd48_lanes", "flt48_lanes", "fabs32_lanes",
            "fneg32_lanes", "fix32_lanes"]
@@ -235,6 +241,29 @@ def fd32_pos_v(a, b):
 
 
 @njit(cache=True, inline="always")
+def fd48_pos_v(a, b):
+    """EFD of two words with positive mantissas whose exponent difference is within -128..126:
+    :func:`_div_v`'s 40-bit quotient with its exact remainder fix-up and nothing else (as
+    :func:`fd32_pos_v`); the same word, no flags."""
+    ma, ea = unpack48(a)
+    mo, eo = unpack48(b)
+    Qm = np.int64(float(ma) / float(mo) * 1099511627776.0)          # 2**40
+    r = (ma << 40) - Qm * mo                   # exact modulo 2**64 (true value in (-B, 2B))
+    Qm = Qm - 1 if r < 0 else (Qm + 1 if r >= mo else Qm)
+    Q = Qm >> 1
+    fit = Q >= (np.int64(1) << 39)
+    return pack48(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
+
+
+@njit(cache=True, inline="always")
+def _nn_domain(ma, ea, mo, eo):
+    """True where FD/EFD reduces to the positive form or zero: dividend >= 0, divisor > 0, and a
+    non-zero dividend's exponent difference within -128..126 (none of the RTL's checks fires)."""
+    n = ea - eo
+    return (ma >= 0) & (mo > 0) & ((ma == 0) | ((n >= -128) & (n <= 126)))
+
+
+@njit(cache=True, inline="always")
 def fd48_v(a, b):
     """EFD (5.80), branch-free."""
     return _div_v(a, b, 39)
@@ -372,10 +401,28 @@ def fm32_lanes(a, b, out):
     return fl
 
 
+@njit(cache=True, inline="always")
+def _all_nn(a, b, n, W):
+    """:func:`_nn_domain` holds for all ``n`` lanes of ``a / b`` (W-bit mantissas)."""
+    ok = True
+    for i in range(n):
+        ma, ea = _unpack(_el(a, i), W)
+        mo, eo = _unpack(_el(b, i), W)
+        ok &= _nn_domain(ma, ea, mo, eo)
+    return ok
+
+
 @njit(cache=True, error_model="numpy")
 def fd32_lanes(a, b, out):
     """FD of every lane, ``out[i] = fd32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    # every lane in the non-negative domain (the usual case: moments, N, sums of squares): the
+    # positive form, about half the instructions, the same words (tested) and no flags
+    if _all_nn(a, b, out.size, 23):
+        for i in range(out.size):
+            x = _el(a, i)
+            out[i] = 0 if unpack32(x)[0] == 0 else fd32_pos_v(x, _el(b, i))
+        return 0
     fl = 0
     for i in range(out.size):
         out[i], f = fd32_v(_el(a, i), _el(b, i))
@@ -428,6 +475,11 @@ def fm48_lanes(a, b, out):
 def fd48_lanes(a, b, out):
     """EFD of every lane, ``out[i] = fd48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags."""
+    if _all_nn(a, b, out.size, 39):            # as fd32_lanes: the positive form when it applies
+        for i in range(out.size):
+            x = _el(a, i)
+            out[i] = 0 if unpack48(x)[0] == 0 else fd48_pos_v(x, _el(b, i))
+        return 0
     fl = 0
     for i in range(out.size):
         out[i], f = fd48_v(_el(a, i), _el(b, i))

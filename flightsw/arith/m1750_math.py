@@ -512,7 +512,10 @@ def atan2_32_lanes(ys, xs, out):
     for i in range(K):
         sw = fc32_v(ay[i], ax[i]) > 0
         num[i] = ax[i] if sw else ay[i]
-        den[i] = ay[i] if sw else ax[i]
+        # atan2(0, 0) lanes divide 0 by 1 instead of by 0 (their result is selected away at the
+        # end), so that a block holding one takes fd32_lanes' positive form like the others
+        both0 = ((ay[i] & 0xFFFFFF00) == 0) & ((ax[i] & 0xFFFFFF00) == 0)
+        den[i] = ONE32 if both0 else (ay[i] if sw else ax[i])
         swap[i] = sw
     fd32_lanes(num, den, t)
     fm32_lanes(t, EIGHT32, u)
