@@ -43,10 +43,11 @@ GROUP_DOCS = {
         Most of ours is the 1750A float emulation itself (~8,300 emulated instructions a frame),
         run blob-parallel in the branch-free lane forms of the instructions
         (`flightsw.arith.m1750_lanes`, compiled to AVX-512 on this host). Parts timed in a jitted
-        loop (2026-11-23 evening): colouring 4.6 us (1.7 us of it the per-run sums), features
-        5.4 us (~110 ns a blob: per lane FA/FM ~0.75 ns, FD 2.5 ns, EFD 3.4 ns; three sqrt32,
-        whose Heron divisions take the positive-operand FD, and an atan2_32), normalisation
-        0.6 us, ranking 2.5 us (the distances, 40 lane instructions, 1.5 us).""",
+        loop (2026-11-23, 18:15 UTC): colouring 4.6 us (1.7 us of it the per-run sums), features
+        4.7 us (~95 ns a blob: per lane FA/FM ~0.7 ns, EFM 1.5 ns; FD 0.7 ns and EFD 1.15 ns in
+        the positive form every division of the routine but atan2's second takes, 2.4 and 3.2 ns
+        in the full form; three sqrt32 and an atan2_32), normalisation 0.6 us, ranking 2.6 us
+        (the distances, 40 lane instructions, 1.5 us).""",
     G_FRAME: """Detection + the twelve features: ours is the whole `process_frame` on a 256x244
         frame (compaction 1, 64x64 window, threshold statistics, the fused back end, the candidate
         message); the peers get the float64 window and our threshold (so they skip the threshold
@@ -56,19 +57,19 @@ GROUP_DOCS = {
         OpenCV connectedComponentsWithStats + moments, SciPy label + bincount moments +
         ndimage.maximum. Each finds the same 50 objects (centroids within 0.1 px of ours).
         Targets (issues 4, 5): ours <= 60 us, >= 4x faster than sep.extract, >= 10x faster than
-        SciPy label + moments. Profile of ours (2026-11-23, 17:40 UTC; the parts timed in a
-        jitted loop, the Python with the kernel stubbed): ~16 us is the one jitted call (front end
-        1.2 us, colouring 4.6 us, features 5.5 us, normalisation 0.6 us, ranking 2.5 us, the
-        message table 0.8 us, the call with its 18 arguments and the boxing of its result ~1.3
-        us), ~3.1 us the Python around it (what does not change frame to frame is built once per
+        SciPy label + moments. Profile of ours (2026-11-23, 18:15 UTC; the parts timed in a
+        jitted loop, the Python with the kernel stubbed): ~15.3 us is the one jitted call (front
+        end 1.2 us, colouring 4.6 us, features 4.7 us, normalisation 0.6 us, ranking 2.6 us, the
+        message table 0.5 us, the call with its 18 arguments and the boxing of its result ~1 us),
+        ~3.3 us the Python around it (what does not change frame to frame is built once per
         sequence, record and imager; left are the Subimage, BackendResult, CandidateMessage and
         FrameResult objects, the ledger and the candidate table's structured view); the float64
-        peers do their arithmetic in hardware. Six runs of the pair (2026-11-23, 17:43 UTC):
-        10.99-11.11x (ours 19.1-19.6 us, SciPy 211-216 us); earlier the same day 10.0-10.25x
-        (ours 21.3-21.8 us, before the per-frame plan), and in the morning 5.5-10.1x (ours 30-43
-        us, before the colouring's label stores left its sums loop, the feature-major back end,
-        the integer-key sort, the queued ledger charges and the positive-operand FD). The table
-        below is another run.""",
+        peers do their arithmetic in hardware. Six runs of the pair (2026-11-23, 18:15 UTC):
+        11.20-11.55x (ours 18.6-19.1 us, SciPy 212-217 us); earlier the same day 10.0-10.25x
+        (ours 21.3-21.8 us, before the per-frame plan and the positive-form divisions), and in the
+        morning 5.5-10.1x (ours 30-43 us, before the colouring's label stores left its sums loop,
+        the feature-major back end, the integer-key sort, the queued ledger charges and the
+        positive-operand FD of sqrt32). The table below is another run.""",
 }
 S8 = np.ones((3, 3), int)
 
