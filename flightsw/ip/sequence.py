@@ -474,8 +474,8 @@ class _FastFront:
     no fused form, e.g. the polynomial detrender or ``filter_fft``: those sequences run step by
     step)."""
 
-    __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "cycles",
-                 "charge_keys", "charge_cycles", "threshold_stage", "stages")
+    __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "charge_keys",
+                 "charge_cycles", "threshold_stage")
 
     @classmethod
     def build(cls, steps, pre):
@@ -483,8 +483,7 @@ class _FastFront:
         self = cls()
         self.alpha_q12, self.mode, self.mode_name, self.threshold_stage = 0, 0, "binarize", None
         h, w = pre.window_shape
-        self.cycles = [("compaction", 0)]
-        self.stages = []
+        cycles = [("compaction", 0)]               # (stage, DSP cycles), in charge order
         zk, zt = np.zeros((7, 7), np.int16), np.zeros(7, np.int16)
         for st in steps:
             if STEP_REGISTRY[st.op].phase >= PHASE_LABEL:
@@ -515,10 +514,9 @@ class _FastFront:
             ops.append(op)
             kb.append(k)
             tb.append(t)
-            self.cycles.append((st.stage, int(cyc)))
-            self.stages.append(st.stage)
-        self.charge_keys = tuple(("dsp", stage) for stage, _ in self.cycles)
-        self.charge_cycles = tuple(c for _, c in self.cycles)
+            cycles.append((st.stage, int(cyc)))
+        self.charge_keys = tuple(("dsp", stage) for stage, _ in cycles)
+        self.charge_cycles = tuple(c for _, c in cycles)
         n = len(ops)
         self.ops = np.array(ops, np.int64)
         self.kbuf = np.stack(kb) if n else np.zeros((0, 7, 7), np.int16)
@@ -750,7 +748,7 @@ class ProcessingSequence:
             ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
                                 "mode": fast.mode_name}
         if ledger is not None:
-            ledger.charge_many(("dsp", stage, c) for stage, c in fast.cycles)
+            ledger.charge_many(k + (c,) for k, c in zip(fast.charge_keys, fast.charge_cycles))
         return sub
 
 
