@@ -46,11 +46,12 @@ import json
 import math
 import os
 import socket
-import tempfile
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from .fileio import temp_beside
 
 __all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_parts",
            "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
@@ -259,7 +260,7 @@ def _atomic_parquet(rows, path: Path):
     import pyarrow as pa
     import pyarrow.parquet as pq
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     os.close(fd)
     try:
         pq.write_table(pa.Table.from_pylist(rows), tmp)
@@ -272,7 +273,7 @@ def _atomic_parquet(rows, path: Path):
 
 def _atomic_json(obj, path: Path):
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     with os.fdopen(fd, "w") as fh:
         json.dump(obj, fh, indent=1, default=str)
     os.replace(tmp, path)
@@ -375,7 +376,7 @@ def merge_parts(out_dir, run_ids=None):
 
 def _atomic_parquet_table(table, path: Path):
     import pyarrow.parquet as pq
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     os.close(fd)
     try:
         pq.write_table(table, tmp)
