@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 import importlib
 import os
+import re
 import sys
 import tempfile
 import time
@@ -52,8 +53,46 @@ def version() -> str:
         return "0+unknown"
 
 
+_ROLE = re.compile(r":(?:func|class|mod|meth|data|attr|obj|ref|doc):`~?([^`<]+?)(?:\s*<[^>]*>)?`")
+
+
+def plain(text: str | None) -> str | None:
+    """Help text as plain sentences: reST roles (``:func:`x```) become their name, double
+    backticks and escaped characters are dropped."""
+    if not text:
+        return text
+    text = _ROLE.sub(lambda m: m.group(1).split(".")[-1] if m.group(0).startswith(":") and "~" in
+                     m.group(0) else m.group(1), text)
+    return text.replace("``", "").replace("\\*", "*")
+
+
+class PlainParser(argparse.ArgumentParser):
+    """An argument parser whose descriptions and help texts pass through :func:`plain`, so the
+    module docstrings the subcommands reuse read as plain sentences in ``--help``."""
+
+    def __init__(self, *args, description=None, epilog=None, **kw):
+        super().__init__(*args, description=plain(description), epilog=plain(epilog), **kw)
+
+    def add_argument(self, *args, **kw):
+        if isinstance(kw.get("help"), str):
+            kw["help"] = plain(kw["help"])
+        return super().add_argument(*args, **kw)
+
+    def add_subparsers(self, **kw):
+        action = super().add_subparsers(**kw)
+        add = action.add_parser
+
+        def add_parser(name, **pkw):
+            if isinstance(pkw.get("help"), str):
+                pkw["help"] = plain(pkw["help"])
+            return add(name, **pkw)
+
+        action.add_parser = add_parser
+        return action
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = PlainParser(
         prog="uvisi",
         description="Emulate the MSX UVISI image processor and track processor bit for bit, "
                     "closed-loop against a ground simulator, and measure them.",

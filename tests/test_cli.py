@@ -99,3 +99,43 @@ def test_outputs_are_readable_as_the_umask_allows(tmp_path):
         assert stat.S_IMODE(os.stat(tmp).st_mode) == 0o600
     finally:
         os.umask(old)
+
+
+def _all_help_texts():
+    """(command words, --help text) of every command and subcommand the parser knows."""
+    import contextlib
+    import io
+
+    from hil_harness.cli import build_parser
+    todo, out = [[]], []
+    while todo:
+        words = todo.pop()
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+            build_parser().parse_args(words + ["--help"])
+        text = buf.getvalue()
+        out.append((words, text))
+        lines = text.splitlines()
+        if any("COMMAND" in line for line in lines[:4]):
+            # the listed choices: lines of the form "    name    help" under the positional section
+            for line in lines:
+                parts = line.split()
+                if line.startswith("    ") and not line.startswith("     ") and parts and \
+                        parts[0].isidentifier():
+                    todo.append(words + [parts[0]])
+    return out
+
+
+def test_help_texts_are_plain_sentences():
+    texts = _all_help_texts()
+    assert len(texts) > 15
+    for words, text in texts:
+        for mark in ("``", ":func:", ":class:", ":mod:", ":data:", ":meth:"):
+            assert mark not in text, (" ".join(words), mark)
+
+
+def test_plain_turns_roles_into_names():
+    from hil_harness.cli import plain
+    assert plain("see :func:`hil_harness.event_io.run_event` and ``--out``") == \
+        "see hil_harness.event_io.run_event and --out"
+    assert plain(":class:`~flightsw.tp.TrackProcessor` steps") == "TrackProcessor steps"
