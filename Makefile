@@ -2,13 +2,19 @@
 PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
-STAMP  := $(VENV)/.uvisi-installed
+# the demo needs the package alone; the tests and benchmarks need their extras as well
+STAMP_RUN := $(VENV)/.uvisi-installed-run
+STAMP     := $(VENV)/.uvisi-installed
 
 .PHONY: test demo bench install clean
 
-$(STAMP): pyproject.toml
+$(STAMP_RUN): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -e .
+	@touch $(STAMP_RUN)
+
+$(STAMP): $(STAMP_RUN)
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	@touch $(STAMP)
 
@@ -17,7 +23,7 @@ install: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
-demo: $(STAMP)
+demo: $(STAMP_RUN)
 	$(BIN)/uvisi demo
 
 bench: $(STAMP)

@@ -46,14 +46,16 @@ import json
 import math
 import os
 import socket
-import tempfile
 import time
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .fileio import temp_beside
+
 __all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_parts",
-           "finished_runs", "DEFAULT_JOB", "run_id_of"]
+           "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
+           "resolve_spec_path", "failure_reasons", "campaign_report"]
 
 #: the job run when the spec names none (``hil_harness.campaign.DEFAULT_JOB`` or the environment
 #: variable ``UVISI_CAMPAIGN_JOB`` override it)
@@ -89,6 +91,32 @@ def resolve_job(name: str):
 # ================================================================================================
 # spec
 # ================================================================================================
+#: run parameters that name a scenario, an a priori record or a processing sequence: a shipped name
+#: or a file path (resolved against the spec's folder first, then the working folder)
+PATH_KEYS = ("scenario", "record", "sequence")
+
+
+def shipped_names(key: str) -> set:
+    """The shipped names a :data:`PATH_KEYS` parameter may take."""
+    if key == "scenario":
+        from groundsim.scenario import Scenario
+        return set(Scenario.shipped())
+    if key == "record":
+        from flightsw.records import shipped_records
+        return set(shipped_records())
+    from flightsw.ip.sequence import DEFAULT_SEQUENCES
+    return set(DEFAULT_SEQUENCES)
+
+
+def resolve_spec_path(value: str, base_dir: Path | None) -> str:
+    """``value`` as a path relative to ``base_dir`` when a file is there, else as written (the
+    working folder); absolute paths and shipped names pass unchanged."""
+    p = Path(value)
+    if base_dir is not None and not p.is_absolute() and (base_dir / p).is_file():
+        return str(base_dir / p)
+    return value
+
+
 def _scalar_ok(v):
     return isinstance(v, (str, int, float, bool)) or (
         isinstance(v, list) and all(isinstance(x, (str, int, float, bool)) for x in v))
@@ -102,6 +130,45 @@ class CampaignSpec:
     description: str = ""
     source: str = "<spec>"
     raw: dict = field(default_factory=dict)
+
+    @property
+    def base_dir(self) -> Path | None:
+        """The spec file's folder (None for a spec built from a dict)."""
+        return None if self.source.startswith("<") else Path(self.source).resolve().parent
+
+    def call_params(self, params: dict) -> dict:
+        """The parameters handed to the job: :data:`PATH_KEYS` values that name files resolved
+        against the spec's folder first, then the working folder (run ids keep the values as
+        written, so a campaign folder resumes from anywhere)."""
+        out = dict(params)
+        for k in PATH_KEYS:
+            v = out.get(k)
+            if isinstance(v, str):
+                out[k] = resolve_spec_path(v, self.base_dir)
+        return out
+
+    def validate_inputs(self) -> None:
+        """Check, before any worker starts, that every scenario, record and sequence the runs name
+        is a shipped one or an existing file; ValueError naming the spec, the key and the value."""
+        seen = set()
+        for params in self.runs:
+            for k in PATH_KEYS:
+                v = params.get(k)
+                if not isinstance(v, str) or (k, v) in seen:
+                    continue
+                seen.add((k, v))
+                shipped = shipped_names(k)
+                if v in shipped:
+                    continue
+                path = Path(resolve_spec_path(v, self.base_dir))
+                if not path.is_file():
+                    where = "params" if k in self.raw.get("params", {}) else "axes"
+                    looked = [str(self.base_dir)] if self.base_dir else []
+                    looked.append(os.getcwd())
+                    raise ValueError(
+                        f"{self.source}: {where}.{k} = {v!r}: neither a shipped {k} "
+                        f"({', '.join(sorted(shipped))}) nor a file (looked in "
+                        f"{' and '.join(dict.fromkeys(looked))})")
 
     @property
     def run_ids(self) -> list:
@@ -193,7 +260,7 @@ def _atomic_parquet(rows, path: Path):
     import pyarrow as pa
     import pyarrow.parquet as pq
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     os.close(fd)
     try:
         pq.write_table(pa.Table.from_pylist(rows), tmp)
@@ -206,7 +273,7 @@ def _atomic_parquet(rows, path: Path):
 
 def _atomic_json(obj, path: Path):
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     with os.fdopen(fd, "w") as fh:
         json.dump(obj, fh, indent=1, default=str)
     os.replace(tmp, path)
@@ -238,13 +305,16 @@ def _row(run_id, index, params, result, status, error, elapsed):
     return row
 
 
-def execute_run(job: str, params: dict, run_id: str, index: int, out_dir: str | None = None):
+def execute_run(job: str, params: dict, run_id: str, index: int, out_dir: str | None = None,
+                call_params: dict | None = None):
     """Run one job (on a worker): returns the result row; commits ``parts/<run_id>.parquet``
-    (or ``errors/<run_id>.json``) itself when ``out_dir`` is reachable from here."""
+    (or ``errors/<run_id>.json``) itself when ``out_dir`` is reachable from here. The job gets
+    ``call_params`` when given (paths resolved, :meth:`CampaignSpec.call_params`); the row records
+    ``params`` as the spec wrote them."""
     t0 = time.perf_counter()
     try:
         fn = resolve_job(job)
-        res = fn(dict(params))
+        res = fn(dict(call_params if call_params is not None else params))
         if not isinstance(res, dict):
             raise ValueError(f"job {job!r} returned {type(res).__name__}, expected a flat dict")
         row = _row(run_id, index, params, res, "ok", None, time.perf_counter() - t0)
@@ -306,7 +376,7 @@ def merge_parts(out_dir, run_ids=None):
 
 def _atomic_parquet_table(table, path: Path):
     import pyarrow.parquet as pq
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix="." + path.stem + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix="." + path.stem + ".")
     os.close(fd)
     try:
         pq.write_table(table, tmp)
@@ -364,6 +434,7 @@ def run_campaign(spec, out_dir, scheduler: str | None = None, workers: int | Non
         spec = CampaignSpec.from_dict(spec.raw, spec.source, job)
     if not serial and scheduler is None and (workers is None or workers < 1):
         raise ValueError(f"workers={workers!r} must be >= 1 (or use serial)")
+    spec.validate_inputs()
     out = Path(out_dir)
     have = _prepare_out(spec, out, resume)
     ids = spec.run_ids
@@ -382,7 +453,7 @@ def run_campaign(spec, out_dir, scheduler: str | None = None, workers: int | Non
     try:
         if serial:
             for i, rid, p in todo:
-                row = execute_run(spec.job, p, rid, i, str(out))
+                row = execute_run(spec.job, p, rid, i, str(out), spec.call_params(p))
                 failed += row["status"] != "ok"
                 if bar:
                     bar.update(1)
@@ -413,12 +484,16 @@ def run_campaign(spec, out_dir, scheduler: str | None = None, workers: int | Non
         f"{summary['runs_per_s']:.3f} runs/s ({summary['scheduler']}, "
         f"{summary['workers']} workers); {done}/{len(ids)} finished, {failed} failed; "
         f"wrote {summary['results']}")
+    summary["failures"] = failure_reasons(out, set(ids))
+    log(campaign_report(out))
     return summary
 
 
 #: worker settings of the local cluster: the statistical profiler (a thread sampling every task's
 #: stack every 10 ms) costs CPU-bound jobs several per cent, and nobody looks at its output here
 LOCAL_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
+#: how long to wait for a ``--scheduler`` address to answer
+SCHEDULER_TIMEOUT = "10s"
 
 
 def _run_dask(spec, out, todo, scheduler, workers, bar):
@@ -426,7 +501,11 @@ def _run_dask(spec, out, todo, scheduler, workers, bar):
     from distributed import Client, LocalCluster, as_completed
     cluster = None
     if scheduler:
-        client = Client(scheduler, timeout="30s")
+        try:
+            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
+        except (OSError, TimeoutError) as exc:
+            raise ValueError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
+                             f"{SCHEDULER_TIMEOUT} ({type(exc).__name__})") from None
     else:
         with dask.config.set(LOCAL_WORKER_CONFIG):
             cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
@@ -436,7 +515,7 @@ def _run_dask(spec, out, todo, scheduler, workers, bar):
     try:
         n_workers = len(client.scheduler_info().get("workers", {})) or (workers or 1)
         futs = [client.submit(execute_run, spec.job, p, rid, i, str(out.resolve()),
-                              key=f"run-{rid}", pure=False, retries=0)
+                              spec.call_params(p), key=f"run-{rid}", pure=False, retries=0)
                 for i, rid, p in todo]
         for fut in as_completed(futs):
             try:
@@ -461,3 +540,84 @@ def _run_dask(spec, out, todo, scheduler, workers, bar):
         if cluster is not None:
             cluster.close()
     return failed, n_workers
+
+
+# ================================================================================================
+# reading a campaign folder back (no pandas needed)
+# ================================================================================================
+def failure_reasons(out_dir, run_ids=None) -> dict:
+    """{first line of the error: number of failed runs} of a campaign folder, most frequent first."""
+    d = Path(out_dir) / "errors"
+    done = finished_runs(out_dir)
+    counts: dict[str, int] = {}
+    for p in sorted(d.glob("*.json")) if d.is_dir() else []:
+        if p.stem in done or (run_ids is not None and p.stem not in run_ids):
+            continue
+        try:
+            err = str(json.loads(p.read_text()).get("error") or "unknown error")
+        except (OSError, ValueError):
+            err = "unreadable error record"
+        line = err.splitlines()[0] if err else "unknown error"
+        counts[line] = counts.get(line, 0) + 1
+    return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
+
+
+def _numeric_columns(rows, skip) -> list:
+    cols = []
+    for r in rows:
+        for k, v in r.items():
+            if k in skip or k in cols:
+                continue
+            if isinstance(v, (int, float)) and not isinstance(v, bool):
+                cols.append(k)
+    return cols
+
+
+def campaign_report(out_dir, max_columns: int = 6) -> str:
+    """A plain-text summary of a campaign folder: runs finished and failed, failures counted by
+    reason, and per combination of the swept axes (seeds pooled) the number of runs and the mean
+    of the first ``max_columns`` numeric results."""
+    import pyarrow.parquet as pq
+    out = Path(out_dir)
+    meta_p = out / "campaign.json"
+    if not meta_p.is_file():
+        raise ValueError(f"{out}: not a campaign folder (no campaign.json)")
+    try:
+        meta = json.loads(meta_p.read_text())
+    except ValueError as exc:
+        raise ValueError(f"{meta_p}: not valid JSON ({exc})") from None
+    ids = {r["run_id"] for r in meta.get("runs", [])}
+    rows = []
+    for p in sorted((out / "parts").glob("*.parquet")) if (out / "parts").is_dir() else []:
+        if p.stem in ids:
+            try:
+                rows += pq.read_table(p).to_pylist()
+            except Exception as exc:            # noqa: BLE001 - a damaged part is reported, not fatal
+                rows.append({"run_id": p.stem, "status": "error", "error": f"damaged part: {exc}"})
+    ok = [r for r in rows if r.get("status") == "ok"]
+    fails = failure_reasons(out, ids)
+    lines = [f"campaign {meta.get('name')!r} ({meta.get('job')}): {len(ids)} runs, {len(ok)} finished, "
+             f"{sum(fails.values())} failed, {len(ids) - len(ok) - sum(fails.values())} not run"]
+    if fails:
+        lines.append("failed runs by reason:")
+        lines += [f"  {n:4d} x {reason}" for reason, n in fails.items()]
+    axes = list((meta.get("spec") or {}).get("axes", {}))
+    if ok:
+        cols = _numeric_columns(ok, set(_META) | set(axes) | {"seed"} |
+                                set((meta.get("spec") or {}).get("params", {})))[:max_columns]
+        groups: dict[tuple, list] = {}
+        for r in ok:
+            groups.setdefault(tuple(str(r.get(a)) for a in axes), []).append(r)
+        head = axes + ["runs"] + cols
+        table = [head]
+        for key, rs in groups.items():
+            means = []
+            for c in cols:
+                v = [float(r[c]) for r in rs if isinstance(r.get(c), (int, float)) and
+                     not isinstance(r.get(c), bool) and math.isfinite(float(r[c]))]
+                means.append(f"{sum(v) / len(v):.4g}" if v else "-")
+            table.append(list(key) + [str(len(rs))] + means)
+        width = [max(len(str(row[i])) for row in table) for i in range(len(head))]
+        lines.append("results (mean over seeds):")
+        lines += ["  " + "  ".join(str(x).ljust(w) for x, w in zip(row, width)) for row in table]
+    return "\n".join(lines)

@@ -1,5 +1,5 @@
 """``uvisi campaign SPEC.toml [--out DIR] [--workers N] [--scheduler ADDRESS] [--resume]
-[--serial] [--job module:function] [--no-progress]``
+[--serial] [--job module:function] [--no-progress]`` or ``uvisi campaign --show DIR``
 
 Run a Monte Carlo campaign (``hil_harness.campaign``): every run of the spec (seeds x axes) executes
 the spec's job (default ``hil_harness.campaign_jobs:identification``) on a Dask cluster -- a local
@@ -17,7 +17,10 @@ from pathlib import Path
 def register(sub) -> None:
     p = sub.add_parser("campaign", help="Monte Carlo sweeps on Dask (results in Parquet, resumable)",
                        description=__doc__.split("\n\n")[1])
-    p.add_argument("spec", help="campaign spec (TOML)")
+    p.add_argument("spec", nargs="?", default=None, help="campaign spec (TOML)")
+    p.add_argument("--show", default=None, metavar="DIR",
+                   help="print the summary of a campaign folder (runs, failures by reason, "
+                        "results per axis combination) and exit")
     p.add_argument("--out", default=None, help="output directory (default: campaign_<name>)")
     p.add_argument("--workers", type=int, default=2,
                    help="worker processes of the local cluster (default 2)")
@@ -33,7 +36,14 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from hil_harness.campaign import CampaignSpec, run_campaign
+    from hil_harness.campaign import CampaignSpec, campaign_report, failure_reasons, run_campaign
+    if args.show:
+        if args.spec:
+            raise ValueError("give either a spec to run or --show DIR, not both")
+        print(campaign_report(args.show))
+        return 1 if failure_reasons(args.show) else 0
+    if not args.spec:
+        raise ValueError("a campaign spec (TOML) is required (or --show DIR)")
     if args.serial and args.scheduler:
         raise ValueError("--serial and --scheduler exclude each other")
     if not args.serial and not args.scheduler and args.workers < 1:
@@ -41,6 +51,7 @@ def run(args) -> int:
     spec = CampaignSpec.load(args.spec)
     if args.job:
         spec = CampaignSpec.from_dict(spec.raw, spec.source, args.job)
+    spec.validate_inputs()
     out = Path(args.out or f"campaign_{spec.name}")
     print(f"[campaign] {spec.name}: {len(spec.runs)} runs of {spec.job} -> {out}")
     s = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,

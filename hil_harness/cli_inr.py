@@ -18,57 +18,106 @@
 from __future__ import annotations
 
 import os
+import sys
+
+
+def _report_options(p) -> None:
+    """The assessment options every ``inr`` subcommand takes (defaults: ``REPORT_DEFAULTS``)."""
+    p.add_argument("--theta-nav", default=None, metavar="URAD",
+                   help="NAV threshold theta in urad (default 65)")
+    p.add_argument("--theta-ffr", action="append", default=None, metavar="SPACING:URAD",
+                   help="FFR threshold per frame spacing, e.g. 900:36 (repeatable), or one value for "
+                        "every spacing (default 900:36, 5400:49, others 36)")
+    p.add_argument("--veto-sigma", default=None,
+                   help="Kalman veto n-sigma (a positive number), or 'none' (default none)")
+    p.add_argument("--reference", default=None, help="reference imager for coregistration")
+    p.add_argument("--moment", choices=("sample", "core"), default="sample",
+                   help="inconsistency second moment M: the paper's sample moment or the robust core")
+    p.add_argument("--coreg-period", default=None, metavar="S",
+                   help="harmonic period of the EW coregistration model in seconds (default 86400)")
 
 
 def register(sub) -> None:
     p = sub.add_parser("inr", help="3-sigma INR verification with platinum landmarks (reports)",
-                       description=__doc__)
+                       description="3-sigma INR verification with platinum landmarks (Carr & Madani). "
+                                   "Every report starts from the same settings and prints them; the "
+                                   "exit status is 1 when a verdict fails.")
     isub = p.add_subparsers(dest="inr_command", metavar="INR_COMMAND")
     pr = isub.add_parser("report", help="assess a landmark-measurement CSV")
     pr.add_argument("csv", help="landmark CSV (schema uvisi-inr-landmarks/1)")
     pr.add_argument("--out", default="inr_report", help="output directory (default ./inr_report)")
-    pr.add_argument("--theta-nav", type=float, default=None, help="NAV threshold theta [urad] (default 65)")
-    pr.add_argument("--theta-ffr", action="append", default=None, metavar="SPACING:UR",
-                    help="FFR threshold per frame spacing, e.g. 900:36 (repeatable) or one value for all")
-    pr.add_argument("--veto-sigma", default=None, help="Kalman veto n-sigma, or 'none' (default 4)")
-    pr.add_argument("--reference", default=None, help="reference imager for coregistration")
-    pr.add_argument("--moment", choices=("sample", "core"), default="sample",
-                    help="inconsistency second moment M: the paper's sample moment or the robust core")
-    pr.add_argument("--coreg-period", type=float, default=None, help="harmonic period of the EW "
-                    "coregistration model [s] (default 86400)")
+    _report_options(pr)
     pe = isub.add_parser("event", help="assess the star landmarks of an event recording")
     pe.add_argument("recording", help="recording.h5 written by uvisi event")
     pe.add_argument("--out", default="inr_event", help="output directory (default ./inr_event)")
     pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
     pe.add_argument("--gate", type=float, default=3.0, help="star association gate [px] (default 3)")
     pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
-    for a in ("--theta-nav", "--coreg-period"):
-        pe.add_argument(a, type=float, default=None)
-    pe.add_argument("--theta-ffr", action="append", default=None, metavar="SPACING:UR")
-    pe.add_argument("--veto-sigma", default=None)
-    pe.add_argument("--reference", default=None)
-    pe.add_argument("--moment", choices=("sample", "core"), default="sample")
+    _report_options(pe)
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
     ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
     ps.add_argument("--seed", type=int, default=0)
     ps.add_argument("--excursion", type=float, default=0.0,
                     help="inject a real system excursion of this many urad (EW) for one hour")
+    ps.add_argument("--outliers", type=int, default=6, metavar="N",
+                    help="invalid (type-II) absolute measurements injected into the population "
+                         "(default 6: the paper's GOES-13 case; its '5 of 1781' follows from this input)")
     ps.add_argument("--csv", action="store_true", help="also write the synthetic table as CSV")
+    _report_options(ps)
     p.set_defaults(func=run, _inr_parser=p)
+
+
+def _positive(option, value) -> float:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{option} {value!r}: expected a number") from None
+    if not (x > 0 and x < float("inf")):
+        raise ValueError(f"{option} {value!r}: must be a positive number")
+    return x
 
 
 def _theta_ffr(values):
     if not values:
         return None
     if len(values) == 1 and ":" not in values[0]:
-        return float(values[0])
+        return _positive("--theta-ffr", values[0])
     out = {}
     for v in values:
         if ":" not in v:
-            raise ValueError(f"--theta-ffr {v!r}: expected SPACING_S:THETA_URAD")
-        s, th = v.split(":", 1)
-        out[float(s)] = float(th)
+            raise ValueError(f"--theta-ffr {v!r}: expected SPACING_S:THETA_URAD (e.g. 900:36)")
+        sp, th = v.split(":", 1)
+        out[_positive("--theta-ffr spacing", sp)] = _positive("--theta-ffr threshold", th)
     return out
+
+
+def config_from_args(args, synthetic: bool = False):
+    """The :class:`groundsim.assess.inr.InrConfig` for these options: ``REPORT_DEFAULTS`` (with the
+    synthetic population's spacings for ``synthetic``) and each option given on top."""
+    from groundsim.assess.inr import report_config, synthetic_config
+    kw = {"inconsistency_moment": args.moment}
+    if args.theta_nav is not None:
+        kw["theta_nav_urad"] = _positive("--theta-nav", args.theta_nav)
+    th = _theta_ffr(args.theta_ffr)
+    if th is not None:
+        kw["theta_ffr_urad"] = th
+        if isinstance(th, dict):
+            kw["ffr_spacings_s"] = tuple(sorted(th))
+    if args.veto_sigma is not None:
+        kw["kf_veto_sigma"] = None if str(args.veto_sigma).lower() == "none" else \
+            _positive("--veto-sigma", args.veto_sigma)
+    if args.reference:
+        kw["reference_imager"] = args.reference
+    if args.coreg_period is not None:
+        kw["coreg_period_s"] = _positive("--coreg-period", args.coreg_period)
+    return synthetic_config(**kw) if synthetic else report_config(**kw)
+
+
+def failed_verdicts(a) -> int:
+    """How many (set, scope) verdicts of an assessment fail."""
+    blocks = [a.compliance["nav"]] + list(a.compliance["ffr"].values())
+    return sum(1 for block in blocks for sname in ("valid", "gold", "platinum")
+               for x in block[sname].values() if x["n"] and not x["meets"])
 
 
 def _print(a, paths) -> None:
@@ -90,53 +139,51 @@ def _print(a, paths) -> None:
     print(f"wrote {paths['report']}, {paths['summary']} and {len(paths) - 2} figures")
 
 
-def _report(args, table=None, title=None) -> int:
-    from groundsim.assess.inr import InrConfig, assess, read_csv
+def _report(args, table=None, title=None, cfg=None) -> int:
+    from groundsim.assess.inr import assess, describe_config, read_csv
     from groundsim.assess.inr_report import write_report
+    cfg = cfg or config_from_args(args)
     if table is None:
+        if not os.path.isfile(args.csv):
+            raise ValueError(f"{args.csv}: no such file")
         table = read_csv(args.csv)
-    kw = {"inconsistency_moment": args.moment}
-    if args.theta_nav is not None:
-        kw["theta_nav_urad"] = args.theta_nav
-    th = _theta_ffr(args.theta_ffr)
-    if th is not None:
-        kw["theta_ffr_urad"] = th
-        if isinstance(th, dict):
-            kw["ffr_spacings_s"] = tuple(sorted(th))
-    if args.veto_sigma is not None:
-        kw["kf_veto_sigma"] = None if args.veto_sigma.lower() == "none" else float(args.veto_sigma)
-    if args.reference:
-        kw["reference_imager"] = args.reference
-    if args.coreg_period:
-        kw["coreg_period_s"] = args.coreg_period
-    a = assess(table, InrConfig(**kw))
+    a = assess(table, cfg)
     paths = write_report(a, args.out, title=title or
                          f"INR 3-sigma assessment of {os.path.basename(args.csv)}")
+    print(f"settings: {describe_config(cfg)}")
     _print(a, paths)
+    bad = failed_verdicts(a)
+    if bad:
+        print(f"{bad} verdict(s) FAIL", file=sys.stderr)
+        return 1
     return 0
 
 
 def _synthetic(args) -> int:
-    from groundsim.assess.inr import assess, synthetic_config, synthetic_population, write_csv
-    from groundsim.assess.inr_report import write_report
-    table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion)
-    a = assess(table, synthetic_config())
-    paths = write_report(a, args.out, title="INR 3-sigma assessment: paper-scale synthetic population")
+    from groundsim.assess.inr import synthetic_population, write_csv
+    if args.outliers < 0:
+        raise ValueError(f"--outliers {args.outliers}: must be >= 0")
+    cfg = config_from_args(args, synthetic=True)
+    table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion,
+                                    n_invalid_abs=args.outliers)
     if args.csv:
+        os.makedirs(args.out, exist_ok=True)
         print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_synthetic.csv'))}")
-    _print(a, paths)
-    return 0
+    print(f"synthetic population: {args.outliers} invalid absolute measurements injected (an input, "
+          f"not a result)")
+    return _report(args, table, "INR 3-sigma assessment: paper-scale synthetic population", cfg)
 
 
 def _event(args) -> int:
     from groundsim.assess.inr import write_csv
     from groundsim.assess.recording_stars import inr_table_from_recording
+    cfg = config_from_args(args)
     table = inr_table_from_recording(args.recording, args.imager, args.gate)
     print(f"{args.recording}: {len(table.time)} star landmark measurements")
     if args.csv:
         os.makedirs(args.out, exist_ok=True)
         print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_event.csv'))}")
-    return _report(args, table, f"INR 3-sigma assessment of {os.path.basename(args.recording)}")
+    return _report(args, table, f"INR 3-sigma assessment of {os.path.basename(args.recording)}", cfg)
 
 
 def run(args) -> int:

@@ -257,3 +257,74 @@ def test_event_job_when_the_event_runner_exists():
     r = event({"scenario": "aurora_surge_wfov_uv", "seed": 1, "frames": 4})
     assert isinstance(r, dict) and r
     assert all(isinstance(v, (bool, int, float, str)) for v in r.values())
+
+
+# ------------------------------------------------------------------------------------------------
+# inputs checked before any run, spec-relative paths, failures and the summary
+# ------------------------------------------------------------------------------------------------
+def echo_record_job(params: dict) -> dict:
+    """A job that reports whether the record path it was handed names a file (serial runs only)."""
+    return {"record_is_file": Path(params["record"]).is_file(), "value": 1.5}
+
+
+def _path_spec(tmp_path, record):
+    sub = tmp_path / "specs"
+    sub.mkdir(exist_ok=True)
+    p = sub / "paths.toml"
+    p.write_text(f"""
+[campaign]
+name = "paths"
+job = "test_campaign:echo_record_job"
+seeds = [0, 1]
+[params]
+record = "{record}"
+""")
+    return p
+
+
+def test_record_paths_resolve_against_the_spec_folder(tmp_path, monkeypatch):
+    spec = _path_spec(tmp_path, "my_record.toml")
+    (tmp_path / "specs" / "my_record.toml").write_text("# only its existence matters here\n")
+    monkeypatch.chdir(tmp_path)                   # the working folder has no my_record.toml
+    s = run_campaign(spec, tmp_path / "o", serial=True, progress=False)
+    assert s["failed"] == 0
+    rows = pq.read_table(tmp_path / "o" / "results.parquet").to_pylist()
+    assert [r["record_is_file"] for r in rows] == [True, True]
+    assert {r["record"] for r in rows} == {"my_record.toml"}      # recorded as the spec wrote it
+
+
+def test_missing_input_is_refused_before_any_run(tmp_path, monkeypatch, capsys):
+    spec = _path_spec(tmp_path, "no_such_record.toml")
+    monkeypatch.chdir(tmp_path)
+    assert main(["campaign", str(spec), "--serial", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "paths.toml" in err and "params.record" in err
+    assert "no_such_record.toml" in err and "neither a shipped record" in err
+    assert not (tmp_path / "o").exists()
+
+
+def test_failures_are_counted_by_reason_and_shown_later(tmp_path, capsys):
+    spec = _spec(tmp_path, n=3, extra='[axes]\nfail = [false, true]\n')
+    out = tmp_path / "o"
+    assert main(["campaign", str(spec), "--serial", "--no-progress", "--out", str(out)]) == 1
+    printed = capsys.readouterr().out
+    assert "3 finished, 3 failed" in printed and "failed runs by reason:" in printed
+    for seed in range(3):
+        assert f"1 x RuntimeError: asked to fail (seed {seed})" in printed
+    # the summary table: the ok runs (fail = false) pooled over their 3 seeds; the job's "value" is
+    # 2 * seed, so its mean is 2
+    assert main(["campaign", "--show", str(out)]) == 1
+    shown = capsys.readouterr().out
+    row = next(line.split() for line in shown.splitlines() if line.strip().startswith("False"))
+    assert row[1] == "3" and "2" in row[2:]
+    assert main(["campaign", "--show", str(tmp_path)]) == 2       # not a campaign folder
+
+
+def test_unreachable_scheduler_is_one_line(tmp_path, monkeypatch, capsys):
+    import hil_harness.campaign as campaign
+    monkeypatch.setattr(campaign, "SCHEDULER_TIMEOUT", "1s")
+    spec = _spec(tmp_path, n=1)
+    assert main(["campaign", str(spec), "--scheduler", "tcp://127.0.0.1:9", "--no-progress",
+                 "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot reach the Dask scheduler" in err

@@ -30,3 +30,112 @@ def test_console_script_is_installed():
     res = subprocess.run([sys.executable, "-m", "hil_harness.cli", "--help"],
                          capture_output=True, text=True, timeout=120)
     assert res.returncode == 0 and "uvisi" in res.stdout
+
+
+def test_version_names_the_distribution(capsys):
+    from importlib.metadata import version
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0
+    assert capsys.readouterr().out.strip() == f"uvisi {version('uvisi')}"
+
+
+def test_internal_error_is_one_line_and_a_traceback_file(monkeypatch, capsys):
+    import re
+
+    import hil_harness.cli_scenarios as cmd
+
+    def boom(args):
+        raise RuntimeError("an invariant broke\nsecond line")
+
+    monkeypatch.setattr(cmd, "run", boom)
+    assert main(["scenarios"]) == 3
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "Traceback" not in err
+    assert err.startswith("uvisi scenarios: internal error: RuntimeError: an invariant broke (")
+    path = re.search(r"full traceback in (\S+)\)", err).group(1)
+    with open(path) as fh:
+        text = fh.read()
+    assert "Traceback" in text and "boom" in text
+    assert main(["--debug", "scenarios"]) == 3
+    assert "Traceback" in capsys.readouterr().err
+
+
+def test_quiet_and_verbose_set_the_console_level():
+    from hil_harness import console
+    try:
+        for flag, lvl in (("--quiet", console.QUIET), ("--verbose", console.VERBOSE), (None, console.NORMAL)):
+            main([flag, "scenarios"] if flag else ["scenarios"])
+            assert console.level() == lvl
+        with pytest.raises(SystemExit):
+            main(["--quiet", "--verbose", "scenarios"])            # they exclude each other
+    finally:
+        console.set_level(console.NORMAL)
+
+
+def test_progress_is_off_when_not_a_terminal_and_can_be_forced(monkeypatch):
+    import io
+
+    from hil_harness import console
+    monkeypatch.delenv("UVISI_PROGRESS", raising=False)
+    assert not console.progress_enabled(io.StringIO())
+    monkeypatch.setenv("UVISI_PROGRESS", "1")
+    assert console.progress_enabled(io.StringIO())
+
+
+def test_outputs_are_readable_as_the_umask_allows(tmp_path):
+    import os
+    import stat
+
+    from hil_harness.fileio import temp_beside
+    old = os.umask(0o022)
+    try:
+        fd, tmp = temp_beside(tmp_path / "sub" / "x.json")
+        os.close(fd)
+        assert stat.S_IMODE(os.stat(tmp).st_mode) == 0o644
+        os.umask(0o077)
+        fd, tmp = temp_beside(tmp_path / "y.json")
+        os.close(fd)
+        assert stat.S_IMODE(os.stat(tmp).st_mode) == 0o600
+    finally:
+        os.umask(old)
+
+
+def _all_help_texts():
+    """(command words, --help text) of every command and subcommand the parser knows."""
+    import contextlib
+    import io
+
+    from hil_harness.cli import build_parser
+    todo, out = [[]], []
+    while todo:
+        words = todo.pop()
+        buf = io.StringIO()
+        with contextlib.redirect_stdout(buf), pytest.raises(SystemExit):
+            build_parser().parse_args(words + ["--help"])
+        text = buf.getvalue()
+        out.append((words, text))
+        lines = text.splitlines()
+        if any("COMMAND" in line for line in lines[:4]):
+            # the listed choices: lines of the form "    name    help" under the positional section
+            for line in lines:
+                parts = line.split()
+                if line.startswith("    ") and not line.startswith("     ") and parts and \
+                        parts[0].isidentifier():
+                    todo.append(words + [parts[0]])
+    return out
+
+
+def test_help_texts_are_plain_sentences():
+    texts = _all_help_texts()
+    assert len(texts) > 15
+    for words, text in texts:
+        for mark in ("``", ":func:", ":class:", ":mod:", ":data:", ":meth:"):
+            assert mark not in text, (" ".join(words), mark)
+
+
+def test_plain_turns_roles_into_names():
+    from hil_harness.cli import plain
+    assert plain("see :func:`hil_harness.event_io.run_event` and ``--out``") == \
+        "see hil_harness.event_io.run_event and --out"
+    assert plain(":class:`~flightsw.tp.TrackProcessor` steps") == "TrackProcessor steps"

@@ -31,7 +31,58 @@ def test_event_gif_has_one_picture_per_frame(tmp_path):
               "truth": (11.0, 21.0), "label": f"t={k}"} for k in range(5)]
     p = figures.event_gif(frames, tmp_path / "ev.gif", marks)
     with Image.open(p) as im:
-        assert im.n_frames == 5 and im.size == (512, 488)
+        assert im.n_frames == 5 and im.size == (512, 488 + 14)       # + the legend band
+
+
+def test_event_gif_carries_time_stamp_and_legend(tmp_path):
+    """The legend band holds each mark's colour; a frame with a time stamp differs from one without
+    only in the stamp's corner."""
+    frames = [np.zeros((64, 64), np.uint16)] * 2
+    p = figures.event_gif(frames, tmp_path / "ev.gif", [{"t": 12.5, "frame": 25}, {}], scale=4)
+    with Image.open(p) as im:
+        im.seek(0)
+        a = np.asarray(im.convert("RGB")).astype(int)
+        im.seek(1)
+        b = np.asarray(im.convert("RGB")).astype(int)
+    band = a[256:]
+    for _, colour in figures.GIF_KEYS:
+        assert (np.abs(band - np.array(colour)).sum(axis=2) < 40).any(), colour
+    diff = np.nonzero(np.abs(a - b).sum(axis=2) > 120)     # GIF palettes differ slightly per frame
+    assert diff[0].size and diff[0].max() < 16 and diff[1].max() < 160
+
+
+@pytest.mark.parametrize("pre_lock", [5000.0, 60.0])
+def test_track_error_axis_cannot_go_negative_and_legend_counts_after_lock(pre_lock):
+    import matplotlib.pyplot as plt
+    t = np.arange(40) * 0.5
+    e = np.r_[np.full(10, pre_lock), np.linspace(20, 80, 30)]
+    fig, ax = plt.subplots()
+    figures.draw_track_error(ax, t, e, pixel_urad=1656, lock_t=5.0)
+    labels = [h.get_label() for h in ax.get_legend().legend_handles]
+    plt.close(fig)
+    # the 99.7th percentile of the 30 frames after lock (linear interpolation): 79.82 urad
+    assert any("99.7th pct 79.8 urad (n = 30 after lock)" in s for s in labels), labels
+    if pre_lock > 1000:          # more than two decades: log axis (no zero, no negative values)
+        assert ax.get_yscale() == "log"
+    else:
+        assert ax.get_yscale() == "linear" and ax.get_ylim()[0] == 0
+
+
+def test_rank_panel_numbers_candidates_at_their_blobs():
+    ranked = np.zeros((16, 16), np.int32)
+    ranked[2:4, 2:4] = 1          # centroid (2.5, 2.5)
+    ranked[10, 12] = 2            # (10, 12)
+    ranked[7:10, 5] = 3           # (8, 5)
+    assert figures.rank_centroids(ranked) == [(1, 2.5, 2.5), (2, 10.0, 12.0), (3, 8.0, 5.0)]
+
+
+def test_label_colours_are_categorical():
+    lab = np.array([[0, 1, 2], [3, 21, 0]])
+    rgb = figures.label_colours(lab)
+    assert rgb.shape == (2, 3, 3)
+    assert np.all(rgb[0, 0] == 0) and np.all(rgb[1, 2] == 0)            # background black
+    assert len({tuple(rgb[0, 1]), tuple(rgb[0, 2]), tuple(rgb[1, 0])}) == 3  # neighbours differ
+    assert np.allclose(rgb[1, 1], rgb[0, 1])                            # tab20 cycles: 21 ~ 1
 
 
 def test_empty_inputs_are_refused(tmp_path):

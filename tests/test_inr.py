@@ -228,21 +228,52 @@ def test_bad_csv_names_column_and_line(tmp_path):
 def test_cli_synthetic_and_report(tmp_path, capsys):
     from hil_harness.cli import main
     out = tmp_path / "syn"
-    assert main(["inr", "synthetic", "--out", str(out), "--csv"]) == 0
+    # two of the six injected type-II outliers carry gold-level QM, so the gold verdict fails: exit 1
+    assert main(["inr", "synthetic", "--out", str(out), "--csv"]) == 1
     for name in ("inr_report.md", "summary.json", "inr_nav.png", "inr_inconsistency_VIS.png",
                  "inr_coregistration_IR.png", "inr_ffr_900s.png", "inr_ffr_5400s.png", "inr_type2.png"):
         assert (out / name).stat().st_size > 0, name
     s = json.loads((out / "summary.json").read_text())
     assert s["compliance"]["nav"]["valid"]["VIS"]["n_noncompliant"] == 5
-    assert "99.719" in capsys.readouterr().out
+    assert not s["compliance"]["nav"]["gold"]["VIS"]["meets"]
+    printed = capsys.readouterr()
+    assert "99.719" in printed.out and "Kalman veto not applied;" in printed.out
+    assert "2 verdict(s) FAIL" in printed.err
+    md = (out / "inr_report.md").read_text()
+    assert "not applied sigma" not in md and "{" not in md.split("## Screening")[1].split("##")[0]
+    # the CSV the synthetic command wrote, reported with the defaults: the same verdicts
     rep = tmp_path / "rep"
+    assert main(["inr", "report", str(out / "inr_synthetic.csv"), "--out", str(rep)]) == 1
+    r = json.loads((rep / "summary.json").read_text())
+    assert r["compliance"] == s["compliance"]
     assert main(["inr", "report", str(out / "inr_synthetic.csv"), "--out", str(rep), "--veto-sigma", "none",
-                 "--theta-ffr", "900:36", "--theta-ffr", "5400:49", "--moment", "core"]) == 0
-    assert (rep / "summary.json").exists()
+                 "--theta-ffr", "900:36", "--theta-ffr", "5400:49", "--moment", "core"]) == 1
     bad = tmp_path / "bad.csv"
     bad.write_text("time,landmark_id\n")
     assert main(["inr", "report", str(bad), "--out", str(rep)]) == 2
     assert "missing required column" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("opts, named", [
+    (["--veto-sigma", "-3"], "--veto-sigma"), (["--theta-ffr", "abc"], "--theta-ffr"),
+    (["--theta-ffr", "900:x"], "--theta-ffr threshold"), (["--theta-nav", "0"], "--theta-nav"),
+    (["--coreg-period", "nan"], "--coreg-period")])
+def test_cli_bad_option_values_name_the_option(tmp_path, capsys, opts, named):
+    from hil_harness.cli import main
+    assert main(["inr", "synthetic", "--out", str(tmp_path / "o"), *opts]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and named in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()          # refused before anything is written
+
+
+def test_cli_outlier_input_sets_the_verdict(tmp_path, capsys):
+    """The paper's "5 of 1781" is an input of the synthetic population: with no outliers injected
+    nothing is noncompliant and every verdict meets (exit 0)."""
+    from hil_harness.cli import main
+    out = tmp_path / "o0"
+    assert main(["inr", "synthetic", "--out", str(out), "--outliers", "0"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["compliance"]["nav"]["valid"]["VIS"]["n_noncompliant"] == 0
 
 
 def test_single_imager_default_config_runs():

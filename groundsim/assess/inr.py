@@ -38,6 +38,7 @@ Pipeline (:func:`assess`)
 """
 from __future__ import annotations
 
+import copy
 import math
 from dataclasses import asdict, dataclass, field
 
@@ -52,6 +53,7 @@ __all__ = [
     "inconsistency_pairs", "fit_coregistration", "assess", "synthetic_population", "synthetic_config",
     "type2_threshold", "percentile_ci", "compliance", "ERF3", "correlate_chips", "ncc_surface",
     "subpixel_peak", "measurements_from_arrays", "MeasurementTable", "read_csv", "write_csv", "SCHEMA",
+    "REPORT_DEFAULTS", "report_config", "describe_config",
 ]
 
 
@@ -93,13 +95,19 @@ class InrConfig:
     confidence: float = 0.95
 
     def theta_ffr(self, spacing: float) -> float:
+        """The FFR threshold for a frame spacing [s]: the scalar, the dict entry whose spacing is within
+        ``ffr_spacing_tol`` of it, else the dict's ``"default"`` entry (an error when it has none)."""
         if isinstance(self.theta_ffr_urad, dict):
-            keys = np.array([float(k) for k in self.theta_ffr_urad])
-            j = int(np.argmin(np.abs(keys - spacing)))
-            if abs(keys[j] - spacing) > self.ffr_spacing_tol * max(spacing, 1e-9) + 1e-9:
-                raise ValueError(f"no FFR threshold for spacing {spacing:g} s "
-                                 f"(theta_ffr_urad has {sorted(keys.tolist())})")
-            return float(list(self.theta_ffr_urad.values())[j])
+            items = [(float(k), float(v)) for k, v in self.theta_ffr_urad.items() if k != "default"]
+            if items:
+                keys = np.array([k for k, _ in items])
+                j = int(np.argmin(np.abs(keys - spacing)))
+                if abs(keys[j] - spacing) <= self.ffr_spacing_tol * max(spacing, 1e-9) + 1e-9:
+                    return items[j][1]
+            if "default" in self.theta_ffr_urad:
+                return float(self.theta_ffr_urad["default"])
+            raise ValueError(f"no FFR threshold for spacing {spacing:g} s "
+                             f"(theta_ffr_urad has {sorted(k for k, _ in items)})")
         return float(self.theta_ffr_urad)
 
 
@@ -513,15 +521,62 @@ def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAsses
 # --------------------------------------------------------------------------------------------------
 # synthetic population at the paper's scale (section 5, GOES-13 VIS: 1781 valid landmarks)
 
-def synthetic_config(**overrides) -> InrConfig:
-    """The configuration used with :func:`synthetic_population`: Table 3-2 GOES-13 (no veto), GOES N-P
-    thresholds of Table 2-1 (NAV 65 urad, 15-min FFR 36 urad, 90-min FFR 49 urad)."""
-    base = dict(qm_valid=0.90, qm_gold=0.98, kf_veto_sigma=None, kf_meas_sigma_urad=8.0,
-                kf_process_urad_per_sqrt_s=0.05, rho_min={"VIS": 0.90, "default": 0.96},
-                theta_nav_urad=65.0, theta_ffr_urad={900.0: 36.0, 5400.0: 49.0},
-                ffr_spacings_s=(900.0, 5400.0), coreg_period_s=86400.0, reference_imager="VIS")
+#: The one set of settings every ``uvisi inr`` report starts from (``report``, ``event`` and
+#: ``synthetic`` alike, so the CSV that ``inr synthetic --csv`` writes gets the same verdicts from
+#: ``inr report``): Table 3-2's GOES-13 column (no Kalman veto; QM_valid 0.90, QM_gold 0.98; rho_min
+#: 0.90 for VIS, 0.96 otherwise) and the GOES N-P thresholds of Table 2-1 (NAV 65 urad, 15-min FFR
+#: 36 urad, 90-min FFR 49 urad; other spacings 36 urad). FFR spacings are clustered from the data.
+REPORT_DEFAULTS = dict(qm_valid=0.90, qm_gold=0.98, kf_veto_sigma=None, kf_meas_sigma_urad=8.0,
+                       kf_process_urad_per_sqrt_s=0.05, rho_min={"VIS": 0.90, "default": 0.96},
+                       theta_nav_urad=65.0,
+                       theta_ffr_urad={900.0: 36.0, 5400.0: 49.0, "default": 36.0},
+                       ffr_spacings_s=None, coreg_period_s=86400.0, reference_imager=None)
+
+
+def report_config(**overrides) -> InrConfig:
+    """:data:`REPORT_DEFAULTS` with ``overrides`` (``InrConfig`` field names)."""
+    base = copy.deepcopy(REPORT_DEFAULTS)
     base.update(overrides)
     return InrConfig(**base)
+
+
+def _per_imager_text(v, unit="") -> str:
+    if not isinstance(v, dict):
+        return f"{v:g}{unit}"
+    parts = [f"{k} {float(x):g}{unit}" for k, x in v.items() if k != "default"]
+    if "default" in v:
+        parts.append(f"others {float(v['default']):g}{unit}")
+    return ", ".join(parts)
+
+
+def _ffr_text(v) -> str:
+    if not isinstance(v, dict):
+        return f"{float(v):g} urad at every spacing"
+    parts = [f"{float(k):g} s: {float(x):g}" for k, x in v.items() if k != "default"]
+    if "default" in v:
+        parts.append(f"other spacings: {float(v['default']):g}")
+    return "; ".join(parts) + " urad"
+
+
+def describe_config(cfg: InrConfig) -> str:
+    """The settings a report used, as one plain sentence (printed by every ``uvisi inr`` report)."""
+    veto = "not applied" if cfg.kf_veto_sigma is None else \
+        f"{_per_imager_text(cfg.kf_veto_sigma)} sigma"
+    spacings = "clustered from the data" if cfg.ffr_spacings_s is None else \
+        ", ".join(f"{float(x):g} s" for x in cfg.ffr_spacings_s)
+    return (f"NAV threshold {cfg.theta_nav_urad:g} urad; FFR thresholds {_ffr_text(cfg.theta_ffr_urad)}"
+            f" (spacings {spacings}); Kalman veto {veto}; QM_valid {_per_imager_text(cfg.qm_valid)}, "
+            f"QM_gold {_per_imager_text(cfg.qm_gold)}; rho_min {_per_imager_text(cfg.rho_min)}; "
+            f"contamination < {cfg.max_contamination:g}; max FFR spacing {cfg.max_rel_dt_s:g} s; "
+            f"required fraction {cfg.required_fraction:g} at {100 * cfg.confidence:g} % confidence")
+
+
+def synthetic_config(**overrides) -> InrConfig:
+    """The configuration used with :func:`synthetic_population`: :data:`REPORT_DEFAULTS` with the
+    population's two FFR spacings (900 s, 5400 s) and VIS as the coregistration reference."""
+    base = dict(ffr_spacings_s=(900.0, 5400.0), reference_imager="VIS")
+    base.update(overrides)
+    return report_config(**base)
 
 
 def synthetic_population(seed: int = 0, n_valid: int = 1781, n_sites: int = 153, n_invalid_abs: int = 6,

@@ -21,6 +21,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from .inr import describe_config  # noqa: E402
 from .inr_stats import type2_threshold  # noqa: E402
 
 __all__ = ["write_report", "plot_inconsistency", "plot_coregistration", "plot_errors_vs_time",
@@ -206,9 +207,7 @@ def write_report(a, out_dir, title: str = "INR 3-sigma assessment") -> dict:
           f"| {cnt['rows']} | {cnt['qm_valid']} | {cnt['gold']} | {cnt['vetoed']} | {cnt['valid']} | "
           f"{cnt['relative_valid']} | {cnt['inconsistency_pairs']} | {cnt['platinum_relative']} | "
           f"{cnt['tarnished']} | {cnt['platinum']} |", "",
-          f"Kalman veto: {cfg.kf_veto_sigma if cfg.kf_veto_sigma is not None else 'not applied'} sigma; "
-          f"QM_valid {cfg.qm_valid}, QM_gold {cfg.qm_gold}, rho_min {cfg.rho_min}, contamination < "
-          f"{cfg.max_contamination}, max FFR spacing {cfg.max_rel_dt_s:g} s.", "",
+          f"Settings: {describe_config(cfg)}.", "",
           "## Inconsistency (eq. 4-2) and the platinum test", ""]
     for im, d in S["inconsistency"].items():
         md.append(f"- {im}: {d['n']} pairs, {100 * d['fraction_inside']:.1f} % inside the "
