@@ -140,6 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     console.set_level(console.QUIET if args.quiet else console.VERBOSE if args.verbose
                       else console.NORMAL)
+    console.watch_compilation()
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_OK

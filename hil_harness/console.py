@@ -9,7 +9,8 @@ from __future__ import annotations
 import os
 import sys
 
-__all__ = ["QUIET", "NORMAL", "VERBOSE", "set_level", "level", "progress_enabled", "note", "debug"]
+__all__ = ["QUIET", "NORMAL", "VERBOSE", "set_level", "level", "progress_enabled", "note", "debug",
+           "watch_compilation", "compile_seconds"]
 
 QUIET, NORMAL, VERBOSE = 0, 1, 2
 _state = {"level": NORMAL}
@@ -47,3 +48,88 @@ def debug(message: str) -> None:
     """A detail on stderr, shown only with ``--verbose``."""
     if _state["level"] >= VERBOSE:
         print(message, file=sys.stderr, flush=True)
+
+
+# ------------------------------------------------------------------------------------------------
+# first-run compilation
+# ------------------------------------------------------------------------------------------------
+COMPILE_NOTE = ("compiling the flight code with numba: first run only, the compiled kernels are "
+                "cached and later runs start in seconds")
+
+
+class _CompileWatch:
+    """A numba event listener: on the first compilation one line says what is happening; with
+    progress on, a bar counts the kernels compiled and names the current one. Also sums the wall
+    time spent compiling (:func:`compile_seconds`), so host timings can leave it out."""
+
+    def __init__(self):
+        self.count = 0
+        self.depth = 0
+        self.seconds = 0.0
+        self.t0 = 0.0
+        self.bar = None
+        self.noted = False
+
+    def on_start(self, name: str) -> None:
+        import time
+        if self.depth == 0:
+            self.t0 = time.perf_counter()
+            if not self.noted:
+                self.noted = True
+                if progress_enabled():
+                    from tqdm import tqdm
+                    self.bar = tqdm(desc="compiling (first run only, cached after)", unit=" kernel",
+                                    file=sys.stderr, leave=False, dynamic_ncols=True)
+                else:
+                    note(f"uvisi: {COMPILE_NOTE} ...")
+        self.depth += 1
+        if self.bar is not None:
+            self.bar.set_postfix_str(name, refresh=False)
+
+    def on_end(self) -> None:
+        import time
+        self.depth = max(0, self.depth - 1)
+        self.count += 1
+        if self.bar is not None:
+            self.bar.update(1)
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.t0
+
+    def close(self) -> None:
+        if self.bar is not None:
+            self.bar.close()
+            self.bar = None
+
+
+_watch: dict = {}
+
+
+def watch_compilation() -> None:
+    """Install the first-run compilation notice (once per process; a no-op without numba)."""
+    if _watch:
+        return
+    try:
+        from numba.core import event as numba_event
+    except ImportError:                     # pragma: no cover - numba is a dependency
+        return
+    w = _CompileWatch()
+
+    class Listener(numba_event.Listener):
+        def on_start(self, event):
+            d = event.data.get("dispatcher") if isinstance(event.data, dict) else None
+            name = getattr(getattr(d, "py_func", None), "__qualname__", "kernel")
+            w.on_start(name)
+
+        def on_end(self, event):
+            w.on_end()
+
+    numba_event.register("numba:compile", Listener())
+    _watch["w"] = w
+    import atexit
+    atexit.register(w.close)
+
+
+def compile_seconds() -> float:
+    """Wall seconds spent compiling numba kernels in this process since :func:`watch_compilation`."""
+    w = _watch.get("w")
+    return w.seconds if w is not None else 0.0

@@ -139,3 +139,36 @@ def test_plain_turns_roles_into_names():
     assert plain("see :func:`hil_harness.event_io.run_event` and ``--out``") == \
         "see hil_harness.event_io.run_event and --out"
     assert plain(":class:`~flightsw.tp.TrackProcessor` steps") == "TrackProcessor steps"
+
+
+COMPILE_SCRIPT = """
+from numba import njit
+from hil_harness import console
+console.watch_compilation()
+@njit
+def twice(x):
+    return 2 * x
+@njit
+def thrice(x):
+    return 3 * x
+assert twice(2) == 4 and thrice(2) == 6
+print(console.compile_seconds() > 0)
+"""
+
+
+@pytest.mark.parametrize("progress", ["0", "1"])
+def test_first_compilation_is_announced_once_and_timed(progress):
+    """Kernels compiled for the first time (no cache): one line saying what happens, once (two
+    kernels here), or a progress bar counting them; the compile time is summed."""
+    import os
+
+    from hil_harness.console import COMPILE_NOTE
+    env = dict(os.environ, UVISI_PROGRESS=progress)
+    res = subprocess.run([sys.executable, "-c", COMPILE_SCRIPT], capture_output=True, text=True,
+                         timeout=120, env=env)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.strip() == "True"
+    if progress == "0":
+        assert res.stderr.count(COMPILE_NOTE) == 1
+    else:
+        assert "compiling (first run only, cached after)" in res.stderr and "kernel" in res.stderr
