@@ -14,3 +14,5 @@ from flightsw.ip.fftfilter import fft_correlate, fft_filter_cycles, gaussian_ker
 from flightsw.ip.colour import label  # noqa: E402  (issue 4 back end)
 from flightsw.ip.features import features  # noqa: E402
 from flightsw.ip.frame import process_frame, backend  # noqa: E402
+from flightsw.ip.processor import ImageProcessor, IPOutput, UplinkVerdict  # noqa: E402
+from flightsw.ip.sequence_words import sequence_from_words, sequence_to_words  # noqa: E402

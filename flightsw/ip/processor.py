@@ -1,0 +1,190 @@
+"""The UVISI image processor as a flight module: ``reset()``, ``step(...) -> message words``,
+``uplink(words) -> verdict`` (Basilisk style; see ``docs/design.md``).
+
+The module owns every piece of on-board state the IP keeps between frames: the processing sequence
+and the a priori record in force, the alpha logic (:class:`flightsw.ip.threshold.AlphaController`),
+and the last good feedback from the track processor (its predicted object pixel, type and lock,
+read from the track-command words: words 21-24 and the flags). A command that fails its CRC or its
+checks is counted and ignored; the last good feedback stays in force.
+
+What the ground may change in flight arrives through :meth:`ImageProcessor.uplink`: an a priori
+record (129 words, :mod:`flightsw.records`) or a processing sequence (:mod:`flightsw.ip.sequence_words`).
+A refused uplink keeps what was in force; an accepted one takes effect from the next frame (the
+frame being processed when it arrives finishes with the old one).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from flightsw.budget import Ledger
+from flightsw.ip.frame import FrameResult, process_frame
+from flightsw.ip.sequence import ProcessingSequence, SequenceError
+from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
+from flightsw.ip.threshold import AlphaController
+from flightsw.messages import Feedback, TrackCommand
+from flightsw.records import RECORD_FORMAT_ID, Record
+
+__all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha"]
+
+
+@dataclass(frozen=True)
+class UplinkVerdict:
+    """The IP's answer to an uplink.
+
+    Attributes
+    ----------
+    accepted : bool
+    kind : str
+        "record", "sequence" or "unknown" (the format id was not recognised).
+    reason : str
+        Why it was refused ("" when accepted): the decoder's message, naming the word or field.
+    effective_frame : int or None
+        The frame count from which an accepted uplink is in force (the next frame); None if refused.
+    """
+
+    accepted: bool
+    kind: str
+    reason: str = ""
+    effective_frame: int | None = None
+
+
+@dataclass
+class IPOutput:
+    """One step's output: the candidate-message words (what crosses the bus to the TP) and, for the
+    ground, the frame's result (message object, stage images when asked for, ledger, back end)."""
+
+    words: np.ndarray
+    result: FrameResult
+    alpha_q12: int
+    feedback: Feedback = field(default_factory=Feedback)
+
+
+def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
+    """The threshold alpha a sequence starts the alpha logic from (its threshold step's ``alpha``)."""
+    for st in sequence.steps:
+        if st.op == "threshold" and st.raw.get("alpha") is not None:
+            return float(st.raw["alpha"])
+    return default
+
+
+class ImageProcessor:
+    """The flight image processor (DSP + 1750A) with its on-board state.
+
+    Parameters
+    ----------
+    sequence : ProcessingSequence
+        The processing sequence in force at power-on.
+    record : flightsw.records.Record
+        The a priori record in force at power-on.
+    alpha : dict, optional
+        :class:`AlphaController` settings other than the starting alpha (which comes from the
+        sequence's threshold step).
+    check : bool
+        Check each frame's shape, dtype and 12-bit range (the fused path's frame check).
+    """
+
+    def __init__(self, sequence: ProcessingSequence, record: Record, *, alpha: dict | None = None,
+                 check: bool = True):
+        if not isinstance(sequence, ProcessingSequence):
+            raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
+        if not isinstance(record, Record):
+            raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
+        self._power_on = (sequence, record)
+        self._alpha_settings = dict(alpha or {})
+        self._alpha_settings.pop("alpha", None)
+        self.check = bool(check)
+        self.reset()
+
+    # ------------------------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Power-on state: the construction's sequence and record, alpha from the sequence, no
+        feedback, no pending uplink, counters zero."""
+        self.sequence, self.record = self._power_on
+        self._pending: list = []
+        self.alpha = AlphaController(alpha=sequence_alpha(self.sequence), **self._alpha_settings)
+        self.feedback = Feedback()
+        self.frames = 0
+        self.rejected_commands = 0
+        self.uplinks_accepted = 0
+        self.uplinks_refused = 0
+        self._last_frame_count = -1
+
+    # ------------------------------------------------------------------------------------------
+    def receive_command(self, words) -> bool:
+        """Read the TP's feedback from track-command words; True if accepted. A command that fails
+        its CRC or its checks is counted (``rejected_commands``) and the last good feedback stays."""
+        try:
+            cmd = TrackCommand.from_words(np.asarray(words))
+        except ValueError:
+            self.rejected_commands += 1
+            return False
+        self.feedback = cmd.feedback()
+        return True
+
+    def step(self, frame, *, frame_count: int, time_tag: float, imager: str,
+             command_words=None, feedback: Feedback | None = None, ledger: Ledger | None = None,
+             want_stages: bool = False) -> IPOutput:
+        """Process one frame and return the candidate-message words.
+
+        Parameters
+        ----------
+        frame : ndarray [244, 256] uint16, 12-bit counts
+        frame_count, time_tag, imager
+            What arrives with the frame (a dropped frame shows as a gap in ``frame_count``).
+        command_words : array of uint16, optional
+            The TP's last track command, read before the frame is processed
+            (:meth:`receive_command`).
+        feedback : Feedback, optional
+            Overrides the feedback in force for this frame (the ground's conversion of a prediction
+            made in another imager's pixels at a hand-over).
+        ledger : Ledger, optional
+            Charged by every stage and the alpha logic (a new one if None).
+        want_stages : bool
+            Keep the stage images (the panels of the paper's Figure 3).
+        """
+        self._apply_pending()
+        if command_words is not None:
+            self.receive_command(command_words)
+        fb = self.feedback if feedback is None else feedback
+        ledger = Ledger() if ledger is None else ledger
+        aq = self.alpha.q12
+        res = process_frame(frame, self.sequence, self.record, fb, ledger=ledger, imager=imager,
+                            frame_count=int(frame_count) & 0xFFFF, time_tag=time_tag,
+                            alpha_q12=aq, check=self.check, want_stages=want_stages)
+        self.alpha.update(int(res.backend.count), bool(fb.locked), ledger)
+        self.frames += 1
+        self._last_frame_count = int(frame_count)
+        return IPOutput(res.message.to_words(), res, aq, fb)
+
+    # ------------------------------------------------------------------------------------------
+    def uplink(self, words) -> UplinkVerdict:
+        """Validate an uplinked record or sequence; accepted ones take effect from the next frame,
+        refused ones change nothing."""
+        w = np.asarray(words)
+        head = int(w[0]) if w.ndim == 1 and w.size and np.issubdtype(w.dtype, np.integer) else -1
+        kind = {RECORD_FORMAT_ID: "record", SEQUENCE_FORMAT_ID: "sequence"}.get(head, "unknown")
+        if kind == "unknown":
+            self.uplinks_refused += 1
+            reason = (f"word 0: format id {head:#06x} is neither a record (0x{RECORD_FORMAT_ID:04X}) "
+                      f"nor a sequence (0x{SEQUENCE_FORMAT_ID:04X})" if head >= 0 else
+                      "not a 1-D array of 16-bit words")
+            return UplinkVerdict(False, kind, reason)
+        try:
+            new = Record.from_words(w) if kind == "record" else sequence_from_words(w)
+        except (ValueError, SequenceError) as exc:
+            self.uplinks_refused += 1
+            return UplinkVerdict(False, kind, str(exc))
+        self._pending.append((kind, new))
+        self.uplinks_accepted += 1
+        return UplinkVerdict(True, kind, "", (self._last_frame_count + 1) & 0xFFFF)
+
+    def _apply_pending(self) -> None:
+        for kind, new in self._pending:
+            if kind == "record":
+                self.record = new
+            else:
+                self.sequence = new
+                self.alpha = AlphaController(alpha=sequence_alpha(new), **self._alpha_settings)
+        self._pending = []
