@@ -14,7 +14,12 @@ File layout (all tables but ``[scenario]`` optional; unknown keys are errors)::
     [target]     type = "satellite" | "launch" | "aurora" | "none" and its keys (see _target_from)
     [imagers.<id>]  per-imager overrides of groundsim.imagers.Imager fields, plus
                  align_error_urad = [3] (truth alignment = onboard alignment rotated by this vector)
-    [faults]     dropped_frames = [frame indices], imager_switch = [{t, imager}], attitude_gap = [{t0, t1}]
+    [faults]     dropped_frames = [frame indices], imager_switch = [{t, imager}], attitude_gap = [{t0, t1}],
+                 corrupt_candidate = [{frame, bits}], corrupt_command = [{frame, bits}] (bus faults:
+                 flip ``bits`` bits of that frame's candidate message / track command)
+    [[uplinks]]  t (s), exactly one of record = / sequence = (a shipped name, a TOML file or a .words
+                 file, looked up next to the scenario first), corrupt_bits = N (optional: flip N bits
+                 of the uplink words, a corrupted uplink the IP must refuse)
     [background] earth_glow = "auto" | true | false
 
 A malformed file raises :class:`ScenarioError` naming the file, the key and the reason.
@@ -142,10 +147,38 @@ class _Table:
 
 
 @dataclass
+class BusFault:
+    """Corrupt ``bits`` bits of a bus message (``"candidate"``: the IP's candidate message,
+    ``"command"``: the TP's track command, which also carries the IP's feedback) at frame ``frame``."""
+
+    frame: int
+    bits: int
+    message: str
+
+
+@dataclass(frozen=True)
+class Uplink:
+    """A ground uplink during the event: at ``t`` (s) a record or processing sequence goes to the IP.
+
+    ``source`` is a shipped name, a TOML file or a ``.words`` file (one 4-hex-digit word per line),
+    as written in the scenario; ``path`` is the file it names (looked up next to the scenario file
+    first, then in the working folder), None for a shipped name. ``corrupt_bits`` > 0 flips that many
+    bits of the words before they are sent (a corrupted uplink the IP must refuse)."""
+
+    t: float
+    kind: str
+    source: str
+    path: str | None = None
+    corrupt_bits: int = 0
+
+
+@dataclass
 class Faults:
     dropped_frames: frozenset = frozenset()
     imager_switch: list = field(default_factory=list)      # [(t, imager_id)] sorted
     attitude_gap: list = field(default_factory=list)       # [(t0, t1)]
+    corrupt_candidate: list = field(default_factory=list)  # [BusFault] by frame
+    corrupt_command: list = field(default_factory=list)    # [BusFault] by frame
 
     def imager_at(self, t, initial):
         im = initial
@@ -178,6 +211,7 @@ class Scenario:
     faults: Faults
     earth_glow: object = "auto"
     raw: dict = field(default_factory=dict, repr=False)
+    uplinks: list = field(default_factory=list)            # [Uplink] by time
 
     # ------------------------------------------------------------------------------------------------
     @classmethod
@@ -226,6 +260,7 @@ class Scenario:
                                                        f"target.type is {tgt['type']!r}")
         imagers = _parse_imagers(top.sub("imagers", {}))
         faults = _parse_faults(top.sub("faults", {}), duration)
+        uplinks = _parse_uplinks(top.raw("uplinks", []), path, duration)
         bg = top.sub("background", {})
         glow = bg.raw("earth_glow", "auto")
         if glow not in ("auto", True, False):
@@ -235,7 +270,7 @@ class Scenario:
         return cls(name=name, path=Path(str(path)), description=desc, epoch=epoch, duration=duration,
                    seed=int(fseed if seed is None else seed), imager=imager, compaction=compaction,
                    spacecraft=spc, pointing=pnt, target=tgt, imagers=imagers, faults=faults, earth_glow=glow,
-                   raw=data)
+                   raw=data, uplinks=uplinks)
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -429,5 +464,50 @@ def _parse_faults(t: _Table, duration) -> Faults:
             raise et.err("t1", f"must be > t0 ({t0}), got {t1}")
         et.done()
         gaps.append((t0, t1))
+    bus = {}
+    for key, message in (("corrupt_candidate", "candidate"), ("corrupt_command", "command")):
+        entries = t.raw(key, [])
+        if not isinstance(entries, list):
+            raise t.err(key, "expected a list of tables {frame = k, bits = N}")
+        out = []
+        for i, e in enumerate(entries):
+            et = _Table(e, t.file, t.key(f"{key}[{i}]"))
+            frame = et.int_("frame", lo=0)
+            bits = et.int_("bits", default=1, lo=1)
+            if bits > 64:
+                raise et.err("bits", f"at most 64 bits per message, got {bits}")
+            et.done()
+            out.append(BusFault(frame, bits, message))
+        bus[key] = sorted(out, key=lambda f: f.frame)
     t.done()
-    return Faults(frozenset(df), sorted(sw), gaps)
+    return Faults(frozenset(df), sorted(sw), gaps, bus["corrupt_candidate"], bus["corrupt_command"])
+
+
+def _parse_uplinks(entries, file, duration) -> list:
+    if not isinstance(entries, list):
+        raise ScenarioError(file, "uplinks", "expected an array of tables [[uplinks]]")
+    base = None if str(file).startswith("<") else Path(str(file)).resolve().parent
+    out = []
+    for i, e in enumerate(entries):
+        et = _Table(e, file, f"uplinks[{i}]")
+        t = et.num("t", lo=0.0)
+        if t > duration:
+            raise et.err("t", f"{t} is after the end of the event ({duration} s)")
+        kinds = [k for k in ("record", "sequence") if et.has(k)]
+        if len(kinds) != 1:
+            raise et.err("record", "give exactly one of record = ..., sequence = ...")
+        kind = kinds[0]
+        source = et.str_(kind)
+        path = None
+        if source.endswith((".toml", ".words")) or "/" in source:
+            p = Path(source)
+            cands = ([base / p] if base is not None and not p.is_absolute() else []) + [p]
+            hit = next((c for c in cands if c.is_file()), None)
+            if hit is None:
+                raise et.err(kind, f"no such file {source!r} (looked next to the scenario and in the "
+                                   f"working folder)")
+            path = str(hit)
+        bits = et.int_("corrupt_bits", default=0, lo=0)
+        et.done()
+        out.append(Uplink(t, kind, source, path, bits))
+    return sorted(out, key=lambda u: u.t)
