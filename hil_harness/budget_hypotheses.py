@@ -39,7 +39,8 @@ __all__ = ["Hypothesis", "HYPOTHESES", "WORST_SEQUENCES", "GRID", "POW2", "Windo
            "sequence_at",
            "measure_scene", "window_cost", "evaluate", "break_even", "hypothesis",
            "DOCUMENTED", "explain_table", "largest_dsp_window", "stage_table",
-           "sensitivity_curves", "sensitivity_figure"]
+           "sensitivity_curves", "sensitivity_figure", "rescore", "hypothesis_ledger",
+           "rescore_recording"]
 
 #: window sides evaluated (compacted pixels) and the power-of-two subset
 GRID = tuple(range(16, 129, 8))
@@ -260,21 +261,30 @@ def window_cost(h: Hypothesis, ws: WindowScene) -> dict:
     seq = ws.sequences[h.sequence]
     r, c = ws.shape
     dsp = {lst.stage: lst.cycles(h.cycle_model) for lst in sequence_listings(seq, r, c)}
+    ip = {s: int(round(v * (h.ada_factor if s in h.ada_stages else 1.0)))
+          for s, v in ws.ip1750.items()}
+    dsp_extra, ip_extra = _extras(h, r, c)
+    dsp.update(dsp_extra)
+    ip.update(ip_extra)
+    words = _buffers(h, seq) * r * c + int(h.reserved) + (2 * r * c if h.fft_whole_window else 0)
+    return {"dsp": dsp, "ip1750": ip, "dsp_ms": 1e3 * sum(dsp.values()) / h.dsp_clock_hz,
+            "ip1750_ms": 1e3 * PACE1750A.seconds(sum(ip.values())), "dm_words": int(words)}
+
+
+def _extras(h: Hypothesis, r: int, c: int):
+    """What no stage charges, for an r x c window: ({DSP stage: cycles}, {1750A stage: clocks})."""
+    dsp, ip = {}, {}
     if h.window_words_per_s:
         dsp["window_in"] = window_in_cycles(r, c, h.dsp_clock_hz, h.window_words_per_s, h.bus_bits)
     if h.dsp_interrupts:
         dsp["interrupts"] = h.dsp_interrupts * h.dsp_interrupt_cycles
-    ip = {s: int(round(v * (h.ada_factor if s in h.ada_stages else 1.0)))
-          for s, v in ws.ip1750.items()}
     if h.ipc:
         ip["window_in"] = ipc_clocks(r, c)
     if h.ip1750_housekeeping or h.ip1750_interrupts:
         ip["housekeeping"] = housekeeping_cycles(PACE1750A.clock_hz, FRAME_PERIOD_S,
                                                  h.ip1750_housekeeping, h.ip1750_interrupts,
                                                  h.ip1750_interrupt_clocks)
-    words = _buffers(h, seq) * r * c + int(h.reserved) + (2 * r * c if h.fft_whole_window else 0)
-    return {"dsp": dsp, "ip1750": ip, "dsp_ms": 1e3 * sum(dsp.values()) / h.dsp_clock_hz,
-            "ip1750_ms": 1e3 * PACE1750A.seconds(sum(ip.values())), "dm_words": int(words)}
+    return dsp, ip
 
 
 def _fails(h: Hypothesis, cost: dict) -> list:
@@ -530,3 +540,91 @@ def sensitivity_figure(path, sequence) -> str:
     fig.savefig(path, dpi=110)
     plt.close(fig)
     return str(path)
+
+
+def rescore(h: Hypothesis, sequence, shape, entries: dict) -> dict:
+    """One frame's ledger entries re-priced under ``h``: the per-event opt-in (recordings keep
+    today's model; this prices a recorded or live frame under a hypothesis afterwards).
+
+    sequence : the ProcessingSequence the frame ran; shape : (rows, cols) of its window;
+    entries : {(processor, stage): cycles} as charged (today's model). Returns the same mapping
+    under ``h``: DSP stages with a listing re-priced, the Ada-coded 1750A stages scaled, the
+    transfers, interrupts and housekeeping added; other entries (the TP's) unchanged. The frame's
+    own sequence is priced (``h.sequence``, a worst case for window sizing, is not).
+    """
+    r, c = int(shape[0]), int(shape[1])
+    listed = {lst.stage: lst.cycles(h.cycle_model) for lst in sequence_listings(sequence, r, c)}
+    out = {}
+    for (proc, stage), cyc in entries.items():
+        if proc == DSP and stage in listed:
+            cyc = listed[stage]
+        elif proc == IP1750 and stage in h.ada_stages:
+            cyc = int(round(cyc * h.ada_factor))
+        out[(proc, stage)] = int(cyc)
+    for proc, extra in zip((DSP, IP1750), _extras(h, r, c)):
+        out.update({(proc, stage): cyc for stage, cyc in extra.items()})
+    return out
+
+
+def hypothesis_ledger(h: Hypothesis, sequence, shape, ledger: Ledger) -> Ledger:
+    """A new :class:`~flightsw.budget.Ledger` holding ``ledger``'s frame re-priced under ``h``
+    (:func:`rescore`), its DSP at the hypothesis's clock."""
+    from flightsw.budget import ADSP_COSTS, Processor
+    procs = dict(ledger.processors)
+    procs[DSP] = Processor(f"ADSP-2100 @ {h.dsp_clock_hz / 1e6:g} MHz", h.dsp_clock_hz, ADSP_COSTS)
+    entries = {(p, s): c for p in ledger.processors for s, c in ledger.stages(p).items()}
+    out = Ledger(procs, ledger.period_s)
+    out.charge_many((p, s, c) for (p, s), c in rescore(h, sequence, shape, entries).items())
+    return out
+
+
+def rescore_recording(path, h: Hypothesis) -> dict:
+    """Every processed frame of an event recording re-priced under ``h``: ``{"frames", "overruns"
+    (k), "overrun_ci95" (Wilson), "overruns_recorded", "worst_ms": {processor: ms}, "worst_frame"}``.
+    ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
+    from pathlib import Path
+
+    from scipy.stats import binomtest
+
+    from flightsw.ip import ProcessingSequence
+    from .recording import Recording
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such recording")
+    with Recording(path) as rec:
+        if "ledger" not in rec.tables():
+            raise ValueError(f"{path}: the recording holds no ledger table")
+        cfg = rec.attrs.get("config", {})
+        if "sequence" not in cfg:
+            raise ValueError(f"{path}: field 'config.sequence' missing from the attributes")
+        seq = ProcessingSequence.from_dict(cfg["sequence"])
+        rows = rec.table("ledger")
+    pre = seq.preprocess
+    shape = (min(pre.window, 244 // pre.compaction), min(pre.window, 256 // pre.compaction))
+    frames: dict = {}
+    for row in rows:
+        key = (_text(row["processor"]), _text(row["stage"]))
+        e = frames.setdefault(int(row["k"]), {})
+        e[key] = e.get(key, 0) + int(row["cycles"])
+    clocks = {DSP: h.dsp_clock_hz, IP1750: PACE1750A.clock_hz, "tp1750": PACE1750A.clock_hz}
+    period = 1e3 * FRAME_PERIOD_S
+    worst, worst_k, over, over_rec = {p: 0.0 for p in clocks}, {p: None for p in clocks}, 0, 0
+    for k, entries in sorted(frames.items()):
+        new = rescore(h, seq, shape, entries)
+        ms = {p: 1e3 * sum(c for (q, _), c in new.items() if q == p) / clocks[p] for p in clocks}
+        ms_rec = {p: 1e3 * sum(c for (q, _), c in entries.items() if q == p) /
+                  (ADSP2100.clock_hz if p == DSP else PACE1750A.clock_hz) for p in clocks}
+        over += any(v > period for v in ms.values())
+        over_rec += any(v > period for v in ms_rec.values())
+        for p, v in ms.items():
+            if v > worst[p]:
+                worst[p], worst_k[p] = v, k
+    n = len(frames)
+    ci = binomtest(over, n).proportion_ci(0.95, method="wilson") if n else None
+    return {"hypothesis": h.name, "frames": n, "overruns": over, "overruns_recorded": over_rec,
+            "overrun_ci95": None if ci is None else (float(ci.low), float(ci.high)),
+            "worst_ms": worst, "worst_frame": worst_k}
+
+
+def _text(v) -> str:
+    return v.decode() if isinstance(v, bytes) else str(v)

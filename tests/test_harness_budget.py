@@ -164,3 +164,27 @@ def test_budget_cli_explain(tmp_path, capsys):
     assert {h["name"]: h["verdict"] for h in d["hypotheses"]}["memory-fft-pow2"] == "YES"
     with pytest.raises(SystemExit):
         main(["budget", "--hypothesis", "nope"])
+
+
+def test_rescore_prices_a_frame_under_a_hypothesis(scene):
+    frame, centre = scene
+    from flightsw.messages import Feedback
+    seq = B._with_window(load_default_sequence("satellite"), 64, 1)
+    led = Ledger()
+    process_frame(frame, seq, load_record("satellite"), Feedback(*centre), ledger=led,
+                  want_stages=False)
+    entries = {(p, s): c for p in led.processors for s, c in led.stages(p).items()}
+    assert H.rescore(H.hypothesis("today"), seq, (64, 64), entries) == entries
+    ip = H.rescore(H.hypothesis("ip1750-share"), seq, (64, 64), entries)
+    assert ip[(IP1750, "window_in")] == 4096 * 30
+    assert ip[(IP1750, "housekeeping")] == 1_000_000 + 6000
+    fast = H.hypothesis_ledger(H.hypothesis("time-documented-12.5MHz"), seq, (64, 64), led)
+    doc = H.hypothesis_ledger(H.hypothesis("time-documented"), seq, (64, 64), led)
+    assert fast.cycles(DSP) == doc.cycles(DSP) > led.cycles(DSP)
+    assert fast.seconds(DSP) == pytest.approx(doc.cycles(DSP) / 12.5e6)
+    assert fast.cycles(IP1750) == led.cycles(IP1750)
+
+
+def test_budget_cli_recording_errors(tmp_path, capsys):
+    assert main(["budget", "--recording", str(tmp_path / "none.h5")]) == 2
+    assert "none.h5: no such recording" in capsys.readouterr().err
