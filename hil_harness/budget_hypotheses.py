@@ -30,7 +30,7 @@ import math
 from dataclasses import dataclass, field
 
 from flightsw.budget import ADSP2100, ADSP2100A, DSP, FRAME_PERIOD_S, IP1750, PACE1750A, Ledger
-from flightsw.ip.cycles import (TODAY, CycleModel, housekeeping_cycles, ipc_clocks,
+from flightsw.ip.cycles import (DOCUMENTED, TODAY, CycleModel, housekeeping_cycles, ipc_clocks,
                                 sequence_listings, window_in_cycles)
 
 from .budget import sequence_buffers
@@ -47,8 +47,6 @@ GRID = tuple(range(16, 129, 8))
 POW2 = (16, 32, 64, 128)
 DM_WORDS = 16384          # ADSP-2100 external DM, 16K x 16 (processors.md A [A3])
 
-#: the documented ADSP-2100 timing rules with one DM wait state (see Hypothesis "time-documented")
-DOCUMENTED = CycleModel("documented", dm_wait=1, pm_rule="cache", strict=True)
 
 #: sequences a hypothesis may evaluate instead of the one under test: the costliest spatial toolbox
 #: (two 7x7 filters around the high-pass detrender, the paper's largest spatial sizes) and the
@@ -458,7 +456,8 @@ def stage_table(h: Hypothesis, ws: WindowScene) -> str:
     period = 1e3 * FRAME_PERIOD_S
     clocks = {DSP: h.dsp_clock_hz, IP1750: PACE1750A.clock_hz}
     lines = [f"{ws.shape[0]}x{ws.shape[1]} window under hypothesis {h.name!r} "
-             f"(compaction 1, {ws.candidates} candidates on this frame)",
+             f"(compaction 1, {ws.candidates} candidate{'' if ws.candidates == 1 else 's'} on "
+             f"this frame)",
              f"{'processor':<9} {'stage':<30} {'ms':>8} {'% of 500':>9}"]
     for proc in (DSP, IP1750):
         for stage, c in cost[proc].items():
@@ -580,7 +579,8 @@ def hypothesis_ledger(h: Hypothesis, sequence, shape, ledger: Ledger) -> Ledger:
 
 def rescore_recording(path, h: Hypothesis) -> dict:
     """Every processed frame of an event recording re-priced under ``h``: ``{"frames", "overruns"
-    (k), "overrun_ci95" (Wilson), "overruns_recorded", "worst_ms": {processor: ms}, "worst_frame"}``.
+    (k), "overrun_ci95" (Wilson), "overruns_recorded", "worst_ms": {processor: ms},
+    "worst_frame"}``.
     ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
     from pathlib import Path
 

@@ -9,8 +9,9 @@ the margin, and the largest window each hypothesis for the paper's 64x64 limit a
 (``hil_harness.budget_hypotheses``). ``--explain`` adds what would make 64 the limit under each
 hypothesis and every parameter's source. ``--plot`` draws that window's stages against the 500 ms
 line; ``--sensitivity`` the largest window vs the code overhead factor and the DSP clock.
-``--recording REC.h5`` re-prices a recorded event's frames under the hypotheses instead (the opt-in:
-recordings keep today's model) and counts the frames that would overrun, k/n with a 95 % interval."""
+``--recording REC.h5`` re-prices a recorded event's frames under the hypotheses instead (the
+opt-in: recordings keep today's model) and counts the frames that would overrun, k/n with a 95 %
+interval."""
 from __future__ import annotations
 
 import json

@@ -44,10 +44,11 @@ from flightsw.ip.fftfilter import (BUTTERFLY_CYCLES, FFT_SETUP_CYCLES, FILL_CYCL
                                    OUTPUT_CYCLES, PRODUCT_CYCLES, ROW_CYCLES, STAGE_CYCLES)
 from flightsw.ip.threshold import ISQRT_CYCLES
 
-__all__ = ["Line", "Listing", "CycleModel", "TODAY", "PM_RULES", "filter_listing",
+__all__ = ["Line", "Listing", "CycleModel", "TODAY", "DOCUMENTED", "PM_RULES", "filter_listing",
            "highpass_listing", "polynomial_listing", "threshold_listing", "fft_listing",
            "step_listing", "sequence_listings", "window_in_cycles", "ipc_clocks",
-           "housekeeping_cycles", "listing_markdown", "frontend_cycle_table", "format_cycle_table"]
+           "housekeeping_cycles", "listing_markdown", "listings_markdown", "frontend_cycle_table",
+           "format_cycle_table"]
 
 PM_RULES = ("ideal", "cache", "nocache")
 CACHE_WORDS = 16          # ADSP-2100 instruction cache (processors.md A [A3])
@@ -102,6 +103,8 @@ class CycleModel:
 
 #: the model event recordings are charged with: ideal single-cycle instructions
 TODAY = CycleModel()
+#: the documented rules with one DM wait state ([ASSUMED]: the board's memory speed is not public)
+DOCUMENTED = CycleModel("documented", dm_wait=1, pm_rule="cache", strict=True)
 
 
 @dataclass(frozen=True)
@@ -317,7 +320,8 @@ def step_listing(step, h, w):
 
 def sequence_listings(sequence, h, w) -> list:
     """Listings of the DSP steps of ``sequence`` (a ProcessingSequence) on an h x w window, in
-    order. ``ValueError`` names a front-end step with no listing (its cycles could not be priced)."""
+    order. ``ValueError`` names a front-end step with no listing (its cycles could not be
+    priced)."""
     out = []
     for s in sequence.steps:
         lst = step_listing(s, h, w)
@@ -420,5 +424,16 @@ def format_cycle_table(rows=None):
     return "\n".join(lines)
 
 
-if __name__ == "__main__":       # python -m flightsw.ip.cycles
-    print(format_cycle_table())
+def listings_markdown(h=64, w=64) -> str:
+    """Every front-end listing on an h x w window (3x3, 5x5, 7x7 filters, both detrenders, the
+    threshold, the 9x9 FFT filter with 32x32 tiles) as Markdown tables, with the totals under
+    :data:`DOCUMENTED` (the tables of ``docs/budget.md``)."""
+    lsts = [filter_listing(h, w, k) for k in (3, 5, 7)] + [
+        highpass_listing(h, w), polynomial_listing(h, w), threshold_listing(h, w),
+        fft_listing(h, w, 9, 32)]
+    return "\n\n".join(listing_markdown(lst, DOCUMENTED) for lst in lsts)
+
+
+if __name__ == "__main__":       # python -m flightsw.ip.cycles [--listings]
+    import sys
+    print(listings_markdown() if "--listings" in sys.argv else format_cycle_table())
