@@ -35,12 +35,10 @@ from flightsw.ip.cycles import (DOCUMENTED, TODAY, CycleModel, housekeeping_cycl
 
 from .budget import sequence_buffers
 
-__all__ = ["Hypothesis", "HYPOTHESES", "WORST_SEQUENCES", "GRID", "POW2", "WindowScene",
-           "sequence_at",
-           "measure_scene", "window_cost", "evaluate", "break_even", "hypothesis",
-           "DOCUMENTED", "explain_table", "largest_dsp_window", "stage_table",
-           "sensitivity_curves", "sensitivity_figure", "rescore", "hypothesis_ledger",
-           "rescore_recording"]
+__all__ = ["Hypothesis", "HypothesisResult", "HYPOTHESES", "WORST_SEQUENCES", "GRID", "POW2",
+           "WindowScene", "sequence_at", "measure_scene", "window_cost", "evaluate", "break_even",
+           "hypothesis", "explain_table", "stage_table", "sensitivity_curves",
+           "sensitivity_figure", "rescore", "hypothesis_ledger", "rescore_recording"]
 
 #: window sides evaluated (compacted pixels) and the power-of-two subset
 GRID = tuple(range(16, 129, 8))
@@ -68,9 +66,20 @@ WORST_SEQUENCES = {
 class Hypothesis:
     """One explanation of the 64x64 limit as a budget scenario (module docstring).
 
-    ``sources`` : ``(parameter, value, source or "assumed: reason")`` rows, written before
-    evaluation. ``key`` : the parameter :func:`break_even` varies (a field name, or
-    ``"cycle_model.code_factor"``), with its search range ``key_range``.
+    name, resource, question : what it is called, the resource it tests, the claim in a line;
+    checks : resources checked, "time" (DSP and IP 1750A against 500 ms) and/or "memory" (DSP DM);
+    dsp_clock_hz : DSP instruction rate, Hz; cycle_model : how DSP listings are priced;
+    sequence : None (the sequence under test) or a :data:`WORST_SEQUENCES` key;
+    buffers : window-sized DM buffers (None: the sequence's peak); reserved : other DM words;
+    pow2 : power-of-two sides only; fft_whole_window : a ``2 N^2``-word complex buffer too;
+    window_words_per_s, bus_bits : preprocessor-to-DSP bus rate (transfers/s, 0: not modelled) and
+    width (bits); ipc : the IP 1750A reads the thresholded window (30 clocks a word);
+    ada_factor, ada_stages : factor on the 1750A stages coded in Ada;
+    ip1750_housekeeping : fraction of the period; ip1750_interrupts, ip1750_interrupt_clocks and
+    dsp_interrupts, dsp_interrupt_cycles : interrupts a frame and their cost;
+    sources : ``(parameter, value, source or "assumed: reason")`` rows, written before
+    evaluation; key : the parameter :func:`break_even` varies (a field name, or
+    ``"cycle_model.code_factor"``), searched over ``key_range``.
     """
 
     name: str
@@ -336,10 +345,12 @@ def evaluate(h: Hypothesis, scenes: list) -> HypothesisResult:
         if not fails:
             largest = ws.side
     nxt = [(s, f) for s, _, f in rows if (largest is None or s > largest) and f]
+    time_binds = False
     if nxt:
         stops = f"{nxt[0][0]}: " + "; ".join(nxt[0][1])
+        time_binds = any(not f.startswith("DM ") for f in nxt[0][1])
     exact = _exact_memory_side(h, scenes)
-    if exact is not None and (largest is None or exact < largest or "ms" in stops):
+    if exact is not None and (largest is None or exact < largest or time_binds):
         exact = None                  # time binds too: the off-grid side is not known
     return HypothesisResult(h, rows, largest, stops, exact)
 
@@ -395,19 +406,6 @@ def break_even(h: Hypothesis, scenes: list, key: str | None = None, iters: int =
                 hi = mid
         return hi if fa else lo
     return edge(by[nxt]), edge(by[64])
-
-
-def largest_dsp_window(sequence, model: CycleModel, clock_hz: float, sides=range(8, 241, 8),
-                       period_s: float = FRAME_PERIOD_S):
-    """Largest square side in ``sides`` whose DSP listings of ``sequence`` (its steps as built,
-    priced at each side) fit ``period_s`` at ``clock_hz`` under ``model`` (time alone; None:
-    none)."""
-    best = None
-    for s in sides:
-        cyc = sum(lst.cycles(model) for lst in sequence_listings(sequence, s, s))
-        if cyc <= period_s * clock_hz:
-            best = s
-    return best
 
 
 def _fmt_edge(h: Hypothesis, be) -> str:
