@@ -29,7 +29,8 @@ import dataclasses
 import math
 from dataclasses import dataclass, field
 
-from flightsw.budget import ADSP2100, ADSP2100A, DSP, FRAME_PERIOD_S, IP1750, PACE1750A, Ledger
+from flightsw.budget import (ADSP2100, ADSP2100A, DSP, FRAME_PERIOD_S, IP1750, PACE1750A, TP1750,
+                             Ledger)
 from flightsw.ip.cycles import (DOCUMENTED, TODAY, CycleModel, housekeeping_cycles, ipc_clocks,
                                 sequence_listings, window_in_cycles)
 
@@ -577,8 +578,8 @@ def hypothesis_ledger(h: Hypothesis, sequence, shape, ledger: Ledger) -> Ledger:
 
 def rescore_recording(path, h: Hypothesis) -> dict:
     """Every processed frame of an event recording re-priced under ``h``: ``{"frames", "overruns"
-    (k), "overrun_ci95" (Wilson), "overruns_recorded", "worst_ms": {processor: ms},
-    "worst_frame"}``.
+    (k), "overrun_ci95" (Wilson), "overruns_recorded" (the recording's own overrun flags; None if
+    it has none), "worst_ms": {processor: ms}, "worst_frame"}``.
     ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
     from pathlib import Path
 
@@ -597,6 +598,8 @@ def rescore_recording(path, h: Hypothesis) -> dict:
             raise ValueError(f"{path}: field 'config.sequence' missing from the attributes")
         seq = ProcessingSequence.from_dict(cfg["sequence"])
         rows = rec.table("ledger")
+        fr = rec.table("frames") if "frames" in rec.tables() else None
+    over_rec = int(fr["overrun"].sum()) if fr is not None and "overrun" in fr.dtype.names else None
     pre = seq.preprocess
     shape = (min(pre.window, 244 // pre.compaction), min(pre.window, 256 // pre.compaction))
     frames: dict = {}
@@ -604,16 +607,13 @@ def rescore_recording(path, h: Hypothesis) -> dict:
         key = (_text(row["processor"]), _text(row["stage"]))
         e = frames.setdefault(int(row["k"]), {})
         e[key] = e.get(key, 0) + int(row["cycles"])
-    clocks = {DSP: h.dsp_clock_hz, IP1750: PACE1750A.clock_hz, "tp1750": PACE1750A.clock_hz}
+    clocks = {DSP: h.dsp_clock_hz, IP1750: PACE1750A.clock_hz, TP1750: PACE1750A.clock_hz}
     period = 1e3 * FRAME_PERIOD_S
-    worst, worst_k, over, over_rec = {p: 0.0 for p in clocks}, {p: None for p in clocks}, 0, 0
+    worst, worst_k, over = {p: 0.0 for p in clocks}, {p: None for p in clocks}, 0
     for k, entries in sorted(frames.items()):
         new = rescore(h, seq, shape, entries)
         ms = {p: 1e3 * sum(c for (q, _), c in new.items() if q == p) / clocks[p] for p in clocks}
-        ms_rec = {p: 1e3 * sum(c for (q, _), c in entries.items() if q == p) /
-                  (ADSP2100.clock_hz if p == DSP else PACE1750A.clock_hz) for p in clocks}
         over += any(v > period for v in ms.values())
-        over_rec += any(v > period for v in ms_rec.values())
         for p, v in ms.items():
             if v > worst[p]:
                 worst[p], worst_k[p] = v, k

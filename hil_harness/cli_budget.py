@@ -62,8 +62,9 @@ def _run_recording(args) -> int:
     from . import budget_hypotheses as bh
     names = [args.hypothesis] if args.hypothesis != "today" else [h.name for h in bh.HYPOTHESES]
     rows = [bh.rescore_recording(args.recording, bh.hypothesis(n)) for n in names]
+    rec = rows[0]["overruns_recorded"]
     print(f"{args.recording}: {rows[0]['frames']} processed frames, "
-          f"{rows[0]['overruns_recorded']} overran as recorded (today's model)")
+          f"{'?' if rec is None else rec} overran as recorded (today's model)")
     print(f"{'hypothesis':<24} {'overruns':>9} {'95 % interval':>15} {'worst dsp ms':>13} "
           f"{'worst ip1750 ms':>16}")
     for r in rows:

@@ -188,3 +188,18 @@ def test_rescore_prices_a_frame_under_a_hypothesis(scene):
 def test_budget_cli_recording_errors(tmp_path, capsys):
     assert main(["budget", "--recording", str(tmp_path / "none.h5")]) == 2
     assert "none.h5: no such recording" in capsys.readouterr().err
+
+
+def test_rescore_recording_today_matches_the_event_summary(tmp_path, capsys):
+    out = tmp_path / "ev"
+    assert main(["event", "satellite_over_stars", "--frames", "3", "--no-figures", "--no-frames",
+                 "--out", str(out)]) == 0
+    capsys.readouterr()
+    summary = json.loads((out / "summary.json").read_text())["budget"]
+    r = H.rescore_recording(out / "recording.h5", H.hypothesis("today"))
+    assert r["frames"] == 3 and r["overruns"] == r["overruns_recorded"] == summary["overruns"]
+    for p in (DSP, IP1750, "tp1750"):
+        assert r["worst_ms"][p] == pytest.approx(summary[p]["worst_ms"], rel=1e-12)
+    assert r["overrun_ci95"][0] == 0.0 and 0.5 < r["overrun_ci95"][1] < 0.6   # Wilson, 0 of 3
+    ip = H.rescore_recording(out / "recording.h5", H.hypothesis("ip1750-share"))
+    assert ip["worst_ms"][IP1750] > r["worst_ms"][IP1750] + 50      # 10 % housekeeping alone
