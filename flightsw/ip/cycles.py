@@ -21,7 +21,8 @@ under a :class:`CycleModel`:
 :data:`TODAY` (ideal, not strict, factor 1) prices every listing at exactly the cycles the stage
 modules charge the frame's :class:`~flightsw.budget.Ledger` (``filter_cycles``, ``highpass_cycles``,
 ``polynomial_cycles``, ``threshold_cycles``, ``fft_filter_cycles``; tested), so event recordings
-keep their ledger; the other models are the budget hypotheses of ``hil_harness.budget``.
+keep their ledger; the other models are the budget hypotheses of
+``hil_harness.budget_hypotheses``.
 
 What no stage listing holds, priced by its own function with its parameters: moving the window from
 the preprocessor board into DSP memory (:func:`window_in_cycles`), the DSP-to-1750A transfer of the
@@ -249,7 +250,7 @@ def threshold_listing(h, w, stage="threshold"):
         Line("per row and pass: CNTR=w; DO UNTIL CE; MODIFY", 2 * h, 3),
         Line("mean, variance: 2 x 32/16 divide (DIVS + 15 DIVQ + set-up)", 2, 20),
         Line("n S2 - S1^2: multiprecision products and subtraction", 1, 30),
-        Line(f"integer square root: 16 bit-pair iterations x 6 + 4", 1, ISQRT_CYCLES),
+        Line("integer square root: 16 bit-pair iterations x 6 + 4", 1, ISQRT_CYCLES),
         Line("T4 = m4 + round(alpha d4): MAC, RND, shift", 1, 10),
         Line("select: SR=ASHIFT AX0 BY 4, AX0=DM(I0,M1) (16 x)", hw, 1, dm=1, loop=4, entries=h),
         Line("select: AR=SR0-AY0 (16 x - T4)", hw, 1, loop=4, entries=h),
