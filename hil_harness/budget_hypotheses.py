@@ -456,7 +456,7 @@ def stage_table(h: Hypothesis, ws: WindowScene) -> str:
     clocks = {DSP: h.dsp_clock_hz, IP1750: PACE1750A.clock_hz}
     lines = [f"{ws.shape[0]}x{ws.shape[1]} window under hypothesis {h.name!r} "
              f"(compaction 1, {ws.candidates} candidate{'' if ws.candidates == 1 else 's'} on "
-             f"this frame)",
+             "this frame)",
              f"{'processor':<9} {'stage':<30} {'ms':>8} {'% of 500':>9}"]
     for proc in (DSP, IP1750):
         for stage, c in cost[proc].items():
