@@ -20,7 +20,9 @@ With the cycle model of ``flightsw.budget`` the time bound alone lets windows fa
 instructions and leaves out everything the board does besides the arithmetic); the memory bound is what
 stops the flight sequence near 64x64: three 64x64 buffers and the reserve take 13,312 of 16,384 words,
 three 72x72 ones 16,576 (72x72 would fit only with fewer than 832 reserved words). Window sides are
-swept in steps of 8 pixels. :func:`budget_report` states both bounds and which one binds.
+swept in steps of 8 pixels. :func:`budget_report` states both bounds and which one binds. Whether
+this is the paper's reason for 64x64 (off the 8-pixel grid the same model fits 71x71) is what the
+hypotheses of ``hil_harness.budget_hypotheses`` test.
 """
 from __future__ import annotations
 
@@ -175,9 +177,10 @@ class BudgetReport:
         s.append(f"Largest window that fits: {big if big is not None else 'none'} "
                  f"(time alone: {bt}, memory alone: {bm}; bound by {self.binding()}).")
         if bt is not None and bm is not None and bt > bm:
-            s.append("The cycle model alone would allow larger windows than the paper's 64x64: it "
-                     "counts ideal single-cycle DSP instructions only; DSP data memory (16K words) is "
-                     "what limits the window.")
+            s.append("The cycle model alone would allow larger windows than the paper's 64x64: "
+                     "it counts ideal single-cycle DSP instructions only; the memory bound rests "
+                     "on an assumed reserve of DSP data memory (see the hypotheses, uvisi budget "
+                     "--explain).")
         return " ".join(s)
 
 

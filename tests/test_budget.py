@@ -91,3 +91,97 @@ def test_bad_charges_are_rejected_with_names():
         PACE1750A.cost("FOO")
     with pytest.raises(ValueError):
         Ledger(period_s=0)
+
+
+# --- instruction listings (flightsw.ip.cycles): hand counts on small windows -------------------
+from flightsw.ip import cycles as C                                    # noqa: E402
+from flightsw.ip.detrend import highpass_cycles, polynomial_cycles     # noqa: E402
+from flightsw.ip.fftfilter import fft_filter_cycles                    # noqa: E402
+from flightsw.ip.filters import filter_cycles                          # noqa: E402
+from flightsw.ip.threshold import threshold_cycles                     # noqa: E402
+
+DOC = C.CycleModel("documented", dm_wait=1, pm_rule="cache", strict=True)
+
+
+def test_filter3x3_listing_hand_count_8x8():
+    lst = C.filter_listing(8, 8, 3)
+    # pad: 4 set-up + 2*(8+2) top/bottom words + 2*8 left/right words = 40
+    # correlate: 10 set-up + 8 rows * 3 + 64 pixels * (prime 1 + 8 fetching MACs + last MAC + SAT
+    # + store = 12) = 802
+    assert lst.cycles() == 842 == filter_cycles(8, 8, 3)
+    # DM: top/bottom 20 words read+write = 40, 16 edge loads, 16 left/right stores; per pixel
+    # prime 1 + 8 fetches + store 1 = 10 -> 72 + 640
+    assert lst.dm() == 712
+    # PM: 9 coefficient reads a pixel; the 12-word pixel loop (<= 16) misses on its first pass of
+    # each of the 8 rows only: 9 * 8
+    assert lst.pm() == 576 and lst.pm_misses() == 72
+    assert lst.hidden() == 20 + 16                 # read+write border words, edge-word loads
+    assert lst.cycles(DOC) == 842 + 712 + 72 + 36
+    assert lst.cycles(C.CycleModel("x", pm_rule="nocache")) == 842 + 576
+    assert lst.cycles(C.CycleModel("x", code_factor=1.5)) == 1263
+
+
+def test_filter7x7_pixel_loop_overflows_the_cache():
+    # 7x7: a 52-word straight-line pixel loop: every one of the 49 PM reads a pixel misses
+    lst = C.filter_listing(8, 8, 7)
+    assert lst.pm_misses() == 49 * 64 == lst.pm()
+
+
+def test_detrend_and_threshold_listing_hand_counts_8x8():
+    # high-pass: EXPADJ 3 + 64; row pass 10 + 6*8 border words + 3*8 + 64*12; column pass
+    # 10 + 6*8 + 3*8 + 64*13
+    assert C.highpass_listing(8, 8).cycles() == 67 + 850 + 914 == highpass_cycles(8, 8)
+    # polynomial: 20 + 6*40 per frame; 27 a pixel (EXPADJ, shift, 6 moments, 19 surface);
+    # 6*4+3 a row
+    assert C.polynomial_listing(8, 8).cycles() == 260 + 64 * 27 + 8 * 27 == polynomial_cycles(8, 8)
+    # threshold: 250 a frame (70 set-up, 2 divides of 20, 30, isqrt 100, 10); 5 + 4 a pixel; 3 per
+    # row and pass
+    assert C.threshold_listing(8, 8).cycles() == 250 + 64 * 9 + 2 * 8 * 3 == threshold_cycles(8, 8)
+    # polynomial surface loop is 19 words: its 12 PM reads a pixel always miss; the six one-word
+    # moment loops miss on their first pass per row: 6 * 8
+    assert C.polynomial_listing(8, 8).pm_misses() == 12 * 64 + 6 * 8
+
+
+def test_fft_listing_hand_count_one_tile():
+    # 6x6 window, 3x3 kernel, T = 8: one tile (V = 6), 8 data rows: 8 + 8 + 8 + 6 = 30 1-D FFTs of
+    # 16*4*3 + 4*7 + 14*3 + 10 = 272; mean 36 + 50; fill 64*2 + 8*3; product 64*8; output
+    # 36*5 + 6*3
+    assert C.fft_listing(6, 6, 3, 8).cycles() == 86 + 152 + 30 * 272 + 512 + 198 == \
+        fft_filter_cycles(6, 6, 3, 8)
+
+
+@pytest.mark.parametrize("h,w", [(16, 16), (13, 40), (64, 64)])
+def test_listings_equal_the_charged_formulas(h, w):
+    for k in (3, 5, 7):
+        assert C.filter_listing(h, w, k).cycles() == filter_cycles(h, w, k)
+    assert C.highpass_listing(h, w).cycles() == highpass_cycles(h, w)
+    assert C.polynomial_listing(h, w).cycles() == polynomial_cycles(h, w)
+    assert C.threshold_listing(h, w).cycles() == threshold_cycles(h, w)
+    for k, T in ((3, 16), (9, 16), (15, 32)):
+        assert C.fft_listing(h, w, k, T).cycles() == fft_filter_cycles(h, w, k, T)
+
+
+def test_sequence_listings_are_what_the_ledger_is_charged():
+    from flightsw.ip import ProcessingSequence, load_default_sequence
+    rng = np.random.default_rng(3)
+    frame = rng.poisson(100, (244, 256)).astype(np.uint16)
+    for name in ("satellite", "aurora"):
+        d = load_default_sequence(name).to_dict()
+        d["preprocess"].update(window=24, compaction=1)
+        seq = ProcessingSequence.from_dict(d)
+        led = Ledger()
+        res = seq.run_frame(frame, ledger=led)
+        h, w = res.subimage.size
+        charged = {s: c for s, c in led.stages("dsp").items() if s != "compaction"}
+        assert charged == {lst.stage: lst.cycles() for lst in C.sequence_listings(seq, h, w)}
+
+
+def test_transfers_and_housekeeping_closed_forms():
+    # 64x64 12-bit pixels over a 16-bit bus at 1 M words/s: 4.096 ms = 33,554.4 cycles at 8.192 MHz
+    assert C.window_in_cycles(64, 64, 8.192e6, 1e6) == 33555
+    assert C.window_in_cycles(64, 64, 8.192e6, 1e6, bus_bits=8) == 67109   # two transfers a pixel
+    assert C.window_in_cycles(64, 64, 8.192e6, 0) == 0
+    assert C.ipc_clocks(8, 8) == 64 * (15 + 15)                 # PACE L + ST a word
+    assert C.housekeeping_cycles(20e6, 0.5, 0.1, 4, 1500) == 1_000_000 + 6000
+    with pytest.raises(ValueError, match="pm_rule"):
+        C.CycleModel("x", pm_rule="sometimes")
