@@ -51,3 +51,18 @@ def test_held_fraction_hand_made():
 def test_wilson_interval_matches_scipy(k, n):
     ci = binomtest(k, n).proportion_ci(confidence_level=0.95, method="wilson")
     assert wilson_interval(k, n) == pytest.approx((ci.low, ci.high), abs=1e-12)
+
+
+@pytest.mark.parametrize("name", ["aurora_train_churchill_limb",          # training family
+                                  "aurora_eval_tromso_equinox_dusk"])     # evaluation family
+def test_short_event_holds_the_surge_with_the_defaults(name):
+    """16 closed-loop frames with the defaults a user gets (sequence, record, TP): the limb / dayglow
+    band is in the field, the TP locks at once and holds the hot spot. With the aurora sequence's
+    former alpha 1.5 both events hold 0 of 14 frames (the track sits on a limb blob 30-40 px away)."""
+    from hil_harness.event_io import run_event
+    s = run_event(name, frames=16, figures=False)
+    h = s["held_after_lock"]
+    assert s["lock_frame"] is not None and s["lock_frame"] <= 2
+    assert h["n"] == 15 - s["lock_frame"] and h["k"] >= h["n"] - 1
+    assert s["held_fraction_after_lock"] == h["k"] / h["n"]
+    assert s["track_error_processed_px"]["median"] <= 3.0
