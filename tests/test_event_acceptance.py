@@ -23,7 +23,8 @@ def _o(locked, err_px, imager="wfov_uv", in_field=True, comp=2):
 
 def test_processed_pixel_is_compaction_times_imager_pixel():
     assert processed_pixel_urad(GEOM["wfov_uv"], 2) == pytest.approx(2000.0)
-    assert processed_pixel_urad((3e-4, 4e-4, None), 1) == pytest.approx(1e6 * math.hypot(3e-4, 4e-4) / math.sqrt(2))
+    rms = 1e6 * math.hypot(3e-4, 4e-4) / math.sqrt(2)
+    assert processed_pixel_urad((3e-4, 4e-4, None), 1) == pytest.approx(rms)
 
 
 def test_held_fraction_hand_made():

@@ -229,7 +229,8 @@ def test_aurora_scenarios_render_the_limb_where_the_closed_form_puts_it(name):
     t_limb, sunlit = LIMB_AT[name]
     d, r, m, im = _pixel_rays_eci(w, 0.0 if t_limb is None else t_limb)
     p = s.target["params"]
-    only_limb = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, dayglow_kR=0.0), s.epoch, include_aurora=False)
+    only_limb = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, dayglow_kR=0.0), s.epoch,
+                            include_aurora=False)
     img = only_limb.image(w.t, r, m, im).astype(float)
     rn = np.linalg.norm(r)
     cos_nadir = d @ (-r / rn)
@@ -253,7 +254,8 @@ def test_aurora_scenarios_render_the_limb_where_the_closed_form_puts_it(name):
     w2 = s.world()
     w2.reset()
     d, r, m, im = _pixel_rays_eci(w2, 0.0)
-    only_day = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, limb_kR=0.0), s.epoch, include_aurora=False)
+    only_day = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, limb_kR=0.0), s.epoch,
+                           include_aurora=False)
     day = only_day.image(0.0, r, m, im)
     rn = np.linalg.norm(r)
     rs = 6371e3 + p.shell_alt_km * 1e3
