@@ -61,8 +61,9 @@ class EventConfig:
     frames : int, optional
         Stop after this many frames (default: the scenario's duration).
     sequence : str or Path, optional
-        Processing sequence: a shipped name ("satellite", "satellite_c2", "aurora") or a TOML file;
-        default by the target type, at the scenario's compaction.
+        Processing sequence: a shipped name ("satellite", "satellite_c2", "aurora", "aurora_track") or
+        a TOML file; default by the target type ("aurora_track" for aurora, else "satellite"), at the
+        scenario's compaction.
     record : str or Path, optional
         A priori record (shipped name or TOML); default by the object type
         (:data:`hil_harness.selection.RECORD_FOR_TYPE`).
@@ -186,7 +187,7 @@ class Event:
         self.n_frames = n
         ttype = scn.target_type
         self.object_type = ttype or "none"
-        seq = cfg.sequence or ("aurora" if ttype == "aurora" else "satellite")
+        seq = cfg.sequence or ("aurora_track" if ttype == "aurora" else "satellite")
         self.sequence = _with_compaction(_shipped_sequence(seq), scn.compaction) \
             if cfg.sequence is None else _shipped_sequence(seq)
         self.record_name = str(cfg.record) if cfg.record is not None else record_name_for(ttype)

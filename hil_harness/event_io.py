@@ -240,6 +240,9 @@ def summarise(ev: Event) -> dict:
             for name in getattr(c, "status_names", lambda: [])():
                 status_counts[name] = status_counts.get(name, 0) + 1
     ttype = ev.object_type
+    from .event_metrics import held_after_lock
+    held = held_after_lock(outs, ev.geometry, comp)
+    held_err = held.pop("error_px")
     return {
         "scenario": ev.scenario.name, "seed": int(ev.scenario.seed), "object_type": ttype,
         "frames": n, "duration_s": n * FRAME_DT,
@@ -249,6 +252,16 @@ def summarise(ev: Event) -> dict:
         "attitude_invalid_frames": int(sum(not bool(getattr(o.attitude, "valid", True)) for o in outs)),
         "lock_frame": lock_frame, "lock_t": None if lock_frame is None else lock_frame * FRAME_DT,
         "locked_fraction_after_lock": float(locked[lock_frame:].mean()) if lock_frame is not None else 0.0,
+        "held_fraction_after_lock": held["rate"],
+        "held_after_lock": {**held, "definition": (
+            "frames k after the lock frame L (k > L, dropped and skipped frames included) on which the "
+            "TP command in force (the last one issued before k) is locked, the object is in the field "
+            "and the prediction for k lies within radius_px processed pixels (compaction x imager "
+            "pixel) of the true pixel; rate = k / n, ci95 Wilson")},
+        "track_error_processed_px": {"median": _pct(held_err, 50), "p90": _pct(held_err, 90),
+                                     "n": int(np.isfinite(held_err).sum()),
+                                     "definition": "the prediction error on the frames counted by "
+                                                   "held_after_lock, in processed pixels"},
         "first_frame_in_field": first_in,
         "decision": decision,
         "track_error_urad": {"median": _pct(after, 50), "p90": _pct(after, 90), "p997": _pct(after, 99.7),
@@ -281,6 +294,12 @@ def summary_table(s: dict) -> str:
         f"  track error (urad)  median {fmt(te['median'])}  p90 {fmt(te['p90'])}  "
         f"p99.7 {fmt(te['p997'])}  (n = {te['n']})",
     ]
+    if "held_after_lock" in s:
+        h, tp = s["held_after_lock"], s["track_error_processed_px"]
+        lines.append(f"  held after lock     {s['held_fraction_after_lock']:.1%} ({h['k']}/{h['n']} frames "
+                     f"within {h['radius_px']:g} processed px, 95 % CI {h['ci95'][0]:.1%}-"
+                     f"{h['ci95'][1]:.1%}); error median {fmt(tp['median'], '{:.2f}')} p90 "
+                     f"{fmt(tp['p90'], '{:.2f}')} processed px")
     for p in (DSP, IP1750, TP1750):
         lines.append(f"  budget {p:<7}      median {b[p]['median_ms']:.2f} ms  worst "
                      f"{b[p]['worst_ms']:.2f} ms of 500")

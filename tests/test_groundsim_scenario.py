@@ -10,9 +10,16 @@ from groundsim import RealSequence, Scenario, ScenarioError
 from groundsim.quat import q_conj, q_from_rotvec, q_mul, q_to_rotvec
 
 SHIPPED = ["satellite_over_stars", "launch_nfov", "aurora_surge_wfov_uv", "star_rich_slew"]
+#: the evaluation / training event families (campaigns/aurora_*_events.toml, satellite_eval_events.toml)
+FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_train_faint_slow",
+            "aurora_train_bright_arcs_fast", "aurora_eval_tromso_equinox_dusk",
+            "aurora_eval_alaska_fast_surge", "aurora_eval_siberia_dawn_faint",
+            "aurora_eval_antarctic_winter", "aurora_eval_iceland_spring_sunlit",
+            "aurora_eval_labrador_drift", "satellite_eval_bright_crossing", "satellite_eval_faint_high",
+            "satellite_eval_offset_field"]
 
 
-@pytest.mark.parametrize("name", SHIPPED)
+@pytest.mark.parametrize("name", SHIPPED + FAMILIES)
 def test_shipped_scenarios_load_and_render(name):
     s = Scenario.load(name)
     assert name in Scenario.shipped()
@@ -160,3 +167,104 @@ def test_real_data_iterator_is_12_bit():
         assert truth["real"] and len(truth["stars"]) == 0 and math.isnan(truth["target"]["row"])
     assert max(f.max() for _, f, _ in out) > 3000
     assert [t for t, _, _ in out] == [0.5 * k for k in range(15)]
+
+
+# ----------------------------------------------------------------------------------------------------
+# The aurora event families (campaigns/aurora_*_events.toml): limb / dayglow distractors in the field
+AURORA_FAMILIES = {
+    "campaigns/aurora_train_events.toml": ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow",
+                                           "aurora_train_faint_slow", "aurora_train_bright_arcs_fast"],
+    "campaigns/aurora_eval_events.toml": ["aurora_eval_tromso_equinox_dusk", "aurora_eval_alaska_fast_surge",
+                                          "aurora_eval_siberia_dawn_faint", "aurora_eval_antarctic_winter",
+                                          "aurora_eval_iceland_spring_sunlit", "aurora_eval_labrador_drift"],
+}
+#: scenario -> (time s at which the night limb is in the field, sunlit Earth in the field at t = 0)
+LIMB_AT = {"aurora_train_churchill_limb": (0.0, False), "aurora_train_dusk_dayglow": (0.0, True),
+           "aurora_train_faint_slow": (60.0, False), "aurora_train_bright_arcs_fast": (None, False),
+           "aurora_eval_tromso_equinox_dusk": (0.0, True), "aurora_eval_alaska_fast_surge": (30.0, False),
+           "aurora_eval_siberia_dawn_faint": (60.0, True), "aurora_eval_antarctic_winter": (30.0, False),
+           "aurora_eval_iceland_spring_sunlit": (0.0, True), "aurora_eval_labrador_drift": (None, False)}
+
+
+def test_aurora_families_are_disjoint_and_listed():
+    import tomllib
+    from pathlib import Path
+    root = Path(__file__).resolve().parents[1]
+    specs = {f: tomllib.loads((root / f).read_text()) for f in AURORA_FAMILIES}
+    for f, names in AURORA_FAMILIES.items():
+        assert specs[f]["axes"]["scenario"] == names and specs[f]["campaign"]["job"].endswith(":event")
+    train, ev = (specs[f] for f in AURORA_FAMILIES)
+    assert not set(train["campaign"]["seeds"]) & set(ev["campaign"]["seeds"])
+    sites = {n: (Scenario.load(n).target["params"].lat0_deg, Scenario.load(n).target["params"].lon0_deg)
+             for names in AURORA_FAMILIES.values() for n in names}
+    train_sites = {sites[n] for n in AURORA_FAMILIES["campaigns/aurora_train_events.toml"]}
+    assert not train_sites & {sites[n] for n in AURORA_FAMILIES["campaigns/aurora_eval_events.toml"]}
+
+
+def _pixel_rays_eci(w, t):
+    """Unit ECI ray of every pixel centre (closed form of the imager model) and the spacecraft position."""
+    while w.t < t - 1e-9:
+        w.advance()
+    im = w.imager_model
+    from groundsim.quat import q_to_dcm
+    m = q_to_dcm(w.ctrl.q) @ im.align_dcm                      # imager -> ECI
+    y = (np.arange(im.n_rows) + 0.5 - 122.0) * im.scale_row
+    x = (np.arange(im.n_cols) + 0.5 - 128.0) * im.scale_col
+    yy, xx = np.meshgrid(y, x, indexing="ij")
+    d = np.stack([np.ones_like(xx), xx, yy], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    return d @ m.T, w.orbit.state(w.t)[0], m, im
+
+
+@pytest.mark.parametrize("name", sorted(LIMB_AT))
+def test_aurora_scenarios_render_the_limb_where_the_closed_form_puts_it(name):
+    """Limb glow alone (no aurora, airglow or dayglow): zero on rays that hit the Earth or look away
+    from it, ``limb_kR * e_per_kR`` up to a tangent height of 100 km and an exp(-(h - 100 km) / 25 km)
+    fall-off above, with the tangent height from the ray's closed form ``h = |r| sin(nadir angle) - R``."""
+    import dataclasses
+    from groundsim.aurora import AuroraScene
+    s = Scenario.load(name)
+    w = s.world()
+    w.reset()
+    t_limb, sunlit = LIMB_AT[name]
+    d, r, m, im = _pixel_rays_eci(w, 0.0 if t_limb is None else t_limb)
+    p = s.target["params"]
+    only_limb = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, dayglow_kR=0.0), s.epoch,
+                            include_aurora=False)
+    img = only_limb.image(w.t, r, m, im).astype(float)
+    rn = np.linalg.norm(r)
+    cos_nadir = d @ (-r / rn)
+    h = rn * np.sqrt(np.clip(1.0 - cos_nadir ** 2, 0.0, None)) - 6371e3
+    toward = cos_nadir > 0
+    misses = ~toward | (h > 0)
+    beyond = toward & (h > 0)
+    assert np.all(img[~misses] == 0.0) and np.all(img[~toward] == 0.0)
+    if t_limb is None:
+        assert beyond.mean() < 0.01                        # the no-limb cases stay (nearly) free of it
+    else:
+        assert beyond.mean() > 0.02                        # the night limb is in the field
+        low = beyond & (h <= 100e3)
+        assert low.sum() > 100
+        level = np.median(img[low])
+        assert np.allclose(img[low], level, rtol=1e-5)
+        hi = beyond & (h > 100e3) & (h < 250e3)
+        np.testing.assert_allclose(img[hi], level * np.exp(-(h[hi] - 100e3) / 25e3), rtol=1e-4)
+        assert level > 0
+    # dayglow: sunlit Earth in the field exactly where the ray's shell point sees the Sun
+    w2 = s.world()
+    w2.reset()
+    d, r, m, im = _pixel_rays_eci(w2, 0.0)
+    only_day = AuroraScene(dataclasses.replace(p, airglow_kR=0.0, limb_kR=0.0), s.epoch,
+                           include_aurora=False)
+    day = only_day.image(0.0, r, m, im)
+    rn = np.linalg.norm(r)
+    rs = 6371e3 + p.shell_alt_km * 1e3
+    b = d @ r
+    disc = b * b - (rn * rn - rs * rs)
+    hit = (disc > 0) & (b < 0) & (b * b - (rn * rn - 6371e3 ** 2) > 0)
+    q = r + (-b - np.sqrt(np.where(disc > 0, disc, 0.0)))[..., None] * d
+    cos_sun = (q / rs) @ only_day.sun_eci
+    expect = hit & (cos_sun > 1e-6)
+    got = day > 0
+    assert np.array_equal(got[hit & (np.abs(cos_sun) > 1e-6)], expect[hit & (np.abs(cos_sun) > 1e-6)])
+    assert (expect.mean() > 0.1) == sunlit
