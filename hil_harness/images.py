@@ -24,8 +24,8 @@ import numpy as np
 __all__ = ["InputFrame", "ImageError", "read_images", "to_counts", "frame_flags", "robust_stats",
            "noise_sigma",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
-           "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION", "BLANK_MARGIN_SIGMA",
-           "FLAG_NAMES"]
+           "LOW_PERCENTILE", "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION",
+           "BLANK_MARGIN_SIGMA", "FLAG_NAMES"]
 
 #: robust map: the sky background goes to this level (12-bit counts)
 SKY_COUNTS = 200.0
@@ -34,9 +34,10 @@ SKY_COUNTS = 200.0
 NOISE_COUNTS = 8.0
 #: ... and never fewer than this many counts per noise sigma (the sky noise stays measurable)
 MIN_NOISE_COUNTS = 2.0
-#: percentile of the finite pixels that must still fit below 4095 (when the noise floor allows);
-#: 100 - it: the low percentile kept LOW_MARGIN_SIGMA noise sigmas above 0
-HEADROOM_PERCENTILE = 99.9
+#: percentile of the finite pixels that must still fit below 4095 (when the noise floor allows)
+HEADROOM_PERCENTILE = 99.5
+#: the LOW_PERCENTILE percentile of the pixels is kept LOW_MARGIN_SIGMA noise sigmas above 0
+LOW_PERCENTILE = 0.1
 LOW_MARGIN_SIGMA = 5.0
 #: frame_flags thresholds (see frame_flags)
 MISSING_FRACTION = 0.5
@@ -287,12 +288,13 @@ def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
        noise; where it is 0, the clipped MAD of the pixels).
 
        * Level: the background goes to ``SKY_COUNTS`` (200), or higher where the darkest 0.1 % of
-         the pixels would otherwise come closer than ``LOW_MARGIN_SIGMA`` (5) noise sigmas to 0
-         (a vignetted or graded sky keeps its dark corners).
+         the pixels (``LOW_PERCENTILE``) would otherwise come closer than ``LOW_MARGIN_SIGMA`` (5)
+         noise sigmas to 0 (a vignetted or graded sky keeps its dark corners).
        * Gain: ``NOISE_COUNTS / noise`` (8 counts per noise sigma). When the frame's maximum would
          still fit under 4095 with a larger gain, that gain is used (a low-contrast frame keeps all
-         its range); when the brightest 0.1 % of the pixels (``HEADROOM_PERCENTILE``, 99.9) would
-         clip, the gain is lowered until they fit (extended bright scenes), but never below
+         its range); when the brightest 0.5 % of the pixels (``HEADROOM_PERCENTILE``, 99.5) would
+         clip, the gain is lowered until they fit (an extended bright scene; a few saturated
+         stars may clip), but never below
          ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma).
 
        Rounded and clipped to 0..4095; non-finite pixels become the sky level. A frame with no
@@ -347,7 +349,7 @@ def _robust_map(a: np.ndarray) -> tuple[np.ndarray, dict]:
         noise = dn
     if noise > 0:
         v = x[fin]
-        low = float(np.percentile(v, 100.0 - HEADROOM_PERCENTILE)) - LOW_MARGIN_SIGMA * noise
+        low = float(np.percentile(v, LOW_PERCENTILE)) - LOW_MARGIN_SIGMA * noise
         gain = NOISE_COUNTS / noise
         vmax = float(v.max())
         top = float(np.percentile(v, HEADROOM_PERCENTILE))

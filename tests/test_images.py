@@ -148,7 +148,7 @@ def test_noise_from_differences_ignores_vignetting():
     flat = out.astype(float) - (m["offset"] + m["gain"] * (500.0 + vignette))
     # the stated noise everywhere (at least 8 counts), the dark corners kept above 0
     assert abs(np.std(flat) - m["noise_counts"]) < 0.05 * m["noise_counts"]
-    assert m["noise_counts"] >= 8.0 and m["clipped_low"] == 0 and m["clipped_high"] == 0
+    assert m["noise_counts"] >= 8.0 and m["clipped_low"] < 0.0005 and m["clipped_high"] == 0
     assert np.percentile(out, 0.1) >= 5 * m["noise_counts"] - 1
 
 
@@ -158,16 +158,16 @@ def test_robust_map_low_contrast_uses_the_range_extended_scene_fits():
     out, m = to_counts(x)
     assert int(out.max()) == 4095 and m["clipped_high"] == 0 and m["noise_counts"] > 8
     # an extended bright scene (aurora-like, 10 % of the frame up to 1000 sigma): the gain drops
-    # so that the 99.9th percentile fits, the noise keeps more than 2 counts
+    # so that the 99.5th percentile fits, the noise keeps more than 2 counts
     y = _sky(seed=6)
     y[:20, :] += 2e4 * np.linspace(0.5, 1.0, y.shape[1])
     out, m = to_counts(y)
-    assert m["clipped_high"] <= 0.001 + 1e-9 and 2.0 < m["noise_counts"] < 8.0
+    assert m["clipped_high"] <= 0.005 + 1e-9 and 2.0 < m["noise_counts"] < 8.0
     assert abs(np.std(out[40:].astype(float)) - m["noise_counts"]) < 0.3
     # up to 5000 sigma: the noise floor (2 counts per sigma) wins, the top of the scene clips
     y[:20, :] *= 5
     out, m = to_counts(y)
-    assert m["noise_counts"] == pytest.approx(2.0) and m["clipped_high"] > 0.001
+    assert m["noise_counts"] == pytest.approx(2.0) and m["clipped_high"] > 0.005
 
 
 def test_robust_map_nan_and_degenerate_frames():

@@ -89,7 +89,8 @@ __all__ = ["ProcessingSequence", "IPConfig", "SequenceError", "FieldError", "Ste
 PHASE_FRONT, PHASE_THRESHOLD, PHASE_LABEL, PHASE_FEATURES, PHASE_RANK = 0, 10, 20, 30, 40
 SEQUENCE_DIR = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SEQUENCES = {"satellite": "sequence_satellite.toml", "aurora": "sequence_aurora.toml",
-                     "satellite_c2": "sequence_satellite_c2.toml"}
+                     "satellite_c2": "sequence_satellite_c2.toml", "star": "sequence_star.toml",
+                     "streak": "sequence_streak.toml"}
 
 
 class SequenceError(ValueError):
