@@ -137,8 +137,8 @@ def _tiled(img12, seq, record, f, max_candidates, tile, step):
     words, margin = [], []
     for r0 in rows:
         for c0 in cols:
-            tile = np.ascontiguousarray(comp[r0:r0 + th, c0:c0 + tw]).astype(np.int16)
-            res = process_window(Subimage(tile, (r0, c0), f, (th, tw)), s, record, ledger=None,
+            win = np.ascontiguousarray(comp[r0:r0 + th, c0:c0 + tw]).astype(np.int16)
+            res = process_window(Subimage(win, (r0, c0), f, (th, tw)), s, record, ledger=None,
                                  max_candidates=1000, want_stages=False)
             w = res.backend.feature_words
             if not len(w):
