@@ -164,7 +164,7 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     gate = None
     if gate_sigma:
         noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
-        noise = max(noise, 0.5)                 # a noiseless frame: half a count
+        noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
         record = peak_gate_record(record, noise, gate_sigma)
         gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
                 "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
@@ -231,14 +231,30 @@ def _table(entry) -> str:
     return "\n".join(lines)
 
 
+def _finite(o):
+    """JSON-safe copy: non-finite floats -> None, NumPy scalars -> Python numbers."""
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return o
+
+
 def _write_json(path, entries):
+    """Write the JSON whole or not at all (a temporary file renamed into place)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(path.name + ".part")
-    with open(tmp, "w") as fh:
-        json.dump({"images": entries}, fh, indent=1, allow_nan=False,
-                  default=lambda o: None if isinstance(o, float) and not math.isfinite(o) else o)
-    os.replace(tmp, path)
+    try:
+        with open(tmp, "w") as fh:
+            json.dump({"images": _finite(entries)}, fh, indent=1, allow_nan=False)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
 
 
 # ------------------------------------------------------------------------------------------------
