@@ -254,3 +254,54 @@ def test_no_scale_and_errors(tmp_path, capsys):
     assert "neither a shipped sequence" in capsys.readouterr().err
     with pytest.raises(SystemExit):                       # mutually exclusive
         main(["detect", str(tmp_path / "f.npy"), "--no-scale", "--scale-to-12bit"])
+
+
+# ------------------------------------------------------------------------------------------------
+# the pieces: tiles, merging, the star gate
+# ------------------------------------------------------------------------------------------------
+def test_tile_starts_cover_the_axis():
+    from hil_harness.fullframe import tile_starts
+    assert tile_starts(100, 128, 32) == [0]
+    assert tile_starts(256, 64, 16) == list(range(0, 193, 16))
+    assert tile_starts(200, 64, 16) == [0, 16, 32, 48, 64, 80, 96, 112, 128, 136]
+    for n in (65, 100, 257, 1000):
+        s = tile_starts(n, 64, 16)
+        covered = np.zeros(n, bool)
+        for a in s:
+            covered[a:a + 64] = True
+        assert covered.all() and s[-1] + 64 == n and all(b - a <= 16 for a, b in zip(s, s[1:]))
+
+
+def test_merge_keeps_the_largest_and_drops_what_lies_inside_it():
+    from flightsw.ip.features import FEATURE_DTYPE
+    from hil_harness.fullframe import merge_duplicates
+    f = np.zeros(6, FEATURE_DTYPE)
+    # 0: a trail along +col (semi-axes 80 x 2), 1: a piece of it cut by a window edge, 2: the same
+    # star seen by two windows (3 and 4, 0.3 px apart), 5: a star 10 px off the trail's axis
+    rows = [100.0, 100.5, 30.0, 30.2, 30.1, 110.0]
+    cols = [200.0, 250.0, 40.0, 40.3, 40.0, 230.0]
+    size = [300, 120, 9, 7, 9, 8]
+    semi = [(80.0, 2.0), (35.0, 1.5), (1.5, 1.2), (1.4, 1.1), (1.5, 1.2), (1.5, 1.3)]
+    for i in range(6):
+        f[i]["row"], f[i]["col"], f[i]["size"] = rows[i], cols[i], size[i]
+        f[i]["semimajor"], f[i]["semiminor"] = semi[i]
+    margin = np.array([30.0, 5.0, 20.0, 3.0, 25.0, 30.0])
+    kept = merge_duplicates(f, margin)
+    assert sorted(kept.tolist()) == [0, 4, 5]           # size 9 tie at the star: margin 25 wins
+
+
+def test_star_gate_cuts_at_the_stated_peak_and_ranks_brightest_first():
+    from flightsw.ip.features import FEATURE_DTYPE, struct_to_words
+    from flightsw.ip.rank import rank_words
+    from flightsw.records import load_record
+    from hil_harness.detect_jobs import GATE_SIGMA, peak_gate_record
+    rec = peak_gate_record(load_record("star"), noise_counts=8.0)
+    cut = GATE_SIGMA * 8.0
+    assert rec.n_weighted == 1 and rec.name == "star"
+    peaks = np.array([cut * 0.98, cut * 1.02, 4000.0, 100.0, cut * 0.5, 600.0])
+    f = np.zeros(len(peaks), FEATURE_DTYPE)
+    f["max_brightness"] = peaks
+    f["size"], f["semimajor"], f["semiminor"], f["sigma_ratio"] = 9.0, 1.5, 1.3, 0.9
+    rk = rank_words(struct_to_words(f), rec, (100.0, 100.0), max_candidates=23)
+    assert peaks[rk.order].tolist() == [4000.0, 600.0, 100.0, cut * 1.02]
+    assert np.all(np.diff(rk.gof) <= 0) and rk.gof[-1] >= 0.5
