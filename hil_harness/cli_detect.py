@@ -17,22 +17,8 @@ image the candidates with full-resolution centroids (0-based ``[row, col]``, pix
 
 Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
 missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
-still given.
-
-Jobs (``--record``; the sequence follows unless ``--sequence`` is given):
-
-* ``star`` (default): point sources -- stars, distant satellites, any unresolved spot. Sequence
-  ``star`` (compaction 1, high-pass detrend, 5x5 smoothing, threshold 3 sigma, clipped). Ranked
-  by a significance gate: a candidate's peak in the smoothed image must be at least 4.5 pixel-noise
-  sigmas (the noise measured on the frame), brightest first.
-* ``streak``: satellite or meteor trails (100 px and longer). Sequence ``streak`` (compaction 4):
-  one candidate per trail, with its orientation.
-* ``aurora``: extended UV glow, arcs and surges. Sequence ``aurora`` (compaction 2, no detrend).
-
-Modes: ``--window full`` (default) processes the whole compacted image as one window when it has at
-most 128 x 128 pixels, else as 128 x 128 windows every 32 pixels, each by the flight code unchanged,
-duplicates merged across windows (:mod:`hil_harness.fullframe`); ``--window 64`` is the flight
-window about the image centre.
+still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect_jobs`) and the full-frame
+tiling (:mod:`hil_harness.fullframe`) are described in :data:`HELP_TEXT`, the ``--help`` text.
 """
 from __future__ import annotations
 

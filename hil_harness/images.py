@@ -29,7 +29,7 @@ __all__ = ["InputFrame", "ImageError", "read_images", "to_counts", "frame_flags"
 
 #: robust map: the sky background goes to this level (12-bit counts)
 SKY_COUNTS = 200.0
-#: robust map: the sky noise (1.4826 MAD) becomes this many counts, unless that clips more than
+#: robust map: the pixel noise (noise_sigma) becomes this many counts, unless that clips more than
 #: the brightest (100 - HEADROOM_PERCENTILE) % of the pixels
 NOISE_COUNTS = 8.0
 #: ... and never fewer than this many counts per noise sigma (the sky noise stays measurable)
@@ -293,9 +293,8 @@ def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
        * Gain: ``NOISE_COUNTS / noise`` (8 counts per noise sigma). When the frame's maximum would
          still fit under 4095 with a larger gain, that gain is used (a low-contrast frame keeps all
          its range); when the brightest 0.5 % of the pixels (``HEADROOM_PERCENTILE``, 99.5) would
-         clip, the gain is lowered until they fit (an extended bright scene; a few saturated
-         stars may clip), but never below
-         ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma).
+         clip, the gain is lowered until they fit (an extended bright scene; a few saturated stars
+         may clip), but never below ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma).
 
        Rounded and clipped to 0..4095; non-finite pixels become the sky level. A frame with no
        finite pixel gives zeros; a constant frame maps to the sky level (gain 1).
