@@ -1,65 +1,92 @@
 """``uvisi detect``: the flight image processor on real image files.
 
-``uvisi detect IMAGE... [--record NAME|FILE] [--compaction N] [--sequence FILE] [--window full|64]
-[--scale-to-12bit] [--max-candidates K] --json OUT [--plot PNG]``
+``uvisi detect IMAGE... [--record NAME|FILE] [--sequence NAME|FILE] [--compaction N]
+[--window full|64] [--no-scale] [--max-candidates K] [--json OUT] [--plot PNG]``
 
-Reads FITS (astropy), TIFF (tifffile), PNG/JPEG (pillow) and NPY/NPZ (one frame or a stack
-``[n, H, W]``; in an ``.npz`` the key ``img`` if present, else every array), runs the flight IP
-(``flightsw.ip``: compaction, the sequence's front end, blob colouring, the 12 features, ranking
-against the a priori record) and writes per image the candidates with full-resolution centroids
-(0-based ``[row, col]``, pixel centres at +0.5), distance, GOF and the 12 normalised features::
+Reads FITS, TIFF, PNG/JPEG, NPY/NPZ (every plane of a cube, in order: :mod:`hil_harness.images`),
+turns each frame into the flight's 12-bit counts (:func:`hil_harness.images.to_counts`: counts pass
+unchanged, wide integers with zero low bits are shifted, anything else is mapped from its sky level
+and noise -- not stretched to its maximum), flags bad frames, runs the flight IP (compaction, the
+sequence's front end, blob colouring, the 12 features, ranking against the record) and reports per
+image the candidates with full-resolution centroids (0-based ``[row, col]``, pixel centres at
++0.5)::
 
-    {"images": [{"path", "frame", "shape", "compaction", "mode", "windows", "record",
+    {"images": [{"path", "time_utc", "shape", "flags", "scale", "compaction", "mode", "windows",
+                 "record", "sequence", "gate",
                  "candidates": [{"rank", "row", "col", "distance", "gof", "features": {...}}]}]}
 
-Pixels must be 12-bit counts (integers 0..4095). ``--scale-to-12bit`` makes them so: float data is
-scaled linearly so that its maximum is 4095 (NaN -> 0), integer data above 4095 is shifted right by
-the fewest bits that fit (a 12-bit reading stored shifted left by 4, like the tetra3 TIFFs, comes
-back exactly).
-
-Modes (said in the output's ``mode``):
-
-* ``--window 64``: the flight window, 64 x 64 compacted pixels about the image centre (the IP with
-  no TP prediction);
-* ``--window full`` (default): the whole compacted image. When it has at most 128 x 128 pixels
-  (the threshold's statistics limit) it is processed as one large window; otherwise it is tiled into
-  128 x 128 windows overlapping by 16 pixels, each processed as the flight code processes a window
-  (its own adaptive threshold), each blob kept by the tile whose centre is nearest its centroid,
-  and all blobs ranked together against the record with the centroid means at the image centre.
-
-Default sequence (no ``--sequence``): the shipped ``aurora`` sequence for an aurora record, else a
-point-source sequence (high-pass detrend, 3x3 matched filter, threshold at 4 sigma, clipped).
+Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
+missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
+still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect_jobs`) and the full-frame
+tiling (:mod:`hil_harness.fullframe`) are described in :data:`HELP_TEXT`, the ``--help`` text.
 """
 from __future__ import annotations
 
 import json
 import math
+import os
+import sys
 from pathlib import Path
 
 import numpy as np
 
-TILE = 128
-OVERLAP = 16
+from hil_harness.images import ImageError, frame_flags, read_images, to_counts
+
+__all__ = ["register", "run", "detect_one", "read_frames", "to_12bit", "HELP_TEXT"]
+
+HELP_TEXT = """\
+Run the flight image processor on image files. Every plane of every file (FITS, TIFF, PNG/JPEG,
+NPY/NPZ) becomes 12-bit counts: counts pass unchanged, wide integers whose low bits are always zero
+are shifted (a 12-bit reading stored << 4), anything else is mapped linearly from its sky level and
+pixel noise (sky -> 200 counts, noise -> 8 counts or more; never the maximum stretch). The mapping
+is in the JSON as "scale". Bad frames (blank, constant, nan, saturated, missing) are flagged in the
+JSON ("flags") and on stderr; the IP's answer for them is still given.
+
+Jobs (--record; the job's sequence follows unless --sequence is given):
+  star     (default) point sources: stars, distant satellites, any unresolved spot. Sequence
+           'star': compaction 1, high-pass detrend, 5x5 smoothing, clipped threshold at 3 sigma.
+           Candidates pass a significance gate (peak in the smoothed image >= 4.5 pixel-noise
+           sigmas, the noise measured on the frame) and come brightest first.
+  streak   satellite or meteor trails 100 px and longer. Sequence 'streak': compaction 4, one
+           candidate per trail with its orientation (degrees from +column toward +row).
+  aurora   extended UV glow, auroral arcs and surges. Sequence 'aurora': compaction 2, no
+           detrend, clipped threshold at 1.5 sigma.
+
+Modes: --window full (default) processes the whole compacted image as one window when it fits in
+one tile, else as overlapping flight windows (tiles of 64 x 64 compacted pixels every 16 for point
+sources, so that a bright star does not raise the threshold over faint ones beside it; 128 x 128
+every 32 for the streak and aurora sequences, so that one trail or arc stays in one window), each
+through the flight code unchanged, with duplicates merged across windows; --window 64 is the
+flight window about the image centre (no track prediction).
+"""
 
 
 def register(sub) -> None:
+    from hil_harness.detect_jobs import JOBS
+    jobs = "; ".join(f"{k}: {v[2]}" for k, v in JOBS.items())
+    import argparse
     p = sub.add_parser("detect", help="run the flight image processor on image files",
-                       description=__doc__.split("\n\n")[1])
-    p.add_argument("images", nargs="+", help="FITS, TIFF, PNG, NPY or NPZ files")
+                       description=HELP_TEXT, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("images", nargs="+", help="FITS, TIFF, PNG/JPEG, NPY or NPZ files (cubes: "
+                                             "every plane)")
     p.add_argument("--record", default="star",
-                   help="a priori record: shipped name (aurora, star, satellite, plume) or a .toml "
-                        "file (default: star)")
+                   help=f"a priori record: shipped name or a .toml file (default: star). Jobs -- "
+                        f"{jobs}")
+    p.add_argument("--sequence", default=None,
+                   help="processing sequence: shipped name (star, streak, aurora, satellite, "
+                        "satellite_c2) or a .toml file (default: the record's job sequence)")
     p.add_argument("--compaction", type=int, default=None, choices=(1, 2, 4),
                    help="compaction factor (default: the sequence's)")
-    p.add_argument("--sequence", default=None,
-                   help="processing sequence TOML (default: shipped 'satellite' sequence)")
     p.add_argument("--window", default="full", choices=("full", "64"),
                    help="full-frame mode or the 64x64 flight window (default: full)")
-    p.add_argument("--scale-to-12bit", action="store_true",
-                   help="scale floats / shift wide integers to 12-bit counts")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--scale-to-12bit", action="store_true",
+                   help="map the pixels to 12-bit counts (the default; kept for old scripts)")
+    g.add_argument("--no-scale", action="store_true",
+                   help="insist that the pixels already are 12-bit counts (integers 0..4095)")
     p.add_argument("--max-candidates", type=int, default=23,
-                   help="candidates reported per image (default 23, the flight limit)")
-    p.add_argument("--json", required=True, help="output JSON file")
+                   help="candidates reported per image, 1..1000 (default 23, the flight limit)")
+    p.add_argument("--json", default=None, help="output JSON file (default: a table on stdout)")
     p.add_argument("--plot", default=None,
                    help="PNG with candidates marked and numbered by rank (one per image: "
                         "_<i> is added when there are several)")
@@ -67,63 +94,18 @@ def register(sub) -> None:
 
 
 # ------------------------------------------------------------------------------------------------
-# reading
+# kept for callers of the old interface
 # ------------------------------------------------------------------------------------------------
 def read_frames(path) -> list:
-    """``[(label, 2-D array)]`` from one image file."""
-    p = Path(path)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such file")
-    suf = p.suffix.lower()
-    if suf in (".fits", ".fit", ".fts") or p.name.lower().endswith(".fits.gz"):
-        from astropy.io import fits
-        with fits.open(p) as hdul:
-            arrays = [(f"hdu{i}", np.asarray(h.data)) for i, h in enumerate(hdul)
-                      if h.data is not None and np.asarray(h.data).ndim >= 2]
-        if not arrays:
-            raise ValueError(f"{p}: no image HDU")
-        out = []
-        for name, a in arrays[:1]:
-            out += _split(a, str(p))
-        return out
-    if suf in (".tif", ".tiff"):
-        import tifffile
-        return _split(np.asarray(tifffile.imread(p)), str(p))
-    if suf in (".png", ".jpg", ".jpeg", ".bmp", ".gif"):
-        from PIL import Image
-        with Image.open(p) as im:
-            if im.mode not in ("L", "I", "I;16", "I;16B", "F"):
-                im = im.convert("L")
-            return _split(np.asarray(im), str(p))
-    if suf == ".npy":
-        return _split(np.load(p, allow_pickle=False), str(p))
-    if suf == ".npz":
-        with np.load(p, allow_pickle=False) as z:
-            keys = ["img"] if "img" in z.files else list(z.files)
-            out = []
-            for k in keys:
-                a = np.asarray(z[k])
-                if a.ndim in (2, 3) and np.issubdtype(a.dtype, np.number):
-                    out += _split(a, f"{p}[{k}]")
-        if not out:
-            raise ValueError(f"{p}: no 2-D or 3-D numeric array")
-        return out
-    raise ValueError(f"{p}: unsupported format {suf!r} (FITS, TIFF, PNG, NPY, NPZ)")
-
-
-def _split(a, label):
-    a = np.asarray(a)
-    if a.ndim == 2:
-        return [(label, a)]
-    if a.ndim == 3 and a.shape[-1] in (3, 4) and a.shape[0] > 4:      # colour image: luminance
-        return [(label, a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114]))]
-    if a.ndim == 3:
-        return [(f"{label}[{i}]", a[i]) for i in range(a.shape[0])]
-    raise ValueError(f"{label}: expected a 2-D image or a [n, H, W] stack, got shape {a.shape}")
+    """``[(name, 2-D array)]`` of one file (:func:`hil_harness.images.read_images`)."""
+    return [(f.name, f.data) for f in read_images([path])]
 
 
 def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
-    """12-bit counts (uint16) from an image; see the module docstring."""
+    """The old maximum-stretch conversion, unchanged for the tuning code that still calls it:
+    integers above 4095 are shifted right by the fewest bits that fit, floats scaled so that their
+    maximum is 4095 (NaN -> 0). ``uvisi detect`` itself uses
+    :func:`hil_harness.images.to_counts`."""
     a = np.asarray(a)
     if np.issubdtype(a.dtype, np.bool_):
         a = a.astype(np.uint16)
@@ -137,8 +119,7 @@ def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
             if not scale:
                 raise ValueError(f"{label}: values up to {mx} are not 12-bit counts "
                                  f"(use --scale-to-12bit)")
-            k = max(0, mx.bit_length() - 12)
-            a = a.astype(np.int64) >> k
+            a = a.astype(np.int64) >> max(0, mx.bit_length() - 12)
         return a.astype(np.uint16)
     if np.issubdtype(a.dtype, np.floating):
         if not scale:
@@ -151,116 +132,41 @@ def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------------------------
-# processing
+# one image
 # ------------------------------------------------------------------------------------------------
-#: default sequence for point sources (no --sequence, record other than aurora): the shipped
-#: satellite sequence's high-pass detrend and matched filter, but a *clipped* threshold so that the
-#: brightness features see the filtered intensities
-POINT_SOURCE_SEQUENCE = {
-    "name": "detect_point", "description": "high-pass detrend, 3x3 matched filter, clip at 4 sigma",
-    "preprocess": {"compaction": 1, "window": 64},
-    "steps": [{"op": "detrend", "method": "highpass", "sigma": 1.5},
-              {"op": "filter", "kernel": "matched", "size": 3, "sigma": 1.0},
-              {"op": "threshold", "alpha": 4.0, "mode": "clip"}],
-}
+def detect_one(img12, seq, record, compaction, window_mode="full", max_candidates=23,
+               gate_sigma=None, tile=None) -> dict:
+    """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
+    ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
+    ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
+    job's peak gate (:func:`hil_harness.detect_jobs.peak_gate_record`) at this many sigmas of the
+    processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
+    :func:`hil_harness.detect_jobs.tile_for`)."""
+    from flightsw.ip.preprocess import compact
+    from flightsw.messages import FEATURE_NAMES
+    from hil_harness.detect_jobs import peak_gate_record, tile_for
+    from hil_harness.fullframe import detect_frame
+    from hil_harness.images import noise_sigma
+    gate = None
+    if gate_sigma:
+        noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
+        noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+        record = peak_gate_record(record, noise, gate_sigma)
+        gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
+                "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
+    out = detect_frame(img12, seq, record, compaction, window_mode, max_candidates,
+                       tile_for(seq) if tile is None else tile)
+    cands = []
+    for i, ft in enumerate(out["feats"]):
+        cands.append({"rank": i + 1, "row": float(ft["row"]), "col": float(ft["col"]),
+                      "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
+                      "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
+    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
 
 
-def _sequence(args, record):
-    from flightsw.ip.sequence import ProcessingSequence, load_default_sequence
-    if args.sequence:
-        return ProcessingSequence.from_toml(Path(args.sequence))
-    if record.object_type == "aurora":
-        return load_default_sequence("aurora")
-    return ProcessingSequence.from_dict(POINT_SOURCE_SEQUENCE)
-
-
-def _with_window(seq, compaction, window, shape):
-    from flightsw.ip.sequence import ProcessingSequence, Preprocess
-    steps = [dict(s.raw) for s in seq.steps]
-    pre = Preprocess(compaction, window, frame_shape=tuple(shape))
-    return ProcessingSequence(steps, pre, seq.name, seq.description)
-
-
-def detect_image(img12, seq, record, compaction, window_mode, max_candidates=23):
-    """Run the flight IP on one 12-bit image -> dict (the JSON entry without path/frame)."""
-    from flightsw.ip.features import words_to_struct
-    from flightsw.ip.frame import process_window
-    from flightsw.ip.preprocess import Subimage, compact
-    from flightsw.ip.rank import rank_words
-    f = compaction
-    H, W = img12.shape
-    ch, cw = H // f, W // f
-    if ch < 8 or cw < 8:
-        raise ValueError(f"image {H}x{W} is too small for compaction {f}")
-    if window_mode == "64":
-        size = 64
-        if size > ch and size > cw:
-            size = max(ch, cw)
-        s = _with_window(seq, f, size, (H, W))
-        res = process_window(s.window(img12, None), s, record, ledger=None,
-                             max_candidates=max_candidates, want_stages=False)
-        sub = res.subimage
-        mode = (f"flight window: {sub.size[0]}x{sub.size[1]} compacted pixels at "
-                f"({sub.origin[0]}, {sub.origin[1]}) (compacted), compaction {f}")
-        feats = words_to_struct(res.backend.feature_words[res.backend.order])
-        dist = res.message.candidates["distance"]
-        gof = res.message.candidates["gof"]
-        return dict(mode=mode, windows=1, feats=feats, distance=dist, gof=gof,
-                    cycles=res.ledger.as_dict())
-    comp = compact(img12, f)
-    if ch <= TILE and cw <= TILE:
-        s = _with_window(seq, f, max(ch, cw), (H, W))
-        res = process_window(s.window(img12, None), s, record, ledger=None,
-                             max_candidates=max_candidates, want_stages=False)
-        feats = words_to_struct(res.backend.feature_words[res.backend.order])
-        return dict(mode=f"full frame: one {ch}x{cw} window (compaction {f})", windows=1,
-                    feats=feats, distance=res.message.candidates["distance"],
-                    gof=res.message.candidates["gof"], cycles=res.ledger.as_dict())
-    # ---- tiled full frame ----
-    s = _with_window(seq, f, TILE, (H, W))
-    step = TILE - OVERLAP
-    rows = list(range(0, max(ch - TILE, 0) + 1, step))
-    cols = list(range(0, max(cw - TILE, 0) + 1, step))
-    if rows[-1] + TILE < ch:
-        rows.append(ch - TILE)
-    if cols[-1] + TILE < cw:
-        cols.append(cw - TILE)
-    th, tw = min(TILE, ch), min(TILE, cw)
-    kept = []
-
-    def core(starts, size, n):
-        """[lo, hi) per tile: boundaries half way between neighbouring tile centres."""
-        mids = [(a + b + size) / 2.0 for a, b in zip(starts[:-1], starts[1:])]
-        lo = [-math.inf] + mids
-        hi = mids + [math.inf]
-        return dict(zip(starts, zip(lo, hi)))
-
-    rcore, ccore = core(rows, th, ch), core(cols, tw, cw)
-    for r0 in rows:
-        for c0 in cols:
-            tile = np.ascontiguousarray(comp[r0:r0 + th, c0:c0 + tw]).astype(np.int16)
-            sub = Subimage(tile, (r0, c0), f, (th, tw))
-            res = process_window(sub, s, record, ledger=None, max_candidates=1000,
-                                 want_stages=False)
-            words = res.backend.feature_words
-            if not len(words):
-                continue
-            st = words_to_struct(words)
-            rr, cc = st["row"] / f, st["col"] / f            # compacted coordinates
-            (lo_r, hi_r), (lo_c, hi_c) = rcore[r0], ccore[c0]
-            inside = (rr >= lo_r) & (rr < hi_r) & (cc >= lo_c) & (cc < hi_c)
-            kept.append(words[inside])
-    words = np.concatenate(kept) if kept else np.zeros((0, 12), np.int64)
-    centre = (H / 2.0, W / 2.0)
-    rk = rank_words(words, record, centre, None, max_candidates=max(1, min(max_candidates, 1000)))
-    feats = words_to_struct(words[rk.order]) if len(words) else words_to_struct(words)
-    return dict(mode=(f"full frame tiled: {len(rows) * len(cols)} windows of {th}x{tw} compacted "
-                      f"pixels overlapping by {OVERLAP} (compaction {f}), ranked together with the "
-                      f"centroid means at the image centre"),
-                windows=len(rows) * len(cols), feats=feats, distance=rk.distance[rk.order],
-                gof=rk.gof, cycles=None)
-
-
+# ------------------------------------------------------------------------------------------------
+# output
+# ------------------------------------------------------------------------------------------------
 def _plot(path, img, cands, title):
     import matplotlib
     matplotlib.use("Agg")
@@ -285,38 +191,111 @@ def _plot(path, img, cands, title):
     plt.close(fig)
 
 
-def run(args) -> int:
-    from flightsw.messages import FEATURE_NAMES
+def _scale_text(m: dict) -> str:
+    if m["method"] == "shift":
+        return f"shift >> {m['shift']}"
+    if m["method"] == "robust" and m.get("noise") is not None:
+        return f"robust: gain {m['gain']:.4g}, noise {m['noise_counts']:.1f} counts"
+    return m["method"]
+
+
+def _table(entry) -> str:
+    """A readable block for one image (stdout when there is no --json)."""
+    flags = ", ".join(entry["flags"]) or "-"
+    lines = [f"{entry['path']}: {entry['shape'][0]}x{entry['shape'][1]}, scale "
+             f"{_scale_text(entry['scale'])}, flags {flags}, record {entry['record']}, sequence "
+             f"{entry['sequence']}, {len(entry['candidates'])} candidates",
+             f"  {entry['mode']}"]
+    if entry["candidates"]:
+        lines.append(f"  {'rank':>4} {'row':>9} {'col':>9} {'gof':>8} {'size':>7} "
+                     f"{'peak':>7} {'orient':>7}")
+        for c in entry["candidates"]:
+            f = c["features"]
+            lines.append(f"  {c['rank']:>4} {c['row']:>9.2f} {c['col']:>9.2f} {c['gof']:>8.4f} "
+                         f"{f['size']:>7.0f} {f['max_brightness']:>7.0f} "
+                         f"{f['orientation']:>7.1f}")
+    return "\n".join(lines)
+
+
+def _finite(o):
+    """JSON-safe copy: non-finite floats -> None, NumPy scalars -> Python numbers."""
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return o
+
+
+def _write_json(path, entries):
+    """Write the JSON whole or not at all (a temporary file renamed into place)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        with open(tmp, "w") as fh:
+            json.dump({"images": _finite(entries)}, fh, indent=1, allow_nan=False)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+# ------------------------------------------------------------------------------------------------
+# the command
+# ------------------------------------------------------------------------------------------------
+def _setup(args):
     from flightsw.records import load_record
+    from hil_harness.detect_jobs import default_sequence_name, resolve_sequence
     record = load_record(args.record)
-    seq = _sequence(args, record)
+    seq = resolve_sequence(args.sequence or default_sequence_name(record))
     f = args.compaction if args.compaction is not None else seq.preprocess.compaction
     if not 1 <= args.max_candidates <= 1000:
         raise ValueError("--max-candidates must be in 1..1000")
+    gate = None
+    if record.name == "star" and args.record == "star":
+        from hil_harness.detect_jobs import GATE_SIGMA
+        gate = GATE_SIGMA
+    return record, seq, f, gate
+
+
+def run(args) -> int:
+    from tqdm import tqdm
+    record, seq, f, gate = _setup(args)
+    frames = read_images(args.images)
     entries, plots = [], []
-    for path in args.images:
-        for label, a in read_frames(path):
-            img = to_12bit(a, args.scale_to_12bit, label)
-            out = detect_image(img, seq, record, f, args.window, args.max_candidates)
-            cands = []
-            for i, ft in enumerate(out["feats"]):
-                cands.append({"rank": i + 1, "row": float(ft["row"]), "col": float(ft["col"]),
-                              "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
-                              "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
-            entries.append({"path": label, "shape": list(img.shape), "compaction": f,
-                            "mode": out["mode"], "windows": out["windows"],
-                            "record": record.name, "sequence": seq.name,
-                            "candidates": cands})
-            plots.append((img, cands, f"{Path(label).name}: {len(cands)} candidates, record "
-                                      f"{record.name}"))
-            top = cands[0] if cands else None
-            print(f"{label}: {img.shape[0]}x{img.shape[1]}, {out['mode']}; {len(cands)} candidates"
-                  + (f", best at row {top['row']:.2f} col {top['col']:.2f} (GOF {top['gof']:.3g})"
-                     if top else ""))
-    Path(args.json).parent.mkdir(parents=True, exist_ok=True)
-    with open(args.json, "w") as fh:
-        json.dump({"images": entries}, fh, indent=1, allow_nan=False,
-                  default=lambda o: None if isinstance(o, float) and not math.isfinite(o) else o)
+    bar = tqdm(frames, desc="detect", unit="frame", file=sys.stderr,
+               disable=len(frames) < 4 or None)
+    for fr in bar:
+        flags = frame_flags(fr.data)
+        try:
+            img, scale = to_counts(fr.data, no_scale=args.no_scale)
+        except ImageError as exc:
+            raise ImageError(f"{fr.name}: {exc}") from None
+        if flags:
+            tqdm.write(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
+                       f"answer is still given)", file=sys.stderr)
+        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate)
+        entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
+                 "flags": flags, "scale": scale, "compaction": f, "mode": out["mode"],
+                 "windows": out["windows"], "record": record.name, "sequence": seq.name,
+                 "gate": out["gate"], "candidates": out["candidates"]}
+        entries.append(entry)
+        plots.append((img, entry["candidates"], f"{Path(fr.name).name}: "
+                      f"{len(entry['candidates'])} candidates, record {record.name}"
+                      + (f" [{', '.join(flags)}]" if flags else "")))
+    if args.json:
+        _write_json(args.json, entries)
+        for e in entries:
+            top = e["candidates"][0] if e["candidates"] else None
+            print(f"{e['path']}: {e['shape'][0]}x{e['shape'][1]}, {len(e['candidates'])} "
+                  f"candidates" + (f", best at row {top['row']:.2f} col {top['col']:.2f}"
+                                   if top else "") + (f" [{', '.join(e['flags'])}]"
+                                                      if e["flags"] else ""))
+    else:
+        print("\n\n".join(_table(e) for e in entries))
     if args.plot:
         base = Path(args.plot)
         base.parent.mkdir(parents=True, exist_ok=True)

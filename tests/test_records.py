@@ -19,8 +19,8 @@ TABLE1 = {  # the MSX paper's Table 1: mean, sigma, weight, lower, upper
 
 def test_shipped_records_and_table1_verbatim():
     recs = shipped_records()
-    assert set(recs) == {"aurora", "star", "satellite", "plume"}
-    assert len({r.record_id for r in recs.values()}) == 4
+    assert set(recs) == {"aurora", "star", "satellite", "plume", "streak"}
+    assert len({r.record_id for r in recs.values()}) == 5
     a = recs["aurora"]
     for i, name in enumerate(FEATURE_NAMES):
         got = (a.mean[i], a.sigma[i], a.weight[i], a.lower[i], a.upper[i])
@@ -28,7 +28,7 @@ def test_shipped_records_and_table1_verbatim():
     assert a.n_weighted == 10 and a.object_type == "aurora"
 
 
-@pytest.mark.parametrize("name", ["aurora", "star", "satellite", "plume"])
+@pytest.mark.parametrize("name", ["aurora", "star", "satellite", "plume", "streak"])
 def test_toml_words_round_trip_exact(name):
     rec = load_record(name)
     words = rec.to_words()
