@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from flightsw.messages import FEATURE_NAMES, crc16_ccitt
-from flightsw.records import (RECORD_WORDS, Record, RecordStore, load_record, shipped_records)
+from flightsw.records import (RECORD_WORDS, Record, RecordError, RecordStore, load_record,
+                              shipped_records)
 
 TABLE1 = {  # the MSX paper's Table 1: mean, sigma, weight, lower, upper
     "size": (600.0, 100.0, 1.0, 100.0, 1000.0), "col": (127.0, 5.0, 1.5, 85.0, 175.0),
@@ -131,5 +132,7 @@ def test_load_record_file(tmp_path):
     assert r.name == "mine" and r.record_id == 40
     with pytest.raises(ValueError, match="not a shipped record"):
         load_record("nonesuch")
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(RecordError, match="no such record file"):
         load_record(str(tmp_path / "missing.toml"))
+    with pytest.raises(RecordError, match="cannot read"):
+        load_record(str(tmp_path))                      # a directory
