@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean
+.PHONY: test demo bench install clean fuzz
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -16,6 +16,12 @@ install: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# the decoders and TOML loaders fuzzed at full size: 10,000 streams / texts per decoder and loader,
+# 1,000 hypothesis examples per property (make test runs 300 and 40-150)
+fuzz: $(STAMP)
+	UVISI_FUZZ_CASES=10000 $(BIN)/python -m pytest -q -p no:cacheprovider \
+		tests/test_messages.py tests/test_fuzz_loaders.py
 
 demo: $(STAMP)
 	$(BIN)/uvisi demo

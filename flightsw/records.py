@@ -144,7 +144,7 @@ class Record:
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= 0xFFFF:
                 raise RecordError(f"{who}: {key} = {v!r} must be an int in 0..65535")
-        if self.object_type not in OBJECT_TYPES:
+        if not isinstance(self.object_type, str) or self.object_type not in OBJECT_TYPES:
             raise RecordError(f"{who}: object_type = {self.object_type!r} must be one of "
                              f"{sorted(OBJECT_TYPES)}")
         if self.quantize not in (True, False):

@@ -2,7 +2,8 @@
 standard check value and Python's binascii.crc_hqx, 1750A floats against MIL-STD-1750A's own table,
 round-trip properties (hypothesis) and a mutation fuzz of every decoder.
 
-Fuzz size: ``UVISI_FUZZ_CASES`` streams per decoder (default 300; ``make fuzz`` runs 10,000).
+Fuzz size: ``UVISI_FUZZ_CASES`` streams per decoder (default 300; ``make fuzz`` runs 10,000 and a
+tenth of that in hypothesis examples per property).
 """
 import binascii
 import math
@@ -19,6 +20,7 @@ from flightsw.messages import (CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES, OBJ
 from flightsw.records import Record, RecordError, load_record
 
 FUZZ_CASES = int(os.environ.get("UVISI_FUZZ_CASES", "300"))
+FEW, MORE = max(40, FUZZ_CASES // 10), max(150, FUZZ_CASES // 10)   # hypothesis examples
 
 
 # ------------------------------------------------------------------------------------------------
@@ -322,7 +324,7 @@ def track_commands(draw):
         sigma_pos=float(est[6]), sigma_vel=float(est[7]))
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=FEW, deadline=None)
 @given(candidate_messages())
 def test_candidate_decode_of_encode_is_identity(m):
     w = m.to_words()
@@ -330,7 +332,7 @@ def test_candidate_decode_of_encode_is_identity(m):
     assert CandidateMessage.from_words(w) == m
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=MORE, deadline=None)
 @given(track_commands())
 def test_track_decode_of_encode_is_identity(c):
     w = c.to_words()
@@ -352,14 +354,14 @@ def _accepted_streams_re_encode_exactly(cls, msg, edits, fix_crc):
     return True
 
 
-@settings(max_examples=40, deadline=None)
+@settings(max_examples=FEW, deadline=None)
 @given(candidate_messages(), st.lists(st.tuples(st.integers(0, 700), U16), min_size=1, max_size=3),
        st.booleans())
 def test_candidate_streams_accepted_re_encode_exactly(m, edits, fix_crc):
     _accepted_streams_re_encode_exactly(CandidateMessage, m, edits, fix_crc)
 
 
-@settings(max_examples=150, deadline=None)
+@settings(max_examples=MORE, deadline=None)
 @given(track_commands(), st.lists(st.tuples(st.integers(0, 54), U16), min_size=1, max_size=3),
        st.booleans())
 def test_track_streams_accepted_re_encode_exactly(c, edits, fix_crc):
