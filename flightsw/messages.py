@@ -222,10 +222,15 @@ def _f48_at(w, i):
 # the candidate message codec (one jitted encoder, one jitted checker + filler)
 # ================================================================================================
 @njit(cache=True)
-def _cand_encode_k(head, iv, fv, out, table):
-    """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words, ``iv``/``fv``
+def _cand_encode_k(head, t, alpha, iv, fv, out, table):
+    """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words (3-5 and
+    11-12 are filled here from the time tag ``t`` and ``alpha``, finite float64), ``iv``/``fv``
     int64/float64 views (k, 15) of the candidates. Returns -1 when written, else the candidate
     index of a label outside 0..0xFFFF (``k + i``: of candidate ``i``'s non-finite value)."""
+    p = encode_k(t, 39, True)
+    head[3], head[4], head[5] = (p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF
+    p = encode_k(alpha, 23, True)
+    head[11], head[12] = (p >> 16) & 0xFFFF, p & 0xFFFF
     k = iv.shape[0]
     for i in range(k):
         if iv[i, 0] < 0 or iv[i, 0] > 0xFFFF:
@@ -339,10 +344,11 @@ _TC_FLAG = np.array([0x10] * 4 + [0x02] * 5 + [0x04] * 8, np.int64)
 
 
 @njit(cache=True)
-def _track_encode_k(head, v, out, table):
+def _track_encode_k(head, t, v, out, table):
     """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
-    presence bits), ``v`` float64[17] (:data:`_TC_AT` order). False when a group (q_point; the
-    prediction; the estimate) is partly present (nothing useful written)."""
+    presence bits; words 3-5 are the time tag ``t``, finite, encoded here), ``v`` float64[17]
+    (:data:`_TC_AT` order). False when a group (q_point; the prediction; the estimate) is partly
+    present (nothing useful written)."""
     gp = _group(v, 0, 4)
     gr = _group(v, 4, 9)
     ge = _group(v, 9, 17)
@@ -350,6 +356,8 @@ def _track_encode_k(head, v, out, table):
         return False
     for i in range(13):
         out[i] = head[i]
+    p = encode_k(t, 39, True)
+    out[3], out[4], out[5] = (p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF
     flags = head[8] | (0x02 if gr else 0) | (0x04 if ge else 0) | (0x10 if gp else 0)
     out[8] = flags
     for i in range(17):
@@ -539,22 +547,19 @@ class CandidateMessage:
         if not isinstance(self.imager, str) or self.imager not in IMAGER_CODES:
             raise MessageError(o, None, "imager", f"{self.imager!r} is not one of "
                                f"{sorted(IMAGER_CODES)}")
-        t = encode_k(_real_field(o, "time_tag", self.time_tag), 39, True)
-        a = encode_k(_real_field(o, "alpha", self.alpha), 23, True)
         n = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1
         head = np.array([CANDIDATE_MSG_ID, n, _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
-                         (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF, t & 0xFFFF,
-                         (IMAGER_CODES[self.imager] << 8)
+                         0, 0, 0, (IMAGER_CODES[self.imager] << 8)
                          | _int_field(o, "compaction", self.compaction, 1, 255),
                          _int_field(o, "window_row0", self.window_row0, -32768, 32767) & 0xFFFF,
                          _int_field(o, "window_col0", self.window_col0, -32768, 32767) & 0xFFFF,
                          _int_field(o, "window_rows", self.window_rows, 0, 0xFFFF),
                          _int_field(o, "window_cols", self.window_cols, 0, 0xFFFF),
-                         (a >> 16) & 0xFFFF, a & 0xFFFF,
-                         _int_field(o, "record_id", self.record_id, 0, 0xFFFF), k], np.int64)
+                         0, 0, _int_field(o, "record_id", self.record_id, 0, 0xFFFF), k], np.int64)
         c = np.ascontiguousarray(c)
         out = np.empty(n, np.uint16)
-        bad = _cand_encode_k(head, c.view(np.int64).reshape(k, 15),
+        bad = _cand_encode_k(head, _real_field(o, "time_tag", self.time_tag),
+                             _real_field(o, "alpha", self.alpha), c.view(np.int64).reshape(k, 15),
                              c.view(np.float64).reshape(k, 15), out, _CRC_TABLE)
         if bad >= 0:
             raise MessageError(o, None, f"candidates[{bad % k}]", "label must be 0..65535"
@@ -783,7 +788,7 @@ class TrackCommand:
         return v
 
     def _head(self) -> np.ndarray:
-        """int64[13]: words 0..12 without the presence flags, or MessageError."""
+        """int64[13]: words 0..12 without the presence flags and the time tag, or MessageError."""
         o = "TrackCommand"
         status = _int_field(o, "status", self.status, 0, 0xFFFF)
         if status & ~_TC_STATUS_MASK:
@@ -796,13 +801,11 @@ class TrackCommand:
                 raise MessageError(o, None, name, f"{v!r} is not one of {sorted(codes)}")
         dec = _int_field(o, "decided_frame", self.decided_frame, -1, 0xFFFF)
         obj = _int_field(o, "object_index", self.object_index, -1, 0xFFFF)
-        t = encode_k(_real_field(o, "time_tag", self.time_tag), 39, True)
         flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_DECIDED if dec >= 0 else 0)
                  | _MODES[self.mode] | (_TCF_OBJIDX if obj >= 0 else 0))
         return np.array([TRACK_MSG_ID, TRACK_WORDS,
                          _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
-                         (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF, t & 0xFFFF,
-                         (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
+                         0, 0, 0, (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
                          status, flags, _int_field(o, "n_star_gates", self.n_star_gates, 0, 0xFFFF),
                          _int_field(o, "n_object_gates", self.n_object_gates, 0, 0xFFFF),
                          max(dec, 0), max(obj, 0)], np.int64)
@@ -811,8 +814,9 @@ class TrackCommand:
         """Encode as 55 uint16 words (layout in the class docstring), CRC last. A field the format
         cannot carry, or a group of values partly NaN -> :class:`MessageError`."""
         head = self._head()
+        t = _real_field("TrackCommand", "time_tag", self.time_tag)
         out = np.empty(TRACK_WORDS, np.uint16)
-        if not _track_encode_k(head, self._values(), out, _CRC_TABLE):
+        if not _track_encode_k(head, t, self._values(), out, _CRC_TABLE):
             raise MessageError("TrackCommand", None, "values", "a group of values (q_point; "
                                "prediction + los_eci; the estimate) must be all finite or all NaN")
         return out
