@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean fuzz
+.PHONY: test demo bench install clean fuzz coverage
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,13 @@ test: $(STAMP)
 fuzz: $(STAMP)
 	UVISI_FUZZ_CASES=10000 $(BIN)/python -m pytest -q -p no:cacheprovider \
 		tests/test_messages.py tests/test_fuzz_loaders.py
+
+# branch coverage of the Python-visible code (njit bodies excluded: pyproject [tool.coverage])
+coverage: $(STAMP)
+	$(BIN)/python -m pytest -q -p no:cacheprovider --cov --cov-report=
+	@for p in flightsw hil_harness; do \
+		printf '%s branch coverage: ' $$p; \
+		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
 
 demo: $(STAMP)
 	$(BIN)/uvisi demo

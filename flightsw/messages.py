@@ -9,6 +9,14 @@ Conventions shared by every message (``shared/DESIGN.md``):
   ``x = (col - 128.0) * scale_col`` and ``y = (row - 122.0) * scale_row`` (gnomonic, tangent-plane
   radians per pixel): the paper's measurement unit vector ``(~1, e1, e2)``.
 * Positions in metres, velocities in m/s, angles in radians, times in seconds.
+
+Codecs: each message has one encoder (``to_words``: field checks, then one jitted kernel) and one
+decoder (``from_words``: one jitted kernel checks every rule, a second fills the fields). A decoder
+refuses anything its encoder would not write -- wrong id, length, count or CRC, unknown codes,
+compaction 0, undefined status or flag bits, non-zero reserved or absent words, a 1750A float that
+is not normalised -- with :class:`MessageError` (a ``ValueError``) naming the word and the field, so
+``from_words(w).to_words()`` equals ``w`` for every accepted ``w``. :class:`Feedback` has no words
+of its own: it rides in the track command (flags word 8, words 21-24, object type in word 6).
 """
 from __future__ import annotations
 
@@ -548,7 +556,8 @@ class CandidateMessage:
             raise MessageError(o, None, "imager", f"{self.imager!r} is not one of "
                                f"{sorted(IMAGER_CODES)}")
         n = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1
-        head = np.array([CANDIDATE_MSG_ID, n, _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
+        head = np.array([CANDIDATE_MSG_ID, n,
+                         _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
                          0, 0, 0, (IMAGER_CODES[self.imager] << 8)
                          | _int_field(o, "compaction", self.compaction, 1, 255),
                          _int_field(o, "window_row0", self.window_row0, -32768, 32767) & 0xFFFF,
@@ -570,8 +579,8 @@ class CandidateMessage:
     def from_words(cls, words) -> "CandidateMessage":
         """Decode :meth:`to_words` output. Anything the encoder would not have written (a wrong id,
         length or checksum; an unknown imager; compaction 0; a float that is not a normalised
-        1750A value) -> :class:`MessageError` naming the word and field; ``from_words(w).to_words()``
-        equals ``w`` for every ``w`` accepted."""
+        1750A value) -> :class:`MessageError` naming the word and field;
+        ``from_words(w).to_words()`` equals ``w`` for every ``w`` accepted."""
         o = "candidate message"
         w = _word_array(o, words)
         verdict, i, t, alpha = _cand_check_k(w, _CRC_TABLE, _IMAGER_OK)
@@ -580,15 +589,17 @@ class CandidateMessage:
             if verdict == _BAD_CRC:
                 reason += f": 0x{crc16_ccitt(w[:-1]):04X} computed, 0x{int(w[-1]):04X} received"
             elif verdict == _BAD_LENGTH and len(w) > CANDIDATE_HEADER_WORDS:
+                want = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * int(w[14]) + 1
                 reason += (f": length word {int(w[1])}, count {int(w[14])}, {len(w)} words "
-                           f"(expected {CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * int(w[14]) + 1})")
+                           f"(expected {want})")
             elif verdict == _BAD_RANGE:
                 reason = "compaction 0 (must be 1..255)"
             raise MessageError(o, i, _candidate_field(i, len(w)), reason)
         k = int(w[14])
         cand = np.zeros(k, CANDIDATE_DTYPE)
         if k:
-            _cand_fill_k(w, cand.view(np.int64).reshape(k, 15), cand.view(np.float64).reshape(k, 15))
+            _cand_fill_k(w, cand.view(np.int64).reshape(k, 15),
+                         cand.view(np.float64).reshape(k, 15))
         h = w[:CANDIDATE_HEADER_WORDS].tolist()
         return cls(frame_count=h[2], time_tag=t, imager=_IMAGER_BY_CODE[h[6] >> 8],
                    compaction=h[6] & 0xFF, window_row0=h[7] - ((h[7] & 0x8000) << 1),
@@ -805,7 +816,8 @@ class TrackCommand:
                  | _MODES[self.mode] | (_TCF_OBJIDX if obj >= 0 else 0))
         return np.array([TRACK_MSG_ID, TRACK_WORDS,
                          _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
-                         0, 0, 0, (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
+                         0, 0, 0,
+                         (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
                          status, flags, _int_field(o, "n_star_gates", self.n_star_gates, 0, 0xFFFF),
                          _int_field(o, "n_object_gates", self.n_object_gates, 0, 0xFFFF),
                          max(dec, 0), max(obj, 0)], np.int64)

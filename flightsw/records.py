@@ -75,7 +75,8 @@ _F32_MAX = 0.9999998 * 2.0 ** 127
 
 class RecordError(ValueError):
     """An invalid record (TOML form, uplink words or field values) or an unreadable record file;
-    the message names the file or field. Every loader and decoder of this module raises only this."""
+    the message names the file or field. Every loader and decoder of this module raises only
+    this."""
 
 
 def _q32(where: str, v) -> float:
@@ -155,7 +156,8 @@ class Record:
             try:
                 vals = tuple(vals)
             except TypeError:
-                raise RecordError(f"{who}: {col} must be a sequence of {N_FEATURES} numbers") from None
+                raise RecordError(f"{who}: {col} must be a sequence of {N_FEATURES} "
+                                  f"numbers") from None
             if len(vals) != N_FEATURES:
                 raise RecordError(f"{who}: {col} has {len(vals)} values, expected {N_FEATURES} "
                                  f"(one per feature {FEATURE_NAMES})")
@@ -236,7 +238,8 @@ class Record:
             raise RecordError(f"record words: bad CRC (CRC-16/CCITT 0x{crc:04X} computed, "
                              f"0x{w[-1]:04X} in word {RECORD_WORDS - 1})")
         if w[0] != RECORD_FORMAT_ID:
-            raise RecordError(f"record words: format id 0x{w[0]:04X}, expected 0x{RECORD_FORMAT_ID:04X}")
+            raise RecordError(f"record words: format id 0x{w[0]:04X}, expected "
+                              f"0x{RECORD_FORMAT_ID:04X}")
         if w[1] != RECORD_WORDS:
             raise RecordError(f"record words: length word {w[1]}, expected {RECORD_WORDS}")
         if w[5] != N_FEATURES:
@@ -245,7 +248,8 @@ class Record:
         if code not in _TYPE_BY_CODE:
             raise RecordError(f"record words: object type code {code} unknown")
         if w[4] & 0xFE:
-            raise RecordError(f"record words: flags word 0x{w[4] & 0xFF:02X} has undefined bits set")
+            raise RecordError(f"record words: flags word 0x{w[4] & 0xFF:02X} has undefined bits "
+                              f"set")
 
         def f32(i, where):
             p = (w[i] << 16) | w[i + 1]

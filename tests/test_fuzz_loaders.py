@@ -1,7 +1,7 @@
 """TOML loaders never raise anything but their own error: records (RecordError), processing
-sequences (SequenceError), scenarios (ScenarioError). Mutations of the shipped files (values of every
-TOML type and edge size, deleted and added lines and keys, broken syntax), dicts with values TOML
-cannot hold, and paths that are not readable TOML files.
+sequences (SequenceError), scenarios (ScenarioError). Mutations of the shipped files (values of
+every TOML type and edge size, deleted and added lines and keys, broken syntax), dicts with values
+TOML cannot hold, and paths that are not readable TOML files.
 
 Size: ``UVISI_FUZZ_CASES`` mutated texts per loader (default 300; ``make fuzz`` runs 10,000).
 """

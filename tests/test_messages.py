@@ -16,7 +16,7 @@ from hypothesis import strategies as st
 
 from flightsw.messages import (CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES, OBJECT_TYPE_CODES,
                                TC_STATUS_NAMES, CandidateMessage, MessageError, TrackCommand,
-                               crc16_ccitt)
+                               crc16_ccitt, crc16_ccitt_bytes)
 from flightsw.records import Record, RecordError, load_record
 
 FUZZ_CASES = int(os.environ.get("UVISI_FUZZ_CASES", "300"))
@@ -50,6 +50,7 @@ def words48(mant: int, exp: int) -> list:
 
 def test_crc_check_value_and_stdlib_oracle():
     assert binascii.crc_hqx(b"123456789", 0xFFFF) == 0x29B1          # the catalogue check value
+    assert crc16_ccitt_bytes(b"123456789") == 0x29B1
     assert crc16_ccitt([0x3132, 0x3334, 0x3536, 0x3738]) == crc_oracle([0x3132, 0x3334, 0x3536,
                                                                          0x3738])
     rng = np.random.default_rng(1)
