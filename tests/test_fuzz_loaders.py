@@ -29,7 +29,11 @@ VALUES = ["0", "-1", "1", "2", "3", "4", "7", "64", "128", "65535", "65536",
           "03:20:00", '[1, "a"]', "[0, 0, 0, 0, 0, 0, 0]", "[[]]"]
 LINES = ["zzz = 1", "[extra]", "[[steps]]", 'op = "filter"', 'op = "threshold"', "[feature.size]",
          "[record]", "[scenario]", "[faults]", "[[extra]]", "name = 1", "[preprocess]", "= 1",
-         'a = """', "[feature]", "feature = 1"]
+         'a = """', "[feature]", "feature = 1", 'record = "aurora"', "max_candidates = 5",
+         '[[steps]]\nop = "colour"', '[[steps]]\nop = "features"\nintensity_centroid = false',
+         '[[steps]]\nop = "rank"\nrecord = "aurora"\nmax_candidates = 5',
+         '[[steps]]\nop = "rank"\nrecord = "missing.toml"',
+         '[[steps]]\nop = "filter_fft"\nkernel = "gaussian"\nsize = 15']
 
 
 def mutate_toml(rng, text: str) -> str:
