@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP_RUN := $(VENV)/.uvisi-installed-run
 STAMP     := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean
+.PHONY: test demo bench install clean fuzz coverage
 
 $(STAMP_RUN): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,19 @@ install: $(STAMP)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
+
+# the decoders and TOML loaders fuzzed at full size: 10,000 streams / texts per decoder and loader,
+# 1,000 hypothesis examples per property (make test runs 300 and 40-150)
+fuzz: $(STAMP)
+	UVISI_FUZZ_CASES=10000 $(BIN)/python -m pytest -q -p no:cacheprovider \
+		tests/test_messages.py tests/test_fuzz_loaders.py
+
+# branch coverage of the Python-visible code (njit bodies excluded: pyproject [tool.coverage])
+coverage: $(STAMP)
+	$(BIN)/python -m pytest -q -p no:cacheprovider --cov --cov-report=
+	@for p in flightsw hil_harness; do \
+		printf '%s branch coverage: ' $$p; \
+		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
 
 demo: $(STAMP_RUN)
 	$(BIN)/uvisi demo

@@ -9,6 +9,14 @@ Conventions shared by every message (``shared/DESIGN.md``):
   ``x = (col - 128.0) * scale_col`` and ``y = (row - 122.0) * scale_row`` (gnomonic, tangent-plane
   radians per pixel): the paper's measurement unit vector ``(~1, e1, e2)``.
 * Positions in metres, velocities in m/s, angles in radians, times in seconds.
+
+Codecs: each message has one encoder (``to_words``: field checks, then one jitted kernel) and one
+decoder (``from_words``: one jitted kernel checks every rule, a second fills the fields). A decoder
+refuses anything its encoder would not write -- wrong id, length, count or CRC, unknown codes,
+compaction 0, undefined status or flag bits, non-zero reserved or absent words, a 1750A float that
+is not normalised -- with :class:`MessageError` (a ``ValueError``) naming the word and the field, so
+``from_words(w).to_words()`` equals ``w`` for every accepted ``w``. :class:`Feedback` has no words
+of its own: it rides in the track command (flags word 8, words 21-24, object type in word 6).
 """
 from __future__ import annotations
 
@@ -17,6 +25,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
+
+from flightsw.arith.m1750_float import (decode32_k, decode48_k, encode_k, is_normalized32_k,
+                                        is_normalized48_k)
 
 
 @dataclass
@@ -129,38 +140,112 @@ def crc16_ccitt_bytes(data: bytes) -> int:
     return crc
 
 
-# -- jitted codec kernels (fast paths of the to_words / from_words methods; anything unusual falls
-#    back to the plain implementations, which validate and raise) ----------------------------------
-from flightsw.arith.m1750_float import _dec32_k, _dec48_k, _enc_k, _norm48_k  # noqa: E402
+# ================================================================================================
+# errors and the checks every codec shares
+# ================================================================================================
+class MessageError(ValueError):
+    """A message that cannot be encoded or decoded. ``message`` names the message ("candidate
+    message", "track command"), ``word`` the index of the offending word (None when an encoder
+    refuses a field value) and ``field`` the field; ``str()`` says all three and why."""
+
+    def __init__(self, message, word, field, reason):
+        where = f"{message}: " + (f"word {word} ({field})" if word is not None else str(field))
+        super().__init__(f"{where}: {reason}")
+        self.message, self.word, self.field, self.reason = message, word, field, reason
 
 
-def _is_int_in(v, lo, hi) -> bool:
-    return (not isinstance(v, (bool, np.bool_)) and isinstance(v, (int, np.integer))
-            and lo <= v <= hi)
+def _int_field(owner, name, v, lo, hi):
+    """``v`` as an int in ``lo..hi`` (Python or NumPy integer, not a bool) or MessageError."""
+    if type(v) is int and lo <= v <= hi:
+        return v
+    if isinstance(v, np.integer) and lo <= v <= hi:
+        return int(v)
+    raise MessageError(owner, None, name, f"{v!r} must be an int in {lo}..{hi}")
 
 
-def _require_int_in(name, v, lo, hi) -> None:
-    """ValueError unless ``v`` is an int (not a bool) in ``lo..hi``."""
-    if not _is_int_in(v, lo, hi):
-        raise ValueError(f"{name}={v!r} must be an int in {lo}..{hi}")
+def _real_field(owner, name, v):
+    """``v`` as a finite float (Python or NumPy real, not a bool) or MessageError."""
+    if type(v) is float or (isinstance(v, (float, int, np.floating, np.integer))
+                            and not isinstance(v, (bool, np.bool_))):
+        if math.isfinite(v):
+            return float(v)
+    raise MessageError(owner, None, name, f"{v!r} must be a finite number")
 
 
-_REALS = (float, int, np.floating, np.integer)
+def _word_array(owner, words) -> np.ndarray:
+    """Received words as a 1-D int64 array (values not yet range-checked) or MessageError."""
+    try:
+        w = np.asarray(words)
+    except (ValueError, TypeError, OverflowError) as exc:
+        raise MessageError(owner, None, "words", f"not an array of words ({exc})") from None
+    if w.ndim != 1 or w.dtype.kind not in "iu":
+        raise MessageError(owner, None, "words", f"expected a 1-D integer array, got {w.dtype} "
+                           f"{w.shape}")
+    return w.astype(np.int64)          # uint64 above 2**63 wraps negative: the kernels refuse it
+
+
+def _code_table(codes) -> np.ndarray:
+    """bool[256]: which byte values are codes of ``codes`` (a name -> code dict), for kernels."""
+    t = np.zeros(256, np.bool_)
+    t[list(codes.values())] = True
+    return t
+
+
+_IMAGER_OK = _code_table(IMAGER_CODES)
+
+# verdicts of the decoding kernels (with the word index they concern); 0: well formed
+_BAD_WORD, _BAD_ID, _BAD_LENGTH, _BAD_CRC, _BAD_CODE, _BAD_FLOAT, _NOT_ZERO, _BAD_FLAGS, \
+    _BAD_RANGE, _BAD_COUNT, _BAD_CODE2 = range(1, 12)
+_REASONS = {_BAD_WORD: "not a 16-bit word (0..0xFFFF)", _BAD_ID: "wrong message id",
+            _BAD_LENGTH: "length word, count and words received do not agree",
+            _BAD_CRC: "bad checksum (CRC-16/CCITT over the preceding words)",
+            _BAD_CODE: "unknown imager code (high byte)",
+            _BAD_CODE2: "unknown code (low byte)",
+            _BAD_FLOAT: "not a normalised 1750A float or floating zero",
+            _NOT_ZERO: "reserved or absent value must be zero words",
+            _BAD_FLAGS: "undefined bits set", _BAD_RANGE: "out of range",
+            _BAD_COUNT: f"candidate count above {MAX_CANDIDATES}"}
 
 
 @njit(cache=True)
-def _cand_encode_k(head, iv, fv, out, table):
-    """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words, ``iv``/``fv``
-    int64/float64 views (k, 15) of the candidates. 1: a label out of range, 2: a non-finite value
-    (nothing useful written), 0: done."""
+def _words_ok(w):
+    """Index of the first word outside 0..0xFFFF, -1 if none."""
+    for i in range(w.shape[0]):
+        if w[i] < 0 or w[i] > 0xFFFF:
+            return i
+    return -1
+
+
+@njit(cache=True)
+def _f32_at(w, i):
+    return (w[i] << 16) | w[i + 1]
+
+
+@njit(cache=True)
+def _f48_at(w, i):
+    return (w[i] << 32) | (w[i + 1] << 16) | w[i + 2]
+
+
+# ================================================================================================
+# the candidate message codec (one jitted encoder, one jitted checker + filler)
+# ================================================================================================
+@njit(cache=True)
+def _cand_encode_k(head, t, alpha, iv, fv, out, table):
+    """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words (3-5 and
+    11-12 are filled here from the time tag ``t`` and ``alpha``, finite float64), ``iv``/``fv``
+    int64/float64 views (k, 15) of the candidates. Returns -1 when written, else the candidate
+    index of a label outside 0..0xFFFF (``k + i``: of candidate ``i``'s non-finite value)."""
+    p = encode_k(t, 39, True)
+    head[3], head[4], head[5] = (p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF
+    p = encode_k(alpha, 23, True)
+    head[11], head[12] = (p >> 16) & 0xFFFF, p & 0xFFFF
     k = iv.shape[0]
     for i in range(k):
         if iv[i, 0] < 0 or iv[i, 0] > 0xFFFF:
-            return 1
-    for i in range(k):
+            return i
         for j in range(1, 15):
             if not math.isfinite(fv[i, j]):
-                return 2
+                return k + i
     n = 0
     for i in range(15):
         out[n] = head[i]
@@ -169,46 +254,82 @@ def _cand_encode_k(head, iv, fv, out, table):
         out[n] = iv[i, 0]
         n += 1
         for j in range(1, 15):
-            p = _enc_k(fv[i, j], 23, True)
+            p = encode_k(fv[i, j], 23, True)
             out[n] = (p >> 16) & 0xFFFF
             out[n + 1] = p & 0xFFFF
             n += 2
-    crc = _crc_range(out, n, table)
-    out[n] = crc
-    return 0
+    out[n] = _crc_range(out, n, table)
+    return -1
 
 
 @njit(cache=True)
-def _cand_decode_k(w, table):
-    """Checks of :meth:`CandidateMessage.from_words` on int64 words ``w``: (status, k, time tag,
-    alpha); status 0 when the message is well formed (else the plain decoder reports it)."""
+def _cand_check_k(w, table, imager_ok):
+    """Every rule of the candidate message on int64 words ``w`` -> (verdict, word index, time tag,
+    alpha); verdict 0 when the message is well formed (:data:`_REASONS` otherwise)."""
     n = w.shape[0]
-    for i in range(n):
-        if w[i] < 0 or w[i] > 0xFFFF:
-            return 1, 0, 0.0, 0.0
+    bad = _words_ok(w)
+    if bad >= 0:
+        return _BAD_WORD, bad, 0.0, 0.0
+    if n < 16:
+        return _BAD_LENGTH, 1 if n > 1 else 0, 0.0, 0.0
+    if w[0] != 0x4950:
+        return _BAD_ID, 0, 0.0, 0.0
     k = w[14]
-    if w[0] != 0x4950 or k > 23 or w[1] != 15 + 29 * k + 1 or n != 15 + 29 * k + 1:
-        return 2, 0, 0.0, 0.0
+    if k > 23:
+        return _BAD_COUNT, 14, 0.0, 0.0
+    if w[1] != 15 + 29 * k + 1 or n != w[1]:
+        return _BAD_LENGTH, 1, 0.0, 0.0
     if _crc_range(w, n - 1, table) != w[n - 1]:
-        return 3, 0, 0.0, 0.0
-    pt = (w[3] << 32) | (w[4] << 16) | w[5]
-    if not _norm48_k(pt):
-        return 4, 0, 0.0, 0.0
-    return 0, k, _dec48_k(pt), _dec32_k((w[11] << 16) | w[12])
+        return _BAD_CRC, n - 1, 0.0, 0.0
+    if not imager_ok[w[6] >> 8]:
+        return _BAD_CODE, 6, 0.0, 0.0
+    if (w[6] & 0xFF) == 0:
+        return _BAD_RANGE, 6, 0.0, 0.0
+    if not is_normalized48_k(_f48_at(w, 3)):
+        return _BAD_FLOAT, 3, 0.0, 0.0
+    if not is_normalized32_k(_f32_at(w, 11)):
+        return _BAD_FLOAT, 11, 0.0, 0.0
+    for i in range(k):
+        b = 15 + 29 * i
+        for j in range(14):
+            if not is_normalized32_k(_f32_at(w, b + 1 + 2 * j)):
+                return _BAD_FLOAT, b + 1 + 2 * j, 0.0, 0.0
+    return 0, 0, decode48_k(_f48_at(w, 3)), decode32_k(_f32_at(w, 11))
 
 
 @njit(cache=True)
 def _cand_fill_k(w, iv, fv):
+    """Candidates of checked words ``w`` into the int64/float64 views (k, 15) of the array."""
     for i in range(iv.shape[0]):
         b = 15 + 29 * i
         iv[i, 0] = w[b]
         for j in range(14):
-            fv[i, 1 + j] = _dec32_k((w[b + 1 + 2 * j] << 16) | w[b + 2 + 2 * j])
+            fv[i, 1 + j] = decode32_k(_f32_at(w, b + 1 + 2 * j))
 
 
+_CAND_HEAD_FIELDS = ("id", "length", "frame_count", "time_tag", "time_tag", "time_tag",
+                     "imager/compaction", "window_row0", "window_col0", "window_rows",
+                     "window_cols", "alpha", "alpha", "record_id", "count")
+_CAND_BODY_FIELDS = ("label",) + tuple(n for n in ("distance", "gof") + FEATURE_NAMES
+                                       for _ in range(2))
+
+
+def _candidate_field(i: int, n: int) -> str:
+    """Name of word ``i`` of an ``n``-word candidate message."""
+    if i < CANDIDATE_HEADER_WORDS:
+        return _CAND_HEAD_FIELDS[i]
+    if i == n - 1:
+        return "crc"
+    j, off = divmod(i - CANDIDATE_HEADER_WORDS, CANDIDATE_WORDS)
+    return f"candidate {j} {_CAND_BODY_FIELDS[off]}"
+
+
+# ================================================================================================
+# the track command codec
+# ================================================================================================
 @njit(cache=True)
 def _group(v, lo, hi):
-    """1 all finite, 0 all NaN, -1 mixed (TrackCommand._present)."""
+    """1 all finite, 0 all NaN, -1 mixed (an optional group of the track command)."""
     nf = 0
     nn = 0
     for i in range(lo, hi):
@@ -223,11 +344,19 @@ def _group(v, lo, hi):
     return -1
 
 
+#: per value of the track command's float64[17] (q_point, predicted row/col, los_eci, r_est, v_est,
+#: sigma_pos, sigma_vel): its first word, its width (2: 32-bit, 3: 48-bit) and its presence flag
+_TC_AT = np.array([13, 15, 17, 19, 21, 23, 25, 27, 29, 31, 34, 37, 40, 43, 46, 49, 51], np.int64)
+_TC_WIDTH = np.array([2] * 9 + [3] * 6 + [2, 2], np.int64)
+_TC_FLAG = np.array([0x10] * 4 + [0x02] * 5 + [0x04] * 8, np.int64)
+
+
 @njit(cache=True)
-def _track_encode_k(head, v, out, table):
+def _track_encode_k(head, t, v, out, table):
     """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
-    presence bits), ``v`` float64[17] = q_point, predicted row/col, los_eci, r_est, v_est, sigma_pos,
-    sigma_vel. False when a group is partly present (the plain encoder reports it)."""
+    presence bits; words 3-5 are the time tag ``t``, finite, encoded here), ``v`` float64[17]
+    (:data:`_TC_AT` order). False when a group (q_point; the prediction; the estimate) is partly
+    present (nothing useful written)."""
     gp = _group(v, 0, 4)
     gr = _group(v, 4, 9)
     ge = _group(v, 9, 17)
@@ -235,74 +364,91 @@ def _track_encode_k(head, v, out, table):
         return False
     for i in range(13):
         out[i] = head[i]
-    out[8] = head[8] | (0x02 if gr else 0) | (0x04 if ge else 0) | (0x10 if gp else 0)
-    n = 13
+    p = encode_k(t, 39, True)
+    out[3], out[4], out[5] = (p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF
+    flags = head[8] | (0x02 if gr else 0) | (0x04 if ge else 0) | (0x10 if gp else 0)
+    out[8] = flags
     for i in range(17):
-        present = gp if i < 4 else (gr if i < 9 else ge)
-        if 9 <= i < 15:
-            p = _enc_k(v[i], 39, True) if present else 0
-            out[n] = (p >> 32) & 0xFFFF
-            out[n + 1] = (p >> 16) & 0xFFFF
-            out[n + 2] = p & 0xFFFF
-            n += 3
+        a = _TC_AT[i]
+        present = (flags & _TC_FLAG[i]) != 0
+        if _TC_WIDTH[i] == 3:
+            p = encode_k(v[i], 39, True) if present else 0
+            out[a] = (p >> 32) & 0xFFFF
+            out[a + 1] = (p >> 16) & 0xFFFF
+            out[a + 2] = p & 0xFFFF
         else:
-            p = _enc_k(v[i], 23, True) if present else 0
-            out[n] = (p >> 16) & 0xFFFF
-            out[n + 1] = p & 0xFFFF
-            n += 2
+            p = encode_k(v[i], 23, True) if present else 0
+            out[a] = (p >> 16) & 0xFFFF
+            out[a + 1] = p & 0xFFFF
     out[53] = 0
     out[54] = _crc_range(out, 54, table)
     return True
 
 
 @njit(cache=True)
-def _track_decode_k(w, v, table):
-    """Checks and values of :meth:`TrackCommand.from_words` (int64[55] words): fills ``v`` (as in
-    :func:`_track_encode_k`, NaN when absent); returns (status, time tag), status 0 when well formed."""
-    for i in range(55):
-        if w[i] < 0 or w[i] > 0xFFFF:
-            return 1, 0.0
-    if w[0] != 0x5450 or w[1] != 55:
-        return 2, 0.0
+def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
+    """Every rule of the track command on int64[55] words ``w``; fills ``v`` (NaN when absent).
+    Returns (verdict, word index, time tag); verdict 0 when well formed."""
+    bad = _words_ok(w)
+    if bad >= 0:
+        return _BAD_WORD, bad, 0.0
+    if w[0] != 0x5450:
+        return _BAD_ID, 0, 0.0
+    if w[1] != 55:
+        return _BAD_LENGTH, 1, 0.0
     if _crc_range(w, 54, table) != w[54]:
-        return 3, 0.0
-    pt = (w[3] << 32) | (w[4] << 16) | w[5]
-    if not _norm48_k(pt):
-        return 4, 0.0
+        return _BAD_CRC, 54, 0.0
+    if not imager_ok[w[6] >> 8]:
+        return _BAD_CODE, 6, 0.0
+    if not type_ok[w[6] & 0xFF]:
+        return _BAD_CODE2, 6, 0.0
+    if w[7] & ~status_mask:
+        return _BAD_FLAGS, 7, 0.0
     flags = w[8]
-    n = 13
+    if flags & ~0x7F:
+        return _BAD_FLAGS, 8, 0.0
+    if (flags & 0x08) == 0 and w[11] != 0:
+        return _NOT_ZERO, 11, 0.0
+    if (flags & 0x40) == 0 and w[12] != 0:
+        return _NOT_ZERO, 12, 0.0
+    if w[53] != 0:
+        return _NOT_ZERO, 53, 0.0
+    if not is_normalized48_k(_f48_at(w, 3)):
+        return _BAD_FLOAT, 3, 0.0
     for i in range(17):
-        if i < 4:
-            present = flags & 0x10
-        elif i < 9:
-            present = flags & 0x02
+        a = _TC_AT[i]
+        wide = _TC_WIDTH[i] == 3
+        p = _f48_at(w, a) if wide else _f32_at(w, a)
+        if (flags & _TC_FLAG[i]) == 0:
+            if p != 0:
+                return _NOT_ZERO, a, 0.0
+            v[i] = np.nan
+        elif wide:
+            if not is_normalized48_k(p):
+                return _BAD_FLOAT, a, 0.0
+            v[i] = decode48_k(p)
         else:
-            present = flags & 0x04
-        if 9 <= i < 15:
-            p = (w[n] << 32) | (w[n + 1] << 16) | w[n + 2]
-            n += 3
-            if present:
-                if not _norm48_k(p):
-                    return 5, 0.0
-                v[i] = _dec48_k(p)
-            else:
-                v[i] = np.nan
-        else:
-            p = (w[n] << 16) | w[n + 1]
-            n += 2
-            v[i] = _dec32_k(p) if present else np.nan
-    return 0, _dec48_k(pt)
+            if not is_normalized32_k(p):
+                return _BAD_FLOAT, a, 0.0
+            v[i] = decode32_k(p)
+    return 0, 0, decode48_k(_f48_at(w, 3))
 
 
-def _f32_words(x: float) -> tuple[int, int]:
-    from flightsw.arith.m1750 import encode32
-    p = encode32(float(x), rounding="nearest")
-    return p >> 16, p & 0xFFFF
+_TC_VALUE_NAMES = ("q_point",) * 4 + ("predicted_row", "predicted_col") + ("los_eci",) * 3 \
+    + ("r_est",) * 3 + ("v_est",) * 3 + ("sigma_pos", "sigma_vel")
+_TC_HEAD_FIELDS = ("id", "length", "frame_count", "time_tag", "time_tag", "time_tag",
+                   "imager/object_type", "status", "flags", "n_star_gates", "n_object_gates",
+                   "decided_frame", "object_index")
 
 
-def _f32_value(w0: int, w1: int) -> float:
-    from flightsw.arith.m1750 import decode32
-    return decode32((w0 << 16) | w1)
+def _track_field(i: int) -> str:
+    """Name of word ``i`` of the track command."""
+    if i < len(_TC_HEAD_FIELDS):
+        return _TC_HEAD_FIELDS[i]
+    if i >= 53:
+        return "reserved" if i == 53 else "crc"
+    j = int(np.searchsorted(_TC_AT, i, side="right")) - 1
+    return _TC_VALUE_NAMES[j]
 
 
 @dataclass
@@ -396,148 +542,69 @@ class CandidateMessage:
     def count(self) -> int:
         return int(len(self.candidates))
 
-    def _check(self):
-        def rng(name, v, lo, hi):
-            _require_int_in(f"CandidateMessage.{name}", v, lo, hi)
-        rng("frame_count", self.frame_count, 0, 0xFFFF)
-        rng("compaction", self.compaction, 1, 255)
-        rng("window_row0", self.window_row0, -32768, 32767)
-        rng("window_col0", self.window_col0, -32768, 32767)
-        rng("window_rows", self.window_rows, 0, 0xFFFF)
-        rng("window_cols", self.window_cols, 0, 0xFFFF)
-        rng("record_id", self.record_id, 0, 0xFFFF)
-        if self.imager not in IMAGER_CODES:
-            raise ValueError(f"CandidateMessage.imager={self.imager!r} is not one of {sorted(IMAGER_CODES)}")
-        c = np.asarray(self.candidates)
-        if c.dtype != CANDIDATE_DTYPE:
-            raise ValueError(f"CandidateMessage.candidates has dtype {c.dtype}, expected CANDIDATE_DTYPE")
-        if len(c) > MAX_CANDIDATES:
-            raise ValueError(f"CandidateMessage.candidates has {len(c)} entries, at most {MAX_CANDIDATES}")
-        if np.any((c["label"] < 0) | (c["label"] > 0xFFFF)):
-            raise ValueError("CandidateMessage.candidates label must be 0..65535")
-        if not (np.isfinite(self.time_tag) and np.isfinite(self.alpha)):
-            raise ValueError("CandidateMessage.time_tag and alpha must be finite")
-
-    def _fast_ok(self) -> bool:
-        """The cheap checks of :meth:`_check` that the jitted encoder does not repeat."""
-        c = self.candidates
-        return (_is_int_in(self.frame_count, 0, 0xFFFF) and _is_int_in(self.compaction, 1, 255)
-                and _is_int_in(self.window_row0, -32768, 32767)
-                and _is_int_in(self.window_col0, -32768, 32767)
-                and _is_int_in(self.window_rows, 0, 0xFFFF) and _is_int_in(self.window_cols, 0, 0xFFFF)
-                and _is_int_in(self.record_id, 0, 0xFFFF) and self.imager in IMAGER_CODES
-                and type(c) is np.ndarray and c.dtype == CANDIDATE_DTYPE and c.ndim == 1
-                and len(c) <= MAX_CANDIDATES and isinstance(self.time_tag, _REALS)
-                and isinstance(self.alpha, _REALS)
-                and math.isfinite(self.time_tag) and math.isfinite(self.alpha))
-
     def to_words(self) -> np.ndarray:
-        """Encode as 16-bit words (layout in the class docstring) -> uint16 array."""
-        if self._fast_ok():
-            c = np.ascontiguousarray(self.candidates)
-            k = len(c)
-            t = _enc_k(float(self.time_tag), 39, True)
-            a = _enc_k(float(np.float64(self.alpha)), 23, True)
-            head = np.array([CANDIDATE_MSG_ID, CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1,
-                             self.frame_count, (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF, t & 0xFFFF,
-                             (IMAGER_CODES[self.imager] << 8) | self.compaction,
-                             self.window_row0 & 0xFFFF, self.window_col0 & 0xFFFF, self.window_rows,
-                             self.window_cols, (a >> 16) & 0xFFFF, a & 0xFFFF, self.record_id, k],
-                            np.int64)
-            out = np.empty(CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1, np.uint16)
-            if k:
-                iv = c.view(np.int64).reshape(k, 15)
-                fv = c.view(np.float64).reshape(k, 15)
-            else:
-                iv = np.zeros((0, 15), np.int64)
-                fv = np.zeros((0, 15), np.float64)
-            if _cand_encode_k(head, iv, fv, out, _CRC_TABLE) == 0:
-                return out
-        return self._to_words_plain()
-
-    def _to_words_plain(self) -> np.ndarray:
-        from flightsw.arith.m1750 import encode32_array, encode48
-        self._check()
+        """Encode as 16-bit words (layout in the class docstring) -> uint16 array. A field the
+        format cannot carry (out of range, non-finite, unknown imager) -> :class:`MessageError`."""
+        o = "CandidateMessage"
         c = self.candidates
+        if type(c) is not np.ndarray or c.dtype != CANDIDATE_DTYPE or c.ndim != 1:
+            raise MessageError(o, None, "candidates", "must be a 1-D array of CANDIDATE_DTYPE")
         k = len(c)
-        t = encode48(float(self.time_tag), rounding="nearest")
-        a = encode32_array(np.array([self.alpha], np.float64), rounding="nearest")[0]
-        head = [CANDIDATE_MSG_ID, CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1, self.frame_count,
-                (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF, t & 0xFFFF,
-                (IMAGER_CODES[self.imager] << 8) | self.compaction,
-                self.window_row0 & 0xFFFF, self.window_col0 & 0xFFFF, self.window_rows,
-                self.window_cols, (int(a) >> 16) & 0xFFFF, int(a) & 0xFFFF, self.record_id, k]
-        body = np.zeros((k, CANDIDATE_WORDS), np.int64)
-        if k:
-            vals = np.stack([c["distance"], c["gof"]] + [c[n] for n in FEATURE_NAMES], axis=1)
-            if not np.all(np.isfinite(vals)):
-                raise ValueError("CandidateMessage.candidates hold a non-finite value")
-            p = encode32_array(vals, rounding="nearest")
-            body[:, 0] = c["label"]
-            body[:, 1::2] = (p >> 16) & 0xFFFF
-            body[:, 2::2] = p & 0xFFFF
-        words = np.concatenate([np.array(head, np.int64), body.ravel()])
-        return np.append(words, crc16_ccitt(words)).astype(np.uint16)
+        if k > MAX_CANDIDATES:
+            raise MessageError(o, None, "candidates", f"{k} entries, at most {MAX_CANDIDATES}")
+        if not isinstance(self.imager, str) or self.imager not in IMAGER_CODES:
+            raise MessageError(o, None, "imager", f"{self.imager!r} is not one of "
+                               f"{sorted(IMAGER_CODES)}")
+        n = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1
+        head = np.array([CANDIDATE_MSG_ID, n,
+                         _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
+                         0, 0, 0, (IMAGER_CODES[self.imager] << 8)
+                         | _int_field(o, "compaction", self.compaction, 1, 255),
+                         _int_field(o, "window_row0", self.window_row0, -32768, 32767) & 0xFFFF,
+                         _int_field(o, "window_col0", self.window_col0, -32768, 32767) & 0xFFFF,
+                         _int_field(o, "window_rows", self.window_rows, 0, 0xFFFF),
+                         _int_field(o, "window_cols", self.window_cols, 0, 0xFFFF),
+                         0, 0, _int_field(o, "record_id", self.record_id, 0, 0xFFFF), k], np.int64)
+        c = np.ascontiguousarray(c)
+        out = np.empty(n, np.uint16)
+        bad = _cand_encode_k(head, _real_field(o, "time_tag", self.time_tag),
+                             _real_field(o, "alpha", self.alpha), c.view(np.int64).reshape(k, 15),
+                             c.view(np.float64).reshape(k, 15), out, _CRC_TABLE)
+        if bad >= 0:
+            raise MessageError(o, None, f"candidates[{bad % k}]", "label must be 0..65535"
+                               if bad < k else "holds a non-finite value")
+        return out
 
     @classmethod
     def from_words(cls, words) -> "CandidateMessage":
-        """Decode :meth:`to_words` output; a wrong id, length or checksum -> ``ValueError``."""
-        w = np.asarray(words)
-        if w.ndim == 1 and w.size >= CANDIDATE_HEADER_WORDS + 1 and w.dtype.kind in "iu":
-            wi = w.astype(np.int64)
-            st, k, t, alpha = _cand_decode_k(wi, _CRC_TABLE)
-            if st == 0 and (wi[6] >> 8) in _IMAGER_BY_CODE:
-                h = wi[:CANDIDATE_HEADER_WORDS].tolist()
-                cand = np.zeros(k, CANDIDATE_DTYPE)
-                if k:
-                    _cand_fill_k(wi, cand.view(np.int64).reshape(k, 15),
-                                 cand.view(np.float64).reshape(k, 15))
-                s16 = lambda v: v - 0x10000 if v & 0x8000 else v  # noqa: E731
-                return cls(frame_count=h[2], time_tag=t, imager=_IMAGER_BY_CODE[h[6] >> 8],
-                           compaction=h[6] & 0xFF, window_row0=s16(h[7]), window_col0=s16(h[8]),
-                           window_rows=h[9], window_cols=h[10], alpha=alpha, record_id=h[13],
-                           candidates=cand)
-        return cls._from_words_plain(w)
-
-    @classmethod
-    def _from_words_plain(cls, words) -> "CandidateMessage":
-        w = np.asarray(words)
-        if w.ndim != 1 or w.size < CANDIDATE_HEADER_WORDS + 1:
-            raise ValueError(f"candidate message: {w.size} words, need at least "
-                             f"{CANDIDATE_HEADER_WORDS + 1}")
-        if not np.issubdtype(w.dtype, np.integer) or w.min() < 0 or w.max() > 0xFFFF:
-            raise ValueError("candidate message: words must be integers 0..0xFFFF")
-        w = [int(x) for x in w]
-        if w[0] != CANDIDATE_MSG_ID:
-            raise ValueError(f"candidate message: id word 0x{w[0]:04X}, expected 0x{CANDIDATE_MSG_ID:04X}")
-        k = w[14]
-        n = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * k + 1
-        if k > MAX_CANDIDATES or w[1] != n or len(w) != n:
-            raise ValueError(f"candidate message: length word {w[1]}, candidate count {k} and "
-                             f"{len(w)} words received do not agree (expected {n})")
-        crc = crc16_ccitt(w[:-1])
-        if crc != w[-1]:
-            raise ValueError(f"candidate message: bad checksum (CRC-16/CCITT 0x{crc:04X} computed, "
-                             f"0x{w[-1]:04X} received)")
-        from flightsw.arith.m1750 import decode32_array, decode48
-        code = w[6] >> 8
-        if code not in _IMAGER_BY_CODE:
-            raise ValueError(f"candidate message: unknown imager code {code}")
-        s16 = lambda v: v - 0x10000 if v & 0x8000 else v  # noqa: E731
+        """Decode :meth:`to_words` output. Anything the encoder would not have written (a wrong id,
+        length or checksum; an unknown imager; compaction 0; a float that is not a normalised
+        1750A value) -> :class:`MessageError` naming the word and field;
+        ``from_words(w).to_words()`` equals ``w`` for every ``w`` accepted."""
+        o = "candidate message"
+        w = _word_array(o, words)
+        verdict, i, t, alpha = _cand_check_k(w, _CRC_TABLE, _IMAGER_OK)
+        if verdict:
+            reason = _REASONS[verdict]
+            if verdict == _BAD_CRC:
+                reason += f": 0x{crc16_ccitt(w[:-1]):04X} computed, 0x{int(w[-1]):04X} received"
+            elif verdict == _BAD_LENGTH and len(w) > CANDIDATE_HEADER_WORDS:
+                want = CANDIDATE_HEADER_WORDS + CANDIDATE_WORDS * int(w[14]) + 1
+                reason += (f": length word {int(w[1])}, count {int(w[14])}, {len(w)} words "
+                           f"(expected {want})")
+            elif verdict == _BAD_RANGE:
+                reason = "compaction 0 (must be 1..255)"
+            raise MessageError(o, i, _candidate_field(i, len(w)), reason)
+        k = int(w[14])
         cand = np.zeros(k, CANDIDATE_DTYPE)
         if k:
-            body = np.array(w[CANDIDATE_HEADER_WORDS:-1], np.int64).reshape(k, CANDIDATE_WORDS)
-            vals = decode32_array((body[:, 1::2] << 16) | body[:, 2::2])
-            cand["label"] = body[:, 0]
-            cand["distance"], cand["gof"] = vals[:, 0], vals[:, 1]
-            for i, name in enumerate(FEATURE_NAMES):
-                cand[name] = vals[:, 2 + i]
-        return cls(frame_count=w[2], time_tag=decode48((w[3] << 32) | (w[4] << 16) | w[5]),
-                   imager=_IMAGER_BY_CODE[code], compaction=w[6] & 0xFF, window_row0=s16(w[7]),
-                   window_col0=s16(w[8]), window_rows=w[9], window_cols=w[10],
-                   alpha=float(decode32_array(np.array([(w[11] << 16) | w[12]]))[0]),
-                   record_id=w[13], candidates=cand)
-
+            _cand_fill_k(w, cand.view(np.int64).reshape(k, 15),
+                         cand.view(np.float64).reshape(k, 15))
+        h = w[:CANDIDATE_HEADER_WORDS].tolist()
+        return cls(frame_count=h[2], time_tag=t, imager=_IMAGER_BY_CODE[h[6] >> 8],
+                   compaction=h[6] & 0xFF, window_row0=h[7] - ((h[7] & 0x8000) << 1),
+                   window_col0=h[8] - ((h[8] & 0x8000) << 1), window_rows=h[9], window_cols=h[10],
+                   alpha=alpha, record_id=h[13], candidates=cand)
     def __eq__(self, other):
         if not isinstance(other, CandidateMessage):
             return NotImplemented
@@ -588,6 +655,9 @@ TC_STATUS_NAMES = {
 # flag-word bits of the track command (which optional values are present)
 _TCF_LOCKED, _TCF_PRED, _TCF_EST, _TCF_DECIDED, _TCF_POINT, _TCF_OPP, _TCF_OBJIDX = (
     0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40)
+_TC_STATUS_MASK = sum(TC_STATUS_NAMES)          # the defined status bits (0xBFFF)
+_TYPE_OK = _code_table(OBJECT_TYPE_CODES)
+_MODES = {"dedicated": 0, "opportunity": _TCF_OPP}    # mode -> its flag bit
 
 
 @dataclass(eq=False)
@@ -705,188 +775,94 @@ class TrackCommand:
                         object_type=ot, locked=bool(self.locked))
 
     # -- codec ----------------------------------------------------------------------------------
-    def _check(self):
-        def rng(name, v, lo, hi):
-            _require_int_in(f"TrackCommand.{name}", v, lo, hi)
-        rng("frame_count", self.frame_count, 0, 0xFFFF)
-        rng("status", self.status, 0, 0xFFFF)
-        rng("n_star_gates", self.n_star_gates, 0, 0xFFFF)
-        rng("n_object_gates", self.n_object_gates, 0, 0xFFFF)
-        rng("decided_frame", self.decided_frame, -1, 0xFFFF)
-        rng("object_index", self.object_index, -1, 0xFFFF)
-        if self.imager not in IMAGER_CODES:
-            raise ValueError(f"TrackCommand.imager={self.imager!r} is not one of {sorted(IMAGER_CODES)}")
-        if self.object_type not in OBJECT_TYPE_CODES:
-            raise ValueError(f"TrackCommand.object_type={self.object_type!r} is not one of "
-                             f"{sorted(OBJECT_TYPE_CODES)}")
-        if self.mode not in ("dedicated", "opportunity"):
-            raise ValueError(f"TrackCommand.mode={self.mode!r} must be 'dedicated' or 'opportunity'")
-        if not np.isfinite(self.time_tag):
-            raise ValueError("TrackCommand.time_tag must be finite")
-        for name, n in (("q_point", 4), ("los_eci", 3), ("r_est", 3), ("v_est", 3)):
-            a = np.asarray(getattr(self, name), float)
-            if a.shape != (n,):
-                raise ValueError(f"TrackCommand.{name} must have shape ({n},), got {a.shape}")
-
-    @staticmethod
-    def _present(*vals) -> bool:
-        """All finite -> True, all NaN -> False, anything else -> ValueError."""
-        a = np.concatenate([np.atleast_1d(np.asarray(v, float)) for v in vals])
-        if np.all(np.isfinite(a)):
-            return True
-        if np.all(np.isnan(a)):
-            return False
-        raise ValueError("TrackCommand: a group of values must be all finite or all NaN")
-
-    def _fast_values(self):
-        """float64[17] of the codec's values when every field is of the usual kind and valid for
-        :meth:`_check`, else None (the plain encoder then validates and reports)."""
-        if not (_is_int_in(self.frame_count, 0, 0xFFFF) and _is_int_in(self.status, 0, 0xFFFF)
-                and _is_int_in(self.n_star_gates, 0, 0xFFFF)
-                and _is_int_in(self.n_object_gates, 0, 0xFFFF)
-                and _is_int_in(self.decided_frame, -1, 0xFFFF)
-                and _is_int_in(self.object_index, -1, 0xFFFF)
-                and self.imager in IMAGER_CODES and self.object_type in OBJECT_TYPE_CODES
-                and self.mode in ("dedicated", "opportunity")
-                and isinstance(self.time_tag, _REALS) and math.isfinite(self.time_tag)):
-            return None
+    def _values(self) -> np.ndarray:
+        """float64[17] of the optional values (:data:`_TC_AT` order) or MessageError."""
         v = np.empty(17)
         for name, lo, n in (("q_point", 0, 4), ("los_eci", 6, 3), ("r_est", 9, 3), ("v_est", 12, 3)):
             a = getattr(self, name)
-            if type(a) is not np.ndarray or a.shape != (n,) or a.dtype.kind != "f":
-                return None
+            if type(a) is not np.ndarray or a.dtype.kind != "f":
+                try:
+                    a = np.asarray(a, np.float64)
+                except (TypeError, ValueError) as exc:
+                    raise MessageError("TrackCommand", None, name, f"not numbers ({exc})") from None
+            if a.shape != (n,):
+                raise MessageError("TrackCommand", None, name, f"must have shape ({n},), got "
+                                   f"{a.shape}")
             v[lo:lo + n] = a
         for name, i in (("predicted_row", 4), ("predicted_col", 5), ("sigma_pos", 15),
                         ("sigma_vel", 16)):
             x = getattr(self, name)
-            if not isinstance(x, _REALS) or isinstance(x, (bool, np.bool_)):
-                return None
+            if type(x) is not float and (not isinstance(x, (float, int, np.floating, np.integer))
+                                         or isinstance(x, (bool, np.bool_))):
+                raise MessageError("TrackCommand", None, name, f"{x!r} is not a number")
             v[i] = x
         return v
 
+    def _head(self) -> np.ndarray:
+        """int64[13]: words 0..12 without the presence flags and the time tag, or MessageError."""
+        o = "TrackCommand"
+        status = _int_field(o, "status", self.status, 0, 0xFFFF)
+        if status & ~_TC_STATUS_MASK:
+            raise MessageError(o, None, "status", f"0x{status:04X} has undefined bits "
+                               f"0x{status & ~_TC_STATUS_MASK:04X}")
+        for name, codes in (("imager", IMAGER_CODES), ("object_type", OBJECT_TYPE_CODES),
+                            ("mode", _MODES)):
+            v = getattr(self, name)
+            if not isinstance(v, str) or v not in codes:
+                raise MessageError(o, None, name, f"{v!r} is not one of {sorted(codes)}")
+        dec = _int_field(o, "decided_frame", self.decided_frame, -1, 0xFFFF)
+        obj = _int_field(o, "object_index", self.object_index, -1, 0xFFFF)
+        flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_DECIDED if dec >= 0 else 0)
+                 | _MODES[self.mode] | (_TCF_OBJIDX if obj >= 0 else 0))
+        return np.array([TRACK_MSG_ID, TRACK_WORDS,
+                         _int_field(o, "frame_count", self.frame_count, 0, 0xFFFF),
+                         0, 0, 0,
+                         (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
+                         status, flags, _int_field(o, "n_star_gates", self.n_star_gates, 0, 0xFFFF),
+                         _int_field(o, "n_object_gates", self.n_object_gates, 0, 0xFFFF),
+                         max(dec, 0), max(obj, 0)], np.int64)
+
     def to_words(self) -> np.ndarray:
-        """Encode as 55 uint16 words (layout in the class docstring), CRC last."""
-        v = self._fast_values()
-        if v is not None:
-            t = _enc_k(float(self.time_tag), 39, True)
-            flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_DECIDED if self.decided_frame >= 0 else 0)
-                     | (_TCF_OPP if self.mode == "opportunity" else 0)
-                     | (_TCF_OBJIDX if self.object_index >= 0 else 0))
-            head = np.array([TRACK_MSG_ID, TRACK_WORDS, int(self.frame_count), (t >> 32) & 0xFFFF,
-                             (t >> 16) & 0xFFFF, t & 0xFFFF,
-                             (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
-                             int(self.status), flags, int(self.n_star_gates), int(self.n_object_gates),
-                             max(int(self.decided_frame), 0), max(int(self.object_index), 0)], np.int64)
-            out = np.empty(TRACK_WORDS, np.uint16)
-            if _track_encode_k(head, v, out, _CRC_TABLE):
-                return out
-        return self._to_words_plain()
-
-    def _to_words_plain(self) -> np.ndarray:
-        from flightsw.arith.m1750 import encode32_array, encode48
-        self._check()
-        has_pt = self._present(self.q_point)
-        has_pred = self._present(self.predicted_row, self.predicted_col, self.los_eci)
-        has_est = self._present(self.r_est, self.v_est, self.sigma_pos, self.sigma_vel)
-        flags = ((_TCF_LOCKED if self.locked else 0) | (_TCF_PRED if has_pred else 0)
-                 | (_TCF_EST if has_est else 0) | (_TCF_DECIDED if self.decided_frame >= 0 else 0)
-                 | (_TCF_POINT if has_pt else 0) | (_TCF_OPP if self.mode == "opportunity" else 0)
-                 | (_TCF_OBJIDX if self.object_index >= 0 else 0))
-
-        def f32(vals, present):
-            v = np.atleast_1d(np.asarray(vals, float))
-            p = encode32_array(v, rounding="nearest").astype(np.int64) if present \
-                else np.zeros(len(v), np.int64)
-            return np.stack([(p >> 16) & 0xFFFF, p & 0xFFFF], 1).ravel().tolist()
-
-        def f48(vals, present):
-            out = []
-            for v in np.atleast_1d(np.asarray(vals, float)):
-                p = encode48(float(v), rounding="nearest") if present else 0
-                out += [(p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF]
-            return out
-
-        t = encode48(float(self.time_tag), rounding="nearest")
-        w = [TRACK_MSG_ID, TRACK_WORDS, int(self.frame_count), (t >> 32) & 0xFFFF, (t >> 16) & 0xFFFF,
-             t & 0xFFFF, (IMAGER_CODES[self.imager] << 8) | OBJECT_TYPE_CODES[self.object_type],
-             int(self.status), flags, int(self.n_star_gates), int(self.n_object_gates),
-             max(int(self.decided_frame), 0), max(int(self.object_index), 0)]
-        w += f32(self.q_point, has_pt)
-        w += f32([self.predicted_row, self.predicted_col], has_pred)
-        w += f32(self.los_eci, has_pred)
-        w += f48(self.r_est, has_est) + f48(self.v_est, has_est)
-        w += f32([self.sigma_pos, self.sigma_vel], has_est)
-        w.append(0)
-        assert len(w) == TRACK_WORDS - 1
-        return np.array(w + [crc16_ccitt(w)], np.uint16)
+        """Encode as 55 uint16 words (layout in the class docstring), CRC last. A field the format
+        cannot carry, or a group of values partly NaN -> :class:`MessageError`."""
+        head = self._head()
+        t = _real_field("TrackCommand", "time_tag", self.time_tag)
+        out = np.empty(TRACK_WORDS, np.uint16)
+        if not _track_encode_k(head, t, self._values(), out, _CRC_TABLE):
+            raise MessageError("TrackCommand", None, "values", "a group of values (q_point; "
+                               "prediction + los_eci; the estimate) must be all finite or all NaN")
+        return out
 
     @classmethod
     def from_words(cls, words) -> "TrackCommand":
-        """Decode :meth:`to_words` output; wrong id, length, checksum or codes -> ``ValueError``."""
-        w = np.asarray(words)
-        if w.ndim == 1 and w.size == TRACK_WORDS and w.dtype.kind in "iu":
-            wi = w.astype(np.int64)
-            v = np.empty(17)
-            st, t = _track_decode_k(wi, v, _CRC_TABLE)
-            code, otype = int(wi[6]) >> 8, int(wi[6]) & 0xFF
-            if st == 0 and code in _IMAGER_BY_CODE and otype in _OBJECT_TYPE_BY_CODE:
-                h = wi[:13].tolist()
-                flags = h[8]
-                return cls(frame_count=h[2], time_tag=t, q_point=v[0:4].copy(),
-                           predicted_row=float(v[4]), predicted_col=float(v[5]),
-                           imager=_IMAGER_BY_CODE[code], object_type=_OBJECT_TYPE_BY_CODE[otype],
-                           locked=bool(flags & _TCF_LOCKED), status=h[7], n_star_gates=h[9],
-                           n_object_gates=h[10], decided_frame=h[11] if flags & _TCF_DECIDED else -1,
-                           object_index=h[12] if flags & _TCF_OBJIDX else -1,
-                           mode="opportunity" if flags & _TCF_OPP else "dedicated",
-                           los_eci=v[6:9].copy(), r_est=v[9:12].copy(), v_est=v[12:15].copy(),
-                           sigma_pos=float(v[15]), sigma_vel=float(v[16]))
-        return cls._from_words_plain(w)
-
-    @classmethod
-    def _from_words_plain(cls, words) -> "TrackCommand":
-        from flightsw.arith.m1750 import decode32_array, decode48
-        w = np.asarray(words)
-        if w.ndim != 1 or w.size != TRACK_WORDS:
-            raise ValueError(f"track command: {w.size} words, expected {TRACK_WORDS}")
-        if not np.issubdtype(w.dtype, np.integer) or w.min() < 0 or w.max() > 0xFFFF:
-            raise ValueError("track command: words must be integers 0..0xFFFF")
-        w = [int(x) for x in w]
-        if w[0] != TRACK_MSG_ID or w[1] != TRACK_WORDS:
-            raise ValueError(f"track command: id 0x{w[0]:04X} / length {w[1]}, expected "
-                             f"0x{TRACK_MSG_ID:04X} / {TRACK_WORDS}")
-        crc = crc16_ccitt(w[:-1])
-        if crc != w[-1]:
-            raise ValueError(f"track command: bad checksum (CRC-16/CCITT 0x{crc:04X} computed, "
-                             f"0x{w[-1]:04X} received)")
-        code, otype = w[6] >> 8, w[6] & 0xFF
-        if code not in _IMAGER_BY_CODE or otype not in _OBJECT_TYPE_BY_CODE:
-            raise ValueError(f"track command: unknown imager code {code} or object type code {otype}")
-        flags = w[8]
-
-        def f32(i, n, present):
-            if not present:
-                return np.full(n, np.nan)
-            a = np.array(w[i:i + 2 * n], np.int64)
-            return decode32_array((a[0::2] << 16) | a[1::2])
-
-        def f48(i, n, present):
-            return np.array([decode48((w[i + 3 * k] << 32) | (w[i + 3 * k + 1] << 16) | w[i + 3 * k + 2])
-                             if present else np.nan for k in range(n)])
-
-        pred = f32(21, 2, flags & _TCF_PRED)
-        sig = f32(49, 2, flags & _TCF_EST)
-        return cls(frame_count=w[2], time_tag=decode48((w[3] << 32) | (w[4] << 16) | w[5]),
-                   q_point=f32(13, 4, flags & _TCF_POINT), predicted_row=float(pred[0]),
-                   predicted_col=float(pred[1]), imager=_IMAGER_BY_CODE[code],
-                   object_type=_OBJECT_TYPE_BY_CODE[otype], locked=bool(flags & _TCF_LOCKED),
-                   status=w[7], n_star_gates=w[9], n_object_gates=w[10],
-                   decided_frame=w[11] if flags & _TCF_DECIDED else -1,
-                   object_index=w[12] if flags & _TCF_OBJIDX else -1,
+        """Decode :meth:`to_words` output. Anything the encoder would not have written (a wrong id,
+        length or checksum; unknown codes; undefined status or flag bits; non-zero reserved or
+        absent words; a float that is not a normalised 1750A value) -> :class:`MessageError`
+        naming the word and field; ``from_words(w).to_words()`` equals ``w`` when accepted."""
+        o = "track command"
+        w = _word_array(o, words)
+        if w.shape[0] != TRACK_WORDS:
+            raise MessageError(o, None, "length", f"{w.shape[0]} words, expected {TRACK_WORDS}")
+        v = np.empty(17)
+        verdict, i, t = _track_check_k(w, v, _CRC_TABLE, _IMAGER_OK, _TYPE_OK, _TC_STATUS_MASK)
+        if verdict:
+            reason = _REASONS[verdict]
+            if verdict == _BAD_CRC:
+                reason += f": 0x{crc16_ccitt(w[:-1]):04X} computed, 0x{int(w[-1]):04X} received"
+            elif verdict == _BAD_CODE2:
+                reason = "unknown object type code (low byte)"
+            raise MessageError(o, i, _track_field(i), reason)
+        h = w[:13].tolist()
+        flags = h[8]
+        return cls(frame_count=h[2], time_tag=t, q_point=v[0:4].copy(),
+                   predicted_row=float(v[4]), predicted_col=float(v[5]),
+                   imager=_IMAGER_BY_CODE[h[6] >> 8], object_type=_OBJECT_TYPE_BY_CODE[h[6] & 0xFF],
+                   locked=bool(flags & _TCF_LOCKED), status=h[7], n_star_gates=h[9],
+                   n_object_gates=h[10], decided_frame=h[11] if flags & _TCF_DECIDED else -1,
+                   object_index=h[12] if flags & _TCF_OBJIDX else -1,
                    mode="opportunity" if flags & _TCF_OPP else "dedicated",
-                   los_eci=f32(25, 3, flags & _TCF_PRED), r_est=f48(31, 3, flags & _TCF_EST),
-                   v_est=f48(40, 3, flags & _TCF_EST), sigma_pos=float(sig[0]), sigma_vel=float(sig[1]))
-
+                   los_eci=v[6:9].copy(), r_est=v[9:12].copy(), v_est=v[12:15].copy(),
+                   sigma_pos=float(v[15]), sigma_vel=float(v[16]))
     def __eq__(self, other):
         if not isinstance(other, TrackCommand):
             return NotImplemented

@@ -45,8 +45,8 @@ word     content
 
 Validation (both directions): sigma <= 0, negative weight, lower >= upper, lower + upper <= 0, no
 non-zero weight, a non-finite or out-of-range value, a missing or unknown feature, a wrong word count
-or bad CRC raise ``ValueError`` naming the field. :class:`RecordStore` keeps the records in force:
-a rejected uplink leaves the record in force unchanged.
+or bad CRC raise :class:`RecordError` (a ``ValueError``) naming the field. :class:`RecordStore`
+keeps the records in force: a rejected uplink leaves the record in force unchanged.
 """
 from __future__ import annotations
 
@@ -61,7 +61,7 @@ import numpy as np
 from flightsw.arith.m1750 import decode32, encode32
 from flightsw.messages import FEATURE_NAMES, N_FEATURES, crc16_ccitt
 
-__all__ = ["Record", "RecordStore", "load_record", "shipped_records", "OBJECT_TYPES",
+__all__ = ["Record", "RecordStore", "RecordError", "load_record", "shipped_records", "OBJECT_TYPES",
            "RECORD_WORDS", "RECORD_FORMAT_ID", "COLUMNS"]
 
 OBJECT_TYPES = {"generic": 0, "star": 1, "satellite": 2, "aurora": 3, "plume": 4}
@@ -73,13 +73,19 @@ RECORD_WORDS = RECORD_HEADER_WORDS + 2 * len(COLUMNS) * N_FEATURES + 1   # 129
 _F32_MAX = 0.9999998 * 2.0 ** 127
 
 
+class RecordError(ValueError):
+    """An invalid record (TOML form, uplink words or field values) or an unreadable record file;
+    the message names the file or field. Every loader and decoder of this module raises only
+    this."""
+
+
 def _q32(where: str, v) -> float:
     """Value -> nearest 1750A 32-bit float (as a Python float); ValueError naming ``where``."""
     if isinstance(v, bool) or not isinstance(v, (int, float, np.integer, np.floating)):
-        raise ValueError(f"{where} = {v!r} is not a number")
+        raise RecordError(f"{where} = {v!r} is not a number")
     v = float(v)
     if not math.isfinite(v) or abs(v) > _F32_MAX:
-        raise ValueError(f"{where} = {v!r} is not a finite 1750A float")
+        raise RecordError(f"{where} = {v!r} is not a finite 1750A float")
     return decode32(encode32(v, rounding="nearest"))
 
 
@@ -138,42 +144,43 @@ class Record:
         for key in ("record_id", "version"):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 0 <= v <= 0xFFFF:
-                raise ValueError(f"{who}: {key} = {v!r} must be an int in 0..65535")
-        if self.object_type not in OBJECT_TYPES:
-            raise ValueError(f"{who}: object_type = {self.object_type!r} must be one of "
+                raise RecordError(f"{who}: {key} = {v!r} must be an int in 0..65535")
+        if not isinstance(self.object_type, str) or self.object_type not in OBJECT_TYPES:
+            raise RecordError(f"{who}: object_type = {self.object_type!r} must be one of "
                              f"{sorted(OBJECT_TYPES)}")
         if self.quantize not in (True, False):
-            raise ValueError(f"{who}: quantize = {self.quantize!r} must be a bool")
+            raise RecordError(f"{who}: quantize = {self.quantize!r} must be a bool")
         object.__setattr__(self, "quantize", bool(self.quantize))
         for col in COLUMNS:
             vals = getattr(self, col)
             try:
                 vals = tuple(vals)
             except TypeError:
-                raise ValueError(f"{who}: {col} must be a sequence of {N_FEATURES} numbers") from None
+                raise RecordError(f"{who}: {col} must be a sequence of {N_FEATURES} "
+                                  f"numbers") from None
             if len(vals) != N_FEATURES:
-                raise ValueError(f"{who}: {col} has {len(vals)} values, expected {N_FEATURES} "
+                raise RecordError(f"{who}: {col} has {len(vals)} values, expected {N_FEATURES} "
                                  f"(one per feature {FEATURE_NAMES})")
             object.__setattr__(self, col, tuple(_q32(f"{who}: feature {FEATURE_NAMES[i]!r} {col}", v)
                                                 for i, v in enumerate(vals)))
         g = _q32(f"{who}: gof_threshold", self.gof_threshold)
         if not 0.0 <= g <= 1.0:
-            raise ValueError(f"{who}: gof_threshold = {g!r} must be a probability in [0, 1]")
+            raise RecordError(f"{who}: gof_threshold = {g!r} must be a probability in [0, 1]")
         object.__setattr__(self, "gof_threshold", g)
         for i, fname in enumerate(FEATURE_NAMES):
             where = f"{who}: feature {fname!r}"
             if self.sigma[i] <= 0.0:
-                raise ValueError(f"{where} sigma = {self.sigma[i]!r} must be > 0")
+                raise RecordError(f"{where} sigma = {self.sigma[i]!r} must be > 0")
             if self.weight[i] < 0.0:
-                raise ValueError(f"{where} weight = {self.weight[i]!r} must be >= 0")
+                raise RecordError(f"{where} weight = {self.weight[i]!r} must be >= 0")
             if self.lower[i] >= self.upper[i]:
-                raise ValueError(f"{where} lower = {self.lower[i]!r} must be < upper = "
+                raise RecordError(f"{where} lower = {self.lower[i]!r} must be < upper = "
                                  f"{self.upper[i]!r}")
             if self.lower[i] + self.upper[i] <= 0.0:
-                raise ValueError(f"{where} lower + upper = {self.lower[i] + self.upper[i]!r} must "
+                raise RecordError(f"{where} lower + upper = {self.lower[i] + self.upper[i]!r} must "
                                  f"be > 0 (the quantisation midpoint)")
         if self.n_weighted == 0:
-            raise ValueError(f"{who}: weight is zero for every feature (n = 0 degrees of freedom)")
+            raise RecordError(f"{who}: weight is zero for every feature (n = 0 degrees of freedom)")
 
     # ---- derived ----
     @property
@@ -214,37 +221,42 @@ class Record:
 
     @classmethod
     def from_words(cls, words, name: str | None = None) -> "Record":
-        """Decode and validate an uplink image; ``ValueError`` names the bad field."""
-        a = np.asarray(words)
+        """Decode and validate an uplink image; :class:`RecordError` names the bad field."""
+        try:
+            a = np.asarray(words)
+        except (ValueError, TypeError, OverflowError) as exc:
+            raise RecordError(f"record words: not an array of words ({exc})") from None
         if a.ndim != 1:
-            raise ValueError(f"record words: expected a 1-D array, got shape {a.shape}")
+            raise RecordError(f"record words: expected a 1-D array, got shape {a.shape}")
         if a.size != RECORD_WORDS:
-            raise ValueError(f"record words: length {a.size}, expected {RECORD_WORDS}")
+            raise RecordError(f"record words: length {a.size}, expected {RECORD_WORDS}")
         if not np.issubdtype(a.dtype, np.integer) or a.min() < 0 or a.max() > 0xFFFF:
-            raise ValueError("record words: every word must be an integer 0..0xFFFF")
+            raise RecordError("record words: every word must be an integer 0..0xFFFF")
         w = [int(x) for x in a]
         crc = crc16_ccitt(w[:-1])
         if crc != w[-1]:
-            raise ValueError(f"record words: bad CRC (CRC-16/CCITT 0x{crc:04X} computed, "
+            raise RecordError(f"record words: bad CRC (CRC-16/CCITT 0x{crc:04X} computed, "
                              f"0x{w[-1]:04X} in word {RECORD_WORDS - 1})")
         if w[0] != RECORD_FORMAT_ID:
-            raise ValueError(f"record words: format id 0x{w[0]:04X}, expected 0x{RECORD_FORMAT_ID:04X}")
+            raise RecordError(f"record words: format id 0x{w[0]:04X}, expected "
+                              f"0x{RECORD_FORMAT_ID:04X}")
         if w[1] != RECORD_WORDS:
-            raise ValueError(f"record words: length word {w[1]}, expected {RECORD_WORDS}")
+            raise RecordError(f"record words: length word {w[1]}, expected {RECORD_WORDS}")
         if w[5] != N_FEATURES:
-            raise ValueError(f"record words: feature count {w[5]}, expected {N_FEATURES}")
+            raise RecordError(f"record words: feature count {w[5]}, expected {N_FEATURES}")
         code = w[4] >> 8
         if code not in _TYPE_BY_CODE:
-            raise ValueError(f"record words: object type code {code} unknown")
+            raise RecordError(f"record words: object type code {code} unknown")
         if w[4] & 0xFE:
-            raise ValueError(f"record words: flags word 0x{w[4] & 0xFF:02X} has undefined bits set")
+            raise RecordError(f"record words: flags word 0x{w[4] & 0xFF:02X} has undefined bits "
+                              f"set")
 
         def f32(i, where):
             p = (w[i] << 16) | w[i + 1]
             try:
                 return decode32(p)
             except ValueError:
-                raise ValueError(f"record words: {where} (words {i}, {i + 1}) is not a normalised "
+                raise RecordError(f"record words: {where} (words {i}, {i + 1}) is not a normalised "
                                  f"1750A float") from None
 
         cols = {c: [] for c in COLUMNS}
@@ -264,41 +276,43 @@ class Record:
     @classmethod
     def from_toml(cls, text: str, source: str = "<string>") -> "Record":
         """Parse and validate the TOML form (module docstring)."""
+        if not isinstance(text, str):
+            raise RecordError(f"{source}: TOML text must be a str, got {type(text).__name__}")
         try:
             doc = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{source}: not valid TOML: {exc}") from None
+            raise RecordError(f"{source}: not valid TOML: {exc}") from None
         head = doc.get("record")
         if not isinstance(head, dict):
-            raise ValueError(f"{source}: missing [record] table")
+            raise RecordError(f"{source}: missing [record] table")
         feats = doc.get("feature")
         if not isinstance(feats, dict):
-            raise ValueError(f"{source}: missing [feature.<name>] tables")
+            raise RecordError(f"{source}: missing [feature.<name>] tables")
         unknown = sorted(set(feats) - set(FEATURE_NAMES))
         if unknown:
-            raise ValueError(f"{source}: unknown feature(s) {unknown}; expected {FEATURE_NAMES}")
+            raise RecordError(f"{source}: unknown feature(s) {unknown}; expected {FEATURE_NAMES}")
         missing = [f for f in FEATURE_NAMES if f not in feats]
         if missing:
-            raise ValueError(f"{source}: wrong length: feature table(s) {missing} missing "
+            raise RecordError(f"{source}: wrong length: feature table(s) {missing} missing "
                              f"({len(feats)} of {N_FEATURES} given)")
         for key in ("name", "id", "version", "object_type"):
             if key not in head:
-                raise ValueError(f"{source}: [record] {key} missing")
+                raise RecordError(f"{source}: [record] {key} missing")
         extra = sorted(set(head) - {"name", "id", "version", "object_type", "gof_threshold",
                                     "quantize", "description"})
         if extra:
-            raise ValueError(f"{source}: [record] unknown key(s) {extra}")
+            raise RecordError(f"{source}: [record] unknown key(s) {extra}")
         cols = {c: [] for c in COLUMNS}
         for fname in FEATURE_NAMES:
             t = feats[fname]
             if not isinstance(t, dict):
-                raise ValueError(f"{source}: feature.{fname} must be a table")
+                raise RecordError(f"{source}: feature.{fname} must be a table")
             bad = sorted(set(t) - set(COLUMNS))
             if bad:
-                raise ValueError(f"{source}: feature.{fname}: unknown key(s) {bad}")
+                raise RecordError(f"{source}: feature.{fname}: unknown key(s) {bad}")
             for col in COLUMNS:
                 if col not in t:
-                    raise ValueError(f"{source}: feature.{fname}.{col} missing")
+                    raise RecordError(f"{source}: feature.{fname}.{col} missing")
                 cols[col].append(t[col])
         return cls(name=str(head["name"]), record_id=head["id"], version=head["version"],
                    object_type=head["object_type"], gof_threshold=head.get("gof_threshold", 0.0),
@@ -354,16 +368,21 @@ def load_record(name_or_path) -> Record:
     p = Path(s)
     if p.suffix.lower() == ".toml" or p.exists():
         if not p.exists():
-            raise FileNotFoundError(f"{p}: no such record file")
-        return Record.from_toml(p.read_text(), source=str(p))
-    raise ValueError(f"record {s!r}: not a shipped record ({sorted(shipped)}) nor a .toml file")
+            raise RecordError(f"{p}: no such record file")
+        try:
+            text = p.read_text()
+        except (OSError, UnicodeDecodeError) as exc:
+            raise RecordError(f"{p}: cannot read the record file ({exc.__class__.__name__}: "
+                              f"{exc})") from None
+        return Record.from_toml(text, source=str(p))
+    raise RecordError(f"record {s!r}: not a shipped record ({sorted(shipped)}) nor a .toml file")
 
 
 class RecordStore:
     """The records in force on board, by record id; one of them selected for ranking.
 
     ``uplink(words)`` validates a new image and puts it in force (replacing the record with the
-    same id); on any error it raises ``ValueError`` and nothing changes.
+    same id); on any error it raises :class:`RecordError` and nothing changes.
     """
 
     def __init__(self, records=None, active: int | None = None):
@@ -371,10 +390,10 @@ class RecordStore:
         for r in (records if records is not None else _shipped_cache().values()):
             self._records[r.record_id] = r
         if not self._records:
-            raise ValueError("RecordStore needs at least one record")
+            raise RecordError("RecordStore needs at least one record")
         self.active_id = active if active is not None else min(self._records)
         if self.active_id not in self._records:
-            raise ValueError(f"active record id {active!r} not among {sorted(self._records)}")
+            raise RecordError(f"active record id {active!r} not among {sorted(self._records)}")
 
     @property
     def active(self) -> Record:
@@ -396,9 +415,9 @@ class RecordStore:
                 if self._records[rid].object_type == key:
                     self.active_id = rid
                     return self._records[rid]
-            raise ValueError(f"no record in force for object type {key!r}")
+            raise RecordError(f"no record in force for object type {key!r}")
         if key not in self._records:
-            raise ValueError(f"no record in force with id {key!r}")
+            raise RecordError(f"no record in force with id {key!r}")
         self.active_id = key
         return self._records[key]
 

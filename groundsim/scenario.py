@@ -134,6 +134,13 @@ class _Table:
             raise self.err(k, f"expected a list of {n} numbers, got {v!r}")
         return np.asarray(v, float)
 
+    def tables(self, k):
+        """The array of tables ``k`` ([[k]] in TOML) as a list, [] when absent."""
+        v = self.raw(k, [])
+        if not isinstance(v, list):
+            raise self.err(k, f"expected an array of tables, got {v!r}")
+        return v
+
     def sub(self, k, default=None):
         self.used.add(k)
         if k not in self.d:
@@ -228,6 +235,8 @@ class Scenario:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as e:
             raise ScenarioError(p, "-", f"not valid TOML: {e}") from None
+        except (OSError, UnicodeDecodeError) as e:
+            raise ScenarioError(p, "-", f"cannot read the file ({e.__class__.__name__}: {e})") from None
         return cls.from_dict(data, p, seed=seed)
 
     @classmethod
@@ -452,12 +461,12 @@ def _parse_faults(t: _Table, duration) -> Faults:
     if not isinstance(df, list) or not all(isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in df):
         raise t.err("dropped_frames", f"expected a list of frame indices (integers >= 0), got {df!r}")
     sw = []
-    for i, e in enumerate(t.raw("imager_switch", [])):
+    for i, e in enumerate(t.tables("imager_switch")):
         et = _Table(e, t.file, t.key(f"imager_switch[{i}]"))
         sw.append((et.num("t", lo=0.0), et.str_("imager", choices=IMAGER_IDS)))
         et.done()
     gaps = []
-    for i, e in enumerate(t.raw("attitude_gap", [])):
+    for i, e in enumerate(t.tables("attitude_gap")):
         et = _Table(e, t.file, t.key(f"attitude_gap[{i}]"))
         t0, t1 = et.num("t0", lo=0.0), et.num("t1", lo=0.0)
         if t1 <= t0:

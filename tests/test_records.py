@@ -1,9 +1,12 @@
 """A priori records (flightsw.records): Table 1, TOML <-> uplink words, validation, the store."""
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from flightsw.messages import FEATURE_NAMES, crc16_ccitt
-from flightsw.records import (RECORD_WORDS, Record, RecordStore, load_record, shipped_records)
+from flightsw.records import (RECORD_WORDS, Record, RecordError, RecordStore, load_record,
+                              shipped_records)
 
 TABLE1 = {  # the MSX paper's Table 1: mean, sigma, weight, lower, upper
     "size": (600.0, 100.0, 1.0, 100.0, 1000.0), "col": (127.0, 5.0, 1.5, 85.0, 175.0),
@@ -131,5 +134,43 @@ def test_load_record_file(tmp_path):
     assert r.name == "mine" and r.record_id == 40
     with pytest.raises(ValueError, match="not a shipped record"):
         load_record("nonesuch")
-    with pytest.raises(FileNotFoundError):
+    with pytest.raises(RecordError, match="no such record file"):
         load_record(str(tmp_path / "missing.toml"))
+    with pytest.raises(RecordError, match="cannot read"):
+        load_record(str(tmp_path))                      # a directory
+
+
+# ------------------------------------------------------------------------------------------------
+# property: every valid record survives the uplink words exactly (values from the 1750A closed form)
+# ------------------------------------------------------------------------------------------------
+POS32 = st.builds(lambda m, e: m * 2.0 ** (e - 23), st.integers(0x400000, 0x7FFFFF),
+                  st.integers(-20, 40))
+
+
+@st.composite
+def valid_records(draw):
+    cols = {"mean": [], "sigma": [], "weight": [], "lower": [], "upper": []}
+    for _ in FEATURE_NAMES:
+        lo, hi = sorted(draw(st.lists(POS32, min_size=2, max_size=2, unique=True)))
+        cols["mean"].append(draw(st.one_of(POS32, POS32.map(lambda v: -v), st.just(0.0))))
+        cols["sigma"].append(draw(POS32))
+        cols["weight"].append(draw(st.one_of(st.just(0.0), POS32)))
+        cols["lower"].append(lo)
+        cols["upper"].append(hi)
+    cols["weight"][draw(st.integers(0, len(FEATURE_NAMES) - 1))] = 1.0
+    return Record(name="prop", record_id=draw(st.integers(0, 0xFFFF)),
+                  version=draw(st.integers(0, 0xFFFF)),
+                  object_type=draw(st.sampled_from(["generic", "star", "satellite", "aurora",
+                                                    "plume"])),
+                  gof_threshold=draw(st.sampled_from([0.0, 0.5, 0.25, 1.0, 0.001])),
+                  quantize=draw(st.booleans()), **cols)
+
+
+@settings(max_examples=60, deadline=None)
+@given(valid_records())
+def test_record_words_round_trip_for_every_valid_record(rec):
+    w = rec.to_words()
+    assert len(w) == RECORD_WORDS and w[-1] == crc16_ccitt(w[:-1])
+    back = Record.from_words(w, name="prop")
+    assert back == rec and np.array_equal(back.to_words(), w)
+    assert Record.from_toml(rec.to_toml()) == rec

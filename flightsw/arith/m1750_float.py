@@ -105,7 +105,8 @@ __all__ = [
     "fa32", "fs32", "fm32", "fd32", "fa48", "fs48", "fm48", "fd48",
     "flt32", "fix32", "flt48", "fix48", "fabs32", "fneg32", "fabs48", "fneg48", "fc32", "fc48",
     "to48", "to32", "unpack32", "unpack48", "pack32", "pack48",
-    "to_signed16", "to_signed32",
+    "to_signed16", "to_signed32", "encode_k", "decode32_k", "decode48_k", "is_normalized32_k",
+    "is_normalized48_k",
     "OP_MIX", "op_mix", "op_cycles", "CYCLES",
     "MAX32", "MIN32", "MAX48", "MIN48", "ONE32", "ONE48", "HALF32", "HALF48", "ZERO",
 ]
@@ -791,6 +792,22 @@ def _norm48_k(p):
     if m == 0:
         return p == 0
     return ((m >> 39) ^ (m >> 38)) & 1 == 1
+
+
+@njit(cache=True)
+def _norm32_k(p):
+    """:func:`is_normalized32` of a 32-bit pattern (in range)."""
+    m = (p >> 8) & 0xFFFFFF
+    if m == 0:
+        return p == 0
+    return ((m >> 23) ^ (m >> 22)) & 1 == 1
+
+
+#: the scalar kernels under public names, for ``@njit`` codecs of other modules (no validation):
+#: ``encode_k(x, W, nearest)`` finite float64 -> packed word (W = 23: 32-bit, 39: 48-bit),
+#: ``decode32_k`` / ``decode48_k`` packed -> float64 (exact), ``is_normalized32_k/48_k`` -> bool
+encode_k, decode32_k, decode48_k = _enc_k, _dec32_k, _dec48_k
+is_normalized32_k, is_normalized48_k = _norm32_k, _norm48_k
 
 
 @njit(cache=True)

@@ -575,7 +575,7 @@ class ProcessingSequence:
             if not isinstance(raw, dict):
                 raise SequenceError("a step must be a table", step=i)
             op = raw.get("op")
-            if op not in STEP_REGISTRY:
+            if not isinstance(op, str) or op not in STEP_REGISTRY:
                 raise SequenceError(f"unknown step (known: {', '.join(sorted(STEP_REGISTRY))})",
                                     step=i, op=op, field="op")
             st = STEP_REGISTRY[op]
@@ -591,7 +591,7 @@ class ProcessingSequence:
                 raise SequenceError(str(exc), step=i, op=op, field=exc.field) from None
             except SequenceError:
                 raise
-            except (ValueError, TypeError, KeyError) as exc:
+            except (ValueError, TypeError, KeyError, IndexError, OverflowError) as exc:
                 raise SequenceError(str(exc), step=i, op=op) from None
             label = st.label(vp) if st.label else op
             names[label] = names.get(label, 0) + 1
@@ -628,7 +628,7 @@ class ProcessingSequence:
                                               and "=" not in path_or_text):
             try:
                 text = Path(path_or_text).read_text()
-            except OSError as exc:
+            except (OSError, ValueError) as exc:       # ValueError: undecodable, NUL in the path
                 raise SequenceError(f"cannot read sequence file: {exc}") from None
         else:
             text = str(path_or_text)
