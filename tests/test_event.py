@@ -64,8 +64,9 @@ def test_replay_is_bit_identical(sat):
     assert r["compared"] == 160
 
 
-def test_replay_detects_a_changed_word(sat, tmp_path):
+def test_replay_detects_a_changed_word(sat, tmp_path, capsys):
     import shutil
+    import zlib
     out, _ = sat
     p = tmp_path / "tampered.h5"
     shutil.copy(out / "recording.h5", p)
@@ -73,8 +74,17 @@ def test_replay_detects_a_changed_word(sat, tmp_path):
         fr = f["tables/frames"][()]
         k = int(np.flatnonzero(fr["cmd_len"] > 0)[5])
         f["arrays/command_words"][k, 20] ^= 1
+    # the checksum catches it first: one line naming the dataset and frame, exit 2
+    with pytest.raises(ValueError, match=f"arrays/command_words row {k} .frame {k}."):
+        replay(p)
+    assert main(["replay", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"command_words row {k}" in err
+    # with its checksum forged to match, the re-computed command still differs from the stored one
+    with h5py.File(p, "r+") as f:
+        f["checksums/arrays/command_words"][k] = zlib.adler32(f["arrays/command_words"][k].tobytes())
     r = replay(p)
-    assert not r["identical"] and r["mismatches"][0]["k"] == k
+    assert not r["identical"] and r["mismatches"][0]["k"] == k and r["verified"] == 80
     assert main(["replay", str(p)]) == 1
 
 
@@ -83,7 +93,7 @@ def _content(path):
     out = {}
     with h5py.File(path) as f:
         def visit(name, obj):
-            if isinstance(obj, h5py.Dataset) and not name.startswith("host"):
+            if isinstance(obj, h5py.Dataset) and not name.startswith(("host", "checksums/host")):
                 out[name] = obj[()]
         f.visititems(visit)
         out["attrs"] = {k: f.attrs[k] for k in f.attrs}
@@ -98,7 +108,7 @@ def test_same_seed_same_recording(tmp_path):
     for k in ca:
         if k == "attrs":
             for ak in ca[k]:
-                if ak != "summary":              # the summary holds host timings
+                if ak not in ("summary", "run_id"):    # host timings; a new id each run
                     assert ca[k][ak] == cb[k][ak], ak
         else:
             assert ca[k].tobytes() == cb[k].tobytes(), k
