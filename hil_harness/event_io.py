@@ -39,6 +39,8 @@ from .recording import Recorder, Recording
 from .run_folder import RunFolder
 
 MAX_COMMAND_WORDS = 128
+#: tables/ledger: one row per (frame, processor, stage)
+LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -104,6 +106,7 @@ class EventWriter:
         self.ev = event
         self.record_frames = record_frames
         self.kill_at = kill_at
+        self._snap_kinds: dict = {}
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
 
@@ -165,14 +168,14 @@ class EventWriter:
                 rows[n] = c[n]
             r.append_rows("candidates", rows)
         if L is not None:
-            for p in L.processors:
-                for s, cy in L.stages(p).items():
-                    r.append("ledger", {"k": np.int32(o.k), "processor": p, "stage": s,
-                                        "cycles": np.int64(cy)})
+            led = [(o.k, p.encode(), s.encode(), cy) for p in L.processors
+                   for s, cy in L.stages(p).items()]
+            if led:
+                r.append_rows("ledger", np.array(led, LEDGER_DTYPE))
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
-        snap = _snapshot_row(self.ev.tp, o.k)
+        snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
         if snap:
             r.append("tp", snap)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
@@ -187,21 +190,23 @@ class EventWriter:
                                        for k in ("render", "ip", "tp", "world", "total")}})
 
 
-def _snapshot_row(tp, k) -> dict:
-    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays)."""
+def _snapshot_row(tp, k, kinds: dict) -> dict:
+    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays); ``kinds`` caches
+    how each key is stored ("s" string, "v" value, "x" left out) across frames."""
     snap = getattr(tp, "snapshot", None)
     if snap is None:
         return {}
-    d = snap()
     row = {"k": np.int32(k)}
-    for key, v in d.items():
-        a = np.asarray(v)
-        if a.dtype.kind in "US" or a.dtype == object:
+    for key, v in snap().items():
+        kind = kinds.get(key)
+        if kind is None:
+            a = np.asarray(v)
+            kind = kinds[key] = "s" if a.dtype.kind in "US" or a.dtype == object else \
+                "x" if a.dtype.names is not None else "v"
+        if kind == "v":
+            row[key] = v
+        elif kind == "s":
             row[key] = str(v)[:64]
-        elif a.dtype.names is not None:
-            continue
-        else:
-            row[key] = a
     return row
 
 

@@ -6,10 +6,11 @@ Layout (every table is one compound dataset, one row per record, growing along a
     /tables/<name>      compound datasets (per-frame tables, candidates, ledger, ...)
     /arrays/<name>      stacked arrays (frames uint16[N, 244, 256], bus words, stage images)
     /host/<name>        host wall-clock timings: kept apart, since they differ run to run
-    /checksums/<path>   uint32[N]: the Adler-32 of each row of the dataset <path> as stored
+    /checksums          (dataset, row, adler32): the Adler-32 of every stored row of every dataset
+                        above, ``dataset`` being that dataset's attribute ``checksum_id``
 
 Datasets written with ``per_frame=True`` carry the attribute ``per_frame`` and hold one row per
-frame; the frames a recording holds are the rows every one of them (and its checksums) has.
+frame; the frames a recording holds are the rows every one of them has with its checksum.
 
 Life cycle. The file is created as ``<stem>.partial<suffix>`` (``recording.partial.h5``) with
 ``complete = False`` and switched at once to HDF5's single-writer/multiple-reader mode (SWMR), whose
@@ -42,6 +43,8 @@ VERIFY_BLOCK_ROWS = 64
 TABLE_CHUNK_ROWS = 256
 #: arrays whose rows are at least this many bytes get one row per chunk (frames, stage images)
 ROW_CHUNK_BYTES = 16384
+#: /checksums: one record per stored row of every dataset (``dataset`` is its ``checksum_id``)
+CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32", np.uint32)])
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
@@ -189,6 +192,8 @@ class Recorder:
             self._f.attrs[k] = _attr_value(v)
         self._f.swmr_mode = True
         self._bufs: dict[str, _Buffer] = {}
+        self._ds: dict[str, list] = {}        # key -> [dataset, checksum id, rows written]
+        self._sums = None                     # the /checksums dataset
         self.frames = 0               # end_frame() calls
         self.frames_written = 0       # frames on disk
         self._closed = False
@@ -202,7 +207,8 @@ class Recorder:
 
     def append(self, table: str, row: dict, per_frame: bool = False) -> None:
         """Append one row (dict of scalars / fixed-shape arrays / strings <= 64 bytes) to
-        ``/tables/<table>``; every row of a table has the same fields."""
+        ``/tables/<table>``; every row of a table has the same fields. Arrays are copied (the row
+        is written with its block, later)."""
         b = self._buf(f"tables/{table}", per_frame)
         keys = tuple(row)
         if b.keys is None:
@@ -210,11 +216,11 @@ class Recorder:
         elif keys != b.keys:
             raise ValueError(f"table {table!r}: row layout changed from fields {list(b.keys)} to "
                              f"{list(keys)}")
-        b.rows.append(row)
+        b.rows.append({k: v.copy() if isinstance(v, np.ndarray) else v for k, v in row.items()})
 
     def append_rows(self, table: str, rows: np.ndarray, per_frame: bool = False) -> None:
         """Append a structured array of rows to ``/tables/<table>`` (same dtype every call)."""
-        rows = np.asarray(rows)
+        rows = np.array(rows)             # a copy: written with its block, later
         if rows.dtype.names is None:
             raise ValueError(f"table {table!r}: rows must be a structured array")
         b = self._buf(f"tables/{table}", per_frame)
@@ -240,6 +246,9 @@ class Recorder:
         b = self._buf("host/timing", True)
         if b.keys is None:
             b.keys, b.dtype = tuple(row), _row_dtype(row)
+        elif tuple(row) != b.keys:
+            raise ValueError(f"host timing: row layout changed from fields {list(b.keys)} to "
+                             f"{list(row)}")
         b.rows.append(row)
 
     def set_attr(self, key: str, value) -> None:
@@ -252,13 +261,15 @@ class Recorder:
             self.flush()
 
     # ---------------------------------------------------------------- writing (one block)
-    def _dataset(self, key: str, data: np.ndarray, per_frame: bool) -> h5py.Dataset:
-        ds = self._f.get(key)
-        if ds is not None:
+    def _dataset(self, key: str, data: np.ndarray, per_frame: bool) -> list:
+        """``[dataset, checksum id, rows written]`` for ``key``, the dataset created on first use."""
+        entry = self._ds.get(key)
+        if entry is not None:
+            ds = entry[0]
             if ds.dtype != data.dtype or ds.shape[1:] != data.shape[1:]:
                 raise ValueError(f"{key}: layout changed from {ds.dtype}{ds.shape[1:]} to "
                                  f"{data.dtype}{data.shape[1:]}")
-            return ds
+            return entry
         row_bytes = data.dtype.itemsize * int(np.prod(data.shape[1:], dtype=np.int64))
         rows = 1 if row_bytes >= ROW_CHUNK_BYTES else max(1, min(TABLE_CHUNK_ROWS,
                                                                  ROW_CHUNK_BYTES * 4 // row_bytes))
@@ -267,32 +278,51 @@ class Recorder:
                                     dtype=data.dtype, chunks=(rows,) + data.shape[1:],
                                     compression=comp)
         ds.attrs["per_frame"] = bool(per_frame)
-        self._f.create_dataset(f"checksums/{key}", shape=(0,), maxshape=(None,), dtype=np.uint32,
-                               chunks=(TABLE_CHUNK_ROWS,))
-        return ds
+        ds.attrs["checksum_id"] = cid = len(self._ds)
+        entry = self._ds[key] = [ds, cid, 0]
+        return entry
 
-    def _write(self, key: str, data: np.ndarray, per_frame: bool) -> None:
-        ds = self._dataset(key, data, per_frame)
-        cs = self._f[f"checksums/{key}"]
-        n = ds.shape[0]
-        ds.resize(n + len(data), axis=0)
-        ds[n:] = data
-        ds.flush()
-        cs.resize(n + len(data), axis=0)
-        cs[n:] = adler32_rows(data)
-        cs.flush()
+    @staticmethod
+    def _append_block(ds: h5py.Dataset, n: int, data: np.ndarray) -> None:
+        """Rows ``[n, n + len(data))`` of ``ds`` = ``data`` (low-level: a third cheaper per call)."""
+        m = n + len(data)
+        ds.resize(m, axis=0)
+        fs = ds.id.get_space()
+        fs.select_hyperslab((n,) + (0,) * (ds.ndim - 1), data.shape)
+        ds.id.write(h5py.h5s.create_simple(data.shape), fs, np.ascontiguousarray(data))
+
+    def _write(self, key: str, data: np.ndarray, per_frame: bool) -> np.ndarray:
+        """Write one block of a dataset; returns its rows' checksum records."""
+        entry = self._dataset(key, data, per_frame)
+        ds, cid, n = entry
+        self._append_block(ds, n, data)
+        entry[2] = n + len(data)
+        cs = np.empty(len(data), CHECKSUM_DTYPE)
+        cs["dataset"] = cid
+        cs["row"] = np.arange(n, n + len(data))
+        cs["adler32"] = adler32_rows(data)
+        return cs
 
     def flush(self) -> None:
-        """Write every buffered row as one block (the datasets with many rows per frame first, the
-        per-frame ones last: a block is on disk once the last per-frame dataset has it). SIGINT and
-        SIGTERM wait until the block is written."""
+        """Write every buffered row as one block: the data of every dataset, pushed to the file
+        (``H5Fflush``), then the block's checksum records, pushed too. A row counts as recorded once
+        its checksum is on disk, and by then every row of its block is. SIGINT and SIGTERM wait until
+        the block is written."""
         old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
         try:
-            order = sorted(self._bufs.items(), key=lambda kv: kv[1].per_frame)
-            for key, b in order:
+            sums = []
+            for key, b in self._bufs.items():
                 data = b.take()
                 if data is not None:
-                    self._write(key, data, b.per_frame)
+                    sums.append(self._write(key, data, b.per_frame))
+            if sums:
+                self._f.flush()
+                if self._sums is None:
+                    self._sums = self._f.create_dataset(
+                        "checksums", shape=(0,), maxshape=(None,), dtype=CHECKSUM_DTYPE,
+                        chunks=(TABLE_CHUNK_ROWS * 4,))
+                sums = np.concatenate(sums)
+                self._append_block(self._sums, self._sums.shape[0], sums)
             self._f.flush()
             self.frames_written = self.frames
         finally:
@@ -368,6 +398,11 @@ class Recording:
             raise ValueError(f"{self.path} is not a uvisi recording (format attribute "
                              f"{fmt!r} != {FORMAT!r})")
         self.complete = bool(self._f.attrs.get("complete", True))
+        try:
+            self._sums = self._checksums()
+        except RecordingDamaged:
+            self._f.close()
+            raise
         self.n_frames = self._frames_held()
 
     def _datasets(self) -> list[str]:
@@ -377,17 +412,47 @@ class Recording:
                 out += [f"{top}/{k}" for k in self._f[top].keys()]
         return sorted(out)
 
+    def _checksums(self) -> dict[str, np.ndarray] | None:
+        """dataset -> the stored Adler-32 of its rows 0, 1, ... (as far as they are contiguous);
+        None for a recording made before checksums."""
+        if "checksums" not in self._f:
+            return None if self._f.attrs.get("format") != FORMAT else {}
+        try:
+            recs = self._f["checksums"][()]
+        except (OSError, ValueError) as exc:
+            raise RecordingDamaged(f"{self.path}: checksums unreadable "
+                                   f"({str(exc).splitlines()[0]})") from None
+        ids = {}
+        for key in self._datasets():
+            cid = self._f[key].attrs.get("checksum_id")
+            if cid is not None:
+                ids[int(cid)] = key
+        out = {}
+        for cid, key in ids.items():
+            mine = recs[recs["dataset"] == cid]
+            rows = mine["row"]
+            n = len(rows)
+            if n and not np.array_equal(rows, np.arange(n)):
+                bad = int(np.flatnonzero(rows != np.arange(n))[0])
+                raise RecordingDamaged(f"{self.path}: checksums of {key} out of order at its row "
+                                       f"{bad} (the checksum records are damaged)")
+            out[key] = mine["adler32"]
+        unknown = set(np.unique(recs["dataset"]).tolist()) - set(ids)
+        if unknown:
+            raise RecordingDamaged(f"{self.path}: checksum records name no dataset "
+                                   f"(ids {sorted(unknown)[:5]}): the checksum records are damaged")
+        return out
+
     def _frames_held(self) -> int | None:
-        """Rows every per-frame dataset and its checksums hold (None: no per-frame dataset)."""
+        """Rows every per-frame dataset holds with their checksums (None: no per-frame dataset)."""
         n = None
         for key in self._datasets():
             ds = self._f[key]
             if not ds.attrs.get("per_frame", False):
                 continue
             m = ds.shape[0]
-            cs = self._f.get(f"checksums/{key}")
-            if cs is not None:
-                m = min(m, cs.shape[0])
+            if self._sums is not None:
+                m = min(m, len(self._sums.get(key, ())))
             n = m if n is None else min(n, m)
         return n
 
@@ -454,7 +519,7 @@ class Recording:
             On the first row whose checksum differs, or a block HDF5 cannot read; the message is
             one line naming the file, the dataset, the row and (where known) the frame.
         """
-        if self._f.attrs.get("format") != FORMAT:
+        if self._sums is None:
             raise RecordingDamaged(f"{self.path}: recorded without checksums (format "
                                    f"{self._f.attrs.get('format')!r}); cannot verify it")
         rows = {}
@@ -464,26 +529,26 @@ class Recording:
 
     def _verify_dataset(self, key: str) -> int:
         ds = self._f[key]
-        cs = self._f.get(f"checksums/{key}")
-        if cs is None:
+        want_all = self._sums.get(key)
+        if want_all is None:
             raise RecordingDamaged(f"{self.path}: {key} has no checksums")
         per_frame = bool(ds.attrs.get("per_frame", False))
         if self.complete:
             n = ds.shape[0]
-            if cs.shape[0] != n:
-                raise RecordingDamaged(f"{self.path}: {key} holds {n} rows but {cs.shape[0]} "
+            if len(want_all) != n:
+                raise RecordingDamaged(f"{self.path}: {key} holds {n} rows but {len(want_all)} "
                                        f"checksums")
         else:
             n = self.n_frames if per_frame and self.n_frames is not None else \
-                min(ds.shape[0], cs.shape[0])
+                min(ds.shape[0], len(want_all))
         for i0 in range(0, n, VERIFY_BLOCK_ROWS):
             i1 = min(n, i0 + VERIFY_BLOCK_ROWS)
             try:
-                data, want = ds[i0:i1], cs[i0:i1]
+                data = ds[i0:i1]
             except (OSError, ValueError) as exc:
                 raise RecordingDamaged(f"{self.path}: {key} rows {i0}-{i1 - 1}: unreadable "
                                        f"({str(exc).splitlines()[0]})") from None
-            bad = np.flatnonzero(adler32_rows(data) != want)
+            bad = np.flatnonzero(adler32_rows(data) != want_all[i0:i1])
             if bad.size:
                 i = i0 + int(bad[0])
                 if per_frame:
