@@ -1,9 +1,11 @@
 """An event's products: the HDF5 recording, ``summary.json``, the figures, and the replay check.
 
-Recording layout (``hil_harness.recording``; every table one row per frame unless said)::
+Recording layout (``hil_harness.recording``, written in blocks as ``recording.partial.h5`` and renamed
+``recording.h5`` when complete; ``docs/formats.md``; every table one row per frame unless said)::
 
-    attrs     format, software versions, scenario (name, raw TOML table as JSON), seed, config (JSON:
-              sequence, record, selection, TP overrides), n_frames
+    attrs     format, complete, run_id, software versions, scenario (name, raw TOML table as JSON),
+              seed, config (JSON: sequence, record, selection, TP overrides, processor models),
+              record_words (the record's uplink words), n_frames
     tables/frames      k, t, imager, skip, n_candidates, n_blobs, alpha, locked, status, predicted and
                        tracked pixels, error_urad, overrun, cycles per processor, gate counts, q_point
     tables/attitude    the AttitudeData handed to the TP (replay feeds these back)
@@ -15,6 +17,7 @@ Recording layout (``hil_harness.recording``; every table one row per frame unles
     arrays/message_words, arrays/command_words   the bus words, zero-padded, lengths in tables/frames
     arrays/frames      uint16[N, 244, 256] (unless --no-frames), arrays/stage_<name> of one frame
     host/timing        host wall time per stage (us); excluded from determinism checks
+    checksums          (dataset, row, adler32) of every stored row (``Recording.verify``)
 """
 from __future__ import annotations
 
@@ -107,6 +110,7 @@ class EventWriter:
         self.record_frames = record_frames
         self.kill_at = kill_at
         self._snap_kinds: dict = {}
+        self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
 
@@ -185,7 +189,7 @@ class EventWriter:
         if o.stages:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
-            r.set_attr("stage_frame", int(o.k))
+            self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
                                        for k in ("render", "ip", "tp", "world", "total")}})
 
@@ -486,6 +490,8 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
     s["run_id"] = run_id
     s["host"]["mean_record_us"] = writer.mean_record_us
     rec.set_attr("summary", s)
+    if writer.stage_frame is not None:
+        rec.set_attr("stage_frame", writer.stage_frame)
     path = rec.close()
     s["recording"] = str(path)
     if figures:
