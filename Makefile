@@ -4,7 +4,7 @@ VENV   := .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean
+.PHONY: test demo bench killcheck install clean
 
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -22,6 +22,10 @@ demo: $(STAMP)
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.report
+
+# kill uvisi event at random moments; every recording left must open, verify and replay (~2 min)
+killcheck: $(STAMP)
+	$(BIN)/python -m tests.kill_anywhere 20
 
 clean:
 	rm -rf $(VENV) build *.egg-info
