@@ -18,6 +18,7 @@ from __future__ import annotations
 import json
 import signal
 import sys
+import threading
 from pathlib import Path
 
 
@@ -66,7 +67,9 @@ def run(args) -> int:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
     out = Path(args.out) if args.out else Path("events") / Path(name).stem
     replace = bool(getattr(args, "force", False)) or not args.out
-    prev = signal.signal(signal.SIGTERM, _terminate)
+    _TERMINATED.clear()
+    main_thread = threading.current_thread() is threading.main_thread()
+    prev = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
         s = run_event(name, seed=args.seed, frames=args.frames, out=out,
                       record_frames=not args.no_frames, figures=not args.no_figures,
@@ -78,7 +81,8 @@ def run(args) -> int:
               f"complete = False)", file=sys.stderr)
         return 143 if _TERMINATED else 130
     finally:
-        signal.signal(signal.SIGTERM, prev)
+        if main_thread:
+            signal.signal(signal.SIGTERM, prev)
     if args.json:
         print(json.dumps(s, indent=2, default=str))
     else:

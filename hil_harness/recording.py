@@ -77,8 +77,16 @@ def open_h5(path) -> h5py.File:
         raise ValueError(f"{path}: not a readable HDF5 recording ({first})") from None
 
 
+def _json_default(o):
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
 def _attr_value(v):
-    return json.dumps(v) if isinstance(v, (dict, list, tuple)) else v
+    return json.dumps(v, default=_json_default) if isinstance(v, (dict, list, tuple)) else v
 
 
 def _row_dtype(row: dict) -> np.dtype:

@@ -77,6 +77,23 @@ def test_sigint_keeps_what_was_recorded(tmp_path, monkeypatch, capsys):
     assert not (tmp_path / "b" / "summary.json").exists()
 
 
+def test_sigterm_keeps_what_was_recorded(tmp_path, monkeypatch, capsys):
+    real = EventWriter.__call__
+
+    def terminated_at_30(self, o):
+        real(self, o)
+        if o.k == 30:
+            os.kill(os.getpid(), signal.SIGTERM)
+
+    monkeypatch.setattr(EventWriter, "__call__", terminated_at_30)
+    assert main(["event", "--frames", "40", "--no-figures", "--out", str(tmp_path)]) == 143
+    err = capsys.readouterr().err
+    assert "terminated (SIGTERM): partial recording kept" in err and "(31 frames" in err
+    assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL        # the handler is put back
+    with Recording(tmp_path / "recording.partial.h5") as r:
+        assert r.complete is False and r.n_frames == 31
+
+
 def test_non_default_processor_models_replay_bit_identical(tmp_path):
     slow = {DSP: Processor("ADSP-2100 @ 0.4 MHz", 0.4e6, ADSP2100.costs), IP1750: PACE1750A,
             TP1750: PACE1750A}
