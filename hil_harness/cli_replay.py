@@ -17,6 +17,8 @@ def run(args) -> int:
     from .event_io import replay
     r = replay(args.recording)
     head = f"{r['recording']}: {r['verified']} frames verified (checksums)"
+    if not r["checksums"]:
+        head = f"{r['recording']}: recorded without checksums, not verified"
     if not r["complete"]:
         head = (f"{r['recording']}: incomplete recording (complete = False: the event was "
                 f"interrupted), holds {r['frames']} of {r['planned']} frames; {r['verified']} frames "

@@ -567,9 +567,10 @@ def replay(path) -> dict:
     attitude data and compare every candidate message and track command word with the recorded ones.
     A partial recording (``complete`` = False) is replayed over the frames it holds.
 
-    Returns ``{"recording", "complete", "planned", "frames", "verified", "compared", "identical",
-    "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and replayed,
-    ``verified``: frames whose stored data matched their checksums, ``planned``: the event's length).
+    Returns ``{"recording", "complete", "planned", "frames", "verified", "checksums", "compared",
+    "identical", "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and
+    replayed, ``verified``: frames whose stored data matched their checksums, ``checksums``: False
+    for a recording made before them (nothing verified), ``planned``: the event's length).
 
     Raises
     ------
@@ -581,11 +582,11 @@ def replay(path) -> dict:
         raise FileNotFoundError(f"{path}: no such recording")
     with Recording(path) as rec:
         at = rec.attrs
-        checked = rec.verify()
+        checked = rec.verify() if rec.has_checksums else {"frames": 0}
         n = rec.n_frames or 0
         out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
-               "frames": n, "verified": checked["frames"], "compared": 0, "identical": True,
-               "mismatches": []}
+               "frames": n, "verified": checked["frames"], "checksums": rec.has_checksums,
+               "compared": 0, "identical": True, "mismatches": []}
         if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
             raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
                              f"replay needs them")

@@ -175,3 +175,14 @@ def test_run_folder_lock_stops_a_second_writer_and_dies_with_its_process(tmp_pat
         if p.poll() is None:
             p.kill()
     RunFolder(d).acquire().release()                       # the kernel released the dead one's lock
+
+
+def test_a_version_1_recording_is_read_but_cannot_be_verified(tmp_path):
+    p = tmp_path / "v1.h5"
+    with h5py.File(p, "w") as f:                           # the layout before blocks and checksums
+        f.attrs["format"] = "uvisi-recording/1"
+        f["tables/frames"] = np.zeros(7, [("k", "i4")])
+    with Recording(p) as r:
+        assert r.complete and r.n_frames == 7 and not r.has_checksums
+        with pytest.raises(RecordingDamaged, match="recorded without checksums"):
+            r.verify()
