@@ -81,6 +81,16 @@ def _frames_held(f: h5py.File) -> int | None:
     return n
 
 
+def _held_tables(f: h5py.File) -> tuple:
+    """(frames, attitude, truth, candidates or None) tables, cut to the frames the file holds."""
+    held = _frames_held(f)
+    fr = f["tables/frames"][:held]
+    cand = f["tables/candidates"][()] if "tables/candidates" in f else None
+    if cand is not None:
+        cand = cand[cand["k"] < len(fr)]
+    return fr, f["tables/attitude"][:held], f["tables/truth"][:held], cand
+
+
 def recording_status(path) -> tuple[bool, int, int]:
     """``(complete, frames held, frames planned)`` of an event recording (``complete`` False: the
     event was interrupted and the file holds its frames up to the last block written)."""
@@ -129,13 +139,7 @@ def read_star_matches(path, imager: str | None = None, gate_px: float = 3.0,
             raise ValueError(f"{path}: not an event recording (no tables/frames, tables/attitude)")
         raw = _attr_json(f.attrs["scenario_raw"])
         seed = int(f.attrs["seed"])
-        held = _frames_held(f)
-        fr = f["tables/frames"][:held]
-        att = f["tables/attitude"][:held]
-        truth = f["tables/truth"][:held]
-        cand = f["tables/candidates"][()] if "tables/candidates" in f else None
-        if cand is not None:
-            cand = cand[cand["k"] < len(fr)]
+        fr, att, truth, cand = _held_tables(f)
         has_frames = "arrays/frames" in f
         config = _attr_json(f.attrs["config"]) if "config" in f.attrs else {}
         scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=seed)
