@@ -202,6 +202,7 @@ class Recorder:
         self._bufs: dict[str, _Buffer] = {}
         self._ds: dict[str, list] = {}        # key -> [dataset, checksum id, rows written]
         self._sums = None                     # the /checksums dataset
+        self._sums_rows = 0
         self.frames = 0               # end_frame() calls
         self.frames_written = 0       # frames on disk
         self._closed = False
@@ -270,12 +271,12 @@ class Recorder:
 
     # ---------------------------------------------------------------- writing (one block)
     def _dataset(self, key: str, data: np.ndarray, per_frame: bool) -> list:
-        """``[dataset, checksum id, rows written]`` for ``key``, the dataset created on first use."""
+        """``[dataset, checksum id, rows written, dtype, row shape]`` for ``key``, the dataset
+        created on first use (h5py's ``dtype`` and ``shape`` are rebuilt on each access: kept)."""
         entry = self._ds.get(key)
         if entry is not None:
-            ds = entry[0]
-            if ds.dtype != data.dtype or ds.shape[1:] != data.shape[1:]:
-                raise ValueError(f"{key}: layout changed from {ds.dtype}{ds.shape[1:]} to "
+            if entry[3] != data.dtype or entry[4] != data.shape[1:]:
+                raise ValueError(f"{key}: layout changed from {entry[3]}{entry[4]} to "
                                  f"{data.dtype}{data.shape[1:]}")
             return entry
         row_bytes = data.dtype.itemsize * int(np.prod(data.shape[1:], dtype=np.int64))
@@ -287,22 +288,24 @@ class Recorder:
                                     compression=comp)
         ds.attrs["per_frame"] = bool(per_frame)
         ds.attrs["checksum_id"] = cid = len(self._ds)
-        entry = self._ds[key] = [ds, cid, 0]
+        entry = self._ds[key] = [ds, cid, 0, data.dtype, data.shape[1:]]
         return entry
 
     @staticmethod
     def _append_block(ds: h5py.Dataset, n: int, data: np.ndarray) -> None:
-        """Rows ``[n, n + len(data))`` of ``ds`` = ``data`` (low-level: a third cheaper per call)."""
+        """Rows ``[n, n + len(data))`` of ``ds`` = ``data`` (C-contiguous, the dataset's dtype);
+        low-level calls: a third cheaper than ``ds.resize`` + ``ds[n:] = data``."""
         m = n + len(data)
-        ds.resize(m, axis=0)
+        ds.id.set_extent((m,) + data.shape[1:])
         fs = ds.id.get_space()
         fs.select_hyperslab((n,) + (0,) * (ds.ndim - 1), data.shape)
-        ds.id.write(h5py.h5s.create_simple(data.shape), fs, np.ascontiguousarray(data))
+        ds.id.write(h5py.h5s.create_simple(data.shape), fs, data)
 
     def _write(self, key: str, data: np.ndarray, per_frame: bool) -> np.ndarray:
         """Write one block of a dataset; returns its rows' checksum records."""
+        data = np.ascontiguousarray(data)
         entry = self._dataset(key, data, per_frame)
-        ds, cid, n = entry
+        ds, cid, n = entry[:3]
         self._append_block(ds, n, data)
         entry[2] = n + len(data)
         cs = np.empty(len(data), CHECKSUM_DTYPE)
@@ -330,7 +333,8 @@ class Recorder:
                         "checksums", shape=(0,), maxshape=(None,), dtype=CHECKSUM_DTYPE,
                         chunks=(TABLE_CHUNK_ROWS * 4,))
                 sums = np.concatenate(sums)
-                self._append_block(self._sums, self._sums.shape[0], sums)
+                self._append_block(self._sums, self._sums_rows, sums)
+                self._sums_rows += len(sums)
             self._f.flush()
             self.frames_written = self.frames
         finally:
