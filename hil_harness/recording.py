@@ -546,6 +546,17 @@ class Recording:
             rows[key] = self._verify_dataset(key)
         return {"frames": self.n_frames or 0, "rows": rows}
 
+    def _unreadable_row(self, key: str, ds: h5py.Dataset, i0: int, i1: int, per_frame: bool):
+        """Raise :class:`RecordingDamaged` naming the first row of ``[i0, i1)`` HDF5 cannot read."""
+        for i in range(i0, i1):
+            try:
+                ds[i]
+            except (OSError, ValueError) as exc:
+                where = f" (frame {i})" if per_frame else ""
+                raise RecordingDamaged(f"{self.path}: {key} row {i}{where}: unreadable "
+                                       f"({str(exc).splitlines()[0]})") from None
+        raise RecordingDamaged(f"{self.path}: {key} rows {i0}-{i1 - 1}: unreadable")
+
     def _verify_dataset(self, key: str) -> int:
         ds = self._f[key]
         want_all = self._sums.get(key)
@@ -564,9 +575,8 @@ class Recording:
             i1 = min(n, i0 + VERIFY_BLOCK_ROWS)
             try:
                 data = ds[i0:i1]
-            except (OSError, ValueError) as exc:
-                raise RecordingDamaged(f"{self.path}: {key} rows {i0}-{i1 - 1}: unreadable "
-                                       f"({str(exc).splitlines()[0]})") from None
+            except (OSError, ValueError):
+                self._unreadable_row(key, ds, i0, i1, per_frame)
             bad = np.flatnonzero(adler32_rows(data) != want_all[i0:i1])
             if bad.size:
                 i = i0 + int(bad[0])

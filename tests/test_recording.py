@@ -186,3 +186,20 @@ def test_a_version_1_recording_is_read_but_cannot_be_verified(tmp_path):
         assert r.complete and r.n_frames == 7 and not r.has_checksums
         with pytest.raises(RecordingDamaged, match="recorded without checksums"):
             r.verify()
+
+
+def test_a_damaged_compressed_chunk_is_one_clear_error(tmp_path):
+    path = tmp_path / "gz.h5"
+    frames = np.random.default_rng(3).integers(0, 64, (6, 244, 256)).astype(np.uint16)
+    rec = Recorder(path, flush_every=3, compression="gzip")
+    for k in range(6):
+        rec.append_array("frames", frames[k], per_frame=True)
+        rec.end_frame()
+    rec.close()
+    with h5py.File(path, "r") as f:                        # the middle of frame 4's deflate stream
+        info = f["arrays/frames"].id.get_chunk_info_by_coord((4, 0, 0))
+    with open(path, "r+b") as fh:
+        fh.seek(info.byte_offset + info.size // 2)
+        fh.write(b"\xff\x00\xff\x00")
+    with Recording(path) as r, pytest.raises(RecordingDamaged, match="arrays/frames row 4 .frame 4."):
+        r.verify()
