@@ -92,6 +92,27 @@ def test_replay_detects_a_changed_word(sat, tmp_path, capsys):
     assert main(["replay", str(p)]) == 1
 
 
+def test_a_flipped_stored_byte_of_a_message_is_located(sat, tmp_path, capsys):
+    import shutil
+    out, _ = sat
+    p = tmp_path / "flipped.h5"
+    shutil.copy(out / "recording.h5", p)
+    with h5py.File(p, "r") as f:
+        ds = f["arrays/message_words"]
+        k = int(np.flatnonzero(f["tables/frames"]["msg_len"] > 60)[-1])
+        rows = ds.chunks[0]
+        info = ds.id.get_chunk_info_by_coord((k // rows * rows, 0))
+        off = info.byte_offset + (k % rows) * ds.dtype.itemsize * ds.shape[1] + 2 * 57 + 1
+    with open(p, "r+b") as fh:                       # word 57 of frame k's message, in the file
+        fh.seek(off)
+        b = fh.read(1)
+        fh.seek(off)
+        fh.write(bytes([b[0] ^ 0x01]))
+    assert main(["replay", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"arrays/message_words row {k} (frame {k})" in err
+
+
 def _content(path):
     """Everything in a recording except the host timings."""
     out = {}

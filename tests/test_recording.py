@@ -131,8 +131,17 @@ def _flip_stored_byte(path, key, row, byte):
         fh.write(bytes([b[0] ^ 0x10]))
 
 
-@pytest.mark.parametrize("key,row,byte", [("arrays/frames", 7, 60001), ("arrays/words", 3, 9),
-                                          ("tables/frames", 11, 2)])
+def _positions(n=6, seed=5):
+    """(dataset, row, byte) to flip: the first and last byte of a row and random ones."""
+    rng = np.random.default_rng(seed)
+    sizes = {"arrays/frames": 244 * 256 * 2, "arrays/words": 10, "tables/frames": 12}
+    out = [("arrays/frames", 0, 0), ("arrays/frames", 11, sizes["arrays/frames"] - 1)]
+    for key, size in sizes.items():
+        out += [(key, int(rng.integers(12)), int(rng.integers(size))) for _ in range(n)]
+    return out
+
+
+@pytest.mark.parametrize("key,row,byte", _positions())
 def test_a_flipped_byte_is_detected_and_located(tmp_path, key, row, byte):
     rec, _ = _frames_recording(tmp_path / "r.h5")
     path = rec.close()
