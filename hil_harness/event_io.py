@@ -483,6 +483,13 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
     except KeyboardInterrupt:
         path = rec.keep()
         raise EventInterrupted(path, rec.frames_written) from None
+    except OSError as exc:         # the disk is full, the folder went away...
+        try:
+            rec.keep()
+        except OSError:
+            pass
+        raise ValueError(f"{rec.partial}: cannot write the recording ({exc.strerror or exc}); "
+                         f"the {rec.frames_written} frames written before are kept") from None
     except BaseException:
         rec.keep()                 # what was recorded stays readable, marked incomplete
         raise

@@ -47,7 +47,10 @@ class RunFolder:
             p.mkdir(parents=True, exist_ok=True)
         except OSError as exc:
             raise ValueError(f"{p}: cannot create the output folder ({exc.strerror})") from None
-        fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise ValueError(f"{p}: cannot write to the output folder ({exc.strerror})") from None
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:

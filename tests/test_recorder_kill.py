@@ -122,3 +122,28 @@ def test_output_folder_rules(tmp_path, monkeypatch, capsys):
     capsys.readouterr()
     assert main(args + ["--out", str(tmp_path / "file")]) == 2
     assert "is a file" in capsys.readouterr().err
+
+
+def test_a_failing_disk_is_one_line_and_keeps_the_blocks_written(tmp_path, monkeypatch, capsys):
+    from hil_harness.recording import Recorder
+    real = Recorder._write
+    calls = []
+
+    def full_on_the_second_block(self, key, data, per_frame):
+        calls.append(self.frames)
+        if self.frames > FLUSH:
+            raise OSError(28, "No space left on device")
+        return real(self, key, data, per_frame)
+
+    monkeypatch.setattr(Recorder, "_write", full_on_the_second_block)
+    assert main(["event", "--frames", "45", "--no-figures", "--out", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "No space left on device" in err and "the 20 frames" in err
+    monkeypatch.undo()
+    with Recording(tmp_path / "a" / "recording.partial.h5") as r:
+        assert r.complete is False and r.n_frames == FLUSH and r.verify()["frames"] == FLUSH
+    blocked = tmp_path / "b"
+    (blocked / ".uvisi.lock").mkdir(parents=True)          # the lock file cannot be opened
+    assert main(["event", "--frames", "3", "--no-figures", "--out", str(blocked)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "cannot write to the output folder" in err
