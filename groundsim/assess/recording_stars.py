@@ -72,12 +72,18 @@ def _open(path) -> h5py.File:
 
 
 def _frames_held(f: h5py.File) -> int | None:
-    """Frames every per-frame dataset of the recording holds (None: all; an older recording)."""
+    """Frames every per-frame dataset of the recording holds with their checksum records (the
+    rule of ``hil_harness.recording``; None: all, an older recording)."""
+    counts = np.bincount(f["checksums"]["dataset"]) if "checksums" in f else None
     n = None
     for top in ("tables", "arrays"):
         for ds in (f[top].values() if top in f else ()):
             if ds.attrs.get("per_frame", False):
-                n = ds.shape[0] if n is None else min(n, ds.shape[0])
+                m = ds.shape[0]
+                cid = ds.attrs.get("checksum_id")
+                if counts is not None and cid is not None:
+                    m = min(m, int(counts[cid]) if cid < len(counts) else 0)
+                n = m if n is None else min(n, m)
     return n
 
 
