@@ -1,5 +1,6 @@
 """Nothing lost: a ``uvisi event`` killed with SIGKILL (at frames chosen through the test hook, not by
-timing), interrupted with SIGINT, or run with non-default processor models; and output folders."""
+timing), interrupted with SIGINT or SIGTERM, failing to write, or run with non-default processor
+models; and the output-folder rules."""
 import os
 import signal
 import subprocess
