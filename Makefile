@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP_RUN := $(VENV)/.uvisi-installed-run
 STAMP     := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean fuzz coverage
+.PHONY: test demo bench install clean fuzz coverage killcheck
 
 $(STAMP_RUN): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -41,6 +41,10 @@ demo: $(STAMP_RUN)
 
 bench: $(STAMP)
 	$(BIN)/python -m bench.report
+
+# kill uvisi event at random moments; every recording left must open, verify and replay (~2 min)
+killcheck: $(STAMP)
+	$(BIN)/python -m tests.kill_anywhere 20
 
 clean:
 	rm -rf $(VENV) build *.egg-info

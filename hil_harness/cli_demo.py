@@ -17,7 +17,10 @@ import numpy as np
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the product's main job on the built-in default",
                        description=__doc__)
-    p.add_argument("--out", default="events/satellite_over_stars", help="output directory")
+    p.add_argument("--out", default=None,
+                   help="output directory (default: ./events/satellite_over_stars, replaced on each "
+                        "run; another run in a given one is refused unless --force)")
+    p.add_argument("--force", action="store_true", help="replace another run found in --out")
     p.add_argument("--arith", action="store_true", help="flight-arithmetic self-report instead")
     p.set_defaults(func=run)
 
@@ -58,8 +61,9 @@ def run(args) -> int:
         import argparse
         from .cli_event import run as run_event
         return run_event(argparse.Namespace(
-            scenario="satellite_over_stars", seed=None, frames=None, out=args.out, no_frames=False,
-            no_figures=False, sequence=None, record=None, handover=False, json=False))
+            scenario="satellite_over_stars", seed=None, frames=None, out=args.out,
+            force=getattr(args, "force", False), no_frames=False, no_figures=False, sequence=None,
+            record=None, handover=False, json=False))
     return _arith_report()
 
 

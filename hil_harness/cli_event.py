@@ -1,16 +1,24 @@
-"""``uvisi event SCENARIO [--seed N] [--frames N] [--out DIR] [--no-frames]``: run one closed-loop
-tracking event.
+"""``uvisi event SCENARIO [--seed N] [--frames N] [--out DIR [--force]] [--no-frames]``: run one
+closed-loop tracking event.
 
 The ground simulator renders each 2 Hz frame of the scenario; the flight image processor turns it into
 a candidate message, the track processor into a pointing command, which the spacecraft follows. Writes
 ``recording.h5``, the figures (processing stages, centroid track, track error, gates, budget, an animated
 GIF) and ``summary.json`` to DIR, and prints a short table. SCENARIO is a shipped name (``uvisi
 scenarios`` lists them) or a TOML file.
+
+The recording is written in blocks of 20 frames as ``recording.partial.h5`` and renamed
+``recording.h5`` at the end; an interrupted event (Ctrl-C, SIGTERM, kill -9) leaves the partial file
+readable up to its last block. A DIR given with ``--out`` that holds another run is refused unless
+``--force``; the default folder ``./events/<scenario>`` is simply replaced. One event at a time
+writes to a folder.
 """
 from __future__ import annotations
 
 import json
+import signal
 import sys
+import threading
 from pathlib import Path
 
 
@@ -21,7 +29,10 @@ def register(sub) -> None:
                    help="shipped scenario name or TOML file (default: satellite_over_stars)")
     p.add_argument("--seed", type=int, default=None, help="seed (default: the scenario's)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames")
-    p.add_argument("--out", default=None, help="output directory (default: ./events/<scenario>)")
+    p.add_argument("--out", default=None, help="output directory (default: ./events/<scenario>, "
+                                               "replaced on each run)")
+    p.add_argument("--force", action="store_true",
+                   help="replace another run found in --out (removed first)")
     p.add_argument("--no-frames", action="store_true",
                    help="do not store the frames in the recording (smaller; no replay)")
     p.add_argument("--no-figures", action="store_true", help="skip the figures")
@@ -33,9 +44,18 @@ def register(sub) -> None:
     p.set_defaults(func=run)
 
 
+_TERMINATED = []
+
+
+def _terminate(signum, frame):
+    """SIGTERM ends the event as Ctrl-C does (what was recorded is kept)."""
+    _TERMINATED.append(signum)
+    raise KeyboardInterrupt
+
+
 def run(args) -> int:
     from groundsim.scenario import Scenario
-    from .event_io import run_event, summary_table
+    from .event_io import EventInterrupted, run_event, summary_table
     from .selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
@@ -46,10 +66,23 @@ def run(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
     out = Path(args.out) if args.out else Path("events") / Path(name).stem
-    s = run_event(name, seed=args.seed, frames=args.frames, out=out,
-                  record_frames=not args.no_frames, figures=not args.no_figures,
-                  progress=sys.stderr.isatty(), sequence=args.sequence, record=args.record,
-                  selection=SelectionParams(handover=args.handover))
+    replace = bool(getattr(args, "force", False)) or not args.out
+    _TERMINATED.clear()
+    main_thread = threading.current_thread() is threading.main_thread()
+    prev = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+    try:
+        s = run_event(name, seed=args.seed, frames=args.frames, out=out,
+                      record_frames=not args.no_frames, figures=not args.no_figures,
+                      progress=sys.stderr.isatty(), sequence=args.sequence, record=args.record,
+                      selection=SelectionParams(handover=args.handover), force=replace)
+    except EventInterrupted as exc:
+        how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
+        print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "
+              f"complete = False)", file=sys.stderr)
+        return 143 if _TERMINATED else 130
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, prev)
     if args.json:
         print(json.dumps(s, indent=2, default=str))
     else:

@@ -176,9 +176,13 @@ def _synthetic(args) -> int:
 
 def _event(args) -> int:
     from groundsim.assess.inr import write_csv
-    from groundsim.assess.recording_stars import inr_table_from_recording
+    from groundsim.assess.recording_stars import inr_table_from_recording, recording_status
     cfg = config_from_args(args)
+    complete, held, planned = recording_status(args.recording)
     table = inr_table_from_recording(args.recording, args.imager, args.gate)
+    if not complete:
+        print(f"{args.recording}: incomplete recording (complete = False: the event was "
+              f"interrupted); assessing the {held} of {planned} frames it holds")
     print(f"{args.recording}: {len(table.time)} star landmark measurements")
     if args.csv:
         os.makedirs(args.out, exist_ok=True)

@@ -87,7 +87,12 @@ def _reconstruct(args) -> int:
     if not os.path.exists(args.control_points):
         raise FileNotFoundError(f"no such control-point file: {args.control_points}")
     if args.control_points.endswith((".h5", ".hdf5")):
-        from groundsim.assess.recording_stars import BLEND_PX, control_points_from_recording
+        from groundsim.assess.recording_stars import (BLEND_PX, control_points_from_recording,
+                                                      recording_status)
+        complete, held, planned = recording_status(args.control_points)
+        if not complete:
+            print(f"{args.control_points}: incomplete recording (complete = False: the event was "
+                  f"interrupted); using the {held} of {planned} frames it holds")
         cp = control_points_from_recording(args.control_points,
                                            refine=False if args.flight_centroids else None,
                                            blend_px=None if args.keep_blends else BLEND_PX)

@@ -34,7 +34,7 @@ from flightsw.budget import DSP, IP1750, TP1750, Ledger
 from flightsw.ip import AlphaController, ProcessingSequence, load_default_sequence, process_frame
 from flightsw.ip.sequence import DEFAULT_SEQUENCES
 from flightsw.messages import CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
-from flightsw.records import load_record
+from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
 from groundsim.scenario import Scenario
 
@@ -64,8 +64,8 @@ class EventConfig:
         Processing sequence: a shipped name ("satellite", "satellite_c2", "aurora", "aurora_track") or
         a TOML file; default by the target type ("aurora_track" for aurora, else "satellite"), at the
         scenario's compaction.
-    record : str or Path, optional
-        A priori record (shipped name or TOML); default by the object type
+    record : str, Path or flightsw.records.Record, optional
+        A priori record (shipped name, TOML file or the record itself); default by the object type
         (:data:`hil_harness.selection.RECORD_FOR_TYPE`).
     selection : SelectionParams
         Imager hand-over criteria.
@@ -190,8 +190,9 @@ class Event:
         seq = cfg.sequence or ("aurora_track" if ttype == "aurora" else "satellite")
         self.sequence = _with_compaction(_shipped_sequence(seq), scn.compaction) \
             if cfg.sequence is None else _shipped_sequence(seq)
-        self.record_name = str(cfg.record) if cfg.record is not None else record_name_for(ttype)
-        self.record = load_record(self.record_name)
+        rec = cfg.record if cfg.record is not None else record_name_for(ttype)
+        self.record = load_record(rec)          # a name, a TOML file or a Record (a replay's)
+        self.record_name = rec.name if isinstance(rec, Record) else str(rec)
         self.geometry = {}
         tp_imagers = {}
         for iid, im in scn.imagers.items():

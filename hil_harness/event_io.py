@@ -1,9 +1,11 @@
 """An event's products: the HDF5 recording, ``summary.json``, the figures, and the replay check.
 
-Recording layout (``hil_harness.recording``; every table one row per frame unless said)::
+Recording layout (``hil_harness.recording``, written in blocks as ``recording.partial.h5`` and renamed
+``recording.h5`` when complete; ``docs/formats.md``; every table one row per frame unless said)::
 
-    attrs     format, software versions, scenario (name, raw TOML table as JSON), seed, config (JSON:
-              sequence, record, selection, TP overrides), n_frames
+    attrs     format, complete, run_id, software versions, scenario (name, raw TOML table as JSON),
+              seed, config (JSON: sequence, record, selection, TP overrides, processor models),
+              record_words (the record's uplink words), n_frames
     tables/frames      k, t, imager, skip, n_candidates, n_blobs, alpha, locked, status, predicted and
                        tracked pixels, error_urad, overrun, cycles per processor, gate counts, q_point
     tables/attitude    the AttitudeData handed to the TP (replay feeds these back)
@@ -15,12 +17,17 @@ Recording layout (``hil_harness.recording``; every table one row per frame unles
     arrays/message_words, arrays/command_words   the bus words, zero-padded, lengths in tables/frames
     arrays/frames      uint16[N, 244, 256] (unless --no-frames), arrays/stage_<name> of one frame
     host/timing        host wall time per stage (us); excluded from determinism checks
+    checksums          (dataset, row, adler32) of every stored row (``Recording.verify``)
 """
 from __future__ import annotations
 
 import json
 import math
+import os
 import platform
+import signal
+import time
+import uuid
 from dataclasses import asdict
 from pathlib import Path
 
@@ -32,8 +39,11 @@ from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
 from .event import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                     EventConfig, FrameOutcome)
 from .recording import Recorder, Recording
+from .run_folder import RunFolder
 
 MAX_COMMAND_WORDS = 128
+#: tables/ledger: one row per (frame, processor, stage)
+LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -55,7 +65,10 @@ def _config_dict(ev: Event) -> dict:
     return {"sequence": ev.sequence.to_dict(), "record": ev.record_name,
             "selection": asdict(c.selection), "overrun_policy": c.overrun_policy,
             "tp": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.tp.items()},
-            "frames": ev.n_frames, "stage_frame": c.stage_frame}
+            "frames": ev.n_frames, "stage_frame": c.stage_frame,
+            "processors": None if not c.processors else {
+                k: {"name": p.name, "clock_hz": float(p.clock_hz), "costs": dict(p.costs)}
+                for k, p in c.processors.items()}}
 
 
 def _pad(words, n) -> np.ndarray:
@@ -90,12 +103,32 @@ class EventWriter:
     """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
     ``on_frame`` hook)."""
 
-    def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True):
+    def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True,
+                 kill_at: int | None = None):
         self.rec = recorder
         self.ev = event
         self.record_frames = record_frames
+        self.kill_at = kill_at
+        self._snap_kinds: dict = {}
+        self.stage_frame = None
+        self.record_s = 0.0           # host time spent here (appends and block writes)
+        self.frames = 0
+
+    @property
+    def mean_record_us(self) -> float | None:
+        """Mean host time per frame spent recording (us), block writes included."""
+        return 1e6 * self.record_s / self.frames if self.frames else None
 
     def __call__(self, o: FrameOutcome) -> None:
+        t0 = time.perf_counter()
+        self._append(o)
+        self.rec.end_frame()
+        self.record_s += time.perf_counter() - t0
+        self.frames += 1
+        if self.kill_at is not None and o.k == self.kill_at:
+            os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
+
+    def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
         cyc = {p: (L.cycles(p) if L is not None else 0) for p in (DSP, IP1750, TP1750)}
         row = {"k": np.int32(o.k), "t": np.float64(o.t), "imager": np.int8(IMAGER_CODES[o.imager]),
@@ -111,13 +144,13 @@ class EventWriter:
                "dsp_cycles": np.int64(cyc[DSP]), "ip1750_cycles": np.int64(cyc[IP1750]),
                "tp1750_cycles": np.int64(cyc[TP1750])}
         row.update(_cmd_fields(o.command))
-        r.append("frames", row)
+        r.append("frames", row, per_frame=True)
         a = o.attitude
         r.append("attitude", {"k": np.int32(o.k), "t": np.float64(a.t),
                               "q": np.asarray(a.q_body_to_eci, np.float64),
                               "rate": np.asarray(a.rate_body, np.float64),
                               "r": np.asarray(a.r_eci, np.float64), "v": np.asarray(a.v_eci, np.float64),
-                              "valid": np.int8(bool(a.valid))})
+                              "valid": np.int8(bool(a.valid))}, per_frame=True)
         tg = (o.truth or {}).get("target") or {}
         r.append("truth", {"k": np.int32(o.k), "t": np.float64(o.t),
                            "row": np.float64(_f(tg.get("row"))), "col": np.float64(_f(tg.get("col"))),
@@ -127,7 +160,8 @@ class EventWriter:
                            "q_imager_to_eci": np.asarray((o.truth or {}).get("q_imager_to_eci",
                                                                              np.full(4, np.nan)),
                                                          np.float64),
-                           "n_stars": np.int32(len((o.truth or {}).get("stars", ())))})
+                           "n_stars": np.int32(len((o.truth or {}).get("stars", ())))},
+                 per_frame=True)
         if o.message is not None and o.message.count:
             c = o.message.candidates
             rows = np.zeros(len(c), np.dtype([("k", np.int32), ("rank", np.int16)] +
@@ -138,43 +172,45 @@ class EventWriter:
                 rows[n] = c[n]
             r.append_rows("candidates", rows)
         if L is not None:
-            for p in L.processors:
-                for s, cy in L.stages(p).items():
-                    r.append("ledger", {"k": np.int32(o.k), "processor": p, "stage": s,
-                                        "cycles": np.int64(cy)})
+            led = [(o.k, p.encode(), s.encode(), cy) for p in L.processors
+                   for s, cy in L.stages(p).items()]
+            if led:
+                r.append_rows("ledger", np.array(led, LEDGER_DTYPE))
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
-        snap = _snapshot_row(self.ev.tp, o.k)
+        snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
         if snap:
             r.append("tp", snap)
-        r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS))
-        r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS))
+        r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
+        r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
         if self.record_frames:
-            r.append_array("frames", o.frame)
+            r.append_array("frames", o.frame, per_frame=True)
         if o.stages:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
-            r.set_attr("stage_frame", int(o.k))
+            self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
                                        for k in ("render", "ip", "tp", "world", "total")}})
 
 
-def _snapshot_row(tp, k) -> dict:
-    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays)."""
+def _snapshot_row(tp, k, kinds: dict) -> dict:
+    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays); ``kinds`` caches
+    how each key is stored ("s" string, "v" value, "x" left out) across frames."""
     snap = getattr(tp, "snapshot", None)
     if snap is None:
         return {}
-    d = snap()
     row = {"k": np.int32(k)}
-    for key, v in d.items():
-        a = np.asarray(v)
-        if a.dtype.kind in "US" or a.dtype == object:
+    for key, v in snap().items():
+        kind = kinds.get(key)
+        if kind is None:
+            a = np.asarray(v)
+            kind = kinds[key] = "s" if a.dtype.kind in "US" or a.dtype == object else \
+                "x" if a.dtype.names is not None else "v"
+        if kind == "v":
+            row[key] = v
+        elif kind == "s":
             row[key] = str(v)[:64]
-        elif a.dtype.names is not None:
-            continue
-        else:
-            row[key] = a
     return row
 
 
@@ -382,9 +418,34 @@ def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
 # ================================================================================================
 # run_event / replay
 # ================================================================================================
+#: test hook: ``UVISI_TEST_KILL_AT_FRAME=k`` makes a recorded event SIGKILL itself once frame k is
+#: handed to the recorder (the kill tests use it instead of timing)
+KILL_HOOK_ENV = "UVISI_TEST_KILL_AT_FRAME"
+
+
+class EventInterrupted(KeyboardInterrupt):
+    """An interrupted recorded event: ``recording`` (the partial file kept), ``frames`` (held)."""
+
+    def __init__(self, recording: Path, frames: int):
+        super().__init__(f"interrupted; partial recording {recording} holds {frames} frames")
+        self.recording = recording
+        self.frames = frames
+
+
+def _kill_hook() -> int | None:
+    v = os.environ.get(KILL_HOOK_ENV)
+    if v is None or v == "":
+        return None
+    try:
+        return int(v)
+    except ValueError:
+        raise ValueError(f"{KILL_HOOK_ENV}={v!r}: must be a frame number") from None
+
+
 def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frames: int | None = None,
               out: str | Path | None = None, record_frames: bool = True, figures: bool = True,
-              progress: bool = False, **config) -> dict:
+              progress: bool = False, force: bool = False, flush_every: int = 20,
+              **config) -> dict:
     """Run one closed-loop event; with ``out`` write the recording, figures and ``summary.json`` there.
 
     Parameters
@@ -394,46 +455,76 @@ def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frame
     seed, frames : optional
         Seed override, frame limit.
     out : directory, optional
-        Output directory (created). Without it nothing is written.
+        Output directory (created; locked while the event runs). Without it nothing is written.
     record_frames : bool
-        Store every frame (compressed) in the recording (needed by ``uvisi replay``).
+        Store every frame in the recording (needed by ``uvisi replay``).
     figures : bool
         Write the figures (only with ``out``).
+    force : bool
+        Replace another run found in ``out`` (otherwise ``ValueError``).
+    flush_every : int
+        Frames per recording block (the most a kill loses).
     **config
         Further :class:`~hil_harness.event.EventConfig` fields (sequence, record, selection, tp, ...).
 
     Returns
     -------
     dict : the summary (``summary.json``), plus ``"recording"`` and ``"figures"`` paths when written.
+
+    Raises
+    ------
+    EventInterrupted
+        On SIGINT (KeyboardInterrupt): the frames recorded so far are kept in
+        ``recording.partial.h5`` (``complete`` = False).
     """
     cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
     ev = Event(cfg, keep_frames=bool(out) and figures)
-    rec = writer = None
-    if out is not None:
-        out = Path(out)
-        out.mkdir(parents=True, exist_ok=True)
-        rec = Recorder(out / "recording.h5", attrs={
-            "versions": _versions(), "scenario": ev.scenario.name,
-            "scenario_raw": _jsonable(ev.scenario.raw), "seed": int(ev.scenario.seed),
-            "config": _config_dict(ev), "n_frames": int(ev.n_frames),
-            "record_frames": bool(record_frames)})
-        writer = EventWriter(rec, ev, record_frames)
+    if out is None:
+        ev.run(progress=progress)
+        return summarise(ev)
+    kill_at = _kill_hook()
+    with RunFolder(out, replace=force):
+        return _run_recorded(ev, Path(out), record_frames, figures, progress, flush_every, kill_at)
+
+
+def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, progress: bool,
+                  flush_every: int, kill_at: int | None) -> dict:
+    run_id = uuid.uuid4().hex
+    rec = Recorder(out / "recording.h5", attrs={
+        "run_id": run_id, "versions": _versions(), "scenario": ev.scenario.name,
+        "scenario_raw": _jsonable(ev.scenario.raw), "seed": int(ev.scenario.seed),
+        "config": _config_dict(ev), "record_words": ev.record.to_words().tolist(),
+        "n_frames": int(ev.n_frames), "record_frames": bool(record_frames)},
+        flush_every=flush_every)
+    writer = EventWriter(rec, ev, record_frames, kill_at=kill_at)
     try:
         ev.run(progress=progress, on_frame=writer)
+    except KeyboardInterrupt:
+        path = rec.keep()
+        raise EventInterrupted(path, rec.frames_written) from None
+    except OSError as exc:         # the disk is full, the folder went away...
+        try:
+            rec.keep()
+        except OSError:
+            pass
+        raise ValueError(f"{rec.partial}: cannot write the recording ({exc.strerror or exc}); "
+                         f"the {rec.frames_written} frames written before are kept") from None
     except BaseException:
-        if rec is not None:
-            rec.abort()
+        rec.keep()                 # what was recorded stays readable, marked incomplete
         raise
     s = summarise(ev)
-    if rec is not None:
-        rec.set_attr("summary", s)
-        path = rec.close()
-        s["recording"] = str(path)
-        if figures:
-            s["figures"] = [str(p) for p in event_figures(ev, out)]
-        tmp = out / "summary.json.tmp"
-        tmp.write_text(json.dumps(s, indent=2, default=_json_default))
-        tmp.replace(out / "summary.json")
+    s["run_id"] = run_id
+    s["host"]["mean_record_us"] = writer.mean_record_us
+    rec.set_attr("summary", s)
+    if writer.stage_frame is not None:
+        rec.set_attr("stage_frame", writer.stage_frame)
+    path = rec.close()
+    s["recording"] = str(path)
+    if figures:
+        s["figures"] = [str(p) for p in event_figures(ev, out)]
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(s, indent=2, default=_json_default))
+    tmp.replace(out / "summary.json")
     return s
 
 
@@ -473,35 +564,64 @@ class _ReplayEvent(Event):
         return att, np.asarray(self._frames_ds[k]), truth, int(self._fr[k]["skip"]) == SKIP_DROPPED
 
 
-def replay(path) -> dict:
-    """Re-run the flight code (IP + TP) on a recording's frames and attitude data; compare every
-    candidate message and track command word with the recorded ones.
-
-    Returns ``{"frames", "compared", "identical", "mismatches": [{"k", "what", "first_word"}...]}``.
-    """
+def _replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
+    """The :class:`EventConfig` a recording was made with (scenario, sequence, record, selection,
+    TP overrides, processor models), for its first ``n`` frames."""
+    from flightsw.budget import Processor
+    from flightsw.ip import ProcessingSequence
+    from flightsw.records import Record
     from groundsim.scenario import Scenario
     from .selection import SelectionParams
+    at = rec.attrs
+    cfgd = at["config"] if isinstance(at["config"], dict) else json.loads(at["config"])
+    raw = at["scenario_raw"] if isinstance(at["scenario_raw"], dict) else json.loads(at["scenario_raw"])
+    scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=int(at["seed"]))
+    record = cfgd["record"]
+    if "record_words" in at:                      # the record as uplinked, not a file that may change
+        record = Record.from_words(np.asarray(at["record_words"], np.int64), name=str(cfgd["record"]))
+    procs = cfgd.get("processors")
+    if procs:
+        procs = {k: Processor(v["name"], float(v["clock_hz"]), dict(v["costs"])) for k, v in procs.items()}
+    return EventConfig(scenario=scn, frames=n, sequence=ProcessingSequence.from_dict(cfgd["sequence"]),
+                       record=record, selection=SelectionParams(**cfgd["selection"]),
+                       tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
+                       processors=procs or None)
+
+
+def replay(path) -> dict:
+    """Verify a recording's checksums, then re-run the flight code (IP + TP) on its frames and
+    attitude data and compare every candidate message and track command word with the recorded ones.
+    A partial recording (``complete`` = False) is replayed over the frames it holds.
+
+    Returns ``{"recording", "complete", "planned", "frames", "verified", "checksums", "compared",
+    "identical", "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and
+    replayed, ``verified``: frames whose stored data matched their checksums, ``checksums``: False
+    for a recording made before them (nothing verified), ``planned``: the event's length).
+
+    Raises
+    ------
+    RecordingDamaged
+        (a ``ValueError``) naming the dataset and frame whose stored data changed.
+    """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
     with Recording(path) as rec:
         at = rec.attrs
-        if "frames" not in rec.arrays():
+        checked = rec.verify() if rec.has_checksums else {"frames": 0}
+        n = rec.n_frames or 0
+        out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
+               "frames": n, "verified": checked["frames"], "checksums": rec.has_checksums,
+               "compared": 0, "identical": True, "mismatches": []}
+        if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
             raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
                              f"replay needs them")
-        cfgd = at["config"] if isinstance(at["config"], dict) else json.loads(at["config"])
-        raw = at["scenario_raw"] if isinstance(at["scenario_raw"], dict) else json.loads(at["scenario_raw"])
-        scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=int(at["seed"]))
-        from flightsw.ip import ProcessingSequence
-        cfg = EventConfig(scenario=scn, frames=int(at["n_frames"]),
-                          sequence=ProcessingSequence.from_dict(cfgd["sequence"]),
-                          record=cfgd["record"], selection=SelectionParams(**cfgd["selection"]),
-                          tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"))
-        ev = _ReplayEvent(cfg, rec)
+        if n == 0:
+            return out
+        ev = _ReplayEvent(_replay_config(path, rec, n), rec)
         fr = rec.table("frames")
         mw, cw = rec.array("message_words"), rec.array("command_words")
         mism = []
-        n = len(fr)
         for k in range(n):
             o = ev.step()
             for what, got, ds, ln in (("message", o.message_words, mw, fr[k]["msg_len"]),
@@ -512,5 +632,5 @@ def replay(path) -> dict:
                     diff = np.nonzero(g[:min(len(g), len(want))] != want[:min(len(g), len(want))])[0]
                     mism.append({"k": k, "what": what,
                                  "first_word": int(diff[0]) if len(diff) else min(len(g), len(want))})
-        return {"recording": str(path), "frames": n, "compared": 2 * n, "identical": not mism,
-                "mismatches": mism}
+        out.update(compared=2 * n, identical=not mism, mismatches=mism)
+        return out

@@ -64,8 +64,9 @@ def test_replay_is_bit_identical(sat):
     assert r["compared"] == 160
 
 
-def test_replay_detects_a_changed_word(sat, tmp_path):
+def test_replay_detects_a_changed_word(sat, tmp_path, capsys):
     import shutil
+    import zlib
     out, _ = sat
     p = tmp_path / "tampered.h5"
     shutil.copy(out / "recording.h5", p)
@@ -73,9 +74,43 @@ def test_replay_detects_a_changed_word(sat, tmp_path):
         fr = f["tables/frames"][()]
         k = int(np.flatnonzero(fr["cmd_len"] > 0)[5])
         f["arrays/command_words"][k, 20] ^= 1
+    # the checksum catches it first: one line naming the dataset and frame, exit 2
+    with pytest.raises(ValueError, match=f"arrays/command_words row {k} .frame {k}."):
+        replay(p)
+    assert main(["replay", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"command_words row {k}" in err
+    # with its checksum forged to match, the re-computed command still differs from the stored one
+    with h5py.File(p, "r+") as f:
+        cs = f["checksums"][()]
+        i = np.flatnonzero((cs["dataset"] == f["arrays/command_words"].attrs["checksum_id"])
+                           & (cs["row"] == k))[0]
+        cs["adler32"][i] = zlib.adler32(f["arrays/command_words"][k].tobytes())
+        f["checksums"][i] = cs[i]
     r = replay(p)
-    assert not r["identical"] and r["mismatches"][0]["k"] == k
+    assert not r["identical"] and r["mismatches"][0]["k"] == k and r["verified"] == 80
     assert main(["replay", str(p)]) == 1
+
+
+def test_a_flipped_stored_byte_of_a_message_is_located(sat, tmp_path, capsys):
+    import shutil
+    out, _ = sat
+    p = tmp_path / "flipped.h5"
+    shutil.copy(out / "recording.h5", p)
+    with h5py.File(p, "r") as f:
+        ds = f["arrays/message_words"]
+        k = int(np.flatnonzero(f["tables/frames"]["msg_len"] > 60)[-1])
+        rows = ds.chunks[0]
+        info = ds.id.get_chunk_info_by_coord((k // rows * rows, 0))
+        off = info.byte_offset + (k % rows) * ds.dtype.itemsize * ds.shape[1] + 2 * 57 + 1
+    with open(p, "r+b") as fh:                       # word 57 of frame k's message, in the file
+        fh.seek(off)
+        b = fh.read(1)
+        fh.seek(off)
+        fh.write(bytes([b[0] ^ 0x01]))
+    assert main(["replay", str(p)]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and f"arrays/message_words row {k} (frame {k})" in err
 
 
 def _content(path):
@@ -83,7 +118,7 @@ def _content(path):
     out = {}
     with h5py.File(path) as f:
         def visit(name, obj):
-            if isinstance(obj, h5py.Dataset) and not name.startswith("host"):
+            if isinstance(obj, h5py.Dataset) and not name.startswith(("host", "checksums")):
                 out[name] = obj[()]
         f.visititems(visit)
         out["attrs"] = {k: f.attrs[k] for k in f.attrs}
@@ -98,7 +133,7 @@ def test_same_seed_same_recording(tmp_path):
     for k in ca:
         if k == "attrs":
             for ak in ca[k]:
-                if ak != "summary":              # the summary holds host timings
+                if ak not in ("summary", "run_id"):    # host timings; a new id each run
                     assert ca[k][ak] == cb[k][ak], ak
         else:
             assert ca[k].tobytes() == cb[k].tobytes(), k

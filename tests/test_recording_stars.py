@@ -1,5 +1,6 @@
 """Stars in an event recording -> RDE control points and INR landmarks (truth-free matching checked
 against the simulator's truth)."""
+import contextlib
 import json
 import tomllib
 from importlib import resources
@@ -17,9 +18,10 @@ from hil_harness.recording import Recorder
 ALIGN_ERR_URAD = [0.0, 400.0, -300.0]
 
 
-def _write(path, raw, n, alpha):
+def _write(path, raw, n, alpha, writer=None):
     """A recording in the uvisi event layout (the tables the star matching reads), made open loop:
-    the ground simulator's frames through the flight IP with the star record."""
+    the ground simulator's frames through the flight IP with the star record. With ``writer`` (an
+    open Recorder) the rows go there in blocks and the file is left open, as a killed event's."""
     scn = Scenario.from_dict(raw)
     w = scn.world()
     d = load_default_sequence("satellite").to_dict()
@@ -28,22 +30,27 @@ def _write(path, raw, n, alpha):
     seq = ProcessingSequence.from_dict(d)
     rec = load_record("star")
     truths = []
-    with Recorder(path, attrs={"scenario_raw": json.dumps(raw), "seed": scn.seed}) as R:
+    R = writer or Recorder(path, attrs={"scenario_raw": json.dumps(raw), "seed": scn.seed})
+    pf = writer is not None
+    with R if writer is None else contextlib.nullcontext():
         for k in range(n):
             att = w.attitude_data()
             frame, truth = w.render()
             truths.append(truth)
             c = process_frame(frame, seq, rec, want_stages=False).message.candidates
-            R.append("frames", {"k": np.int32(k), "t": w.t, "imager": np.int8(0), "skip": np.int8(0)})
+            R.append("frames", {"k": np.int32(k), "t": w.t, "imager": np.int8(0), "skip": np.int8(0)},
+                     per_frame=pf)
             R.append("attitude", {"k": np.int32(k), "t": att.t, "q": att.q_body_to_eci,
                                   "rate": att.rate_body, "r": att.r_eci, "v": att.v_eci,
-                                  "valid": np.int8(att.valid)})
+                                  "valid": np.int8(att.valid)}, per_frame=pf)
             R.append("truth", {"k": np.int32(k), "t": w.t,
-                               "q_imager_to_eci": truth["q_imager_to_eci"]})
+                               "q_imager_to_eci": truth["q_imager_to_eci"]}, per_frame=pf)
             for i in range(len(c)):
                 R.append("candidates", {"k": np.int32(k), "rank": np.int16(i + 1),
                                         "row": c["row"][i], "col": c["col"][i]})
-            R.append_array("frames", frame)
+            R.append_array("frames", frame, per_frame=pf)
+            if writer is not None:
+                R.end_frame()
             w.advance(0.5)
     return truths
 
@@ -218,3 +225,21 @@ def test_cli_entries(rich, tmp_path, capsys):
     assert main(["rde", "reconstruct", str(path), "--flight-centroids", "--keep-blends"]) == 0
     assert "0 centroids re-measured" in capsys.readouterr().out
     assert main(["inr", "event", str(tmp_path / "missing.h5")]) == 2
+
+
+def test_cli_entries_read_a_partial_recording_and_say_so(tmp_path, capsys):
+    raw = _raw()
+    W = Recorder(tmp_path / "recording.h5", attrs={"scenario_raw": json.dumps(raw), "seed": 1,
+                                                   "n_frames": 30}, flush_every=10)
+    try:
+        _write(None, raw, 27, 2.0, writer=W)       # 20 frames written, 7 buffered, file still open
+        part = str(W.partial)
+        assert main(["inr", "event", part, "--out", str(tmp_path / "inr")]) == 0
+        out = capsys.readouterr().out
+        assert "incomplete recording" in out and "20 of 30 frames" in out
+        assert main(["rde", "reconstruct", part, "--flight-centroids"]) == 0
+        out = capsys.readouterr().out
+        assert "incomplete recording" in out and "20 of 30 frames" in out and "control points" in out
+        assert RS.recording_status(part) == (False, 20, 30)
+    finally:
+        W.abort()

@@ -58,6 +58,59 @@ BLEND_DMAG = 2.5
 BLEND_PX = 4.0
 
 
+def _open(path) -> h5py.File:
+    """The recording read-only; a partial one (``recording.partial.h5``, left by an interrupted
+    event, still flagged open-for-writing) through HDF5's SWMR read mode."""
+    try:
+        return h5py.File(path, "r")
+    except OSError as exc:
+        first = exc
+    try:
+        return h5py.File(path, "r", swmr=True)
+    except OSError:
+        raise ValueError(f"{path}: not a readable HDF5 recording ({first})") from None
+
+
+def _frames_held(f: h5py.File) -> int | None:
+    """Frames every per-frame dataset of the recording holds with their checksum records (the
+    rule of ``hil_harness.recording``; None: all, an older recording)."""
+    counts = np.bincount(f["checksums"]["dataset"]) if "checksums" in f else None
+    n = None
+    for top in ("tables", "arrays"):
+        for ds in (f[top].values() if top in f else ()):
+            if ds.attrs.get("per_frame", False):
+                m = ds.shape[0]
+                cid = ds.attrs.get("checksum_id")
+                if counts is not None and cid is not None:
+                    m = min(m, int(counts[cid]) if cid < len(counts) else 0)
+                n = m if n is None else min(n, m)
+    return n
+
+
+def _held_tables(f: h5py.File) -> tuple:
+    """(frames, attitude, truth, candidates or None) tables, cut to the frames the file holds."""
+    held = _frames_held(f)
+    fr = f["tables/frames"][:held]
+    cand = f["tables/candidates"][()] if "tables/candidates" in f else None
+    if cand is not None:
+        cand = cand[cand["k"] < len(fr)]
+    return fr, f["tables/attitude"][:held], f["tables/truth"][:held], cand
+
+
+def recording_status(path) -> tuple[bool, int, int]:
+    """``(complete, frames held, frames planned)`` of an event recording (``complete`` False: the
+    event was interrupted and the file holds its frames up to the last block written)."""
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such recording")
+    with _open(path) as f:
+        if "tables/frames" not in f:
+            return bool(f.attrs.get("complete", True)), 0, int(f.attrs.get("n_frames", 0))
+        held = _frames_held(f)
+        n = f["tables/frames"].shape[0] if held is None else held
+        return bool(f.attrs.get("complete", True)), int(n), int(f.attrs.get("n_frames", n))
+
+
 def read_star_matches(path, imager: str | None = None, gate_px: float = 3.0,
                       mag_margin: float = 0.5) -> dict:
     """Match a recording's candidates to catalogue stars.
@@ -87,15 +140,12 @@ def read_star_matches(path, imager: str | None = None, gate_px: float = 3.0,
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with h5py.File(path, "r") as f:
+    with _open(path) as f:
         if "tables/frames" not in f or "tables/attitude" not in f:
             raise ValueError(f"{path}: not an event recording (no tables/frames, tables/attitude)")
         raw = _attr_json(f.attrs["scenario_raw"])
         seed = int(f.attrs["seed"])
-        fr = f["tables/frames"][()]
-        att = f["tables/attitude"][()]
-        truth = f["tables/truth"][()]
-        cand = f["tables/candidates"][()] if "tables/candidates" in f else None
+        fr, att, truth, cand = _held_tables(f)
         has_frames = "arrays/frames" in f
         config = _attr_json(f.attrs["config"]) if "config" in f.attrs else {}
         scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=seed)

@@ -1,0 +1,50 @@
+"""The event recorder's cost alone: ``python -m bench.recorder_cost [REPEATS]``.
+
+Runs the 181 frames of ``satellite_over_stars`` once, keeping every frame's outcome in memory, then
+writes them REPEATS times (default 4) through :class:`hil_harness.event_io.EventWriter` into a fresh
+recording (open, every frame, close) and prints the mean wall and CPU time per frame, the median
+per-frame call (appends only; every 20th call also writes a block) and the file size. CPU time is
+given beside wall time because on a shared machine the wall time mostly measures the neighbours.
+"""
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from hil_harness.event import Event, EventConfig
+from hil_harness.event_io import EventWriter
+from hil_harness.recording import Recorder
+
+
+def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    repeats = int(argv[0]) if argv else 4
+    ev = Event(EventConfig("satellite_over_stars"), keep_frames=True)
+    ev.run()
+    n = len(ev.outcomes)
+    print(f"recorder alone, {n} frames of satellite_over_stars, {repeats} runs")
+    with tempfile.TemporaryDirectory() as tmp:
+        for rep in range(repeats):
+            path = Path(tmp) / f"r{rep}" / "recording.h5"
+            t0, c0 = time.perf_counter(), time.process_time()
+            rec = Recorder(path, attrs={"scenario": ev.scenario.name})
+            w = EventWriter(rec, ev, True)
+            per = []
+            for o in ev.outcomes:
+                t = time.perf_counter()
+                w(o)
+                per.append(time.perf_counter() - t)
+            rec.close()
+            wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+            print(f"  run {rep}: {1e6 * wall / n:.0f} us wall, {1e6 * cpu / n:.0f} us CPU a frame "
+                  f"(open to close); median call {1e6 * np.median(per):.0f} us; "
+                  f"{path.stat().st_size / 1e6:.1f} MB")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

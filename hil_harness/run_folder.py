@@ -1,0 +1,93 @@
+"""An event's output folder: one writer at a time (an OS lock), and no older run mistaken for this one.
+
+:class:`RunFolder` is held for the whole of an event: it takes an exclusive ``fcntl.flock`` on
+``<folder>/.uvisi.lock`` (released by the kernel when the process ends, however it ends), then
+refuses a folder holding another run's products unless told to replace them, in which case it
+removes them first, so that a stale ``recording.partial.h5`` or ``summary.json`` never sits beside
+the new run's.
+"""
+from __future__ import annotations
+
+import fcntl
+import os
+from pathlib import Path
+
+LOCK_NAME = ".uvisi.lock"
+#: the files ``uvisi event`` writes into its folder (and so removes when replacing a run)
+RUN_PRODUCTS = ("recording.h5", "recording.partial.h5", "recording.h5.tmp", "summary.json",
+                "summary.json.tmp", "stages.png", "centroid_track.png", "track_error.png",
+                "gates.png", "budget.png", "event.gif")
+
+
+class RunFolder:
+    """The output folder of one event, locked while the event runs.
+
+    Parameters
+    ----------
+    path : str or Path
+        The folder (created with its parents). A file of that name is an error.
+    replace : bool
+        Remove another run's products instead of refusing the folder (``--force``, or the default
+        folder, which is simply replaced).
+
+    ``ValueError`` (one line naming the folder) when the folder is a file, holds another run and
+    ``replace`` is False, or another process holds the lock.
+    """
+
+    def __init__(self, path, replace: bool = False):
+        self.path = Path(path)
+        self.replace = bool(replace)
+        self._fd = None
+
+    def acquire(self) -> "RunFolder":
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise ValueError(f"{p}: exists and is a file, not an output folder")
+        try:
+            p.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"{p}: cannot create the output folder ({exc.strerror})") from None
+        try:
+            fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise ValueError(f"{p}: cannot write to the output folder ({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise ValueError(f"{p}: another uvisi event (pid {holder}) is writing to this folder")
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        self._fd = fd
+        try:
+            self._clear_old_run()
+        except BaseException:
+            self.release()
+            raise
+        return self
+
+    def _clear_old_run(self) -> None:
+        old = [n for n in RUN_PRODUCTS if (self.path / n).exists()]
+        if old and not self.replace:
+            raise ValueError(f"{self.path}: holds another run ({', '.join(old)}); use --force to "
+                             f"replace it, or another --out")
+        for n in old:
+            try:
+                (self.path / n).unlink()
+            except OSError as exc:
+                raise ValueError(f"{self.path / n}: cannot remove the old run's file "
+                                 f"({exc.strerror})") from None
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
+        return False
