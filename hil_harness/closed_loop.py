@@ -110,6 +110,13 @@ class ReplayEvent:
         """bool [F]: the object is in the frame (truth known)."""
         return np.isfinite(self.truth_row) & np.isfinite(self.truth_col)
 
+    def block(self, a: int, b: int, name: str | None = None) -> "ReplayEvent":
+        """Frames ``a:b`` as an event of their own (the loop starts afresh at frame ``a``)."""
+        return ReplayEvent(self.frames[a:b], self.t[a:b], self.imager, self.geometry,
+                           None if self.attitude is None else self.attitude[a:b],
+                           self.frame_count[a:b], self.truth_row[a:b], self.truth_col[a:b],
+                           name or f"{self.name}[{a}:{b}]", self.object_type)
+
     def without_truth(self) -> "ReplayEvent":
         """The same event with every truth position replaced by NaN."""
         return ReplayEvent(self.frames, self.t, self.imager, self.geometry, self.attitude,

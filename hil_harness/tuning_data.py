@@ -59,7 +59,7 @@ from flightsw.arith.m1750 import decode32_array
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
-           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry"]
+           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -394,7 +394,9 @@ class SetSpec:
 # ================================================================================================
 # building
 # ================================================================================================
-def _load_sequence(name_or_path, base_dir=None, frame_shape=None):
+def load_sequence(name_or_path, base_dir=None, frame_shape=None):
+    """The processing sequence (shipped name or TOML path), its frame shape set to
+    ``frame_shape`` when given."""
     from flightsw.ip.sequence import (DEFAULT_SEQUENCES, Preprocess, ProcessingSequence,
                                       load_default_sequence)
     if name_or_path in DEFAULT_SEQUENCES:
@@ -410,6 +412,9 @@ def _load_sequence(name_or_path, base_dir=None, frame_shape=None):
                          frame_shape=tuple(frame_shape))
         seq = ProcessingSequence([dict(s.raw) for s in seq.steps], pre, seq.name, seq.description)
     return seq
+
+
+_load_sequence = load_sequence          # older spelling, kept for existing callers
 
 
 def _deep_merge(base, over):
@@ -499,7 +504,7 @@ def scenario_run_set(entry, seed, sequence, base_dir=None, record=None) -> Train
     from flightsw.records import load_record
     record = load_record("aurora") if record is None else record
     scn = scenario_from_entry(entry["name"], entry.get("override"), seed, base_dir)
-    seq = _load_sequence(sequence, base_dir)
+    seq = load_sequence(sequence, base_dir)
     world = scn.world()
     world.reset()
     rng = np.random.default_rng([int(seed), 0x7E57])
@@ -594,7 +599,7 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     for fr in sorted(want):
         img = to_12bit(frames[fr][1], True, f"{name}[{fr}]")
         if img.shape not in seq_cache:
-            seq_cache[img.shape] = _load_sequence(sequence, base_dir, img.shape)
+            seq_cache[img.shape] = load_sequence(sequence, base_dir, img.shape)
         seq = seq_cache[img.shape]
         label = mine[fr]
         # previous mode: the previous *labelled* frame of the sequence (the TP's last fix)
@@ -631,7 +636,7 @@ def build_set(spec, progress: bool = False, workers: int | None = None) -> Train
         spec = SetSpec.from_dict(spec)
     elif not isinstance(spec, SetSpec):
         raise ValueError(f"build_set: expected a SetSpec, dict or path, got {type(spec).__name__}")
-    _load_sequence(spec.sequence, spec.base_dir)              # fail early on a bad sequence
+    load_sequence(spec.sequence, spec.base_dir)              # fail early on a bad sequence
     jobs = [("scenario", e, s, spec.sequence, spec.base_dir) for e in spec.scenarios
             for s in e["seeds"]]
     jobs += [("real", e, None, spec.sequence, spec.base_dir) for e in spec.reals]
