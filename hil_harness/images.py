@@ -1,0 +1,391 @@
+"""Real image files -> frames, the flight's 12-bit counts, and bad-frame flags.
+
+Public API (used by ``uvisi detect`` and ``uvisi track``):
+
+* :func:`read_images` ``(paths) -> list[InputFrame]``: every frame of every file, in order;
+* :func:`to_counts` ``(data, *, no_scale=False) -> (uint16 [H, W], mapping dict)``;
+* :func:`frame_flags` ``(data) -> list[str]``: "blank", "constant", "nan", "saturated", "missing";
+* :class:`InputFrame`, :class:`ImageError` (a ``ValueError`` naming the file).
+
+Formats: FITS (astropy; every image HDU, a cube gives one frame per plane; ``DATE-OBS`` is the time
+tag), TIFF (tifffile; a multi-page stack gives one frame per page; the ``DateTime`` tag), PNG/JPEG/
+BMP/GIF (pillow; colour -> luminance) and NPY/NPZ (never with pickles; in an NPZ the key ``img`` if
+present, else every numeric 2-D/3-D array; an NPZ ``time_utc`` array gives each plane its time tag).
+A colour image ``[H, W, 3|4]`` becomes one luminance frame (0.299 R + 0.587 G + 0.114 B).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["InputFrame", "ImageError", "read_images", "to_counts", "frame_flags", "robust_stats",
+           "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
+           "MISSING_FRACTION", "SATURATED_FRACTION", "BLANK_MARGIN_SIGMA", "FLAG_NAMES"]
+
+#: robust map: the sky background goes to this level (12-bit counts)
+SKY_COUNTS = 200.0
+#: robust map: the sky noise (1.4826 MAD) becomes this many counts, unless that clips more than
+#: the brightest (100 - HEADROOM_PERCENTILE) % of the pixels
+NOISE_COUNTS = 8.0
+#: ... and never fewer than this many counts per noise sigma (the sky noise stays measurable)
+MIN_NOISE_COUNTS = 2.0
+#: percentile of the finite pixels that must still fit below 4095 (when the noise floor allows)
+HEADROOM_PERCENTILE = 99.9
+#: frame_flags thresholds (see frame_flags)
+MISSING_FRACTION = 0.5
+SATURATED_FRACTION = 0.05
+BLANK_MARGIN_SIGMA = 1.5
+FLAG_NAMES = ("blank", "constant", "nan", "saturated", "missing")
+
+_MAX12 = 4095
+_FULL_SCALE = {2 ** k - 1 for k in (8, 10, 12, 14, 16, 32)} | {_MAX12 << 4}
+
+
+class ImageError(ValueError):
+    """An unreadable or unusable image; the message starts with the file (and plane)."""
+
+
+@dataclass
+class InputFrame:
+    """One 2-D frame of an input file.
+
+    ``name``: ``"<file>"``, ``"<file>[i]"`` (plane i of a stack), ``"<file>[key]"`` /
+    ``"<file>[key][i]"`` (an NPZ array) or ``"<file>[hduN]..."`` (a FITS extension);
+    ``data``: 2-D array as read (any dtype, not scaled); ``time_utc``: ISO-8601 time tag where the
+    input has one (NPZ ``time_utc``, FITS ``DATE-OBS``, TIFF ``DateTime``), else None.
+    """
+
+    name: str
+    data: np.ndarray
+    time_utc: str | None = None
+
+
+# ------------------------------------------------------------------------------------------------
+# reading
+# ------------------------------------------------------------------------------------------------
+def read_images(paths) -> list[InputFrame]:
+    """Every frame of every file in ``paths`` (a path or a sequence of paths), in order.
+
+    Raises :class:`ImageError` naming the file for a missing, unreadable or unsupported file, an
+    array that is not 2-D/3-D numeric, or an NPY/NPZ that would need pickles.
+    """
+    if isinstance(paths, (str, Path)):
+        paths = [paths]
+    out: list[InputFrame] = []
+    for path in paths:
+        p = Path(path)
+        if not p.exists():
+            raise ImageError(f"{p}: no such file")
+        if p.is_dir():
+            raise ImageError(f"{p}: is a directory, not an image file")
+        try:
+            frames = _read_one(p)
+        except ImageError:
+            raise
+        except Exception as exc:       # noqa: BLE001 -- any library failure becomes one line
+            raise ImageError(f"{p}: cannot read: {type(exc).__name__}: {exc}") from None
+        if not frames:
+            raise ImageError(f"{p}: no 2-D image in the file")
+        out += frames
+    return out
+
+
+def _read_one(p: Path) -> list[InputFrame]:
+    name = p.name.lower()
+    suf = p.suffix.lower()
+    if suf in (".fits", ".fit", ".fts") or name.endswith((".fits.gz", ".fit.gz", ".fts.gz")):
+        return _read_fits(p)
+    if suf in (".tif", ".tiff"):
+        return _read_tiff(p)
+    if suf in (".png", ".jpg", ".jpeg", ".bmp", ".gif"):
+        from PIL import Image
+        with Image.open(p) as im:
+            if im.mode not in ("L", "I", "I;16", "I;16B", "I;16L", "F", "RGB", "RGBA"):
+                im = im.convert("RGB")
+            return _planes(np.asarray(im), str(p), None)
+    if suf == ".npy":
+        return _planes(np.load(p, allow_pickle=False), str(p), None)
+    if suf == ".npz":
+        return _read_npz(p)
+    raise ImageError(f"{p}: unsupported format {suf or p.name!r} (FITS, TIFF, PNG/JPEG, NPY, NPZ)")
+
+
+def _read_fits(p: Path) -> list[InputFrame]:
+    from astropy.io import fits
+    out = []
+    with fits.open(p) as hdul:
+        images = [(i, h) for i, h in enumerate(hdul)
+                  if getattr(h, "is_image", False) and h.data is not None and h.data.ndim >= 2]
+        for i, h in images:
+            label = str(p) if len(images) == 1 else f"{p}[hdu{i}]"
+            t = h.header.get("DATE-OBS") or hdul[0].header.get("DATE-OBS")
+            if t is not None and "T" not in str(t) and h.header.get("TIME-OBS"):
+                t = f"{t}T{h.header['TIME-OBS']}"
+            out += _planes(np.array(h.data), label, None if t is None else str(t))
+    return out
+
+
+def _read_tiff(p: Path) -> list[InputFrame]:
+    import tifffile
+    with tifffile.TiffFile(p) as tf:
+        a = tf.asarray()
+        t = None
+        tag = tf.pages[0].tags.get("DateTime") if len(tf.pages) else None
+        if tag is not None and isinstance(tag.value, str) and len(tag.value) >= 19:
+            v = tag.value.strip()
+            t = f"{v[0:4]}-{v[5:7]}-{v[8:10]}T{v[11:19]}"
+    return _planes(np.asarray(a), str(p), t)
+
+
+def _read_npz(p: Path) -> list[InputFrame]:
+    out = []
+    with np.load(p, allow_pickle=False) as z:
+        keys = ["img"] if "img" in z.files else [k for k in z.files if k != "time_utc"]
+        times = np.atleast_1d(z["time_utc"]).astype(str) if "time_utc" in z.files else None
+        for k in keys:
+            a = np.asarray(z[k])
+            if a.ndim not in (2, 3) or not (np.issubdtype(a.dtype, np.number)
+                                            or a.dtype == np.bool_):
+                if k == "img":
+                    raise ImageError(f"{p}: key 'img' is not a 2-D/3-D numeric array "
+                                     f"(shape {a.shape}, dtype {a.dtype})")
+                continue
+            label = str(p) if k == "img" or len(keys) == 1 else f"{p}[{k}]"
+            out += _planes(a, label, times)
+    return out
+
+
+def _planes(a: np.ndarray, label: str, times) -> list[InputFrame]:
+    """Split an array into 2-D frames; ``times``: None, one tag, or one tag per plane."""
+    a = np.asarray(a)
+    if a.dtype == object or not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_):
+        raise ImageError(f"{label}: pixels of type {a.dtype} are not numbers")
+    if np.iscomplexobj(a):
+        raise ImageError(f"{label}: complex pixels are not an image")
+    if a.ndim == 3 and a.shape[-1] in (3, 4) and a.shape[0] > 4:     # colour -> luminance
+        a = a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+    if a.ndim == 2:
+        return [InputFrame(label, a, _time(times, 0, 1))]
+    if a.ndim == 3:
+        return [InputFrame(f"{label}[{i}]", a[i], _time(times, i, a.shape[0]))
+                for i in range(a.shape[0])]
+    raise ImageError(f"{label}: expected a 2-D image or a [n, H, W] stack, got shape {a.shape}")
+
+
+def _time(times, i, n):
+    if times is None:
+        return None
+    if isinstance(times, str):
+        return times
+    times = list(times)
+    if len(times) == n:
+        return str(times[i])
+    return str(times[0]) if len(times) == 1 else None
+
+
+# ------------------------------------------------------------------------------------------------
+# 12-bit counts
+# ------------------------------------------------------------------------------------------------
+def _is_counts(a: np.ndarray) -> bool:
+    """True when every pixel is an integer in 0..4095 (whatever the dtype)."""
+    if a.size == 0:
+        return False
+    if a.dtype == np.bool_:
+        return True
+    if np.issubdtype(a.dtype, np.integer):
+        return int(a.min()) >= 0 and int(a.max()) <= _MAX12
+    if not np.all(np.isfinite(a)):
+        return False
+    return float(a.min()) >= 0 and float(a.max()) <= _MAX12 and bool(np.all(a == np.rint(a)))
+
+
+def _common_shift(a: np.ndarray) -> int:
+    """Trailing zero bits shared by every pixel of a non-negative integer array (0 if none)."""
+    v = int(np.bitwise_or.reduce(a.astype(np.uint64).ravel()))
+    if v == 0:
+        return 0
+    return (v & -v).bit_length() - 1
+
+
+def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tuple[float, float]:
+    """Background (median) and noise (1.4826 MAD) of the finite values, kappa-sigma clipped.
+
+    ``values``: any-shape array (float64 used internally); returns ``(background, noise)`` in the
+    input's units; ``noise`` falls back to the clipped standard deviation when the MAD is 0 (more
+    than half the pixels equal) and is 0 only for a constant set. NaN, NaN when nothing is finite.
+    """
+    v = np.asarray(values, dtype=np.float64).ravel()
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return math.nan, math.nan
+    if v.size > 1 << 20:                                   # a regular subsample is plenty
+        v = v[:: v.size // (1 << 20) + 1]
+    med = float(np.median(v))
+    sig = 1.4826 * float(np.median(np.abs(v - med)))
+    for _ in range(iters):
+        if sig <= 0:
+            break
+        keep = v[np.abs(v - med) <= kappa * sig]
+        new_med = float(np.median(keep))
+        new_sig = 1.4826 * float(np.median(np.abs(keep - new_med)))
+        if new_med == med and new_sig == sig:
+            break
+        med, sig = new_med, new_sig
+    if sig <= 0:
+        sig = float(np.std(v[np.abs(v - med) <= 5 * np.std(v)])) if v.size > 1 else 0.0
+    return med, sig
+
+
+def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
+    """The flight's 12-bit counts from any 2-D image, and the mapping used (JSON-able dict).
+
+    ``data``: 2-D array, any numeric dtype, as read. Returns ``(counts, mapping)``: ``counts`` is
+    uint16 ``[H, W]`` in 0..4095. Rules, in order:
+
+    1. already counts -- every pixel an integer in 0..4095 (integer, bool, or integer-valued float
+       data): unchanged, ``{"method": "none"}``;
+    2. integers wider than 12 bits, all >= 0, whose low ``k`` bits are zero in every pixel and whose
+       maximum fits 12 bits after ``>> k`` (a 12-bit reading stored ``<< 4``, like the star-tracker
+       TIFF): exact right shift, ``{"method": "shift", "shift": k}``;
+    3. anything else: a robust linear map ``counts = offset + gain * value`` with
+       ``{"method": "robust", "background", "noise", "offset", "gain", "sky_counts", "noise_counts",
+       "clipped_low", "clipped_high"}`` (background and noise in input units, clip fractions of the
+       pixels). ``background`` and ``noise`` are the 3-sigma-clipped median and 1.4826 MAD of the
+       finite pixels; the background goes to ``SKY_COUNTS`` (200) and ``gain = NOISE_COUNTS /
+       noise`` (8 counts per noise sigma). When the frame's maximum would still fit under 4095 with
+       a larger gain, that larger gain is used (a low-contrast frame keeps all its range: more
+       counts per sigma); when the gain would clip more than the brightest 0.1 % of the pixels
+       (``HEADROOM_PERCENTILE``, 99.9; extended bright scenes), it is lowered until that percentile
+       fits, but never below ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma). Rounded, clipped
+       to 0..4095; non-finite pixels become the sky level. A frame with no finite pixel gives zeros;
+       a constant frame maps to the sky level (gain 1).
+
+    Not the maximum stretch: a single bright star does not crush the sky noise.
+    ``no_scale=True`` accepts rule 1 only and raises :class:`ImageError` otherwise.
+    """
+    a = np.asarray(data)
+    if a.ndim != 2:
+        raise ImageError(f"expected a 2-D image, got shape {a.shape}")
+    if a.size == 0:
+        raise ImageError("empty image")
+    if not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_) or np.iscomplexobj(a):
+        raise ImageError(f"unsupported pixel type {a.dtype}")
+    if _is_counts(a):
+        return a.astype(np.uint16), {"method": "none"}
+    if no_scale:
+        raise ImageError(f"pixels are not 12-bit counts ({_describe(a)}); drop --no-scale to map "
+                         f"them to counts")
+    if np.issubdtype(a.dtype, np.integer) and int(a.min()) >= 0:
+        k = _common_shift(a)
+        if k > 0 and (int(a.max()) >> k) <= _MAX12:
+            return (a.astype(np.uint64) >> np.uint64(k)).astype(np.uint16), \
+                {"method": "shift", "shift": k}
+    return _robust_map(a)
+
+
+def _describe(a: np.ndarray) -> str:
+    f = a[np.isfinite(a)] if np.issubdtype(a.dtype, np.floating) else a
+    if f.size == 0:
+        return f"{a.dtype}, no finite pixel"
+    lo, hi = float(f.min()), float(f.max())
+    kind = "non-integer " if np.issubdtype(a.dtype, np.floating) and np.any(f != np.rint(f)) \
+        else ""
+    nan = ", NaN pixels" if f.size < a.size else ""
+    return f"{kind}{a.dtype} values {lo:.6g}..{hi:.6g}{nan}"
+
+
+def _robust_map(a: np.ndarray) -> tuple[np.ndarray, dict]:
+    x = a.astype(np.float64)
+    fin = np.isfinite(x)
+    if not fin.any():
+        return np.zeros(a.shape, np.uint16), {"method": "robust", "background": None,
+                                              "noise": None, "offset": 0.0, "gain": 0.0,
+                                              "sky_counts": SKY_COUNTS,
+                                              "noise_counts": NOISE_COUNTS,
+                                              "clipped_low": 0.0, "clipped_high": 0.0}
+    bkg, noise = robust_stats(x[fin])
+    if noise > 0:
+        gain = NOISE_COUNTS / noise
+        room = _MAX12 - SKY_COUNTS
+        vmax = float(x[fin].max())
+        top = float(np.percentile(x[fin], HEADROOM_PERCENTILE))
+        if vmax > bkg and room / (vmax - bkg) > gain:
+            gain = room / (vmax - bkg)              # the whole frame fits with more counts/sigma
+        elif top > bkg and room / (top - bkg) < gain:
+            gain = max(room / (top - bkg), MIN_NOISE_COUNTS / noise)
+    else:
+        gain = 1.0
+    offset = SKY_COUNTS - gain * bkg
+    y = np.where(fin, offset + gain * np.where(fin, x, 0.0), SKY_COUNTS)
+    y = np.rint(y)
+    lo, hi = float(np.mean(y < 0)), float(np.mean(y > _MAX12))
+    counts = np.clip(y, 0, _MAX12).astype(np.uint16)
+    return counts, {"method": "robust", "background": bkg, "noise": noise, "offset": offset,
+                    "gain": gain, "sky_counts": SKY_COUNTS, "noise_counts": gain * noise,
+                    "clipped_low": lo, "clipped_high": hi}
+
+
+# ------------------------------------------------------------------------------------------------
+# bad-frame flags
+# ------------------------------------------------------------------------------------------------
+def frame_flags(data) -> list[str]:
+    """Bad-frame flags of one raw 2-D frame (as read, before :func:`to_counts`), in this order:
+
+    * ``"nan"``: every pixel is NaN or infinite (nothing to measure);
+    * ``"missing"``: at least ``MISSING_FRACTION`` (50 %) of the pixels are missing -- non-finite,
+      or in a row or column whose finite pixels all hold one value (a dropped line or a zero-filled
+      block reads as constant lines), for a frame of at least 2 rows and 2 columns;
+    * ``"constant"``: every finite pixel holds the same value;
+    * ``"blank"``: nothing stands out of the noise: the frame is constant, or its brightest finite
+      pixel is less than ``sqrt(2 ln n) + BLANK_MARGIN_SIGMA`` (1.5) noise sigmas above the
+      background (n finite pixels; sqrt(2 ln n) is the expected maximum of n Gaussian noise
+      samples, so a pure noise frame -- a drop-out read as dark noise -- is blank and a frame with
+      any real source is not); background and noise as in :func:`robust_stats`, over the pixels
+      that are not missing;
+    * ``"saturated"``: at least ``SATURATED_FRACTION`` (5 %) of the finite pixels sit at the frame's
+      maximum and that maximum is above the background (a flat-topped plateau: the detector's
+      ceiling), or the frame is constant at a full-scale value (2^k - 1 for k = 8, 10, 12, 14, 16,
+      32, or 4095 << 4).
+
+    ``data``: 2-D array, any numeric dtype. Returns a list of flag names (empty for a good frame).
+    """
+    a = np.asarray(data)
+    if a.ndim != 2 or a.size == 0:
+        raise ImageError(f"expected a non-empty 2-D image, got shape {a.shape}")
+    x = a.astype(np.float64)
+    fin = np.isfinite(x)
+    if not fin.any():
+        return ["nan", "missing"]
+    flags = []
+    missing = _missing_mask(x, fin)
+    if missing.mean() >= MISSING_FRACTION:
+        flags.append("missing")
+    v = x[fin]
+    lo, hi = float(v.min()), float(v.max())
+    constant = lo == hi
+    if constant:
+        flags.append("constant")
+    bkg, noise = robust_stats(x[~missing] if not missing.all() else v)
+    if constant or noise <= 0 or (hi - bkg) < noise * (math.sqrt(2 * math.log(max(v.size, 2)))
+                                                       + BLANK_MARGIN_SIGMA):
+        flags.append("blank")
+    at_max = float(np.mean(v == hi))
+    if (not constant and hi > bkg and at_max >= SATURATED_FRACTION) or \
+            (constant and hi in _FULL_SCALE):
+        flags.append("saturated")
+    return flags
+
+
+def _missing_mask(x: np.ndarray, fin: np.ndarray) -> np.ndarray:
+    """bool [H, W]: pixels that are non-finite or on a constant row or column (see frame_flags)."""
+    missing = ~fin
+    if x.shape[0] >= 2 and x.shape[1] >= 2:
+        big = np.where(fin, x, -np.inf)
+        small = np.where(fin, x, np.inf)
+        row_const = (big.max(1) == small.min(1)) | ~fin.any(1)
+        col_const = (big.max(0) == small.min(0)) | ~fin.any(0)
+        missing = missing | row_const[:, None] | col_const[None, :]
+    return missing
