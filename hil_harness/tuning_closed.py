@@ -47,7 +47,8 @@ from .tuning_data import TrainingSet, load_sequence
 from .tuning_fit import COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, threshold_record
 
 __all__ = ["RATE_KEYS", "PRIOR_OF", "Replayer", "optimise_closed_loop", "cross_validate_closed",
-           "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK"]
+           "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK", "validate_closed_loop",
+           "PROTOCOL_NOTE", "identification_job"]
 
 #: the three rates of every validation report, and the prior each is measured with
 RATE_KEYS = ("top1_closed_loop", "top1_no_prior", "top1_truth_prior")
@@ -75,8 +76,9 @@ class Replayer:
         Object radius (full-resolution px) by event name, or one for all.
     """
 
-    def __init__(self, events, sequence, radii, base_dir=None):
+    def __init__(self, events, sequence, radii, base_dir=None, name: str = "set"):
         self.events = list(events)
+        self.name = name
         self.sequence, self.base_dir = sequence, base_dir
         self._radii = radii
         self.radius = [float(radii.get(e.name, 24.0)) if isinstance(radii, dict) else float(radii)
@@ -88,8 +90,7 @@ class Replayer:
                 self._seq[shp] = load_sequence(sequence, base_dir, shp)
 
     def subset(self, events) -> "Replayer":
-        return Replayer(events, self.sequence, self._radii if isinstance(self._radii, dict)
-                        else self._radii, self.base_dir)
+        return Replayer(events, self.sequence, self._radii, self.base_dir, self.name)
 
     @property
     def n_frames_with_object(self) -> int:
@@ -313,4 +314,77 @@ def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict
             f"{_fmt(r['top1_closed_loop'])}")
     out = {key: rate(*tot[key]) for key in RATE_KEYS}
     out.update(top1=out["top1_closed_loop"]["rate"], how=how, folds=per)
+    return out
+
+
+PROTOCOL_NOTE = ("every frame replayed through the flight IP + TP (target-of-opportunity "
+                 "alpha-beta, real message words); the IP's window and record centroid come from "
+                 "the TP's prediction of the previous frame, the first frame of each event from "
+                 "the centre; truth is read only to score. Top-3, false lock and the confusion "
+                 "summary are counted on the frames each record's own closed loop produced.")
+
+
+def validate_closed_loop(rp: Replayer, records: dict, out_dir, title="Record validation",
+                         extra: dict | None = None, log=print) -> dict:
+    """Replay every record (``{label: Record}``) closed loop on ``rp``'s events and write the
+    validation report (:func:`hil_harness.tuning_validate.validate`) with the three rates of the
+    module docstring per record (also per event in ``metrics.json``). Returns the metrics."""
+    from .tuning_validate import validate
+    tsets, cl = {}, {}
+    for label, rec in records.items():
+        r = rp.rates(rec)
+        tsets[label] = rp.training_set(r.pop("replays"), {"name": rp.name})
+        cl[label] = r
+    ex = {"protocol": PROTOCOL_NOTE, "events": len(rp.events)}
+    ex.update(extra or {})
+    m = validate(tsets, records, out_dir, title=title, extra=ex, log=log, closed_loop=cl)
+    for label in records:
+        m[label]["per_event"] = cl[label]["per_event"]
+    from .tuning_validate import write_metrics
+    write_metrics(out_dir, m)
+    return m
+
+
+_JOB_KEYS = {"scenario", "seed", "frames", "start", "every", "sequence", "record", "radius_px",
+             "object"}
+
+
+def identification_job(params: dict) -> dict:
+    """Campaign job: the closed-loop identification rates of one event (a scenario run).
+
+    Parameters: ``scenario`` (default ``aurora_surge_wfov_uv``), ``seed``, ``frames`` (default
+    the whole event), ``start``, ``every``, ``sequence`` (default ``aurora``), ``record`` (default
+    ``aurora``), ``radius_px`` (24), ``object`` (false: frames without the object, for false lock),
+    and dotted scenario overrides (``"target.spot_kR" = 20.0``).
+
+    Returns the three rates' ``*_k``, ``*_n``, ``*_rate``, ``*_ci95`` (flat, for the results
+    table) and ``top1_closed_loop`` etc. as JSON text, ``frames``, ``false_lock`` / ``frames_without``
+    (frames without the object where the closed loop still reported a candidate)."""
+    import json
+    from .campaign_jobs import split_overrides
+    from .tuning_events import render_scenario_event
+    plain, over = split_overrides(params)
+    bad = sorted(set(plain) - _JOB_KEYS)
+    if bad:
+        raise ValueError(f"identification: unknown parameter(s) {bad} (known: {sorted(_JOB_KEYS)} "
+                         f"and dotted scenario overrides such as 'target.spot_kR')")
+    seed = int(plain.get("seed", 0))
+    entry = {"name": plain.get("scenario", "aurora_surge_wfov_uv"), "override": over,
+             "frames": plain.get("frames"), "start": int(plain.get("start", 0)),
+             "every": int(plain.get("every", 1)), "object": bool(plain.get("object", True)),
+             "group": "run"}
+    ev = render_scenario_event(entry, seed)
+    record = load_record(plain.get("record", "aurora"))
+    rp = Replayer([ev], plain.get("sequence", "aurora"), float(plain.get("radius_px", 24.0)))
+    r = rp.rates(record)
+    out = {"frames": ev.n_frames, "frames_with_object": int(ev.has_object.sum())}
+    for key in RATE_KEYS:
+        out.update({f"{key}_k": r[key]["k"], f"{key}_n": r[key]["n"],
+                    f"{key}_rate": r[key]["rate"], f"{key}_ci95": list(r[key]["ci95"]),
+                    key: json.dumps(r[key])})
+    empty = ~ev.has_object
+    out["frames_without"] = int(empty.sum())
+    out["false_lock"] = int(sum(1 for k, f in enumerate(r["replays"][0])
+                                if empty[k] and f.candidates.size))
+    out.update(record_id=record.record_id, n_weighted=record.n_weighted)
     return out

@@ -7,8 +7,8 @@ at most ``frames``); a **night** is one real sequence (a ``[[real]]`` entry: its
 order). The spec format is :mod:`hil_harness.tuning_data`'s; ``predict`` is no longer read (the
 prior is the TP's), ``radius_px`` and ``object`` are.
 
-Real frames become 12-bit counts through :func:`real_to_counts` (the product's image reader and
-scaling); their TP clock is a nominal 0.5 s per frame (real sequences can be minutes apart).
+Real frames are read and become 12-bit counts as ``uvisi detect`` and ``uvisi track`` do it
+(:mod:`hil_harness.images`); their TP clock is a nominal 0.5 s per frame (real sequences can be minutes apart).
 """
 from __future__ import annotations
 
@@ -46,16 +46,12 @@ def imager_geometry(imager: str, fov_deg: float | None = None, shape=(244, 256))
     return ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), float(im.scale_col), float(im.scale_row))
 
 
-def real_to_counts(a, label: str) -> np.ndarray:
-    """12-bit counts from a real image: the product's default mapping (``hil_harness.images``
-    ``to_counts`` where present; the older maximum stretch otherwise)."""
-    try:
-        from hil_harness.images import to_counts
-    except ImportError:
-        from hil_harness.cli_detect import to_12bit
-        return to_12bit(a, True, label)
-    out = to_counts(a)
-    return out[0] if isinstance(out, tuple) else out
+def real_to_counts(a) -> np.ndarray:
+    """12-bit counts (uint16 [H, W]) from a real 2-D image: the product's default mapping
+    (:func:`hil_harness.images.to_counts`: counts unchanged, a known shift, else a robust map from
+    the background and noise)."""
+    from hil_harness.images import to_counts
+    return to_counts(a)[0]
 
 
 def load_sequence_for(sequence, frame_shape, base_dir=None):
@@ -102,10 +98,10 @@ def render_scenario_event(entry: dict, seed: int, base_dir=None) -> ReplayEvent:
 def real_event(entry: dict, base_dir=None) -> ReplayEvent:
     """A ``[[real]]`` entry (image file + label CSV) -> one event (a night): its frames in order,
     12-bit counts (:func:`real_to_counts`), a nominal 0.5 s frame clock, fixed pointing."""
-    from hil_harness.cli_detect import read_frames
+    from hil_harness.images import read_images
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
-    frames = read_frames(ipath)
+    frames = read_images(ipath)
     name = ipath.name
     mine = {fr: pos for (im, fr), pos in labels.items() if im == name}
     if not mine:
@@ -116,7 +112,7 @@ def real_event(entry: dict, base_dir=None) -> ReplayEvent:
             raise ValueError(f"{entry['labels']}: frame {fr} of {name} has no label row")
         if fr >= len(frames):
             raise ValueError(f"{name}: frame {fr} out of range ({len(frames)} frames)")
-    imgs = np.array([real_to_counts(frames[fr][1], f"{name}[{fr}]") for fr in want], np.uint16)
+    imgs = np.array([real_to_counts(frames[fr].data) for fr in want], np.uint16)
     pos = [mine[fr] for fr in want]
     tr = [p[0] if p else math.nan for p in pos]
     tc = [p[1] if p else math.nan for p in pos]
