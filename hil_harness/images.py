@@ -22,8 +22,10 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["InputFrame", "ImageError", "read_images", "to_counts", "frame_flags", "robust_stats",
+           "noise_sigma",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
-           "MISSING_FRACTION", "SATURATED_FRACTION", "BLANK_MARGIN_SIGMA", "FLAG_NAMES"]
+           "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION", "BLANK_MARGIN_SIGMA",
+           "FLAG_NAMES"]
 
 #: robust map: the sky background goes to this level (12-bit counts)
 SKY_COUNTS = 200.0
@@ -32,8 +34,10 @@ SKY_COUNTS = 200.0
 NOISE_COUNTS = 8.0
 #: ... and never fewer than this many counts per noise sigma (the sky noise stays measurable)
 MIN_NOISE_COUNTS = 2.0
-#: percentile of the finite pixels that must still fit below 4095 (when the noise floor allows)
+#: percentile of the finite pixels that must still fit below 4095 (when the noise floor allows);
+#: 100 - it: the low percentile kept LOW_MARGIN_SIGMA noise sigmas above 0
 HEADROOM_PERCENTILE = 99.9
+LOW_MARGIN_SIGMA = 5.0
 #: frame_flags thresholds (see frame_flags)
 MISSING_FRACTION = 0.5
 SATURATED_FRACTION = 0.05
@@ -239,6 +243,30 @@ def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tupl
     return med, sig
 
 
+def noise_sigma(data) -> float:
+    """Pixel noise of a 2-D image from neighbouring pixels: ``1.4826 MAD(d) / sqrt(6)`` over the
+    horizontal and vertical second differences ``d = x[i-1] - 2 x[i] + x[i+1]`` of the finite
+    pixels.
+
+    Unlike the MAD of the pixels it ignores smooth structure (vignetting, a sky gradient, extended
+    glow; a linear gradient cancels exactly): only pixel-to-pixel scatter counts. ``data``: 2-D
+    array, any numeric dtype; returns the noise in the input's units (0 when most differences are
+    0, NaN when no three finite pixels lie in a line). Assumes uncorrelated noise (smoothed data
+    read lower).
+    """
+    x = np.asarray(data, dtype=np.float64)
+    if x.ndim != 2:
+        raise ImageError(f"expected a 2-D image, got shape {x.shape}")
+    d = np.concatenate([(x[:, :-2] - 2 * x[:, 1:-1] + x[:, 2:]).ravel(),
+                        (x[:-2] - 2 * x[1:-1] + x[2:]).ravel()])
+    d = d[np.isfinite(d)]
+    if d.size == 0:
+        return math.nan
+    if d.size > 1 << 21:
+        d = d[:: d.size // (1 << 21) + 1]
+    return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(6.0)
+
+
 def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
     """The flight's 12-bit counts from any 2-D image, and the mapping used (JSON-able dict).
 
@@ -251,17 +279,24 @@ def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
        maximum fits 12 bits after ``>> k`` (a 12-bit reading stored ``<< 4``, like the star-tracker
        TIFF): exact right shift, ``{"method": "shift", "shift": k}``;
     3. anything else: a robust linear map ``counts = offset + gain * value`` with
-       ``{"method": "robust", "background", "noise", "offset", "gain", "sky_counts", "noise_counts",
-       "clipped_low", "clipped_high"}`` (background and noise in input units, clip fractions of the
-       pixels). ``background`` and ``noise`` are the 3-sigma-clipped median and 1.4826 MAD of the
-       finite pixels; the background goes to ``SKY_COUNTS`` (200) and ``gain = NOISE_COUNTS /
-       noise`` (8 counts per noise sigma). When the frame's maximum would still fit under 4095 with
-       a larger gain, that larger gain is used (a low-contrast frame keeps all its range: more
-       counts per sigma); when the gain would clip more than the brightest 0.1 % of the pixels
-       (``HEADROOM_PERCENTILE``, 99.9; extended bright scenes), it is lowered until that percentile
-       fits, but never below ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma). Rounded, clipped
-       to 0..4095; non-finite pixels become the sky level. A frame with no finite pixel gives zeros;
-       a constant frame maps to the sky level (gain 1).
+       ``{"method": "robust", "background", "noise", "offset", "gain", "sky_counts",
+       "noise_counts", "clipped_low", "clipped_high"}`` (background and noise in input units,
+       noise_counts = gain * noise, clip fractions of the pixels). ``background`` is the
+       3-sigma-clipped median of the finite pixels (:func:`robust_stats`), ``noise`` the pixel
+       noise from neighbouring pixels (:func:`noise_sigma`: vignetting or a sky gradient is not
+       noise; where it is 0, the clipped MAD of the pixels).
+
+       * Level: the background goes to ``SKY_COUNTS`` (200), or higher where the darkest 0.1 % of
+         the pixels would otherwise come closer than ``LOW_MARGIN_SIGMA`` (5) noise sigmas to 0
+         (a vignetted or graded sky keeps its dark corners).
+       * Gain: ``NOISE_COUNTS / noise`` (8 counts per noise sigma). When the frame's maximum would
+         still fit under 4095 with a larger gain, that gain is used (a low-contrast frame keeps all
+         its range); when the brightest 0.1 % of the pixels (``HEADROOM_PERCENTILE``, 99.9) would
+         clip, the gain is lowered until they fit (extended bright scenes), but never below
+         ``MIN_NOISE_COUNTS / noise`` (2 counts per sigma).
+
+       Rounded and clipped to 0..4095; non-finite pixels become the sky level. A frame with no
+       finite pixel gives zeros; a constant frame maps to the sky level (gain 1).
 
     Not the maximum stretch: a single bright star does not crush the sky noise.
     ``no_scale=True`` accepts rule 1 only and raises :class:`ImageError` otherwise.
@@ -307,18 +342,24 @@ def _robust_map(a: np.ndarray) -> tuple[np.ndarray, dict]:
                                               "noise_counts": NOISE_COUNTS,
                                               "clipped_low": 0.0, "clipped_high": 0.0}
     bkg, noise = robust_stats(x[fin])
+    dn = noise_sigma(x)
+    if dn > 0:
+        noise = dn
     if noise > 0:
+        v = x[fin]
+        low = float(np.percentile(v, 100.0 - HEADROOM_PERCENTILE)) - LOW_MARGIN_SIGMA * noise
         gain = NOISE_COUNTS / noise
-        room = _MAX12 - SKY_COUNTS
-        vmax = float(x[fin].max())
-        top = float(np.percentile(x[fin], HEADROOM_PERCENTILE))
-        if vmax > bkg and room / (vmax - bkg) > gain:
-            gain = room / (vmax - bkg)              # the whole frame fits with more counts/sigma
-        elif top > bkg and room / (top - bkg) < gain:
-            gain = max(room / (top - bkg), MIN_NOISE_COUNTS / noise)
+        vmax = float(v.max())
+        top = float(np.percentile(v, HEADROOM_PERCENTILE))
+        g_max = _fit_gain(vmax, bkg, low)
+        g_top = _fit_gain(top, bkg, low)
+        if g_max > gain:
+            gain = g_max                            # the whole frame fits with more counts/sigma
+        elif g_top < gain:
+            gain = max(g_top, MIN_NOISE_COUNTS / noise)
+        offset = -gain * min(bkg - SKY_COUNTS / gain, low)
     else:
-        gain = 1.0
-    offset = SKY_COUNTS - gain * bkg
+        gain, offset = 1.0, SKY_COUNTS - bkg
     y = np.where(fin, offset + gain * np.where(fin, x, 0.0), SKY_COUNTS)
     y = np.rint(y)
     lo, hi = float(np.mean(y < 0)), float(np.mean(y > _MAX12))
@@ -326,6 +367,17 @@ def _robust_map(a: np.ndarray) -> tuple[np.ndarray, dict]:
     return counts, {"method": "robust", "background": bkg, "noise": noise, "offset": offset,
                     "gain": gain, "sky_counts": SKY_COUNTS, "noise_counts": gain * noise,
                     "clipped_low": lo, "clipped_high": hi}
+
+
+def _fit_gain(v, bkg, low):
+    """The largest gain that maps ``v`` to at most 4095 with the zero at ``min(bkg - SKY/gain,
+    low)`` (see to_counts); inf when ``v`` is not above both."""
+    g = math.inf
+    if v > bkg:
+        g = (_MAX12 - SKY_COUNTS) / (v - bkg)
+    if v > low:
+        g = min(g, _MAX12 / (v - low))
+    return g
 
 
 # ------------------------------------------------------------------------------------------------

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hil_harness.images import (ImageError, InputFrame, frame_flags, read_images, robust_stats,
-                                to_counts)
+from hil_harness.images import (ImageError, InputFrame, frame_flags, noise_sigma, read_images,
+                                robust_stats, to_counts)
 
 REAL = Path(__file__).resolve().parents[1] / "data" / "real"
 TIFF = REAL / "2019-07-29T204726_Alt40_Azi-135_Try1.tiff"
@@ -136,6 +136,20 @@ def test_robust_map_keeps_the_sky_noise_whatever_the_brightest_star():
         assert abs(np.median(sky) - 200) <= 1
         assert out[101, 101] == 4095
         assert m["offset"] + m["gain"] * m["background"] == pytest.approx(200.0)
+
+
+def test_noise_from_differences_ignores_vignetting():
+    yy, xx = np.mgrid[:300, :400]
+    vignette = 3000.0 * np.exp(-((yy - 150) ** 2 + (xx - 200) ** 2) / (2 * 150.0 ** 2))
+    x = _sky((300, 400), bkg=500.0, sigma=12.0, seed=9) + vignette
+    assert noise_sigma(x) == pytest.approx(12.0, rel=0.03)
+    assert robust_stats(x)[1] > 5 * 12.0                # the pixels' MAD sees the vignetting
+    out, m = to_counts(x)
+    flat = out.astype(float) - (m["offset"] + m["gain"] * (500.0 + vignette))
+    # the stated noise everywhere (at least 8 counts), the dark corners kept above 0
+    assert abs(np.std(flat) - m["noise_counts"]) < 0.05 * m["noise_counts"]
+    assert m["noise_counts"] >= 8.0 and m["clipped_low"] == 0 and m["clipped_high"] == 0
+    assert np.percentile(out, 0.1) >= 5 * m["noise_counts"] - 1
 
 
 def test_robust_map_low_contrast_uses_the_range_extended_scene_fits():
