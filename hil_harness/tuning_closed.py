@@ -18,9 +18,10 @@ event from the centre. Three figures on the same frames, each ``{"k", "n", "rate
     ranking); never a figure to uplink on.
 
 Optimiser (:func:`optimise_closed_loop`)
-    1. the base record (Table 1 by default) is replayed closed loop on the training events; the
-       features of every blob the IP saw there, with the centroid means it used, are the training
-       set from which means, sigmas and thresholds are fitted (:func:`hil_harness.tuning_fit.
+    1. the base record (Table 1 by default) is replayed on the training events closed loop and with
+       the window on the label (training reads the labels; no reported rate does); the features
+       of every blob the IP saw in both, with the centroid means it used, are the training set
+       from which means, sigmas and thresholds are fitted (:func:`hil_harness.tuning_fit.
        fit_record`);
     2. SciPy's differential evolution searches the log-weights for the largest **closed-loop**
        top-1 rate on the training events (each candidate weight vector costs one IP + TP replay of
@@ -240,8 +241,11 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
     if choices is None:
         raise ValueError(f"quantize={quantize!r} must be 'auto', 'on' or 'off'")
     rid = base.record_id if record_id is None else record_id
-    t0 = rp.training_set(rp.replays(base.replace(gof_threshold=0.0)), {"name": "closed-loop"})
-    fitted = fit_record(t0, base=base, name=name, record_id=rid, version=version)
+    b0 = base.replace(gof_threshold=0.0)
+    t0 = rp.training_set(rp.replays(b0), {"name": "closed-loop"})
+    # the object's features also from windows on the label (training reads labels; no rate does)
+    t_fit = TrainingSet.concat([t0, rp.training_set(rp.replays(b0, "truth"))], {"name": "fit"})
+    fitted = fit_record(t_fit, base=base, name=name, record_id=rid, version=version)
     best, scores, evals = None, {}, 0
     for q in choices:
         rec = fitted.replace(quantize=bool(q), gof_threshold=0.0)

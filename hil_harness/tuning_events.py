@@ -172,7 +172,7 @@ def _load_event(path: Path) -> ReplayEvent:
 def _job(job):
     kind, entry, seed, base_dir, cache = job
     path = None
-    if cache is not None:
+    if cache is not None and kind == "scenario":    # real frames are cheap to read and rescale
         path = Path(cache) / f"{_cache_key(kind, entry, seed)}.npz"
         if path.exists():
             return _load_event(path)

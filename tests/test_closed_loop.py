@@ -102,3 +102,18 @@ def test_ranking_never_sees_truth():
             assert np.array_equal(fa.candidates, fb.candidates)
             assert fa.chosen == fb.chosen and fa.window == fb.window
         assert score_top1(blind, b, 24.0).sum() == 0
+
+
+def test_skipped_frame_does_not_move_the_track():
+    """Frame 2 (flagged by the caller) holds the blob 5 px off, inside the TP's gate: fed to the
+    TP it moves the prediction; skipped, the prediction for frame 3 is the one made on frame 1."""
+    pos = [(130.0, 140.0), (130.0, 140.0), (135.0, 140.0), (130.0, 140.0)]
+    frames = _frames([[(*p, 900.0)] for p in pos], seed=2)
+    ev = ReplayEvent(frames, 0.5 * np.arange(4), "wfov_uv", GEOM, name="skip")
+    seq = load_default_sequence("aurora")
+    rec = load_record("aurora")
+    fed = replay(ev, seq, rec, "tp")
+    held = replay(ev, seq, rec, "tp", skip=[False, False, True, False])
+    assert held[2].track == {"skipped": True} and held[2].candidates.size >= 1
+    assert held[3].prior == held[2].prior
+    assert fed[3].prior[0] > fed[2].prior[0] + 0.5            # the TP followed the offset blob
