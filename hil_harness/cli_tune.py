@@ -144,7 +144,9 @@ def _fit(args) -> int:
     base, name, rid, ver = _names(args)
     rec = fit_record(ts, base=base, name=name, record_id=rid, version=ver)
     export_record(rec, args.out, comment=f"uvisi tune fit {args.set} (base {base.name})")
-    print(f"[tune] fitted {name}: training top-1 (base weights) {top1_rate(ts, rec):.4f}")
+    print(f"[tune] fitted {name}: ranking top-1 with the base weights on the set's own windows "
+          f"{top1_rate(ts, rec):.4f} (prior '{ts.meta.get('predict')}'; not a flight figure: "
+          f"uvisi tune validate gives the closed-loop rate)")
     print(f"wrote {args.out}")
     return 0
 
