@@ -535,3 +535,16 @@ def test_cli_tune_bad_input_one_line(tmp_path, capsys):
     assert main(["tune", "fit", str(bad), "-o", str(tmp_path / "x.toml")]) == 2
     assert "what" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_identification_job_reports_the_three_rates():
+    from hil_harness.tuning_closed import identification_job
+    r = identification_job({"scenario": "aurora_surge_wfov_uv", "seed": 5, "frames": 6,
+                            "record": "aurora", "target.spot_kR": 25.0})
+    assert r["frames"] == 6 and r["frames_with_object"] == 6
+    for key in ("top1_closed_loop", "top1_no_prior", "top1_truth_prior"):
+        d = json.loads(r[key])
+        _check_rate(d, 6)
+        assert (r[f"{key}_k"], r[f"{key}_n"]) == (d["k"], d["n"])
+    with pytest.raises(ValueError, match="predict"):
+        identification_job({"predict": "truth"})
