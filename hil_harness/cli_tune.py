@@ -221,6 +221,8 @@ def _validate(args) -> int:
     records = {rec.name: rec}
     for c in args.compare or []:
         r = load_record(c)
+        if any(r == x for x in records.values()):
+            continue                                  # the same record twice: report it once
         label = r.name if r.name not in records else f"{r.name} ({c})"
         records[label] = r
     rp = _replayer(args)

@@ -245,7 +245,10 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
     t0 = rp.training_set(rp.replays(b0), {"name": "closed-loop"})
     # the object's features also from windows on the label (training reads labels; no rate does)
     t_fit = TrainingSet.concat([t0, rp.training_set(rp.replays(b0, "truth"))], {"name": "fit"})
-    fitted = fit_record(t_fit, base=base, name=name, record_id=rid, version=version)
+    fitted = fit_record(t_fit, base=base, name=name, record_id=rid, version=version,
+                        description=f"tuned closed loop (IP + TP) on {len(rp.events)} events "
+                                    f"({rp.n_frames_with_object} frames with the object) of set "
+                                    f"{rp.name!r}")
     best, scores, evals = None, {}, 0
     for q in choices:
         rec = fitted.replace(quantize=bool(q), gof_threshold=0.0)
