@@ -68,7 +68,8 @@ def register(sub) -> None:
     q.add_argument("--frr", type=float, default=0.005,
                    help="false-rejection rate for the GOF threshold (default 0.005)")
     q.add_argument("--quantize", default="auto", choices=("auto", "on", "off"),
-                   help="quantisation flag: chosen by cross-validation (auto) or forced")
+                   help="quantisation flag: both searched, the better closed-loop training "
+                        "rate wins (auto), or forced")
     q.add_argument("--folds", type=int, default=3,
                    help="cross-validation folds, grouped by event (one night: blocks of >= 4 "
                         "frames); default 3, 1 = none")
