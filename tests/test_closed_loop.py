@@ -117,3 +117,21 @@ def test_skipped_frame_does_not_move_the_track():
     assert held[2].track == {"skipped": True} and held[2].candidates.size >= 1
     assert held[3].prior == held[2].prior
     assert fed[3].prior[0] > fed[2].prior[0] + 0.5            # the TP followed the offset blob
+
+
+def test_one_night_is_cross_validated_by_blocks():
+    """A single event (one night) is cut into contiguous blocks of >= 4 frames, each held out and
+    replayed afresh; the pooled counts cover every frame with the object once."""
+    from hil_harness.tuning_closed import Replayer, cross_validate_closed
+    rng = np.random.default_rng(5)
+    pos = [(120.0 + k, 110.0 + 2 * k) for k in range(12)]
+    blobs = [[(*p, 1100.0), (80.0 + rng.uniform(0, 10), 190.0, 1400.0, 5.0)] for p in pos]
+    p = np.array(pos)
+    ev = ReplayEvent(_frames(blobs, seed=4), 0.5 * np.arange(12), "wfov_uv", GEOM,
+                     truth_row=p[:, 0], truth_col=p[:, 1], name="night")
+    cv = cross_validate_closed(Replayer([ev], "aurora", 24.0), folds=3, maxiter=1, popsize=1,
+                               frr=0.0, quantize="off", log=lambda *a: None)
+    assert cv["how"] == "block of night"
+    assert [f["events"] for f in cv["folds"]] == [["night[0:4]"], ["night[4:8]"], ["night[8:12]"]]
+    for key in ("top1_closed_loop", "top1_no_prior", "top1_truth_prior"):
+        assert cv[key]["n"] == 12
