@@ -249,7 +249,8 @@ def replay(event: ReplayEvent, sequence, record, prior: str = "tp", *, tp_overri
         if tp is not None:
             rf.chosen = -1
             if not skip[k]:
-                att = event.attitude[k] if event.attitude is not None else stand_in_attitude(times[k])
+                att = (event.attitude[k] if event.attitude is not None
+                       else stand_in_attitude(times[k]))
                 cmd = TrackCommand.from_words(tp.step(words, att).to_words())
                 fb = cmd.feedback()
                 rf.chosen = int(cmd.object_index) if 0 <= cmd.object_index < msg.count else -1
@@ -268,7 +269,8 @@ def score_top1(event: ReplayEvent, frames: list, radius_px: float) -> np.ndarray
     for k, rf in enumerate(frames):
         if rf.candidates.size and event.has_object[k]:
             c = rf.candidates[0]
-            d = math.hypot(float(c["row"]) - event.truth_row[k], float(c["col"]) - event.truth_col[k])
+            d = math.hypot(float(c["row"]) - event.truth_row[k],
+                           float(c["col"]) - event.truth_col[k])
             hit[k] = d <= radius_px
     return hit
 

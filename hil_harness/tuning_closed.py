@@ -365,7 +365,8 @@ def identification_job(params: dict) -> dict:
     and dotted scenario overrides (``"target.spot_kR" = 20.0``).
 
     Returns the three rates' ``*_k``, ``*_n``, ``*_rate``, ``*_ci95`` (flat, for the results
-    table) and ``top1_closed_loop`` etc. as JSON text, ``frames``, ``false_lock`` / ``frames_without``
+    table) and ``top1_closed_loop`` etc. as JSON text, ``frames``, ``false_lock`` /
+    ``frames_without``
     (frames without the object where the closed loop still reported a candidate)."""
     import json
     from .campaign_jobs import split_overrides

@@ -8,7 +8,8 @@ order). The spec format is :mod:`hil_harness.tuning_data`'s; ``predict`` is no l
 prior is the TP's), ``radius_px`` and ``object`` are.
 
 Real frames are read and become 12-bit counts as ``uvisi detect`` and ``uvisi track`` do it
-(:mod:`hil_harness.images`); their TP clock is a nominal 0.5 s per frame (real sequences can be minutes apart).
+(:mod:`hil_harness.images`); their TP clock is a nominal 0.5 s per frame (real sequences can be
+minutes apart).
 """
 from __future__ import annotations
 
@@ -27,7 +28,7 @@ from .closed_loop import ReplayEvent
 from .tuning_data import SetSpec, load_labels, resolve_path, scenario_from_entry
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
-           "imager_geometry", "real_to_counts", "load_sequence_for", "NOMINAL_DT"]
+           "imager_geometry", "real_to_counts", "NOMINAL_DT"]
 
 NOMINAL_DT = 0.5
 EVENT_SCHEMA = "uvisi-replay-event/1"
@@ -52,12 +53,6 @@ def real_to_counts(a) -> np.ndarray:
     the background and noise)."""
     from hil_harness.images import to_counts
     return to_counts(a)[0]
-
-
-def load_sequence_for(sequence, frame_shape, base_dir=None):
-    """The processing sequence (shipped name or TOML) for frames of ``frame_shape``."""
-    from .tuning_data import load_sequence
-    return load_sequence(sequence, base_dir, tuple(frame_shape))
 
 
 def render_scenario_event(entry: dict, seed: int, base_dir=None) -> ReplayEvent:

@@ -28,7 +28,8 @@ from flightsw.messages import FEATURE_NAMES
 
 from .tuning_fit import COL, ROW, flight_rank, object_rows
 
-__all__ = ["evaluate", "validate", "threshold_sweep", "write_metrics", "atomic_text", "CONFUSION_OBJECT", "CONFUSION_EMPTY"]
+__all__ = ["evaluate", "validate", "threshold_sweep", "write_metrics", "atomic_text",
+           "CONFUSION_OBJECT", "CONFUSION_EMPTY", "CLOSED_LOOP_ROWS"]
 
 CONFUSION_OBJECT = ("top-1", "rank 2-3", "rank 4-23", "rejected by GOF threshold",
                     "beyond the 23 reported", "not segmented")

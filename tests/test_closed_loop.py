@@ -49,10 +49,10 @@ def test_wilson_matches_scipy(k, n):
 
 def test_two_frame_replay_follows_the_tp():
     """Frame 0: one blob A at (140, 150) (the window starts at the centre, so A is rank 1 and the
-    TP initialises on it). Frame 1: A moved 2 px and a brighter, larger blob B appears 30 px away
-    (4 px from the image centre (122, 128)). The record weighs the centroid strongly: with the TP's prior (at
-    A) the rank-1 candidate and the TP's choice are A; from the centre (no prior: the means at the
-    window centre, nearer B) the rank-1 candidate is B."""
+    TP initialises on it). Frame 1: A moved 2 px and a brighter, larger blob B appears 36 px away,
+    4 px from the image centre (122, 128). The record weighs the centroid only: with the TP's prior
+    (at A) the rank-1 candidate and the TP's choice are A; from the centre (no prior: the means at
+    the window centre, nearer B) the rank-1 candidate is B."""
     a0, a1, b1 = (140.0, 150.0), (142.0, 151.0), (118.0, 124.0)
     frames = _frames([[(*a0, 900.0)], [(*a1, 900.0), (*b1, 2500.0, 4.0)]])
     truth = np.array([a0, a1])
