@@ -192,6 +192,7 @@ def _optimise(args) -> int:
     kw = dict(base=base, frr=args.frr, quantize=args.quantize, maxiter=args.maxiter,
               popsize=args.popsize, centroid_penalty=args.centroid_penalty)
     t0 = time.perf_counter()
+    kw["progress"] = not args.no_progress
     cv = cross_validate_closed(rp, args.folds, seed=args.seed, **kw) if args.folds > 1 else {}
     res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver, **kw)
     res.cv = cv

@@ -198,7 +198,8 @@ def _scale_to_chi2(fr: FastRanker, w) -> np.ndarray:
     return np.array([float(f"{x:.3g}") if x else 0.0 for x in w * s])
 
 
-def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, popsize):
+def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, popsize,
+            progress=False):
     """Differential evolution of the log-weights on the closed-loop rate (module docstring)."""
     from scipy.optimize import differential_evolution
     n_obj = max(rp.n_frames_with_object, 1)
@@ -221,16 +222,22 @@ def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, 
     npop = max(8, popsize * N_FEATURES)
     init = rng.uniform(LOG_W[0], LOG_W[1], (npop, N_FEATURES))
     init[0], init[1] = u0, 0.0
-    res = differential_evolution(lambda u: -score(u), [LOG_W] * N_FEATURES, init=init,
-                                 maxiter=maxiter, tol=1e-8, seed=seed, polish=False,
-                                 mutation=(0.5, 1.0), recombination=0.7, updating="immediate")
+    from tqdm import tqdm
+    # the callback returns False: a True would stop the search (tqdm.update returns True on redraw)
+    with tqdm(total=maxiter, desc="[tune] weight search", unit="gen", leave=False,
+              disable=not progress) as bar:
+        res = differential_evolution(lambda u: -score(u), [LOG_W] * N_FEATURES, init=init,
+                                     maxiter=maxiter, tol=1e-8, seed=seed, polish=False,
+                                     mutation=(0.5, 1.0), recombination=0.7,
+                                     updating="immediate", callback=lambda *a, **k: bool(bar.update(1)) and False)
     return _w_from_u(res.x), -float(res.fun), count[0]
 
 
 def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quantize="auto",
                          seed: int = 0, maxiter: int = 15, popsize: int = 4,
                          centroid_penalty: float = 0.25, name: str = "aurora_tuned",
-                         record_id: int | None = None, version: int = 1, log=print):
+                         record_id: int | None = None, version: int = 1, log=print,
+                         progress: bool = False):
     """Fit + closed-loop weight search + GOF threshold on ``rp``'s events (module docstring).
     ``quantize``: "on", "off" or "auto" (both searched, the better closed-loop training rate
     wins). Returns :class:`ClosedLoopResult` (its ``cv`` empty: see
@@ -253,7 +260,7 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
     for q in choices:
         rec = fitted.replace(quantize=bool(q), gof_threshold=0.0)
         fr0 = FastRanker(t0, rec)
-        w, s, n = _search(rp, rec, fr0, centroid_penalty, seed, maxiter, popsize)
+        w, s, n = _search(rp, rec, fr0, centroid_penalty, seed, maxiter, popsize, progress)
         evals += n
         w = _scale_to_chi2(fr0, w)
         rec = rec.replace(weight=tuple(float(x) for x in w))
