@@ -81,7 +81,8 @@ def register(sub) -> None:
                         "(keeps the record from leaning on the position prior alone; default "
                         "0.25)")
     q.add_argument("--events", default=None,
-                   help="directory keeping the rendered events (read back when present)")
+                   help="directory keeping the rendered events (read back when present; keyed "
+                        "by scenario entry and seed: empty it when the renderer changes)")
     q.add_argument("--json", default=None, help="write the optimisation summary (JSON)")
     _naming(q)
     q.set_defaults(func=_optimise)
@@ -96,7 +97,8 @@ def register(sub) -> None:
     q.add_argument("--require-top1", type=float, default=None,
                    help="exit status 1 if the record's closed-loop top-1 rate is below this")
     q.add_argument("--events", default=None,
-                   help="directory keeping the rendered events (read back when present)")
+                   help="directory keeping the rendered events (read back when present; keyed "
+                        "by scenario entry and seed: empty it when the renderer changes)")
     q.set_defaults(func=_validate)
     p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
 
