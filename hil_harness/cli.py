@@ -24,6 +24,7 @@ from . import console
 SUBCOMMAND_MODULES = (
     "hil_harness.cli_demo",
     "hil_harness.cli_detect",
+    "hil_harness.cli_track",
     "hil_harness.cli_event",
     "hil_harness.cli_replay",
     "hil_harness.cli_scenarios",

@@ -1,29 +1,37 @@
-"""A priori record tuning (MSX paper, "Candidate ranking", Table 1): training sets, fit, optimise,
-validate, export -- the workflow behind ``uvisi tune`` and ``uvisi record``.
+"""A priori record tuning (MSX paper, "Candidate ranking", Table 1): events, closed-loop replay,
+fit, optimise, validate, export -- the workflow behind ``uvisi tune`` and ``uvisi record``.
 
 The paper's Table 1 "was determined from a training subset of the available auroral imagery" and
 "proper setting of the a priori target record is important". The steps, each in its own module:
 
 =====================  ===========================================================================
-:mod:`.tuning_data`    labelled sets: every blob's flight features (front end, colouring, features
-                       as the processing sequence says) from groundsim scenarios or real imagery +
-                       a label CSV; "the object" = centroid within a stated radius of the label
-:mod:`.tuning_fit`     fit (means, sigmas, quantisation thresholds), optimise (weights by
-                       differential evolution on the top-1 rate, quantisation flag by
-                       cross-validation), GOF threshold for a stated false-rejection rate
+:mod:`.tuning_events`  every event of a set spec (scenario + seed, or a real night) rendered or
+                       read once, with the truth beside it
+:mod:`.closed_loop`    the flight IP + TP over an event's fixed frames: the IP's prior from the
+                       TP's prediction (Wilson-interval rates; truth read only to score)
+:mod:`.tuning_closed`  the three rates of every report (closed loop, no prior, truth prior as an
+                       upper bound), the closed-loop optimiser and event-grouped cross-validation
+:mod:`.tuning_data`    labelled feature sets: every blob's flight features with which blob is
+                       "the object" (``uvisi tune set`` / ``fit``)
+:mod:`.tuning_fit`     fit (means, sigmas, quantisation thresholds), the vectorised ranker, GOF
+                       threshold for a stated false-rejection rate
 :mod:`.tuning_validate`  top-1/top-3, false lock, rank over time, confusion; Markdown + PNG report
 :mod:`.tuning_export`  TOML + uplink words, and the pre-uplink check of either form
 =====================  ===========================================================================
 
 Typical use (also ``uvisi tune optimise TRAIN.toml -o rec.toml --words rec.words`` and
-``uvisi tune validate VALID.toml --record rec.toml --compare aurora --report DIR``)::
+``uvisi tune validate EVAL.toml --record rec.toml --compare aurora --report DIR``)::
 
-    from hil_harness import tuning
-    train = tuning.build_set("campaigns/tuneset_aurora_train.toml")
-    res = tuning.optimise_record(train, base="aurora", frr=0.02)
-    valid = tuning.build_set("campaigns/tuneset_aurora_valid.toml")
-    tuning.validate(valid, {"tuned": res.record, "Table 1": tuning.load_record("aurora")}, "out/")
-    tuning.export_record(res.record, "aurora12.toml", "aurora12.words")
+    from hil_harness.tuning_closed import Replayer, optimise_closed_loop, validate_closed_loop
+    from hil_harness.tuning_data import SetSpec
+    from hil_harness.tuning_events import build_events, event_radius
+    spec = SetSpec.load("campaigns/tuneset_aurora_train.toml")
+    train = Replayer(build_events(spec), spec.sequence, event_radius(spec))
+    res = optimise_closed_loop(train, base="aurora", frr=0.005)
+    spec = SetSpec.load("campaigns/tuneset_aurora_eval.toml")
+    held_out = Replayer(build_events(spec), spec.sequence, event_radius(spec))
+    validate_closed_loop(held_out, {"tuned": res.record, "Table 1": load_record("aurora")}, "out/")
+    export_record(res.record, "aurora12.toml", "aurora12.words")
 """
 from __future__ import annotations
 

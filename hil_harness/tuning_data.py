@@ -8,8 +8,11 @@ A set is described by a *set spec* (TOML, or the same as a dict)::
     sequence = "aurora"          # shipped sequence name or a sequence TOML path
     radius_px = 12.0             # a blob is the object when its centroid is within this distance of
                                  # the label (full-resolution imager pixels)
-    predict = "truth"            # the TP prediction fed back to the IP: "truth" (label + noise),
-                                 # "previous" (the previous frame's label), "centre" (none)
+    predict = "centre"           # feature sets only (uvisi tune set / fit): the prior the IP gets
+                                 # for the stored blobs: "centre" (none, the default), "previous"
+                                 # (the previous frame's label), "truth" (label + noise: leans on
+                                 # truth). uvisi tune optimise / validate ignore it: their prior is
+                                 # the flight TP's (hil_harness.tuning_closed)
     predict_noise_px = 3.0       # Gaussian sigma per axis for predict = "truth"
     workers = 1                  # processes used to build the set (runs are independent)
 
@@ -59,7 +62,7 @@ from flightsw.arith.m1750 import decode32_array
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
-           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry"]
+           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -337,7 +340,7 @@ class SetSpec:
         if not isinstance(seq, str):
             raise ValueError(f"{w}.sequence: expected a name or path, got {seq!r}")
         radius = _num(head, "radius_px", w, 12.0, positive=True)
-        predict = _predict(head, "predict", w, "truth")
+        predict = _predict(head, "predict", w, "centre")
         noise = _num(head, "predict_noise_px", w, 3.0, lo=0.0)
         workers = _int(head, "workers", w, 1, lo=1)
         scen, reals = [], []
@@ -382,7 +385,7 @@ class SetSpec:
                 raise ValueError(f"{we}.frames: expected a list of frame indices, got {fr!r}")
             reals.append(dict(images=e["images"], labels=e["labels"], frames=fr,
                               radius_px=_num(e, "radius_px", we, radius, positive=True),
-                              predict=_predict(e, "predict", we, "previous"),
+                              predict=_predict(e, "predict", we, predict),
                               predict_noise_px=_num(e, "predict_noise_px", we, noise, lo=0.0),
                               imager=str(e.get("imager", "wfov_vis")),
                               group=str(e.get("group", f"r{i}"))))
@@ -394,7 +397,9 @@ class SetSpec:
 # ================================================================================================
 # building
 # ================================================================================================
-def _load_sequence(name_or_path, base_dir=None, frame_shape=None):
+def load_sequence(name_or_path, base_dir=None, frame_shape=None):
+    """The processing sequence (shipped name or TOML path), its frame shape set to
+    ``frame_shape`` when given."""
     from flightsw.ip.sequence import (DEFAULT_SEQUENCES, Preprocess, ProcessingSequence,
                                       load_default_sequence)
     if name_or_path in DEFAULT_SEQUENCES:
@@ -410,6 +415,9 @@ def _load_sequence(name_or_path, base_dir=None, frame_shape=None):
                          frame_shape=tuple(frame_shape))
         seq = ProcessingSequence([dict(s.raw) for s in seq.steps], pre, seq.name, seq.description)
     return seq
+
+
+_load_sequence = load_sequence          # older spelling, kept for existing callers
 
 
 def _deep_merge(base, over):
@@ -499,7 +507,7 @@ def scenario_run_set(entry, seed, sequence, base_dir=None, record=None) -> Train
     from flightsw.records import load_record
     record = load_record("aurora") if record is None else record
     scn = scenario_from_entry(entry["name"], entry.get("override"), seed, base_dir)
-    seq = _load_sequence(sequence, base_dir)
+    seq = load_sequence(sequence, base_dir)
     world = scn.world()
     world.reset()
     rng = np.random.default_rng([int(seed), 0x7E57])
@@ -512,7 +520,7 @@ def scenario_run_set(entry, seed, sequence, base_dir=None, record=None) -> Train
             frame, truth = world.render()
             tg = truth["target"]
             pos = (float(tg["row"]), float(tg["col"])) if tg.get("in_field") else None
-            pred = _prediction(entry.get("predict", "truth"), pos, prev,
+            pred = _prediction(entry.get("predict", "centre"), pos, prev,
                                entry.get("predict_noise_px", 0.0), rng)
             label = pos if entry.get("object", True) else None
             words, mean, _ = _ip_frame(frame, seq, record, pred, truth["imager"])
@@ -569,11 +577,11 @@ def load_labels(path) -> dict:
 def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     """Real imagery + label CSV (a ``[[real]]`` entry) -> TrainingSet."""
     from flightsw.records import load_record
-    from hil_harness.cli_detect import read_frames, to_12bit
+    from hil_harness.images import read_images, to_counts
     record = load_record("aurora") if record is None else record
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
-    frames = read_frames(ipath)
+    frames = read_images(ipath)
     name = ipath.name
     mine = {fr: pos for (im, fr), pos in labels.items() if im == name}
     if not mine:
@@ -592,14 +600,14 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     prev = None
     seq_cache = {}
     for fr in sorted(want):
-        img = to_12bit(frames[fr][1], True, f"{name}[{fr}]")
+        img = to_counts(frames[fr].data)[0]
         if img.shape not in seq_cache:
-            seq_cache[img.shape] = _load_sequence(sequence, base_dir, img.shape)
+            seq_cache[img.shape] = load_sequence(sequence, base_dir, img.shape)
         seq = seq_cache[img.shape]
         label = mine[fr]
         # previous mode: the previous *labelled* frame of the sequence (the TP's last fix)
         prev_l = mine.get(fr - 1) if (fr - 1) in mine else prev
-        pred = _prediction(entry.get("predict", "previous"), label, prev_l,
+        pred = _prediction(entry.get("predict", "centre"), label, prev_l,
                            entry.get("predict_noise_px", 0.0), rng)
         words, mean, _ = _ip_frame(img, seq, record, pred, entry.get("imager", "wfov_vis"))
         acc.add(words, group=entry.get("group", "r"), source=f"{name}", index=fr, t=float(fr),
@@ -631,7 +639,7 @@ def build_set(spec, progress: bool = False, workers: int | None = None) -> Train
         spec = SetSpec.from_dict(spec)
     elif not isinstance(spec, SetSpec):
         raise ValueError(f"build_set: expected a SetSpec, dict or path, got {type(spec).__name__}")
-    _load_sequence(spec.sequence, spec.base_dir)              # fail early on a bad sequence
+    load_sequence(spec.sequence, spec.base_dir)              # fail early on a bad sequence
     jobs = [("scenario", e, s, spec.sequence, spec.base_dir) for e in spec.scenarios
             for s in e["seeds"]]
     jobs += [("real", e, None, spec.sequence, spec.base_dir) for e in spec.reals]

@@ -28,7 +28,8 @@ from flightsw.messages import FEATURE_NAMES
 
 from .tuning_fit import COL, ROW, flight_rank, object_rows
 
-__all__ = ["evaluate", "validate", "threshold_sweep", "CONFUSION_OBJECT", "CONFUSION_EMPTY"]
+__all__ = ["evaluate", "validate", "threshold_sweep", "write_metrics", "atomic_text",
+           "CONFUSION_OBJECT", "CONFUSION_EMPTY", "CLOSED_LOOP_ROWS"]
 
 CONFUSION_OBJECT = ("top-1", "rank 2-3", "rank 4-23", "rejected by GOF threshold",
                     "beyond the 23 reported", "not segmented")
@@ -250,7 +251,29 @@ def _fmt(x, pct=True):
     return f"{100 * x:.1f} %" if pct else f"{x:.3g}"
 
 
-def _atomic_text(path, text):
+#: the closed-loop rows of the identification table (label, metrics key)
+CLOSED_LOOP_ROWS = (
+    ("**top-1, closed loop** (prior from the TP; the flight figure)", "top1_closed_loop"),
+    ("top-1, no prior (window and centroid at the centre)", "top1_no_prior"),
+    ("top-1, truth prior (UPPER BOUND: truth reaches the ranking)", "top1_truth_prior"))
+
+
+def _fmt_rate(r) -> str:
+    if not r or not r.get("n"):
+        return "n/a"
+    lo, hi = r["ci95"]
+    return f"{100 * r['rate']:.1f} % ({r['k']}/{r['n']}; 95 % CI {100 * lo:.1f}-{100 * hi:.1f})"
+
+
+def write_metrics(out_dir, metrics: dict) -> Path:
+    """Write ``metrics.json`` into ``out_dir`` atomically."""
+    path = Path(out_dir) / "metrics.json"
+    atomic_text(path, json.dumps(metrics, indent=1, default=float, allow_nan=True))
+    return path
+
+
+def atomic_text(path, text):
+    """Write ``text`` to ``path`` through a temporary file and a rename (nothing half-written)."""
     path = Path(path)
     fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
     with os.fdopen(fd, "w") as fh:
@@ -259,17 +282,27 @@ def _atomic_text(path, text):
 
 
 def validate(tset, records, out_dir, title="Record validation", primary=None,
-             extra: dict | None = None, log=print) -> dict:
+             extra: dict | None = None, log=print, closed_loop: dict | None = None) -> dict:
     """Evaluate each record (``{label: Record}``; the first, or ``primary``, is the one plotted)
     on ``tset`` and write ``report.md``, ``metrics.json``, ``features.png``,
-    ``rate_vs_threshold.png`` and ``rank_over_time.png`` to ``out_dir``. Returns the metrics."""
+    ``rate_vs_threshold.png`` and ``rank_over_time.png`` to ``out_dir``. Returns the metrics.
+
+    ``tset`` is one TrainingSet or ``{label: TrainingSet}``: the frames each record's own closed
+    loop produced (:mod:`hil_harness.tuning_closed`). ``closed_loop`` (``{label: rates}``) adds
+    ``top1_closed_loop``, ``top1_no_prior`` and ``top1_truth_prior`` (each k, n, rate, ci95) to
+    the record's metrics; ``top1`` is then the closed-loop rate."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     if not records:
         raise ValueError("validate: no records")
     primary = primary or next(iter(records))
-    evs = {name: evaluate(tset, rec) for name, rec in records.items()}
-    sweeps = {name: threshold_sweep(tset, ev) for name, ev in evs.items()}
+    tsets = tset if isinstance(tset, dict) else {name: tset for name in records}
+    tset = tsets[primary]
+    evs = {name: evaluate(tsets[name], rec) for name, rec in records.items()}
+    for name, cl in (closed_loop or {}).items():
+        evs[name].update({k: v for k, v in cl.items() if k.startswith("top1_")})
+        evs[name]["top1"] = cl["top1_closed_loop"]["rate"]
+    sweeps = {name: threshold_sweep(tsets[name], ev) for name, ev in evs.items()}
     prec = records[primary]
     plot_features(tset, prec, out / "features.png",
                   f"{tset.meta.get('name', 'set')}: object vs other blobs, record {prec.name}")
@@ -297,6 +330,10 @@ def validate(tset, records, out_dir, title="Record validation", primary=None,
             ("false rejection (object rejected by GOF threshold)", "false_rejection", True),
             ("mean reported rank of the object", "mean_reported_rank", False),
             ("GOF threshold", "gof_threshold", False), ("n (non-zero weights)", "n", False)]
+    if closed_loop:
+        lines += [f"| {lab} | " + " | ".join(_fmt_rate(evs[n].get(key)) for n in names) + " |"
+                        for lab, key in CLOSED_LOOP_ROWS]
+        rows = rows[1:]
     for label, key, pct in rows:
         lines.append(f"| {label} | " + " | ".join(_fmt(evs[n][key], pct) for n in names) + " |")
     e0 = evs[names[0]]
@@ -338,17 +375,20 @@ def validate(tset, records, out_dir, title="Record validation", primary=None,
               "![feature distributions](features.png)", "",
               "![rates vs GOF threshold](rate_vs_threshold.png)", "",
               "![rank over time](rank_over_time.png)", ""]
-    _atomic_text(out / "report.md", "\n".join(lines))
+    atomic_text(out / "report.md", "\n".join(lines))
     metrics = {n: {k: v for k, v in ev.items() if not k.startswith("frame_")}
                for n, ev in evs.items()}
     metrics["_sweeps"] = {n: {k: np.asarray(v).tolist() for k, v in sw.items()}
                           for n, sw in sweeps.items()}
     if extra:
         metrics["_extra"] = extra
-    _atomic_text(out / "metrics.json", json.dumps(metrics, indent=1, default=float,
-                                                  allow_nan=True))
+    write_metrics(out, metrics)
     for n in names:
         ev = evs[n]
+        if "top1_closed_loop" in ev:
+            log(f"[tune] {n}: top-1 closed loop {_fmt_rate(ev['top1_closed_loop'])}; no prior "
+                f"{_fmt_rate(ev['top1_no_prior'])}; truth prior (upper bound) "
+                f"{_fmt_rate(ev['top1_truth_prior'])}")
         log(f"[tune] {n}: top-1 {_fmt(ev['top1'])}, top-3 {_fmt(ev['top3'])}, false lock "
             f"{_fmt(ev['false_lock'])} ({ev['frames_with_object']} frames with the object, "
             f"{ev['frames_without_object']} without)")

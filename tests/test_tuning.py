@@ -8,6 +8,7 @@ committed real-data labels; hand-corrupted uplink images for the record check.
 """
 from __future__ import annotations
 
+import json
 import math
 import time
 from pathlib import Path
@@ -453,24 +454,73 @@ def test_record_check_file_level_errors_and_good_files(tmp_path, capsys):
 # ------------------------------------------------------------------------------------------------
 # the CLI end to end
 # ------------------------------------------------------------------------------------------------
+TINY_SPEC = """[set]
+name = "tiny"
+sequence = "aurora"
+radius_px = 24.0
+[[scenario]]
+name = "aurora_surge_wfov_uv"
+group = "A"
+seeds = [5, 6, 8]
+frames = 8
+[[scenario]]
+name = "aurora_surge_wfov_uv"
+group = "N"
+seeds = [7]
+frames = 6
+object = false
+[scenario.override.target]
+spot_kR = 0.0
+surge_kR = 0.0
+"""
+
+
 def test_cli_tune_fit_optimise_validate(small_set, tmp_path, capsys):
     sp = tmp_path / "set.npz"
     small_set.save(sp)
     assert main(["tune", "fit", str(sp), "-o", str(tmp_path / "fit.toml"), "--no-progress"]) == 0
     assert Record.from_toml((tmp_path / "fit.toml").read_text()).name == "aurora_tuned"
-    assert main(["tune", "optimise", str(sp), "-o", str(tmp_path / "t.toml"), "--words",
-                 str(tmp_path / "t.words"), "--folds", "2", "--maxiter", "6", "--popsize", "4",
-                 "--frr", "0.05", "--quantize", "off", "--name", "t12", "--no-progress"]) == 0
+    spec = tmp_path / "tiny.toml"
+    spec.write_text(TINY_SPEC)
+    ev = tmp_path / "events"
+    assert main(["tune", "optimise", str(spec), "-o", str(tmp_path / "t.toml"), "--words",
+                 str(tmp_path / "t.words"), "--folds", "2", "--maxiter", "2", "--popsize", "1",
+                 "--frr", "0.05", "--quantize", "off", "--name", "t12", "--no-progress",
+                 "--events", str(ev), "--json", str(tmp_path / "opt.json")]) == 0
     rec = Record.from_toml((tmp_path / "t.toml").read_text())
     assert rec.name == "t12" and rec.version == 2 and not rec.quantize
     assert Record.from_words(read_words(tmp_path / "t.words")).to_words().tolist() == \
         rec.to_words().tolist()
-    assert main(["tune", "validate", str(sp), "--record", str(tmp_path / "t.toml"), "--report",
-                 str(tmp_path / "rep"), "--no-progress", "--require-top1", "0.0"]) == 0
-    assert main(["tune", "validate", str(sp), "--record", str(tmp_path / "t.toml"), "--report",
-                 str(tmp_path / "rep"), "--no-progress", "--require-top1", "1.01"]) == 1
+    opt = json.loads((tmp_path / "opt.json").read_text())
+    for key in ("top1_closed_loop", "top1_no_prior", "top1_truth_prior"):
+        _check_rate(opt["cv"][key], 24)
+        _check_rate(opt["train"][key], 24)
+    _check_rate(opt["train_centroid_weights_zeroed"]["top1_closed_loop"], 24)
+    assert set(opt["weights"]) == set(FEATURE_NAMES)
+    assert len(list(ev.glob("*.npz"))) == 4                      # each event rendered once
+    assert main(["tune", "validate", str(spec), "--record", str(tmp_path / "t.toml"), "--report",
+                 str(tmp_path / "rep"), "--no-progress", "--require-top1", "0.0",
+                 "--events", str(ev)]) == 0
+    m = json.loads((tmp_path / "rep" / "metrics.json").read_text())
+    for name in ("t12", "aurora"):
+        for key in ("top1_closed_loop", "top1_no_prior", "top1_truth_prior"):
+            _check_rate(m[name][key], 24)
+        assert m[name]["top1"] == m[name]["top1_closed_loop"]["rate"]
+    assert main(["tune", "validate", str(spec), "--record", str(tmp_path / "t.toml"), "--report",
+                 str(tmp_path / "rep"), "--no-progress", "--require-top1", "1.01",
+                 "--events", str(ev)]) == 1
     out = capsys.readouterr().out
-    assert "top-1" in out and "wrote" in out
+    assert "closed loop" in out and "wrote" in out
+    # a saved feature set cannot be replayed: one clear line, exit 2
+    assert main(["tune", "validate", str(sp), "--record", "aurora", "--report",
+                 str(tmp_path / "rep2")]) == 2
+    assert ".toml" in capsys.readouterr().err
+
+
+def _check_rate(r, n):
+    assert set(r) == {"k", "n", "rate", "ci95"} and r["n"] == n and 0 <= r["k"] <= n
+    assert r["rate"] == pytest.approx(r["k"] / n)
+    assert 0.0 <= r["ci95"][0] <= r["rate"] <= r["ci95"][1] <= 1.0
 
 
 def test_cli_tune_bad_input_one_line(tmp_path, capsys):
@@ -485,3 +535,16 @@ def test_cli_tune_bad_input_one_line(tmp_path, capsys):
     assert main(["tune", "fit", str(bad), "-o", str(tmp_path / "x.toml")]) == 2
     assert "what" in capsys.readouterr().err
     assert not (tmp_path / "x.toml").exists()
+
+
+def test_identification_job_reports_the_three_rates():
+    from hil_harness.tuning_closed import identification_job
+    r = identification_job({"scenario": "aurora_surge_wfov_uv", "seed": 5, "frames": 6,
+                            "record": "aurora", "target.spot_kR": 25.0})
+    assert r["frames"] == 6 and r["frames_with_object"] == 6
+    for key in ("top1_closed_loop", "top1_no_prior", "top1_truth_prior"):
+        d = json.loads(r[key])
+        _check_rate(d, 6)
+        assert (r[f"{key}_k"], r[f"{key}_n"]) == (d["k"], d["n"])
+    with pytest.raises(ValueError, match="predict"):
+        identification_job({"predict": "truth"})

@@ -1,0 +1,92 @@
+"""``uvisi track``: the flight IP + TP over a real image sequence (the IMAGE FUV-WIC night).
+
+Oracles: the committed hand labels of the WIC surge (data/labels, made independently of the
+tracker); a drop-out frame made by hand (dark noise at the sky level), which must be flagged and
+must not move the track.
+"""
+from __future__ import annotations
+
+import csv
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil_harness.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+WIC = ROOT / "data" / "real" / "wic_20000828_0928-0957_15frames.npz"
+LABELS = ROOT / "data" / "labels" / "wic_20000828_surge.csv"
+RECORD = ROOT / "data" / "records" / "aurora_wic.toml"
+FRAMES = [3, 4, 5, 6]         # the blank goes after the second of these
+RADIUS = 25.0
+
+
+def _labels():
+    rows = [ln for ln in LABELS.read_text().splitlines() if ln and not ln.startswith("#")]
+    out = {}
+    for r in csv.DictReader(rows):
+        out[int(r["frame"])] = (float(r["row"]), float(r["col"])) if r["row"] else None
+    return out
+
+
+@pytest.fixture(scope="module")
+def with_blank(tmp_path_factory):
+    """WIC frames FRAMES with a drop-out (dark noise at the sky level) after the second."""
+    with np.load(WIC, allow_pickle=False) as z:
+        img, tags = z["img"], z["time_utc"]
+    frames = [img[k] for k in FRAMES]
+    sky = float(np.median(img[FRAMES[1]]))
+    rng = np.random.default_rng(7)
+    blank = (sky * 0.05 + rng.normal(0.0, 3.0, img.shape[1:])).astype(np.float32)
+    stack = np.array(frames[:2] + [blank] + frames[2:], np.float32)
+    t = np.array(list(tags[FRAMES[:2]]) + ["2000-08-28T09:48:00.000"] + list(tags[FRAMES[2:]]))
+    p = tmp_path_factory.mktemp("track") / "wic_blank.npz"
+    np.savez(p, img=stack, time_utc=t)
+    return p
+
+
+def _run(args, tmp_path, capsys):
+    out = tmp_path / "track.json"
+    rc = main(["track", *args, "--json", str(out)])
+    cap = capsys.readouterr()
+    return rc, (json.loads(out.read_text()) if out.exists() else None), cap
+
+
+def test_track_flags_the_blank_and_keeps_the_aurora(with_blank, tmp_path, capsys):
+    rc, js, cap = _run([str(with_blank), "--record", str(RECORD), "--plot",
+                        str(tmp_path / "t.png")], tmp_path, capsys)
+    assert rc == 0, cap.err
+    fr = js["frames"]
+    assert [f["index"] for f in fr] == list(range(5))
+    assert fr[2]["flags"] and "blank" in fr[2]["flags"]
+    assert all(not f["flags"] for k, f in enumerate(fr) if k != 2)
+    assert "blank" in cap.err and "wic_blank.npz[2]" in cap.err
+    assert fr[2]["track"].get("skipped") is True              # the blank did not reach the TP
+    assert isinstance(fr[2]["candidates"], list)                 # ... but the IP answered it
+    assert fr[0]["time_utc"].startswith("2000-08-28T09:34")
+    assert fr[1]["t"] == pytest.approx(0.5) and fr[3]["t"] == pytest.approx(1.5)
+    assert all(f["scale"]["method"] in ("none", "shift", "robust") for f in fr)
+    # the frame after the blank: the window comes from the TP's prediction made before the blank,
+    # and the IP's rank-1 candidate is the surge
+    lab = _labels()[FRAMES[2]]
+    after = fr[3]
+    assert after["prior"] == pytest.approx(fr[2]["prior"])
+    c = after["candidates"][0]
+    assert math.hypot(c["row"] - lab[0], c["col"] - lab[1]) <= RADIUS
+    assert (tmp_path / "t.png").stat().st_size > 1000
+
+
+def test_track_bad_input_one_line(with_blank, tmp_path, capsys):
+    rc, js, cap = _run([str(with_blank), "--record", "aurora", "--no-scale"], tmp_path, capsys)
+    assert rc == 2 and js is None
+    assert cap.err.startswith("uvisi track: error:") and cap.err.count("\n") == 1
+    rc, _, cap = _run([str(with_blank), "--record", "aurora", "--frame-dt", "0"], tmp_path,
+                      capsys)
+    assert rc == 2 and "--frame-dt" in cap.err
+    small = tmp_path / "small.npy"
+    np.save(small, np.full((50, 60), 300, np.uint16))
+    rc, _, cap = _run([str(with_blank), str(small), "--record", "aurora"], tmp_path, capsys)
+    assert rc == 2 and "small.npy" in cap.err and "shape" in cap.err
