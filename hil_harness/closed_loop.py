@@ -31,14 +31,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightsw.ip import AlphaController, process_frame
+from flightsw.ip.processor import sequence_alpha
 from flightsw.messages import AttitudeData, CandidateMessage, Feedback, TrackCommand
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 
-__all__ = ["ReplayEvent", "ReplayFrame", "PRIOR_MODES", "replay", "score_top1", "wilson", "rate",
-           "stand_in_attitude", "sequence_alpha", "track_state", "window_centre"]
+
+__all__ = ["ReplayEvent", "ReplayFrame", "PRIOR_MODES", "replay", "score_top1",
+           "stand_in_attitude", "track_state", "window_centre"]
 
 PRIOR_MODES = ("tp", "centre", "truth")
-Z95 = 1.959963984540054           # two-sided 95 % normal quantile
 
 
 @dataclass
@@ -155,15 +156,6 @@ def stand_in_attitude(t: float) -> AttitudeData:
                         v_eci=np.array([0.0, 7.5e3, 0.0]))
 
 
-def sequence_alpha(sequence) -> float:
-    """The threshold alpha the processing sequence states (3.0 when it states none): the onboard
-    alpha logic's starting value."""
-    for st in sequence.steps:
-        if st.op == "threshold" and st.raw.get("alpha") is not None:
-            return float(st.raw["alpha"])
-    return 3.0
-
-
 def window_centre(message: CandidateMessage) -> tuple:
     """Centre (row, col) of the message's processing window, full-resolution pixels."""
     f = message.compaction
@@ -273,21 +265,3 @@ def score_top1(event: ReplayEvent, frames: list, radius_px: float) -> np.ndarray
                            float(c["col"]) - event.truth_col[k])
             hit[k] = d <= radius_px
     return hit
-
-
-def wilson(k: int, n: int, z: float = Z95) -> tuple:
-    """Wilson score interval ``(lo, hi)`` of a binomial proportion ``k / n`` (NaNs for n = 0)."""
-    if n <= 0:
-        return (math.nan, math.nan)
-    p = k / n
-    den = 1.0 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1 - p) / n + z * z / (4 * n * n)) / den
-    return (max(0.0, mid - half), min(1.0, mid + half))
-
-
-def rate(k: int, n: int) -> dict:
-    """``{"k", "n", "rate", "ci95": [lo, hi]}`` (Wilson 95 %); rate and interval NaN for n = 0."""
-    k, n = int(k), int(n)
-    lo, hi = wilson(k, n)
-    return {"k": k, "n": n, "rate": k / n if n else math.nan, "ci95": [lo, hi]}

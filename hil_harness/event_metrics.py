@@ -10,7 +10,9 @@ import math
 
 import numpy as np
 
-__all__ = ["HELD_RADIUS_PX", "held_after_lock", "processed_pixel_urad", "wilson_interval"]
+from .rates import wilson_interval
+
+__all__ = ["HELD_RADIUS_PX", "held_after_lock", "processed_pixel_urad"]
 
 #: a frame is "held" when the prediction is within this many processed pixels of the truth
 HELD_RADIUS_PX = 3.0

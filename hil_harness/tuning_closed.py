@@ -43,7 +43,8 @@ import numpy as np
 from flightsw.messages import N_FEATURES
 from flightsw.records import Record, load_record
 
-from .closed_loop import rate, replay, score_top1
+from .closed_loop import replay, score_top1
+from .rates import rate
 from .tuning_data import TrainingSet, load_sequence
 from .tuning_fit import COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, threshold_record
 

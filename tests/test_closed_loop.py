@@ -15,7 +15,9 @@ from scipy.stats import binomtest
 from flightsw.ip import load_default_sequence
 from flightsw.records import load_record
 from flightsw.tp import ImagerGeometry
-from hil_harness.closed_loop import ReplayEvent, rate, replay, score_top1, wilson
+from hil_harness.closed_loop import ReplayEvent, replay, score_top1
+from hil_harness.rates import rate
+from hil_harness.rates import wilson_interval as wilson
 
 GEOM = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 2.0e-3, 2.0e-3)
 

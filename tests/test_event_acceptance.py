@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from hil_harness.event_metrics import held_after_lock, processed_pixel_urad, wilson_interval
+from hil_harness.event_metrics import held_after_lock, processed_pixel_urad
+from hil_harness.rates import wilson_interval
 
 SC = 1e-3                                     # 1 mrad per imager pixel, both axes
 GEOM = {"wfov_uv": (SC, SC, (1.0, 0.0, 0.0, 0.0)), "nfov_uv": (SC / 8, SC / 8, (1.0, 0.0, 0.0, 0.0))}
