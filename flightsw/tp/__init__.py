@@ -12,7 +12,7 @@ from flightsw.tp.alphabeta import alpha_beta_step, step_response_frames
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import NominalTrajectory
 from flightsw.tp.ekf import EKF1750
-from flightsw.tp.frame import STAGES
+from flightsw.tp.layout import STAGES
 from flightsw.tp.geometry import (ImagerGeometry, body_to_pixel, imager_unit_vector, pixel_to_body,
                                   pixel_to_tangent, tangent_to_pixel)
 from flightsw.tp.processor import TrackProcessor

@@ -22,10 +22,11 @@ from flightsw.budget import TP1750
 from flightsw.messages import (
     IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
 )
-from flightsw.tp import frame as F
+from flightsw.tp import layout as F
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, _UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.frame import tp_frame
 
 __all__ = ["TrackProcessor"]
 
@@ -68,11 +69,9 @@ class TrackProcessor:
         self.E = np.zeros(E_WORDS, np.int64)
         self.OBS = np.zeros((F.MAX_OBS, F.OBS_C), np.int64)
         self.PW = np.zeros((F.NG * F.MAX_OBS, 3), np.int64)
-        self.TAKEN = np.zeros(F.MAX_OBS, np.int64)
-        self.wk = np.zeros(80, np.int64)
-        self.RM = np.zeros(9, np.int64)
-        self.dR = np.zeros(9, np.int64)
-        self.M = np.zeros(9, np.int64)
+        self.W = np.zeros(F.W_WORDS, np.int64)
+        self.V = np.zeros(F.V_WORDS, np.int64)
+        self.hdr = np.zeros(F.H_WORDS)
         self.out = np.zeros(F.O_WORDS)
         self.cyc = np.zeros(len(F.STAGES), np.int64)
         self.att = np.zeros(16)
@@ -124,7 +123,7 @@ class TrackProcessor:
     # ---------------------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget every track: no gates, no object, EKF stopped, nominal back at its epoch."""
-        for a in (self.S, self.G, self.N, self.E, self.OBS, self.wk):
+        for a in (self.S, self.G, self.N, self.E, self.OBS, self.W, self.V):
             a[...] = 0
         self.S[F.S_FRAME] = -1
         self.S[F.S_DEC] = -1
@@ -192,9 +191,10 @@ class TrackProcessor:
                 att[1] = 1.0 if attitude.valid else 0.0
             except (AttributeError, TypeError, ValueError):
                 att[1] = 0.0
-        status = F.tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
-                            self.OBS, self.PW, self.TAKEN, self.wk, self.RM, self.dR, self.M, ok,
-                            img_idx, t_msg, fc, self.rows, self.cols, n, att, self.out, self.cyc)
+        h = self.hdr
+        h[F.H_OK], h[F.H_IMG], h[F.H_T], h[F.H_FC], h[F.H_N] = 1.0 if ok else 0.0, img_idx, t_msg, fc, n
+        status = tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS,
+                          self.PW, self.W, self.V, h, att, self.rows, self.cols, self.out, self.cyc)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
@@ -257,7 +257,7 @@ class TrackProcessor:
         ``opp_missed``; ``status``, ``mode``, ``imager``.
         """
         from flightsw.arith.m1750 import decode32_array, decode48_array
-        from flightsw.tp.geometry import _t2p_many
+        from flightsw.tp.geometry import tangents_to_pixels
         G = self.G
         alive = G[:, F.G_ALIVE] != 0
         pos = np.where(alive[:, None], decode32_array(G[:, [F.G_A, F.G_B]]), np.nan)
@@ -267,11 +267,11 @@ class TrackProcessor:
         pix = np.full((F.NG, 2), np.nan)
         if alive.any():
             v = np.column_stack([np.ones(F.NG), np.nan_to_num(pos)])
-            _t2p_many(img, v, pix)
+            tangents_to_pixels(img, v, pix)
             pix[~alive] = np.nan
         run = bool(self.E[E_RUN])
         ex = decode48_array(self.E[E_X:E_X + 6]) if run else np.full(6, np.nan)
-        ep = decode48_array(self.E[E_P + np.diag(_UT)]) if run else np.full(6, np.nan)
+        ep = decode48_array(self.E[E_P + np.diag(UT)]) if run else np.full(6, np.nan)
         S = self.S
         oa = bool(S[F.S_OPP_ALIVE])
         return {
