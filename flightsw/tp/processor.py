@@ -13,7 +13,9 @@ inside ``step`` is caught too (status ``TC_INTERNAL_ERROR``, :attr:`TrackProcess
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -27,8 +29,30 @@ from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.frame import tp_frame
+from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor"]
+__all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
+
+
+@dataclass
+class TPInputs:
+    """One frame of the TP's bus inputs: the candidate message's words (uint16, CRC included) and
+    the attitude processor's data (:class:`flightsw.messages.AttitudeData`, None: none this frame);
+    ``ledger`` (optional) is charged with the frame's emulated cycles."""
+
+    message_words: object
+    attitude: object = None
+    ledger: object = None
+
+
+@dataclass
+class TPOutputs:
+    """One frame of the TP's bus outputs: the track-command words (uint16, CRC included), the
+    same command decoded on board, and its status bits."""
+
+    command_words: np.ndarray
+    command: TrackCommand
+    status: int
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 
@@ -46,6 +70,8 @@ class TrackProcessor:
         tp.reset()
         cmd = tp.step(candidate_message_or_words, attitude_data, ledger=None)
         cmd.feedback()        # for the IP's next frame
+        out = tp.step(TPInputs(message_words, attitude_data))   # bus form: words in, words out
+        verdict = tp.uplink(encode_uplink(gate_px=3.0))         # takes effect next frame
     """
 
     def __init__(self, config: TPConfig):
@@ -79,6 +105,7 @@ class TrackProcessor:
         self.cols = np.zeros(F.MAX_OBS)
         self.last_error = ""
         self.last_cycles: dict = {}
+        self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
         self.reset()
@@ -135,21 +162,48 @@ class TrackProcessor:
         self._last_cmd = None
 
     # ---------------------------------------------------------------------------------------------
-    def step(self, message, attitude, ledger=None) -> TrackCommand:
-        """Process one frame -> :class:`~flightsw.messages.TrackCommand`. Never raises.
+    def step(self, message, attitude=None, ledger=None):
+        """Process one frame. Never raises.
+
+        ``step(TPInputs(words, attitude, ledger))`` -> :class:`TPOutputs` (the bus form: the
+        track-command words); ``step(message, attitude, ledger=None)`` ->
+        :class:`~flightsw.messages.TrackCommand`.
 
         Parameters
         ----------
-        message : CandidateMessage or array of uint16 words (its :meth:`to_words` form)
+        message : TPInputs, CandidateMessage or array of uint16 words (its :meth:`to_words` form)
         attitude : AttitudeData (or None: no attitude this frame)
         ledger : flightsw.budget.Ledger, optional
             Charged with the frame's emulated PACE1750A cycles per stage on ``"tp1750"``.
         """
+        if isinstance(message, TPInputs):
+            cmd = self.step(message.message_words, message.attitude, message.ledger)
+            return TPOutputs(cmd.to_words(), cmd, int(cmd.status))
+        if self._pending is not None:             # an uplink accepted last frame takes effect
+            self.config, self.C = self._pending
+            self._pending = None
         try:
             return self._step(message, attitude, ledger)
         except Exception as exc:  # never raise out of step: coast and say so
             self.last_error = f"{type(exc).__name__}: {exc}"
             return self._error_command()
+
+    def uplink(self, words) -> UplinkVerdict:
+        """Ground-commanded parameter changes (:mod:`flightsw.tp.uplink` word format) ->
+        :class:`~flightsw.tp.uplink.UplinkVerdict`. Accepted: in force from the next frame (a
+        later accepted uplink before that frame replaces it); refused: nothing changes. Never
+        raises."""
+        try:
+            changes = decode_uplink(words)
+        except ValueError as exc:
+            return UplinkVerdict(False, str(exc))
+        base = self._pending[0] if self._pending is not None else self.config
+        try:
+            cfg = dataclasses.replace(base, **changes)
+        except (ValueError, TypeError) as exc:
+            return UplinkVerdict(False, str(exc))
+        self._pending = (cfg, self._constants(cfg, cfg.nominal if cfg.mode == "dedicated" else None))
+        return UplinkVerdict(True, "", changes)
 
     def _step(self, message, attitude, ledger):
         msg = None
