@@ -23,7 +23,8 @@ from flightsw.tp.geometry import DR_MIX, make_dR, neg32, vec_to_pix
 from flightsw.tp.layout import (
     C_FRAME_DT, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX,
     O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV,
-    S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_Q, S_RS, S_STATUS, S_T, S_VS, S_W, ST_CMD,
+    S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q, S_RS, S_STATUS, S_T,
+    S_VS, S_W, ST_CMD,
     V_DT, V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS,
     V_STATUS, V_T, V_VS, V_W,
 )
@@ -91,7 +92,8 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
 def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
     (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
-    imager -> (row, col, ok, flags), packed 32-bit pixels."""
+    imager -> (row, col, ok, n0, n1, n2, flags): packed 32-bit pixels and the turned direction
+    (body axes)."""
     fl = 0
     dt = V[V_DT]
     pw0, pw1, pw2 = V[V_W], V[V_W + 1], V[V_W + 2]
@@ -107,7 +109,7 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     fl |= make_dR(pw0, pw1, pw2, to32(C[C_FRAME_DT]), wk[64:73])
     n0, n1, n2, g = mv3(wk[64:73], u0, u1, u2); fl |= g
     prow, pcol, ok, g = vec_to_pix(IMG[V[V_IMG]], n0, n1, n2); fl |= g
-    return prow, pcol, ok, fl
+    return prow, pcol, ok, n0, n1, n2, fl
 
 
 @njit(cache=True)
@@ -129,8 +131,11 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
     have_pix = False
     have_q = False
     prow = pcol = q0 = q1 = q2 = q3 = 0
+    S[S_PRED_OK] = 1 if have_u else 0
     if have_u:
-        prow, pcol, have_pix, g = predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc); fl |= g
+        prow, pcol, have_pix, n0, n1, n2, g = predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc)
+        fl |= g
+        S[S_PRED], S[S_PRED + 1], S[S_PRED + 2] = n0, n1, n2
         have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
         cyc[ST_CMD] += CYC_CMD
     if have_q:
@@ -145,6 +150,17 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         out[O_PROW] = out[O_PCOL] = np.nan
         out[O_LOS] = out[O_LOS + 1] = out[O_LOS + 2] = np.nan
     V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def prediction_in(img, S):
+    """The last frame's predicted direction through another imager (table row ``img``) -> (row,
+    col, ok) packed 32-bit pixels: the prediction in the pixel frame of the imager in force after
+    an imager switch, in the TP's arithmetic. Not ok without a prediction or behind the imager."""
+    if S[S_PRED_OK] == 0:
+        return 0, 0, False
+    row, col, ok, g = vec_to_pix(img, S[S_PRED], S[S_PRED + 1], S[S_PRED + 2])
+    return row, col, ok
 
 
 @njit(cache=True)

@@ -28,6 +28,8 @@ from flightsw.tp import layout as F
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.command import prediction_in
+from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import tp_frame
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
@@ -283,6 +285,19 @@ class TrackProcessor:
             decided_frame=last.decided_frame, object_index=-1, mode=last.mode,
             los_eci=last.los_eci.copy(), r_est=last.r_est.copy(), v_est=last.v_est.copy(),
             sigma_pos=last.sigma_pos, sigma_vel=last.sigma_vel)
+
+    def predicted_pixel(self, imager: str) -> tuple[float, float]:
+        """The last frame's prediction (for the next frame) in full-resolution pixels of
+        ``imager`` -> (row, col), computed in the TP's 1750A arithmetic from the predicted body
+        direction: the feedback the IP needs after an imager switch. NaN when there is no
+        prediction, the imager is not configured, or the direction is behind it."""
+        idx = self._img_index.get(imager)
+        if idx is None:
+            return math.nan, math.nan
+        row, col, ok = prediction_in(self.IMG[idx], self.S)
+        if not ok:
+            return math.nan, math.nan
+        return dec32(row), dec32(col)
 
     # ---------------------------------------------------------------------------------------------
     @property
