@@ -11,8 +11,14 @@ alpha-beta tracker (:mod:`~flightsw.tp.opportunity`); then the track command
 (:mod:`~flightsw.tp.command`).
 
 Frames without usable observations (bad message, attitude invalid) only propagate: no miss is
-counted, no rule is applied. Every stage adds its PACE1750A clocks to its counter in ``cyc``
-(:data:`STAGES`); the processor charges them to the frame's ledger on ``"tp1750"``.
+counted, no rule is applied.
+
+Arithmetic: 32-bit 1750A float for the attitude, rotation matrices, body rates, gate and track
+coordinates, residual sums, lines of sight and pointing; 48-bit extended float for time tags and
+inertial positions (spacecraft, nominal, EKF state: 32-bit would quantise 7e6 m to 0.8 m) and the
+EKF covariance; 16-bit integers for the gate-membership tests. Every stage adds its PACE1750A
+clocks to its counter in ``cyc`` (:data:`STAGES`); the processor charges them to the frame's
+ledger on ``"tp1750"``.
 """
 from __future__ import annotations
 

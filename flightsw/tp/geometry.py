@@ -342,6 +342,9 @@ def _p2t_many(img, rows, cols, out):
 
 @njit(cache=True)
 def tangents_to_pixels(img, vecs, out):
+    """Body directions ``vecs`` float64 [n, 3] -> pixels ``out`` float64 [n, 2] (row, col) of the
+    imager whose table row is ``img``, through the 1750A kernel (NaN when not representable or
+    behind the imager) -> the OR of the arithmetic flags."""
     fl = 0
     for i in range(vecs.shape[0]):
         v0, g0 = enc32(vecs[i, 0])

@@ -12,6 +12,9 @@ Arrays (owned by :class:`flightsw.tp.TrackProcessor`, all int64 words unless sai
 * ``C`` [C_WORDS]: configuration constants (uplinkable).
 * ``V`` [V_WORDS]: this frame's working values handed from stage to stage (time, attitude, flags,
   status, the object chosen, the a priori motions).
+* ``W`` [W_WORDS]: scratch words of one frame, handed out as named views by :func:`work_views`.
+* ``hdr`` float64 [H_WORDS]: the candidate message's header (usable, imager, time tag, frame
+  count, number of candidates), read by :func:`message_header`.
 * ``out`` float64 [O_WORDS]: the decoded outputs the command message is built from.
 """
 from __future__ import annotations

@@ -3,7 +3,7 @@
 The object owns the TP's memory (packed 1750A words in small int64 arrays), turns its inputs into
 the kernel's arguments, runs :func:`flightsw.tp.frame.tp_frame` once per frame, charges the emulated
 cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
-:data:`flightsw.tp.frame.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
+:data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
 Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
 checksum, wrong length, unknown or unconfigured imager), a time tag not after the last frame's, a
