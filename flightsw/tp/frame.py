@@ -27,7 +27,7 @@ from numba import njit
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
-from flightsw.tp.gates import (GP_HALF, drop_all_gates, gate_params, propagate_gates,
+from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, propagate_gates,
                                smooth_gates)
 from flightsw.tp.geometry import observations
 from flightsw.tp.layout import (STAGES, begin_frame, evidence, has_nominal, long_gap,
@@ -50,7 +50,7 @@ def velocity_filter(C, K, IMG, S, G, N, E, OBS, PW, V, W, rows, cols, cyc):
     gate_params(C, IMG, V, GP, cyc)
     propagate_gates(S, G, V, GP, dR, cyc)
     if evidence(V):
-        associate(G, OBS, n_used(V), GP[GP_HALF], PW, TAKEN, cyc)
+        associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
         smooth_gates(C, G, OBS, V, GP, cyc)
         apply_rules(C, S, G, V, GP, cyc)
     if verify_object(C, S, G, V) and not ekf_running(E):

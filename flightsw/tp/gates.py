@@ -59,6 +59,12 @@ GP_WORDS = 5
 
 
 @njit(cache=True)
+def gate_half_width(GP):
+    """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`."""
+    return GP[GP_HALF]
+
+
+@njit(cache=True)
 def kill_pair(G, p):
     """Delete both gates of pair p."""
     G[2 * p, G_ALIVE] = 0
