@@ -42,26 +42,6 @@ __all__ = ["tp_frame", "STAGES"]
 
 
 @njit(cache=True)
-def velocity_filter(C, K, IMG, S, G, N, E, OBS, PW, V, W, rows, cols, cyc):
-    """Dedicated events: the star/object gates, the four rules, the verified object, the EKF."""
-    wk, RM, dR, M, GP, TAKEN = work_views(W)
-    if long_gap(V):
-        drop_all_gates(S, G, V)
-    gate_params(C, IMG, V, GP, cyc)
-    propagate_gates(S, G, V, GP, dR, cyc)
-    if evidence(V):
-        associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
-        smooth_gates(C, G, OBS, V, GP, cyc)
-        apply_rules(C, S, G, V, GP, cyc)
-    if verify_object(C, S, G, V) and not ekf_running(E):
-        start_ekf(K, N, E, V)
-    reinitialise(S, G, OBS, V, cyc)
-    report_object(S, V)
-    if ekf_running(E) and object_observed(S, V):
-        update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc)
-
-
-@njit(cache=True)
 def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc):
     """One frame -> status bits (``flightsw.messages`` TC_*).
 
@@ -84,8 +64,21 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
     elif not opportunity:
         no_nominal(V)
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
-    if not opportunity and nominal:
-        velocity_filter(C, K, IMG, S, G, N, E, OBS, PW, V, W, rows, cols, cyc)
+    if not opportunity and nominal:              # velocity filtering (dedicated events)
+        if long_gap(V):
+            drop_all_gates(S, G, V)
+        gate_params(C, IMG, V, GP, cyc)
+        propagate_gates(S, G, V, GP, dR, cyc)
+        if evidence(V):
+            associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
+            smooth_gates(C, G, OBS, V, GP, cyc)
+            apply_rules(C, S, G, V, GP, cyc)
+        if verify_object(C, S, G, V) and not ekf_running(E):
+            start_ekf(K, N, E, V)
+        reinitialise(S, G, OBS, V, cyc)
+        report_object(S, V)
+        if ekf_running(E) and object_observed(S, V):
+            update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc)
     if opportunity:
         track_opportunity(C, IMG, S, OBS, V, dR, cyc)
     command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc)

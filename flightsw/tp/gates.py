@@ -58,20 +58,20 @@ GP_HALF, GP_THR_OBJ, GP_THR_STAR, GP_INV_DT, GP_GAIN_V = range(5)
 GP_WORDS = 5
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def gate_half_width(GP):
     """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`."""
     return GP[GP_HALF]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def kill_pair(G, p):
     """Delete both gates of pair p."""
     G[2 * p, G_ALIVE] = 0
     G[2 * p + 1, G_ALIVE] = 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def any_gate_alive(G):
     for row in range(NG):
         if G[row, G_ALIVE] != 0:

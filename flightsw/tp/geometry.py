@@ -193,14 +193,14 @@ _ONE32 = 0x40000001
 _HALF32 = 0x40000000
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def neg32(p):
     """-p (packed 32-bit)."""
     r, f = fs32(0, p)
     return r
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def i16abs(x):
     """|x| of a 16-bit gate coordinate difference."""
     return -x if x < 0 else x
@@ -279,7 +279,7 @@ def los_delta(RM, l0, l1, l2, p0, p1, p2):
     return da, db, f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def host_to32(x):
     """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest)."""
     p, f = enc32(x)

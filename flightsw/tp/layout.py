@@ -81,37 +81,37 @@ ST_INPUT, ST_GEOM, ST_NOM, ST_GATES, ST_EKF_PRED, ST_EKF_UPD, ST_OPP, ST_CMD = r
 
 
 # ---- named accessors ------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def opportunity_mode(C):
     """True for a target-of-opportunity event (no velocity filtering)."""
     return C[C_MODE] == 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def has_nominal(C):
     """True when the ground uplinked a nominal trajectory."""
     return C[C_HAVE_NOM] == 1
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def evidence(V):
     """True when this frame's observations may be used (message and attitude both good)."""
     return V[V_EVIDENCE] != 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def long_gap(V):
     """True when this frame follows a gap longer than ``max_coast_s``."""
     return V[V_LONG_GAP] != 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def n_used(V):
     """Number of candidates of this frame's message in use (observations ``OBS[:n]``)."""
     return V[V_NUSE]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def work_views(W):
     """The scratch views of ``W``: (wk [80] EKF/command work, RM [9] body -> ECI DCM, dR [9] the
     body's rotation since the last frame, M [9] the EKF's measurement matrix, GP [8] the gate
@@ -120,7 +120,7 @@ def work_views(W):
             W[W_TAKEN:W_WORDS])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def message_header(hdr):
     """(usable, imager index, time tag s, frame count, candidates) of the frame's message."""
     return hdr[H_OK] != 0.0, int(hdr[H_IMG]), hdr[H_T], int(hdr[H_FC]), int(hdr[H_N])

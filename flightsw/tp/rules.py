@@ -232,7 +232,7 @@ def report_object(S, V):
             V[V_STATUS] |= TC_COASTING
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def object_observed(S, V):
     """The verified object was fed an observation this frame (usable evidence)."""
     return S[S_DEC] >= 0 and V[V_OBJ] >= 0 and V[V_EVIDENCE] != 0
