@@ -24,7 +24,7 @@ CYC_SORT_MOVE = cycles({"C": 1, "JC": 1, "L": 3, "ST": 3})
 CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
@@ -50,7 +50,7 @@ def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     return npairs
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def sort_pairs(PW, npairs, cyc):
     """Insertion sort of the first ``npairs`` rows of ``PW`` by distance (stable; few: ~1 per gate)."""
     for i in range(1, npairs):

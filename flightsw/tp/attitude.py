@@ -90,7 +90,7 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     V[V_FLAGS] |= fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def read_attitude(C, V, att):
     """Encode and check the attitude inputs ``att`` (float64 [16]: t, valid, q (4), rate (3),
     r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable."""
@@ -142,7 +142,7 @@ def read_attitude(C, V, att):
     return ok
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def coast_attitude(S, V):
     """No usable attitude this frame: the last one propagated with its rate,
     ``q <- q (x) (1, w dt / 2)``, ``r += v dt``."""
@@ -171,7 +171,7 @@ def coast_attitude(S, V):
     V[V_FLAGS] |= fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def mean_rate(S, V):
     """The interval's mean body rate ``(w + w_prev) / 2`` into ``V[V_WM]`` (this frame's rate when
     there is no previous attitude)."""

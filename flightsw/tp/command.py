@@ -39,7 +39,7 @@ CYC_CMD = cycles(mix({"EFM": 12, "EFA": 12, "EFS": 3, "DL": 6}, UNIT3_MIX, MV3_M
 CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
     """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
     body (u0..u2), range (rho), flags."""
@@ -64,7 +64,7 @@ def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
     return l0, l1, l2, u0, u1, u2, rho, fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
     flags); ``have`` False when nothing is tracked or predicted."""
@@ -88,7 +88,7 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     return False, 0, 0, 0, 0, 0, 0, 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
     (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
@@ -112,7 +112,7 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     return prow, pcol, ok, n0, n1, n2, fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pointing(V, u0, u1, u2):
     """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
     target is behind (``1 + u_x <= 2**-7``)."""

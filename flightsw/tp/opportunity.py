@@ -27,7 +27,7 @@ from flightsw.tp.layout import (
 CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, {"FD": 1}))
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
     its index (-1: none) and flags."""
@@ -49,7 +49,7 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     return -1, fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def follow_track(C, IMG, S, OBS, V, dR, cyc):
     """The live opportunity track predicted to this frame and smoothed with the observation in
     its gate (or counted empty, and lost after ``opp_n_lost`` empty frames)."""
@@ -88,7 +88,7 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     V[V_FLAGS] |= fl
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def acquire_track(S, OBS, V):
     """No live track: start one on the highest-ranked usable observation."""
     for j in range(V[V_NUSE]):

@@ -62,19 +62,19 @@ CYC_RULE = cycles(RULE_MIX)
 CYC_NEW_PAIR = cycles({"L": 4, "ST": 22})
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rule1(ms, ko, res_o, n, thr_o):
     """Star gate empty ``n`` frames, object gate populated since and consistent -> moving object."""
     return ms >= n and ko >= min(ms, 2 * n) and fc32(res_o, thr_o) <= 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rule2(mo, ks, res_s, n_o, thr_s):
     """Object gate empty ``n'`` frames, star gate populated since and consistent -> star."""
     return mo >= n_o and ks >= min(mo, 2 * n_o) and fc32(res_s, thr_s) <= 0
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rule3(res_s, res_o, ko, thr_o):
     """Star gate's residuals exceed the object gate's by more than ``thr`` while the object gate
     is populated -> (moving object, flags)."""
@@ -82,7 +82,7 @@ def rule3(res_s, res_o, ko, thr_o):
     return ko > 0 and fc32(d, thr_o) > 0, f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rule4(res_s, res_o, ks, thr_s):
     """Object gate's residuals exceed the star gate's by more than ``thr'`` while the star gate is
     populated -> (star, flags)."""
@@ -92,7 +92,7 @@ def rule4(res_s, res_o, ks, thr_s):
     return fc32(d, thr_s) > 0, f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o):
     """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags)."""
     star_empty = ms >= n
@@ -179,7 +179,7 @@ def verify_object(C, S, G, V):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def place_pairs(G, OBS, nuse, frame_count):
     """A star and an object gate on every usable observation j (pair j) -> pairs placed."""
     placed = 0
