@@ -19,6 +19,11 @@ inertial positions (spacecraft, nominal, EKF state: 32-bit would quantise 7e6 m 
 EKF covariance; 16-bit integers for the gate-membership tests. Every stage adds its PACE1750A
 clocks to its counter in ``cyc`` (:data:`STAGES`); the processor charges them to the frame's
 ledger on ``"tp1750"``.
+
+Editing a stage: numba's cache keys each compiled function on its own source file only, so after
+changing a stage module (or the 1750A arithmetic) the cached :func:`tp_frame` still runs the old
+code until ``frame.py`` changes too. Clear the cache (``find flightsw -name '*.nb[ic]' -delete``,
+or an empty ``NUMBA_CACHE_DIR``) before trusting the behaviour fixture after such an edit.
 """
 from __future__ import annotations
 
