@@ -28,7 +28,7 @@ THR = w(4e-8)             # residual threshold, rad^2
 N = 3                     # successive empty frames for rules 1 and 2
 
 
-# ---- the rules as functions -----------------------------------------------------------------------
+# ---- the rules as functions ----------------------------------------------------------------------
 def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
     assert rule1(3, 3, w(1e-8), N, THR)                 # empty n, populated since, consistent
     assert rule1(7, 6, w(1e-8), N, THR)                 # at most 2n populated frames asked for
@@ -65,7 +65,7 @@ def test_rule4_object_residuals_exceed_star_residuals():
     (0, 3, 3, 0, 1e-8, 9e-8, (STAR, 2)),
     (0, 0, 2, 2, 9e-8, 1e-8, (OBJECT, 3)),
     (0, 0, 2, 2, 1e-8, 9e-8, (STAR, 4)),
-    (0, 0, 2, 2, 2e-8, 1e-8, (UNDECIDED, 0)),          # residuals within the threshold of each other
+    (0, 0, 2, 2, 2e-8, 1e-8, (UNDECIDED, 0)),          # residuals within the threshold
     (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 1 fails; residual rules suspended
     (12, 0, 0, 3, 9e-8, 9e-8, (DELETE, 0)),            # star gate empty 4n: stale pair deleted
     (0, 12, 3, 0, 9e-8, 9e-8, (DELETE, 0)),
@@ -75,7 +75,7 @@ def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
     assert (concl, rule) == want and flags == 0
 
 
-# ---- stage arrays -------------------------------------------------------------------------------------
+# ---- stage arrays --------------------------------------------------------------------------------
 def _state(dt=0.5):
     C = np.zeros(L.C_WORDS, np.int64)
     C[L.C_ALPHA] = w(0.5)
@@ -145,7 +145,7 @@ def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     dR = np.zeros(9, np.int64)
     assert make_dR(0, 0, w(wz), w(dt), dR) == 0
     propagate_gates(S, G, V, GP, dR, cyc)
-    th = wz * dt                                          # fixed direction seen from the turned body
+    th = wz * dt                                      # a fixed direction seen from the turned body
     R = np.array([[1 - th * th / 2, th, 0], [-th, 1 - th * th / 2, 0], [0, 0, 1]])
     sa, sb = _tan(R @ np.array([1.0, a0, b0]))
     got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731

@@ -52,7 +52,7 @@ def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
 
 @njit(cache=True, inline="always")
 def sort_pairs(PW, npairs, cyc):
-    """Insertion sort of the first ``npairs`` rows of ``PW`` by distance (stable; few: ~1 per gate)."""
+    """Insertion sort of the first ``npairs`` rows of ``PW`` by distance (stable; ~1 per gate)."""
     for i in range(1, npairs):
         d0_, r0_, j0_ = PW[i, 0], PW[i, 1], PW[i, 2]
         m = i - 1

@@ -37,7 +37,8 @@ HALF32 = 0x40000000
 CYC_DR = cycles(DR_MIX)
 CYC_DQ = cycles(mix(QMUL_MIX, QDCM_MIX, {"FS": 3}))
 CYC_INPUT = cycles(mix(QNORM_MIX, mix(DOT3_MIX, times=3), QDCM_MIX,
-                       {"FC": 6, "EFS": 2, "EFC": 2, "JC": 10, "DL": 14, "DST": 14, "FA": 3, "FM": 3}))
+                       {"FC": 6, "EFS": 2, "EFC": 2, "JC": 10, "DL": 14, "DST": 14, "FA": 3,
+                        "FM": 3}))
 CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 
 
@@ -194,7 +195,7 @@ def frame_attitude(C, S, V, att, RM, dR, cyc):
     sampled at the frame times is not the interval's mean rate when the controller's rate varies
     within the frame: a stepwise-commanded slew, 20 % low on the launch), else ``exp(-[w dt]x)``
     to second order."""
-    had_att = S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0   # last frame's attitude (measured/coasted)
+    had_att = S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0   # last frame's (measured or coasted)
     att_ok = read_attitude(C, V, att)
     cyc[ST_INPUT] += CYC_INPUT
     if att_ok:

@@ -139,7 +139,8 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
         cyc[ST_CMD] += CYC_CMD
     if have_q:
-        out[O_QP], out[O_QP + 1], out[O_QP + 2], out[O_QP + 3] = dec32(q0), dec32(q1), dec32(q2), dec32(q3)
+        out[O_QP], out[O_QP + 1] = dec32(q0), dec32(q1)
+        out[O_QP + 2], out[O_QP + 3] = dec32(q2), dec32(q3)
     else:
         out[O_QP] = out[O_QP + 1] = out[O_QP + 2] = out[O_QP + 3] = np.nan
     if have_pix and have_u:

@@ -39,8 +39,8 @@ from flightsw.tp.layout import (MAX_OBS, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK, S
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
            "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
            "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
-           "rot_tan", "los_tan", "los_delta", "neg32", "i16abs", "host_to32", "tangents_to_pixels",
-           "observations"]
+           "rot_tan", "los_tan", "los_delta", "neg32", "i16abs", "host_to32",
+           "directions_to_pixels", "observations"]
 
 COL0, ROW0 = 128.0, 122.0
 N_ROWS, N_COLS = 244, 256
@@ -341,7 +341,7 @@ def _p2t_many(img, rows, cols, out):
 
 
 @njit(cache=True)
-def tangents_to_pixels(img, vecs, out):
+def directions_to_pixels(img, vecs, out):
     """Body directions ``vecs`` float64 [n, 3] -> pixels ``out`` float64 [n, 2] (row, col) of the
     imager whose table row is ``img``, through the 1750A kernel (NaN when not representable or
     behind the imager) -> the OR of the arithmetic flags."""
@@ -410,7 +410,7 @@ def body_to_pixel(geom: ImagerGeometry, vecs) -> np.ndarray:
     if v.shape[-1] != 3 or not np.all(np.isfinite(v)):
         raise ValueError("body_to_pixel: vecs must be finite (n, 3)")
     out = np.empty((len(v), 2))
-    tangents_to_pixels(_row(geom), np.ascontiguousarray(v), out)
+    directions_to_pixels(_row(geom), np.ascontiguousarray(v), out)
     return out
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-# ---- S: frame-to-frame scalars --------------------------------------------------------------------
+# ---- S: frame-to-frame scalars -------------------------------------------------------------------
 S_HAVE_PREV, S_T, S_FRAME, S_HAVE_ATT = 0, 1, 2, 3
 S_Q, S_W, S_RS, S_VS = 4, 8, 11, 14
 S_DEC, S_DEC_FRAME, S_NL_OK, S_NL, S_IMG = 17, 18, 19, 20, 23
@@ -32,7 +32,7 @@ S_NRULE, S_NSTALE = 39, 43          # conclusions per rule 1..4 (4 words), pairs
 S_PRED, S_PRED_OK = 44, 47          # the predicted direction for the next frame, body axes (3 x 32)
 S_WORDS = 48
 
-# ---- G: gates, OBS: observations, N: nominal ------------------------------------------------------
+# ---- G: gates, OBS: observations, N: nominal -----------------------------------------------------
 MAX_OBS = 23
 NPAIR = MAX_OBS
 NG = 2 * NPAIR
@@ -44,12 +44,13 @@ N_WORDS = 8
 OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK = range(5)
 OBS_C = 5
 
-# ---- out: decoded outputs -------------------------------------------------------------------------
+# ---- out: decoded outputs ------------------------------------------------------------------------
 O_T, O_QP, O_PROW, O_PCOL, O_LOS, O_R, O_V, O_SP, O_SV = 0, 1, 5, 6, 7, 10, 13, 16, 17
-O_NSTAR, O_NOBJ, O_DECF, O_OBJIDX, O_LOCKED, O_FRAME, O_IMG, O_STATUS = 18, 19, 20, 21, 22, 23, 24, 25
+O_NSTAR, O_NOBJ, O_DECF, O_OBJIDX = 18, 19, 20, 21
+O_LOCKED, O_FRAME, O_IMG, O_STATUS = 22, 23, 24, 25
 O_WORDS = 32
 
-# ---- C: configuration -----------------------------------------------------------------------------
+# ---- C: configuration ----------------------------------------------------------------------------
 C_MODE, C_HAVE_NOM, C_ALPHA, C_BETA, C_GATE_PX, C_THR_OBJ, C_THR_STAR = 0, 1, 2, 3, 4, 5, 6
 C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, C_FRAME_DT, C_MAX_COAST, C_SIG_PX = 7, 8, 9, 10, 11, 12
 C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_MAX_RATE2, C_QTOL = 13, 14, 15, 16, 17, 18
@@ -57,7 +58,7 @@ C_MAX_SKEW, C_EKF_MAX_REJ, C_RMIN2, C_RMAX2, C_VMAX2, C_GAP = 19, 20, 21, 22, 23
 C_CYC_RK4, C_CYC_EKF_STEP = 25, 26          # clocks of one nominal RK4 step / one EKF predict step
 C_WORDS = 32
 
-# ---- V: this frame's working values ---------------------------------------------------------------
+# ---- V: this frame's working values --------------------------------------------------------------
 V_T, V_DT, V_DT48, V_LONG_GAP, V_FC, V_IMG = 0, 1, 2, 3, 4, 5         # time (48), dt (32, 48)
 V_OK_MSG, V_ATT_OK, V_HAD_ATT, V_EVIDENCE = 6, 7, 8, 9
 V_Q, V_W, V_WM, V_RS, V_VS = 10, 14, 17, 20, 23      # attitude: q, rate, mean rate, r_sc, v_sc
@@ -70,17 +71,17 @@ V_WORDS = 40
 W_WK, W_RM, W_DR, W_M, W_GP, W_TAKEN = 0, 80, 89, 98, 107, 115
 W_WORDS = W_TAKEN + MAX_OBS
 
-# ---- hdr: the candidate message's header (float64) ------------------------------------------------
+# ---- hdr: the candidate message's header (float64) -----------------------------------------------
 H_OK, H_IMG, H_T, H_FC, H_N = range(5)
 H_WORDS = 5
 
-# ---- stages (ledger names) ------------------------------------------------------------------------
+# ---- stages (ledger names) -----------------------------------------------------------------------
 STAGES = ("tp_input", "tp_geometry", "tp_nominal", "tp_gates", "tp_ekf_predict", "tp_ekf_update",
           "tp_opportunity", "tp_command")
 ST_INPUT, ST_GEOM, ST_NOM, ST_GATES, ST_EKF_PRED, ST_EKF_UPD, ST_OPP, ST_CMD = range(8)
 
 
-# ---- named accessors ------------------------------------------------------------------------------
+# ---- named accessors -----------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def opportunity_mode(C):
     """True for a target-of-opportunity event (no velocity filtering)."""

@@ -25,10 +25,10 @@ from flightsw.messages import (
     IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
+from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
-from flightsw.tp.command import prediction_in
 from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import tp_frame
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
@@ -50,7 +50,7 @@ class TPInputs:
 @dataclass
 class TPOutputs:
     """One frame of the TP's bus outputs: the track-command words (uint16, CRC included), the
-    same command decoded on board, and its status bits."""
+    command they encode (:class:`flightsw.messages.TrackCommand`), and its status bits."""
 
     command_words: np.ndarray
     command: TrackCommand
@@ -204,7 +204,8 @@ class TrackProcessor:
             cfg = dataclasses.replace(base, **changes)
         except (ValueError, TypeError) as exc:
             return UplinkVerdict(False, str(exc))
-        self._pending = (cfg, self._constants(cfg, cfg.nominal if cfg.mode == "dedicated" else None))
+        nominal = cfg.nominal if cfg.mode == "dedicated" else None
+        self._pending = (cfg, self._constants(cfg, nominal))
         return UplinkVerdict(True, "", changes)
 
     def _step(self, message, attitude, ledger):
@@ -248,9 +249,11 @@ class TrackProcessor:
             except (AttributeError, TypeError, ValueError):
                 att[1] = 0.0
         h = self.hdr
-        h[F.H_OK], h[F.H_IMG], h[F.H_T], h[F.H_FC], h[F.H_N] = 1.0 if ok else 0.0, img_idx, t_msg, fc, n
-        status = tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS,
-                          self.PW, self.W, self.V, h, att, self.rows, self.cols, self.out, self.cyc)
+        h[F.H_OK] = 1.0 if ok else 0.0
+        h[F.H_IMG], h[F.H_T], h[F.H_FC], h[F.H_N] = img_idx, t_msg, fc, n
+        status = tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
+                          self.OBS, self.PW, self.W, self.V, h, att, self.rows, self.cols, self.out,
+                          self.cyc)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
@@ -326,7 +329,7 @@ class TrackProcessor:
         ``opp_missed``; ``status``, ``mode``, ``imager``.
         """
         from flightsw.arith.m1750 import decode32_array, decode48_array
-        from flightsw.tp.geometry import tangents_to_pixels
+        from flightsw.tp.geometry import directions_to_pixels
         G = self.G
         alive = G[:, F.G_ALIVE] != 0
         pos = np.where(alive[:, None], decode32_array(G[:, [F.G_A, F.G_B]]), np.nan)
@@ -336,7 +339,7 @@ class TrackProcessor:
         pix = np.full((F.NG, 2), np.nan)
         if alive.any():
             v = np.column_stack([np.ones(F.NG), np.nan_to_num(pos)])
-            tangents_to_pixels(img, v, pix)
+            directions_to_pixels(img, v, pix)
             pix[~alive] = np.nan
         run = bool(self.E[E_RUN])
         ex = decode48_array(self.E[E_X:E_X + 6]) if run else np.full(6, np.nan)

@@ -3,8 +3,8 @@
 MSX paper, "Track processing algorithms" (*"four rules control the velocity filtering
 algorithm"*), per undecided pair after smoothing, with ``m_s``, ``m_o`` the gates' successive empty
 frames, ``k_s``, ``k_o`` their successive populated frames and ``S_s``, ``S_o`` their accumulated
-squared residuals (rad^2, packed 32-bit), ``n``/``n'`` the star/object empty limits and ``thr``/``thr'``
-the object/star residual thresholds:
+squared residuals (rad^2, packed 32-bit), ``n``/``n'`` the star/object empty limits and
+``thr``/``thr'`` the object/star residual thresholds:
 
 1. ``m_s >= n``, ``k_o >= min(m_s, 2n)`` and ``S_o <= thr``: *"If a star gate is empty for n
    successive frames but the object gate remains populated, conclude that the observation is a
