@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from flightsw.messages import CANDIDATE_DTYPE, AttitudeData, CandidateMessage
-from flightsw.tp import (EKF1750, ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor,
-                         alpha_beta_step)
+from flightsw.tp import (EKF1750, ImagerGeometry, NominalTrajectory, TPConfig, TPInputs,
+                         TrackProcessor, alpha_beta_step)
 
 G_STEP = "tp: TrackProcessor.step, 23 candidates, 45 live gates, EKF running"
 G_EKF = "tp: EKF predict + two scalar updates, 6-state RK4 model"
@@ -133,6 +133,37 @@ def test_ours_trackprocessor_step(benchmark):
     def setup():
         return next(it), {}
     benchmark.pedantic(tp.step, setup=setup, rounds=300, iterations=1)
+    assert tp.snapshot()["gate_alive"].sum() == 45 and tp.ekf_running
+
+
+def _warm_stare_tp():
+    nominal, frames = _stare_event()
+    geom = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), SCALE, SCALE)
+    tp = TrackProcessor(TPConfig(imagers={"wfov_vis": geom}, nominal=nominal, j2=True,
+                                 n_empty_object=10 ** 6, residual_threshold_star_px2=1e9))
+    for k in range(40):
+        tp.step(*frames[k])
+    return tp, [(m.to_words(), a) for m, a in frames[40:]]
+
+
+@pytest.mark.benchmark(group=G_STEP)
+def test_ours_trackprocessor_step_words_in_words_out(benchmark):
+    """The closed loop's call: candidate-message words in (CRC and decode checks on), the track
+    command's words out."""
+    tp, frames = _warm_stare_tp()
+    it = iter(frames)
+    benchmark.pedantic(lambda w, a: tp.step(w, a).to_words(), setup=lambda: (next(it), {}),
+                       rounds=300, iterations=1)
+    assert tp.snapshot()["gate_alive"].sum() == 45 and tp.ekf_running
+
+
+@pytest.mark.benchmark(group=G_STEP)
+def test_ours_trackprocessor_step_bus_form(benchmark):
+    """``step(TPInputs(words, attitude))`` -> ``TPOutputs`` (command words)."""
+    tp, frames = _warm_stare_tp()
+    it = iter(frames)
+    benchmark.pedantic(tp.step, setup=lambda: ((TPInputs(*next(it)),), {}), rounds=300,
+                       iterations=1)
     assert tp.snapshot()["gate_alive"].sum() == 45 and tp.ekf_running
 
 

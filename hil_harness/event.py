@@ -38,7 +38,7 @@ from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
 from groundsim.scenario import Scenario
 
-from .selection import ImagerSelector, SelectionParams, Switch, convert_pixel, record_name_for
+from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
 
 FRAME_DT = 0.5
 #: longest candidate message (23 candidates): recorded padded to this many words
@@ -267,8 +267,8 @@ class Event:
         out = FrameOutcome(k=k, t=t, imager=imager, skip=SKIP_NONE, truth=truth, attitude=att)
         # the prediction made last frame, in this frame's imager
         pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
-        if self._feedback_imager != imager:
-            pr, pc = convert_pixel(pr, pc, self.geometry[self._feedback_imager], self.geometry[imager])
+        if self._feedback_imager != imager and np.isfinite(pr) and np.isfinite(pc):
+            pr, pc = self.tp.predicted_pixel(imager)     # converted by the TP (1750A arithmetic)
         out.pred_row, out.pred_col = pr, pc
         fb = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
         if self._late_command is not None:            # a TP overrun's command lands now

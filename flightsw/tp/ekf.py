@@ -74,8 +74,8 @@ _TINY48 = encode48(1e-6)
 _ONE48 = 0x400000010000
 
 # upper-triangle index of (i, j), i <= j, row-major
-_UT = np.array([[0, 1, 2, 3, 4, 5], [1, 6, 7, 8, 9, 10], [2, 7, 11, 12, 13, 14],
-                [3, 8, 12, 15, 16, 17], [4, 9, 13, 16, 18, 19], [5, 10, 14, 17, 19, 20]], np.int64)
+UT = np.array([[0, 1, 2, 3, 4, 5], [1, 6, 7, 8, 9, 10], [2, 7, 11, 12, 13, 14],
+              [3, 8, 12, 15, 16, 17], [4, 9, 13, 16, 18, 19], [5, 10, 14, 17, 19, 20]], np.int64)
 
 COV_PROP_MIX = mix({"EFM": 9, "EFA": 9},                       # M11 = A + h B^T
                    {"EFM": 27, "EFA": 27},                     # W = C A + B^T
@@ -109,15 +109,21 @@ def ekf_predict_step_cycles(j2: bool, k: int) -> int:
 # kernels
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True)
+def ekf_reset_cov(E, p0r, p0v):
+    """``P <- diag(p0r I, p0v I)`` (packed 48-bit, m^2 and (m/s)^2); the state is kept."""
+    for k in range(21):
+        E[E_P + k] = 0
+    for i in range(3):
+        E[E_P + UT[i, i]] = p0r
+        E[E_P + UT[i + 3, i + 3]] = p0v
+
+
+@njit(cache=True)
 def ekf_init(E, r0, r1, r2, v0, v1, v2, t, p0r, p0v):
     """Start the filter at (r, v) (packed 48-bit) and time t with P = diag(p0r I, p0v I)."""
     E[E_X], E[E_X + 1], E[E_X + 2] = r0, r1, r2
     E[E_X + 3], E[E_X + 4], E[E_X + 5] = v0, v1, v2
-    for k in range(21):
-        E[E_P + k] = 0
-    for i in range(3):
-        E[E_P + _UT[i, i]] = p0r
-        E[E_P + _UT[i + 3, i + 3]] = p0v
+    ekf_reset_cov(E, p0r, p0v)
     E[E_T] = t
     E[E_RUN] = 1
     E[E_NREJ] = 0
@@ -132,9 +138,9 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
     # unpack A (r-r), B (r-v), D (v-v) and C into wk (row-major 3x3, 48-bit)
     for i in range(3):
         for j in range(3):
-            wk[i * 3 + j] = E[P + _UT[i, j]]
-            wk[9 + i * 3 + j] = E[P + _UT[i, 3 + j]]
-            wk[18 + i * 3 + j] = E[P + _UT[3 + i, 3 + j]]
+            wk[i * 3 + j] = E[P + UT[i, j]]
+            wk[9 + i * 3 + j] = E[P + UT[i, 3 + j]]
+            wk[18 + i * 3 + j] = E[P + UT[3 + i, 3 + j]]
     wk[27], wk[28], wk[29] = to48(c00), to48(c01), to48(c02)
     wk[30], wk[31], wk[32] = to48(c01), to48(c11), to48(c12)
     wk[33], wk[34], wk[35] = to48(c02), to48(c12), to48(c22)
@@ -157,7 +163,7 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
             p, g = fm48(h, wk[18 + i * 3 + j]); f |= g
             p, g = fa48(wk[9 + i * 3 + j], p); f |= g
             p, g = fm48(h, p); f |= g
-            E[P + _UT[i, j]], g = fa48(wk[36 + i * 3 + j], p); f |= g
+            E[P + UT[i, j]], g = fa48(wk[36 + i * 3 + j], p); f |= g
     # P'rv = M11 C + B + h D
     for i in range(3):
         for j in range(3):
@@ -166,7 +172,7 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
             for k in range(3):
                 p, g = fm48(wk[36 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
                 acc, g = fa48(acc, p); f |= g
-            E[P + _UT[i, 3 + j]] = acc
+            E[P + UT[i, 3 + j]] = acc
     # P'vv = W C + C B + D                 (upper)
     for i in range(3):
         for j in range(i, 3):
@@ -176,7 +182,7 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
                 acc, g = fa48(acc, p); f |= g
                 p, g = fm48(wk[27 + i * 3 + k], wk[9 + k * 3 + j]); f |= g
                 acc, g = fa48(acc, p); f |= g
-            E[P + _UT[3 + i, 3 + j]] = acc
+            E[P + UT[3 + i, 3 + j]] = acc
     # Q: q h^3/3, q h^2/2, q h
     qh, g = fm48(q, h); f |= g
     qh2, g = fm48(qh, h); f |= g
@@ -184,9 +190,9 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
     qrr, g = fm48(qh2, h); f |= g
     qrr, g = fm48(qrr, _THIRD48); f |= g
     for i in range(3):
-        E[P + _UT[i, i]], g = fa48(E[P + _UT[i, i]], qrr); f |= g
-        E[P + _UT[i, 3 + i]], g = fa48(E[P + _UT[i, 3 + i]], qrv); f |= g
-        E[P + _UT[3 + i, 3 + i]], g = fa48(E[P + _UT[3 + i, 3 + i]], qh); f |= g
+        E[P + UT[i, i]], g = fa48(E[P + UT[i, i]], qrr); f |= g
+        E[P + UT[i, 3 + i]], g = fa48(E[P + UT[i, 3 + i]], qrv); f |= g
+        E[P + UT[3 + i, 3 + i]], g = fa48(E[P + UT[3 + i, 3 + i]], qh); f |= g
     return f
 
 
@@ -252,10 +258,10 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     # c = P H^T (P symmetric, upper storage)
     c = wk[0:6]
     for j in range(6):
-        p, g = fm48(E[E_P + _UT[j, 0]], H0); f |= g
-        q, g = fm48(E[E_P + _UT[j, 1]], H1); f |= g
+        p, g = fm48(E[E_P + UT[j, 0]], H0); f |= g
+        q, g = fm48(E[E_P + UT[j, 1]], H1); f |= g
         acc, g = fa48(p, q); f |= g
-        p, g = fm48(E[E_P + _UT[j, 2]], H2); f |= g
+        p, g = fm48(E[E_P + UT[j, 2]], H2); f |= g
         c[j], g = fa48(acc, p); f |= g
     p, g = fm48(H0, c[0]); f |= g
     q, g = fm48(H1, c[1]); f |= g
@@ -275,7 +281,7 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     # covariance guard first (a refused update leaves state and covariance untouched)
     for i in range(6):
         p, g = fm48(k[i], c[i]); f |= g
-        d, g = fs48(E[E_P + _UT[i, i]], p); f |= g
+        d, g = fs48(E[E_P + UT[i, i]], p); f |= g
         if d == 0 or (d >> 47) & 1:
             return False, nu, s, f | EKF_FLAG_COV
     for i in range(6):
@@ -284,7 +290,7 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     for i in range(6):
         for j in range(i, 6):
             p, g = fm48(k[i], c[j]); f |= g
-            E[E_P + _UT[i, j]], g = fs48(E[E_P + _UT[i, j]], p); f |= g
+            E[E_P + UT[i, j]], g = fs48(E[E_P + UT[i, j]], p); f |= g
     return True, nu, s, f
 
 
@@ -359,7 +365,7 @@ def _decode_state(E, x, P):
     for i in range(6):
         x[i] = dec48(E[E_X + i])
         for j in range(6):
-            P[i, j] = dec48(E[E_P + _UT[i, j]])
+            P[i, j] = dec48(E[E_P + UT[i, j]])
 
 
 class EKF1750:
@@ -412,7 +418,7 @@ class EKF1750:
                 raise ValueError("EKF1750.init: P must be a symmetric positive definite (6, 6) array")
             for i in range(6):
                 for j in range(i, 6):
-                    self.E[E_P + _UT[i, j]] = encode48(float(P[i, j]), rounding="nearest")
+                    self.E[E_P + UT[i, j]] = encode48(float(P[i, j]), rounding="nearest")
 
     def predict(self, t: float):
         """Propagate to time t (RK4 + covariance), in steps of at most max_step."""

@@ -29,13 +29,18 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from flightsw.arith.m1750 import encode32, fa32, fd32, fix32, fm32, fs32, sqrt32
+from flightsw.arith.m1750 import FLAG_DOMAIN, encode32, fa32, fd32, fix32, fm32, fs32, sqrt32
+from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
 from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
+from flightsw.tp.layout import (MAX_OBS, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK, ST_GEOM, V_EVIDENCE,
+                                V_IMG, V_NUSE, V_STATUS)
 
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
            "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
-           "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX"]
+           "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
+           "rot_tan", "los_tan", "los_delta", "neg32", "i16abs", "host_to32",
+           "directions_to_pixels", "observations"]
 
 COL0, ROW0 = 128.0, 122.0
 N_ROWS, N_COLS = 244, 256
@@ -181,6 +186,139 @@ def pix_unit(img, row, col):
 
 
 # ------------------------------------------------------------------------------------------------
+# body rotations between frames (packed 32-bit words)
+# ------------------------------------------------------------------------------------------------
+DR_MIX = {"FM": 15, "FA": 6, "FS": 6, "ST": 9}
+_ONE32 = 0x40000001
+_HALF32 = 0x40000000
+
+
+@njit(cache=True, inline="always")
+def neg32(p):
+    """-p (packed 32-bit)."""
+    r, f = fs32(0, p)
+    return r
+
+
+@njit(cache=True, inline="always")
+def i16abs(x):
+    """|x| of a 16-bit gate coordinate difference."""
+    return -x if x < 0 else x
+
+
+@njit(cache=True)
+def make_dR(w0, w1, w2, dt, R):
+    """``R <- I - [theta]x + [theta]x^2 / 2``, theta = w dt (packed 32-bit) -> flags. Maps an
+    inertially fixed direction in body axes over dt (the body turning at rate w)."""
+    f = 0
+    x, g = fm32(w0, dt); f |= g
+    y, g = fm32(w1, dt); f |= g
+    z, g = fm32(w2, dt); f |= g
+    xx, g = fm32(x, x); f |= g
+    yy, g = fm32(y, y); f |= g
+    zz, g = fm32(z, z); f |= g
+    xy, g = fm32(x, y); f |= g
+    xz, g = fm32(x, z); f |= g
+    yz, g = fm32(y, z); f |= g
+    xy, g = fm32(xy, _HALF32); f |= g
+    xz, g = fm32(xz, _HALF32); f |= g
+    yz, g = fm32(yz, _HALF32); f |= g
+    s, g = fa32(yy, zz); f |= g
+    s, g = fm32(s, _HALF32); f |= g
+    R[0], g = fs32(_ONE32, s); f |= g
+    s, g = fa32(xx, zz); f |= g
+    s, g = fm32(s, _HALF32); f |= g
+    R[4], g = fs32(_ONE32, s); f |= g
+    s, g = fa32(xx, yy); f |= g
+    s, g = fm32(s, _HALF32); f |= g
+    R[8], g = fs32(_ONE32, s); f |= g
+    R[1], g = fa32(z, xy); f |= g
+    R[2], g = fs32(xz, y); f |= g
+    R[3], g = fs32(xy, z); f |= g
+    R[5], g = fa32(x, yz); f |= g
+    R[6], g = fa32(y, xz); f |= g
+    R[7], g = fs32(yz, x); f |= g
+    return f
+
+
+@njit(cache=True)
+def rot_tan(R, a, b):
+    """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0."""
+    v0, v1, v2, f = mv1ab(R, a, b)
+    if v0 == 0 or (v0 >> 31) & 1:
+        return a, b, f | FLAG_DOMAIN
+    inv, g = fd32(_ONE32, v0); f |= g
+    na, g = fm32(v1, inv); f |= g
+    nb, g = fm32(v2, inv); f |= g
+    return na, nb, f
+
+
+@njit(cache=True)
+def los_tan(RM, l0, l1, l2):
+    """ECI direction -> body tangent coordinates T(R^T l) -> (a, b, ok, flags)."""
+    b0, b1, b2, f = mtv3(RM, l0, l1, l2)
+    if b0 == 0 or (b0 >> 31) & 1:
+        return 0, 0, False, f
+    inv, g = fd32(_ONE32, b0); f |= g
+    a, g = fm32(b1, inv); f |= g
+    b, g = fm32(b2, inv); f |= g
+    return a, b, True, f
+
+
+@njit(cache=True, inline="always")
+def los_delta(RM, l0, l1, l2, p0, p1, p2):
+    """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
+    both seen in the current attitude RM -> (da, db, flags); (0, 0) if either is behind the
+    tangent plane."""
+    an, bn, okn, f = los_tan(RM, l0, l1, l2)
+    ap, bp, okp, g = los_tan(RM, p0, p1, p2); f |= g
+    if not (okn and okp):
+        return 0, 0, f
+    da, g = fs32(an, ap); f |= g
+    db, g = fs32(bn, bp); f |= g
+    return da, db, f
+
+
+@njit(cache=True, inline="always")
+def host_to32(x):
+    """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest)."""
+    p, f = enc32(x)
+    return p
+
+
+@njit(cache=True)
+def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
+    """This frame's candidate centroids (``rows``, ``cols`` float64 pixels, best ranked first) in
+    body tangent coordinates of the imager in force -> ``OBS`` (int64 [MAX_OBS, OBS_C]: a, b packed
+    32-bit, their 16-bit integers, usable flag) and ``V[V_NUSE]``. *"Each observation is converted
+    from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
+    coordinates."* A frame without evidence (message or attitude bad) uses none and coasts."""
+    if V[V_EVIDENCE] == 0:
+        V[V_STATUS] |= TC_COASTING
+        return
+    img = IMG[V[V_IMG]]
+    nuse = n_obs if n_obs < MAX_OBS else MAX_OBS
+    for j in range(nuse):
+        r, g1 = enc32(rows[j])
+        c, g2 = enc32(cols[j])
+        OBS[j, OBS_OK] = 0
+        if (g1 | g2) != 0:
+            continue
+        a, b, vx, g = pix_to_tan(img, r, c)
+        if g != 0 or vx == 0 or (vx >> 31) & 1:
+            continue
+        OBS[j, OBS_A] = a
+        OBS[j, OBS_B] = b
+        OBS[j, OBS_IA] = tan_int(a)
+        OBS[j, OBS_IB] = tan_int(b)
+        OBS[j, OBS_OK] = 1
+    cyc[ST_GEOM] += nuse * CYC_PIX_TO_TAN
+    if nuse == 0:
+        V[V_STATUS] |= TC_EMPTY_MESSAGE | TC_COASTING
+    V[V_NUSE] = nuse
+
+
+# ------------------------------------------------------------------------------------------------
 # Python surface (decoded floats; for tests, tools and the ground)
 # ------------------------------------------------------------------------------------------------
 def _row(geom: ImagerGeometry) -> np.ndarray:
@@ -203,7 +341,10 @@ def _p2t_many(img, rows, cols, out):
 
 
 @njit(cache=True)
-def _t2p_many(img, vecs, out):
+def directions_to_pixels(img, vecs, out):
+    """Body directions ``vecs`` float64 [n, 3] -> pixels ``out`` float64 [n, 2] (row, col) of the
+    imager whose table row is ``img``, through the 1750A kernel (NaN when not representable or
+    behind the imager) -> the OR of the arithmetic flags."""
     fl = 0
     for i in range(vecs.shape[0]):
         v0, g0 = enc32(vecs[i, 0])
@@ -269,7 +410,7 @@ def body_to_pixel(geom: ImagerGeometry, vecs) -> np.ndarray:
     if v.shape[-1] != 3 or not np.all(np.isfinite(v)):
         raise ValueError("body_to_pixel: vecs must be finite (n, 3)")
     out = np.empty((len(v), 2))
-    _t2p_many(_row(geom), np.ascontiguousarray(v), out)
+    directions_to_pixels(_row(geom), np.ascontiguousarray(v), out)
     return out
 
 

@@ -3,7 +3,7 @@
 The object owns the TP's memory (packed 1750A words in small int64 arrays), turns its inputs into
 the kernel's arguments, runs :func:`flightsw.tp.frame.tp_frame` once per frame, charges the emulated
 cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
-:data:`flightsw.tp.frame.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
+:data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
 Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
 checksum, wrong length, unknown or unconfigured imager), a time tag not after the last frame's, a
@@ -13,7 +13,9 @@ inside ``step`` is caught too (status ``TC_INTERNAL_ERROR``, :attr:`TrackProcess
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -22,12 +24,37 @@ from flightsw.budget import TP1750
 from flightsw.messages import (
     IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
 )
-from flightsw.tp import frame as F
+from flightsw.tp import layout as F
+from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, _UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.f1750 import dec32
+from flightsw.tp.frame import tp_frame
+from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor"]
+__all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
+
+
+@dataclass
+class TPInputs:
+    """One frame of the TP's bus inputs: the candidate message's words (uint16, CRC included) and
+    the attitude processor's data (:class:`flightsw.messages.AttitudeData`, None: none this frame);
+    ``ledger`` (optional) is charged with the frame's emulated cycles."""
+
+    message_words: object
+    attitude: object = None
+    ledger: object = None
+
+
+@dataclass
+class TPOutputs:
+    """One frame of the TP's bus outputs: the track-command words (uint16, CRC included), the
+    command they encode (:class:`flightsw.messages.TrackCommand`), and its status bits."""
+
+    command_words: np.ndarray
+    command: TrackCommand
+    status: int
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 
@@ -45,6 +72,8 @@ class TrackProcessor:
         tp.reset()
         cmd = tp.step(candidate_message_or_words, attitude_data, ledger=None)
         cmd.feedback()        # for the IP's next frame
+        out = tp.step(TPInputs(message_words, attitude_data))   # bus form: words in, words out
+        verdict = tp.uplink(encode_uplink(gate_px=3.0))         # takes effect next frame
     """
 
     def __init__(self, config: TPConfig):
@@ -68,11 +97,9 @@ class TrackProcessor:
         self.E = np.zeros(E_WORDS, np.int64)
         self.OBS = np.zeros((F.MAX_OBS, F.OBS_C), np.int64)
         self.PW = np.zeros((F.NG * F.MAX_OBS, 3), np.int64)
-        self.TAKEN = np.zeros(F.MAX_OBS, np.int64)
-        self.wk = np.zeros(80, np.int64)
-        self.RM = np.zeros(9, np.int64)
-        self.dR = np.zeros(9, np.int64)
-        self.M = np.zeros(9, np.int64)
+        self.W = np.zeros(F.W_WORDS, np.int64)
+        self.V = np.zeros(F.V_WORDS, np.int64)
+        self.hdr = np.zeros(F.H_WORDS)
         self.out = np.zeros(F.O_WORDS)
         self.cyc = np.zeros(len(F.STAGES), np.int64)
         self.att = np.zeros(16)
@@ -80,6 +107,7 @@ class TrackProcessor:
         self.cols = np.zeros(F.MAX_OBS)
         self.last_error = ""
         self.last_cycles: dict = {}
+        self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
         self.reset()
@@ -124,7 +152,7 @@ class TrackProcessor:
     # ---------------------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget every track: no gates, no object, EKF stopped, nominal back at its epoch."""
-        for a in (self.S, self.G, self.N, self.E, self.OBS, self.wk):
+        for a in (self.S, self.G, self.N, self.E, self.OBS, self.W, self.V):
             a[...] = 0
         self.S[F.S_FRAME] = -1
         self.S[F.S_DEC] = -1
@@ -136,21 +164,49 @@ class TrackProcessor:
         self._last_cmd = None
 
     # ---------------------------------------------------------------------------------------------
-    def step(self, message, attitude, ledger=None) -> TrackCommand:
-        """Process one frame -> :class:`~flightsw.messages.TrackCommand`. Never raises.
+    def step(self, message, attitude=None, ledger=None):
+        """Process one frame. Never raises.
+
+        ``step(TPInputs(words, attitude, ledger))`` -> :class:`TPOutputs` (the bus form: the
+        track-command words); ``step(message, attitude, ledger=None)`` ->
+        :class:`~flightsw.messages.TrackCommand`.
 
         Parameters
         ----------
-        message : CandidateMessage or array of uint16 words (its :meth:`to_words` form)
+        message : TPInputs, CandidateMessage or array of uint16 words (its :meth:`to_words` form)
         attitude : AttitudeData (or None: no attitude this frame)
         ledger : flightsw.budget.Ledger, optional
             Charged with the frame's emulated PACE1750A cycles per stage on ``"tp1750"``.
         """
+        if isinstance(message, TPInputs):
+            cmd = self.step(message.message_words, message.attitude, message.ledger)
+            return TPOutputs(cmd.to_words(), cmd, int(cmd.status))
+        if self._pending is not None:             # an uplink accepted last frame takes effect
+            self.config, self.C = self._pending
+            self._pending = None
         try:
             return self._step(message, attitude, ledger)
         except Exception as exc:  # never raise out of step: coast and say so
             self.last_error = f"{type(exc).__name__}: {exc}"
             return self._error_command()
+
+    def uplink(self, words) -> UplinkVerdict:
+        """Ground-commanded parameter changes (:mod:`flightsw.tp.uplink` word format) ->
+        :class:`~flightsw.tp.uplink.UplinkVerdict`. Accepted: in force from the next frame (a
+        later accepted uplink before that frame replaces it); refused: nothing changes. Never
+        raises."""
+        try:
+            changes = decode_uplink(words)
+        except ValueError as exc:
+            return UplinkVerdict(False, str(exc))
+        base = self._pending[0] if self._pending is not None else self.config
+        try:
+            cfg = dataclasses.replace(base, **changes)
+        except (ValueError, TypeError) as exc:
+            return UplinkVerdict(False, str(exc))
+        nominal = cfg.nominal if cfg.mode == "dedicated" else None
+        self._pending = (cfg, self._constants(cfg, nominal))
+        return UplinkVerdict(True, "", changes)
 
     def _step(self, message, attitude, ledger):
         msg = None
@@ -192,9 +248,12 @@ class TrackProcessor:
                 att[1] = 1.0 if attitude.valid else 0.0
             except (AttributeError, TypeError, ValueError):
                 att[1] = 0.0
-        status = F.tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
-                            self.OBS, self.PW, self.TAKEN, self.wk, self.RM, self.dR, self.M, ok,
-                            img_idx, t_msg, fc, self.rows, self.cols, n, att, self.out, self.cyc)
+        h = self.hdr
+        h[F.H_OK] = 1.0 if ok else 0.0
+        h[F.H_IMG], h[F.H_T], h[F.H_FC], h[F.H_N] = img_idx, t_msg, fc, n
+        status = tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
+                          self.OBS, self.PW, self.W, self.V, h, att, self.rows, self.cols, self.out,
+                          self.cyc)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
@@ -230,6 +289,19 @@ class TrackProcessor:
             los_eci=last.los_eci.copy(), r_est=last.r_est.copy(), v_est=last.v_est.copy(),
             sigma_pos=last.sigma_pos, sigma_vel=last.sigma_vel)
 
+    def predicted_pixel(self, imager: str) -> tuple[float, float]:
+        """The last frame's prediction (for the next frame) in full-resolution pixels of
+        ``imager`` -> (row, col), computed in the TP's 1750A arithmetic from the predicted body
+        direction: the feedback the IP needs after an imager switch. NaN when there is no
+        prediction, the imager is not configured, or the direction is behind it."""
+        idx = self._img_index.get(imager)
+        if idx is None:
+            return math.nan, math.nan
+        row, col, ok = prediction_in(self.IMG[idx], self.S)
+        if not ok:
+            return math.nan, math.nan
+        return dec32(row), dec32(col)
+
     # ---------------------------------------------------------------------------------------------
     @property
     def cycles(self) -> dict:
@@ -257,7 +329,7 @@ class TrackProcessor:
         ``opp_missed``; ``status``, ``mode``, ``imager``.
         """
         from flightsw.arith.m1750 import decode32_array, decode48_array
-        from flightsw.tp.geometry import _t2p_many
+        from flightsw.tp.geometry import directions_to_pixels
         G = self.G
         alive = G[:, F.G_ALIVE] != 0
         pos = np.where(alive[:, None], decode32_array(G[:, [F.G_A, F.G_B]]), np.nan)
@@ -267,11 +339,11 @@ class TrackProcessor:
         pix = np.full((F.NG, 2), np.nan)
         if alive.any():
             v = np.column_stack([np.ones(F.NG), np.nan_to_num(pos)])
-            _t2p_many(img, v, pix)
+            directions_to_pixels(img, v, pix)
             pix[~alive] = np.nan
         run = bool(self.E[E_RUN])
         ex = decode48_array(self.E[E_X:E_X + 6]) if run else np.full(6, np.nan)
-        ep = decode48_array(self.E[E_P + np.diag(_UT)]) if run else np.full(6, np.nan)
+        ep = decode48_array(self.E[E_P + np.diag(UT)]) if run else np.full(6, np.nan)
         S = self.S
         oa = bool(S[F.S_OPP_ALIVE])
         return {

@@ -1,0 +1,242 @@
+"""Track processor inputs of one frame: the frame's clock (time tag, frame count, gaps) and the
+attitude data (checked in 1750A arithmetic, propagated over a gap), and the body's rotation since
+the last frame.
+
+MSX paper, "Track processing algorithms": the TP takes the IP's candidate message and the attitude
+processor's data each frame. A message whose time tag is not after the last frame's is treated as
+lost (the TP's clock advances one period). The attitude is "out of range" when
+``| |q|^2 - 1 | > quat_norm_tol^2``, ``|w| > max_rate``, ``|r_sc|`` outside 6200 km .. 100 000 km,
+``|v_sc| > 20 km/s`` or ``|t_att - t| > max_time_skew``; then (as when ``valid`` is False or the
+data are missing) the last good attitude is propagated with its rate and the observations are not
+used.
+
+Every stage here reads and writes the frame's working values ``V`` (:mod:`flightsw.tp.layout`):
+words are packed 1750A floats (32-bit unless marked 48-bit).
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from flightsw.arith.m1750 import fa32, fa48, fc32, fc48, fm32, fm48, fs32, fs48, to32, to48
+from flightsw.messages import TC_ATTITUDE_INVALID, TC_BAD_MESSAGE, TC_COASTING, TC_FRAME_GAP
+from flightsw.tp.f1750 import (
+    DOT3_MIX, QDCM_MIX, QMUL_MIX, QNORM_MIX, cycles, dec48, dot3, enc32, enc48, mix, qdcm, qmul,
+    qnormalize,
+)
+from flightsw.tp.geometry import DR_MIX, make_dR, neg32
+from flightsw.tp.layout import (
+    C_FRAME_DT, C_GAP, C_MAX_COAST, C_MAX_RATE2, C_MAX_SKEW, C_QTOL, C_RMAX2, C_RMIN2, C_VMAX2,
+    O_DECF, O_FRAME, O_IMG, O_OBJIDX, O_T, S_FRAME, S_HAVE_ATT, S_HAVE_PREV, S_IMG, S_NFRAMES,
+    S_Q, S_RS, S_STATUS, S_T, S_VS, S_W, ST_INPUT, V_ATT_OK, V_DT, V_DT48, V_EVIDENCE, V_FC,
+    V_FLAGS, V_HAD_ATT, V_IMG, V_LONG_GAP, V_OK_MSG, V_Q, V_RS, V_STATUS, V_T, V_VS, V_W, V_WM,
+)
+
+ONE32 = 0x40000001
+HALF32 = 0x40000000
+
+CYC_DR = cycles(DR_MIX)
+CYC_DQ = cycles(mix(QMUL_MIX, QDCM_MIX, {"FS": 3}))
+CYC_INPUT = cycles(mix(QNORM_MIX, mix(DOT3_MIX, times=3), QDCM_MIX,
+                       {"FC": 6, "EFS": 2, "EFC": 2, "JC": 10, "DL": 14, "DST": 14, "FA": 3,
+                        "FM": 3}))
+CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
+
+
+@njit(cache=True)
+def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
+    """The frame's time ``V[V_T]`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit)
+    and gap flags from the message header (``msg_ok`` False: the message was lost) and the last
+    frame's state ``S``; ``att`` float64 [16] the attitude inputs (``att[0]`` its time tag)."""
+    fl = 0
+    st = 0
+    have_prev = S[S_HAVE_PREV] != 0
+    tprev = S[S_T]
+    ok_msg = msg_ok
+    t = 0
+    if ok_msg:
+        t, g = enc48(t_msg)
+        if g != 0:
+            ok_msg = False
+        elif have_prev:
+            d, g = fs48(t, tprev)
+            if d == 0 or (d >> 47) & 1:
+                ok_msg = False          # time tag not after the last frame's
+    if not ok_msg:
+        # the frame is lost: the TP's own clock advances one frame period (the first frame ever
+        # takes the attitude's time tag if it has one)
+        st |= TC_BAD_MESSAGE
+        if have_prev:
+            t, g = fa48(tprev, C[C_FRAME_DT])
+        else:
+            t, g = enc48(att[0])
+            if g != 0:
+                t = 0
+        frame_count = (S[S_FRAME] + 1) & 0xFFFF if S[S_FRAME] >= 0 else 0
+        img_idx = S[S_IMG]
+    if ok_msg and S[S_FRAME] >= 0 and frame_count != ((S[S_FRAME] + 1) & 0xFFFF):
+        st |= TC_FRAME_GAP
+    dt = 0
+    dt48 = 0
+    long_gap = False
+    if have_prev:
+        dt48, g = fs48(t, tprev); fl |= g
+        dt = to32(dt48)
+        if fc48(dt48, C[C_GAP]) > 0:
+            st |= TC_FRAME_GAP
+        if fc48(dt48, C[C_MAX_COAST]) > 0:
+            long_gap = True
+    V[V_T], V[V_DT], V[V_DT48], V[V_LONG_GAP] = t, dt, dt48, 1 if long_gap else 0
+    V[V_FC], V[V_IMG], V[V_OK_MSG] = frame_count, img_idx, 1 if ok_msg else 0
+    V[V_STATUS] |= st
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True, inline="always")
+def read_attitude(C, V, att):
+    """Encode and check the attitude inputs ``att`` (float64 [16]: t, valid, q (4), rate (3),
+    r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable."""
+    if att[1] == 0.0:
+        return False
+    g = 0
+    q0, h = enc32(att[2]); g |= h
+    q1, h = enc32(att[3]); g |= h
+    q2, h = enc32(att[4]); g |= h
+    q3, h = enc32(att[5]); g |= h
+    w0, h = enc32(att[6]); g |= h
+    w1, h = enc32(att[7]); g |= h
+    w2, h = enc32(att[8]); g |= h
+    rs0, h = enc48(att[9]); g |= h
+    rs1, h = enc48(att[10]); g |= h
+    rs2, h = enc48(att[11]); g |= h
+    vs0, h = enc32(att[12]); g |= h
+    vs1, h = enc32(att[13]); g |= h
+    vs2, h = enc32(att[14]); g |= h
+    ta, h = enc48(att[0]); g |= h
+    if g != 0:
+        return False
+    ok = True
+    q0, q1, q2, q3, n2, h = qnormalize(q0, q1, q2, q3)
+    dn, h2 = fs32(n2, ONE32)
+    dn, h3 = fm32(dn, dn)
+    tol2, h4 = fm32(C[C_QTOL], C[C_QTOL])
+    if (h | h2 | h3 | h4) != 0 or fc32(dn, tol2) > 0:
+        ok = False
+    w2n, h = dot3(w0, w1, w2, w0, w1, w2)
+    if h != 0 or fc32(w2n, C[C_MAX_RATE2]) > 0:
+        ok = False
+    r2n, h = dot3(to32(rs0), to32(rs1), to32(rs2), to32(rs0), to32(rs1), to32(rs2))
+    if h != 0 or fc32(r2n, C[C_RMIN2]) < 0 or fc32(r2n, C[C_RMAX2]) > 0:
+        ok = False
+    v2n, h = dot3(vs0, vs1, vs2, vs0, vs1, vs2)
+    if h != 0 or fc32(v2n, C[C_VMAX2]) > 0:
+        ok = False
+    sk, h = fs48(ta, V[V_T])
+    if sk != 0 and (sk >> 47) & 1:
+        sk, h = fs48(0, sk)
+    if fc48(sk, C[C_MAX_SKEW]) > 0:
+        ok = False
+    if ok:
+        V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3] = q0, q1, q2, q3
+        V[V_W], V[V_W + 1], V[V_W + 2] = w0, w1, w2
+        V[V_RS], V[V_RS + 1], V[V_RS + 2] = rs0, rs1, rs2
+        V[V_VS], V[V_VS + 1], V[V_VS + 2] = vs0, vs1, vs2
+    return ok
+
+
+@njit(cache=True, inline="always")
+def coast_attitude(S, V):
+    """No usable attitude this frame: the last one propagated with its rate,
+    ``q <- q (x) (1, w dt / 2)``, ``r += v dt``."""
+    fl = 0
+    dt, dt48 = V[V_DT], V[V_DT48]
+    w0, w1, w2 = S[S_W], S[S_W + 1], S[S_W + 2]
+    hdt, g = fm32(dt, HALF32); fl |= g
+    e1, g = fm32(w0, hdt); fl |= g
+    e2, g = fm32(w1, hdt); fl |= g
+    e3, g = fm32(w2, hdt); fl |= g
+    q0, q1, q2, q3, g = qmul(S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3], ONE32, e1, e2, e3)
+    fl |= g
+    q0, q1, q2, q3, n2, g = qnormalize(q0, q1, q2, q3); fl |= g
+    vs0, vs1, vs2 = S[S_VS], S[S_VS + 1], S[S_VS + 2]
+    p, g = fm48(to48(vs0), dt48); fl |= g
+    rs0, g = fa48(S[S_RS], p); fl |= g
+    p, g = fm48(to48(vs1), dt48); fl |= g
+    rs1, g = fa48(S[S_RS + 1], p); fl |= g
+    p, g = fm48(to48(vs2), dt48); fl |= g
+    rs2, g = fa48(S[S_RS + 2], p); fl |= g
+    V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3] = q0, q1, q2, q3
+    V[V_W], V[V_W + 1], V[V_W + 2] = w0, w1, w2
+    V[V_WM], V[V_WM + 1], V[V_WM + 2] = w0, w1, w2
+    V[V_RS], V[V_RS + 1], V[V_RS + 2] = rs0, rs1, rs2
+    V[V_VS], V[V_VS + 1], V[V_VS + 2] = vs0, vs1, vs2
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True, inline="always")
+def mean_rate(S, V):
+    """The interval's mean body rate ``(w + w_prev) / 2`` into ``V[V_WM]`` (this frame's rate when
+    there is no previous attitude)."""
+    fl = 0
+    for i in range(3):
+        V[V_WM + i] = V[V_W + i]
+    if S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0:
+        for i in range(3):
+            s, g = fa32(V[V_W + i], S[S_W + i]); fl |= g
+            V[V_WM + i], g = fm32(s, HALF32); fl |= g
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def frame_attitude(C, S, V, att, RM, dR, cyc):
+    """The attitude in force this frame -> False when there has never been one (nothing can be
+    predicted or commanded). Fills ``V`` (q, w, mean rate, r_sc, v_sc, att_ok, had_att, evidence),
+    ``RM`` (body -> ECI DCM, 32-bit [9]) and ``dR`` (last frame's body axes -> this frame's, [9]):
+    ``dR = R_t^T R_prev = DCM(q_t* (x) q_prev)`` when the last attitude is known (the body rate
+    sampled at the frame times is not the interval's mean rate when the controller's rate varies
+    within the frame: a stepwise-commanded slew, 20 % low on the launch), else ``exp(-[w dt]x)``
+    to second order."""
+    had_att = S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0   # last frame's (measured or coasted)
+    att_ok = read_attitude(C, V, att)
+    cyc[ST_INPUT] += CYC_INPUT
+    if att_ok:
+        mean_rate(S, V)
+        S[S_HAVE_ATT] = 1
+    else:
+        V[V_STATUS] |= TC_ATTITUDE_INVALID
+        if S[S_HAVE_ATT] == 0:
+            return False
+        coast_attitude(S, V)
+        cyc[ST_INPUT] += CYC_ATT_PROP
+    fl = qdcm(V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3], RM)
+    if had_att:
+        e0, e1, e2, e3, g = qmul(V[V_Q], neg32(V[V_Q + 1]), neg32(V[V_Q + 2]), neg32(V[V_Q + 3]),
+                                 S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3]); fl |= g
+        fl |= qdcm(e0, e1, e2, e3, dR)
+        cyc[ST_INPUT] += CYC_DQ
+    else:
+        fl |= make_dR(V[V_WM], V[V_WM + 1], V[V_WM + 2], V[V_DT], dR)
+        cyc[ST_INPUT] += CYC_DR
+    V[V_ATT_OK] = 1 if att_ok else 0
+    V[V_HAD_ATT] = 1 if had_att else 0
+    V[V_EVIDENCE] = 1 if (att_ok and V[V_OK_MSG] != 0) else 0
+    V[V_FLAGS] |= fl
+    return True
+
+
+@njit(cache=True)
+def no_attitude_frame(S, V, out):
+    """Close a frame that has no attitude ever: only the clock advances -> status."""
+    t, fc, img_idx = V[V_T], V[V_FC], V[V_IMG]
+    S[S_HAVE_PREV] = 1
+    S[S_T] = t
+    S[S_FRAME] = fc
+    S[S_IMG] = img_idx
+    S[S_NFRAMES] += 1
+    V[V_STATUS] |= TC_COASTING
+    out[O_T] = dec48(t)
+    out[O_FRAME] = fc
+    out[O_IMG] = img_idx
+    out[O_DECF] = -1.0
+    out[O_OBJIDX] = -1.0
+    S[S_STATUS] = V[V_STATUS]
+    return V[V_STATUS]

@@ -1,0 +1,219 @@
+"""The track command: the target's line of sight for the next frame, the predicted pixel the IP
+centres its window on, the pointing quaternion, and the frame's outputs and remembered state.
+
+The line of sight for the next frame (``t + frame_dt``): the EKF's (else the nominal's) ``r + v T``
+from the spacecraft's ``r_sc + v_sc T``, or the opportunity track's ``x + v T``; in the current body
+frame ``u``. Predicted pixel: ``u`` turned by the attitude motion over ``T`` at the last interval's
+mean rate (the skew part of ``dR`` over dt; the measured rate when there is no previous attitude),
+through the imager. Pointing: ``q_point = q (x) d``, ``d`` the minimal rotation taking +X to ``u``
+(``d = normalise(1 + u_x, 0, -u_z, u_y)``). Outputs are decoded into ``out`` (float64 [O_WORDS],
+:mod:`flightsw.tp.layout`) for the message.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750 import fa32, fa48, fc32, fd32, fm32, fm48, fs32, fs48, to32, to48
+from flightsw.messages import TC_ARITH_FLAG, TC_EKF_RUNNING
+from flightsw.tp.ekf import E_X, ekf_sigmas
+from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, dec32, dec48, mix,
+                               mtv3, mv3, qmul, qnormalize, unit3)
+from flightsw.tp.geometry import DR_MIX, make_dR, neg32, vec_to_pix
+from flightsw.tp.layout import (
+    C_FRAME_DT, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX,
+    O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV,
+    S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q, S_RS, S_STATUS, S_T,
+    S_VS, S_W, ST_CMD,
+    V_DT, V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS,
+    V_STATUS, V_T, V_VS, V_W,
+)
+from flightsw.tp.trajectory import PI_FLAGS
+
+_ONE32 = 0x40000001
+_HALF32 = 0x40000000
+_BEHIND = 0x400000FA              # 2**-7
+CYC_PRATE = cycles({"FD": 1, "FS": 3, "FM": 3, "ST": 3})
+CYC_CMD = cycles(mix({"EFM": 12, "EFA": 12, "EFS": 3, "DL": 6}, UNIT3_MIX, MV3_MIX, DR_MIX, MV3_MIX,
+                     {"FM": 4, "FA": 2, "FD": 1}, QNORM_MIX, QMUL_MIX, {"FA": 1, "FC": 1, "JC": 2}))
+CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
+
+
+@njit(cache=True, inline="always")
+def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
+    """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
+    body (u0..u2), range (rho), flags."""
+    fl = 0
+    p, g = fm48(x3, T); fl |= g
+    y0, g = fa48(x0, p); fl |= g
+    p, g = fm48(x4, T); fl |= g
+    y1, g = fa48(x1, p); fl |= g
+    p, g = fm48(x5, T); fl |= g
+    y2, g = fa48(x2, p); fl |= g
+    p, g = fm48(to48(V[V_VS]), T); fl |= g
+    z0, g = fa48(V[V_RS], p); fl |= g
+    p, g = fm48(to48(V[V_VS + 1]), T); fl |= g
+    z1, g = fa48(V[V_RS + 1], p); fl |= g
+    p, g = fm48(to48(V[V_VS + 2]), T); fl |= g
+    z2, g = fa48(V[V_RS + 2], p); fl |= g
+    d0, g = fs48(y0, z0); fl |= g
+    d1, g = fs48(y1, z1); fl |= g
+    d2, g = fs48(y2, z2); fl |= g
+    l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
+    u0, u1, u2, g = mtv3(RM, l0, l1, l2); fl |= g
+    return l0, l1, l2, u0, u1, u2, rho, fl
+
+
+@njit(cache=True, inline="always")
+def target_direction(C, S, N, E, V, RM, opportunity, nominal):
+    """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
+    flags); ``have`` False when nothing is tracked or predicted."""
+    T = C[C_FRAME_DT]
+    if not opportunity and (V[V_EKF_ON] != 0 or nominal):
+        src = E if V[V_EKF_ON] != 0 else N
+        o = E_X if V[V_EKF_ON] != 0 else 0
+        l0, l1, l2, u0, u1, u2, rho, fl = los_from_state(
+            T, src[o], src[o + 1], src[o + 2], src[o + 3], src[o + 4], src[o + 5], V, RM)
+        return rho != 0, l0, l1, l2, u0, u1, u2, fl
+    if opportunity and S[S_OPP_ALIVE] != 0:
+        fl = 0
+        T32 = to32(T)
+        p, g = fm32(S[S_OPP_V], T32); fl |= g
+        a, g = fa32(S[S_OPP_X], p); fl |= g
+        p, g = fm32(S[S_OPP_V + 1], T32); fl |= g
+        b, g = fa32(S[S_OPP_X + 1], p); fl |= g
+        u0, u1, u2, nn, g = unit3(_ONE32, a, b); fl |= g
+        l0, l1, l2, g = mv3(RM, u0, u1, u2); fl |= g
+        return True, l0, l1, l2, u0, u1, u2, fl
+    return False, 0, 0, 0, 0, 0, 0, 0
+
+
+@njit(cache=True, inline="always")
+def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
+    """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
+    (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
+    imager -> (row, col, ok, n0, n1, n2, flags): packed 32-bit pixels and the turned direction
+    (body axes)."""
+    fl = 0
+    dt = V[V_DT]
+    pw0, pw1, pw2 = V[V_W], V[V_W + 1], V[V_W + 2]
+    if V[V_HAD_ATT] != 0 and dt != 0 and V[V_LONG_GAP] == 0:
+        idt, g = fd32(_HALF32, dt); fl |= g
+        p, g = fs32(dR[5], dR[7]); fl |= g
+        pw0, g = fm32(p, idt); fl |= g
+        p, g = fs32(dR[6], dR[2]); fl |= g
+        pw1, g = fm32(p, idt); fl |= g
+        p, g = fs32(dR[1], dR[3]); fl |= g
+        pw2, g = fm32(p, idt); fl |= g
+        cyc[ST_CMD] += CYC_PRATE
+    fl |= make_dR(pw0, pw1, pw2, to32(C[C_FRAME_DT]), wk[64:73])
+    n0, n1, n2, g = mv3(wk[64:73], u0, u1, u2); fl |= g
+    prow, pcol, ok, g = vec_to_pix(IMG[V[V_IMG]], n0, n1, n2); fl |= g
+    return prow, pcol, ok, n0, n1, n2, fl
+
+
+@njit(cache=True, inline="always")
+def pointing(V, u0, u1, u2):
+    """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
+    target is behind (``1 + u_x <= 2**-7``)."""
+    c0, fl = fa32(_ONE32, u0)
+    if fc32(c0, _BEHIND) <= 0:
+        return False, 0, 0, 0, 0, fl
+    d0, d1, d2, d3, n2, g = qnormalize(c0, 0, neg32(u2), u1); fl |= g
+    q0, q1, q2, q3, g = qmul(V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3], d0, d1, d2, d3); fl |= g
+    return True, q0, q1, q2, q3, fl
+
+
+@njit(cache=True)
+def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
+    """The track command's direction, predicted pixel and pointing into ``out``."""
+    have_u, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, opportunity, nominal)
+    have_pix = False
+    have_q = False
+    prow = pcol = q0 = q1 = q2 = q3 = 0
+    S[S_PRED_OK] = 1 if have_u else 0
+    if have_u:
+        prow, pcol, have_pix, n0, n1, n2, g = predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc)
+        fl |= g
+        S[S_PRED], S[S_PRED + 1], S[S_PRED + 2] = n0, n1, n2
+        have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
+        cyc[ST_CMD] += CYC_CMD
+    if have_q:
+        out[O_QP], out[O_QP + 1] = dec32(q0), dec32(q1)
+        out[O_QP + 2], out[O_QP + 3] = dec32(q2), dec32(q3)
+    else:
+        out[O_QP] = out[O_QP + 1] = out[O_QP + 2] = out[O_QP + 3] = np.nan
+    if have_pix and have_u:
+        out[O_PROW] = dec32(prow)
+        out[O_PCOL] = dec32(pcol)
+        out[O_LOS], out[O_LOS + 1], out[O_LOS + 2] = dec32(l0), dec32(l1), dec32(l2)
+    else:
+        out[O_PROW] = out[O_PCOL] = np.nan
+        out[O_LOS] = out[O_LOS + 1] = out[O_LOS + 2] = np.nan
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def prediction_in(img, S):
+    """The last frame's predicted direction through another imager (table row ``img``) -> (row,
+    col, ok) packed 32-bit pixels: the prediction in the pixel frame of the imager in force after
+    an imager switch, in the TP's arithmetic. Not ok without a prediction or behind the imager."""
+    if S[S_PRED_OK] == 0:
+        return 0, 0, False
+    row, col, ok, g = vec_to_pix(img, S[S_PRED], S[S_PRED + 1], S[S_PRED + 2])
+    return row, col, ok
+
+
+@njit(cache=True)
+def filter_outputs(E, V, out, cyc):
+    """The EKF's state and 1-sigma position/velocity into ``out`` (NaN when it is not running)."""
+    if V[V_EKF_ON] != 0:
+        V[V_STATUS] |= TC_EKF_RUNNING
+        sp, sv, g = ekf_sigmas(E)
+        V[V_FLAGS] |= g
+        for i in range(3):
+            out[O_R + i] = dec48(E[E_X + i])
+            out[O_V + i] = dec48(E[E_X + 3 + i])
+        out[O_SP] = dec32(sp)
+        out[O_SV] = dec32(sv)
+        cyc[ST_CMD] += CYC_SIGMAS
+    else:
+        for i in range(3):
+            out[O_R + i] = np.nan
+            out[O_V + i] = np.nan
+        out[O_SP] = np.nan
+        out[O_SV] = np.nan
+
+
+@njit(cache=True)
+def end_frame(S, G, V, out, opportunity):
+    """The frame's counts, flags and identity into ``out``; this frame's time, attitude and status
+    remembered in ``S`` -> status."""
+    nstar = 0
+    nobj = 0
+    for p in range(NPAIR):
+        nstar += 1 if G[2 * p, G_ALIVE] != 0 else 0
+        nobj += 1 if G[2 * p + 1, G_ALIVE] != 0 else 0
+    if (V[V_FLAGS] & PI_FLAGS) != 0:
+        V[V_STATUS] |= TC_ARITH_FLAG
+    out[O_T] = dec48(V[V_T])
+    out[O_NSTAR] = nstar
+    out[O_NOBJ] = nobj
+    out[O_DECF] = S[S_DEC_FRAME] if (S[S_DEC] >= 0 and not opportunity) else -1.0
+    out[O_OBJIDX] = V[V_OBJ]
+    out[O_LOCKED] = 1.0 if V[V_LOCKED] != 0 else 0.0
+    out[O_FRAME] = V[V_FC]
+    out[O_IMG] = V[V_IMG]
+    S[S_HAVE_PREV] = 1
+    S[S_T] = V[V_T]
+    S[S_FRAME] = V[V_FC]
+    S[S_IMG] = V[V_IMG]
+    for i in range(4):
+        S[S_Q + i] = V[V_Q + i]
+    for i in range(3):
+        S[S_W + i] = V[V_W + i]
+        S[S_RS + i] = V[V_RS + i]
+        S[S_VS + i] = V[V_VS + i]
+    S[S_NFRAMES] += 1
+    S[S_STATUS] = V[V_STATUS]
+    return V[V_STATUS]

@@ -1,0 +1,194 @@
+"""Star and object gates: their per-frame sizes, their propagation to the frame, and their
+smoothing with the observation associated to them.
+
+MSX paper, "Track processing algorithms": *"During initialization, two tracking gates are centered
+on each observation: one object gate and one star gate. These gates are then propagated to the next
+frame in accordance with velocity assumptions for the respective object and star hypotheses. Star
+gates are propagated on the basis of spacecraft attitude rate only, whereas object gates must be
+propagated considering both the a priori object motion and attitude rate. Each hypothesis gate is
+then smoothed with the new observation(s) inside the gate using an alpha-beta tracker, and the
+squared differences or residuals between the observation and the gate center are accumulated."*
+
+* Gate position = body tangent coordinates ``(a, b)`` (:mod:`flightsw.tp.geometry`).
+* Star gate prediction: an inertially fixed direction moves in body axes by the attitude change
+  since the last frame, ``(a, b) <- T(dR (1, a, b))``, ``T(v) = (v_y/v_x, v_z/v_x)``
+  (:func:`flightsw.tp.attitude.frame_attitude` forms ``dR``).
+* Object gate prediction: the star prediction plus the a priori object motion ``V[V_DN]`` (the
+  nominal's) or, for the verified object with the EKF running, ``V[V_DE]``
+  (:mod:`flightsw.tp.trajectory`).
+* A learned velocity (beta > 0) moves a gate by ``v dt`` too; every gate keeps its last apparent
+  velocity for the recording.
+* Smoothing: :func:`flightsw.tp.alphabeta.ab_update` with the associated observation; the squared
+  residual ``r_a^2 + r_b^2`` (rad^2) is accumulated per gate; the gate's successive empty frames
+  (``G_MISS``) and successive populated frames (``G_RUN``) count what the rules test.
+
+Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, int64 [NG, GC],
+packed 32-bit coordinates, 16-bit integer copies for the membership tests).
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
+from flightsw.messages import TC_OBJECT_LOST
+from flightsw.tp.alphabeta import AB_UPDATE_MIX, ab_update
+from flightsw.tp.f1750 import cycles, mix
+from flightsw.tp.geometry import IMG_SC, IMG_SR, rot_tan, tan_int
+from flightsw.tp.layout import (
+    C_ALPHA, C_BETA, C_GATE_PX, C_THR_OBJ, C_THR_STAR, G_A, G_ALIVE, G_B, G_DVA, G_DVB, G_HITS,
+    G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_VA, G_VB, NG, NPAIR, OBS_A, OBS_B, S_DEC, S_NLOST,
+    ST_GATES, V_DE, V_DN, V_DT, V_EKF_ON, V_FLAGS, V_IMG, V_STATUS,
+)
+
+_ONE32 = 0x40000001
+GATE_PRED_MIX = {"FM": 8, "FA": 6, "FD": 1, "L": 6, "ST": 4}
+GATE_OBJ_MIX = {"FA": 2}
+GATE_VEL_MIX = {"FS": 2, "FM": 2, "ST": 2}
+GATE_INT_MIX = {"FM": 2, "FIX": 2, "ST": 2}
+GATE_HIT_MIX = mix(mix(AB_UPDATE_MIX, times=2), {"FM": 2, "FA": 2, "ST": 4, "INCDEC": 1})
+GATE_MISS_MIX = {"ST": 2, "INCDEC": 1}
+CYC_GATE_PRED = cycles(mix(GATE_PRED_MIX, GATE_VEL_MIX, GATE_INT_MIX))
+CYC_GATE_OBJ = cycles(GATE_OBJ_MIX)
+CYC_GATE_HIT = cycles(GATE_HIT_MIX)
+CYC_GATE_MISS = cycles(GATE_MISS_MIX)
+CYC_GATE_SETUP = cycles({"FM": 6, "FIX": 2, "L": 6})
+
+# gate_params() slots
+GP_HALF, GP_THR_OBJ, GP_THR_STAR, GP_INV_DT, GP_GAIN_V = range(5)
+GP_WORDS = 5
+
+
+@njit(cache=True, inline="always")
+def gate_half_width(GP):
+    """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`."""
+    return GP[GP_HALF]
+
+
+@njit(cache=True, inline="always")
+def kill_pair(G, p):
+    """Delete both gates of pair p."""
+    G[2 * p, G_ALIVE] = 0
+    G[2 * p + 1, G_ALIVE] = 0
+
+
+@njit(cache=True, inline="always")
+def any_gate_alive(G):
+    for row in range(NG):
+        if G[row, G_ALIVE] != 0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def drop_all_gates(S, G, V):
+    """After a gap longer than ``max_coast_s`` no gate can be trusted: all deleted, the verified
+    object lost."""
+    for p in range(NPAIR):
+        if G[2 * p, G_ALIVE] != 0 or G[2 * p + 1, G_ALIVE] != 0:
+            kill_pair(G, p)
+    if S[S_DEC] >= 0:
+        V[V_STATUS] |= TC_OBJECT_LOST
+        S[S_DEC] = -1
+        S[S_NLOST] += 1
+
+
+@njit(cache=True)
+def gate_params(C, IMG, V, GP, cyc):
+    """This frame's gate constants into ``GP`` (int64 [GP_WORDS]): the gate half-width as a 16-bit
+    integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules' residual
+    thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and ``beta/dt``
+    (packed 32-bit; 0 when dt is 0 or beta is 0)."""
+    fl = 0
+    img = IMG[V[V_IMG]]
+    sc = img[IMG_SC]
+    sr = img[IMG_SR]
+    smax = sc if fc32(sc, sr) >= 0 else sr
+    gw, g = fm32(C[C_GATE_PX], smax); fl |= g
+    GP[GP_HALF] = tan_int(gw)
+    s2, g = fm32(sc, sr); fl |= g
+    GP[GP_THR_OBJ], g = fm32(C[C_THR_OBJ], s2); fl |= g
+    GP[GP_THR_STAR], g = fm32(C[C_THR_STAR], s2); fl |= g
+    GP[GP_INV_DT] = 0
+    GP[GP_GAIN_V] = 0
+    dt = V[V_DT]
+    if dt != 0:
+        GP[GP_INV_DT], g = fd32(_ONE32, dt); fl |= g
+        if C[C_BETA] != 0:
+            GP[GP_GAIN_V], g = fm32(C[C_BETA], GP[GP_INV_DT]); fl |= g
+    cyc[ST_GATES] += CYC_GATE_SETUP
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def propagate_gates(S, G, V, GP, dR, cyc):
+    """Every live gate moved to this frame (star: attitude change; object: plus the a priori
+    motion; both: a learned velocity); its apparent velocity kept, its observation cleared."""
+    fl = 0
+    dt = V[V_DT]
+    inv_dt = GP[GP_INV_DT]
+    obj_row = 2 * S[S_DEC] + 1
+    ekf_dir = V[V_EKF_ON] != 0
+    ngl = 0
+    for row in range(NG):
+        if G[row, G_ALIVE] == 0:
+            continue
+        ngl += 1
+        a0 = G[row, G_A]
+        b0 = G[row, G_B]
+        a, b, g = rot_tan(dR, a0, b0); fl |= g
+        if row & 1:                                     # object gate: a priori motion
+            m = V_DE if (row == obj_row and ekf_dir) else V_DN
+            a, g = fa32(a, V[m]); fl |= g
+            b, g = fa32(b, V[m + 1]); fl |= g
+            cyc[ST_GATES] += CYC_GATE_OBJ
+        if G[row, G_DVA] != 0 or G[row, G_DVB] != 0:  # learned velocity (beta > 0)
+            p, g = fm32(G[row, G_DVA], dt); fl |= g
+            a, g = fa32(a, p); fl |= g
+            p, g = fm32(G[row, G_DVB], dt); fl |= g
+            b, g = fa32(b, p); fl |= g
+        if inv_dt != 0:
+            p, g = fs32(a, a0); fl |= g
+            G[row, G_VA], g = fm32(p, inv_dt); fl |= g
+            p, g = fs32(b, b0); fl |= g
+            G[row, G_VB], g = fm32(p, inv_dt); fl |= g
+        G[row, G_OBS] = -1
+        G[row, G_A] = a
+        G[row, G_B] = b
+        G[row, G_IA] = tan_int(a)
+        G[row, G_IB] = tan_int(b)
+    cyc[ST_GATES] += ngl * CYC_GATE_PRED
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def smooth_gates(C, G, OBS, V, GP, cyc):
+    """Each live gate with an associated observation (``G_OBS``) smoothed by the alpha-beta tracker,
+    its squared residual accumulated, its populated run counted; the others counted empty."""
+    fl = 0
+    gain_v = GP[GP_GAIN_V]
+    for row in range(NG):
+        if G[row, G_ALIVE] == 0:
+            continue
+        j = G[row, G_OBS]
+        if j >= 0:
+            a, va, ra, g = ab_update(G[row, G_A], G[row, G_DVA], OBS[j, OBS_A], C[C_ALPHA], gain_v)
+            fl |= g
+            b, vb, rb, g = ab_update(G[row, G_B], G[row, G_DVB], OBS[j, OBS_B], C[C_ALPHA], gain_v)
+            fl |= g
+            G[row, G_A] = a
+            G[row, G_B] = b
+            G[row, G_DVA] = va
+            G[row, G_DVB] = vb
+            p, g = fm32(ra, ra); fl |= g
+            res, g = fa32(G[row, G_RES], p); fl |= g
+            p, g = fm32(rb, rb); fl |= g
+            G[row, G_RES], g = fa32(res, p); fl |= g
+            G[row, G_MISS] = 0
+            G[row, G_RUN] += 1
+            G[row, G_HITS] += 1
+            cyc[ST_GATES] += CYC_GATE_HIT
+        else:
+            G[row, G_MISS] += 1
+            G[row, G_RUN] = 0
+            cyc[ST_GATES] += CYC_GATE_MISS
+    V[V_FLAGS] |= fl

@@ -1,0 +1,125 @@
+"""Targets of opportunity.
+
+MSX paper, "Track processing algorithms": *"The highest-ranked candidate observation that falls
+within the angular tracking gate window is input to a simpler alpha-beta tracking filter."* The
+track state is ``(a, b)`` (body tangent coordinates, packed 32-bit) and its own (inertial) apparent
+velocity (rad/s); the prediction is the star prediction plus ``v dt``; acquisition on the
+highest-ranked candidate of the first usable frame (and after a loss); ``opp_n_lost`` empty frames
+-> lost. Locked once the track has been fed twice and is fed this frame.
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from flightsw.arith.m1750 import fa32, fc32, fd32, fm32
+from flightsw.messages import TC_COASTING, TC_OBJECT_DECIDED, TC_OBJECT_LOST, TC_REINITIALISED
+from flightsw.tp.alphabeta import AB_PREDICT_MIX, ab_update
+from flightsw.tp.association import CYC_PAIR_TEST
+from flightsw.tp.f1750 import cycles, mix
+from flightsw.tp.gates import CYC_GATE_HIT, GATE_INT_MIX, GATE_PRED_MIX
+from flightsw.tp.geometry import IMG_SC, IMG_SR, i16abs, rot_tan, tan_int
+from flightsw.tp.layout import (
+    C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK,
+    S_NLOST, S_NREINIT, S_OPP_ALIVE, S_OPP_HITS, S_OPP_MISS, S_OPP_OBS, S_OPP_V, S_OPP_X, ST_OPP,
+    V_DT, V_EVIDENCE, V_FLAGS, V_IMG, V_LOCKED, V_LONG_GAP, V_NUSE, V_OBJ, V_STATUS,
+)
+
+CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, {"FD": 1}))
+
+
+@njit(cache=True, inline="always")
+def first_in_gate(IMG, C, OBS, V, a, b, cyc):
+    """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
+    its index (-1: none) and flags."""
+    fl = 0
+    img = IMG[V[V_IMG]]
+    sc = img[IMG_SC]
+    sr = img[IMG_SR]
+    smax = sc if fc32(sc, sr) >= 0 else sr
+    gw, g = fm32(C[C_OPP_GATE_PX], smax); fl |= g
+    gi = tan_int(gw)
+    ia = tan_int(a)
+    ib = tan_int(b)
+    for j in range(V[V_NUSE]):                        # highest ranked first
+        if OBS[j, OBS_OK] == 0:
+            continue
+        cyc[ST_OPP] += CYC_PAIR_TEST
+        if i16abs(OBS[j, OBS_IA] - ia) <= gi and i16abs(OBS[j, OBS_IB] - ib) <= gi:
+            return j, fl
+    return -1, fl
+
+
+@njit(cache=True, inline="always")
+def follow_track(C, IMG, S, OBS, V, dR, cyc):
+    """The live opportunity track predicted to this frame and smoothed with the observation in
+    its gate (or counted empty, and lost after ``opp_n_lost`` empty frames)."""
+    fl = 0
+    dt = V[V_DT]
+    a, b, g = rot_tan(dR, S[S_OPP_X], S[S_OPP_X + 1]); fl |= g
+    p, g = fm32(S[S_OPP_V], dt); fl |= g
+    a, g = fa32(a, p); fl |= g
+    p, g = fm32(S[S_OPP_V + 1], dt); fl |= g
+    b, g = fa32(b, p); fl |= g
+    cyc[ST_OPP] += CYC_OPP
+    if V[V_EVIDENCE] != 0:
+        hit, g = first_in_gate(IMG, C, OBS, V, a, b, cyc); fl |= g
+        if hit >= 0:
+            gain_v = 0
+            if dt != 0 and C[C_OPP_BETA] != 0:
+                gain_v, g = fd32(C[C_OPP_BETA], dt); fl |= g
+            a, va, ra, g = ab_update(a, S[S_OPP_V], OBS[hit, OBS_A], C[C_OPP_ALPHA], gain_v)
+            fl |= g
+            b, vb, rb, g = ab_update(b, S[S_OPP_V + 1], OBS[hit, OBS_B], C[C_OPP_ALPHA], gain_v)
+            fl |= g
+            S[S_OPP_V] = va
+            S[S_OPP_V + 1] = vb
+            S[S_OPP_MISS] = 0
+            S[S_OPP_HITS] += 1
+            V[V_OBJ] = hit
+            cyc[ST_OPP] += CYC_GATE_HIT
+        else:
+            S[S_OPP_MISS] += 1
+            if S[S_OPP_MISS] >= C[C_OPP_N_LOST]:
+                S[S_OPP_ALIVE] = 0
+                V[V_STATUS] |= TC_OBJECT_LOST
+                S[S_NLOST] += 1
+    S[S_OPP_X] = a
+    S[S_OPP_X + 1] = b
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True, inline="always")
+def acquire_track(S, OBS, V):
+    """No live track: start one on the highest-ranked usable observation."""
+    for j in range(V[V_NUSE]):
+        if OBS[j, OBS_OK] == 0:
+            continue
+        S[S_OPP_ALIVE] = 1
+        S[S_OPP_X] = OBS[j, OBS_A]
+        S[S_OPP_X + 1] = OBS[j, OBS_B]
+        S[S_OPP_V] = 0
+        S[S_OPP_V + 1] = 0
+        S[S_OPP_MISS] = 0
+        S[S_OPP_HITS] = 1
+        S[S_NREINIT] += 1
+        V[V_OBJ] = j
+        V[V_STATUS] |= TC_REINITIALISED
+        return
+
+
+@njit(cache=True)
+def track_opportunity(C, IMG, S, OBS, V, dR, cyc):
+    """One frame of the opportunity tracker (follow or acquire) and its status."""
+    if V[V_LONG_GAP] != 0:
+        S[S_OPP_ALIVE] = 0
+    if S[S_OPP_ALIVE] != 0:
+        follow_track(C, IMG, S, OBS, V, dR, cyc)
+    if S[S_OPP_ALIVE] == 0 and V[V_EVIDENCE] != 0:
+        acquire_track(S, OBS, V)
+    if S[S_OPP_ALIVE] != 0:
+        V[V_STATUS] |= TC_OBJECT_DECIDED
+        if S[S_OPP_MISS] == 0 and V[V_OBJ] >= 0:
+            V[V_LOCKED] = 1 if S[S_OPP_HITS] >= 2 else 0
+        else:
+            V[V_STATUS] |= TC_COASTING
+    S[S_OPP_OBS] = V[V_OBJ]

@@ -1,0 +1,140 @@
+"""The object's trajectory in the track processor: the uplinked nominal trajectory and the EKF.
+
+MSX paper, "Track processing algorithms": object gates are propagated *"considering both the a
+priori object motion and attitude rate"*; the a priori motion is the change of the nominal line of
+sight in body tangent coordinates over the frame, ``T(R^T l_nom(t)) - T(R^T l_nom(t_prev))`` (``R``
+the attitude at t), or, for the verified object with the EKF running, the EKF's. Once the object is
+verified the 6-state EKF starts on the nominal state and is updated with the object's centroid
+(two sequential scalar updates, :mod:`flightsw.tp.ekf`).
+
+Stages read and write the frame's working values ``V`` (:mod:`flightsw.tp.layout`).
+"""
+from __future__ import annotations
+
+from numba import njit
+
+from flightsw.arith.m1750 import FLAG_DOMAIN, fm32, fm48, fs48, to32, to48
+from flightsw.messages import (TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMINAL)
+from flightsw.tp.dynamics import propagate
+from flightsw.tp.ekf import (
+    CYC_EKF_UPDATE, E_HAVE_LOS, E_LOS, E_NREJ, E_RUN, K_MAXSTEP, K_P0R, K_P0V, ekf_init, ekf_los,
+    ekf_predict, ekf_reset_cov, ekf_update,
+)
+from flightsw.tp.f1750 import MV3_MIX, UNIT3_MIX, cycles, dot3, mix, unit3
+from flightsw.tp.geometry import CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_delta, pix_unit
+from flightsw.tp.layout import (
+    C_CYC_EKF_STEP, C_CYC_RK4, C_EKF_MAX_REJ, C_SIG_PX, N_T, N_X, S_HAVE_PREV, S_NL, S_NL_OK,
+    ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_FLAGS, V_IMG, V_OBJ, V_RS, V_STATUS,
+    V_T,
+)
+
+#: arithmetic-exception flags that mark the command (the EKF's covariance guard is not one)
+PI_FLAGS = 0x8000 >> 3 | 0x8000 >> 4 | 0x8000 >> 6 | FLAG_DOMAIN
+CYC_LOS_DELTA = cycles(mix({"EFS": 3, "DL": 3}, UNIT3_MIX, MV3_MIX, MV3_MIX,
+                           {"FD": 2, "FM": 4, "FS": 2, "ST": 6}))
+CYC_EKF_MEAS = cycles(mix({"FM": 27, "FA": 18, "ST": 9}, {"FM": 4, "EFM": 2}))
+
+
+@njit(cache=True, inline="always")
+def ekf_running(E):
+    """True once the EKF has been started (on the verified object)."""
+    return E[E_RUN] != 0
+
+
+@njit(cache=True)
+def propagate_nominal(C, D, K, S, N, V, RM, cyc):
+    """The nominal state to this frame's time (RK4, 48-bit) and the change of its line of sight
+    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame)."""
+    fl = 0
+    t = V[V_T]
+    r = propagate(D, N, N_X, N[N_T], t, K[K_MAXSTEP])
+    fl |= r & 0xFFFFFFFF
+    nsteps = r >> 32
+    N[N_T] = t
+    cyc[ST_NOM] += nsteps * C[C_CYC_RK4]
+    d0, g = fs48(N[N_X], V[V_RS]); fl |= g
+    d1, g = fs48(N[N_X + 1], V[V_RS + 1]); fl |= g
+    d2, g = fs48(N[N_X + 2], V[V_RS + 2]); fl |= g
+    l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
+    if S[S_NL_OK] != 0 and S[S_HAVE_PREV] != 0:
+        V[V_DN], V[V_DN + 1], g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1], S[S_NL + 2])
+        fl |= g
+    S[S_NL], S[S_NL + 1], S[S_NL + 2] = l0, l1, l2
+    S[S_NL_OK] = 1
+    cyc[ST_NOM] += CYC_LOS_DELTA
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True, inline="always")
+def no_nominal(V):
+    """A dedicated event without a nominal trajectory: said in the status."""
+    V[V_STATUS] |= TC_NO_NOMINAL
+
+
+@njit(cache=True)
+def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
+    """A running EKF to this frame's time and the change of its line of sight -> ``V[V_DE]``."""
+    if E[E_RUN] == 0:
+        return
+    fl = 0
+    V[V_EKF_ON] = 1
+    g, nsteps = ekf_predict(E, D, K, wk, V[V_T]); fl |= g
+    cyc[ST_EKF_PRED] += nsteps * C[C_CYC_EKF_STEP]
+    l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2]); fl |= g
+    if E[E_HAVE_LOS] != 0 and S[S_HAVE_PREV] != 0:
+        V[V_DE], V[V_DE + 1], g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1], E[E_LOS + 2])
+        fl |= g
+    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    E[E_HAVE_LOS] = 1
+    cyc[ST_EKF_PRED] += CYC_LOS_DELTA
+    V[V_FLAGS] |= fl
+
+
+@njit(cache=True)
+def start_ekf(K, N, E, V):
+    """The object just verified: start the EKF on the nominal state at this frame's time."""
+    ekf_init(E, N[N_X], N[N_X + 1], N[N_X + 2], N[N_X + 3], N[N_X + 4], N[N_X + 5],
+             V[V_T], K[K_P0R], K[K_P0V])
+    V[V_EKF_ON] = 1
+    l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2])
+    V[V_FLAGS] |= g
+    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    E[E_HAVE_LOS] = 1
+
+
+@njit(cache=True)
+def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
+    """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
+    updates of the EKF; both refused ``ekf_max_rejects`` frames running -> covariance reset."""
+    fl = 0
+    img = IMG[V[V_IMG]]
+    j_obj = V[V_OBJ]
+    rs0, rs1, rs2 = V[V_RS], V[V_RS + 1], V[V_RS + 2]
+    A = img[0:9]
+    # M = (R A)^T: M[i, j] = (R A)[j, i] = sum_k R[j, k] A[k, i]
+    for i in range(3):
+        for j in range(3):
+            acc, g = dot3(RM[j * 3], RM[j * 3 + 1], RM[j * 3 + 2], A[i], A[3 + i], A[6 + i])
+            fl |= g
+            M[i * 3 + j] = acc
+    e1, e2, g = pix_unit(img, host_to32(rows[j_obj]), host_to32(cols[j_obj])); fl |= g
+    sgx, g = fm32(C[C_SIG_PX], img[IMG_SC]); fl |= g
+    sgy, g = fm32(C[C_SIG_PX], img[IMG_SR]); fl |= g
+    rv1, g = fm48(to48(sgx), to48(sgx)); fl |= g
+    rv2, g = fm48(to48(sgy), to48(sgy)); fl |= g
+    ok1, nu1, s1, g = ekf_update(E, K, wk, 1, e1, M, rs0, rs1, rs2, rv1); fl |= g & PI_FLAGS
+    ok2, nu2, s2, g = ekf_update(E, K, wk, 2, e2, M, rs0, rs1, rs2, rv2); fl |= g & PI_FLAGS
+    cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
+    if not (ok1 and ok2):
+        V[V_STATUS] |= TC_INNOVATION_REJECTED
+    if not ok1 and not ok2:
+        E[E_NREJ] += 1
+        if E[E_NREJ] >= C[C_EKF_MAX_REJ]:
+            ekf_reset_cov(E, K[K_P0R], K[K_P0V])
+            E[E_NREJ] = 0
+            V[V_STATUS] |= TC_EKF_RESET
+    else:
+        E[E_NREJ] = 0
+    l0, l1, l2, rho, g = ekf_los(E, rs0, rs1, rs2); fl |= g
+    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    V[V_FLAGS] |= fl

@@ -1,0 +1,236 @@
+"""The velocity filter's stages on hand-made cases whose outcome is known (issue 21): each of the
+four rules, the pair conclusion, reinitialisation, gate propagation, and two-frame cases through
+propagate -> associate -> smooth -> rules, as Stone Soup tests its deleters.
+
+Values are built here as 1750A words with ``encode32`` (nearest); the expected outcomes follow from
+the rule statements in the MSX paper (quoted in ``flightsw.tp.rules``), and the propagated gate
+positions are checked against float64 closed forms.
+"""
+import numpy as np
+import pytest
+
+from flightsw.arith.m1750 import decode32, encode32
+from flightsw.messages import TC_NEW_DECISION, TC_OBJECT_LOST, TC_REINITIALISED
+from flightsw.tp import layout as L
+from flightsw.tp.association import associate
+from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
+                               propagate_gates, smooth_gates)
+from flightsw.tp.geometry import make_dR, tan_int
+from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, pair_conclusion,
+                               reinitialise, rule1, rule2, rule3, rule4, verify_object)
+
+
+def w(x):
+    return encode32(float(x), rounding="nearest")
+
+
+THR = w(4e-8)             # residual threshold, rad^2
+N = 3                     # successive empty frames for rules 1 and 2
+
+
+# ---- the rules as functions ----------------------------------------------------------------------
+def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
+    assert rule1(3, 3, w(1e-8), N, THR)                 # empty n, populated since, consistent
+    assert rule1(7, 6, w(1e-8), N, THR)                 # at most 2n populated frames asked for
+    assert not rule1(2, 5, w(1e-8), N, THR)             # star gate empty n - 1 frames only
+    assert not rule1(4, 3, w(1e-8), N, THR)             # object gate missed once since
+    assert not rule1(3, 3, w(5e-8), N, THR)             # inconsistent object gate
+
+
+def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
+    assert rule2(3, 3, w(1e-8), N, THR)
+    assert not rule2(2, 3, w(1e-8), N, THR)
+    assert not rule2(3, 2, w(1e-8), N, THR)
+    assert not rule2(3, 3, w(4.1e-8), N, THR)
+    assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
+
+
+def test_rule3_star_residuals_exceed_object_residuals():
+    assert rule3(w(6e-8), w(1e-8), 1, THR)[0]          # 5e-8 > 4e-8, object gate populated
+    assert not rule3(w(6e-8), w(1e-8), 0, THR)[0]      # object gate empty this frame
+    assert not rule3(w(4e-8), w(1e-8), 1, THR)[0]      # 3e-8 not above the threshold
+    assert not rule3(w(1e-8), w(6e-8), 1, THR)[0]      # the other way round: rule 4's case
+
+
+def test_rule4_object_residuals_exceed_star_residuals():
+    assert rule4(w(1e-8), w(6e-8), 1, THR)[0]
+    assert not rule4(w(1e-8), w(6e-8), 0, THR)[0]      # star gate empty this frame
+    assert not rule4(w(1e-8), w(4e-8), 1, THR)[0]
+    assert not rule4(w(6e-8), w(1e-8), 1, THR)[0]
+
+
+@pytest.mark.parametrize("ms, mo, ks, ko, s_s, s_o, want", [
+    (3, 3, 0, 0, 0.0, 0.0, (DELETE, 0)),                # both gates empty n frames
+    (3, 0, 0, 3, 9e-8, 1e-8, (OBJECT, 1)),
+    (0, 3, 3, 0, 1e-8, 9e-8, (STAR, 2)),
+    (0, 0, 2, 2, 9e-8, 1e-8, (OBJECT, 3)),
+    (0, 0, 2, 2, 1e-8, 9e-8, (STAR, 4)),
+    (0, 0, 2, 2, 2e-8, 1e-8, (UNDECIDED, 0)),          # residuals within the threshold
+    (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 1 fails; residual rules suspended
+    (12, 0, 0, 3, 9e-8, 9e-8, (DELETE, 0)),            # star gate empty 4n: stale pair deleted
+    (0, 12, 3, 0, 9e-8, 9e-8, (DELETE, 0)),
+])
+def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
+    concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
+    assert (concl, rule) == want and flags == 0
+
+
+# ---- stage arrays --------------------------------------------------------------------------------
+def _state(dt=0.5):
+    C = np.zeros(L.C_WORDS, np.int64)
+    C[L.C_ALPHA] = w(0.5)
+    C[L.C_N_EMPTY] = C[L.C_N_EMPTY_OBJ] = 1
+    C[L.C_N_LOST] = 3
+    S = np.zeros(L.S_WORDS, np.int64)
+    S[L.S_DEC] = -1
+    G = np.zeros((L.NG, L.GC), np.int64)
+    V = np.zeros(L.V_WORDS, np.int64)
+    V[L.V_OBJ] = -1
+    V[L.V_EVIDENCE] = 1
+    V[L.V_DT] = w(dt)
+    GP = np.zeros(GP_WORDS, np.int64)
+    GP[GP_HALF] = 66                                      # ~1 mrad (LSB 2**-16 rad)
+    GP[GP_THR_OBJ] = GP[GP_THR_STAR] = THR
+    GP[GP_INV_DT] = w(1 / dt)
+    GP[GP_GAIN_V] = 0
+    return C, S, G, V, GP, np.zeros(8, np.int64)
+
+
+def _obs(points):
+    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    for j, (a, b) in enumerate(points):
+        OBS[j, L.OBS_A], OBS[j, L.OBS_B] = w(a), w(b)
+        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB] = tan_int(w(a)), tan_int(w(b))
+        OBS[j, L.OBS_OK] = 1
+    return OBS
+
+
+def test_reinitialisation_places_a_pair_on_every_usable_observation_only_when_all_gates_are_gone():
+    C, S, G, V, GP, cyc = _state()
+    OBS = _obs([(0.01, 0.02), (-0.03, 0.0), (0.0, 0.04)])
+    OBS[1, L.OBS_OK] = 0                                   # unusable: no pair
+    V[L.V_NUSE], V[L.V_FC] = 3, 17
+    assert reinitialise(S, G, OBS, V, cyc) == 2
+    alive = np.flatnonzero(G[:, L.G_ALIVE])
+    assert alive.tolist() == [0, 1, 4, 5]                  # pairs 0 and 2: star row 2p, object 2p+1
+    assert G[4, L.G_A] == OBS[2, L.OBS_A] and G[5, L.G_B] == OBS[2, L.OBS_B]
+    assert G[5, L.G_SEED] == 2 and G[5, L.G_SEEDF] == 17 and G[5, L.G_OBS] == 2
+    assert V[L.V_STATUS] & TC_REINITIALISED and S[L.S_NREINIT] == 1
+    # "if, and only if, all gates have been deleted and no valid object is found"
+    V[L.V_STATUS] = 0
+    assert reinitialise(S, G, OBS, V, cyc) == 0            # gates alive
+    G[:, L.G_ALIVE] = 0
+    S[L.S_DEC] = 0
+    assert reinitialise(S, G, OBS, V, cyc) == 0            # an object is held
+    S[L.S_DEC] = -1
+    V[L.V_EVIDENCE] = 0
+    assert reinitialise(S, G, OBS, V, cyc) == 0            # no usable observations this frame
+    assert V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 1
+
+
+def _tan(v):
+    return v[1] / v[0], v[2] / v[0]
+
+
+def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
+    C, S, G, V, GP, cyc = _state()
+    a0, b0 = 0.02, -0.01
+    for row in (0, 1):
+        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B] = 1, w(a0), w(b0)
+    G[3, L.G_ALIVE], G[3, L.G_A], G[3, L.G_B] = 1, w(a0), w(b0)
+    G[3, L.G_DVA], G[3, L.G_DVB] = w(1e-3), w(-2e-3)       # a learned velocity, rad/s
+    dn = (3e-4, -1e-4)
+    V[L.V_DN], V[L.V_DN + 1] = w(dn[0]), w(dn[1])
+    wz, dt = 4e-3, 0.5                                    # body turning about +Z at 4 mrad/s
+    dR = np.zeros(9, np.int64)
+    assert make_dR(0, 0, w(wz), w(dt), dR) == 0
+    propagate_gates(S, G, V, GP, dR, cyc)
+    th = wz * dt                                      # a fixed direction seen from the turned body
+    R = np.array([[1 - th * th / 2, th, 0], [-th, 1 - th * th / 2, 0], [0, 0, 1]])
+    sa, sb = _tan(R @ np.array([1.0, a0, b0]))
+    got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731
+    assert got(0) == pytest.approx((sa, sb), abs=2e-8)            # star gate
+    assert got(1) == pytest.approx((sa + dn[0], sb + dn[1]), abs=2e-8)      # object gate
+    assert got(3) == pytest.approx((sa + dn[0] + 1e-3 * dt, sb + dn[1] - 2e-3 * dt), abs=2e-8)
+    assert sa - a0 == pytest.approx(-th * (1 + a0 * a0), rel=1e-3)         # the star moved ~2 mrad
+    assert decode32(G[0, L.G_VA]) == pytest.approx((sa - a0) / dt, rel=1e-5)
+    assert (G[[0, 1, 3], L.G_OBS] == -1).all() and G[2, L.G_ALIVE] == 0
+    assert G[0, L.G_IA] == tan_int(G[0, L.G_A])
+
+
+def _two_frames(obs_motion, nominal_motion):
+    """Frame 1: a pair placed on one observation; frame 2: the observation moved by ``obs_motion``
+    and the nominal's a priori motion ``nominal_motion`` (rad), the body still -> the stages'
+    outcome (n = 1 empty frame for rules 1 and 2, gate half-width ~1 mrad)."""
+    C, S, G, V, GP, cyc = _state()
+    V[L.V_NUSE], V[L.V_FC] = 1, 1
+    reinitialise(S, G, _obs([(0.01, 0.02)]), V, cyc)
+    V[L.V_STATUS], V[L.V_FC] = 0, 2
+    V[L.V_DN], V[L.V_DN + 1] = w(nominal_motion[0]), w(nominal_motion[1])
+    OBS = _obs([(0.01 + obs_motion[0], 0.02 + obs_motion[1])])
+    dR = np.zeros(9, np.int64)
+    make_dR(0, 0, 0, w(0.5), dR)
+    PW, TAKEN = np.zeros((L.NG * L.MAX_OBS, 3), np.int64), np.zeros(L.MAX_OBS, np.int64)
+    propagate_gates(S, G, V, GP, dR, cyc)
+    associate(G, OBS, 1, GP[GP_HALF], PW, TAKEN, cyc)
+    smooth_gates(C, G, OBS, V, GP, cyc)
+    apply_rules(C, S, G, V, GP, cyc)
+    return C, S, G, V
+
+
+def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
+    C, S, G, V = _two_frames((3e-3, 0.0), (3e-3, 0.0))   # 3 mrad: out of the star gate
+    assert G[0, L.G_MISS] == 1 and G[1, L.G_MISS] == 0 and G[1, L.G_RUN] == 2
+    assert S[L.S_DEC] == 0 and S[L.S_RULE] == 1 and S[L.S_DEC_FRAME] == 2
+    assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1   # the star gate deleted
+    assert V[L.V_STATUS] & TC_NEW_DECISION and S[L.S_NRULE:L.S_NRULE + 4].tolist() == [1, 0, 0, 0]
+    assert verify_object(C, S, G, V) and V[L.V_OBJ] == 0
+
+
+def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule_2():
+    C, S, G, V = _two_frames((0.0, 0.0), (3e-3, 0.0))
+    assert G[1, L.G_MISS] == 1 and G[0, L.G_RUN] == 2
+    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 1, 0, 0] and S[L.S_DEC] == -1
+    assert not G[:, L.G_ALIVE].any()                        # a star: both gates deleted
+    assert not V[L.V_STATUS] & TC_NEW_DECISION
+
+
+def test_two_frames_both_gates_fed_and_consistent_stay_undecided():
+    C, S, G, V = _two_frames((0.0, 0.0), (0.0, 0.0))
+    assert G[0, L.G_RUN] == 2 and G[1, L.G_RUN] == 2 and G[:2, L.G_ALIVE].all()
+    assert S[L.S_DEC] == -1 and not S[L.S_NRULE:L.S_NRULE + 4].any()
+
+
+def test_rules_3_and_4_decide_on_accumulated_residuals_of_populated_gates():
+    C, S, G, V, GP, cyc = _state()
+    for p, (s_s, s_o) in enumerate([(9e-8, 1e-8), (1e-8, 9e-8), (3e-8, 1e-8)]):
+        for k, res in enumerate((s_s, s_o)):
+            row = 2 * p + k
+            G[row, L.G_ALIVE], G[row, L.G_RES], G[row, L.G_RUN] = 1, w(res), 2
+    V[L.V_FC] = 5
+    apply_rules(C, S, G, V, GP, cyc)
+    assert S[L.S_DEC] == 0 and S[L.S_RULE] == 3               # pair 0: rule 3, object
+    assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1
+    assert G[2, L.G_ALIVE] == 0 and G[3, L.G_ALIVE] == 0      # pair 1: rule 4, star
+    assert G[4, L.G_ALIVE] == 1 and G[5, L.G_ALIVE] == 1      # pair 2: within the threshold
+    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 1]
+
+
+def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spurious():
+    C, S, G, V, GP, cyc = _state()
+    for p, s_o in enumerate([2e-8, 1e-8]):
+        G[2 * p, L.G_ALIVE], G[2 * p, L.G_RES], G[2 * p, L.G_RUN] = 1, w(9e-8), 2
+        G[2 * p + 1, L.G_ALIVE], G[2 * p + 1, L.G_RES], G[2 * p + 1, L.G_RUN] = 1, w(s_o), 2
+    apply_rules(C, S, G, V, GP, cyc)
+    assert S[L.S_DEC] == 1 and S[L.S_NSPURIOUS] == 1 and not G[0:2, L.G_ALIVE].any()
+
+
+def test_verified_object_lost_after_n_lost_empty_frames():
+    C, S, G, V, GP, cyc = _state()
+    S[L.S_DEC] = 4
+    G[9, L.G_ALIVE], G[9, L.G_MISS], G[9, L.G_OBS] = 1, 2, -1
+    assert verify_object(C, S, G, V) and V[L.V_OBJ] == -1   # 2 empty frames < n_lost = 3
+    G[9, L.G_MISS] = 3
+    assert not verify_object(C, S, G, V)
+    assert S[L.S_DEC] == -1 and G[9, L.G_ALIVE] == 0 and V[L.V_STATUS] & TC_OBJECT_LOST
+    assert S[L.S_NLOST] == 1
