@@ -22,7 +22,6 @@ from flightsw.ip.sequence_words import sequence_from_words, sequence_to_words
 from flightsw.messages import AttitudeData, Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import TrackProcessor
-from hil_harness.selection import convert_pixel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
 import flight_replay as FR  # noqa: E402
@@ -110,7 +109,7 @@ def test_corrupted_words_are_refused_or_re_encode_exactly():
 # ------------------------------------------------------------------------------------------------
 def _replay_through_module(fx: dict) -> list[dict]:
     """The fixture's inputs through ImageProcessor + TrackProcessor; the harness only moves words
-    (and converts a prediction at an imager hand-over, as it does today)."""
+    (and, at an imager hand-over, asks the TP for its prediction in the new imager's pixels)."""
     cfg = fx["config"]
     seq = ProcessingSequence.from_dict(cfg["sequence"])
     rec = Record.from_words(np.array(cfg["record_words"], np.uint16), name=cfg["record_name"])
@@ -132,9 +131,9 @@ def _replay_through_module(fx: dict) -> list[dict]:
         if cmd_imager != imager and command is not None:
             ip.receive_command(command)
             f = ip.feedback
-            pr, pc = convert_pixel(f.predicted_row, f.predicted_col, geometry[cmd_imager],
-                                   geometry[imager])
-            fb = Feedback(pr, pc, f.object_type, f.locked)
+            if f.has_prediction:                    # the TP converts it (1750A arithmetic)
+                pr, pc = tp.predicted_pixel(imager)
+                fb = Feedback(pr, pc, f.object_type, f.locked)
         ledger = Ledger()
         out = ip.step(fx["frames"][i], frame_count=k, time_tag=t, imager=imager,
                       command_words=command if fb is None else None, feedback=fb, ledger=ledger)
