@@ -21,6 +21,8 @@ import sys
 import threading
 from pathlib import Path
 
+from .console import progress_enabled
+
 
 def register(sub) -> None:
     p = sub.add_parser("event", help="run a closed-loop tracking event on a scenario",
@@ -40,6 +42,9 @@ def register(sub) -> None:
     p.add_argument("--record", default=None, help="a priori record: shipped name or TOML file")
     p.add_argument("--handover", action="store_true",
                    help="enable the wide -> narrow FOV hand-over once locked")
+    p.add_argument("--hypothesis", default=None, metavar="NAME",
+                   help="price every frame under a budget hypothesis (uvisi budget --explain lists "
+                        "them), overruns included; default: today's cycle model")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
     p.set_defaults(func=run)
 
@@ -65,6 +70,11 @@ def run(args) -> int:
         raise ValueError(f"--frames {args.frames}: must be >= 1")
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
+    if args.hypothesis is not None:
+        from hil_harness.budget_hypotheses import HYPOTHESES
+        names = [h.name for h in HYPOTHESES]
+        if args.hypothesis not in names:
+            raise ValueError(f"--hypothesis {args.hypothesis!r}: not one of {', '.join(names)}")
     out = Path(args.out) if args.out else Path("events") / Path(name).stem
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
@@ -73,8 +83,9 @@ def run(args) -> int:
     try:
         s = run_event(name, seed=args.seed, frames=args.frames, out=out,
                       record_frames=not args.no_frames, figures=not args.no_figures,
-                      progress=sys.stderr.isatty(), sequence=args.sequence, record=args.record,
-                      selection=SelectionParams(handover=args.handover), force=replace)
+                      progress=progress_enabled(), sequence=args.sequence, record=args.record,
+                      selection=SelectionParams(handover=args.handover), force=replace,
+                      hypothesis=args.hypothesis)
     except EventInterrupted as exc:
         how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
         print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "

@@ -31,13 +31,15 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
-from flightsw.ip import AlphaController, ProcessingSequence, load_default_sequence, process_frame
+from flightsw.ip import ImageProcessor, ProcessingSequence, load_default_sequence
 from flightsw.ip.sequence import DEFAULT_SEQUENCES
-from flightsw.messages import CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
+from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
 from groundsim.scenario import Scenario
 
+from .bus import fault_rng, flip_bits, uplink_words
+from .console import compile_seconds
 from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
 
 FRAME_DT = 0.5
@@ -77,6 +79,9 @@ class EventConfig:
         Overrides of :class:`flightsw.tp.TPConfig` fields.
     stage_frame : int, optional
         Frame whose stage images are kept for the Figure-3 panel (default: the 11th processed frame).
+    hypothesis : str, optional
+        A budget hypothesis (``hil_harness.budget_hypotheses.HYPOTHESES``) to price every frame
+        under, overruns included; default: today's cycle model.
     """
 
     scenario: str | Path = "satellite_over_stars"
@@ -89,6 +94,7 @@ class EventConfig:
     processors: dict | None = None
     tp: dict = field(default_factory=dict)
     stage_frame: int | None = None
+    hypothesis: str | None = None
 
     def __post_init__(self):
         if self.overrun_policy != "skip":
@@ -126,6 +132,7 @@ class FrameOutcome:
     overrun: bool = False
     frame: np.ndarray | None = None
     stages: list | None = None
+    events: list = field(default_factory=list)   # faults injected and uplinks sent this frame
 
 
 def _shipped_sequence(name):
@@ -205,28 +212,25 @@ class Event:
         tp_kw = dict(imagers=tp_imagers, mode=mode, object_type=self.object_type, nominal=nominal)
         tp_kw.update(cfg.tp)
         self.tp = TrackProcessor(TPConfig(**tp_kw))
-        self._alpha_proto = dict(alpha=self._sequence_alpha())
-        self.alpha = AlphaController(**self._alpha_proto)
+        self.ip = ImageProcessor(self.sequence, self.record)
+        # the uplinks' words, built (and their files read) before the event starts
+        self.uplink_words = [self._uplink_words(i, u) for i, u in enumerate(scn.uplinks)]
+        self._budget_hypothesis = None
+        if cfg.hypothesis is not None:
+            from .budget_hypotheses import hypothesis
+            self._budget_hypothesis = hypothesis(cfg.hypothesis)
         ground = [(float(t), str(i)) for t, i in scn.faults.imager_switch]
         self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
         self.keep_frames = keep_frames
         self.stage_frame = cfg.stage_frame
         self.reset()
 
-    def _sequence_alpha(self) -> float:
-        for st in self.sequence.steps:
-            if st.op == "threshold":
-                a = st.raw.get("alpha")
-                if a is not None:
-                    return float(a)
-        return 3.0
-
     # ------------------------------------------------------------------------------------------
     def reset(self):
         self.world.reset()
         self.tp.reset()
+        self.ip.reset()
         self.selector.reset()
-        self.alpha = AlphaController(**self._alpha_proto)
         self.world.imager = self.selector.current
         self.outcomes: list[FrameOutcome] = []
         self.feedback = Feedback()
@@ -236,6 +240,11 @@ class Event:
         self._late_command = None
         self._processed = 0
         self._host_loop_s = 0.0
+        self._command_words = None          # the last track command on the bus (maybe corrupted)
+        self._uplinks_sent = 0
+        self._pending_fault: dict = {}
+        self.events_log: list[dict] = []    # every injected fault, in time order
+        self.uplinks_log: list[dict] = []   # every uplink sent, with the IP's verdict
 
     @property
     def done(self) -> bool:
@@ -259,18 +268,15 @@ class Event:
         w = self.world
         k, t = len(self.outcomes), w.t
         host = {}
+        c0 = compile_seconds()
         t0 = time.perf_counter()
         imager = self.selector.current
         att, frame, truth, dropped = self._acquire(k, imager)
         t1 = time.perf_counter()
         host["render"] = 1e6 * (t1 - t0)
         out = FrameOutcome(k=k, t=t, imager=imager, skip=SKIP_NONE, truth=truth, attitude=att)
-        # the prediction made last frame, in this frame's imager
-        pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
-        if self._feedback_imager != imager and np.isfinite(pr) and np.isfinite(pc):
-            pr, pc = self.tp.predicted_pixel(imager)     # converted by the TP (1750A arithmetic)
-        out.pred_row, out.pred_col = pr, pc
-        fb = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
+        self._send_uplinks(out)
+        override = self._prediction_for(out, imager)
         if self._late_command is not None:            # a TP overrun's command lands now
             w.command(self._late_command)
             self._late_command = None
@@ -278,50 +284,17 @@ class Event:
         out.ledger = ledger
         if dropped:
             out.skip = SKIP_DROPPED
+            self._log(out, "dropped_frame", "skipped", "the frame never reached the IP; the TP "
+                      "sees the gap in the next message's frame count")
         elif self._ip_busy:
             out.skip = SKIP_OVERRUN
             self._ip_busy = False
+        if not att.valid:
+            self._log(out, "attitude_gap", "flagged", "attitude data invalid: the TP propagates "
+                      "without it")
         if out.skip == SKIP_NONE:
             self._processed += 1
-            want = (self.stage_frame == k) if self.stage_frame is not None else (self._processed == 11)
-            res = process_frame(frame, self.sequence, self.record, fb, ledger=ledger, imager=imager,
-                                frame_count=k & 0xFFFF, time_tag=t, alpha_q12=self.alpha.q12,
-                                want_stages=want)
-            t2 = time.perf_counter()
-            host["ip"] = 1e6 * (t2 - t1)
-            out.message = res.message
-            out.message_words = res.message.to_words()
-            out.n_blobs = int(res.backend.count)
-            out.alpha = float(res.message.alpha)
-            if want:
-                out.stages = [(s.name, s.image) for s in res.stages]
-            self.alpha.update(out.n_blobs, self.feedback.locked, ledger)
-            ip_over = ledger.seconds(DSP) > ledger.period_s or ledger.seconds(IP1750) > ledger.period_s
-            if self._tp_busy:
-                self._tp_busy = False
-                cmd = None
-            else:
-                t3 = time.perf_counter()
-                cmd = self.tp.step(out.message_words, att, ledger=ledger)
-                host["tp"] = 1e6 * (time.perf_counter() - t3)
-            if cmd is not None:
-                out.command_words = cmd.to_words()
-                cmd = TrackCommand.from_words(out.command_words)     # what crosses the bus
-                out.command = cmd
-                tp_over = ledger.seconds(TP1750) > ledger.period_s
-                q = np.asarray(cmd.q_point, float)
-                if np.all(np.isfinite(q)) and np.linalg.norm(q) > 0.5:
-                    if tp_over:
-                        self._late_command = q
-                        self._tp_busy = True
-                    else:
-                        w.command(q)
-                self.feedback = cmd.feedback()
-                self._feedback_imager = cmd.imager if cmd.imager in self.geometry else imager
-                out.track_row, out.track_col = _tracked_centroid(cmd, res.message)
-            if ip_over:
-                self._ip_busy = True
-            out.overrun = ledger.overrun()
+            self._flight_step(out, frame, att, override, ledger, host, t1)
         tg = truth.get("target") if truth else None
         if tg is not None and tg.get("in_field") and np.isfinite(out.pred_row):
             sc, sr, _ = self.geometry[imager]
@@ -332,15 +305,158 @@ class Event:
                                   self.feedback.predicted_col)
         if sw is not None:
             out.switches.append(sw)
+            if sw.reason.startswith("ground"):
+                self._log(out, "imager_switch", "switched", f"{sw.old} -> {sw.new} from the next "
+                          f"frame ({sw.reason})")
         t4 = time.perf_counter()
         w.advance(FRAME_DT)
         host["world"] = 1e6 * (time.perf_counter() - t4)
-        host["total"] = 1e6 * (time.perf_counter() - t0)
+        # host time of the frame without any first-run numba compilation (real-time figures)
+        host["compile"] = 1e6 * (compile_seconds() - c0)
+        host["total"] = 1e6 * (time.perf_counter() - t0) - host["compile"]
         self._host_loop_s += host["total"] * 1e-6
         out.host_us = host
         out.frame = frame                 # dropped after on_frame unless keep_frames (memory)
         self.outcomes.append(out)
         return out
+
+    def _prediction_for(self, out: FrameOutcome, imager: str) -> Feedback | None:
+        """The prediction in force for this frame (``out.pred_row/col``) and, after an imager
+        switch, the feedback the IP gets instead of reading the command: the TP's prediction in the
+        new imager's pixels (1750A arithmetic)."""
+        pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
+        override = None
+        if self._feedback_imager != imager and np.isfinite(pr) and np.isfinite(pc):
+            pr, pc = self.tp.predicted_pixel(imager)
+            override = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
+        out.pred_row, out.pred_col = pr, pc
+        return override
+
+    def _flight_step(self, out, frame, att, override, ledger, host, t1) -> None:
+        """The IP, the candidate-message bus, the TP and the command bus of one processed frame."""
+        k, imager = out.k, out.imager
+        want = (self.stage_frame == k) if self.stage_frame is not None else (self._processed == 11)
+        ip_out = self.ip.step(frame, frame_count=k, time_tag=out.t, imager=imager,
+                              command_words=None if override is not None else self._command_words,
+                              feedback=override, ledger=ledger, want_stages=want)
+        self._command_words = None
+        t2 = time.perf_counter()
+        host["ip"] = 1e6 * (t2 - t1)
+        res = ip_out.result
+        out.message = res.message
+        out.message_words = ip_out.words
+        out.n_blobs = int(res.backend.count)
+        out.alpha = float(res.message.alpha)
+        if want:
+            out.stages = [(s.name, s.image) for s in res.stages]
+        if self._tp_busy:
+            self._tp_busy = False
+            cmd_words = None
+        else:
+            words = self._corrupt(out, "candidate", ip_out.words)
+            t3 = time.perf_counter()
+            cmd = self.tp.step(words, att, ledger=ledger)
+            host["tp"] = 1e6 * (time.perf_counter() - t3)
+            cmd_words = cmd.to_words()
+            if words is not ip_out.words:
+                self._fault_reaction(out, "candidate", bool(cmd.status & TC_BAD_MESSAGE))
+        out.ledger = ledger = self._hypothesis(ledger, res)
+        if cmd_words is not None:
+            out.command_words = cmd_words
+            self._command_bus(out, cmd_words, ledger, res.message)
+        if ledger.seconds(DSP) > ledger.period_s or ledger.seconds(IP1750) > ledger.period_s:
+            self._ip_busy = True
+        out.overrun = ledger.overrun()
+
+    def _command_bus(self, out, cmd_words, ledger, message) -> None:
+        """The track command crosses to the attitude processor and the IP: a command that fails its
+        CRC or checks is refused by both (the IP counts it) and the last good one stays in force."""
+        words = self._corrupt(out, "command", cmd_words)
+        self._command_words = words                   # the IP reads them at its next frame
+        try:
+            cmd = TrackCommand.from_words(words)
+        except ValueError:
+            if words is not cmd_words:
+                self._fault_reaction(out, "command", True)
+            return
+        if words is not cmd_words:
+            self._fault_reaction(out, "command", False)
+        out.command = cmd
+        q = np.asarray(cmd.q_point, float)
+        if np.all(np.isfinite(q)) and np.linalg.norm(q) > 0.5:
+            if ledger.seconds(TP1750) > ledger.period_s:
+                self._late_command = q
+                self._tp_busy = True
+            else:
+                self.world.command(q)
+        self.feedback = cmd.feedback()
+        self._feedback_imager = cmd.imager if cmd.imager in self.geometry else out.imager
+        out.track_row, out.track_col = _tracked_centroid(cmd, message)
+
+    # ---- faults, uplinks, budget hypotheses ------------------------------------------------------
+    def _log(self, out, kind: str, verdict: str, reaction: str, **extra) -> dict:
+        e = {"t": float(out.t), "frame": int(out.k), "kind": kind, "verdict": verdict,
+             "reaction": reaction, **extra}
+        out.events.append(e)
+        self.events_log.append(e)
+        return e
+
+    def _corrupt(self, out, message: str, words):
+        """``words`` with the scenario's bus fault for this frame applied (the same array if none)."""
+        faults = (self.scenario.faults.corrupt_candidate if message == "candidate"
+                  else self.scenario.faults.corrupt_command)
+        f = next((f for f in faults if f.frame == out.k), None)
+        if f is None:
+            return words
+        bad, pos = flip_bits(words, f.bits, fault_rng(self.scenario.seed, out.k, message))
+        self._pending_fault = {"bits": f.bits, "positions": pos}
+        return bad
+
+    def _fault_reaction(self, out, message: str, refused: bool) -> None:
+        info = getattr(self, "_pending_fault", {})
+        if message == "candidate":
+            reaction = ("the TP refused the message (bad_message) and coasted" if refused else
+                        "the corrupted message passed the CRC and the checks: the TP used it")
+        else:
+            reaction = ("the attitude processor and the IP refused the command; the last good "
+                        "command stays in force" if refused else
+                        "the corrupted command passed the CRC and the checks")
+        self._log(out, f"corrupt_{message}", "rejected" if refused else "undetected", reaction,
+                  **info)
+
+    def _uplink_words(self, index: int, uplink) -> np.ndarray:
+        """The words of the scenario's ``index``-th uplink before any injected corruption (a replay
+        overrides this with the recorded ones)."""
+        return uplink_words(uplink.kind, uplink.source, uplink.path)
+
+    def _send_uplinks(self, out) -> None:
+        """Send every uplink of the timeline that is due by this frame to the IP; log the verdict."""
+        ups = self.scenario.uplinks
+        while self._uplinks_sent < len(ups) and ups[self._uplinks_sent].t <= out.t + 1e-9:
+            i, u = self._uplinks_sent, ups[self._uplinks_sent]
+            self._uplinks_sent += 1
+            words = self.uplink_words[i]
+            pos = []
+            if u.corrupt_bits:
+                words, pos = flip_bits(words, u.corrupt_bits, fault_rng(self.scenario.seed, i, "uplink"))
+            v = self.ip.uplink(words)
+            e = {"t": float(out.t), "frame": int(out.k), "kind": u.kind, "source": u.source,
+                 "verdict": "accepted" if v.accepted else "refused", "reason": v.reason,
+                 "effective_frame": v.effective_frame, "corrupt_bits": int(u.corrupt_bits),
+                 "scheduled_t": float(u.t)}
+            if pos:
+                e["positions"] = pos
+            out.events.append(dict(e, kind=f"uplink_{u.kind}"))
+            self.uplinks_log.append(e)
+
+    def _hypothesis(self, ledger: Ledger, res) -> Ledger:
+        """The frame's ledger, re-priced under the event's budget hypothesis when one is chosen
+        (opt-in: ``EventConfig.hypothesis``; events keep today's model by default)."""
+        h = self._budget_hypothesis
+        if h is None:
+            return ledger
+        from .budget_hypotheses import hypothesis_ledger
+        return hypothesis_ledger(h, self.ip.sequence, res.subimage.image.shape, ledger)
 
     def run(self, progress: bool = False, on_frame=None) -> list:
         """Step to the end; ``on_frame(outcome)`` after each frame (the recorder)."""

@@ -217,8 +217,10 @@ def test_too_few_stars_is_a_clear_error(tmp_path):
 
 def test_cli_entries(rich, tmp_path, capsys):
     path, _ = rich
-    assert main(["inr", "event", str(path), "--out", str(tmp_path / "inr")]) == 0
+    # a star event at GOES thresholds: verdicts fail, which is exit status 1 (not an error)
+    assert main(["inr", "event", str(path), "--out", str(tmp_path / "inr")]) == 1
     assert (tmp_path / "inr" / "inr_report.md").exists()
+    assert "verdict(s) FAIL" in capsys.readouterr().err
     assert main(["rde", "reconstruct", str(path)]) == 0
     out = capsys.readouterr().out
     assert "control points" in out and "normalised innovations" in out and "applied about y, z" in out
@@ -234,8 +236,9 @@ def test_cli_entries_read_a_partial_recording_and_say_so(tmp_path, capsys):
     try:
         _write(None, raw, 27, 2.0, writer=W)       # 20 frames written, 7 buffered, file still open
         part = str(W.partial)
-        assert main(["inr", "event", part, "--out", str(tmp_path / "inr")]) == 0
+        rc = main(["inr", "event", part, "--out", str(tmp_path / "inr")])
         out = capsys.readouterr().out
+        assert rc == (1 if "FAILS" in out else 0)             # the exit status follows the verdicts
         assert "incomplete recording" in out and "20 of 30 frames" in out
         assert main(["rde", "reconstruct", part, "--flight-centroids"]) == 0
         out = capsys.readouterr().out
