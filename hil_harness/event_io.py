@@ -393,8 +393,10 @@ def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
     comp = ev.sequence.preprocess.compaction
     iid = outs[0].imager if outs else ev.scenario.imager
     g = ev.geometry[iid]
+    locked = [o.k for o in outs if o.command is not None and o.command.locked]
     paths.append(fig.track_error(t, [o.error_urad for o in outs], out_dir / "track_error.png",
-                                 pixel_urad=1e6 * comp * math.hypot(g[0], g[1]) / math.sqrt(2)))
+                                 pixel_urad=1e6 * comp * math.hypot(g[0], g[1]) / math.sqrt(2),
+                                 lock_t=locked[0] * FRAME_DT if locked else None))
     ns = np.array([getattr(o.command, "n_star_gates", 0) if o.command is not None else 0 for o in outs])
     no = np.array([getattr(o.command, "n_object_gates", 0) if o.command is not None else 0 for o in outs])
     dec = next((o.t for o in outs if o.command is not None and getattr(o.command, "decided", False)),
@@ -418,7 +420,7 @@ def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
             if o.frame is None:
                 continue
             frames.append(o.frame)
-            m = {}
+            m = {"t": o.t, "frame": o.k}
             if o.message is not None and o.message.count:
                 m["candidates"] = np.stack([o.message.candidates["row"], o.message.candidates["col"]], 1)
             if np.isfinite(o.track_row):

@@ -106,8 +106,8 @@ def centroid_track(t, rows, cols, path, truth_rows=None, truth_cols=None,
                    zoom: bool = False) -> Path:
     """The tracked object's centroid over the frames in imager pixels, like the paper's Figure 6.
 
-    ``zoom``: limits to where most points are (2nd-98th percentile plus a 3-pixel margin; points
-    beyond are counted in the corner) instead of the whole imager. With truth, a second panel shows
+    ``zoom``: limits to where most points are (2nd-98th percentile plus a margin of 15 % of that
+    span, at least half a pixel; points beyond are counted in the corner) instead of the whole imager. With truth, a second panel shows
     the centroid minus the true position (px), centred on zero.
     """
     t, rows, cols = (np.asarray(x, float) for x in (t, rows, cols))
@@ -127,7 +127,7 @@ def centroid_track(t, rows, cols, path, truth_rows=None, truth_cols=None,
     ax.set_ylabel("row (px)")
     ax.set_aspect("equal")
     fig.colorbar(sc, ax=ax, label="time (s)")
-    ax.legend(loc="upper right", fontsize=8)
+    ax.legend(loc="best", fontsize=8)
     ax.set_title(title, fontsize=10)
     if has_truth:
         ax2 = axes[0, 1]
@@ -155,8 +155,10 @@ def _zoom(ax, cols, rows, truth_cols, truth_rows) -> None:
     ok = np.isfinite(pts_c) & np.isfinite(pts_r)
     if not ok.any():
         return
-    c0, c1 = np.percentile(pts_c[ok], [2, 98]) + np.array([-3, 3])
-    r0, r1 = np.percentile(pts_r[ok], [2, 98]) + np.array([-3, 3])
+    c0, c1 = np.percentile(pts_c[ok], [2, 98])
+    r0, r1 = np.percentile(pts_r[ok], [2, 98])
+    pad = max(0.5, 0.15 * max(c1 - c0, r1 - r0))
+    c0, c1, r0, r1 = c0 - pad, c1 + pad, r0 - pad, r1 + pad
     h = max(c1 - c0, r1 - r0) / 2
     cc, rc = (c0 + c1) / 2, (r0 + r1) / 2
     ax.set_xlim(cc - h, cc + h)
