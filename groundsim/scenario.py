@@ -46,7 +46,7 @@ class ScenarioError(ValueError):
 
     def __init__(self, file, key, reason):
         self.file, self.key, self.reason = str(file), key, reason
-        super().__init__(f"{file}: {key}: {reason}")
+        super().__init__(f"{file}: {reason}" if key in (None, "", "-") else f"{file}: {key}: {reason}")
 
 
 class _Table:
@@ -70,11 +70,19 @@ class _Table:
     def err(self, k, reason):
         return ScenarioError(self.file, self.key(k), reason)
 
+    def missing(self, k):
+        """The error for a missing required key; names a present unknown key that looks like a
+        typo of it (``duraton`` for ``duration``)."""
+        import difflib
+        near = difflib.get_close_matches(k, [x for x in self.d if x not in self.used], n=1, cutoff=0.75)
+        hint = f"; the table has {near[0]!r}: a typo of {k!r}?" if near else ""
+        return self.err(k, f"missing (required){hint}")
+
     def num(self, k, default=None, lo=None, hi=None, positive=False):
         self.used.add(k)
         if k not in self.d:
             if default is None:
-                raise self.err(k, "missing (required)")
+                raise self.missing(k)
             return float(default)
         v = self.d[k]
         if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
@@ -91,7 +99,7 @@ class _Table:
         self.used.add(k)
         if k not in self.d:
             if default is None:
-                raise self.err(k, "missing (required)")
+                raise self.missing(k)
             return int(default)
         v = self.d[k]
         if isinstance(v, bool) or not isinstance(v, int):
@@ -106,7 +114,7 @@ class _Table:
         self.used.add(k)
         if k not in self.d:
             if default is None:
-                raise self.err(k, "missing (required)")
+                raise self.missing(k)
             return default
         v = self.d[k]
         if not isinstance(v, str):
@@ -126,7 +134,7 @@ class _Table:
         self.used.add(k)
         if k not in self.d:
             if default is None:
-                raise self.err(k, "missing (required)")
+                raise self.missing(k)
             return np.asarray(default, float)
         v = self.d[k]
         if (not isinstance(v, list) or len(v) != n
@@ -229,8 +237,10 @@ class Scenario:
         if not p.suffix and not p.exists():
             p = SCENARIO_DIR / f"{name_or_path}.toml"
         if not p.exists():
-            shipped = sorted(x.stem for x in SCENARIO_DIR.glob("*.toml"))
-            raise ScenarioError(p, "-", f"no such scenario file (shipped scenarios: {shipped})")
+            shipped = ", ".join(sorted(x.stem for x in SCENARIO_DIR.glob("*.toml")))
+            where = name_or_path if p.parent == SCENARIO_DIR else p
+            raise ScenarioError(where, "-", f"no such scenario: not a shipped one ({shipped}) nor "
+                                            f"a file")
         try:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as e:
@@ -251,8 +261,10 @@ class Scenario:
             raise ScenarioError(path, "scenario", "missing table [scenario]")
         name = sc.str_("name", default=Path(str(path)).stem)
         desc = sc.str_("description", default="")
+        if not sc.has("epoch"):
+            raise sc.missing("epoch")
         try:
-            epoch = parse_epoch(sc.raw("epoch") if sc.has("epoch") else None)
+            epoch = parse_epoch(sc.raw("epoch"))
         except (TypeError, ValueError) as e:
             raise sc.err("epoch", f"expected an ISO-8601 UTC time such as '1997-03-15T03:20:00Z' ({e})") from None
         duration = sc.num("duration", positive=True)

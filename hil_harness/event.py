@@ -143,8 +143,8 @@ def _shipped_sequence(name):
         return load_default_sequence(s)
     p = Path(s)
     if not p.exists():
-        raise FileNotFoundError(f"sequence {s!r}: not a shipped sequence ({sorted(DEFAULT_SEQUENCES)}) "
-                                f"nor a file")
+        raise FileNotFoundError(f"sequence {s!r}: not a shipped sequence "
+                                f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
     return ProcessingSequence.from_toml(p)
 
 

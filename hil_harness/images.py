@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["InputFrame", "ImageError", "read_images", "to_counts", "frame_flags", "robust_stats",
+__all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "frame_flags", "robust_stats",
            "noise_sigma",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
            "LOW_PERCENTILE", "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION",
@@ -91,16 +91,44 @@ def read_images(paths) -> list[InputFrame]:
         except ImageError:
             raise
         except Exception as exc:       # noqa: BLE001 -- any library failure becomes one line
-            raise ImageError(f"{p}: cannot read: {type(exc).__name__}: {exc}") from None
+            if "pickle" in str(exc):
+                raise ImageError(f"{p}: holds Python objects (pickled data), which are never "
+                                 f"loaded: save the image as a plain numeric array") from None
+            raise ImageError(f"{p}: cannot read: {type(exc).__name__}: "
+                             f"{str(exc).splitlines()[0] if str(exc) else 'damaged'}") from None
         if not frames:
             raise ImageError(f"{p}: no 2-D image in the file")
         out += frames
     return out
 
 
+#: leading bytes of each format read here (content first, the extension only when none matches)
+MAGIC = ((b"SIMPLE  ", "fits"), (b"II*\x00", "tiff"), (b"MM\x00*", "tiff"), (b"\x89PNG", "png"),
+         (b"\xff\xd8\xff", "png"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"))
+_KIND_OF_SUFFIX = {".fits": "fits", ".fit": "fits", ".fts": "fits", ".tif": "tiff", ".tiff": "tiff",
+                   ".png": "png", ".jpg": "png", ".jpeg": "png", ".bmp": "png", ".gif": "png",
+                   ".npy": "npy", ".npz": "npz"}
+
+
+def sniff(p: Path) -> str | None:
+    """The format of a file from its first bytes ("fits", "tiff", "png" for any Pillow image,
+    "npy", "npz"), None when they match none of them."""
+    with open(p, "rb") as fh:
+        head = fh.read(8)
+    if not head:
+        raise ImageError(f"{p}: empty file")
+    return next((kind for magic, kind in MAGIC if head.startswith(magic)), None)
+
+
 def _read_one(p: Path) -> list[InputFrame]:
     name = p.name.lower()
     suf = p.suffix.lower()
+    kind = sniff(p)
+    if kind is None and _KIND_OF_SUFFIX.get(suf) in ("npy", "npz", "png", "tiff"):
+        raise ImageError(f"{p}: not a {suf[1:].upper()} file (its first bytes match no image or "
+                         f"array format this reads: FITS, TIFF, PNG/JPEG, NPY, NPZ)")
+    if kind is not None and kind != _KIND_OF_SUFFIX.get(suf, kind):
+        suf = {"fits": ".fits", "tiff": ".tiff", "png": ".png", "npy": ".npy", "npz": ".npz"}[kind]
     if suf in (".fits", ".fit", ".fts") or name.endswith((".fits.gz", ".fit.gz", ".fts.gz")):
         return _read_fits(p)
     if suf in (".tif", ".tiff"):

@@ -32,6 +32,8 @@ from pathlib import Path
 import h5py
 import numpy as np
 
+from groundsim.assess.h5open import open_h5
+
 from .checksum import adler32_rows
 
 FORMAT = "uvisi-recording/2"
@@ -56,25 +58,6 @@ def partial_path(path) -> Path:
     """The name a recording has while it is written: ``x/recording.h5`` -> ``x/recording.partial.h5``."""
     p = Path(path)
     return p.with_name(p.stem + ".partial" + p.suffix)
-
-
-def open_h5(path) -> h5py.File:
-    """Open a recording read-only, a partial one (still flagged open-for-writing) included.
-
-    ``ValueError`` when the file is not HDF5 (``FileNotFoundError`` when it does not exist)."""
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(f"{path}: no such recording")
-    if path.is_dir():
-        raise ValueError(f"{path}: is a folder, not a recording")
-    try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        first = exc
-    try:
-        return h5py.File(path, "r", swmr=True)
-    except OSError:
-        raise ValueError(f"{path}: not a readable HDF5 recording ({first})") from None
 
 
 def _json_default(o):

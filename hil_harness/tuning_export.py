@@ -219,7 +219,12 @@ def check_record_file(path) -> CheckResult:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such file")
-    data = p.read_bytes()
+    if p.is_dir():
+        return CheckResult(str(p), "folder", None, ["a folder, not a record file"])
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        return CheckResult(str(p), "unreadable", None, [f"cannot read: {exc.strerror or exc}"])
     if p.suffix.lower() == ".toml" or (p.suffix.lower() not in BINARY_SUFFIXES
                                        and _looks_like_toml(data)):
         try:

@@ -74,8 +74,16 @@ def test_read_errors_name_the_file(tmp_path):
     with pytest.raises(ImageError, match="x.txt: unsupported format"):
         read_images([tmp_path / "x.txt"])
     (tmp_path / "bad.tif").write_bytes(b"not a tiff at all")
-    with pytest.raises(ImageError, match="bad.tif: cannot read"):
+    with pytest.raises(ImageError, match="bad.tif: not a TIF file"):
         read_images([tmp_path / "bad.tif"])
+    for name in ("text.npy", "text.npz"):          # a text file renamed: named, no pickle advice
+        (tmp_path / name).write_text("hello\n")
+        with pytest.raises(ImageError, match=f"{name}: not a NP") as ei:
+            read_images([tmp_path / name])
+        assert "pickle" not in str(ei.value)
+    (tmp_path / "empty.fits").write_bytes(b"")
+    with pytest.raises(ImageError, match="empty.fits: empty file"):
+        read_images([tmp_path / "empty.fits"])
     np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
     with pytest.raises(ImageError, match="obj.npy"):                     # never unpickled
         read_images([tmp_path / "obj.npy"])
@@ -209,3 +217,16 @@ def test_frame_flags_rules():
 def test_real_frames_are_not_flagged():
     for f in read_images([WIC, TIFF]):
         assert frame_flags(f.data) == [], f.name
+
+
+def test_files_are_recognised_by_content_as_well_as_extension(tmp_path):
+    """An NPY file named .fits and a PNG named .npy are read as what they are."""
+    from PIL import Image
+    a = (np.arange(12 * 10, dtype=np.uint16) % 4096).reshape(12, 10)
+    with open(tmp_path / "array.fits", "wb") as fh:
+        np.save(fh, a)
+    Image.fromarray(a.astype(np.uint8)).save(tmp_path / "pic.png")
+    (tmp_path / "pic.png").rename(tmp_path / "pic.npy")
+    got = read_images([tmp_path / "array.fits", tmp_path / "pic.npy"])
+    assert np.array_equal(got[0].data, a)
+    assert np.array_equal(got[1].data, a.astype(np.uint8))

@@ -622,21 +622,35 @@ class ProcessingSequence:
 
     @classmethod
     def from_toml(cls, path_or_text):
-        """Load from a TOML file path or TOML text (text is recognised by a newline or ``=``)."""
+        """Load from a TOML file path or TOML text (text is recognised by a newline or ``=``).
+        Errors from a file name the file."""
+        src = None
         if isinstance(path_or_text, Path) or (isinstance(path_or_text, str)
                                               and "\n" not in path_or_text
                                               and "=" not in path_or_text):
+            src = str(path_or_text)
             try:
                 text = Path(path_or_text).read_text()
             except (OSError, ValueError) as exc:       # ValueError: undecodable, NUL in the path
-                raise SequenceError(f"cannot read sequence file: {exc}") from None
+                raise SequenceError(f"{src}: cannot read sequence file: {exc}") from None
         else:
             text = str(path_or_text)
         try:
             d = tomllib.loads(text)
         except tomllib.TOMLDecodeError as exc:
-            raise SequenceError(f"not valid TOML: {exc}") from None
-        return cls.from_dict(d)
+            raise SequenceError(f"{src + ': ' if src else ''}not valid TOML: {exc}") from None
+        if not d.get("steps"):
+            # a file without steps is a mistake (the window alone, no threshold, no blobs)
+            raise SequenceError(f"{src + ': ' if src else ''}no [[steps]]: a sequence file needs at "
+                                f"least a threshold step", field="steps")
+        if src is None:
+            return cls.from_dict(d)
+        try:
+            return cls.from_dict(d)
+        except SequenceError as exc:
+            err = SequenceError(f"{src}: {exc}")
+            err.step, err.op, err.field, err.reason = exc.step, exc.op, exc.field, exc.reason
+            raise err from None
 
     def to_dict(self):
         return {"name": self.name, "description": self.description,

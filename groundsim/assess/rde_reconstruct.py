@@ -63,7 +63,9 @@ star pixels from the attitude data, nearest neighbour inside a gate, one-to-one)
 """
 from __future__ import annotations
 
+import zipfile
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -533,8 +535,20 @@ _REQUIRED = ("t", "pix", "star_eci", "q_bi", "q_ib", "imager")
 
 def load_control_points(path) -> dict:
     """Read and validate a control-point .npz (schema ``uvisi-rde-cp/1``)."""
-    with np.load(path, allow_pickle=False) as f:
-        cp = {k: f[k] for k in f.files}
+    p = Path(path)
+    if p.is_dir():
+        raise ValueError(f"{p}: is a folder, not a control-point file")
+    with open(p, "rb") as fh:
+        head = fh.read(4)
+    if head != b"PK\x03\x04":
+        raise ValueError(f"{p}: not a control-point file ({CP_SCHEMA}): "
+                         f"{'empty' if not head else 'not an NPZ archive'}")
+    try:
+        with np.load(p, allow_pickle=False) as f:
+            cp = {k: f[k] for k in f.files}
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{p}: not a readable control-point file ({type(exc).__name__}: "
+                         f"{str(exc).splitlines()[0] if str(exc) else 'damaged'})") from None
     missing = [k for k in _REQUIRED if k not in cp]
     if missing:
         raise ValueError(f"{path}: not a control-point file ({CP_SCHEMA}); missing {missing}")

@@ -27,6 +27,8 @@ import math
 from pathlib import Path
 
 import h5py
+
+from .h5open import open_h5
 import numpy as np
 
 from ..frames import jd_utc, julian_year_tt
@@ -56,19 +58,6 @@ def _attr_json(v):
 #: a neighbour within 4 px, 0.26 - 0.30 px for the others)
 BLEND_DMAG = 2.5
 BLEND_PX = 4.0
-
-
-def _open(path) -> h5py.File:
-    """The recording read-only; a partial one (``recording.partial.h5``, left by an interrupted
-    event, still flagged open-for-writing) through HDF5's SWMR read mode."""
-    try:
-        return h5py.File(path, "r")
-    except OSError as exc:
-        first = exc
-    try:
-        return h5py.File(path, "r", swmr=True)
-    except OSError:
-        raise ValueError(f"{path}: not a readable HDF5 recording ({first})") from None
 
 
 def _frames_held(f: h5py.File) -> int | None:
@@ -103,7 +92,7 @@ def recording_status(path) -> tuple[bool, int, int]:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with _open(path) as f:
+    with open_h5(path) as f:
         if "tables/frames" not in f:
             return bool(f.attrs.get("complete", True)), 0, int(f.attrs.get("n_frames", 0))
         held = _frames_held(f)
@@ -140,7 +129,7 @@ def read_star_matches(path, imager: str | None = None, gate_px: float = 3.0,
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with _open(path) as f:
+    with open_h5(path) as f:
         if "tables/frames" not in f or "tables/attitude" not in f:
             raise ValueError(f"{path}: not an event recording (no tables/frames, tables/attitude)")
         raw = _attr_json(f.attrs["scenario_raw"])

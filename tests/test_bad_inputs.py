@@ -1,0 +1,106 @@
+"""Every command that reads a file, fed the bad variants of that file: empty, truncated, the wrong
+type (text under the right extension), a folder, a missing path. Each must end with exit status 2
+and ONE line on stderr that names the file -- never a traceback, never a hang.
+
+The table is the place to add a new command: one row per (command line, file kind); ``{f}`` is
+replaced by each bad variant of that kind.
+"""
+from __future__ import annotations
+
+import contextlib
+import io
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hil_harness.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: (command line with {f}, kind of file it reads)
+COMMANDS = [
+    ("detect {f} --json {out}/o.json", "image"),
+    ("track {f} --record aurora --json {out}/o.json", "image"),
+    ("replay {f}", "h5"),
+    ("inr event {f} --out {out}/inr", "h5"),
+    ("rde reconstruct {f}", "h5"),
+    ("rde reconstruct {f}", "npz"),
+    ("budget --recording {f}", "h5"),
+    ("inr report {f} --out {out}/inr", "csv"),
+    ("budget --sequence {f}", "toml"),
+    ("event {f} --no-figures --out {out}/ev", "toml"),
+    ("campaign {f} --serial --out {out}/c", "toml"),
+    ("tune validate {f} --record aurora --report {out}/r", "toml"),
+    ("detect {real} --sequence {f} --json {out}/o.json", "toml"),
+]
+
+#: extension per kind, and a genuine file of that kind to cut short
+KINDS = {"image": (".npz", ROOT / "data/real/wic_20000828_0928-0957_15frames.npz"),
+         "npz": (".npz", ROOT / "data/real/wic_20000828_0928-0957_15frames.npz"),
+         "h5": (".h5", None), "csv": (".csv", None), "toml": (".toml", None)}
+
+
+def _variants(tmp: Path, kind: str, h5_source: Path) -> dict:
+    ext, real = KINDS[kind]
+    real = h5_source if kind == "h5" else real
+    out = {}
+    (tmp / f"empty{ext}").write_bytes(b"")
+    out["empty"] = tmp / f"empty{ext}"
+    (tmp / f"text{ext}").write_text("this is not what the name says = [\n")
+    out["wrong type"] = tmp / f"text{ext}"
+    (tmp / f"folder{ext}").mkdir()
+    out["folder"] = tmp / f"folder{ext}"
+    out["missing"] = tmp / f"missing{ext}"
+    if real is not None:
+        data = Path(real).read_bytes()
+        (tmp / f"cut{ext}").write_bytes(data[:len(data) // 3])
+        out["truncated"] = tmp / f"cut{ext}"
+    return out
+
+
+@pytest.fixture(scope="module")
+def recording(tmp_path_factory):
+    from hil_harness.event_io import run_event
+    d = tmp_path_factory.mktemp("rec")
+    run_event("satellite_over_stars", frames=6, out=d / "ev", figures=False)
+    return d / "ev" / "recording.h5"
+
+
+def _run(argv: list[str]) -> tuple[int, str]:
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        try:
+            rc = main(argv)
+        except SystemExit as exc:          # argparse usage errors
+            rc = exc.code
+    return rc, err.getvalue()
+
+
+@pytest.mark.parametrize("line, kind", COMMANDS, ids=[c[0].split(" {")[0] + f" ({c[1]})"
+                                                      for c in COMMANDS])
+def test_bad_files_are_one_line_errors_naming_the_file(line, kind, tmp_path, recording):
+    real = ROOT / "data/real/wic_20000828_0928-0957_15frames.npz"
+    for variant, path in _variants(tmp_path, kind, recording).items():
+        argv = line.format(f=path, out=tmp_path, real=real).split()
+        rc, err = _run(argv)
+        lines = [ln for ln in err.splitlines() if ln.strip()]
+        what = f"{' '.join(argv[:2])} on a {variant} {kind} file"
+        assert rc == 2, f"{what}: exit {rc}: {err}"
+        assert "Traceback" not in err, f"{what}: {err}"
+        assert len(lines) == 1, f"{what}: {err}"
+        assert path.name in lines[0], f"{what} does not name the file: {lines[0]}"
+
+
+def test_npy_never_unpickles_and_never_advises_it(tmp_path):
+    np.save(tmp_path / "obj.npy", np.array([{"a": 1}], dtype=object), allow_pickle=True)
+    rc, err = _run(["detect", str(tmp_path / "obj.npy"), "--json", str(tmp_path / "o.json")])
+    assert rc == 2 and "obj.npy" in err and "allow_pickle" not in err
+
+
+def test_record_check_reports_every_file_and_survives_a_folder(tmp_path, capsys):
+    (tmp_path / "folder").mkdir()
+    rc = main(["record", "check", str(tmp_path / "folder"),
+               str(ROOT / "flightsw/data/record_aurora.toml")])
+    out = capsys.readouterr().out
+    assert rc == 1 and "folder" in out and "record_aurora.toml" in out and "1 of 2" in out
