@@ -226,3 +226,24 @@ def test_reset_restores_power_on_state():
     ip.reset()
     assert ip.sequence is seq and ip.record is rec and ip.frames == 0
     assert ip.alpha.value == 4.0 and not ip.feedback.has_prediction
+
+
+@pytest.mark.parametrize("want_stages", [True, False])
+@pytest.mark.parametrize("bad, match", [
+    (dict(frame=np.full((256, 244), 300, np.uint16)), r"\(244, 256\)"),        # transposed
+    (dict(frame=np.zeros((4096, 4096), np.uint16)), r"\(244, 256\)"),
+    (dict(frame=np.full((244, 256), 4096, np.uint16)), "12-bit"),
+    (dict(frame=np.full((244, 256), 300.0)), "integer"),
+    (dict(alpha_q12=32768), "alpha_q12"),
+    (dict(alpha_q12=-1), "alpha_q12"),
+    (dict(time_tag=float("nan")), "time_tag"),
+])
+def test_one_input_check_on_both_paths(bad, match, want_stages):
+    """The stage-image path used to accept a transposed or a 4096x4096 frame, an out-of-range
+    alpha and a NaN time tag that the fused path refused: both paths now share one check."""
+    from flightsw.ip import process_frame
+    kw = dict(frame=np.full((244, 256), 300, np.uint16), alpha_q12=None, time_tag=0.0)
+    kw.update(bad)
+    with pytest.raises(ValueError, match=match):
+        process_frame(kw.pop("frame"), load_default_sequence("satellite_c2"), load_record("satellite"),
+                      want_stages=want_stages, **kw)

@@ -489,6 +489,16 @@ def _frame_parts(frame):
     return img, meta
 
 
+def check_inputs(alpha_q12, time_tag: float) -> None:
+    """The scalar inputs every IP entry point takes with a frame: ``alpha_q12`` None or a Q4.12
+    word 0..32767, and a finite time tag; ValueError naming the input otherwise."""
+    if alpha_q12 is not None and (isinstance(alpha_q12, bool) or not isinstance(
+            alpha_q12, (int, np.integer)) or not 0 <= int(alpha_q12) <= 32767):
+        raise ValueError(f"alpha_q12={alpha_q12!r}: must be a Q4.12 word 0..32767 (alpha 0..7.99975)")
+    if not math.isfinite(time_tag):
+        raise ValueError(f"time_tag={time_tag!r}: must be a finite number of seconds")
+
+
 def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
                   ledger: Ledger | None = None, imager: str | None = None,
                   frame_count: int | None = None, time_tag: float | None = None,
@@ -535,6 +545,9 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     imager = imager if imager is not None else str(meta.get("imager", "wfov_vis"))
     frame_count = int(frame_count if frame_count is not None else meta.get("frame_count", 0)) & 0xFFFF
     time_tag = float(time_tag if time_tag is not None else meta.get("time_tag", 0.0))
+    check_inputs(alpha_q12, time_tag)
+    img = sequence.checked_frame(img, check)          # one frame check for both paths
+    check = False
     ledger = Ledger() if ledger is None else ledger
     pred = None
     if feedback is not None and feedback.has_prediction:
@@ -671,7 +684,7 @@ def _process_fused(img, sequence, record, pred, ledger, imager, frame_count, tim
     """:func:`process_frame` without stage images for a sequence whose front end is fusable: the
     same words, context and cycles as the step path (tested), with one jitted call."""
     plan = _fused_plan(sequence, record, imager)
-    frame = sequence._fast_frame(img, check)
+    frame = sequence.checked_frame(img, check)
     if pred is None:
         h, w, r0, c0, o0, o1, r0w, c0w, mr, mc = plan.default
     else:

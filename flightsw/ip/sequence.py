@@ -733,8 +733,9 @@ class ProcessingSequence:
         sub = self._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
         return sub, img, ctx
 
-    def _fast_frame(self, frame, check):
-        """The fused path's checked frame (a C-contiguous integer array of the frame shape)."""
+    def checked_frame(self, frame, check: bool = True):
+        """The frame as both paths take it: a C-contiguous integer array of the sequence's frame
+        shape (ValueError otherwise); with ``check``, also 12-bit counts 0..4095."""
         if check:
             frame = _check_frame(frame)
         if frame.shape != self.preprocess.frame_shape or frame.dtype.kind not in "ui":
@@ -746,7 +747,7 @@ class ProcessingSequence:
 
     def _fast_window(self, frame, predicted_rowcol_fullres, check):
         """The fused path's checked frame, window shape and origin (compacted pixels)."""
-        frame = self._fast_frame(frame, check)
+        frame = self.checked_frame(frame, check)
         if predicted_rowcol_fullres is None:
             return (frame,) + self._default_window
         pre = self.preprocess
