@@ -56,16 +56,35 @@ def register(sub) -> None:
     p.set_defaults(func=run, _rde_parser=p)
 
 
+def _with_progress(base_map):
+    """``base_map`` (a map-like callable) with a progress bar over its tasks (stderr, when progress
+    is on: a terminal, or UVISI_PROGRESS=1)."""
+    from hil_harness.console import progress_enabled
+
+    def mapped(fn, tasks):
+        tasks = list(tasks)
+        if not progress_enabled():
+            return base_map(fn, tasks)
+        from tqdm import tqdm
+        return tqdm(base_map(fn, tasks), total=len(tasks), desc="rde study", unit="task",
+                    leave=False)
+    return mapped
+
+
 def _study(args) -> int:
     from groundsim.assess.rde_study import run_study
     if args.realisations < 2:
         raise ValueError("--realisations must be at least 2")
+    if args.workers < 1:
+        raise ValueError(f"--workers {args.workers}: must be >= 1")
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(args.workers) as ex:
-            res = run_study(args.out, realisations=args.realisations, quick=args.quick, executor=ex)
+            res = run_study(args.out, realisations=args.realisations, quick=args.quick,
+                            map=_with_progress(ex.map))
     else:
-        res = run_study(args.out, realisations=args.realisations, quick=args.quick)
+        res = run_study(args.out, realisations=args.realisations, quick=args.quick,
+                        map=_with_progress(map))
     f2, f3 = res["figure2"], res["figure3"]
     print(f"Figure 2: epsilon_90 [m], {f2['n_scenes'][0]:g}-scene interval, "
           f"{f2['realisations']} realisations")

@@ -172,3 +172,18 @@ def test_first_compilation_is_announced_once_and_timed(progress):
         assert res.stderr.count(COMPILE_NOTE) == 1
     else:
         assert "compiling (first run only, cached after)" in res.stderr and "kernel" in res.stderr
+
+
+@pytest.mark.parametrize("argv, bar", [
+    (["event", "satellite_over_stars", "--frames", "4", "--no-figures", "--out", "{tmp}/ev"],
+     "event satellite_over_stars"),
+    (["rde", "study", "--quick", "--realisations", "2", "--out", "{tmp}/rde"], "rde study"),
+])
+def test_progress_bars_appear_when_progress_is_on(argv, bar, tmp_path):
+    import os
+    env = dict(os.environ, UVISI_PROGRESS="1")
+    res = subprocess.run([sys.executable, "-m", "hil_harness.cli"] +
+                         [a.format(tmp=tmp_path) for a in argv],
+                         capture_output=True, text=True, timeout=300, env=env)
+    assert res.returncode == 0, res.stderr
+    assert bar in res.stderr and "%|" in res.stderr
