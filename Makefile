@@ -9,12 +9,15 @@ STAMP     := $(VENV)/.uvisi-installed
 .PHONY: test demo bench install clean fuzz coverage killcheck
 
 $(STAMP_RUN): pyproject.toml
+	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e .
+	$(BIN)/python -m pip install --progress-bar on -e . | grep -E --line-buffered '^(Collecting|Successfully)' || true
+	@$(BIN)/python -c "import hil_harness.event_io" || (echo "make: the install failed" >&2; exit 1)
 	@touch $(STAMP_RUN)
 
 $(STAMP): $(STAMP_RUN)
+	@echo "make: installing the test and benchmark extras (first run only)..."
 	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
 	@touch $(STAMP)
 
