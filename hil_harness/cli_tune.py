@@ -196,7 +196,8 @@ def _optimise(args) -> int:
     t0 = time.perf_counter()
     kw["progress"] = not args.no_progress
     cv = cross_validate_closed(rp, args.folds, seed=args.seed, **kw) if args.folds > 1 else {}
-    res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver, **kw)
+    res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver,
+                               kappa=cv.get("kappa", 1.0) if cv else 1.0, **kw)
     res.cv = cv
     dt = time.perf_counter() - t0
     tr = res.train
@@ -208,7 +209,10 @@ def _optimise(args) -> int:
         lines += [f"cross-validated by {cv['how']}: closed loop "
                   f"{_rate_text(cv['top1_closed_loop'])}; no prior "
                   f"{_rate_text(cv['top1_no_prior'])}; truth prior (upper bound) "
-                  f"{_rate_text(cv['top1_truth_prior'])}"]
+                  f"{_rate_text(cv['top1_truth_prior'])}",
+                  "GOF threshold calibrated on the held-out folds in closed loop: "
+                  + ("none (no widening kept the loss within --frr)" if cv["kappa"] is None
+                     else f"kappa {cv['kappa']:g} x the --frr quantile distance")]
     out = export_record(res.record, args.out, args.words, "\n".join(lines))
     print(f"[tune] optimised in {dt:.1f} s; " + "; ".join(lines[1:]) +
           f"; n = {res.record.n_weighted}, uplink CRC {out['crc']}")
