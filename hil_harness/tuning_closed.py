@@ -246,8 +246,8 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
     """Fit + closed-loop weight search + GOF threshold on ``rp``'s events (module docstring).
     ``quantize``: "on", "off" or "auto" (both searched, the better closed-loop training rate
     wins); ``kappa``: the held-out widening of the ``frr`` quantile distance
-    (:func:`cross_validate_closed`'s ``kappa``; None: no GOF threshold). Returns :class:`ClosedLoopResult` (its ``cv``
-    empty: see :func:`cross_validate_closed`)."""
+    (:func:`cross_validate_closed`'s ``kappa``; None: no GOF threshold). Returns
+    :class:`ClosedLoopResult` (its ``cv`` empty: see :func:`cross_validate_closed`)."""
     if kappa is not None and not kappa >= 1.0:
         raise ValueError(f"kappa={kappa!r} must be >= 1 or None (no threshold)")
     base = load_record(base)
