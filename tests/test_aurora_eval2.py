@@ -43,3 +43,26 @@ def test_eval2_tuneset_is_the_campaign():
     assert [e["name"] for e in ts["scenario"]] == ev2["axes"]["scenario"]
     assert all(e["seeds"] == ev2["campaign"]["seeds"] for e in ts["scenario"])
     assert ts["set"]["sequence"] == "aurora_track"        # what `uvisi event` runs for aurora
+
+
+def test_tuned_aurora_record_words_round_trip():
+    """data/records/aurora_tuned: the uplink image is the TOML's words, bit for bit (read as hex
+    text independently of the exporter), and decodes back to the same record."""
+    import numpy as np
+    from flightsw.messages import crc16_ccitt
+    from flightsw.records import RECORD_WORDS, Record, load_record
+    rec = load_record(str(ROOT / "data/records/aurora_tuned.toml"))
+    lines = (ROOT / "data/records/aurora_tuned.words").read_text().splitlines()
+    text = [ln.strip() for ln in lines if ln.strip() and not ln.startswith("#")]
+    words = np.array([int(w, 16) for w in text], np.uint16)
+    assert words.size == RECORD_WORDS and crc16_ccitt(words[:-1]) == words[-1]
+    assert np.array_equal(rec.to_words(), words)
+    back = Record.from_words(words)
+    assert np.array_equal(back.to_words(), words) and back.gof_threshold == rec.gof_threshold
+    assert rec.object_type == "aurora" and 0.0 < rec.gof_threshold < 1e-29
+
+
+def test_default_aurora_record_is_table1():
+    """`uvisi event` keeps Table 1 for aurora: the tuned record did not beat it on the fresh family."""
+    from hil_harness.selection import RECORD_FOR_TYPE
+    assert RECORD_FOR_TYPE["aurora"] == "aurora"
