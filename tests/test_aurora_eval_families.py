@@ -1,8 +1,10 @@
-"""The fresh aurora evaluation family (campaigns/aurora_eval2_events.toml) and its tuning-set twin:
-the scenarios load, and they share no site, seed or scenario file with the training family or the
-first evaluation family."""
+"""The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml, aurora_eval3_events.toml)
+and their tuning-set twins: the scenarios load, and they share no site, seed or scenario file with
+the training family or any other evaluation family; the tuned record's uplink words."""
 import tomllib
 from pathlib import Path
+
+import pytest
 
 from groundsim.scenario import Scenario
 
@@ -18,30 +20,35 @@ def _site(name):
     return round(p.lat0_deg, 3), round(p.lon0_deg, 3)
 
 
-def test_eval2_family_loads_and_is_disjoint():
-    ev2 = _toml("campaigns/aurora_eval2_events.toml")
-    train = _toml("campaigns/aurora_train_events.toml")
-    ev1 = _toml("campaigns/aurora_eval_events.toml")
-    names = ev2["axes"]["scenario"]
-    assert len(names) == 6 and ev2["campaign"]["job"].endswith(":event")
+FAMILIES = ["campaigns/aurora_train_events.toml", "campaigns/aurora_eval_events.toml",
+            "campaigns/aurora_eval2_events.toml", "campaigns/aurora_eval3_events.toml"]
+
+
+@pytest.mark.parametrize("fresh", [2, 3])
+def test_fresh_family_loads_and_is_disjoint(fresh):
+    spec = _toml(FAMILIES[fresh])
+    names = spec["axes"]["scenario"]
+    assert len(names) == 6 and spec["campaign"]["job"].endswith(":event")
     for n in names:
         s = Scenario.load(n)
         assert s.target["type"] == "aurora" and s.imager == "wfov_uv"
-    others = train["axes"]["scenario"] + ev1["axes"]["scenario"]
-    assert not set(names) & set(others)
-    assert not {_site(n) for n in names} & {_site(n) for n in others}
-    used = set(train["campaign"]["seeds"]) | set(ev1["campaign"]["seeds"])
+    others = [_toml(f) for k, f in enumerate(FAMILIES) if k != fresh]
+    other_names = [n for o in others for n in o["axes"]["scenario"]]
+    assert not set(names) & set(other_names)
+    assert not {_site(n) for n in names} & {_site(n) for n in other_names}
+    used = {s for o in others for s in o["campaign"]["seeds"]}
     for f in ROOT.glob("campaigns/tuneset_aurora_*.toml"):
-        if f.name != "tuneset_aurora_eval2.toml":
+        if f.name != f"tuneset_aurora_eval{fresh}.toml":
             used |= {s for e in tomllib.loads(f.read_text()).get("scenario", []) for s in e["seeds"]}
-    assert not set(ev2["campaign"]["seeds"]) & used
+    assert not set(spec["campaign"]["seeds"]) & used
 
 
-def test_eval2_tuneset_is_the_campaign():
-    ev2 = _toml("campaigns/aurora_eval2_events.toml")
-    ts = _toml("campaigns/tuneset_aurora_eval2.toml")
-    assert [e["name"] for e in ts["scenario"]] == ev2["axes"]["scenario"]
-    assert all(e["seeds"] == ev2["campaign"]["seeds"] for e in ts["scenario"])
+@pytest.mark.parametrize("fresh", [2, 3])
+def test_fresh_tuneset_is_the_campaign(fresh):
+    ev = _toml(FAMILIES[fresh])
+    ts = _toml(f"campaigns/tuneset_aurora_eval{fresh}.toml")
+    assert [e["name"] for e in ts["scenario"]] == ev["axes"]["scenario"]
+    assert all(e["seeds"] == ev["campaign"]["seeds"] for e in ts["scenario"])
     assert ts["set"]["sequence"] == "aurora_track"        # what `uvisi event` runs for aurora
 
 
