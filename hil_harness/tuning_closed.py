@@ -54,7 +54,7 @@ from .tuning_fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, obj
 
 __all__ = ["RATE_KEYS", "PRIOR_OF", "Replayer", "optimise_closed_loop", "cross_validate_closed",
            "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK", "validate_closed_loop",
-           "PROTOCOL_NOTE", "identification_job", "smallest_kappa", "KAPPAS"]
+           "PROTOCOL_NOTE", "identification_job", "smallest_kappa", "KAPPAS", "entry_of"]
 
 #: the three rates of every validation report, and the prior each is measured with
 RATE_KEYS = ("top1_closed_loop", "top1_no_prior", "top1_truth_prior")
@@ -297,9 +297,22 @@ def _fmt(r) -> str:
     return f"{r['k']}/{r['n']} ({100 * r['rate']:.1f} %)" if r["n"] else "n/a (0 frames)"
 
 
-def _cv_groups(rp: Replayer, folds: int):
-    """Folds of events; a single event is cut into contiguous blocks of >= MIN_BLOCK frames."""
+def entry_of(event) -> str:
+    """The set-spec entry (scenario ``group``) an event was rendered from: its name before '/'."""
+    return event.name.split("/", 1)[0]
+
+
+def _cv_groups(rp: Replayer, folds: int, by: str = "event"):
+    """Folds of events (``by="scenario"``: whole set-spec entries, every seed of a scenario in one
+    fold, when there are at least two); a single event is cut into contiguous blocks of >=
+    MIN_BLOCK frames."""
+    if by not in ("event", "scenario"):
+        raise ValueError(f"cross-validation groups {by!r} must be 'event' or 'scenario'")
     evs = rp.events
+    entries = list(dict.fromkeys(entry_of(e) for e in evs))
+    if by == "scenario" and len(entries) >= 2:
+        k = max(2, min(folds, len(entries)))
+        return [[e for e in evs if entry_of(e) in entries[i::k]] for i in range(k)], "scenario"
     if len(evs) >= 2:
         k = max(2, min(folds, len(evs)))
         return [evs[i::k] for i in range(k)], "event"
@@ -362,9 +375,11 @@ def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict
     threshold, lose at most ``frr`` of the object frames the unthresholded record hits (a
     rejected object makes the TP coast, so a threshold set on open-loop distances costs far more
     than ``frr`` in closed loop); None: no widening does, no threshold. The held-out rates are
-    scored with each fold's record thresholded at ``kappa``. Returns the three pooled rates,
+    scored with each fold's record thresholded at ``kappa``. ``by="scenario"`` keeps every event of
+    a set-spec entry in one fold (held-out folds are scenarios the fold never saw, as on the
+    evaluation families). Returns the three pooled rates,
     ``top1`` (= the closed-loop rate), ``kappa``, ``kappa_losses``, ``how`` and ``folds``."""
-    groups, how = _cv_groups(rp, folds)
+    groups, how = _cv_groups(rp, folds, kw.pop("by", "event"))
     frr = kw.get("frr", 0.005)
     seed0 = kw.pop("seed", 0)
     kw.pop("kappa", None)
