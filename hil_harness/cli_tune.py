@@ -215,7 +215,8 @@ def _optimise(args) -> int:
                   f"{_rate_text(cv['top1_no_prior'])}; truth prior (upper bound) "
                   f"{_rate_text(cv['top1_truth_prior'])}",
                   "GOF threshold calibrated on the held-out folds in closed loop: "
-                  + ("none (no widening kept the loss within --frr)" if cv["kappa"] is None
+                  + ("none (--frr 0)" if args.frr == 0
+                     else "none (no widening kept the loss within --frr)" if cv["kappa"] is None
                      else f"kappa {cv['kappa']:g} x the --frr quantile distance")]
     out = export_record(res.record, args.out, args.words, "\n".join(lines))
     print(f"[tune] optimised in {dt:.1f} s; " + "; ".join(lines[1:]) +

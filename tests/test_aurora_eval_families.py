@@ -52,24 +52,36 @@ def test_fresh_tuneset_is_the_campaign(fresh):
     assert ts["set"]["sequence"] == "aurora_track"        # what `uvisi event` runs for aurora
 
 
-def test_tuned_aurora_record_words_round_trip():
-    """data/records/aurora_tuned: the uplink image is the TOML's words, bit for bit (read as hex
-    text independently of the exporter), and decodes back to the same record."""
+def _hex_words(path):
+    import numpy as np
+    lines = path.read_text().splitlines()
+    return np.array([int(x, 16) for x in (ln.strip() for ln in lines) if x and x[0] != "#"],
+                    np.uint16)
+
+
+@pytest.mark.parametrize("toml,words", [
+    ("flightsw/data/record_aurora_surge.toml", "data/records/aurora_surge.words"),
+    ("data/records/aurora_tuned.toml", "data/records/aurora_tuned.words")])
+def test_tuned_aurora_record_words_round_trip(toml, words):
+    """The committed uplink image is the TOML's words, bit for bit (read as hex text independently
+    of the exporter), with a valid CRC, and decodes back to the same words and threshold."""
     import numpy as np
     from flightsw.messages import crc16_ccitt
     from flightsw.records import RECORD_WORDS, Record, load_record
-    rec = load_record(str(ROOT / "data/records/aurora_tuned.toml"))
-    lines = (ROOT / "data/records/aurora_tuned.words").read_text().splitlines()
-    text = [ln.strip() for ln in lines if ln.strip() and not ln.startswith("#")]
-    words = np.array([int(w, 16) for w in text], np.uint16)
-    assert words.size == RECORD_WORDS and crc16_ccitt(words[:-1]) == words[-1]
-    assert np.array_equal(rec.to_words(), words)
-    back = Record.from_words(words)
-    assert np.array_equal(back.to_words(), words) and back.gof_threshold == rec.gof_threshold
-    assert rec.object_type == "aurora" and 0.0 < rec.gof_threshold < 1e-29
+    rec = load_record(str(ROOT / toml))
+    w = _hex_words(ROOT / words)
+    assert w.size == RECORD_WORDS and crc16_ccitt(w[:-1]) == w[-1]
+    assert np.array_equal(rec.to_words(), w)
+    back = Record.from_words(w)
+    assert np.array_equal(back.to_words(), w) and back.gof_threshold == rec.gof_threshold
+    assert rec.object_type == "aurora"
 
 
-def test_default_aurora_record_is_table1():
-    """`uvisi event` keeps Table 1 for aurora: the tuned record did not beat it on the fresh family."""
+def test_default_aurora_record_is_the_shipped_tuned_one():
+    """`uvisi event` uses aurora_surge for aurora (package data), Table 1 stays `aurora`."""
+    from flightsw.records import load_record
     from hil_harness.selection import RECORD_FOR_TYPE
-    assert RECORD_FOR_TYPE["aurora"] == "aurora"
+    assert RECORD_FOR_TYPE["aurora"] == "aurora_surge"
+    rec = load_record("aurora_surge")
+    assert rec.record_id == 7 and rec.gof_threshold == 0.0 and rec.object_type == "aurora"
+    assert rec.weight != load_record("aurora").weight or rec.mean != load_record("aurora").mean
