@@ -377,8 +377,8 @@ def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict
     than ``frr`` in closed loop); None: no widening does, no threshold. The held-out rates are
     scored with each fold's record thresholded at ``kappa``. ``by="scenario"`` keeps every event of
     a set-spec entry in one fold (held-out folds are scenarios the fold never saw, as on the
-    evaluation families). Returns the three pooled rates,
-    ``top1`` (= the closed-loop rate), ``kappa``, ``kappa_losses``, ``how`` and ``folds``."""
+    evaluation families). Returns the three pooled rates, ``top1`` (= the closed-loop rate),
+    ``kappa``, ``kappa_losses``, ``how`` and ``folds``."""
     groups, how = _cv_groups(rp, folds, kw.pop("by", "event"))
     frr = kw.get("frr", 0.005)
     seed0 = kw.pop("seed", 0)

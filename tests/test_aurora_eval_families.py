@@ -1,6 +1,7 @@
-"""The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml, aurora_eval3_events.toml)
-and their tuning-set twins: the scenarios load, and they share no site, seed or scenario file with
-the training family or any other evaluation family; the tuned record's uplink words."""
+"""The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml and
+aurora_eval3_events.toml) and their tuning-set twins: the scenarios load, and they share no site,
+seed or scenario file with the training family or any other evaluation family; the tuned records'
+uplink words; the default aurora record."""
 import tomllib
 from pathlib import Path
 
@@ -39,7 +40,8 @@ def test_fresh_family_loads_and_is_disjoint(fresh):
     used = {s for o in others for s in o["campaign"]["seeds"]}
     for f in ROOT.glob("campaigns/tuneset_aurora_*.toml"):
         if f.name != f"tuneset_aurora_eval{fresh}.toml":
-            used |= {s for e in tomllib.loads(f.read_text()).get("scenario", []) for s in e["seeds"]}
+            entries = tomllib.loads(f.read_text()).get("scenario", [])
+            used |= {s for e in entries for s in e["seeds"]}
     assert not set(spec["campaign"]["seeds"]) & used
 
 
