@@ -73,6 +73,9 @@ def register(sub) -> None:
     q.add_argument("--folds", type=int, default=3,
                    help="cross-validation folds, grouped by event (one night: blocks of >= 4 "
                         "frames); default 3, 1 = none")
+    q.add_argument("--cv-groups", choices=("event", "scenario"), default="event",
+                   help="what a cross-validation fold holds out: events (default) or whole "
+                        "scenarios (every seed of a set entry in one fold)")
     q.add_argument("--seed", type=int, default=0, help="optimiser seed")
     q.add_argument("--maxiter", type=int, default=15, help="differential-evolution generations")
     q.add_argument("--popsize", type=int, default=4, help="population per weight")
@@ -195,20 +198,26 @@ def _optimise(args) -> int:
               popsize=args.popsize, centroid_penalty=args.centroid_penalty)
     t0 = time.perf_counter()
     kw["progress"] = not args.no_progress
-    cv = cross_validate_closed(rp, args.folds, seed=args.seed, **kw) if args.folds > 1 else {}
-    res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver, **kw)
+    cv = (cross_validate_closed(rp, args.folds, seed=args.seed, by=args.cv_groups, **kw)
+          if args.folds > 1 else {})
+    res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver,
+                               kappa=cv.get("kappa", 1.0) if cv else 1.0, **kw)
     res.cv = cv
     dt = time.perf_counter() - t0
     tr = res.train
     lines = [f"uvisi tune optimise {args.set} (base {base.name}, frr {args.frr:g}, quantize "
-             f"{args.quantize}, {args.folds} folds, seed {args.seed}, centroid penalty "
-             f"{args.centroid_penalty:g})",
+             f"{args.quantize}, {args.folds} folds by {args.cv_groups}, seed {args.seed}, "
+             f"centroid penalty {args.centroid_penalty:g})",
              f"closed-loop training top-1 {_rate_text(tr['top1_closed_loop'])}"]
     if cv:
         lines += [f"cross-validated by {cv['how']}: closed loop "
                   f"{_rate_text(cv['top1_closed_loop'])}; no prior "
                   f"{_rate_text(cv['top1_no_prior'])}; truth prior (upper bound) "
-                  f"{_rate_text(cv['top1_truth_prior'])}"]
+                  f"{_rate_text(cv['top1_truth_prior'])}",
+                  "GOF threshold calibrated on the held-out folds in closed loop: "
+                  + ("none (--frr 0)" if args.frr == 0
+                     else "none (no widening kept the loss within --frr)" if cv["kappa"] is None
+                     else f"kappa {cv['kappa']:g} x the --frr quantile distance")]
     out = export_record(res.record, args.out, args.words, "\n".join(lines))
     print(f"[tune] optimised in {dt:.1f} s; " + "; ".join(lines[1:]) +
           f"; n = {res.record.n_weighted}, uplink CRC {out['crc']}")

@@ -25,9 +25,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: object type (the TP's / the scenario's) -> shipped a priori record name
-RECORD_FOR_TYPE = {"satellite": "satellite", "launch": "plume", "plume": "plume", "aurora": "aurora",
-                   "star": "star", None: "star", "": "star", "none": "star"}
+#: object type (the TP's / the scenario's) -> shipped a priori record name. Aurora: the record tuned
+#: in closed loop with the ``aurora_track`` sequence (``flightsw/data/record_aurora_surge.toml``;
+#: Table 1 itself stays the shipped record ``aurora``; figures in ``data/records/README.md``)
+RECORD_FOR_TYPE = {"satellite": "satellite", "launch": "plume", "plume": "plume",
+                   "aurora": "aurora_surge", "star": "star", None: "star", "": "star",
+                   "none": "star"}
 
 #: narrow-FOV partner of each wide-FOV imager (same band)
 NARROW_OF = {"wfov_vis": "nfov_vis", "wfov_uv": "nfov_uv"}

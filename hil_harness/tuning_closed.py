@@ -28,10 +28,14 @@ Optimiser (:func:`optimise_closed_loop`)
        every training frame, no rendering), plus ``centroid_penalty`` times the rate with the
        centroid weights zeroed on the step-1 frames: a record that finds the object only through
        the position prior scores less than one that also recognises it;
-    3. the GOF threshold is set for the stated false-rejection rate on the final record's own
-       closed-loop frames.
+    3. the GOF threshold is set at ``kappa`` times the object distance exceeded by the stated
+       false-rejection rate ``frr`` of the record's own closed-loop object candidates; ``kappa``
+       comes from cross-validation (:func:`cross_validate_closed`): the smallest widening of each
+       fold's training quantile with which the *held-out* folds, replayed closed loop with the
+       threshold, lose at most ``frr`` of their object frames (None: no threshold).
     Cross-validation groups by event (never by frame); a single event (one night) is cut into
-    contiguous blocks of at least four frames, each replayed afresh from the centre.
+    contiguous blocks of at least four frames, each replayed afresh from the centre. Its held-out
+    rates are scored with each fold's record thresholded at the calibrated ``kappa``.
 """
 from __future__ import annotations
 
@@ -46,11 +50,12 @@ from flightsw.records import Record, load_record
 from .closed_loop import replay, score_top1
 from .rates import rate
 from .tuning_data import TrainingSet, load_sequence
-from .tuning_fit import COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, threshold_record
+from .tuning_fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, object_distances,
+                         quantile_distance, threshold_record)
 
 __all__ = ["RATE_KEYS", "PRIOR_OF", "Replayer", "optimise_closed_loop", "cross_validate_closed",
            "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK", "validate_closed_loop",
-           "PROTOCOL_NOTE", "identification_job"]
+           "PROTOCOL_NOTE", "identification_job", "smallest_kappa", "KAPPAS", "entry_of"]
 
 #: the three rates of every validation report, and the prior each is measured with
 RATE_KEYS = ("top1_closed_loop", "top1_no_prior", "top1_truth_prior")
@@ -238,11 +243,14 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
                          seed: int = 0, maxiter: int = 15, popsize: int = 4,
                          centroid_penalty: float = 0.25, name: str = "aurora_tuned",
                          record_id: int | None = None, version: int = 1, log=print,
-                         progress: bool = False):
+                         progress: bool = False, kappa: float = 1.0):
     """Fit + closed-loop weight search + GOF threshold on ``rp``'s events (module docstring).
     ``quantize``: "on", "off" or "auto" (both searched, the better closed-loop training rate
-    wins). Returns :class:`ClosedLoopResult` (its ``cv`` empty: see
-    :func:`cross_validate_closed`)."""
+    wins); ``kappa``: the held-out widening of the ``frr`` quantile distance
+    (:func:`cross_validate_closed`'s ``kappa``; None: no GOF threshold). Returns
+    :class:`ClosedLoopResult` (its ``cv`` empty: see :func:`cross_validate_closed`)."""
+    if kappa is not None and not kappa >= 1.0:
+        raise ValueError(f"kappa={kappa!r} must be >= 1 or None (no threshold)")
     base = load_record(base)
     choices = {"auto": (False, True), "on": (True,), "off": (False,), True: (True,),
                False: (False,)}.get(quantize)
@@ -273,14 +281,16 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
             best = (rec, k)
     rec = best[0]
     final = rp.rates(rec)
-    rec = threshold_record(rp.training_set(final["replays"]), rec, frr)
+    rec = (threshold_record(rp.training_set(final["replays"]), rec, frr, kappa)
+           if kappa is not None else rec.replace(gof_threshold=0.0))
     rec = Record.from_toml(rec.to_toml())                       # exactly what the file holds
     train = {k: v for k, v in rp.rates(rec).items() if k in RATE_KEYS}
     zeroed = {"top1_closed_loop": rp.rates(centroid_zeroed(rec))["top1_closed_loop"]}
     log(f"[tune] {name}: closed-loop training top-1 {_fmt(train['top1_closed_loop'])}, no prior "
         f"{_fmt(train['top1_no_prior'])}, truth prior (upper bound) "
         f"{_fmt(train['top1_truth_prior'])}; centroid weights zeroed "
-        f"{_fmt(zeroed['top1_closed_loop'])}; GOF threshold {rec.gof_threshold:.4g}")
+        f"{_fmt(zeroed['top1_closed_loop'])}; GOF threshold {rec.gof_threshold:.4g} "
+        f"(kappa {kappa})")
     return ClosedLoopResult(rec, train, zeroed, {}, scores, evals)
 
 
@@ -288,9 +298,22 @@ def _fmt(r) -> str:
     return f"{r['k']}/{r['n']} ({100 * r['rate']:.1f} %)" if r["n"] else "n/a (0 frames)"
 
 
-def _cv_groups(rp: Replayer, folds: int):
-    """Folds of events; a single event is cut into contiguous blocks of >= MIN_BLOCK frames."""
+def entry_of(event) -> str:
+    """The set-spec entry (scenario ``group``) an event was rendered from: its name before '/'."""
+    return event.name.split("/", 1)[0]
+
+
+def _cv_groups(rp: Replayer, folds: int, by: str = "event"):
+    """Folds of events (``by="scenario"``: whole set-spec entries, every seed of a scenario in one
+    fold, when there are at least two); a single event is cut into contiguous blocks of >=
+    MIN_BLOCK frames."""
+    if by not in ("event", "scenario"):
+        raise ValueError(f"cross-validation groups {by!r} must be 'event' or 'scenario'")
     evs = rp.events
+    entries = list(dict.fromkeys(entry_of(e) for e in evs))
+    if by == "scenario" and len(entries) >= 2:
+        k = max(2, min(folds, len(entries)))
+        return [[e for e in evs if entry_of(e) in entries[i::k]] for i in range(k)], "scenario"
     if len(evs) >= 2:
         k = max(2, min(folds, len(evs)))
         return [evs[i::k] for i in range(k)], "event"
@@ -302,14 +325,66 @@ def _cv_groups(rp: Replayer, folds: int):
     return [[ev.block(a, b)] for a, b in zip(edges[:-1], edges[1:])], f"block of {ev.name}"
 
 
+#: widenings of a fold's ``frr`` quantile distance tried for the GOF threshold, smallest first
+KAPPAS = (1.0, 1.25, 1.5, 2.0, 3.0, 5.0, 8.0, 13.0, 21.0)
+
+
+def smallest_kappa(losses: dict, frr: float):
+    """The smallest widening whose held-out closed-loop loss ``k / n`` (``losses``: kappa ->
+    (k, n), frames the record without a threshold hits and the thresholded one misses) is at
+    most ``frr``; None when none is (then the record carries no GOF threshold)."""
+    for kappa in sorted(losses):
+        k, n = losses[kappa]
+        if n and k <= frr * n:
+            return float(kappa)
+    return None
+
+
+def _threshold_at(rp: Replayer, record, frr, kappa):
+    """``record`` thresholded at ``kappa`` times the ``frr`` quantile of its object distances on
+    ``rp``'s closed-loop frames without a threshold (no threshold when ``kappa`` is None)."""
+    rec0 = record.replace(gof_threshold=0.0)
+    if kappa is None:
+        return rec0
+    return threshold_record(rp.training_set(rp.replays(rec0)), rec0, frr, kappa)
+
+
+def _calibrate_kappa(fitted, frr, log):
+    """Held-out closed-loop loss of every widening in :data:`KAPPAS` over the folds ``fitted``
+    (list of (train Replayer, test Replayer, record)) -> (kappa or None, losses)."""
+    base_hits = [np.concatenate(te.hits(rec.replace(gof_threshold=0.0))) for _, te, rec in fitted]
+    n = sum(int(h.sum()) for h in base_hits)
+    losses = {}
+    for kappa in KAPPAS:
+        k = 0
+        for (tr, te, rec), h0 in zip(fitted, base_hits):
+            h = np.concatenate(te.hits(_threshold_at(tr, rec, frr, kappa)))
+            k += int((h0 & ~h).sum())
+        losses[kappa] = (k, n)
+        log(f"[tune] GOF threshold at {kappa:g} x the {frr:g} quantile: the held-out closed "
+            f"loop loses {k}/{n} object frames")
+        if n and k <= frr * n:
+            break
+    return smallest_kappa(losses, frr), losses
+
+
 def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict:
     """Grouped by event (or blocks of one night): each fold optimises on the others
-    (:func:`optimise_closed_loop` with ``kw``) and replays the held-out events closed loop.
-    Returns the three pooled rates, ``top1`` (= the closed-loop rate), ``how`` and ``folds``."""
-    groups, how = _cv_groups(rp, folds)
-    tot = {k: [0, 0] for k in RATE_KEYS}
-    per = []
+    (:func:`optimise_closed_loop` with ``kw``). The GOF threshold is calibrated on the held-out
+    folds in closed loop: ``kappa`` is the smallest widening in :data:`KAPPAS` of each fold's
+    training ``frr`` quantile distance with which the held-out events, replayed with the
+    threshold, lose at most ``frr`` of the object frames the unthresholded record hits (a
+    rejected object makes the TP coast, so a threshold set on open-loop distances costs far more
+    than ``frr`` in closed loop); None: no widening does, no threshold. The held-out rates are
+    scored with each fold's record thresholded at ``kappa``. ``by="scenario"`` keeps every event of
+    a set-spec entry in one fold (held-out folds are scenarios the fold never saw, as on the
+    evaluation families). Returns the three pooled rates, ``top1`` (= the closed-loop rate),
+    ``kappa``, ``kappa_losses``, ``how`` and ``folds``."""
+    groups, how = _cv_groups(rp, folds, kw.pop("by", "event"))
+    frr = kw.get("frr", 0.005)
     seed0 = kw.pop("seed", 0)
+    kw.pop("kappa", None)
+    per, fitted = [], []
     for i, test in enumerate(groups):
         names = {e.name for e in test}
         train = [e for g in groups for e in g if e.name not in names]
@@ -319,16 +394,25 @@ def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict
         except ValueError as exc:
             per.append({"fold": i, "error": str(exc)})
             continue
-        r = rp.subset(test).rates(res.record)
+        fitted.append((i, names, rp.subset(train), rp.subset(test), res.record))
+    kappa, losses = _calibrate_kappa([f[2:] for f in fitted], frr, log)
+    tot = {k: [0, 0] for k in RATE_KEYS}
+    for i, names, tr, te, rec in fitted:
+        rec = _threshold_at(tr, rec, frr, kappa)
+        r = te.rates(rec)
         for key in RATE_KEYS:
             tot[key][0] += r[key]["k"]
             tot[key][1] += r[key]["n"]
-        per.append({"fold": i, "events": sorted(names),
+        per.append({"fold": i, "events": sorted(names), "gof_threshold": rec.gof_threshold,
                     **{key: r[key] for key in RATE_KEYS}})
         log(f"[tune] fold {i + 1}/{len(groups)} ({', '.join(sorted(names))}): closed-loop "
-            f"{_fmt(r['top1_closed_loop'])}")
+            f"{_fmt(r['top1_closed_loop'])} (GOF threshold {rec.gof_threshold:.4g})")
+    log(f"[tune] GOF threshold calibrated on the held-out folds: kappa "
+        f"{'none (no threshold)' if kappa is None else f'{kappa:g}'}")
     out = {key: rate(*tot[key]) for key in RATE_KEYS}
-    out.update(top1=out["top1_closed_loop"]["rate"], how=how, folds=per)
+    out.update(top1=out["top1_closed_loop"]["rate"], kappa=kappa, how=how,
+               kappa_losses={f"{k:g}": list(v) for k, v in losses.items()},
+               folds=sorted(per, key=lambda p: p["fold"]))
     return out
 
 

@@ -58,7 +58,7 @@ from flightsw.records import Record, load_record
 
 __all__ = ["fit_record", "optimise_record", "FastRanker", "flight_rank", "FlightRanking",
            "gof_threshold_for_frr", "object_rows", "cross_validate", "OptimiseResult", "top1_rate",
-           "optimise_weights", "threshold_record"]
+           "optimise_weights", "threshold_record", "object_distances", "quantile_distance"]
 
 COL, ROW = 1, 2
 CENTRE = {"row": 122.0, "col": 128.0}
@@ -437,14 +437,14 @@ def _fit_and_optimise(train, base, quantize, seed, maxiter, popsize, name, recor
 GOF_FLOOR = 1e-30
 
 
-def _object_distances(tset, rec) -> np.ndarray:
+def object_distances(tset, rec) -> np.ndarray:
     """Flight distance of the object (nearest-label object blob) in every frame that has one."""
     rk = flight_rank(tset, rec.replace(gof_threshold=0.0))
     orow = object_rows(tset)
     return rk.distance[orow[orow >= 0]]
 
 
-def _quantile_distance(d, frr):
+def quantile_distance(d, frr):
     """The object distance exceeded by at most ``floor(frr * N)`` objects (None if N * frr < 1)."""
     d = np.sort(np.asarray(d, float))[::-1]
     if d.size == 0 or frr <= 0 or d.size * frr < 1.0:
@@ -458,7 +458,7 @@ def threshold_record(train, rec, frr, kappa=1.0):
     weights' common scale if that GOF would fall below :data:`GOF_FLOOR`. Returns the record
     (threshold 0 when the quantile cannot be estimated)."""
     from flightsw.ip.rank import flight_gof
-    d_q = _quantile_distance(_object_distances(train, rec), frr)
+    d_q = quantile_distance(object_distances(train, rec), frr)
     if d_q is None:
         return rec.replace(gof_threshold=0.0)
     d_thr = kappa * d_q
@@ -467,7 +467,7 @@ def threshold_record(train, rec, frr, kappa=1.0):
     if d_thr > d_max:
         w = np.asarray(rec.weight, float) * (d_max / d_thr)
         rec = rec.replace(weight=tuple(_round_sig(x) for x in w))
-        d_q = _quantile_distance(_object_distances(train, rec), frr)
+        d_q = quantile_distance(object_distances(train, rec), frr)
         d_thr = kappa * d_q
     thr = float(flight_gof(d_thr, n)[0])
     return rec.replace(gof_threshold=thr)
@@ -508,7 +508,7 @@ def cross_validate(tset, base, quantize, folds=5, seed=0, maxiter=60, popsize=12
         d_obj = np.full(test.n_frames, np.inf)
         d_obj[orow >= 0] = rk.distance[orow[orow >= 0]]
         d_best = np.where(rk.best >= 0, rk.distance[np.maximum(rk.best, 0)], np.inf)
-        d_q = _quantile_distance(_object_distances(train, rec), frr)
+        d_q = quantile_distance(object_distances(train, rec), frr)
         if d_q is not None and d_q > 0:
             ratios.append(d_obj[orow >= 0] / d_q)
         folds_out.append((lab, rk.best_is_object, d_obj, d_q, d_best))

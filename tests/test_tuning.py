@@ -264,6 +264,16 @@ def test_cross_validation_holds_out_whole_groups():
     assert 0.0 <= cv["top1"] <= cv["ranking_top1"] <= 1.0
 
 
+def test_smallest_kappa_hand_made():
+    """The smallest widening whose held-out closed-loop loss is within frr; None if none is."""
+    from hil_harness.tuning_closed import smallest_kappa
+    losses = {1.0: (30, 1000), 2.0: (6, 1000), 3.0: (5, 1000), 5.0: (0, 1000)}
+    assert smallest_kappa(losses, 0.005) == 3.0 and smallest_kappa(losses, 0.006) == 2.0
+    assert smallest_kappa(losses, 0.0) == 5.0 and smallest_kappa(losses, 0.05) == 1.0
+    assert smallest_kappa({1.0: (3, 100), 2.0: (2, 100)}, 0.01) is None
+    assert smallest_kappa({1.0: (0, 0)}, 0.01) is None
+
+
 # ------------------------------------------------------------------------------------------------
 # validate
 # ------------------------------------------------------------------------------------------------
