@@ -93,12 +93,12 @@ def run(args) -> int:
     from groundsim.scenario import Scenario
     from . import budget_hypotheses as bh
     from .budget import budget_report
-    from .event import _shipped_sequence
+    from .sequences import resolve_sequence
     from .selection import record_name_for
     scn = Scenario.load(args.scenario)
     frame, truth = scn.world().render()
     tt = scn.target_type
-    seq = _shipped_sequence(args.sequence) if args.sequence else \
+    seq = resolve_sequence(args.sequence) if args.sequence else \
         load_default_sequence("aurora" if tt == "aurora" else "satellite")
     tg = truth["target"]
     centre = (tg["row"], tg["col"]) if tg.get("in_field") else None

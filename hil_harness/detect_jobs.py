@@ -6,7 +6,7 @@ Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gat
 """
 from __future__ import annotations
 
-from pathlib import Path
+from .sequences import resolve_sequence  # noqa: F401  (re-exported: public here before)
 
 __all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "resolve_sequence",
            "default_sequence_name", "peak_gate_record", "tile_for"]
@@ -48,23 +48,6 @@ def default_sequence_name(record) -> str:
         if record.name == rec_name:
             return seq_name
     return {"aurora": "aurora", "satellite": "satellite"}.get(record.object_type, "star")
-
-
-def resolve_sequence(name_or_path):
-    """A ProcessingSequence from a shipped name (``flightsw.ip.sequence.DEFAULT_SEQUENCES``) or a
-    TOML file; ``ValueError`` naming both choices otherwise."""
-    from flightsw.ip.sequence import DEFAULT_SEQUENCES, ProcessingSequence, load_default_sequence
-    s = str(name_or_path)
-    if s in DEFAULT_SEQUENCES:
-        return load_default_sequence(s)
-    p = Path(s)
-    if not p.is_file():
-        raise ValueError(f"--sequence {s!r}: neither a shipped sequence "
-                         f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
-    try:
-        return ProcessingSequence.from_toml(p)
-    except (OSError, ValueError) as exc:
-        raise ValueError(f"{p}: {exc}") from None
 
 
 def peak_gate_record(record, noise_counts: float, sigma: float = GATE_SIGMA):

@@ -31,8 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
-from flightsw.ip import ImageProcessor, ProcessingSequence, load_default_sequence
-from flightsw.ip.sequence import DEFAULT_SEQUENCES
+from flightsw.ip import ImageProcessor, ProcessingSequence
 from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
@@ -40,6 +39,7 @@ from groundsim.scenario import Scenario
 
 from .bus import fault_rng, flip_bits, uplink_words
 from .console import compile_seconds
+from .sequences import resolve_sequence
 from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
 
 FRAME_DT = 0.5
@@ -135,19 +135,6 @@ class FrameOutcome:
     events: list = field(default_factory=list)   # faults injected and uplinks sent this frame
 
 
-def _shipped_sequence(name):
-    if isinstance(name, ProcessingSequence):
-        return name
-    s = str(name)
-    if s in DEFAULT_SEQUENCES:
-        return load_default_sequence(s)
-    p = Path(s)
-    if not p.exists():
-        raise FileNotFoundError(f"sequence {s!r}: not a shipped sequence "
-                                f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
-    return ProcessingSequence.from_toml(p)
-
-
 def _with_compaction(seq, compaction):
     d = seq.to_dict()
     d["preprocess"]["compaction"] = int(compaction)
@@ -195,8 +182,8 @@ class Event:
         ttype = scn.target_type
         self.object_type = ttype or "none"
         seq = cfg.sequence or ("aurora_track" if ttype == "aurora" else "satellite")
-        self.sequence = _with_compaction(_shipped_sequence(seq), scn.compaction) \
-            if cfg.sequence is None else _shipped_sequence(seq)
+        self.sequence = _with_compaction(resolve_sequence(seq), scn.compaction) \
+            if cfg.sequence is None else resolve_sequence(seq)
         rec = cfg.record if cfg.record is not None else record_name_for(ttype)
         self.record = load_record(rec)          # a name, a TOML file or a Record (a replay's)
         self.record_name = rec.name if isinstance(rec, Record) else str(rec)

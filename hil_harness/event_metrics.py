@@ -18,17 +18,6 @@ __all__ = ["HELD_RADIUS_PX", "held_after_lock", "processed_pixel_urad"]
 HELD_RADIUS_PX = 3.0
 
 
-def wilson_interval(k: int, n: int, z: float = 1.959963984540054) -> tuple[float, float]:
-    """Wilson score interval (default 95 %) of a proportion k / n; ``(0.0, 1.0)`` when n = 0."""
-    if n <= 0:
-        return 0.0, 1.0
-    p = k / n
-    den = 1.0 + z * z / n
-    mid = (p + z * z / (2 * n)) / den
-    half = z * math.sqrt(p * (1.0 - p) / n + z * z / (4 * n * n)) / den
-    return max(0.0, mid - half), min(1.0, mid + half)
-
-
 def processed_pixel_urad(geometry_entry, compaction: int) -> float:
     """One processed pixel as an angle (urad): ``compaction`` x the imager pixel, the imager pixel being
     the RMS of its column and row scales, ``hypot(scale_col, scale_row) / sqrt(2)`` (rad/px).

@@ -59,7 +59,6 @@ ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_deep_merge'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_load_sequence'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_prediction'),
-    ('hil_harness.cli_budget', 'hil_harness.event', '_shipped_sequence'),
     ('hil_harness.cli_tune', 'hil_harness.tuning_validate', '_atomic_text'),
 }
 #: (module, accessed module, name) ``module._name`` reads
