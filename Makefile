@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP_RUN := $(VENV)/.uvisi-installed-run
 STAMP     := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean fuzz coverage killcheck
+.PHONY: test demo bench install clean fuzz coverage killcheck docs-check
 
 $(STAMP_RUN): pyproject.toml
 	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
@@ -38,6 +38,10 @@ coverage: $(STAMP)
 	@for p in flightsw hil_harness; do \
 		printf '%s branch coverage: ' $$p; \
 		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
+
+# every command and Python example of README.md and docs/*.md, run and its output checked (minutes)
+docs-check: $(STAMP)
+	$(BIN)/python docs/check_commands.py
 
 demo: $(STAMP_RUN)
 	$(BIN)/uvisi demo

@@ -1,0 +1,156 @@
+"""Run every command and Python example the README and docs/*.md show, and check what they print.
+
+``make docs-check`` runs this (outside ``make test``: some commands take minutes). For each fenced
+code block:
+
+* a block of ``uvisi ...`` / ``python -m ...`` / ``make ...`` lines (a line ending in ``\\``
+  continues): the commands of one document run in order in one scratch folder holding copies of
+  the repository's data files (so nothing is written into the repository), with ``uvisi`` as
+  ``python -m hil_harness.cli``; it must exit with 0, or with the status a trailing
+  ``# exit N`` comment states, and print no traceback. ``make`` lines are listed, not run (they
+  set up a virtual environment of their own).
+* a ``python`` block: run the same way; when the next block is its output (a plain fenced block),
+  every line of that output must be printed, in order (a line ending in ``...`` matches any line
+  that starts with the text before it).
+
+Exit status 0 when everything passes, 1 otherwise (each failure on one line).
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import shlex
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
+#: copied into the scratch folder (commands write beside these files, never into the repository)
+COPIED = ("data", "campaigns", "flightsw/data", "groundsim/scenarios", "tests/data")
+FENCE = re.compile(r"^```(\w*)\s*$")
+
+
+def blocks(path: Path) -> list[tuple[str, list[str], int]]:
+    """(language, lines, first line number) of every fenced block in a Markdown file."""
+    out, lang, buf, start = [], None, [], 0
+    for n, line in enumerate(path.read_text().splitlines(), 1):
+        m = FENCE.match(line.strip())
+        if m and lang is None:
+            lang, buf, start = m.group(1), [], n + 1
+        elif line.strip() == "```" and lang is not None:
+            out.append((lang, buf, start))
+            lang = None
+        elif lang is not None:
+            buf.append(line)
+    return out
+
+
+def commands(lines: list[str]) -> list[tuple[str, int]]:
+    """The shell commands of a block (continuations joined), each with its expected exit status."""
+    out, cur = [], ""
+    for raw in lines:
+        line = raw.rstrip()
+        cur = (cur + " " + line.rstrip("\\").strip()) if cur else line.rstrip("\\").strip()
+        if line.endswith("\\"):
+            continue
+        words = cur.split()
+        if cur.startswith(("uvisi ", "make ", "python -m ")) and not words[1].endswith(":"):
+            m = re.search(r"#\s*exit\s+(\d+)", cur)
+            out.append((cur.split("#")[0].strip(), int(m.group(1)) if m else 0))
+        cur = ""
+    return out
+
+
+def scratch() -> Path:
+    """A folder holding copies of the repository's data files, where a document's commands run in
+    order (a later command may read what an earlier one wrote)."""
+    import shutil
+    d = Path(tempfile.mkdtemp(prefix="uvisi-docs-"))
+    for name in COPIED:
+        if (ROOT / name).exists():
+            shutil.copytree(ROOT / name, d / name)
+    return d
+
+
+def run(argv: list[str], cwd: Path, timeout: int) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), UVISI_PROGRESS="0")
+    return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
+
+
+def expected_output_found(expected: list[str], printed: str) -> str | None:
+    """None when every expected line appears in order; else the first one missing."""
+    got = printed.splitlines()
+    i = 0
+    for want in (w.rstrip() for w in expected if w.strip()):
+        prefix = want[:-3].rstrip() if want.endswith("...") else None
+        while i < len(got) and not (got[i].rstrip() == want or
+                                    (prefix is not None and got[i].startswith(prefix))):
+            i += 1
+        if i == len(got):
+            return want
+        i += 1
+    return None
+
+
+def check(path: Path, timeout: int, dry: bool) -> list[str]:
+    fails = []
+    bl = blocks(path)
+    work = None if dry else scratch()
+    for j, (lang, lines, start) in enumerate(bl):
+        where = f"{path.relative_to(ROOT)}:{start}"
+        if lang == "python":
+            if dry:
+                print(f"{where}: python example ({len(lines)} lines)")
+                continue
+            res = run([sys.executable, "-c", "\n".join(lines)], work, timeout)
+            if res.returncode != 0:
+                fails.append(f"{where}: python example exit {res.returncode}: "
+                             f"{(res.stderr.strip().splitlines() or [''])[-1]}")
+            elif j + 1 < len(bl) and bl[j + 1][0] == "":
+                missing = expected_output_found(bl[j + 1][1], res.stdout)
+                if missing is not None:
+                    fails.append(f"{where}: python example did not print {missing!r}")
+            continue
+        for cmd, want in commands(lines):
+            if dry or cmd.startswith("make "):
+                print(f"{where}: {cmd}" + ("" if want == 0 else f"  (exit {want})"))
+                continue
+            argv = shlex.split(cmd)
+            argv = [sys.executable] + (argv[1:] if argv[0] == "python" else
+                                       ["-m", "hil_harness.cli"] + argv[1:])
+            print(f"{where}: {cmd}", flush=True)
+            try:
+                res = run(argv, work, timeout)
+            except subprocess.TimeoutExpired:
+                fails.append(f"{where}: {cmd}: no answer within {timeout} s")
+                continue
+            if res.returncode != want or "Traceback" in res.stderr:
+                last = (res.stderr.strip().splitlines() or [""])[-1]
+                fails.append(f"{where}: {cmd}: exit {res.returncode} (expected {want}): {last}")
+    return fails
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--list", action="store_true", help="list the commands, run nothing")
+    ap.add_argument("--timeout", type=int, default=1800, help="seconds per command")
+    ap.add_argument("--only", nargs="*", default=None, metavar="FILE",
+                    help="check only these documents (names like README.md or api.md)")
+    args = ap.parse_args(argv)
+    fails = []
+    for path in DOCS:
+        if args.only and path.name not in args.only:
+            continue
+        fails += check(path, args.timeout, args.list)
+    for f in fails:
+        print(f"FAIL {f}", file=sys.stderr)
+    if not args.list:
+        print(f"docs-check: {len(fails)} failure(s)")
+    return 1 if fails else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,25 @@
+"""The docs checker (make docs-check) reads what the docs show: fenced blocks, commands with their
+expected exit status, and a Python example's printed output matched line by line."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs"))
+import check_commands as C  # noqa: E402
+
+
+def test_blocks_commands_and_expected_status(tmp_path):
+    md = tmp_path / "x.md"
+    md.write_text("text\n```\nuvisi event a \\\n    --out b   # exit 1: a verdict\nuvisi replay: error: x\n"
+                  "make demo\n```\n```python\nprint(1)\n```\n```\n1\n```\n")
+    bl = C.blocks(md)
+    assert [b[0] for b in bl] == ["", "python", ""]
+    assert C.commands(bl[0][1]) == [("uvisi event a --out b", 1), ("make demo", 0)]
+
+
+def test_expected_output_lines_in_order_with_prefix_lines():
+    printed = "a 1\nnoise\nb 22 and more\nc\n"
+    assert C.expected_output_found(["a 1", "b 22 ...", "c"], printed) is None
+    assert C.expected_output_found(["c", "a 1"], printed) == "a 1"          # order matters
+    assert C.expected_output_found(["b 23 ..."], printed) == "b 23 ..."
