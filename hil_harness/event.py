@@ -2,11 +2,18 @@
 
 One frame::
 
-    world.render()            -> frame uint16[244, 256], truth           (groundsim)
-    flightsw.ip.process_frame -> CandidateMessage  --(16-bit words, CRC)-->
-    flightsw.tp.TrackProcessor.step(words, attitude data) -> TrackCommand --(16-bit words, CRC)-->
-    world.command(q_point)  (attitude processor)   and   Feedback -> the IP's next window / record
+    world.render()                   -> frame uint16[244, 256], truth    (groundsim)
+    [[uplinks]] due                  -> ImageProcessor.uplink(words) -> verdict
+    flightsw.ip.ImageProcessor.step(frame, last command words) -> candidate-message words (CRC)
+    flightsw.tp.TrackProcessor.step(words, attitude data) -> track-command words (CRC)
+    world.command(q_point)  (attitude processor; the IP reads the same words next frame)
     world.advance(0.5 s)
+
+The harness only moves words (and, at an imager hand-over, asks the TP for its prediction in the new
+imager's pixels). Bus faults from the scenario (``[faults] corrupt_candidate`` / ``corrupt_command``)
+flip bits of those words on the way: the receiver refuses a message that fails its CRC or checks,
+counts it, and keeps the last good one; every fault and the reaction go into ``events_log`` (the
+summary's ``faults``), every uplink's verdict into ``uplinks_log``.
 
 Two clocks are kept: the emulated flight processors (a :class:`flightsw.budget.Ledger` per frame: the
 ADSP-2100, the IP's 1750A and the TP's 1750A against the 500 ms frame) and the host (wall time per
