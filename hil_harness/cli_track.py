@@ -40,10 +40,11 @@ import json
 import math
 import os
 import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
+
+from .fileio import temp_beside
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
 WFOV_DEG = 13.1
@@ -149,7 +150,7 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
 def _write_json(path, obj):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp")
     try:
         with os.fdopen(fd, "w") as fh:
             json.dump(obj, fh, indent=1, allow_nan=False)

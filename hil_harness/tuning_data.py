@@ -51,7 +51,6 @@ import csv
 import json
 import math
 import os
-import tempfile
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -60,6 +59,8 @@ import numpy as np
 
 from flightsw.arith.m1750 import decode32_array
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
+
+from .fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
            "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence"]
@@ -196,7 +197,7 @@ class TrainingSet:
         for k in _FRAME_FIELDS:
             v = np.asarray(self.frames[k])
             arrays[f"f_{k}"] = v.astype(str) if v.dtype.kind in "OU" else v
-        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp.npz")
+        fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp.npz")
         os.close(fd)
         try:
             np.savez_compressed(tmp, **arrays)

@@ -17,7 +17,6 @@ import hashlib
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +24,7 @@ import numpy as np
 from flightsw.tp import ImagerGeometry
 
 from .closed_loop import ReplayEvent
+from .fileio import temp_beside
 from .tuning_data import SetSpec, load_labels, resolve_path, scenario_from_entry
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
@@ -137,7 +137,7 @@ def _save_event(ev: ReplayEvent, path: Path):
     att = np.array([[a.t, *a.q_body_to_eci, *a.rate_body, *a.r_eci, *a.v_eci, float(a.valid)]
                     for a in ev.attitude], float) if ev.attitude is not None else np.zeros((0, 15))
     geom = np.array([*ev.geometry.q_imager_to_body, ev.geometry.scale_col, ev.geometry.scale_row])
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp.npz")
+    fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp.npz")
     os.close(fd)
     try:
         np.savez_compressed(tmp, schema=EVENT_SCHEMA, frames=ev.frames, t=ev.t, att=att, geom=geom,

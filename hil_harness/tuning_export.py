@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import os
 import re
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,6 +32,8 @@ import numpy as np
 
 from flightsw.messages import FEATURE_NAMES
 from flightsw.records import RECORD_WORDS, Record
+
+from .fileio import temp_beside
 
 __all__ = ["export_record", "write_words", "read_words", "check_record_file", "check_record",
            "unit_problems", "CheckResult", "BINARY_SUFFIXES"]
@@ -52,7 +53,7 @@ RANGES = {
 def _atomic_write(path, data: bytes):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp")
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)

@@ -19,13 +19,13 @@ from __future__ import annotations
 import json
 import math
 import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from flightsw.messages import FEATURE_NAMES
 
+from .fileio import temp_beside
 from .tuning_fit import COL, ROW, flight_rank, object_rows
 
 __all__ = ["evaluate", "validate", "threshold_sweep", "write_metrics", "atomic_text",
@@ -128,7 +128,7 @@ def _plt():
 
 def _savefig(fig, path):
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.stem + ".", suffix=".png")
+    fd, tmp = temp_beside(path, prefix=path.stem + ".", suffix=".png")
     os.close(fd)
     try:
         fig.savefig(tmp, dpi=90)
@@ -275,7 +275,7 @@ def write_metrics(out_dir, metrics: dict) -> Path:
 def atomic_text(path, text):
     """Write ``text`` to ``path`` through a temporary file and a rename (nothing half-written)."""
     path = Path(path)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
+    fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp")
     with os.fdopen(fd, "w") as fh:
         fh.write(text)
     os.replace(tmp, path)

@@ -187,3 +187,17 @@ def test_progress_bars_appear_when_progress_is_on(argv, bar, tmp_path):
                          capture_output=True, text=True, timeout=300, env=env)
     assert res.returncode == 0, res.stderr
     assert bar in res.stderr and "%|" in res.stderr
+
+
+def test_record_export_is_readable_by_the_group(tmp_path):
+    """Outputs follow the umask (0644 under 022), not mkstemp's 0600."""
+    import os
+    import stat
+    old = os.umask(0o022)
+    try:
+        assert main(["record", "export", "aurora", "--toml", str(tmp_path / "r.toml"),
+                     "--words", str(tmp_path / "r.words")]) == 0
+    finally:
+        os.umask(old)
+    for name in ("r.toml", "r.words"):
+        assert stat.S_IMODE(os.stat(tmp_path / name).st_mode) == 0o644
