@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hil_harness.images import ImageError, frame_flags, read_images, to_counts
+from hil_harness.images import ImageError, frame_flags, read_images, scale_note, to_counts
 
 __all__ = ["register", "run", "detect_one", "read_frames", "to_12bit", "HELP_TEXT"]
 
@@ -144,13 +144,16 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     :func:`hil_harness.detect_jobs.tile_for`)."""
     from flightsw.ip.preprocess import compact
     from flightsw.messages import FEATURE_NAMES
-    from hil_harness.detect_jobs import peak_gate_record, tile_for
+    from hil_harness.detect_jobs import GATE_TOP, peak_gate_record, tile_for
     from hil_harness.fullframe import detect_frame
     from hil_harness.images import noise_sigma
     gate = None
     if gate_sigma:
         noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
         noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+        # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
+        # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
+        noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
         record = peak_gate_record(record, noise, gate_sigma)
         gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
                 "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
@@ -271,9 +274,12 @@ def run(args) -> int:
     for fr in bar:
         flags = frame_flags(fr.data)
         try:
-            img, scale = to_counts(fr.data, no_scale=args.no_scale)
+            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits)
         except ImageError as exc:
             raise ImageError(f"{fr.name}: {exc}") from None
+        note = scale_note(fr.name, scale)
+        if note:
+            tqdm.write(f"uvisi detect: note: {note}", file=sys.stderr)
         if flags:
             tqdm.write(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
                        f"answer is still given)", file=sys.stderr)

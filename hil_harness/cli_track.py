@@ -78,7 +78,7 @@ def read_sequence(paths, no_scale: bool = False):
     """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags)."""
     from tqdm import tqdm
 
-    from hil_harness.images import frame_flags, read_images, to_counts
+    from hil_harness.images import frame_flags, read_images, scale_note, to_counts
     frames = read_images(paths)
     if not frames:
         raise ValueError(f"{paths[0]}: no frames")
@@ -89,7 +89,10 @@ def read_sequence(paths, no_scale: bool = False):
         if fr.data.shape != shape:
             raise ValueError(f"{fr.name}: frame shape {fr.data.shape} differs from the first "
                              f"frame's {shape} (one sequence, one imager)")
-        c, m = to_counts(fr.data, no_scale=no_scale)
+        c, m = to_counts(fr.data, no_scale=no_scale, bits=fr.bits)
+        note = scale_note(fr.name, m)
+        if note:
+            print(f"uvisi track: note: {note}", file=sys.stderr)
         counts.append(c)
         scales.append(m)
         flags.append(frame_flags(fr.data))

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "frame_flags", "robust_stats",
+__all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "scale_note", "frame_flags", "robust_stats",
            "noise_sigma",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
            "LOW_PERCENTILE", "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION",
@@ -60,12 +60,15 @@ class InputFrame:
     ``name``: ``"<file>"``, ``"<file>[i]"`` (plane i of a stack), ``"<file>[key]"`` /
     ``"<file>[key][i]"`` (an NPZ array) or ``"<file>[hduN]..."`` (a FITS extension);
     ``data``: 2-D array as read (any dtype, not scaled); ``time_utc``: ISO-8601 time tag where the
-    input has one (NPZ ``time_utc``, FITS ``DATE-OBS``, TIFF ``DateTime``), else None.
+    input has one (NPZ ``time_utc``, FITS ``DATE-OBS``, TIFF ``DateTime``), else None; ``bits``:
+    the bit depth the file states for an 8-bit or 1-bit image (:func:`to_counts` maps those by
+    rule 0), else None.
     """
 
     name: str
     data: np.ndarray
     time_utc: str | None = None
+    bits: int | None = None         # the bit depth a PNG/JPEG states (8 for "L", 1 for "1")
 
 
 # ------------------------------------------------------------------------------------------------
@@ -98,6 +101,8 @@ def read_images(paths) -> list[InputFrame]:
                              f"{str(exc).splitlines()[0] if str(exc) else 'damaged'}") from None
         if not frames:
             raise ImageError(f"{p}: no 2-D image in the file")
+        if not any(_has_finite(f.data) for f in frames):
+            raise ImageError(f"{p}: no finite pixel in the file (every pixel NaN or infinite)")
         out += frames
     return out
 
@@ -120,6 +125,10 @@ def sniff(p: Path) -> str | None:
     return next((kind for magic, kind in MAGIC if head.startswith(magic)), None)
 
 
+def _has_finite(a: np.ndarray) -> bool:
+    return not np.issubdtype(a.dtype, np.floating) or bool(np.isfinite(a).any())
+
+
 def _read_one(p: Path) -> list[InputFrame]:
     name = p.name.lower()
     suf = p.suffix.lower()
@@ -136,9 +145,13 @@ def _read_one(p: Path) -> list[InputFrame]:
     if suf in (".png", ".jpg", ".jpeg", ".bmp", ".gif"):
         from PIL import Image
         with Image.open(p) as im:
-            if im.mode not in ("L", "I", "I;16", "I;16B", "I;16L", "F", "RGB", "RGBA"):
-                im = im.convert("RGB")
-            return _planes(np.asarray(im), str(p), None)
+            if im.mode not in ("1", "L", "I", "I;16", "I;16B", "I;16L", "F"):
+                raise ImageError(f"{p}: a colour image (mode {im.mode}): frames are one channel; "
+                                 f"convert it first, e.g. PIL's Image.open(path).convert('L'), "
+                                 f"or save the channel you want")
+            frames = _planes(np.asarray(im), str(p), None)
+            bits = {"1": 1, "L": 8}.get(im.mode)
+            return [InputFrame(f.name, f.data, f.time_utc, bits) for f in frames]
     if suf == ".npy":
         return _planes(np.load(p, allow_pickle=False), str(p), None)
     if suf == ".npz":
@@ -296,11 +309,16 @@ def noise_sigma(data) -> float:
     return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(6.0)
 
 
-def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
+def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple[np.ndarray, dict]:
     """The flight's 12-bit counts from any 2-D image, and the mapping used (JSON-able dict).
 
     ``data``: 2-D array, any numeric dtype, as read. Returns ``(counts, mapping)``: ``counts`` is
     uint16 ``[H, W]`` in 0..4095. Rules, in order:
+
+    0. an 8-bit or 1-bit image (``bits`` from :class:`InputFrame`, as a PNG/JPEG states it): 8-bit
+       values are shifted up to the 12-bit scale, ``counts = value << 4`` (0..4080),
+       ``{"method": "shift_up", "shift": 4, "from_bits": 8}``; 1-bit pixels become 0 or 4095,
+       ``{"method": "binary", "from_bits": 1, "on": 4095}``. ``no_scale`` does not apply;
 
     1. already counts -- every pixel an integer in 0..4095 (integer, bool, or integer-valued float
        data): unchanged, ``{"method": "none"}``;
@@ -337,6 +355,11 @@ def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
         raise ImageError("empty image")
     if not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_) or np.iscomplexobj(a):
         raise ImageError(f"unsupported pixel type {a.dtype}")
+    if bits == 8 and np.issubdtype(a.dtype, np.integer) and int(a.min()) >= 0 and int(a.max()) <= 255:
+        return (a.astype(np.uint16) << 4), {"method": "shift_up", "shift": 4, "from_bits": 8}
+    if bits == 1:
+        return (a.astype(bool).astype(np.uint16) * _MAX12), {"method": "binary", "from_bits": 1,
+                                                             "on": _MAX12}
     if _is_counts(a):
         return a.astype(np.uint16), {"method": "none"}
     if no_scale:
@@ -348,6 +371,16 @@ def to_counts(data, *, no_scale: bool = False) -> tuple[np.ndarray, dict]:
             return (a.astype(np.uint64) >> np.uint64(k)).astype(np.uint16), \
                 {"method": "shift", "shift": k}
     return _robust_map(a)
+
+
+def scale_note(name: str, scale: dict) -> str | None:
+    """The one-line note a command prints when an image was not 12-bit counts to begin with and was
+    mapped by a fixed rule (8-bit or 1-bit); None otherwise."""
+    if scale.get("method") == "shift_up":
+        return f"{name}: 8-bit image: mapped to 12-bit counts as value << 4 (0..4080)"
+    if scale.get("method") == "binary":
+        return f"{name}: 1-bit image: mapped to 12-bit counts 0 / 4095"
+    return None
 
 
 def _describe(a: np.ndarray) -> str:

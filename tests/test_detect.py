@@ -220,7 +220,7 @@ def test_formats_scaling_and_table(tmp_path, capsys):
     assert [Path(e["path"].split("[")[0]).name for e in res["images"]] == \
         ["a.npy", "b.npz", "b.npz", "c.png", "d.tif", "e.fits"]
     assert [e["scale"]["method"] for e in res["images"]] == \
-        ["none", "none", "none", "none", "shift", "robust"]
+        ["none", "none", "none", "shift_up", "shift", "robust"]  # 8-bit PNG: << 4
     for e in res["images"]:
         _check_schema(e)
         best = e["candidates"][0]

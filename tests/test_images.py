@@ -37,16 +37,13 @@ def test_read_every_format_in_order_with_time_tags(tmp_path):
     hdu.header["DATE-OBS"] = "2002-02-02T02:02:02"
     hdu.writeto(tmp_path / "d.fits")
     Image.fromarray((a[1] >> 4).astype(np.uint8)).save(tmp_path / "e.png")
-    rgb = np.zeros((20, 30, 3), np.uint8)
-    rgb[..., 1] = 100
-    Image.fromarray(rgb).save(tmp_path / "f.png")
     np.savez(tmp_path / "g.npz", x=a[0], y=a[1].astype(np.float64))
-    names = ["a.npy", "b.npz", "c.tif", "d.fits", "e.png", "f.png", "g.npz"]
+    names = ["a.npy", "b.npz", "c.tif", "d.fits", "e.png", "g.npz"]      # colour PNGs: refused
     fr = read_images([tmp_path / n for n in names])
     assert all(isinstance(f, InputFrame) for f in fr)
-    assert len(fr) == 1 + 3 + 3 + 2 + 1 + 1 + 2
+    assert len(fr) == 1 + 3 + 3 + 2 + 1 + 2
     got = [f.data for f in fr]
-    want = [a[0], *a, *a, a[0], a[1], a[1] >> 4, np.full((20, 30), 0.587 * 100), a[0], a[1]]
+    want = [a[0], *a, *a, a[0], a[1], a[1] >> 4, a[0], a[1]]
     for g, w in zip(got, want):
         assert g.ndim == 2 and np.allclose(g, w)
     assert [f.time_utc for f in fr[1:4]] == ["2001-01-01T00:00:00", "2001-01-01T00:00:01",
@@ -230,3 +227,33 @@ def test_files_are_recognised_by_content_as_well_as_extension(tmp_path):
     got = read_images([tmp_path / "array.fits", tmp_path / "pic.npy"])
     assert np.array_equal(got[0].data, a)
     assert np.array_equal(got[1].data, a.astype(np.uint8))
+
+
+def test_8bit_and_1bit_images_map_by_a_fixed_rule_and_colour_is_refused(tmp_path):
+    from PIL import Image
+    a = (np.arange(16 * 16) % 256).astype(np.uint8).reshape(16, 16)
+    Image.fromarray(a).save(tmp_path / "g8.png")
+    fr = read_images([tmp_path / "g8.png"])[0]
+    assert fr.bits == 8
+    c, m = to_counts(fr.data, bits=fr.bits)
+    assert m == {"method": "shift_up", "shift": 4, "from_bits": 8}
+    assert np.array_equal(c, a.astype(np.uint16) * 16)                  # 255 -> 4080
+    Image.fromarray(a > 100).save(tmp_path / "b1.png")
+    fr = read_images([tmp_path / "b1.png"])[0]
+    c, m = to_counts(fr.data, bits=fr.bits)
+    assert fr.bits == 1 and m["method"] == "binary" and set(np.unique(c)) == {0, 4095}
+    for mode in ("RGB", "RGBA"):
+        Image.fromarray(np.stack([a] * len(mode), -1)).save(tmp_path / f"{mode}.png")
+        with pytest.raises(ImageError, match=f"{mode}.png: a colour image \\(mode {mode}\\)"):
+            read_images([tmp_path / f"{mode}.png"])
+
+
+def test_a_file_without_a_finite_pixel_is_refused_but_a_nan_plane_is_read(tmp_path):
+    np.save(tmp_path / "nan.npy", np.full((8, 8), np.nan))
+    with pytest.raises(ImageError, match="nan.npy: no finite pixel"):
+        read_images([tmp_path / "nan.npy"])
+    stack = np.ones((3, 8, 8))
+    stack[1] = np.nan                                  # a NaN frame inside a sequence: flagged
+    np.save(tmp_path / "seq.npy", stack)
+    frames = read_images([tmp_path / "seq.npy"])
+    assert len(frames) == 3 and "nan" in frame_flags(frames[1].data)
