@@ -375,6 +375,8 @@ def summary_table(s: dict) -> str:
 def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
     """The figures of issue 8 beside the recording; returns their paths."""
     from . import figures as fig
+    from .console import note
+    note(f"uvisi event: writing the figures{' and the GIF' if gif else ''} to {out_dir} ...")
     out_dir = Path(out_dir)
     outs = ev.outcomes
     paths = []

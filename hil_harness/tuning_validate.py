@@ -131,7 +131,7 @@ def _savefig(fig, path):
     fd, tmp = temp_beside(path, prefix=path.stem + ".", suffix=".png")
     os.close(fd)
     try:
-        fig.savefig(tmp, dpi=90)
+        fig.savefig(tmp, dpi=90, bbox_inches="tight")        # titles are never clipped
         os.replace(tmp, path)
     finally:
         if os.path.exists(tmp):
@@ -235,7 +235,9 @@ def plot_rank_over_time(tset, evs, path, title=""):
     for ax in axs.flat[len(groups):]:
         ax.axis("off")
     axs.flat[0].legend(fontsize=7)
-    fig.suptitle(title or "object's reported rank over time (0 = not reported; 1 = top)",
+    import textwrap
+    fig.suptitle(textwrap.fill(title or "object's reported rank over time (0 = not reported; "
+                                        "1 = top)", width=max(40, int(18 * 3.8 * nc))),
                  fontsize=10)
     fig.tight_layout()
     _savefig(fig, path)
