@@ -72,7 +72,7 @@ def identification(params: dict) -> dict:
     from flightsw.ip.frame import process_frame
     from flightsw.messages import Feedback
     from flightsw.records import load_record
-    from hil_harness.tuning_data import _load_sequence, _prediction, scenario_from_entry
+    from hil_harness.tuning_data import _prediction, load_sequence, scenario_from_entry
 
     plain, over = split_overrides(params)
     bad = sorted(set(plain) - _IDENT_KEYS)
@@ -92,7 +92,7 @@ def identification(params: dict) -> dict:
     noise = float(plain.get("predict_noise_px", 3.0))
     has_object = bool(plain.get("object", True))
     record = load_record(plain.get("record", "aurora"))
-    seq = _load_sequence(plain.get("sequence", "aurora"))
+    seq = load_sequence(plain.get("sequence", "aurora"))
     scn = scenario_from_entry(plain.get("scenario", "aurora_surge_wfov_uv"), over, seed)
     world = scn.world()
     world.reset()

@@ -39,7 +39,6 @@ Optimiser (:func:`optimise_closed_loop`)
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -50,8 +49,8 @@ from flightsw.records import Record, load_record
 from .closed_loop import replay, score_top1
 from .rates import rate
 from .tuning_data import TrainingSet, load_sequence
-from .tuning_fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, object_distances,
-                         quantile_distance, threshold_record)
+from .tuning_fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, scale_to_chi2,
+                         threshold_record)
 
 __all__ = ["RATE_KEYS", "PRIOR_OF", "Replayer", "optimise_closed_loop", "cross_validate_closed",
            "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK", "validate_closed_loop",
@@ -191,19 +190,6 @@ def _w_from_u(u):
     return np.where(u < LOG_W_OFF, 0.0, 10.0 ** u)
 
 
-def _scale_to_chi2(fr: FastRanker, w) -> np.ndarray:
-    """Weights scaled (the ranking unchanged) so the object's median distance equals n."""
-    n = int(np.count_nonzero(w))
-    d = fr.distances(w)
-    dobj = np.where(fr.isobj, d, np.inf).min(axis=1)
-    dobj = dobj[np.isfinite(dobj)]
-    med = float(np.median(dobj)) if dobj.size else 0.0
-    if not n or not med > 0 or not math.isfinite(med):
-        return w
-    s = float(np.clip(n / med, 1e-6 / max(w.max(), 1e-300), 1e6 / max(w.max(), 1e-300)))
-    return np.array([float(f"{x:.3g}") if x else 0.0 for x in w * s])
-
-
 def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, popsize,
             progress=False):
     """Differential evolution of the log-weights on the closed-loop rate (module docstring)."""
@@ -271,7 +257,7 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
         fr0 = FastRanker(t0, rec)
         w, s, n = _search(rp, rec, fr0, centroid_penalty, seed, maxiter, popsize, progress)
         evals += n
-        w = _scale_to_chi2(fr0, w)
+        w = scale_to_chi2(fr0, w)
         rec = rec.replace(weight=tuple(float(x) for x in w))
         k, nn = rp.top1(rec)
         scores["on" if q else "off"] = rate(k, nn)

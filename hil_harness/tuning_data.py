@@ -63,7 +63,8 @@ from flightsw.messages import FEATURE_NAMES, N_FEATURES
 from .fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
-           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence"]
+           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence",
+           "map_jobs"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -418,9 +419,6 @@ def load_sequence(name_or_path, base_dir=None, frame_shape=None):
     return seq
 
 
-_load_sequence = load_sequence          # older spelling, kept for existing callers
-
-
 def _deep_merge(base, over):
     out = copy.deepcopy(base)
     for k, v in over.items():
@@ -628,6 +626,34 @@ def _run_job(job):
     return real_set(entry, seq, base_dir)
 
 
+def map_jobs(fn, jobs: list, workers: int, desc: str, unit: str, progress: bool) -> list:
+    """``[fn(j) for j in jobs]``, in order, on ``workers`` processes when there are several jobs and
+    workers (``fn`` module-level), with a progress bar when ``progress``."""
+    bar = None
+    if progress:
+        from tqdm import tqdm
+        bar = tqdm(total=len(jobs), desc=desc, unit=unit)
+    out = []
+    try:
+        if workers > 1 and len(jobs) > 1:
+            from concurrent.futures import ProcessPoolExecutor
+            with ProcessPoolExecutor(min(workers, len(jobs))) as ex:
+                results = ex.map(fn, jobs)
+                for r in results:
+                    out.append(r)
+                    if bar:
+                        bar.update(1)
+        else:
+            for j in jobs:
+                out.append(fn(j))
+                if bar:
+                    bar.update(1)
+    finally:
+        if bar:
+            bar.close()
+    return out
+
+
 def build_set(spec, progress: bool = False, workers: int | None = None) -> TrainingSet:
     """Build a TrainingSet from a :class:`SetSpec`, a spec dict or a spec TOML path (or load a
     saved ``.npz`` set)."""
@@ -645,25 +671,7 @@ def build_set(spec, progress: bool = False, workers: int | None = None) -> Train
             for s in e["seeds"]]
     jobs += [("real", e, None, spec.sequence, spec.base_dir) for e in spec.reals]
     workers = spec.workers if workers is None else workers
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(jobs), desc=f"[tune] set {spec.name}", unit="run")
-    parts = []
-    if workers > 1 and len(jobs) > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(min(workers, len(jobs))) as ex:
-            for part in ex.map(_run_job, jobs):
-                parts.append(part)
-                if bar:
-                    bar.update(1)
-    else:
-        for job in jobs:
-            parts.append(_run_job(job))
-            if bar:
-                bar.update(1)
-    if bar:
-        bar.close()
+    parts = map_jobs(_run_job, jobs, workers, f"[tune] set {spec.name}", "run", progress)
     meta = {"name": spec.name, "sequence": spec.sequence, "radius_px": spec.radius_px,
             "predict": spec.predict, "predict_noise_px": spec.predict_noise_px,
             "spec": spec.raw}

@@ -25,7 +25,7 @@ from flightsw.tp import ImagerGeometry
 
 from .closed_loop import ReplayEvent
 from .fileio import temp_beside
-from .tuning_data import SetSpec, load_labels, resolve_path, scenario_from_entry
+from .tuning_data import SetSpec, load_labels, map_jobs, resolve_path, scenario_from_entry
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
            "imager_geometry", "real_to_counts", "NOMINAL_DT"]
@@ -192,25 +192,5 @@ def build_events(spec, cache_dir=None, workers: int | None = None, progress=Fals
     jobs = [("scenario", e, s, base, cache_dir) for e in spec.scenarios for s in e["seeds"]]
     jobs += [("real", e, None, base, cache_dir) for e in spec.reals]
     workers = spec.workers if workers is None else workers
-    bar = None
-    if progress:
-        from tqdm import tqdm
-        bar = tqdm(total=len(jobs), desc=f"[tune] render {spec.name}", unit="event")
-    out = []
-    try:
-        if workers > 1 and len(jobs) > 1:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(min(workers, len(jobs))) as ex:
-                for ev in ex.map(_job, jobs):
-                    out.append(ev)
-                    if bar:
-                        bar.update(1)
-        else:
-            for j in jobs:
-                out.append(_job(j))
-                if bar:
-                    bar.update(1)
-    finally:
-        if bar:
-            bar.close()
-    return out
+    return map_jobs(_job, jobs, workers, f"[tune] render {spec.name}", "event", progress)
+

@@ -58,7 +58,8 @@ from flightsw.records import Record, load_record
 
 __all__ = ["fit_record", "optimise_record", "FastRanker", "flight_rank", "FlightRanking",
            "gof_threshold_for_frr", "object_rows", "cross_validate", "OptimiseResult", "top1_rate",
-           "optimise_weights", "threshold_record", "object_distances", "quantile_distance"]
+           "optimise_weights", "threshold_record", "object_distances", "quantile_distance",
+           "scale_to_chi2"]
 
 COL, ROW = 1, 2
 CENTRE = {"row": 122.0, "col": 128.0}
@@ -377,10 +378,14 @@ def optimise_weights(tset, record, seed: int = 0, maxiter: int = 60, popsize: in
     res = differential_evolution(obj, [LOG_W] * len(free), init=init, maxiter=maxiter, tol=1e-8,
                                  seed=seed, polish=False, mutation=(0.5, 1.0), recombination=0.7,
                                  updating="immediate")
-    w = full(res.x)
-    w = w * _chi2_scale(fr, w)
-    w = np.array([_round_sig(x) for x in w])
+    w = scale_to_chi2(fr, full(res.x))
     return tuple(float(x) for x in w), fr.score(w)
+
+
+def scale_to_chi2(fr, w) -> np.ndarray:
+    """``w`` scaled (the ranking unchanged) so the object's median distance equals n, each weight
+    rounded to 3 significant digits."""
+    return np.array([_round_sig(x) for x in w * _chi2_scale(fr, w)])
 
 
 def _chi2_scale(fr, w) -> float:
