@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import decode32_array, encode32
-from flightsw.arith.m1750_float import _dec32_k
+from flightsw.arith.m1750_float import decode32_k
 from flightsw.budget import IP1750, Ledger
 from flightsw.ip.colour import _CYC as _CYC_COLOUR
 from flightsw.ip.colour import _DIRECT, _as_int_image, _colour_kernel
@@ -107,10 +107,10 @@ def _backend_kernel(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
         k = order[q]
         b = 15 * q
         cand[b] = k + 1
-        fc[b + 1] = _dec32_k(d[k])
-        fc[b + 2] = _dec32_k(gof[q])
+        fc[b + 1] = decode32_k(d[k])
+        fc[b + 2] = decode32_k(gof[q])
         for i in range(12):
-            fc[b + 3 + i] = _dec32_k(words[i, k])
+            fc[b + 3 + i] = decode32_k(words[i, k])
     return labels, pack
 
 

@@ -21,7 +21,7 @@ from flightsw.arith.m1750 import (
     FLAG_DOMAIN, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48, MIN32, MIN48,
     fa32, fd32, fm32, fs32, pack32, pack48, sqrt32,
 )
-from flightsw.arith.m1750_float import _dec32_k, _dec48_k, enc_mantissa
+from flightsw.arith.m1750_float import decode32_k, decode48_k, enc_mantissa
 from flightsw.arith.m1750_math import MATH_OP_MIX
 from flightsw.budget import m1750_cycles
 
@@ -83,10 +83,10 @@ def enc48(x):
     return _enc(x, 39)
 
 
-dec32 = _dec32_k          # packed 32-bit float -> float64 (exact)
+dec32 = decode32_k          # packed 32-bit float -> float64 (exact)
 
 
-dec48 = _dec48_k          # packed 48-bit float -> float64 (exact)
+dec48 = decode48_k          # packed 48-bit float -> float64 (exact)
 
 
 # ------------------------------------------------------------------------------------------------
