@@ -19,7 +19,7 @@ from flightsw.budget import Ledger
 from flightsw.ip import ImageProcessor, load_default_sequence
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import sequence_from_words, sequence_to_words
-from flightsw.messages import AttitudeData, Feedback, TrackCommand
+from flightsw.messages import Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import TrackProcessor
 
@@ -141,10 +141,7 @@ def _replay_through_module(fx: dict) -> list[dict]:
         row["message_words"] = np.asarray(out.words, np.uint16)
         if not fx["tp_ran"][i]:
             continue
-        att = AttitudeData(t=float(fx["att_t"][i]), q_body_to_eci=fx["att_q"][i].copy(),
-                           rate_body=fx["att_rate"][i].copy(), r_eci=fx["att_r"][i].copy(),
-                           v_eci=fx["att_v"][i].copy(), valid=bool(fx["att_valid"][i]))
-        cmd = tp.step(row["message_words"], att, ledger=ledger)
+        cmd = tp.step(row["message_words"], FR.attitude(fx, i), ledger=ledger)
         command = row["command_words"] = np.asarray(cmd.to_words(), np.uint16)
         row["snapshot"] = tp.snapshot()
         dec = TrackCommand.from_words(command)
