@@ -473,9 +473,34 @@ class Feedback:
     object_type: str = ""
     locked: bool = False
 
+    def __post_init__(self):
+        """Checked as the IP reads it: both coordinates finite numbers or both NaN, a known object
+        type, a bool lock (MessageError naming the field otherwise)."""
+        owner = "feedback"
+        vals = []
+        for name in ("predicted_row", "predicted_col"):
+            v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer,
+                                                                     np.floating)):
+                raise MessageError(owner, None, name, f"{v!r} must be a number (NaN: none)")
+            v = float(v)
+            if math.isinf(v):
+                raise MessageError(owner, None, name, f"{v!r} must be finite (NaN: none)")
+            vals.append(v)
+        if math.isnan(vals[0]) != math.isnan(vals[1]):
+            raise MessageError(owner, None, "predicted_row" if math.isnan(vals[0]) else
+                               "predicted_col", "a prediction needs both coordinates (or neither)")
+        self.predicted_row, self.predicted_col = vals
+        if not isinstance(self.object_type, str) or self.object_type not in OBJECT_TYPE_CODES:
+            raise MessageError(owner, None, "object_type", f"{self.object_type!r} is not one of "
+                               f"{sorted(OBJECT_TYPE_CODES)}")
+        if self.locked not in (True, False):
+            raise MessageError(owner, None, "locked", f"{self.locked!r} must be a bool")
+        self.locked = bool(self.locked)
+
     @property
     def has_prediction(self) -> bool:
-        return bool(np.isfinite(self.predicted_row) and np.isfinite(self.predicted_col))
+        return not math.isnan(self.predicted_row)
 
 
 @dataclass
