@@ -25,7 +25,7 @@ from flightsw.budget import ADSP2100, DSP, IP1750, PACE1750A, Ledger
 __all__ = ["frontend_step_rows", "backend_rows", "frontend_cycle_markdown"]
 
 
-def _frame(seed=11):
+def realistic_frame(seed=11):
     """12-bit 256x244 frame: Poisson background ~100, 30 point sources, one elongated blob."""
     rng = np.random.default_rng(seed)
     yy, xx = np.mgrid[:244, :256].astype(np.float64)
@@ -58,11 +58,11 @@ def frontend_step_rows(host_times=True, window=64):
     from flightsw.ip import filters as flt
     from flightsw.ip import threshold as th
     from flightsw.ip.preprocess import preprocess
-    frame = _frame()
+    frame = realistic_frame()
     sub = preprocess(frame, 1, None, window)
     img = sub.image
     hp = dt.detrend_highpass(img)
-    taps = dt._default_taps()
+    taps = dt.default_taps()
     g15 = fft.fft_kernel(fft.gaussian_kernel_q15(15, 3.0), fft.choose_tile(window, window, 15))
     g9 = fft.fft_kernel(fft.gaussian_kernel_q15(9, 1.8), fft.choose_tile(window, window, 9))
     k3s, k3m = flt.smoothing_kernel(3), flt.matched_kernel(3)
@@ -83,7 +83,7 @@ def frontend_step_rows(host_times=True, window=64):
          lambda: flt.correlate_q15_k(img, k7)),
         ("detrend high-pass (7x7 Gaussian, separable)",
          lambda led: dt.detrend_highpass(img, taps, led, "s"),
-         lambda: dt._highpass_k(img, taps, dt.G_MAX)),
+         lambda: dt.highpass_k(img, taps, dt.G_MAX)),
         ("detrend polynomial (2nd order surface)", lambda led: dt.detrend_polynomial(img, led, "s"),
          lambda: dt.detrend_polynomial(img)),
         ("threshold (mean + alpha std, binarise)",
@@ -165,5 +165,5 @@ def frontend_cycle_markdown(host_times=True):
     return "\n".join(out) + "\n"
 
 
-if __name__ == "__main__":       # python -m flightsw.ip.budget_tables
+if __name__ == "__main__":       # python -m bench.budget_tables
     print(frontend_cycle_markdown())

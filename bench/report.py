@@ -32,7 +32,7 @@ DATA = ROOT / "bench" / "results.json"      # the last full set of results, merg
 
 #: (module, function) returning Markdown for the emulated-budget section; missing ones are skipped
 BUDGET_PROVIDERS = (
-    ("flightsw.ip.budget_tables", "frontend_cycle_markdown"),
+    ("bench.budget_tables", "frontend_cycle_markdown"),
     ("hil_harness.budget", "budget_markdown"),
 )
 

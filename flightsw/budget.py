@@ -130,7 +130,7 @@ class Ledger:
             raise ValueError(f"period_s must be positive, got {period_s!r}")
         self.period_s = float(period_s)
         self._entries: dict[tuple[str, str], int] = {}
-        self._queued: list = []          # checked charge blocks not yet in _entries (_queue)
+        self._queued: list = []          # checked charge blocks not yet in _entries
 
     def charge(self, processor: str, stage: str, cycles: int) -> None:
         """Add ``cycles`` (>= 0) spent by ``processor`` in ``stage``."""
@@ -152,11 +152,11 @@ class Ledger:
             key = (processor, stage)
             entries[key] = entries.get(key, 0) + cycles
 
-    def _queue(self, keys, cycles) -> None:
-        """Queue charges the caller has checked: ``keys`` (processor, stage) pairs whose processors
-        are in :attr:`processors`, ``cycles`` non-negative Python ints, as many. They join the
-        entries, in order, before anything reads or adds to them. The per-frame path of
-        ``process_frame`` (one list append instead of the per-charge checks)."""
+    def charge_block(self, keys, cycles) -> None:
+        """Charge a block the caller has checked: ``keys`` (processor, stage) pairs whose
+        processors are in :attr:`processors`, ``cycles`` as many non-negative Python ints. The
+        block joins the entries, in order, before anything reads or adds to them (the image
+        processor's per-frame charges: one list append instead of the per-charge checks)."""
         self._queued.append((keys, cycles))
 
     def _settle(self) -> None:

@@ -57,18 +57,18 @@ def test_charge_many_is_the_same_as_charging_one_by_one():
 
 
 def test_queued_blocks_join_in_charge_order():
-    """process_frame queues its checked charges (Ledger._queue); every reader sees them in order."""
+    """process_frame queues its checked charges (Ledger.charge_block); every reader sees them in order."""
     led, ref = Ledger(), Ledger()
     led.charge("dsp", "compaction", 0)
-    led._queue((("dsp", "threshold"), ("ip1750", "colour")), (10, 20))
+    led.charge_block((("dsp", "threshold"), ("ip1750", "colour")), (10, 20))
     led.charge("dsp", "threshold", 5)                    # after the queued block
-    led._queue((("ip1750", "colour"),), (1,))
+    led.charge_block((("ip1750", "colour"),), (1,))
     for p, s, c in [("dsp", "compaction", 0), ("dsp", "threshold", 10), ("ip1750", "colour", 20),
                     ("dsp", "threshold", 5), ("ip1750", "colour", 1)]:
         ref.charge(p, s, c)
     assert list(led.stages("dsp").items()) == [("compaction", 0), ("threshold", 15)]
     assert led.as_dict() == ref.as_dict() and led.table() == ref.table()
-    led._queue((("ip1750", "rank"),), (7,))
+    led.charge_block((("ip1750", "rank"),), (7,))
     merged = Ledger()
     merged.merge(led)                                    # reads the other's queued charges too
     assert merged.cycles("ip1750") == 28 and merged.cycles(stage="rank") == 7
@@ -162,7 +162,8 @@ def test_listings_equal_the_charged_formulas(h, w):
 
 
 def test_sequence_listings_are_what_the_ledger_is_charged():
-    from flightsw.ip import ProcessingSequence, load_default_sequence
+    from flightsw.ip import ProcessingSequence, load_default_sequence, process_frame
+    from flightsw.records import load_record
     rng = np.random.default_rng(3)
     frame = rng.poisson(100, (244, 256)).astype(np.uint16)
     for name in ("satellite", "aurora"):
@@ -170,7 +171,7 @@ def test_sequence_listings_are_what_the_ledger_is_charged():
         d["preprocess"].update(window=24, compaction=1)
         seq = ProcessingSequence.from_dict(d)
         led = Ledger()
-        res = seq.run_frame(frame, ledger=led)
+        res = process_frame(frame, seq, load_record("satellite"), ledger=led, want_stages=False)
         h, w = res.subimage.size
         charged = {s: c for s, c in led.stages("dsp").items() if s != "compaction"}
         assert charged == {lst.stage: lst.cycles() for lst in C.sequence_listings(seq, h, w)}

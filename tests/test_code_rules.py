@@ -32,35 +32,12 @@ ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
     ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_f48'),
     ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_ov1'),
     ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_ov2'),
-    ('flightsw.ip.fftfilter', 'flightsw.ip.filters', '_as_words'),
-    ('flightsw.ip.frame', 'flightsw.ip.colour', '_CYC'),
-    ('flightsw.ip.frame', 'flightsw.ip.colour', '_DIRECT'),
-    ('flightsw.ip.frame', 'flightsw.ip.colour', '_as_int_image'),
-    ('flightsw.ip.frame', 'flightsw.ip.colour', '_colour_kernel'),
-    ('flightsw.ip.frame', 'flightsw.ip.features', '_features_fm'),
-    ('flightsw.ip.frame', 'flightsw.ip.features', '_norm_consts'),
-    ('flightsw.ip.frame', 'flightsw.ip.features', '_normalise_fm'),
-    ('flightsw.ip.frame', 'flightsw.ip.preprocess', '_new_subimage'),
-    ('flightsw.ip.frame', 'flightsw.ip.rank', '_CYC'),
-    ('flightsw.ip.frame', 'flightsw.ip.rank', '_rank_kernel'),
-    ('flightsw.ip.frame', 'flightsw.ip.rank', '_record_words'),
-    ('flightsw.ip.frame', 'flightsw.ip.sequence', '_front_fast_k'),
-    ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_check_frame'),
-    ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_compact_k'),
-    ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_new_subimage'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_deep_merge'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_prediction'),
     ('hil_harness.cli_tune', 'hil_harness.tuning_validate', '_atomic_text'),
 }
 #: (module, accessed module, name) ``module._name`` reads
-ALLOWED_PRIVATE_ACCESS: set[tuple[str, str, str]] = {
-    ('flightsw.ip.budget_tables', 'flightsw.ip.detrend', '_default_taps'),
-    ('flightsw.ip.budget_tables', 'flightsw.ip.detrend', '_highpass_k'),
-    ('flightsw.ip.sequence', 'flightsw.ip.detrend', '_check_taps'),
-    ('flightsw.ip.sequence', 'flightsw.ip.detrend', '_default_taps_cached'),
-    ('flightsw.ip.sequence', 'flightsw.ip.detrend', '_highpass_k'),
-    ('flightsw.ip.sequence', 'flightsw.ip.filters', '_as_words'),
-}
+ALLOWED_PRIVATE_ACCESS: set[tuple[str, str, str]] = set()
 #: import cycles, each as the sorted tuple of its modules
 ALLOWED_CYCLES: set[tuple[str, ...]] = {
     ('hil_harness.event', 'hil_harness.event_io'),

@@ -473,14 +473,14 @@ def test_process_frame_end_to_end():
     assert np.array_equal(be.order, res.backend.order)
 
 
-def test_process_frame_fast_path_equals_the_stages_path():
-    """want_stages=False runs the front end fused in one jitted call: the same message, ledger and
-    threshold as the step-by-step path, for the shipped sequences, predictions and alpha overrides."""
+def test_process_frame_without_stage_images_gives_the_same_message():
+    """Stage images are an output option of the one pipeline: with or without them, the same
+    message, ledger and threshold, for the shipped sequences, predictions and alpha overrides; the
+    message's candidate table is the words decoded exactly."""
     rng = np.random.default_rng(9)
     rec = load_record("star").replace(gof_threshold=0.0)
     for name in ("satellite", "satellite_c2", "aurora"):
         seq = load_default_sequence(name)
-        assert seq.fusable
         for k in range(3):
             frame, truth = _star_frame(rng, 50)
             fb = None if k == 0 else Feedback(predicted_row=float(truth[k, 0]),
@@ -490,8 +490,13 @@ def test_process_frame_fast_path_equals_the_stages_path():
             a = process_frame(frame, seq, rec, fb, ledger=l1, alpha_q12=aq)
             b = process_frame(frame, seq, rec, fb, ledger=l2, alpha_q12=aq, want_stages=False)
             assert a.message == b.message and b.stages == []
-            cands = b.backend.candidates()
-            assert cands.tobytes() == b.backend._candidates_decoded().tobytes()
+            cands, be = b.backend.candidates(), b.backend
+            assert np.array_equal(cands["label"], be.order + 1)
+            assert np.array_equal(cands["gof"], decode32_array(be.gof_words))
+            assert np.array_equal(cands["distance"], decode32_array(be.distance_words))
+            vals = decode32_array(be.feature_words[be.order]) if len(be.order) else None
+            for i, fname in enumerate(FEATURE_NAMES):
+                assert vals is None or np.array_equal(cands[fname], vals[:, i])
             assert l1.stages("dsp") == l2.stages("dsp") and l1.stages("ip1750") == l2.stages("ip1750")
             assert l1.table() == l2.table()                      # the same charges, same order
             assert a.context["threshold"] == b.context["threshold"]
@@ -546,9 +551,17 @@ def test_sequence_with_back_end_steps_via_registry():
     frame, _ = _star_frame(rng, 80)
     res = process_frame(frame, seq, load_record("aurora"))
     assert res.message.record_id == load_record("star").record_id and res.message.count <= 5
-    # the registered runners give the same answer through ProcessingSequence.run
-    out = seq.run(seq.window(frame), Ledger(), {"record": load_record("aurora")})
-    rk = out.context["rank"]
+    # the same as the single-stage functions composed with the steps' flags and record
+    from flightsw.ip.threshold import threshold
+    sub = seq.window(frame)
+    thr = threshold(sub.image, 3.0, "clip")[0]
+    col = colour(thr, diagonal=False)
+    raw, _ = features_words(col.sums, intensity_centroid=False)
+    origin = (sub.origin[0] * sub.factor, sub.origin[1] * sub.factor)
+    words, _ = normalise_words(raw, sub.factor, origin, "wfov_vis")
+    h, w = sub.size
+    rk = rank_words(words, load_record("star"), (origin[0] + h / 2.0, origin[1] + w / 2.0),
+                    max_candidates=5)
     assert np.array_equal(rk.order, res.backend.order)
     with pytest.raises(SequenceError, match="diagonal"):
         ProcessingSequence.from_dict({"steps": [{"op": "threshold", "alpha": 3.0},

@@ -37,9 +37,10 @@ HEADER = re.compile(r"^Cases\s*$")
 PENDING_MODULES: set[str] = {
     "flightsw.arith.adsp2100", "flightsw.arith.m1750_float",
     "flightsw.arith.m1750_int", "flightsw.arith.m1750_lanes", "flightsw.arith.m1750_math",
-    "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features", "flightsw.ip.fftfilter",
-    "flightsw.ip.filters", "flightsw.ip.frame", "flightsw.ip.preprocess", "flightsw.ip.rank",
-    "flightsw.ip.sequence", "flightsw.ip.threshold", "flightsw.messages",
+    "flightsw.ip.backend", "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features",
+    "flightsw.ip.fftfilter",
+    "flightsw.ip.filters", "flightsw.ip.pipeline", "flightsw.ip.preprocess", "flightsw.ip.rank",
+    "flightsw.ip.threshold", "flightsw.messages",
     "flightsw.tp.alphabeta", "flightsw.tp.association", "flightsw.tp.attitude",
     "flightsw.tp.command", "flightsw.tp.dynamics", "flightsw.tp.frame", "flightsw.tp.ekf", "flightsw.tp.f1750",
     "flightsw.tp.gates", "flightsw.tp.geometry", "flightsw.tp.layout", "flightsw.tp.opportunity",

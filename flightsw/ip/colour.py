@@ -88,7 +88,7 @@ def colour_cycles(ops) -> int:
     return int(total)
 
 
-_CYC = np.array([m1750_cycles(COLOUR_MIX[e]) for e in _EVENTS], np.int64)
+OP_CYCLES = np.array([m1750_cycles(COLOUR_MIX[e]) for e in _EVENTS], np.int64)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -360,7 +360,7 @@ def _run_end(U, c):
 
 
 @njit(cache=True)
-def _colour_kernel(img, diagonal, want_labels, want_sums=True):
+def colour_k(img, diagonal, want_labels, want_sums=True):
     """Raster-scan blob colouring of ``img`` (integer or bool [H, W]; non-zero = on).
 
     Returns (labels int32 [H, W] final colours 1..N (an empty [0, 0] array if not ``want_labels``), N,
@@ -448,14 +448,14 @@ def _colour_kernel(img, diagonal, want_labels, want_sums=True):
 
 @njit(cache=True)
 def _label_kernel(img, diagonal):
-    """:func:`_colour_kernel` without the sums: (labels, N, bad) (fewer arrays to hand back)."""
-    labels, n, _, _, bad = _colour_kernel(img, diagonal, True, False)
+    """:func:`colour_k` without the sums: (labels, N, bad) (fewer arrays to hand back)."""
+    labels, n, _, _, bad = colour_k(img, diagonal, True, False)
     return labels, n, bad
 
 
 @njit(cache=True)
 def _sums_from_labels(img, labels, count):
-    """Per-blob sums (as :func:`_colour_kernel`) of an image given its labels 1..count."""
+    """Per-blob sums (as :func:`colour_k`) of an image given its labels 1..count."""
     H, W = img.shape
     sums = np.zeros((count + 1, NSUM), np.int64)
     for r in range(H):
@@ -497,7 +497,7 @@ class ColourResult:
         return iter((self.labels, self.count))
 
 
-def _as_int_image(image, name="image") -> np.ndarray:
+def as_int_image(image, name="image") -> np.ndarray:
     a = np.asarray(image)
     if a.ndim != 2 or a.shape[0] == 0 or a.shape[1] == 0:
         raise ValueError(f"{name} must be a non-empty 2-D array, got shape {a.shape}")
@@ -517,8 +517,8 @@ def _as_int_image(image, name="image") -> np.ndarray:
     raise ValueError(f"{name} has unsupported dtype {a.dtype}")
 
 
-#: dtypes the kernels take as they are (no copy); others go through :func:`_as_int_image`
-_DIRECT = (np.bool_, np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64)
+#: dtypes the kernels take as they are (no copy); others go through :func:`as_int_image`
+DIRECT_DTYPES = (np.bool_, np.uint8, np.int8, np.uint16, np.int16, np.int32, np.uint32, np.int64)
 _RANGE_MSG = "holds values outside the 16-bit word range -32768..65535"
 
 
@@ -526,9 +526,9 @@ def _direct(image):
     """``image`` itself when the kernels can read it without a copy (C-contiguous 2-D, non-empty,
     an integer or bool dtype; the 16-bit range is checked inside the scan), else the checked copy."""
     if isinstance(image, np.ndarray) and image.ndim == 2 and image.size \
-            and image.dtype.type in _DIRECT and image.flags.c_contiguous:
+            and image.dtype.type in DIRECT_DTYPES and image.flags.c_contiguous:
         return image
-    return _as_int_image(image)
+    return as_int_image(image)
 
 
 def colour(image, diagonal: bool = True, ledger: Ledger | None = None,
@@ -551,10 +551,10 @@ def colour(image, diagonal: bool = True, ledger: Ledger | None = None,
     if diagonal not in (True, False, 0, 1):
         raise ValueError(f"diagonal={diagonal!r} must be a bool")
     img = _direct(image)
-    labels, n, sums, ops, bad = _colour_kernel(img, bool(diagonal), True)
+    labels, n, sums, ops, bad = colour_k(img, bool(diagonal), True)
     if bad:
         raise ValueError(f"image {_RANGE_MSG}")
-    cyc = int(np.dot(_CYC, ops))
+    cyc = int(np.dot(OP_CYCLES, ops))
     if ledger is not None:
         ledger.charge(IP1750, stage, cyc)
     return ColourResult(labels, int(n), sums, ops, cyc)
@@ -579,7 +579,7 @@ def label(image, diagonal: bool = True):
 def blob_sums(image, labels, count) -> np.ndarray:
     """Per-blob sums (columns :data:`SUM_NAMES`) of ``image`` over ``labels`` 1..count ->
     int64 [count + 1, NSUM]; the same integers the colouring scan accumulates."""
-    img = _as_int_image(image)
+    img = as_int_image(image)
     lab = np.asarray(labels)
     if lab.shape != img.shape:
         raise ValueError(f"labels shape {lab.shape} differs from image shape {img.shape}")

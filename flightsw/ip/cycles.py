@@ -388,8 +388,11 @@ def frontend_cycle_table(windows=(32, 64, 96, 128), sequence="satellite", compac
     list of dict: ``{"window", "shape", "stages": {stage: cycles}, "total", "ms_8MHz",
     "ms_12MHz", "frame_fraction_8MHz"}`` (the 8.192 MHz ADSP-2100 and 12.5 MHz 2100A clocks).
     """
+    from flightsw.ip.frame import process_frame
     from flightsw.ip.sequence import ProcessingSequence, load_default_sequence
+    from flightsw.records import load_record
     seq = load_default_sequence(sequence) if isinstance(sequence, str) else sequence
+    record = load_record("satellite")
     rng = np.random.default_rng(0)
     frame = rng.poisson(100, (244, 256)).astype(np.uint16)
     rows = []
@@ -400,7 +403,7 @@ def frontend_cycle_table(windows=(32, 64, 96, 128), sequence="satellite", compac
             d["preprocess"]["compaction"] = int(compaction)
         s = ProcessingSequence.from_dict(d)
         led = Ledger()
-        res = s.run_frame(frame, ledger=led)
+        res = process_frame(frame, s, record, ledger=led, want_stages=False)
         stages = led.stages("dsp")
         total = led.cycles("dsp")
         rows.append({"window": int(w), "shape": tuple(res.subimage.size), "stages": stages,

@@ -81,6 +81,7 @@ from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.ip.filters import gaussian_taps_q15
 
 __all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
+           "highpass_k", "polynomial_k", "polynomial_coefficients_k", "check_taps", "default_taps",
            "polynomial_cycles", "highpass_bound", "lowpass_q15", "polynomial_basis",
            "DEFAULT_HIGHPASS_SIGMA", "G_MAX"]
 
@@ -182,7 +183,9 @@ def _lowpass_k(img, taps, g):
 
 
 @njit(cache=True)
-def _highpass_k(img, taps, gmax):
+def highpass_k(img, taps, gmax):
+    """The high-pass detrender on an int16 [h, w] window (Q16.0) with 7 Q1.15 ``taps``; the block
+    headroom is capped at ``gmax``. Returns int16 [h, w] (Q16.0, AR_SAT)."""
     g = _headroom(img, gmax)
     lp, sh2 = _lowpass_k(img, taps, g)
     h, w = img.shape
@@ -207,7 +210,8 @@ def lowpass_q15(img, taps):
     return lp >> sh
 
 
-def _check_taps(taps):
+def check_taps(taps):
+    """7 low-pass taps as int16 Q1.15 words (>= 0, sum exactly 32768); ValueError otherwise."""
     t = np.asarray(taps)
     if t.ndim != 1 or t.shape[0] != 7:
         raise ValueError(f"low-pass taps: need 7 Q1.15 words, got shape {t.shape}")
@@ -227,21 +231,18 @@ def detrend_highpass(img, taps=None, ledger=None, stage="detrend_highpass"):
 
     Returns ndarray (h, w) int16 (Q16.0, saturated).
     """
-    taps = _default_taps() if taps is None else _check_taps(taps)
+    taps = default_taps() if taps is None else check_taps(taps)
     img = np.ascontiguousarray(img, np.int16)
-    out = _highpass_k(img, taps, G_MAX)
+    out = highpass_k(img, taps, G_MAX)
     if ledger is not None:
         ledger.charge("dsp", stage, highpass_cycles(*img.shape))
     return out
 
 
 @lru_cache(maxsize=None)
-def _default_taps_cached(sigma):
+def default_taps(sigma=DEFAULT_HIGHPASS_SIGMA):
+    """The 7 Q1.15 taps of the normalised Gaussian of ``sigma`` (pixels), cached."""
     return gaussian_taps_q15(sigma, 7)
-
-
-def _default_taps():
-    return _default_taps_cached(DEFAULT_HIGHPASS_SIGMA)
 
 
 def highpass_bound(taps, maxabs, sigma):
@@ -367,24 +368,50 @@ def _surface_sub_k(img, tables, cw, s):
     return out
 
 
-def _round_half_up_div(a, b):
-    return (a + b // 2) // b if b > 0 else None
+@njit(cache=True)
+def polynomial_coefficients_k(M, js, rs, ps):
+    """Q1.31 coefficient words ``c_k = round_half_up(M_k R_k / 2**(P_k + j_k - 31))``, saturated to
+    32 bits: the DSP's multiprecision multiply-round (module docstring).
 
-
-def polynomial_coefficients(M, h, w):
-    """Q1.31 coefficient words ``c_k`` from the moments (multiprecision integer routine; Python ints
-    stand for the DSP's double/triple words). Saturated to 32 bits."""
-    _, js, _, Rs, Ps = polynomial_basis(h, w)
+    ``M`` int64 [6] exact moments (``|M_k| < 2**40``), ``js`` int64 [6] table shifts, ``rs`` int64
+    [6] reciprocals ``R_k < 2**31``, ``ps`` int64 [6] their exponents. The product needs up to 71
+    bits, so it is formed as ``A 2**16 + B`` (``0 <= B < 2**16``) and rounded in two steps:
+    ``floor((A 2**16 + B + half) / 2**sh) = floor((A + floor((B + half) / 2**16)) / 2**(sh - 16))``.
+    Returns int64 [6].
+    """
     out = np.empty(6, np.int64)
+    lim = np.int64(2 ** 31 - 1)
     for k in range(6):
-        sh = Ps[k] + int(js[k]) - 31
-        prod = int(M[k]) * Rs[k]
-        if sh > 0:
-            c = (prod + (1 << (sh - 1))) >> sh
+        sh = ps[k] + js[k] - 31
+        m = M[k]
+        a = (m >> 16) * rs[k]                  # prod = a * 2**16 + b
+        b = (m & 0xFFFF) * rs[k]
+        a += b >> 16
+        b &= 0xFFFF
+        if sh >= 16:
+            c = (a + ((b + (np.int64(1) << (sh - 1))) >> 16)) >> (sh - 16)
+        elif abs(a) >= np.int64(1) << 46:      # |prod| >= 2**62: saturates at any sh < 16
+            c = lim if a > 0 else -lim - 1
+        elif sh > 0:
+            c = ((a << 16) + b + (np.int64(1) << (sh - 1))) >> sh
+        elif abs(a) >= np.int64(1) << 30:      # |prod| >= 2**46 before the left shift
+            c = lim if a > 0 else -lim - 1
         else:
-            c = prod << -sh
-        out[k] = min(max(c, -2 ** 31), 2 ** 31 - 1)
+            c = ((a << 16) + b) << (-sh) if -sh < 16 else (lim if a >= 0 else -lim - 1)
+        out[k] = min(max(c, -lim - 1), lim)
     return out
+
+
+@njit(cache=True)
+def polynomial_k(img, tables, js, rs, ps):
+    """The polynomial detrender on an int16 [h, w] window (Q16.0): block shift, the six moments,
+    the Q1.31 coefficients and the surface subtraction. ``tables`` int16 [6, h, w] and ``js``, ``rs``,
+    ``ps`` int64 [6] are :func:`polynomial_basis`'s ground constants. Returns (out int16 [h, w],
+    coefficient words int64 [6], block shift s)."""
+    s = _block_shift(img)
+    M = _moments_k(img, tables, js, s)
+    cw = polynomial_coefficients_k(M, js, rs, ps)
+    return _surface_sub_k(img, tables, cw, s), cw, s
 
 
 def detrend_polynomial(img, ledger=None, stage="detrend_polynomial", return_surface=False):
@@ -402,11 +429,8 @@ def detrend_polynomial(img, ledger=None, stage="detrend_polynomial", return_surf
     h, w = img.shape
     if h < 3 or w < 3:
         raise ValueError(f"window {h}x{w} too small for a second-order surface (need >= 3x3)")
-    tables, js, _, _, _ = polynomial_basis(h, w)
-    s = _block_shift(img)
-    M = _moments_k(img, tables, js, s)
-    cw = polynomial_coefficients(M, h, w)
-    out = _surface_sub_k(img, tables, cw, s)
+    tables, js, _, rs, ps = polynomial_basis(h, w)
+    out, cw, s = polynomial_k(img, tables, js, np.array(rs, np.int64), np.array(ps, np.int64))
     if ledger is not None:
         ledger.charge("dsp", stage, polynomial_cycles(h, w))
     if return_surface:

@@ -136,13 +136,13 @@ def _i2f48(v):
 @njit(cache=True)
 def _features_kernel(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)
-    (:func:`_features_fm`, blob-major)."""
-    o, fl = _features_fm(sums, count, intensity)
+    (:func:`features_k`, blob-major)."""
+    o, fl = features_k(sums, count, intensity)
     return np.ascontiguousarray(o.T), fl
 
 
 @njit(cache=True)
-def _features_fm(sums, count, intensity):
+def features_k(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [12, count], feature-major: row i
     = feature i of every blob; PI flags OR).
 
@@ -211,8 +211,8 @@ def _features_fm(sums, count, intensity):
     fl |= fd48_lanes(src, wf, ta)
     fl |= fm48_lanes(mc, mr, tb)
     fl |= fs48_lanes(ta, tb, m11)
-    fl |= fa48_lanes(mc, HALF48, ta)             # col, row: pixel centres at + 1/2
-    fl |= fa48_lanes(mr, HALF48, tb)
+    fl |= fa48_lanes(mc, np.int64(HALF48), ta)   # col, row: pixel centres at + 1/2
+    fl |= fa48_lanes(mr, np.int64(HALF48), tb)
     fl |= fs48_lanes(m20, m02, dm)
     fl |= fa48_lanes(m11, m11, t)
     fl |= fm48_lanes(dm, dm, sm)
@@ -230,16 +230,16 @@ def _features_fm(sums, count, intensity):
     fl |= fm32_lanes(o[0], o[0], n2)
     fl |= fd32_lanes(q32, n2, o[4])              # eccentricity r^2 / N^2
     fl |= fa32_lanes(s32, rq, ta)
-    fl |= fa32_lanes(ta, ONE32, q32)             # major^2 (q32 reused)
+    fl |= fa32_lanes(ta, np.int64(ONE32), q32)   # major^2 (q32 reused)
     fl |= fs32_lanes(s32, rq, ta)
-    fl |= fa32_lanes(ta, ONE32, s32)             # minor^2 (s32 reused)
+    fl |= fa32_lanes(ta, np.int64(ONE32), s32)   # minor^2 (s32 reused)
     for k in range(K):                           # rounding only: s - r >= 0 exactly
         s32[k] = 0 if fc32_v(s32[k], 0) < 0 else s32[k]
     fl |= sqrt32_lanes(q32, o[5])                # semimajor
     fl |= sqrt32_lanes(s32, o[6])                # semiminor
     fl |= atan2_32_lanes(t32, dm32, th2)
     fl |= fd32_lanes(o[6], o[5], o[7])           # sigma ratio
-    fl |= fm32_lanes(th2, _DEG_PER_2RAD, ta)     # theta in degrees, [0, 180)
+    fl |= fm32_lanes(th2, np.int64(_DEG_PER_2RAD), ta)   # theta in degrees, [0, 180)
     fl |= fd32_lanes(o[8], o[0], o[9])           # average = total / N
     for k in range(K):
         th = ta[k]
@@ -256,7 +256,7 @@ def _features_fm(sums, count, intensity):
 
 
 @njit(cache=True)
-def _normalise_fm(words, area, lin, f, r0, c0):
+def normalise_k(words, area, lin, f, r0, c0):
     """Feature-major words int64 [12, K] -> (normalised copy [12, K], flags): size, total *= area;
     axes *= lin; col = f col + c0; row = f row + r0 (packed 32-bit floats; the blobs side by side in
     the instructions' lane forms)."""
@@ -365,7 +365,7 @@ def _norm_consts_cached(compaction, imager):
             encode32(float(compaction), rounding="nearest"))
 
 
-def _norm_consts(compaction, imager):
+def norm_consts(compaction, imager):
     """(area, linear, f) normalisation words for compaction f and an imager id."""
     if isinstance(compaction, (bool, np.bool_)) or not isinstance(compaction, (int, np.integer)) \
             or not 1 <= compaction <= 255:
@@ -389,8 +389,8 @@ def normalise_words(words, compaction: int = 1, window_origin=(0, 0), imager: st
         raise ValueError(f"window_origin={window_origin!r} must be (row0, col0)") from None
     if not (math.isfinite(r0) and math.isfinite(c0)):
         raise ValueError(f"window_origin={window_origin!r} must be finite")
-    area, lin, f = _norm_consts(compaction, imager)
-    out, flags = _normalise_fm(np.ascontiguousarray(w.T), area, lin, f,
+    area, lin, f = norm_consts(compaction, imager)
+    out, flags = normalise_k(np.ascontiguousarray(w.T), area, lin, f,
                                encode32(r0, rounding="nearest"), encode32(c0, rounding="nearest"))
     out = np.ascontiguousarray(out.T)
     if ledger is not None:

@@ -141,7 +141,7 @@ def twiddles_q15(T):
 
 
 @lru_cache(maxsize=None)
-def _bitrev(T):
+def bitrev(T):
     n = T.bit_length() - 1
     return np.array([int(format(i, f"0{n}b")[::-1], 2) for i in range(T)], np.int64)
 
@@ -391,7 +391,7 @@ def _transpose(a, T):
 
 
 @njit(cache=True)
-def _fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, tws, dw,
+def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, tws, dw,
                      use_mean):
     """The whole frequency path on an int16 window (module docstring). Returns (out int16 [h, w],
     bounds float64 [nti, ntj], info int64 [nti, ntj, 4] = (forward shifts, product shift, inverse
@@ -529,8 +529,8 @@ def fft_correlate(img, taps, tile=None, ledger=None, stage=None, return_info=Fal
     -------
     ndarray (h, w) int16 (Q16.0), and the info dict with ``return_info``
     """
-    from flightsw.ip.filters import _as_words
-    img = _as_words(img)
+    from flightsw.ip.filters import as_words
+    img = as_words(img)
     if isinstance(taps, FFTKernel):
         kern = taps
     else:
@@ -551,8 +551,8 @@ def fft_correlate(img, taps, tile=None, ledger=None, stage=None, return_info=Fal
     T = kern.tile
     k = kern.size
     c, s, dw = twiddles_q15(T)
-    out, bounds, rmsp, info, m = _fft_correlate_k(img, T, k, kern.kr, kern.ki, kern.ek, kern.kmax,
-                                                  kern.k2mean, kern.dk, kern.ksum, _bitrev(T), c,
+    out, bounds, rmsp, info, m = fft_correlate_k(img, T, k, kern.kr, kern.ki, kern.ek, kern.kmax,
+                                                  kern.k2mean, kern.dk, kern.ksum, bitrev(T), c,
                                                   s, dw, bool(remove_mean))
     h, w = img.shape
     cyc = fft_filter_cycles(h, w, k, T)

@@ -249,7 +249,7 @@ def correlate_q15_k(img, kern):
     return _correlate_k64(pad, kern, h, w)
 
 
-def _as_words(img, name="image"):
+def as_words(img, name="image"):
     img = np.asarray(img)
     if img.ndim != 2:
         raise ValueError(f"{name} must be 2-D, got shape {img.shape}")
@@ -275,7 +275,7 @@ def correlate_q15(img, kern, ledger=None, stage=None):
     ndarray (h, w) int16 (Q16.0)
     """
     kern = validate_kernel(kern, "kernel")
-    img = _as_words(img)
+    img = as_words(img)
     out = correlate_q15_k(img, kern)
     if ledger is not None:
         k = kern.shape[0]
@@ -288,7 +288,7 @@ def correlate_q15_exact(img, kern):
     on the replicate-padded image; bit-identical to :func:`correlate_q15`."""
     from flightsw.arith.adsp2100 import correlate_valid_q15
     kern = np.asarray(kern, np.int16)
-    img = _as_words(img)
+    img = as_words(img)
     return correlate_valid_q15(pad_nearest(img, kern.shape[0] // 2), kern)
 
 

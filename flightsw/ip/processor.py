@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightsw.budget import Ledger
-from flightsw.ip.frame import FrameResult, process_frame
+from flightsw.ip.frame import check_inputs
+from flightsw.ip.pipeline import FramePlan, FrameResult
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
 from flightsw.ip.threshold import AlphaController
@@ -102,6 +103,7 @@ class ImageProcessor:
         """Power-on state: the construction's sequence and record, alpha from the sequence, no
         feedback, no pending uplink, counters zero."""
         self.sequence, self.record = self._power_on
+        self._plans: dict[str, FramePlan] = {}       # per imager, for the sequence and record in force
         self._pending: list = []
         self.alpha = AlphaController(alpha=sequence_alpha(self.sequence), **self._alpha_settings)
         self.feedback = Feedback()
@@ -148,11 +150,21 @@ class ImageProcessor:
         if command_words is not None:
             self.receive_command(command_words)
         fb = self.feedback if feedback is None else feedback
+        if not isinstance(fb, Feedback):
+            raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
+                             f"{type(fb).__name__}")
         ledger = Ledger() if ledger is None else ledger
         aq = self.alpha.q12
-        res = process_frame(frame, self.sequence, self.record, fb, ledger=ledger, imager=imager,
-                            frame_count=int(frame_count) & 0xFFFF, time_tag=time_tag,
-                            alpha_q12=aq, check=self.check, want_stages=want_stages)
+        time_tag = float(time_tag)
+        check_inputs(aq, time_tag)
+        img = self.sequence.checked_frame(frame, self.check)
+        plan = self._plans.get(imager)
+        if plan is None:
+            plan = self._plans[imager] = FramePlan(self.sequence, self.record, str(imager))
+        pred = (float(fb.predicted_row), float(fb.predicted_col)) if fb.has_prediction else None
+        res = plan.run(img, pred, alpha_q12=aq, ledger=ledger,
+                       frame_count=int(frame_count) & 0xFFFF, time_tag=time_tag,
+                       want_stages=want_stages)
         self.alpha.update(int(res.backend.count), bool(fb.locked), ledger)
         self.frames += 1
         self._last_frame_count = int(frame_count)
@@ -181,6 +193,8 @@ class ImageProcessor:
         return UplinkVerdict(True, kind, "", (self._last_frame_count + 1) & 0xFFFF)
 
     def _apply_pending(self) -> None:
+        if self._pending:
+            self._plans = {}
         for kind, new in self._pending:
             if kind == "record":
                 self.record = new

@@ -29,6 +29,7 @@ Cycle costs: :data:`RANK_MIX` (per event) on ``"ip1750"``, stage ``"rank"``.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 from numba import njit
@@ -61,13 +62,13 @@ RANK_MIX = {
 }
 _EVENTS = ("frame", "setup_feature", "setup_feature_q", "term", "term_q", "compare", "move",
            "report", "exp")
-_CYC = np.array([m1750_cycles(RANK_MIX[e]) for e in _EVENTS[:-1]] + [MATH_CYCLES["exp32"]],
+OP_CYCLES = np.array([m1750_cycles(RANK_MIX[e]) for e in _EVENTS[:-1]] + [MATH_CYCLES["exp32"]],
                 np.int64)
 
 
 def rank_cycles(ops) -> int:
     """PACE1750A clocks from the kernel's event counts (order of ``_EVENTS``)."""
-    return int(np.dot(_CYC, np.asarray(ops, np.int64)))
+    return int(np.dot(OP_CYCLES, np.asarray(ops, np.int64)))
 
 
 @njit(cache=True, inline="always")
@@ -84,7 +85,7 @@ def _sigmoid(x, a2, ops):
 
 
 @njit(cache=True)
-def _rank_kernel(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
+def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
     """fwt int64 [12, k] normalised feature words, feature-major (row i = feature i of every
     candidate); rec int64 [5, 12] (mean, sigma, weight, lower, upper words). Returns (order int64
     [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9])."""
@@ -259,8 +260,8 @@ def rank_words(feature_words, record, centroid_mean=None, ledger: Ledger | None 
         if not (math.isfinite(r) and math.isfinite(c)):
             raise ValueError(f"centroid_mean={centroid_mean!r} must be finite (use None)")
         override, mr, mc = True, encode32(r, rounding="nearest"), encode32(c, rounding="nearest")
-    rec = _record_words(record)
-    order, d, g, flags, ops = _rank_kernel(np.ascontiguousarray(fw.T, np.int64), rec, mr, mc,
+    rec = record_words(record)
+    order, d, g, flags, ops = rank_k(np.ascontiguousarray(fw.T, np.int64), rec, mr, mc,
                                            override, record.quantize,
                                            encode32(record.gof_threshold), int(max_candidates))
     cyc = rank_cycles(ops)
@@ -269,12 +270,12 @@ def rank_words(feature_words, record, centroid_mean=None, ledger: Ledger | None 
     return RankResult(order, d, g, record.n_weighted, int(flags), cyc)
 
 
-def _record_words(record) -> np.ndarray:
-    """The record's packed words int64 [5, 12] (computed once per Record object)."""
-    w = record.__dict__.get("_words32")
-    if w is None:
-        w = record.words32()
-        object.__setattr__(record, "_words32", w)
+@lru_cache(maxsize=256)
+def record_words(record) -> np.ndarray:
+    """The record's packed words int64 [5, 12], read-only (records are frozen and hash by value,
+    so equal records share one array)."""
+    w = record.words32()
+    w.flags.writeable = False
     return w
 
 

@@ -40,22 +40,12 @@ any of them may be skipped; at most one threshold, after every front-end step; t
 (blob colouring, features, ranking) after the threshold in their phase order. Each registered step
 has a *phase*; a sequence's phases must not decrease, and a ``unique`` step may appear once.
 
-Step registry (for the back end, issue 4)
------------------------------------------
-``register_step(name, validator, runner, phase=..., unique=..., label=...)``:
-
-* ``validator(params: dict, pre: Preprocess) -> object``: the step's TOML table without ``op``; return
-  the validated parameters (any object; it is handed to the runner). Raise :class:`FieldError` (names
-  the field) or ``ValueError`` to reject; the sequence reports ``step <i> '<op>': field '<f>': ...``.
-* ``runner(image, params, ledger, context, stage) -> ndarray | StageOutput``: ``image`` is the image
-  the previous step forwarded (the window for the first step), ``ledger`` a
-  :class:`flightsw.budget.Ledger` or None, ``context`` a dict shared by the steps of one run (keys set
-  here: ``"subimage"``, ``"preprocess"``, ``"threshold"``; callers may pass ``"alpha_q12"`` from the
-  :class:`~flightsw.ip.threshold.AlphaController`), ``stage`` the unique ledger stage name of this
-  step in this sequence. Return the output image, or a :class:`StageOutput` to also pass data and/or
-  forward a different image to the next step (e.g. labelling shows the label image but forwards the
-  thresholded one).
-* ``label(params) -> str``: the stage name (default: the op name); repeated names get ``#2``...
+Steps
+-----
+Each op has a validator (``validator(params: dict, pre: Preprocess) -> params object``; it raises
+:class:`FieldError` naming the field, and the sequence reports ``step <i> '<op>': field '<f>':
+...``), a phase and a stage-name label, in :data:`STEP_REGISTRY`. The steps run in the image
+processor's one compiled pipeline (:mod:`flightsw.ip.pipeline`), which has a kernel for each op.
 
 Phases: :data:`PHASE_FRONT` (filter, detrend) < :data:`PHASE_THRESHOLD` < :data:`PHASE_LABEL` <
 :data:`PHASE_FEATURES` < :data:`PHASE_RANK`.
@@ -71,18 +61,18 @@ from pathlib import Path
 from typing import Any, Callable
 
 import numpy as np
-from numba import njit
 
 import flightsw.ip.detrend as _dt
 import flightsw.ip.fftfilter as _fft
 import flightsw.ip.filters as _flt
 import flightsw.ip.threshold as _th
-from flightsw.ip.preprocess import (COMPACTION_FACTORS, FRAME_SHAPE, Subimage, _check_frame,
-                                    _compact_k, _new_subimage, preprocess, window_origin,
+from flightsw.ip.preprocess import (COMPACTION_FACTORS, FRAME_SHAPE, check_frame, preprocess,
                                     window_shape)
+from flightsw.messages import MAX_CANDIDATES
 
 __all__ = ["ProcessingSequence", "IPConfig", "SequenceError", "FieldError", "StepType", "Step",
-           "Stage", "StageOutput", "SequenceResult", "Preprocess", "register_step", "STEP_REGISTRY",
+           "Stage", "Preprocess", "STEP_REGISTRY", "FilterParams", "FilterFFTParams",
+           "DetrendParams", "ThresholdParams", "ColourParams", "FeatureParams", "RankParams",
            "PHASE_FRONT", "PHASE_THRESHOLD", "PHASE_LABEL", "PHASE_FEATURES", "PHASE_RANK",
            "SEQUENCE_DIR", "load_default_sequence", "DEFAULT_SEQUENCES"]
 
@@ -136,26 +126,21 @@ class Preprocess:
 
 @dataclass(frozen=True)
 class StepType:
+    """A toolbox op: its validator, phase, whether it may appear once, and its stage label."""
+
     name: str
     validator: Callable
-    runner: Callable
     phase: int = PHASE_FRONT
     unique: bool = False
     label: Callable | None = None
 
 
+#: op name -> StepType, filled below (the pipeline has a kernel for each)
 STEP_REGISTRY: dict[str, StepType] = {}
 
 
-def register_step(name, validator, runner, *, phase=PHASE_FRONT, unique=False, label=None,
-                  replace=False):
-    """Register a toolbox step under ``name`` (see the module docstring for the interface)."""
-    if not isinstance(name, str) or not name:
-        raise ValueError("step name must be a non-empty string")
-    if name in STEP_REGISTRY and not replace:
-        raise ValueError(f"step {name!r} is already registered (pass replace=True)")
-    STEP_REGISTRY[name] = StepType(name, validator, runner, phase, unique, label)
-    return STEP_REGISTRY[name]
+def _register(name, validator, *, phase=PHASE_FRONT, unique=False, label=None):
+    STEP_REGISTRY[name] = StepType(name, validator, phase, unique, label)
 
 
 @dataclass(frozen=True)
@@ -167,33 +152,12 @@ class Step:
 
 
 @dataclass
-class StageOutput:
-    """What a runner may return instead of a bare image."""
-
-    image: Any
-    data: Any = None
-    forward: Any = None          # image for the next step (default: ``image``)
-
-
-@dataclass
 class Stage:
     """One panel of the paper's Figure 3: the stage name, its output image and any data."""
 
     name: str
     image: Any
     data: Any = None
-
-
-@dataclass
-class SequenceResult:
-    subimage: Subimage
-    stages: list
-    context: dict
-    image: Any                   # the image the last step forwarded
-
-    def images(self):
-        """``[(stage name, image)]`` in order, starting with the window."""
-        return [(s.name, s.image) for s in self.stages]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -272,21 +236,6 @@ def _validate_filter(params, pre):
     return FilterParams(_flt.smoothing_kernel(size), "smooth")
 
 
-def _words(image):
-    if image.dtype != np.int16 or not image.flags.c_contiguous:
-        image = _flt._as_words(image)
-    return image
-
-
-def _run_filter(image, p, ledger, context, stage):
-    image = _words(image)
-    out = _flt.correlate_q15_k(image, p.kernel)
-    if ledger is not None:
-        ledger.charge("dsp", stage, _flt.filter_cycles(image.shape[0], image.shape[1],
-                                                       p.kernel.shape[0]))
-    return out
-
-
 def _label_filter(p):
     k = p.kernel.shape[0]
     return f"filter{k}x{k}_{p.name}"
@@ -354,10 +303,6 @@ def _validate_filter_fft(params, pre):
     return FilterFFTParams(_fft.fft_kernel(taps, tile), kind)
 
 
-def _run_filter_fft(image, p, ledger, context, stage):
-    return _fft.fft_correlate(_words(image), p.kernel, ledger=ledger, stage=stage)
-
-
 def _label_filter_fft(p):
     k = p.kernel.size
     return f"filter_fft{k}x{k}_{p.name}"
@@ -381,25 +326,13 @@ def _validate_detrend(params, pre):
         if "sigma" in params:
             raise FieldError("sigma", "give sigma or taps, not both")
         try:
-            taps = _dt._check_taps(params["taps"])
+            taps = _dt.check_taps(params["taps"])
         except (ValueError, TypeError) as exc:
             raise FieldError("taps", str(exc)) from None
     else:
         sigma = _float_field(params, "sigma", _dt.DEFAULT_HIGHPASS_SIGMA, 0.5, 3.0)
-        taps = _dt._default_taps_cached(sigma)
+        taps = _dt.default_taps(sigma)
     return DetrendParams("highpass", taps)
-
-
-def _run_detrend(image, p, ledger, context, stage):
-    if p.method == "highpass":
-        image = _words(image)
-        out = _dt._highpass_k(image, p.taps, _dt.G_MAX)
-        if ledger is not None:
-            ledger.charge("dsp", stage, _dt.highpass_cycles(image.shape[0], image.shape[1]))
-        return out
-    if p.method == "polynomial":
-        return _dt.detrend_polynomial(image, ledger, stage)
-    return _dt.detrend_none(image, ledger, stage)
 
 
 @dataclass(frozen=True)
@@ -421,110 +354,65 @@ def _validate_threshold(params, pre):
     return ThresholdParams(_th.alpha_to_q12(alpha), mode)
 
 
-def _run_threshold(image, p, ledger, context, stage):
-    aq = context.get("alpha_q12", p.alpha_q12)
-    image = _words(image)
-    out, t4, m4, d4, s = _th.threshold_k(image, aq, _th.BINARIZE if p.mode == "binarize"
-                                         else _th.CLIP)
-    if ledger is not None:
-        ledger.charge("dsp", stage, _th.threshold_cycles(image.shape[0], image.shape[1]))
-    context["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
-                            "mode": p.mode}
-    return StageOutput(out, t4)
-
-
-register_step("filter", _validate_filter, _run_filter, phase=PHASE_FRONT, label=_label_filter)
-register_step("filter_fft", _validate_filter_fft, _run_filter_fft, phase=PHASE_FRONT,
-              label=_label_filter_fft)
-register_step("detrend", _validate_detrend, _run_detrend, phase=PHASE_FRONT,
-              label=lambda p: f"detrend_{p.method}")
-register_step("threshold", _validate_threshold, _run_threshold, phase=PHASE_THRESHOLD, unique=True)
-
-
 # ---------------------------------------------------------------------------------------------
-# the fused front end: a validated sequence's front-end steps in one jitted call
+# back-end steps (IP steps 6-8 on the 1750A: their flags and the record)
 # ---------------------------------------------------------------------------------------------
-OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD = 1, 2, 3, 4
+@dataclass(frozen=True)
+class ColourParams:
+    diagonal: bool = True
 
 
-@njit(cache=True)
-def _front_fast_k(frame, f, r0, c0, h, w, ops, kbuf, ksz, tbuf, alpha_q12, mode):
-    """Compaction + window, then the ops (``ops[i]``: OP_FILTER with the ``ksz[i]``-square kernel
-    ``kbuf[i]``, OP_HIGHPASS with the taps ``tbuf[i]``, OP_NONE, OP_THRESHOLD). The very kernels of
-    the step-by-step path, called in the same order on the same words: bit-identical results.
-    Returns (window, image, t4, m4, d4, s)."""
-    win = _compact_k(frame, f, r0, c0, h, w)
-    img = win
-    t4 = np.int64(0)
-    m4 = np.int64(0)
-    d4 = np.int64(0)
-    sh = 0
-    for i in range(ops.size):
-        op = ops[i]
-        if op == 1:
-            k = ksz[i]
-            img = _flt.correlate_q15_k(img, np.ascontiguousarray(kbuf[i, :k, :k]))
-        elif op == 2:
-            img = _dt._highpass_k(img, tbuf[i], _dt.G_MAX)
-        elif op == 4:
-            img, t4, m4, d4, sh = _th.threshold_k(img, alpha_q12, mode)
-    return win, img, t4, m4, d4, sh
+@dataclass(frozen=True)
+class FeatureParams:
+    intensity_centroid: bool = True
 
 
-class _FastFront:
-    """The arrays :func:`_front_fast_k` runs, built once per sequence (None if a front-end step has
-    no fused form, e.g. the polynomial detrender or ``filter_fft``: those sequences run step by
-    step)."""
+@dataclass(frozen=True)
+class RankParams:
+    record: object = None              # a Record, or None: the record in force
+    max_candidates: int = MAX_CANDIDATES
 
-    __slots__ = ("ops", "kbuf", "ksz", "tbuf", "alpha_q12", "mode", "mode_name", "charge_keys",
-                 "charge_cycles", "threshold_stage")
 
-    @classmethod
-    def build(cls, steps, pre):
-        ops, kb, ks, tb = [], [], [], []
-        self = cls()
-        self.alpha_q12, self.mode, self.mode_name, self.threshold_stage = 0, 0, "binarize", None
-        h, w = pre.window_shape
-        cycles = [("compaction", 0)]               # (stage, DSP cycles), in charge order
-        zk, zt = np.zeros((7, 7), np.int16), np.zeros(7, np.int16)
-        for st in steps:
-            if STEP_REGISTRY[st.op].phase >= PHASE_LABEL:
-                continue
-            p = st.params
-            k, t = zk, zt
-            if st.op == "filter" and isinstance(p, FilterParams):
-                op = OP_FILTER
-                n = p.kernel.shape[0]
-                k = np.zeros((7, 7), np.int16)
-                k[:n, :n] = p.kernel
-                cyc = _flt.filter_cycles(h, w, n)
-                ks.append(n)
-            elif st.op == "detrend" and isinstance(p, DetrendParams) and p.method == "highpass":
-                op, t, cyc = OP_HIGHPASS, np.asarray(p.taps, np.int16), _dt.highpass_cycles(h, w)
-                ks.append(0)
-            elif st.op == "detrend" and isinstance(p, DetrendParams) and p.method == "none":
-                op, cyc = OP_NONE, 0
-                ks.append(0)
-            elif st.op == "threshold" and isinstance(p, ThresholdParams):
-                op, cyc = OP_THRESHOLD, _th.threshold_cycles(h, w)
-                self.alpha_q12, self.mode_name = p.alpha_q12, p.mode
-                self.mode = _th.BINARIZE if p.mode == "binarize" else _th.CLIP
-                self.threshold_stage = st.stage
-                ks.append(0)
-            else:
-                return None
-            ops.append(op)
-            kb.append(k)
-            tb.append(t)
-            cycles.append((st.stage, int(cyc)))
-        self.charge_keys = tuple(("dsp", stage) for stage, _ in cycles)
-        self.charge_cycles = tuple(c for _, c in cycles)
-        n = len(ops)
-        self.ops = np.array(ops, np.int64)
-        self.kbuf = np.stack(kb) if n else np.zeros((0, 7, 7), np.int16)
-        self.ksz = np.array(ks, np.int64)
-        self.tbuf = np.stack(tb) if n else np.zeros((0, 7), np.int16)
-        return self
+def _bool_field(params, name, default):
+    v = params.get(name, default)
+    if not isinstance(v, bool):
+        raise FieldError(name, f"{v!r} is not a boolean (true/false)")
+    return v
+
+
+def _validate_colour(params, pre):
+    _fields(params, {"diagonal"})
+    return ColourParams(_bool_field(params, "diagonal", True))
+
+
+def _validate_features(params, pre):
+    _fields(params, {"intensity_centroid"})
+    return FeatureParams(_bool_field(params, "intensity_centroid", True))
+
+
+def _validate_rank(params, pre):
+    from flightsw.records import load_record
+    _fields(params, {"record", "max_candidates"})
+    rec = None
+    if "record" in params:
+        try:
+            rec = load_record(params["record"])
+        except (ValueError, FileNotFoundError) as exc:
+            raise FieldError("record", str(exc)) from None
+    m = params.get("max_candidates", MAX_CANDIDATES)
+    if isinstance(m, bool) or not isinstance(m, int) or not 1 <= m <= MAX_CANDIDATES:
+        raise FieldError("max_candidates", f"{m!r} must be an int in 1..{MAX_CANDIDATES}")
+    return RankParams(rec, m)
+
+
+_register("filter", _validate_filter, label=_label_filter)
+_register("filter_fft", _validate_filter_fft, label=_label_filter_fft)
+_register("detrend", _validate_detrend, label=lambda p: f"detrend_{p.method}")
+_register("threshold", _validate_threshold, phase=PHASE_THRESHOLD, unique=True)
+_register("colour", _validate_colour, phase=PHASE_LABEL, unique=True, label=lambda p: "colour")
+_register("label", _validate_colour, phase=PHASE_LABEL, unique=True, label=lambda p: "colour")
+_register("features", _validate_features, phase=PHASE_FEATURES, unique=True)
+_register("rank", _validate_rank, phase=PHASE_RANK, unique=True)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -601,10 +489,6 @@ class ProcessingSequence:
             seen.add(op)
             last_phase = st.phase
         self.preprocess = pre
-        self._default_window = (pre.window_shape,
-                                window_origin(pre.compacted_shape, pre.compaction, None, pre.window))
-        self._runners = tuple((STEP_REGISTRY[st.op].runner, st) for st in built)
-        self._fast = _FastFront.build(built, pre)
         self.steps = tuple(built)
         self.name = str(name)
         self.description = str(description)
@@ -665,108 +549,26 @@ class ProcessingSequence:
 
     # ---- running ---------------------------------------------------------------------------
     def window(self, frame, predicted_rowcol_fullres=None, ledger=None, check=True):
-        """Preprocessor board: compaction + window (stage ``"compaction"``, 0 DSP cycles)."""
+        """Preprocessor board alone: compaction + window (stage ``"compaction"``, 0 DSP cycles),
+        as a :class:`Subimage` (the ground's full-frame mode cuts windows this way)."""
         pre = self.preprocess
-        if check or predicted_rowcol_fullres is not None:
-            sub = preprocess(frame, pre.compaction, predicted_rowcol_fullres, pre.window, check=check)
-        else:                                   # hot path: default centre, shapes precomputed
-            (h, w), (r0, c0) = self._default_window
-            if frame.shape != pre.frame_shape or not frame.flags.c_contiguous:
-                raise ValueError(f"frame must be a C-contiguous {pre.frame_shape} array")
-            img = _compact_k(frame, pre.compaction, r0, c0, h, w)
-            sub = Subimage(img, (r0, c0), pre.compaction, (h, w))
+        sub = preprocess(frame, pre.compaction, predicted_rowcol_fullres, pre.window, check=check)
         if ledger is not None:
             ledger.charge("dsp", "compaction", 0)
         return sub
 
-    def run(self, subimage, ledger=None, context=None):
-        """Run the steps on a :class:`Subimage`; returns a :class:`SequenceResult` whose ``stages``
-        are the window followed by every step's output image, in order."""
-        ctx = {} if context is None else context
-        ctx["subimage"] = subimage
-        ctx["preprocess"] = self.preprocess
-        img = subimage.image
-        stages = [Stage("window", img)]
-        for runner, st in self._runners:
-            out = runner(img, st.params, ledger, ctx, st.stage)
-            if isinstance(out, StageOutput):
-                stages.append(Stage(st.stage, out.image, out.data))
-                img = out.image if out.forward is None else out.forward
-            else:
-                stages.append(Stage(st.stage, out))
-                img = out
-        return SequenceResult(subimage, stages, ctx, img)
-
-    def run_frame(self, frame, predicted_rowcol_fullres=None, ledger=None, context=None,
-                  check=True):
-        """Preprocess a full frame and run the steps."""
-        sub = self.window(frame, predicted_rowcol_fullres, ledger, check)
-        return self.run(sub, ledger, context)
-
-
-    @property
-    def fusable(self):
-        """True when the front end runs as one jitted call (:meth:`run_frame_fast`)."""
-        return self._fast is not None
-
-    def run_frame_fast(self, frame, predicted_rowcol_fullres=None, ledger=None, context=None,
-                       check=True):
-        """The front end of :meth:`run_frame` (preprocessor and every step before the labelling)
-        in one jitted call, without the intermediate stage images: ``(subimage, image, context)``,
-        ``image`` bit-identical to ``run_frame(...).image`` up to the threshold (tested); the same
-        cycles are charged and ``context["threshold"]`` is set the same way. Falls back to the
-        step-by-step path when a step has no fused form (:attr:`fusable`)."""
-        fast = self._fast
-        ctx = {} if context is None else context
-        if fast is None:
-            front = ProcessingSequence(
-                [st.raw for st in self.steps if STEP_REGISTRY[st.op].phase < PHASE_LABEL],
-                self.preprocess, self.name) if any(STEP_REGISTRY[st.op].phase >= PHASE_LABEL
-                                                   for st in self.steps) else self
-            res = front.run_frame(frame, predicted_rowcol_fullres, ledger, ctx, check)
-            return res.subimage, res.image, ctx
-        frame, (h, w), (r0, c0) = self._fast_window(frame, predicted_rowcol_fullres, check)
-        aq = ctx.get("alpha_q12", fast.alpha_q12)
-        win, img, t4, m4, d4, s = _front_fast_k(frame, self.preprocess.compaction, r0, c0, h, w,
-                                                fast.ops, fast.kbuf, fast.ksz, fast.tbuf, aq,
-                                                fast.mode)
-        sub = self._fast_finish(win, (r0, c0), (h, w), t4, m4, d4, s, aq, ledger, ctx)
-        return sub, img, ctx
-
     def checked_frame(self, frame, check: bool = True):
-        """The frame as both paths take it: a C-contiguous integer array of the sequence's frame
-        shape (ValueError otherwise); with ``check``, also 12-bit counts 0..4095."""
+        """The frame as the pipeline takes it: a C-contiguous uint16 array of the sequence's frame
+        shape (ValueError otherwise); with ``check``, also 12-bit counts 0..4095 (without, the
+        caller vouches for the range)."""
         if check:
-            frame = _check_frame(frame)
+            frame = check_frame(frame)
         if frame.shape != self.preprocess.frame_shape or frame.dtype.kind not in "ui":
             raise ValueError(f"frame must be a {self.preprocess.frame_shape} integer array, got "
                              f"{frame.dtype} {frame.shape}")
-        if not frame.flags.c_contiguous:
-            frame = np.ascontiguousarray(frame)
+        if frame.dtype != np.uint16 or not frame.flags.c_contiguous:
+            frame = np.ascontiguousarray(frame, np.uint16)
         return frame
-
-    def _fast_window(self, frame, predicted_rowcol_fullres, check):
-        """The fused path's checked frame, window shape and origin (compacted pixels)."""
-        frame = self.checked_frame(frame, check)
-        if predicted_rowcol_fullres is None:
-            return (frame,) + self._default_window
-        pre = self.preprocess
-        return frame, pre.window_shape, window_origin(pre.compacted_shape, pre.compaction,
-                                                      predicted_rowcol_fullres, pre.window)
-
-    def _fast_finish(self, win, origin, size, t4, m4, d4, s, aq, ledger, ctx):
-        """After the fused front end: the Subimage, ``ctx`` (subimage, preprocess, threshold) and
-        the front end's cycles charged, as the step-by-step path does."""
-        fast = self._fast
-        sub = _new_subimage(win, origin, self.preprocess.compaction, size)
-        ctx["subimage"] = sub
-        ctx["preprocess"] = self.preprocess
-        if fast.threshold_stage is not None:
-            ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
-                                "mode": fast.mode_name}
-        if ledger is not None:
-            ledger.charge_many(k + (c,) for k, c in zip(fast.charge_keys, fast.charge_cycles))
-        return sub
 
 
 def load_default_sequence(name="satellite"):

@@ -114,7 +114,7 @@ def _threshold_value(img, alpha_q12):
     if v8 > 0xFFFFFFFF:
         v8 = np.int64(0xFFFFFFFF)
     d4 = isqrt32(v8)                                            # Q.4
-    t4 = (m4 + _rhu_div(np.int64(alpha_q12) * d4, 4096)) << s  # Q.4
+    t4 = (m4 + _rhu_div(np.int64(alpha_q12) * d4, np.int64(4096))) << s  # Q.4
     return t4, m4, d4, s
 
 

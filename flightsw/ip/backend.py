@@ -1,0 +1,272 @@
+"""The image processor's back end, IP steps 6-8 on the 1750A: blob colouring, the twelve features
+and their normalisation, and the ranking against the a priori record, as one compiled stage.
+
+:func:`backend_k` runs the stage kernels of :mod:`flightsw.ip.colour`, :mod:`flightsw.ip.features`
+and :mod:`flightsw.ip.rank` in order on a thresholded window and packs everything the host reads into
+one int64 array (one array to box). The frame pipeline (:mod:`flightsw.ip.pipeline`) calls it after
+the front end; :func:`backend` is its surface for a window the caller already has.
+"""
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750 import decode32_array, encode32
+from flightsw.arith.m1750_float import decode32_k
+from flightsw.budget import IP1750, Ledger
+from flightsw.ip.colour import DIRECT_DTYPES, as_int_image, colour_k
+from flightsw.ip.colour import OP_CYCLES as COLOUR_OP_CYCLES
+from flightsw.ip.features import features_cycles, features_k, norm_consts, normalise_k, \
+    words_to_struct
+from flightsw.ip.rank import OP_CYCLES as RANK_OP_CYCLES
+from flightsw.ip.rank import rank_k, record_words
+from flightsw.messages import CANDIDATE_DTYPE, MAX_CANDIDATES
+
+__all__ = ["backend", "backend_k", "backend_params", "BackendResult", "enc32", "BACK_KEYS",
+           "PACK_HEAD"]
+
+BLOB_CYCLES = features_cycles(1)
+#: words of the pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts, bad
+PACK_HEAD = 22
+#: the ledger keys of the back end's three stages, in charge order
+BACK_KEYS = ((IP1750, "colour"), (IP1750, "features"), (IP1750, "rank"))
+
+
+@lru_cache(maxsize=4096)
+def enc32(x: float) -> int:
+    """float -> nearest 1750A 32-bit word (cached: window origins and centres repeat frame to
+    frame)."""
+    return encode32(float(x), rounding="nearest")
+
+
+@njit(cache=True)
+def backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
+    """Steps 6-8 on a thresholded window.
+
+    Parameters
+    ----------
+    img : int [H, W] (16-bit words; non-zero = on)
+    rec : int64 [5, 12], the record's packed 1750A words (:func:`flightsw.ip.rank.record_words`)
+    prm : int64 [10], :func:`backend_params`: diagonal, intensity, want_labels, area, lin, f,
+        quantize, GOF threshold word, max_out, unused
+    r0w, c0w : 1750A words of the window origin (full-resolution pixels)
+    mean_row, mean_col, override : 1750A words of the centroid means this frame, used if override
+
+    Returns
+    -------
+    (labels int32 [H, W] (empty [0, 0] without want_labels), pack int64): ``pack`` holds the header
+    (:data:`PACK_HEAD` words), then order [m], gof [m], the reported distances [m], every distance
+    [count], the feature words [count, 12] and the candidate table [m, 15] (CANDIDATE_DTYPE layout,
+    decoded exactly).
+    """
+    diagonal, intensity, want_labels = prm[0] != 0, prm[1] != 0, prm[2] != 0
+    area, lin, fw = prm[3], prm[4], prm[5]
+    quantize, thr, max_out = prm[6] != 0, prm[7], prm[8]
+    cyc_colour, cyc_blob, cyc_rank = COLOUR_OP_CYCLES, BLOB_CYCLES, RANK_OP_CYCLES
+    labels, count, sums, cops, bad = colour_k(img, diagonal, want_labels)
+    raw, f1 = features_k(sums, count, intensity)                 # feature-major [12, count]
+    words, f2 = normalise_k(raw, area, lin, fw, r0w, c0w)
+    order, d, gof, f3, rops = rank_k(words, rec, mean_row, mean_col, override != 0, quantize, thr,
+                                     max_out)
+    m = order.size
+    h = PACK_HEAD
+    o_words = h + 3 * m + count
+    o_cand = o_words + 12 * count
+    pack = np.empty(o_cand + 15 * m, np.int64)
+    pack[0] = count
+    pack[1] = m
+    pack[2] = f1 | f2 | f3
+    pack[3] = 0
+    for i in range(cops.size):
+        pack[3] += cyc_colour[i] * cops[i]
+    pack[4] = count * cyc_blob
+    pack[5] = 0
+    for i in range(rops.size):
+        pack[5] += cyc_rank[i] * rops[i]
+    pack[6:12] = cops
+    pack[12:21] = rops
+    pack[21] = 1 if bad else 0
+    pack[h:h + m] = order
+    pack[h + m:h + 2 * m] = gof
+    for q in range(m):
+        pack[h + 2 * m + q] = d[order[q]]
+    pack[h + 3 * m:o_words] = d
+    fwp = pack[o_words:o_cand]                                    # blob-major [count, 12]
+    for i in range(12):
+        fwp[i::12] = words[i]
+    cand = pack[o_cand:]
+    fc = cand.view(np.float64)
+    for q in range(m):
+        k = order[q]
+        b = 15 * q
+        cand[b] = k + 1
+        fc[b + 1] = decode32_k(d[k])
+        fc[b + 2] = decode32_k(gof[q])
+        for i in range(12):
+            fc[b + 3 + i] = decode32_k(words[i, k])
+    return labels, pack
+
+
+class BackendResult:
+    """What the back end produced for one window.
+
+    Attributes
+    ----------
+    labels : ndarray [H, W] int32
+        Blob colours 1..count (an empty [0, 0] array if labels were not requested).
+    count : int
+        Number of blobs.
+    feature_words : ndarray [count, 12] int64
+        Normalised features of every blob (packed 1750A 32-bit words).
+    order : ndarray [m] int64
+        Reported candidates (0-based blob indices), best first.
+    gof_words, distance_words : ndarray [m] int64
+        GOF and distance of each reported candidate (packed words).
+    all_distance_words : ndarray [count] int64
+        The distance of every blob.
+    flags : int
+        1750A exception flags of the back end.
+    cycles : dict
+        1750A cycles of the colour, features and rank stages.
+    """
+
+    __slots__ = ("labels", "pack", "count", "m", "flags", "cycles_tuple")
+
+    def __init__(self, labels, pack, count, m, flags, cycles):
+        self.labels, self.pack, self.count, self.m = labels, pack, count, m
+        self.flags, self.cycles_tuple = flags, cycles
+
+    @property
+    def cycles(self) -> dict:
+        return dict(zip(("colour", "features", "rank"), self.cycles_tuple))
+
+    @property
+    def order(self):
+        return self.pack[PACK_HEAD:PACK_HEAD + self.m]
+
+    @property
+    def gof_words(self):
+        return self.pack[PACK_HEAD + self.m:PACK_HEAD + 2 * self.m]
+
+    @property
+    def distance_words(self):
+        return self.pack[PACK_HEAD + 2 * self.m:PACK_HEAD + 3 * self.m]
+
+    @property
+    def all_distance_words(self):
+        o = PACK_HEAD + 3 * self.m
+        return self.pack[o:o + self.count]
+
+    @property
+    def feature_words(self):
+        o = PACK_HEAD + 3 * self.m + self.count
+        return self.pack[o:o + 12 * self.count].reshape(self.count, 12)
+
+    @property
+    def features(self) -> np.ndarray:
+        """Normalised features, FEATURE_DTYPE [count] (decoded exactly)."""
+        return words_to_struct(self.feature_words)
+
+    def candidates(self) -> np.ndarray:
+        """The reported candidates, CANDIDATE_DTYPE [m] (decoded exactly), best first."""
+        o = PACK_HEAD + 3 * self.m + 13 * self.count
+        return self.pack[o:o + 15 * self.m].view(CANDIDATE_DTYPE)
+
+    def decoded_distances(self) -> np.ndarray:
+        """Every blob's distance, float64 [count] (decoded exactly)."""
+        return decode32_array(self.all_distance_words)
+
+
+def backend_params(record, diagonal: bool, intensity: bool, want_labels: bool, compaction: int,
+                   imager: str, max_candidates: int) -> np.ndarray:
+    """The back end's parameter words int64 [10] (:func:`backend_k`'s ``prm``): the flags, the
+    normalisation words of (compaction, imager), the record's quantisation flag and GOF threshold
+    word, and the candidate limit (1..1000; ValueError otherwise)."""
+    area, lin, fw = norm_consts(compaction, imager)
+    if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)) \
+            or not 1 <= max_candidates <= 1000:
+        raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
+    return np.array((diagonal, intensity, want_labels, area, lin, fw, record.quantize,
+                     enc32(record.gof_threshold), int(max_candidates), 0), np.int64)
+
+
+def result_from_pack(labels, pack, ledger=None) -> BackendResult:
+    """BackendResult of a kernel's (labels, pack), with the 16-bit range check and the back end's
+    cycles charged to ``ledger``."""
+    head = pack[:PACK_HEAD].tolist()
+    if head[21]:
+        raise ValueError("window holds values outside the 16-bit word range -32768..65535")
+    cycles = tuple(head[3:6])
+    if ledger is not None:
+        ledger.charge_many(k + (c,) for k, c in zip(BACK_KEYS, cycles))
+    return BackendResult(labels, pack, head[0], head[1], head[2], cycles)
+
+
+def _window_array(window):
+    if isinstance(window, np.ndarray) and window.ndim == 2 and window.size \
+            and window.dtype.type in DIRECT_DTYPES and window.flags.c_contiguous:
+        return window                                  # the kernel checks the 16-bit range
+    return as_int_image(window, "window")
+
+
+def _mean_words(centroid_mean):
+    if centroid_mean is None:
+        return 0, 0, 0
+    try:
+        r, c = centroid_mean
+        if not (math.isfinite(r) and math.isfinite(c)):
+            raise ValueError
+        return 1, enc32(float(r)), enc32(float(c))
+    except (TypeError, ValueError):
+        raise ValueError(f"centroid_mean={centroid_mean!r} must be finite (row, col) or None") \
+            from None
+
+
+def backend(window, record, diagonal: bool = True, intensity_centroid: bool = True,
+            compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis",
+            centroid_mean=None, ledger: Ledger | None = None, want_labels: bool = True,
+            max_candidates: int = MAX_CANDIDATES) -> BackendResult:
+    """IP steps 6-8 on a thresholded (binary or clipped) window.
+
+    Parameters
+    ----------
+    window : array_like [H, W] integer (16-bit values)
+        The thresholded window; non-zero = on, values are the intensities.
+    record : flightsw.records.Record
+    diagonal, intensity_centroid : bool
+        The uplink flags of the colouring and feature steps.
+    compaction : int
+        Compaction factor f of the window.
+    window_origin : (row0, col0)
+        Window top-left corner in full-resolution imager pixels (compacted origin * f).
+    imager : str
+        Imager id (pixel scale for the normalisation).
+    centroid_mean : (row, col) or None
+        The record's centroid means this frame (TP prediction or window centre, full-res pixels);
+        None keeps the record's values.
+    ledger : Ledger, optional
+        Charged stages "colour", "features", "rank" on "ip1750".
+    want_labels : bool
+        Produce the final label image (a ground product: the flight keeps only the colour array).
+    """
+    from flightsw.records import Record
+    if not isinstance(record, Record):
+        raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
+    for name, v in (("diagonal", diagonal), ("intensity_centroid", intensity_centroid),
+                    ("want_labels", want_labels)):
+        if v is not True and v is not False and v not in (0, 1):
+            raise ValueError(f"{name}={v!r} must be a bool")
+    img = _window_array(window)
+    try:
+        r0, c0 = window_origin
+        r0w, c0w = enc32(float(r0)), enc32(float(c0))
+    except (TypeError, ValueError):
+        raise ValueError(f"window_origin={window_origin!r} must be (row0, col0) numbers") from None
+    override, mr, mc = _mean_words(centroid_mean)
+    prm = backend_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
+                         compaction, imager, max_candidates)
+    labels, pack = backend_k(img, record_words(record), prm, r0w, c0w, mr, mc, override)
+    return result_from_pack(labels, pack, ledger)
