@@ -43,7 +43,7 @@ def test_version_names_the_distribution(capsys):
 def test_internal_error_is_one_line_and_a_traceback_file(monkeypatch, capsys):
     import re
 
-    import hil_harness.cli_scenarios as cmd
+    import hil_harness.cli.scenarios as cmd
 
     def boom(args):
         raise RuntimeError("an invariant broke\nsecond line")

@@ -50,7 +50,6 @@ ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
     ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_new_subimage'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_deep_merge'),
     ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_prediction'),
-    ('hil_harness.cli_tune', 'hil_harness.tuning_validate', '_atomic_text'),
 }
 #: (module, accessed module, name) ``module._name`` reads
 ALLOWED_PRIVATE_ACCESS: set[tuple[str, str, str]] = {
@@ -190,6 +189,20 @@ def cycles() -> set[tuple[str, ...]]:
     return out
 
 
+#: the command-line front end: only its own modules may import it (library code never does)
+CLI_PACKAGE = "hil_harness.cli"
+
+
+def _in_cli(mod: str) -> bool:
+    return mod == CLI_PACKAGE or mod.startswith(CLI_PACKAGE + ".")
+
+
+def cli_imports() -> set[tuple[str, str]]:
+    """(module, CLI module it imports) for every module outside :data:`CLI_PACKAGE`."""
+    return {(mod, target) for mod, targets in import_graph().items() if not _in_cli(mod)
+            for target in targets if _in_cli(target)}
+
+
 def long_functions():
     bad = set()
     for mod, tree in TREES.items():
@@ -215,7 +228,8 @@ def long_functions():
     (private_accesses, ALLOWED_PRIVATE_ACCESS, "module._name read across modules"),
     (cycles, ALLOWED_CYCLES, "import cycle"),
     (long_functions, ALLOWED_LONG_FUNCTIONS, f"function over {MAX_FUNCTION_LINES} lines"),
-], ids=["private-imports", "private-access", "cycles", "long-functions"])
+    (cli_imports, set(), "library module importing the CLI"),
+], ids=["private-imports", "private-access", "cycles", "long-functions", "cli-imports"])
 def test_code_rule(found, allowed, what):
     got = found()
     new = sorted(got - allowed)
@@ -228,7 +242,9 @@ def test_the_checks_see_what_they_look_for():
            "def f():\n    return G._secret\n" + "def g():\n" + "    x = 1\n" * 130)
     tree = ast.parse(src)
     fakes = {"flightsw.fake_mod": tree, "flightsw.fake_a": ast.parse("from flightsw import fake_b"),
-             "flightsw.fake_b": ast.parse("def f():\n    import flightsw.fake_a\n")}
+             "flightsw.fake_b": ast.parse("def f():\n    import flightsw.fake_a\n"),
+             "hil_harness.fake_lib": ast.parse("def f():\n    from hil_harness.cli import main\n"),
+             "hil_harness.cli.fake_cmd": ast.parse("from hil_harness import cli")}
     for m, t in fakes.items():
         MODULES[m] = Path(m + ".py")
         TREES[m] = t
@@ -237,6 +253,8 @@ def test_the_checks_see_what_they_look_for():
         assert ("flightsw.fake_mod", "flightsw.tp.geometry", "_secret") in private_accesses()
         assert ("flightsw.fake_mod", "g") in long_functions()
         assert ("flightsw.fake_a", "flightsw.fake_b") in cycles()
+        assert ("hil_harness.fake_lib", "hil_harness.cli") in cli_imports()
+        assert not {found for found in cli_imports() if found[0] == "hil_harness.cli.fake_cmd"}
     finally:
         for m in fakes:
             del MODULES[m], TREES[m]

@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fileio import temp_beside
+from hil_harness.fileio import temp_beside
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
 WFOV_DEG = 13.1
