@@ -586,7 +586,7 @@ def rescore_recording(path, h: Hypothesis) -> dict:
     from scipy.stats import binomtest
 
     from flightsw.ip import ProcessingSequence
-    from .recording import Recording
+    from hil_harness.event.recording import Recording
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")

@@ -94,7 +94,7 @@ def run(args) -> int:
     from hil_harness import budget_hypotheses as bh
     from hil_harness.budget import budget_report
     from hil_harness.sequences import resolve_sequence
-    from hil_harness.selection import record_name_for
+    from hil_harness.event.selection import record_name_for
     scn = Scenario.load(args.scenario)
     frame, truth = scn.world().render()
     tt = scn.target_type

@@ -60,8 +60,8 @@ def _terminate(signum, frame):
 
 def run(args) -> int:
     from groundsim.scenario import Scenario
-    from hil_harness.event_io import EventInterrupted, run_event, summary_table
-    from hil_harness.selection import SelectionParams
+    from hil_harness.event.io import EventInterrupted, run_event, summary_table
+    from hil_harness.event.selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
         raise ValueError(f"scenario {name!r}: not a shipped scenario ({', '.join(Scenario.shipped())}) "
