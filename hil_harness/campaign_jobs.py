@@ -72,7 +72,7 @@ def identification(params: dict) -> dict:
     from flightsw.ip.frame import process_frame
     from flightsw.messages import Feedback
     from flightsw.records import load_record
-    from hil_harness.tuning_data import _prediction, load_sequence, scenario_from_entry
+    from hil_harness.tuning.data import frame_prediction, load_sequence, scenario_from_entry
 
     plain, over = split_overrides(params)
     bad = sorted(set(plain) - _IDENT_KEYS)
@@ -80,8 +80,8 @@ def identification(params: dict) -> dict:
         raise ValueError(f"identification: unknown parameter(s) {bad} (known: {sorted(_IDENT_KEYS)}"
                          f" and dotted scenario overrides such as 'target.spot_kR')")
     if isinstance(plain.get("override"), dict):
-        from hil_harness.tuning_data import _deep_merge
-        over = _deep_merge(plain["override"], over)
+        from hil_harness.tuning.data import deep_merge
+        over = deep_merge(plain["override"], over)
     seed = int(plain.get("seed", 0))
     nmax = int(plain.get("frames", 8))
     start, every = int(plain.get("start", 0)), int(plain.get("every", 1))
@@ -105,7 +105,7 @@ def identification(params: dict) -> dict:
             frame, truth = world.render()
             tg = truth["target"]
             pos = (float(tg["row"]), float(tg["col"])) if tg.get("in_field") else None
-            pred = _prediction(mode, pos, prev, noise, rng)
+            pred = frame_prediction(mode, pos, prev, noise, rng)
             fb = None if pred is None else Feedback(pred[0], pred[1], record.object_type, True)
             res = process_frame(frame, seq, record, fb, imager=truth["imager"], want_stages=False)
             c = res.message.candidates

@@ -48,8 +48,6 @@ ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
     ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_check_frame'),
     ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_compact_k'),
     ('flightsw.ip.sequence', 'flightsw.ip.preprocess', '_new_subimage'),
-    ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_deep_merge'),
-    ('hil_harness.campaign_jobs', 'hil_harness.tuning_data', '_prediction'),
 }
 #: (module, accessed module, name) ``module._name`` reads
 ALLOWED_PRIVATE_ACCESS: set[tuple[str, str, str]] = {

@@ -1,6 +1,6 @@
 """Closed-loop validation and optimisation of a priori records: the flight protocol.
 
-Every rate is measured the way the flight IP would see the data (:mod:`hil_harness.closed_loop`):
+Every rate is measured the way the flight IP would see the data (:mod:`hil_harness.tuning.closed_loop`):
 each event's frames, rendered once, are replayed through IP + TP for the record; the IP's window
 and centroid means come from the TP's prediction of the previous frame, the first frame of each
 event from the centre. Three figures on the same frames, each ``{"k", "n", "rate", "ci95"}``
@@ -21,7 +21,7 @@ Optimiser (:func:`optimise_closed_loop`)
     1. the base record (Table 1 by default) is replayed on the training events closed loop and with
        the window on the label (training reads the labels; no reported rate does); the features
        of every blob the IP saw in both, with the centroid means it used, are the training set
-       from which means, sigmas and thresholds are fitted (:func:`hil_harness.tuning_fit.
+       from which means, sigmas and thresholds are fitted (:func:`hil_harness.tuning.fit.
        fit_record`);
     2. SciPy's differential evolution searches the log-weights for the largest **closed-loop**
        top-1 rate on the training events (each candidate weight vector costs one IP + TP replay of
@@ -45,12 +45,12 @@ import numpy as np
 
 from flightsw.messages import N_FEATURES
 from flightsw.records import Record, load_record
+from hil_harness.rates import rate
 
 from .closed_loop import replay, score_top1
-from .rates import rate
-from .tuning_data import TrainingSet, load_sequence
-from .tuning_fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, scale_to_chi2,
-                         threshold_record)
+from .data import TrainingSet, load_sequence
+from .fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, scale_to_chi2,
+                  threshold_record)
 
 __all__ = ["RATE_KEYS", "PRIOR_OF", "Replayer", "optimise_closed_loop", "cross_validate_closed",
            "ClosedLoopResult", "centroid_zeroed", "MIN_BLOCK", "validate_closed_loop",
@@ -70,7 +70,7 @@ def centroid_zeroed(record: Record) -> Record:
 
 
 class Replayer:
-    """Events (:class:`~hil_harness.closed_loop.ReplayEvent`) with their sequence and radius,
+    """Events (:class:`~hil_harness.tuning.closed_loop.ReplayEvent`) with their sequence and radius,
     replayed through IP + TP for any record.
 
     Parameters
@@ -106,7 +106,7 @@ class Replayer:
         return self._seq[tuple(ev.frames.shape[1:])]
 
     def replays(self, record, prior="tp") -> list:
-        """Per event, the list of :class:`~hil_harness.closed_loop.ReplayFrame`."""
+        """Per event, the list of :class:`~hil_harness.tuning.closed_loop.ReplayFrame`."""
         return [replay(e, self.seq_for(e), record, prior) for e in self.events]
 
     def hits(self, record, prior="tp", replays=None) -> list:
@@ -138,7 +138,7 @@ class Replayer:
 
     def training_set(self, replays, meta=None) -> TrainingSet:
         """The blobs the IP saw in ``replays`` (one list per event) with the centroid means it
-        used: a :class:`~hil_harness.tuning_data.TrainingSet` (truth as the label)."""
+        used: a :class:`~hil_harness.tuning.data.TrainingSet` (truth as the label)."""
         words, rows = [], {k: [] for k in ("group", "source", "index", "t", "label_row",
                                            "label_col", "mean_row", "mean_col", "radius",
                                            "n_blobs", "pred_row", "pred_col")}
@@ -412,9 +412,9 @@ PROTOCOL_NOTE = ("every frame replayed through the flight IP + TP (target-of-opp
 def validate_closed_loop(rp: Replayer, records: dict, out_dir, title="Record validation",
                          extra: dict | None = None, log=print) -> dict:
     """Replay every record (``{label: Record}``) closed loop on ``rp``'s events and write the
-    validation report (:func:`hil_harness.tuning_validate.validate`) with the three rates of the
+    validation report (:func:`hil_harness.tuning.validate.validate`) with the three rates of the
     module docstring per record (also per event in ``metrics.json``). Returns the metrics."""
-    from .tuning_validate import validate
+    from .validate import validate
     tsets, cl = {}, {}
     for label, rec in records.items():
         r = rp.rates(rec)
@@ -425,7 +425,7 @@ def validate_closed_loop(rp: Replayer, records: dict, out_dir, title="Record val
     m = validate(tsets, records, out_dir, title=title, extra=ex, log=log, closed_loop=cl)
     for label in records:
         m[label]["per_event"] = cl[label]["per_event"]
-    from .tuning_validate import write_metrics
+    from .validate import write_metrics
     write_metrics(out_dir, m)
     return m
 
@@ -447,8 +447,8 @@ def identification_job(params: dict) -> dict:
     ``frames_without``
     (frames without the object where the closed loop still reported a candidate)."""
     import json
-    from .campaign_jobs import split_overrides
-    from .tuning_events import render_scenario_event
+    from hil_harness.campaign_jobs import split_overrides
+    from .events import render_scenario_event
     plain, over = split_overrides(params)
     bad = sorted(set(plain) - _JOB_KEYS)
     if bad:

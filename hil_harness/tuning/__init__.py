@@ -37,13 +37,12 @@ from __future__ import annotations
 
 from flightsw.records import Record, load_record
 
-from .tuning_data import SetSpec, TrainingSet, build_set, load_labels, load_set
-from .tuning_export import (CheckResult, check_record, check_record_file, export_record,
-                            read_words, unit_problems, write_words)
-from .tuning_fit import (FastRanker, FlightRanking, OptimiseResult, cross_validate, fit_record,
-                         flight_rank, gof_threshold_for_frr, object_rows, optimise_record,
-                         optimise_weights, top1_rate)
-from .tuning_validate import evaluate, threshold_sweep, validate
+from .data import SetSpec, TrainingSet, build_set, load_labels, load_set
+from .export import (CheckResult, check_record, check_record_file, export_record, read_words,
+                     unit_problems, write_words)
+from .fit import (FastRanker, FlightRanking, OptimiseResult, cross_validate, fit_record, flight_rank,
+                  gof_threshold_for_frr, object_rows, optimise_record, optimise_weights, top1_rate)
+from .validate import evaluate, threshold_sweep, validate
 
 __all__ = ["Record", "load_record", "SetSpec", "TrainingSet", "build_set", "load_set", "load_labels",
            "fit_record", "optimise_record", "optimise_weights", "cross_validate", "flight_rank",
