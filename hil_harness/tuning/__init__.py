@@ -4,27 +4,27 @@ fit, optimise, validate, export -- the workflow behind ``uvisi tune`` and ``uvis
 The paper's Table 1 "was determined from a training subset of the available auroral imagery" and
 "proper setting of the a priori target record is important". The steps, each in its own module:
 
-=====================  ===========================================================================
-:mod:`.tuning_events`  every event of a set spec (scenario + seed, or a real night) rendered or
-                       read once, with the truth beside it
-:mod:`.closed_loop`    the flight IP + TP over an event's fixed frames: the IP's prior from the
-                       TP's prediction (Wilson-interval rates; truth read only to score)
-:mod:`.tuning_closed`  the three rates of every report (closed loop, no prior, truth prior as an
-                       upper bound), the closed-loop optimiser and event-grouped cross-validation
-:mod:`.tuning_data`    labelled feature sets: every blob's flight features with which blob is
-                       "the object" (``uvisi tune set`` / ``fit``)
-:mod:`.tuning_fit`     fit (means, sigmas, quantisation thresholds), the vectorised ranker, GOF
-                       threshold for a stated false-rejection rate
-:mod:`.tuning_validate`  top-1/top-3, false lock, rank over time, confusion; Markdown + PNG report
-:mod:`.tuning_export`  TOML + uplink words, and the pre-uplink check of either form
-=====================  ===========================================================================
+===================  =============================================================================
+:mod:`.events`       every event of a set spec (scenario + seed, or a real night) rendered or read
+                     once, with the truth beside it
+:mod:`.closed_loop`  the flight IP + TP over an event's fixed frames: the IP's prior from the TP's
+                     prediction (Wilson-interval rates; truth read only to score)
+:mod:`.closed`       the three rates of every report (closed loop, no prior, truth prior as an
+                     upper bound), the closed-loop optimiser and event-grouped cross-validation
+:mod:`.data`         labelled feature sets: every blob's flight features with which blob is "the
+                     object" (``uvisi tune set`` / ``fit``)
+:mod:`.fit`          fit (means, sigmas, quantisation thresholds), the vectorised ranker, GOF
+                     threshold for a stated false-rejection rate
+:mod:`.validate`     top-1/top-3, false lock, rank over time, confusion; Markdown + PNG report
+:mod:`.export`       TOML + uplink words, and the pre-uplink check of either form
+===================  =============================================================================
 
 Typical use (also ``uvisi tune optimise TRAIN.toml -o rec.toml --words rec.words`` and
 ``uvisi tune validate EVAL.toml --record rec.toml --compare aurora --report DIR``)::
 
-    from hil_harness.tuning_closed import Replayer, optimise_closed_loop, validate_closed_loop
-    from hil_harness.tuning_data import SetSpec
-    from hil_harness.tuning_events import build_events, event_radius
+    from hil_harness.tuning.closed import Replayer, optimise_closed_loop, validate_closed_loop
+    from hil_harness.tuning.data import SetSpec
+    from hil_harness.tuning.events import build_events, event_radius
     spec = SetSpec.load("campaigns/tuneset_aurora_train.toml")
     train = Replayer(build_events(spec), spec.sequence, event_radius(spec))
     res = optimise_closed_loop(train, base="aurora", frr=0.005)
