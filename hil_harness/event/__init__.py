@@ -14,7 +14,7 @@
 ==================  ================================================================================
 
 The names below are the event's public interface (``from hil_harness.event import Event,
-EventConfig, run_event``; a campaign's ``job = "hil_harness.campaign_jobs:event"`` runs
+EventConfig, run_event``; a campaign's ``job = "hil_harness.campaign.jobs:event"`` runs
 :func:`run_event`).
 """
 from __future__ import annotations

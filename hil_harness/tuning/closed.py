@@ -447,7 +447,7 @@ def identification_job(params: dict) -> dict:
     ``frames_without``
     (frames without the object where the closed loop still reported a candidate)."""
     import json
-    from hil_harness.campaign_jobs import split_overrides
+    from hil_harness.campaign.jobs import split_overrides
     from .events import render_scenario_event
     plain, over = split_overrides(params)
     bad = sorted(set(plain) - _JOB_KEYS)
