@@ -1,6 +1,6 @@
 """An event's products: the HDF5 recording, ``summary.json``, the figures, and the replay check.
 
-Recording layout (``hil_harness.event.recording``, written in blocks as ``recording.partial.h5`` and renamed
+Recording layout (:mod:`.recording`, written in blocks as ``recording.partial.h5`` and renamed
 ``recording.h5`` when complete; ``docs/formats.md``; every table one row per frame unless said)::
 
     attrs     format, complete, run_id, software versions, scenario (name, raw TOML table as JSON),

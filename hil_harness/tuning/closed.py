@@ -1,6 +1,7 @@
 """Closed-loop validation and optimisation of a priori records: the flight protocol.
 
-Every rate is measured the way the flight IP would see the data (:mod:`hil_harness.tuning.closed_loop`):
+Every rate is measured the way the flight IP would see the data
+(:mod:`hil_harness.tuning.closed_loop`):
 each event's frames, rendered once, are replayed through IP + TP for the record; the IP's window
 and centroid means come from the TP's prediction of the previous frame, the first frame of each
 event from the centre. Three figures on the same frames, each ``{"k", "n", "rate", "ci95"}``

@@ -1,6 +1,6 @@
 """Events for closed-loop tuning and validation: each scenario run or real sequence of a set spec
-rendered (or read) once into a :class:`~hil_harness.tuning.closed_loop.ReplayEvent`, kept on disk if asked,
-then replayed through IP + TP for every record (:mod:`hil_harness.tuning.closed`).
+rendered (or read) once into a :class:`~hil_harness.tuning.closed_loop.ReplayEvent`, kept on disk if
+asked, then replayed through IP + TP for every record (:mod:`hil_harness.tuning.closed`).
 
 An **event** is one scenario run (scenario + seed: every frame from ``start``, every ``every``-th,
 at most ``frames``); a **night** is one real sequence (a ``[[real]]`` entry: its labelled frames in
