@@ -71,7 +71,7 @@ def run(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
     if args.hypothesis is not None:
-        from hil_harness.budget_hypotheses import HYPOTHESES
+        from hil_harness.budget.hypotheses import HYPOTHESES
         names = [h.name for h in HYPOTHESES]
         if args.hypothesis not in names:
             raise ValueError(f"--hypothesis {args.hypothesis!r}: not one of {', '.join(names)}")

@@ -87,7 +87,7 @@ class EventConfig:
     stage_frame : int, optional
         Frame whose stage images are kept for the Figure-3 panel (default: the 11th processed frame).
     hypothesis : str, optional
-        A budget hypothesis (``hil_harness.budget_hypotheses.HYPOTHESES``) to price every frame
+        A budget hypothesis (``hil_harness.budget.hypotheses.HYPOTHESES``) to price every frame
         under, overruns included; default: today's cycle model.
     """
 
@@ -211,7 +211,7 @@ class Event:
         self.uplink_words = [self._uplink_words(i, u) for i, u in enumerate(scn.uplinks)]
         self._budget_hypothesis = None
         if cfg.hypothesis is not None:
-            from hil_harness.budget_hypotheses import hypothesis
+            from hil_harness.budget.hypotheses import hypothesis
             self._budget_hypothesis = hypothesis(cfg.hypothesis)
         ground = [(float(t), str(i)) for t, i in scn.faults.imager_switch]
         self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
@@ -449,7 +449,7 @@ class Event:
         h = self._budget_hypothesis
         if h is None:
             return ledger
-        from hil_harness.budget_hypotheses import hypothesis_ledger
+        from hil_harness.budget.hypotheses import hypothesis_ledger
         return hypothesis_ledger(h, self.ip.sequence, res.subimage.image.shape, ledger)
 
     def run(self, progress: bool = False, on_frame=None) -> list:
