@@ -90,7 +90,8 @@ def test_spec_errors(bad, msg):
 @pytest.mark.parametrize("old, new", [
     ("hil_harness.campaign_jobs:identification", "hil_harness.campaign.jobs:identification"),
     ("hil_harness.campaign_jobs:event", "hil_harness.campaign.jobs:event"),
-    ("hil_harness.tuning_closed:identification_job", "hil_harness.tuning.closed:identification_job"),
+    ("hil_harness.tuning_closed:identification_job",
+     "hil_harness.tuning.closed:identification_job"),
 ])
 def test_job_paths_from_before_the_subpackages_still_resolve(old, new):
     """Users' own campaign files may name the flat module paths of before: the same function."""

@@ -91,10 +91,10 @@ def run(args) -> int:
     from flightsw.ip import load_default_sequence
     from flightsw.records import load_record
     from groundsim.scenario import Scenario
-    from hil_harness.budget import hypotheses as bh
     from hil_harness.budget import budget_report
-    from hil_harness.sequences import resolve_sequence
+    from hil_harness.budget import hypotheses as bh
     from hil_harness.event.selection import record_name_for
+    from hil_harness.sequences import resolve_sequence
     scn = Scenario.load(args.scenario)
     frame, truth = scn.world().render()
     tt = scn.target_type

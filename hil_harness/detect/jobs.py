@@ -31,7 +31,7 @@ GATE_TOP = 8192.0
 
 
 #: full-frame tile (compacted pixels) for the sequences of extended objects: one trail or one
-#: auroral form stays in one window (point sources use DEFAULT_TILE of hil_harness.detect.fullframe, 64)
+#: auroral form stays in one window (point sources use detect.fullframe.DEFAULT_TILE, 64)
 EXTENDED_TILE = {"streak": 128, "aurora": 128}
 
 
