@@ -168,28 +168,30 @@ def pack48(m, e):
 
 
 @njit(cache=True, inline="always")
-def _unpack(p, W):
+def unpack_w(p, W):
+    """:func:`unpack32` (W = 23) or :func:`unpack48` (W = 39) of packed word ``p``."""
     if W == 23:
         return unpack32(p)
     return unpack48(p)
 
 
 @njit(cache=True, inline="always")
-def _pack(m, e, W):
+def pack_w(m, e, W):
+    """:func:`pack32` (W = 23) or :func:`pack48` (W = 39) of ``(m, e)`` (no checks)."""
     if W == 23:
         return pack32(m, e)
     return pack48(m, e)
 
 
 @njit(cache=True, inline="always")
-def _norm_shift(m, W):
+def norm_shift(m, W):
     """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
     bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift)."""
     return leading_zeros(m ^ (m >> 63)) - (64 - W)
 
 
 @njit(cache=True, inline="always")
-def _overflow_word(neg, W):
+def overflow_word(neg, W):
     """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
     negative."""
     if W == 23:
@@ -200,7 +202,7 @@ def _overflow_word(neg, W):
 @njit(cache=True, inline="always")
 def _overflow(neg, W):
     """Standard overflow result and its PI flag."""
-    return _overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
+    return overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
 @njit(cache=True, inline="always")
@@ -208,14 +210,14 @@ def _finish(m, e, W):
     """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags)."""
     if m == 0:
         return 0, 0
-    s = _norm_shift(m, W)
+    s = norm_shift(m, W)
     m = m << s
     e = e - s
     if e < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
     if e > 127:
         return _overflow(m < 0, W)
-    return _pack(m, e, W), 0
+    return pack_w(m, e, W), 0
 
 
 # ================================================================================================
@@ -223,8 +225,8 @@ def _finish(m, e, W):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _add_core(a, b, W, subtract):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     if subtract:                     # negate first (exact, wide register): see DECISION_FS_*
         mo = -mo
     n = ea - eo
@@ -298,7 +300,7 @@ def _fm32_k(a, b):
         if n > 127:
             return MAX32, FLAG_FLOAT_OVERFLOW
         return pack32(0x400000, n), 0
-    s = _norm_shift(P, 46)            # normalise the double-length product, then truncate
+    s = norm_shift(P, 46)            # normalise the double-length product, then truncate
     n -= s
     if n < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
@@ -306,7 +308,7 @@ def _fm32_k(a, b):
 
 
 @njit(cache=True, inline="always")
-def _prod80(A, B):
+def prod80(A, B):
     """A * B for 0 <= A, B <= 2**39 as (H, L) with A * B = H * 2**40 + L, 0 <= L < 2**40: the
     80-bit product from 20-bit limbs (no intermediate exceeds 63 bits). Branch-free, so the lane
     form of EFM uses it too."""
@@ -338,7 +340,7 @@ def _fm48_k(a, b):
         if n > 127:
             return MAX48, FLAG_FLOAT_OVERFLOW
         return pack48(1 << 38, n), 0
-    H, L = _prod80(A, B)              # |P| = H * 2**40 + L; value |P| / 2**78
+    H, L = prod80(A, B)              # |P| = H * 2**40 + L; value |P| / 2**78
     half = 1 << 37                    # |P| = 2**77  <=>  |product| = 0.5
     if not neg:
         if H >= half:                 # normalised as is: floor(|P| / 2**39)
@@ -393,8 +395,8 @@ def _quotient_floor(A, B, W):
 
 @njit(cache=True, inline="always")
 def _div_core(a, b, W):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     n = ea - eo
     if ma == 0:
         n = 0
@@ -426,7 +428,7 @@ def _div_core(a, b, W):
         n -= 1
         if n < -128:
             return 0, FLAG_FLOAT_UNDERFLOW
-    return _pack(Q, n, W), 0
+    return pack_w(Q, n, W), 0
 
 
 @njit(cache=True)
@@ -444,31 +446,31 @@ def _fd48_k(a, b):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _fabs_core(a, W):
-    m, e = _unpack(a, W)
+    m, e = unpack_w(a, W)
     if m >= 0:
         return a, 0
     if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
         e += 1
         if e > 127:
             return _overflow(False, W)
-        return _pack(1 << (W - 1), e, W), 0
-    return _pack(-m, e, W), 0
+        return pack_w(1 << (W - 1), e, W), 0
+    return pack_w(-m, e, W), 0
 
 
 @njit(cache=True, inline="always")
 def _fneg_core(a, W):
-    m, e = _unpack(a, W)
+    m, e = unpack_w(a, W)
     if m == 0:
         return 0, 0
     if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
         if e == 127:
             return _overflow(False, W)
-        return _pack(1 << (W - 1), e + 1, W), 0
+        return pack_w(1 << (W - 1), e + 1, W), 0
     if m == (1 << (W - 1)):          # 0.5 * 2**e -> -1.0 * 2**(e-1)
         if e == -128:
             return 0, FLAG_FLOAT_UNDERFLOW
-        return _pack(-(1 << W), e - 1, W), 0
-    return _pack(-m, e, W), 0
+        return pack_w(-(1 << W), e - 1, W), 0
+    return pack_w(-m, e, W), 0
 
 
 @njit(cache=True)
@@ -539,8 +541,8 @@ def _flt48_k(i):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _fc_core(a, b, W):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     sa = -1 if ma < 0 else (1 if ma > 0 else 0)
     so = -1 if mo < 0 else (1 if mo > 0 else 0)
     if sa != so:
@@ -603,14 +605,18 @@ def is_normalized48(p: int) -> bool:
     return ((m >> 39) ^ (m >> 38)) & 1 == 1
 
 
-def _f32(name, v):
+def check32(name, v):
+    """``v`` as an int if it is a normalised packed 32-bit float or floating zero, else
+    ``ValueError`` naming ``name`` and the value."""
     v = _int_in(name, v, MASK32)
     if not is_normalized32(v):
         raise ValueError(f"{name}={v:#010x} is not a normalised 1750A 32-bit float or floating zero")
     return v
 
 
-def _f48(name, v):
+def check48(name, v):
+    """``v`` as an int if it is a normalised packed 48-bit float or floating zero, else
+    ``ValueError`` naming ``name`` and the value."""
     v = _int_in(name, v, MASK48)
     if not is_normalized48(v):
         raise ValueError(f"{name}={v:#014x} is not a normalised 1750A 48-bit float or floating zero")
@@ -701,14 +707,14 @@ def encode48(x, rounding: str = "floor") -> int:
 
 def decode32(p) -> float:
     """Packed 32-bit 1750A float -> Python float (exact). Non-normalised words -> ``ValueError``."""
-    p = _f32("decode32: p", p)
+    p = check32("decode32: p", p)
     m, e = unpack32.py_func(p)
     return math.ldexp(float(m), e - 23)
 
 
 def decode48(p) -> float:
     """Packed 48-bit 1750A float -> Python float (exact: 40-bit mantissas fit a double)."""
-    p = _f48("decode48: p", p)
+    p = check48("decode48: p", p)
     m, e = unpack48.py_func(p)
     return math.ldexp(float(m), e - 39)
 
@@ -894,36 +900,40 @@ _DOC_ADD = ("``{n}(a, b) -> (a {op} b, flags)``: {mn} (MIL-STD-1750A {sec}). Pac
             "normalise; overflow -> 7FF..F/7F or 800..0/7F + FLAG_FLOAT_OVERFLOW, underflow -> 0 + "
             "FLAG_FLOAT_UNDERFLOW.")
 
-fa32 = _binary("fa32", _fa32_k, _f32, _DOC_ADD.format(n="fa32", op="+", mn="FA", sec="5.60", w=32))
-fs32 = _binary("fs32", _fs32_k, _f32, _DOC_ADD.format(n="fs32", op="-", mn="FS", sec="5.68", w=32))
-fa48 = _binary("fa48", _fa48_k, _f48, _DOC_ADD.format(n="fa48", op="+", mn="EFA", sec="5.61", w=48))
-fs48 = _binary("fs48", _fs48_k, _f48, _DOC_ADD.format(n="fs48", op="-", mn="EFS", sec="5.69", w=48))
+fa32 = _binary("fa32", _fa32_k, check32,
+               _DOC_ADD.format(n="fa32", op="+", mn="FA", sec="5.60", w=32))
+fs32 = _binary("fs32", _fs32_k, check32,
+               _DOC_ADD.format(n="fs32", op="-", mn="FS", sec="5.68", w=32))
+fa48 = _binary("fa48", _fa48_k, check48,
+               _DOC_ADD.format(n="fa48", op="+", mn="EFA", sec="5.61", w=48))
+fs48 = _binary("fs48", _fs48_k, check48,
+               _DOC_ADD.format(n="fs48", op="-", mn="EFS", sec="5.69", w=48))
 _DOC_MUL = ("``{n}(a, b) -> (a * b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponents added and "
             "checked first (> 7F overflow, < 80 underflow), exact double-length mantissa product "
             "shifted left 1, (-1.0)(-1.0) -> 0.5 * 2**(n+m+1), normalised, truncated toward minus "
             "infinity.")
-fm32 = _binary("fm32", _fm32_k, _f32, _DOC_MUL.format(n="fm32", mn="FM", sec="5.74"))
-fm48 = _binary("fm48", _fm48_k, _f48, _DOC_MUL.format(n="fm48", mn="EFM", sec="5.75"))
+fm32 = _binary("fm32", _fm32_k, check32, _DOC_MUL.format(n="fm32", mn="FM", sec="5.74"))
+fm48 = _binary("fm48", _fm48_k, check48, _DOC_MUL.format(n="fm48", mn="EFM", sec="5.75"))
 _DOC_DIV = ("``{n}(a, b) -> (a / b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponent difference "
             "checked first; quotient truncated toward minus infinity, shifted right once if it does "
             "not fit the mantissa. Divide by zero -> overflow result + FLAG_FLOAT_OVERFLOW.")
-fd32 = _binary("fd32", _fd32_k, _f32, _DOC_DIV.format(n="fd32", mn="FD", sec="5.79"))
-fd48 = _binary("fd48", _fd48_k, _f48, _DOC_DIV.format(n="fd48", mn="EFD", sec="5.80"))
-fabs32 = _unary("fabs32", _fabs32_k, _f32,
+fd32 = _binary("fd32", _fd32_k, check32, _DOC_DIV.format(n="fd32", mn="FD", sec="5.79"))
+fd48 = _binary("fd48", _fd48_k, check48, _DOC_DIV.format(n="fd48", mn="EFD", sec="5.80"))
+fabs32 = _unary("fabs32", _fabs32_k, check32,
                 "``fabs32(a) -> (|a|, flags)``: FABS (5.62). |-1.0*2**n| = 0.5*2**(n+1); "
                 "|-1.0*2**127| overflows to 7FFFFF/7F.")
-fabs48 = _unary("fabs48", _fabs48_k, _f48,
+fabs48 = _unary("fabs48", _fabs48_k, check48,
                 "``fabs48(a) -> (|a|, flags)``: 48-bit analogue of FABS (the standard has no EFABS).")
-fneg32 = _unary("fneg32", _fneg32_k, _f32,
+fneg32 = _unary("fneg32", _fneg32_k, check32,
                 "``fneg32(a) -> (-a, flags)``: FNEG (5.70). -(-1.0*2**n) = 0.5*2**(n+1), "
                 "-(0.5*2**n) = -1.0*2**(n-1); -(-1.0*2**127) overflows, -(0.5*2**-128) underflows.")
-fneg48 = _unary("fneg48", _fneg48_k, _f48,
+fneg48 = _unary("fneg48", _fneg48_k, check48,
                 "``fneg48(a) -> (-a, flags)``: 48-bit negate (no EFNEG exists; identical to "
                 "``0 EFS a`` and to FNEG's rules).")
-fix32 = _unary("fix32", _fix32_k, _f32,
+fix32 = _unary("fix32", _fix32_k, check32,
                "``fix32(a) -> (int16 pattern, flags)``: FIX (5.85), truncation toward zero; "
                "exponent > 0F -> (0, FLAG_FIXED_OVERFLOW) (the hardware leaves RA unchanged).")
-fix48 = _unary("fix48", _fix48_k, _f48,
+fix48 = _unary("fix48", _fix48_k, check48,
                "``fix48(a) -> (int32 pattern, flags)``: EFIX (5.87), truncation toward zero; "
                "exponent > 1F -> (0, FLAG_FIXED_OVERFLOW).")
 flt32 = _unary("flt32", _flt32_k, _int16,
@@ -937,15 +947,15 @@ flt48 = _unary("flt48", _flt48_k, _int32,
 def fc32(a, b) -> int:
     """``fc32(a, b) -> -1 | 0 | 1``: FC (5.94), the condition status of ``a : b`` (a < b, =, >).
     Never interrupts, so no flags are returned."""
-    return int(_fc32_k(_f32("fc32: a", a), _f32("fc32: b", b)))
+    return int(_fc32_k(check32("fc32: a", a), check32("fc32: b", b)))
 
 
 def fc48(a, b) -> int:
     """``fc48(a, b) -> -1 | 0 | 1``: EFC (5.95)."""
-    return int(_fc48_k(_f48("fc48: a", a), _f48("fc48: b", b)))
+    return int(_fc48_k(check48("fc48: a", a), check48("fc48: b", b)))
 
 
-def _ov2(kern):
+def overload_impl2(kern):
     """numba overload typing function for a public 2-argument primitive: calls ``kern``."""
     def ov(a, b):
         def impl(a, b):
@@ -954,7 +964,8 @@ def _ov2(kern):
     return ov
 
 
-def _ov1(kern):
+def overload_impl1(kern):
+    """numba overload typing function for a public 1-argument primitive: calls ``kern``."""
     def ov(a):
         def impl(a):
             return kern(a)
@@ -969,9 +980,9 @@ def _register_overloads():
     pairs1 = [(fabs32, _fabs32_k), (fabs48, _fabs48_k), (fneg32, _fneg32_k), (fneg48, _fneg48_k),
               (fix32, _fix32_k), (fix48, _fix48_k), (flt32, _flt32_k), (flt48, _flt48_k)]
     for pub, kern in pairs2:
-        overload(pub, jit_options={"cache": True})(_ov2(kern))
+        overload(pub, jit_options={"cache": True})(overload_impl2(kern))
     for pub, kern in pairs1:
-        overload(pub, jit_options={"cache": True})(_ov1(kern))
+        overload(pub, jit_options={"cache": True})(overload_impl1(kern))
 
 
 _register_overloads()
