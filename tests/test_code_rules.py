@@ -21,17 +21,6 @@ MAX_FUNCTION_LINES = 120
 #: (importing module, imported module, name) private imports across modules (they belong to
 #: flightsw.arith, flightsw.ip and hil_harness)
 ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
-    ('flightsw.arith.m1750_int', 'flightsw.arith.m1750_float', '_ov1'),
-    ('flightsw.arith.m1750_int', 'flightsw.arith.m1750_float', '_ov2'),
-    ('flightsw.arith.m1750_lanes', 'flightsw.arith.m1750_float', '_norm_shift'),
-    ('flightsw.arith.m1750_lanes', 'flightsw.arith.m1750_float', '_overflow_word'),
-    ('flightsw.arith.m1750_lanes', 'flightsw.arith.m1750_float', '_pack'),
-    ('flightsw.arith.m1750_lanes', 'flightsw.arith.m1750_float', '_prod80'),
-    ('flightsw.arith.m1750_lanes', 'flightsw.arith.m1750_float', '_unpack'),
-    ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_f32'),
-    ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_f48'),
-    ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_ov1'),
-    ('flightsw.arith.m1750_math', 'flightsw.arith.m1750_float', '_ov2'),
     ('flightsw.ip.fftfilter', 'flightsw.ip.filters', '_as_words'),
     ('flightsw.ip.frame', 'flightsw.ip.colour', '_CYC'),
     ('flightsw.ip.frame', 'flightsw.ip.colour', '_DIRECT'),
