@@ -10,14 +10,16 @@ import numpy as np
 import pytest
 
 from flightsw.arith.m1750 import decode32, encode32
-from flightsw.messages import TC_NEW_DECISION, TC_OBJECT_LOST, TC_REINITIALISED
+from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
+                               TC_REINITIALISED)
 from flightsw.tp import layout as L
 from flightsw.tp.association import associate
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
                                propagate_gates, smooth_gates)
 from flightsw.tp.geometry import make_dR, tan_int
-from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, pair_conclusion,
-                               reinitialise, rule1, rule2, rule3, rule4, verify_object)
+from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, object_observed,
+                               pair_conclusion, reinitialise, report_object, rule1, rule2, rule3,
+                               rule4, verify_object)
 
 
 def w(x):
@@ -29,6 +31,8 @@ N = 3                     # successive empty frames for rules 1 and 2
 
 
 # ---- the rules as functions ----------------------------------------------------------------------
+@pytest.mark.cases("flightsw.tp.rules.rule1", "decides", "star-gate-recent", "object-gate-missed",
+                    "run-capped-2n", "inconsistent")
 def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
     assert rule1(3, 3, w(1e-8), N, THR)                 # empty n, populated since, consistent
     assert rule1(7, 6, w(1e-8), N, THR)                 # at most 2n populated frames asked for
@@ -37,6 +41,8 @@ def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
     assert not rule1(3, 3, w(5e-8), N, THR)             # inconsistent object gate
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule2", "decides", "object-gate-recent", "star-gate-missed",
+                    "inconsistent", "residual-at-threshold")
 def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, w(1e-8), N, THR)
     assert not rule2(2, 3, w(1e-8), N, THR)
@@ -45,6 +51,7 @@ def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "within-threshold", "reversed")
 def test_rule3_star_residuals_exceed_object_residuals():
     assert rule3(w(6e-8), w(1e-8), 1, THR)[0]          # 5e-8 > 4e-8, object gate populated
     assert not rule3(w(6e-8), w(1e-8), 0, THR)[0]      # object gate empty this frame
@@ -52,6 +59,7 @@ def test_rule3_star_residuals_exceed_object_residuals():
     assert not rule3(w(1e-8), w(6e-8), 1, THR)[0]      # the other way round: rule 4's case
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold", "reversed")
 def test_rule4_object_residuals_exceed_star_residuals():
     assert rule4(w(1e-8), w(6e-8), 1, THR)[0]
     assert not rule4(w(1e-8), w(6e-8), 0, THR)[0]      # star gate empty this frame
@@ -69,7 +77,11 @@ def test_rule4_object_residuals_exceed_star_residuals():
     (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 1 fails; residual rules suspended
     (12, 0, 0, 3, 9e-8, 9e-8, (DELETE, 0)),            # star gate empty 4n: stale pair deleted
     (0, 12, 3, 0, 9e-8, 9e-8, (DELETE, 0)),
+    (0, 3, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 2 fails; residual rules suspended
 ])
+@pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "both-empty", "rule1-object", "rule2-star",
+                   "rule3-object", "rule4-star", "within-threshold", "star-empty-suspended",
+                   "object-empty-suspended", "star-empty-stale", "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
     concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
     assert (concl, rule) == want and flags == 0
@@ -105,6 +117,8 @@ def _obs(points):
     return OBS
 
 
+@pytest.mark.cases("flightsw.tp.rules.reinitialise", "places", "gates-alive", "object-held", "no-evidence")
+@pytest.mark.cases("flightsw.tp.rules.place_pairs", "every-usable", "unusable-skipped")
 def test_reinitialisation_places_a_pair_on_every_usable_observation_only_when_all_gates_are_gone():
     C, S, G, V, GP, cyc = _state()
     OBS = _obs([(0.01, 0.02), (-0.03, 0.0), (0.0, 0.04)])
@@ -178,6 +192,8 @@ def _two_frames(obs_motion, nominal_motion):
     return C, S, G, V
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "object-decided")
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "held-fed")
 def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     C, S, G, V = _two_frames((3e-3, 0.0), (3e-3, 0.0))   # 3 mrad: out of the star gate
     assert G[0, L.G_MISS] == 1 and G[1, L.G_MISS] == 0 and G[1, L.G_RUN] == 2
@@ -187,6 +203,7 @@ def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     assert verify_object(C, S, G, V) and V[L.V_OBJ] == 0
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "star-deleted")
 def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule_2():
     C, S, G, V = _two_frames((0.0, 0.0), (3e-3, 0.0))
     assert G[1, L.G_MISS] == 1 and G[0, L.G_RUN] == 2
@@ -195,6 +212,7 @@ def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule
     assert not V[L.V_STATUS] & TC_NEW_DECISION
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "undecided-kept")
 def test_two_frames_both_gates_fed_and_consistent_stay_undecided():
     C, S, G, V = _two_frames((0.0, 0.0), (0.0, 0.0))
     assert G[0, L.G_RUN] == 2 and G[1, L.G_RUN] == 2 and G[:2, L.G_ALIVE].all()
@@ -216,6 +234,7 @@ def test_rules_3_and_4_decide_on_accumulated_residuals_of_populated_gates():
     assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 1]
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "best-of-several")
 def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spurious():
     C, S, G, V, GP, cyc = _state()
     for p, s_o in enumerate([2e-8, 1e-8]):
@@ -225,6 +244,7 @@ def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spu
     assert S[L.S_DEC] == 1 and S[L.S_NSPURIOUS] == 1 and not G[0:2, L.G_ALIVE].any()
 
 
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "held-coasting", "lost-empty")
 def test_verified_object_lost_after_n_lost_empty_frames():
     C, S, G, V, GP, cyc = _state()
     S[L.S_DEC] = 4
@@ -234,3 +254,81 @@ def test_verified_object_lost_after_n_lost_empty_frames():
     assert not verify_object(C, S, G, V)
     assert S[L.S_DEC] == -1 and G[9, L.G_ALIVE] == 0 and V[L.V_STATUS] & TC_OBJECT_LOST
     assert S[L.S_NLOST] == 1
+
+
+# ---- the remaining branches of the rules stage (issue 22: each kernel's listed cases) -----------
+@pytest.mark.cases("flightsw.tp.rules.rule1", "residual-at-threshold")
+@pytest.mark.cases("flightsw.tp.rules.rule2", "run-capped-2n")
+def test_rules_1_2_threshold_is_inclusive_and_at_most_2n_populated_frames_are_asked_for():
+    assert rule1(3, 3, THR, N, THR)                     # S_o == thr: "within" the threshold
+    assert rule2(9, 6, w(1e-8), N, THR)                 # empty 3n frames: 2n = 6 populated suffice
+    assert not rule2(9, 5, w(1e-8), N, THR)
+
+
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "stale-deleted", "object-while-held",
+                   "half-pair-skipped")
+def test_apply_rules_stale_pairs_counted_objects_while_held_spurious_and_the_held_pair_skipped():
+    C, S, G, V, GP, cyc = _state()                      # n = n' = 1 empty frame
+    S[L.S_DEC] = 0
+    G[1, L.G_ALIVE], G[1, L.G_MISS] = 1, 9              # held object: star gate gone, not ruled on
+    G[2, L.G_ALIVE], G[2, L.G_MISS] = 1, 4              # pair 1: star gate empty 4n, object
+    G[3, L.G_ALIVE], G[3, L.G_RES] = 1, w(9e-8)         #   gate never populated -> stale
+    for row, res in ((4, 9e-8), (5, 1e-8)):             # pair 2: rule 3 says object
+        G[row, L.G_ALIVE], G[row, L.G_RES], G[row, L.G_RUN] = 1, w(res), 2
+    apply_rules(C, S, G, V, GP, cyc)
+    assert S[L.S_NSTALE] == 1 and not G[2:4, L.G_ALIVE].any()
+    assert S[L.S_NSPURIOUS] == 1 and not G[4:6, L.G_ALIVE].any()
+    assert S[L.S_DEC] == 0 and G[1, L.G_ALIVE] == 1 and S[L.S_NDEC] == 0
+    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 0]
+    assert not V[L.V_STATUS] & TC_NEW_DECISION
+
+
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "none-held", "lost-deleted")
+def test_verify_object_without_an_object_and_with_its_gate_deleted():
+    C, S, G, V, GP, cyc = _state()
+    assert not verify_object(C, S, G, V) and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
+    S[L.S_DEC] = 2                                      # gate row 5 never alive
+    assert not verify_object(C, S, G, V)
+    assert S[L.S_DEC] == -1 and S[L.S_NLOST] == 1 and V[L.V_STATUS] & TC_OBJECT_LOST
+
+
+@pytest.mark.cases("flightsw.tp.rules.reinitialise", "nothing-usable")
+@pytest.mark.cases("flightsw.tp.rules.place_pairs", "no-observations")
+def test_reinitialise_without_usable_observations_places_nothing_and_says_nothing():
+    C, S, G, V, GP, cyc = _state()
+    OBS = _obs([(0.01, 0.02)])
+    OBS[0, L.OBS_OK] = 0
+    V[L.V_NUSE] = 1
+    assert reinitialise(S, G, OBS, V, cyc) == 0
+    V[L.V_NUSE] = 0
+    OBS[0, L.OBS_OK] = 1
+    assert reinitialise(S, G, OBS, V, cyc) == 0
+    assert V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 0 and not G[:, L.G_ALIVE].any()
+    assert cyc.sum() == 0
+
+
+@pytest.mark.cases("flightsw.tp.rules.report_object", "none-held", "locked", "coasting")
+def test_report_object_status_words():
+    C, S, G, V, GP, cyc = _state()
+    report_object(S, V)
+    assert V[L.V_STATUS] == 0 and V[L.V_LOCKED] == 0
+    S[L.S_DEC], V[L.V_OBJ] = 3, 0
+    report_object(S, V)
+    assert V[L.V_STATUS] == TC_OBJECT_DECIDED and V[L.V_LOCKED] == 1
+    V[L.V_STATUS], V[L.V_LOCKED], V[L.V_OBJ] = 0, 0, -1
+    report_object(S, V)
+    assert V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_COASTING and V[L.V_LOCKED] == 0
+
+
+@pytest.mark.cases("flightsw.tp.rules.object_observed", "observed", "none-held", "not-fed",
+                   "no-evidence")
+def test_object_observed_needs_a_held_fed_object_and_usable_evidence():
+    C, S, G, V, GP, cyc = _state()
+    S[L.S_DEC], V[L.V_OBJ] = 1, 2
+    assert object_observed(S, V)
+    V[L.V_EVIDENCE] = 0
+    assert not object_observed(S, V)
+    V[L.V_EVIDENCE], V[L.V_OBJ] = 1, -1
+    assert not object_observed(S, V)
+    S[L.S_DEC], V[L.V_OBJ] = -1, 2
+    assert not object_observed(S, V)
