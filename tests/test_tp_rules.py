@@ -15,7 +15,9 @@ from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, 
 from flightsw.tp import layout as L
 from flightsw.tp.association import associate
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
-                               propagate_gates, smooth_gates)
+                               any_gate_alive, drop_all_gates, gate_half_width, gate_params,
+                               kill_pair, propagate_gates, smooth_gates)
+from flightsw.tp.geometry import ImagerGeometry
 from flightsw.tp.geometry import make_dR, tan_int
 from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, object_observed,
                                pair_conclusion, reinitialise, report_object, rule1, rule2, rule3,
@@ -146,6 +148,8 @@ def _tan(v):
     return v[1] / v[0], v[2] / v[0]
 
 
+@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "star-gate", "object-gate-nominal", "learned-velocity",
+                   "velocity-kept", "dead-skipped")
 def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     C, S, G, V, GP, cyc = _state()
     a0, b0 = 0.02, -0.01
@@ -194,6 +198,7 @@ def _two_frames(obs_motion, nominal_motion):
 
 @pytest.mark.cases("flightsw.tp.rules.apply_rules", "object-decided")
 @pytest.mark.cases("flightsw.tp.rules.verify_object", "held-fed")
+@pytest.mark.cases("flightsw.tp.gates.smooth_gates", "empty")
 def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     C, S, G, V = _two_frames((3e-3, 0.0), (3e-3, 0.0))   # 3 mrad: out of the star gate
     assert G[0, L.G_MISS] == 1 and G[1, L.G_MISS] == 0 and G[1, L.G_RUN] == 2
@@ -332,3 +337,98 @@ def test_object_observed_needs_a_held_fed_object_and_usable_evidence():
     assert not object_observed(S, V)
     S[L.S_DEC], V[L.V_OBJ] = -1, 2
     assert not object_observed(S, V)
+
+
+# ---- gates: the remaining branches ----------------------------------------------------------------
+@pytest.mark.cases("flightsw.tp.gates.kill_pair", "typical")
+@pytest.mark.cases("flightsw.tp.gates.any_gate_alive", "none-alive", "last-row-alive")
+@pytest.mark.cases("flightsw.tp.gates.gate_half_width", "typical")
+def test_kill_pair_any_gate_alive_and_the_half_width_word():
+    C, S, G, V, GP, cyc = _state()
+    assert not any_gate_alive(G) and gate_half_width(GP) == 66
+    G[L.NG - 1, L.G_ALIVE] = 1
+    assert any_gate_alive(G)
+    G[:, L.G_ALIVE] = 1
+    kill_pair(G, 3)
+    assert np.flatnonzero(G[:, L.G_ALIVE] == 0).tolist() == [6, 7]
+
+
+@pytest.mark.cases("flightsw.tp.gates.drop_all_gates", "gates-deleted", "object-held-lost",
+                   "no-object")
+def test_drop_all_gates_after_a_long_gap():
+    C, S, G, V, GP, cyc = _state()
+    G[[1, 4, 5, L.NG - 2], L.G_ALIVE] = 1               # a half-dead pair, a pair, the last star gate
+    drop_all_gates(S, G, V)
+    assert not G[:, L.G_ALIVE].any() and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
+    S[L.S_DEC] = 0
+    G[1, L.G_ALIVE] = 1
+    drop_all_gates(S, G, V)
+    assert not G[:, L.G_ALIVE].any() and S[L.S_DEC] == -1 and S[L.S_NLOST] == 1
+    assert V[L.V_STATUS] & TC_OBJECT_LOST
+
+
+def _img(sc, sr):
+    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+
+
+@pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2), (0.6e-4, 1.0e-4, 0.5, 0.0),
+                                              (1.0e-4, 1.0e-4, 0.0, 0.2)])
+@pytest.mark.cases("flightsw.tp.gates.gate_params", "col-scale-larger", "row-scale-larger",
+                   "thresholds", "beta", "beta-zero", "dt-zero")
+def test_gate_params_from_pixels_to_radians(sc, sr, dt, beta):
+    C, S, G, V, GP, cyc = _state()
+    C[L.C_GATE_PX], C[L.C_THR_OBJ], C[L.C_THR_STAR], C[L.C_BETA] = w(7.3), w(2.0), w(3.0), w(beta)
+    V[L.V_DT] = w(dt) if dt else 0
+    gate_params(C, _img(sc, sr), V, GP, cyc)
+    assert GP[GP_HALF] == int(7.3 * max(sc, sr) * 2 ** 16)     # 47: FIX truncates, far from a tie
+    assert decode32(GP[GP_THR_OBJ]) == pytest.approx(2.0 * sc * sr, rel=1e-6)
+    assert decode32(GP[GP_THR_STAR]) == pytest.approx(3.0 * sc * sr, rel=1e-6)
+    if dt == 0:
+        assert GP[GP_INV_DT] == 0 and GP[GP_GAIN_V] == 0
+    else:
+        assert decode32(GP[GP_INV_DT]) == pytest.approx(1 / dt, rel=1e-6)
+        gain = decode32(GP[GP_GAIN_V]) if GP[GP_GAIN_V] else 0.0
+        assert gain == pytest.approx(beta / dt, rel=1e-6)
+    assert V[L.V_FLAGS] == 0
+
+
+@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "object-gate-ekf", "dt-zero")
+def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_velocity():
+    C, S, G, V, GP, cyc = _state()
+    S[L.S_DEC] = 1                                      # pair 1: rows 2, 3
+    for row in (1, 3):
+        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B], G[row, L.G_VA] = 1, w(0.01), w(0.02), 77
+    V[L.V_EKF_ON] = 1
+    V[L.V_DN], V[L.V_DN + 1] = w(1e-3), w(2e-3)
+    V[L.V_DE], V[L.V_DE + 1] = w(-3e-3), w(4e-3)
+    GP[GP_INV_DT] = 0
+    dR = np.zeros(9, np.int64)
+    make_dR(0, 0, 0, w(0.5), dR)                        # body still: dR = I
+    propagate_gates(S, G, V, GP, dR, cyc)
+    got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731
+    assert got(1) == pytest.approx((0.011, 0.022), abs=1e-8)               # nominal motion
+    assert got(3) == pytest.approx((0.007, 0.024), abs=1e-8)               # the EKF's motion
+    assert G[1, L.G_VA] == 77 and G[3, L.G_VA] == 77                        # not re-formed
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.2])
+@pytest.mark.cases("flightsw.tp.gates.smooth_gates", "fed", "fed-with-beta", "dead-skipped")
+def test_smoothing_a_fed_gate_is_the_alpha_beta_step_and_accumulates_squared_residuals(beta):
+    C, S, G, V, GP, cyc = _state()                      # alpha 0.5, dt 0.5
+    GP[GP_GAIN_V] = w(beta / 0.5) if beta else 0
+    a0, b0, va, vb, res0 = 0.01, 0.02, 1e-3, -2e-3, 3e-8
+    G[1, L.G_ALIVE], G[1, L.G_A], G[1, L.G_B], G[1, L.G_OBS] = 1, w(a0), w(b0), 0
+    G[1, L.G_DVA], G[1, L.G_DVB], G[1, L.G_RES], G[1, L.G_RUN], G[1, L.G_HITS] = \
+        w(va), w(vb), w(res0), 2, 3
+    G[1, L.G_MISS] = 0
+    G[3, L.G_OBS] = 0                                   # dead row: left alone
+    za, zb = 0.0103, 0.0196
+    smooth_gates(C, G, _obs([(za, zb)]), V, GP, cyc)
+    ra, rb = za - a0, zb - b0
+    assert decode32(G[1, L.G_A]) == pytest.approx(a0 + 0.5 * ra, abs=2e-9)
+    assert decode32(G[1, L.G_B]) == pytest.approx(b0 + 0.5 * rb, abs=2e-9)
+    assert decode32(G[1, L.G_DVA]) == pytest.approx(va + beta / 0.5 * ra, rel=1e-5)
+    assert decode32(G[1, L.G_DVB]) == pytest.approx(vb + beta / 0.5 * rb, rel=1e-5)
+    assert decode32(G[1, L.G_RES]) == pytest.approx(res0 + ra * ra + rb * rb, rel=1e-4)
+    assert (G[1, L.G_RUN], G[1, L.G_HITS], G[1, L.G_MISS]) == (3, 4, 0)
+    assert G[3].tolist() == [0] * L.GC
