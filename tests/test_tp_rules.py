@@ -13,7 +13,7 @@ from flightsw.arith.m1750 import decode32, encode32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
 from flightsw.tp import layout as L
-from flightsw.tp.association import associate
+from flightsw.tp.association import associate, in_gate_pairs, sort_pairs
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
                                any_gate_alive, drop_all_gates, gate_half_width, gate_params,
                                kill_pair, propagate_gates, smooth_gates)
@@ -432,3 +432,76 @@ def test_smoothing_a_fed_gate_is_the_alpha_beta_step_and_accumulates_squared_res
     assert decode32(G[1, L.G_RES]) == pytest.approx(res0 + ra * ra + rb * rb, rel=1e-4)
     assert (G[1, L.G_RUN], G[1, L.G_HITS], G[1, L.G_MISS]) == (3, 4, 0)
     assert G[3].tolist() == [0] * L.GC
+
+
+# ---- association, on the 16-bit integer coordinates (LSB 2**-16 rad) -----------------------------
+def _int_gates(rows):
+    """{row: (ia, ib)} -> live gates at those integer coordinates."""
+    G = np.zeros((L.NG, L.GC), np.int64)
+    G[:, L.G_OBS] = -1
+    for row, (ia, ib) in rows.items():
+        G[row, L.G_ALIVE], G[row, L.G_IA], G[row, L.G_IB] = 1, ia, ib
+    return G
+
+
+def _int_obs(points):
+    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    for j, (ia, ib) in enumerate(points):
+        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB], OBS[j, L.OBS_OK] = ia, ib, 1
+    return OBS
+
+
+def _scratch():
+    return np.zeros((L.NG * L.MAX_OBS, 3), np.int64), np.zeros(L.MAX_OBS, np.int64), \
+        np.zeros(8, np.int64)
+
+
+@pytest.mark.cases("flightsw.tp.association.in_gate_pairs", "inside", "edge-inclusive", "outside",
+                   "one-class", "dead-skipped", "unusable-skipped", "no-observations")
+def test_in_gate_pairs_square_gate_on_integer_coordinates():
+    G = _int_gates({0: (100, -50), 1: (100, -50), 2: (0, 0)})
+    G[2, L.G_ALIVE] = 0                                  # dead star gate at the origin
+    OBS = _int_obs([(110, -45), (90, -60), (111, -50), (100, -39), (0, 0), (105, -50)])
+    OBS[5, L.OBS_OK] = 0                                  # unusable, though inside
+    PW, TAKEN, cyc = _scratch()
+    n = in_gate_pairs(G, OBS, 6, 0, 10, PW, cyc)          # star class, half-width 10
+    got = sorted(map(tuple, PW[:n].tolist()))
+    # by hand: obs 0 (10, 5) and obs 1 (-10, -10) are inside (edges included); obs 2 (11, 0) and
+    # obs 3 (0, 11) are out on one axis; obs 4 is only near the dead gate
+    assert got == [(125, 0, 0), (200, 0, 1)]
+    n = in_gate_pairs(G, OBS, 6, 1, 10, PW, cyc)          # object class: row 1 only
+    assert sorted(map(tuple, PW[:n].tolist())) == [(125, 1, 0), (200, 1, 1)]
+    assert in_gate_pairs(G, OBS, 0, 0, 10, PW, cyc) == 0
+
+
+@pytest.mark.cases("flightsw.tp.association.sort_pairs", "sorted", "ties-stable", "short")
+def test_sort_pairs_is_a_stable_sort_by_distance():
+    rng = np.random.default_rng(5)
+    PW, TAKEN, cyc = _scratch()
+    rows = [(int(d), r, j) for r, (d, j) in enumerate(zip(rng.integers(0, 6, 40), range(40)))]
+    PW[:40] = rows
+    PW[40] = (-1, -1, -1)
+    sort_pairs(PW, 40, cyc)
+    assert PW[:40].tolist() == [list(t) for t in sorted(rows, key=lambda t: t[0])]  # Python: stable
+    assert PW[40].tolist() == [-1, -1, -1]
+    PW[:2] = [(9, 0, 0), (1, 1, 1)]
+    sort_pairs(PW, 1, cyc)
+    sort_pairs(PW, 0, cyc)
+    assert PW[:2].tolist() == [[9, 0, 0], [1, 1, 1]]
+
+
+@pytest.mark.cases("flightsw.tp.association.associate", "nearest-first", "one-per-gate",
+                   "classes-independent", "contested-fallback", "no-pairs")
+def test_associate_greedy_nearest_neighbour_per_class():
+    # star gates at rows 0 (a = 0) and 2 (a = 2), object gate row 1 (a = 6); obs 0 at a = 3, obs 1
+    # at a = 6. Star pairs by d2: (g2, o0) 1, (g0, o0) 9, (g2, o1) 16, (g0, o1) 36. Nearest first:
+    # gate 2 takes obs 0 (and keeps it: one per gate), gate 0 falls back to obs 1. The object gate
+    # sees obs 1 (d2 0) and obs 0 (d2 9): it takes obs 1 though the star class used it too.
+    G = _int_gates({0: (0, 0), 2: (2, 0), 1: (6, 0)})
+    OBS = _int_obs([(3, 0), (6, 0)])
+    PW, TAKEN, cyc = _scratch()
+    associate(G, OBS, 2, 10, PW, TAKEN, cyc)
+    assert (G[0, L.G_OBS], G[2, L.G_OBS], G[1, L.G_OBS]) == (1, 0, 1)
+    G = _int_gates({0: (0, 0), 1: (0, 0)})
+    associate(G, _int_obs([(40, 0), (0, -11)]), 2, 10, PW, TAKEN, cyc)
+    assert (G[:, L.G_OBS] == -1).all()
