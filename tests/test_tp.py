@@ -37,6 +37,9 @@ GEOM = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), SCALE, SCALE)
 # ================================================================================================
 # alpha-beta
 # ================================================================================================
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_scalar", "beta-zero")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_update", "beta-zero")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_predict", "zero-velocity")
 def test_alpha_quarter_reaches_90pct_of_a_step_in_8_frames():
     x, v = 0.0, 0.0
     xs = []
@@ -49,6 +52,9 @@ def test_alpha_quarter_reaches_90pct_of_a_step_in_8_frames():
 
 
 @pytest.mark.parametrize("alpha", [0.25, 0.5])
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_scalar", "typical")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_update", "beta")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_predict", "typical")
 def test_alpha_beta_steady_state_lags_match_closed_forms(alpha):
     dt = 0.5
     u = 3.0e-4                                        # ramp slope, rad/s
@@ -75,6 +81,7 @@ def test_alpha_beta_steady_state_lags_match_closed_forms(alpha):
     assert abs(0.5 * c * (599 * dt) ** 2 - x - (1 - alpha) * c * dt ** 2 / beta) < 4 * 2.0 ** -23
 
 
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_many", "typical")
 def test_alpha_beta_step_arrays_and_errors():
     x, v = alpha_beta_step(np.zeros(3), np.ones(3), np.array([1.0, 2.0, 3.0]), 0.25, 0.1, 0.5)
     assert x.shape == (3,) and np.allclose(x, 0.5 + 0.25 * (np.array([1.0, 2.0, 3.0]) - 0.5), rtol=1e-6)

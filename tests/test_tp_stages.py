@@ -11,7 +11,9 @@ import pytest
 from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, decode48, encode32, encode48
 from flightsw.messages import (TC_ARITH_FLAG, TC_COASTING, TC_EKF_RUNNING, TC_OBJECT_DECIDED,
                                TC_OBJECT_LOST, TC_REINITIALISED)
+from flightsw.tp import alpha_beta_step
 from flightsw.tp import layout as L
+from flightsw.tp.alphabeta import ab_update
 from flightsw.tp.command import (command, end_frame, filter_outputs, pointing, predicted_pixel,
                                  prediction_in, target_direction)
 from flightsw.tp.ekf import E_P, E_WORDS, E_X
@@ -386,3 +388,17 @@ def test_end_frame_counts_flags_and_remembers():
     assert out[L.O_DECF] == -1.0                            # opportunity mode
     S[L.S_DEC], V[L.V_FLAGS], V[L.V_STATUS] = -1, 0, 0
     assert end_frame(S, G, V, out, False) == 0 and out[L.O_DECF] == -1.0
+
+
+# ================================================================================================
+# alpha-beta
+# ================================================================================================
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_many", "beta-zero")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_update", "exact-hit")
+def test_alpha_beta_arrays_keep_the_velocity_without_beta_and_an_exact_hit_changes_nothing():
+    v = np.array([1e-3, -2e-3, 0.5])
+    x, vo = alpha_beta_step(np.zeros(3), v, np.array([1.0, 2.0, 3.0]), 0.25, 0.0, 0.5)
+    assert vo.tolist() == [decode32(w(a)) for a in v]
+    assert x == pytest.approx(0.25 * (np.array([1.0, 2.0, 3.0]) - v * 0.5) + v * 0.5, rel=1e-6)
+    xp, vw = w(0.125), w(3.0)
+    assert ab_update(xp, vw, xp, w(0.25), w(0.4)) == (xp, vw, 0, 0)
