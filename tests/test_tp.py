@@ -369,6 +369,7 @@ def test_star_object_decision_correct_in_99pct_of_1000_synthetic_streams():
     assert ok.mean() >= 0.99
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "dedicated")
 def test_decided_object_is_tracked_by_the_ekf_and_predicted_to_a_fraction_of_a_pixel():
     s = Stream(77, "track", n_frames=40, p_miss=0.0, n_clutter=0.0)
     tp = s.processor()
@@ -481,6 +482,7 @@ def _locked(seed=77):
     return s, tp
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-evidence")
 def test_bad_input_coasts_says_so_and_never_raises():
     s, tp = _locked()
     # empty message
@@ -533,6 +535,7 @@ def test_bad_input_coasts_says_so_and_never_raises():
     assert tp.last_error == ""
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "long-gap")
 def test_long_gap_deletes_the_gates_and_keeps_the_ekf_predicting():
     s, tp = _locked()
     cmd = tp.step(*s.frame(45)[:2])                    # 13 s after frame 19 > max_coast_s = 10 s
@@ -562,6 +565,7 @@ def test_huge_innovation_is_rejected_and_the_filter_recovers():
     assert np.all(np.isfinite(r_before))
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-attitude")
 def test_no_attitude_ever_commands_nothing():
     s = Stream(4, "track")
     tp = s.processor()
@@ -642,6 +646,7 @@ def test_reset_forgets_everything():
     assert cmd.status & TC_REINITIALISED and not cmd.decided and not cmd.status & TC_EKF_RUNNING
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-nominal")
 def test_dedicated_without_nominal_commands_nothing():
     s = Stream(3, "stare")
     tp = TrackProcessor(TPConfig(imagers={"wfov_vis": GEOM}, object_type="none", nominal=None))
@@ -685,6 +690,7 @@ def test_boosting_target_nominal_with_acceleration_fit():
 # ================================================================================================
 # targets of opportunity
 # ================================================================================================
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "opportunity")
 def test_opportunity_tracks_the_highest_ranked_candidate_in_the_gate_with_beta():
     """An auroral hot spot drifting across a staring field (no nominal): acquisition on the
     highest-ranked candidate, then the highest-ranked one inside the gate feeds an alpha-beta track

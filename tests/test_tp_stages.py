@@ -402,3 +402,48 @@ def test_alpha_beta_arrays_keep_the_velocity_without_beta_and_an_exact_hit_chang
     assert x == pytest.approx(0.25 * (np.array([1.0, 2.0, 3.0]) - v * 0.5) + v * 0.5, rel=1e-6)
     xp, vw = w(0.125), w(3.0)
     assert ab_update(xp, vw, xp, w(0.25), w(0.4)) == (xp, vw, 0, 0)
+
+
+# ================================================================================================
+# layout accessors
+# ================================================================================================
+@pytest.mark.cases("flightsw.tp.layout.opportunity_mode", "typical")
+@pytest.mark.cases("flightsw.tp.layout.has_nominal", "typical")
+@pytest.mark.cases("flightsw.tp.layout.evidence", "typical")
+@pytest.mark.cases("flightsw.tp.layout.long_gap", "typical")
+@pytest.mark.cases("flightsw.tp.layout.n_used", "typical")
+def test_layout_flag_accessors_read_their_words():
+    C = np.zeros(L.C_WORDS, np.int64)
+    V = np.zeros(L.V_WORDS, np.int64)
+    assert not (L.opportunity_mode(C) or L.has_nominal(C) or L.evidence(V) or L.long_gap(V))
+    C[L.C_MODE], C[L.C_HAVE_NOM], V[L.V_EVIDENCE], V[L.V_LONG_GAP], V[L.V_NUSE] = 1, 1, 1, 1, 7
+    assert L.opportunity_mode(C) and L.has_nominal(C) and L.evidence(V) and L.long_gap(V)
+    assert L.n_used(V) == 7
+
+
+@pytest.mark.cases("flightsw.tp.layout.work_views", "typical")
+def test_work_views_tile_the_scratch_words():
+    W = np.zeros(L.W_WORDS, np.int64)
+    views = L.work_views(W)
+    assert [len(v) for v in views] == [80, 9, 9, 9, 8, L.MAX_OBS]
+    assert sum(len(v) for v in views) == L.W_WORDS
+    for k, v in enumerate(views):
+        v[:] = k + 1
+    assert W.tolist() == sum(([k + 1] * len(v) for k, v in enumerate(views)), [])
+
+
+@pytest.mark.cases("flightsw.tp.layout.message_header", "typical", "unusable")
+@pytest.mark.cases("flightsw.tp.layout.begin_frame", "typical")
+def test_message_header_and_begin_frame():
+    hdr = np.array([1.0, 2.0, 12.5, 40.0, 5.0])
+    assert L.message_header(hdr) == (True, 2, 12.5, 40, 5)
+    hdr[L.H_OK] = 0.0
+    assert not L.message_header(hdr)[0]
+    V = np.full(L.V_WORDS, 9, np.int64)
+    out = np.full(L.O_WORDS, 3.0)
+    cyc = np.full(8, 4, np.int64)
+    L.begin_frame(V, out, cyc)
+    assert V[L.V_OBJ] == -1 and np.count_nonzero(V) == 1 and not cyc.any()
+    nan = [L.O_QP <= i <= L.O_SV for i in range(L.O_WORDS)]   # pointing .. sigma_vel (1..17)
+    assert np.isnan(out).tolist() == nan and (out[~np.isnan(out)] == 0).all()
+    assert (L.O_QP, L.O_SV) == (1, 17)
