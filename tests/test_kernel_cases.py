@@ -41,7 +41,7 @@ PENDING_MODULES: set[str] = {
     "flightsw.ip.filters", "flightsw.ip.frame", "flightsw.ip.preprocess", "flightsw.ip.rank",
     "flightsw.ip.sequence", "flightsw.ip.threshold",
     "flightsw.tp.attitude",
-    "flightsw.tp.dynamics", "flightsw.tp.ekf", "flightsw.tp.f1750",
+    "flightsw.tp.dynamics", "flightsw.tp.ekf",
     "flightsw.tp.geometry",
     "flightsw.tp.trajectory", "hil_harness.checksum",
 }
