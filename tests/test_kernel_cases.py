@@ -42,7 +42,6 @@ PENDING_MODULES: set[str] = {
     "flightsw.ip.sequence", "flightsw.ip.threshold",
     "flightsw.tp.attitude",
     "flightsw.tp.dynamics", "flightsw.tp.ekf",
-    "flightsw.tp.geometry",
     "flightsw.tp.trajectory", "hil_harness.checksum",
 }
 

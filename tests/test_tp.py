@@ -106,6 +106,12 @@ def _dcm(q):
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
+@pytest.mark.cases("flightsw.tp.geometry.pix_to_tan", "typical")
+@pytest.mark.cases("flightsw.tp.geometry._p2t_many", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.vec_to_pix", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.directions_to_pixels", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.pix_unit", "typical")
+@pytest.mark.cases("flightsw.tp.geometry._unit_many", "typical")
 def test_pixel_to_body_tangent_and_back_match_float64_closed_form():
     q = _qrot([0.3, -1.0, 0.5], 0.02)                 # a 20 mrad misaligned narrow imager
     sc, sr = 1.09e-4, 1.1e-4

@@ -148,6 +148,9 @@ def _tan(v):
     return v[1] / v[0], v[2] / v[0]
 
 
+@pytest.mark.cases("flightsw.tp.geometry.make_dR", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.rot_tan", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.tan_int", "truncate")
 @pytest.mark.cases("flightsw.tp.gates.propagate_gates", "star-gate", "object-gate-nominal", "learned-velocity",
                    "velocity-kept", "dead-skipped")
 def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
