@@ -5,7 +5,7 @@ the last frame.
 MSX paper, "Track processing algorithms": the TP takes the IP's candidate message and the attitude
 processor's data each frame. A message whose time tag is not after the last frame's is treated as
 lost (the TP's clock advances one period). The attitude is "out of range" when
-``| |q|^2 - 1 | > quat_norm_tol^2``, ``|w| > max_rate``, ``|r_sc|`` outside 6200 km .. 100 000 km,
+``| |q|^2 - 1 | > quat_norm_tol``, ``|w| > max_rate``, ``|r_sc|`` outside 6200 km .. 100 000 km,
 ``|v_sc| > 20 km/s`` or ``|t_att - t| > max_time_skew``; then (as when ``valid`` is False or the
 data are missing) the last good attitude is propagated with its rate and the observations are not
 used.
