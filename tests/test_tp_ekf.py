@@ -12,11 +12,15 @@
 import math
 
 import numpy as np
+import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy import stats
 from scipy.integrate import solve_ivp
 
+from flightsw.arith.m1750 import FLAG_DOMAIN, decode48, encode32, encode48
 from flightsw.tp import EKF1750, NominalTrajectory
+from flightsw.tp.ekf import (E_HAVE_LOS, E_NREJ, E_P, E_RUN, E_T, E_X, EKF_FLAG_COV, UT, ekf_los,
+                             ekf_predict, ekf_reset_cov, ekf_update)
 from flightsw.tp.dynamics import J2_EARTH, MU_EARTH, R_EARTH
 
 H = 0.5                      # frame period, s
@@ -153,6 +157,15 @@ class RefEKF(ExtendedKalmanFilter):
         self.x = rk4(self.x.ravel(), H).reshape(6, 1)
 
 
+@pytest.mark.cases("flightsw.tp.ekf._init_from_floats", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._predict_float", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._update_floats", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._decode_state", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_init", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_los", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_update", "accepted")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "whole-steps")
+@pytest.mark.cases("flightsw.tp.ekf._cov_step", "typical")
 def test_ekf_1750_tracks_filterpy_reference_within_1750a_precision():
     n = 120
     rng = np.random.default_rng(7)
@@ -234,3 +247,86 @@ def test_ekf_nees_over_200_monte_carlo_passes_inside_95pct_band():
     assert rejected == 0
     assert lo <= anees[-1] <= hi
     assert lo <= anees[n // 2] <= hi
+
+
+# ------------------------------------------------------------------------------------------------
+# the kernels' remaining cases (issue 22), against the float64 model above
+# ------------------------------------------------------------------------------------------------
+R0, V0 = np.array([7.2e6, 1.0e5, 2.0e5]), np.array([0.0, 6.4e3, 3.6e3])
+
+
+def _w48(x):
+    return encode48(float(x), rounding="nearest") if x else 0
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_reset_cov", "typical")
+def test_default_start_and_covariance_reset_are_diagonal_and_keep_the_state():
+    f = EKF1750(sigma_pos0=1000.0, sigma_vel0=10.0)
+    f.init(5.0, R0, V0)
+    assert np.array_equal(f.P, np.diag([1e6] * 3 + [100.0] * 3)) and f.t == 5.0
+    assert f.x == pytest.approx(np.concatenate([R0, V0]), abs=1e-6)
+    assert (f.E[E_RUN], f.E[E_NREJ], f.E[E_HAVE_LOS]) == (1, 0, 0)
+    f.E[E_P:E_P + 21] = _w48(3.0)
+    x_words = f.E[E_X:E_X + 6].copy()
+    f.E[E_NREJ] = 2
+    ekf_reset_cov(f.E, _w48(4.0), _w48(0.25))
+    assert np.array_equal(f.P, np.diag([4.0] * 3 + [0.25] * 3))
+    assert np.array_equal(f.E[E_X:E_X + 6], x_words) and f.E[E_NREJ] == 2 and f.t == 5.0
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "last-partial", "tiny", "step-cap")
+def test_prediction_steps_match_float64_rk4_and_first_order_covariance():
+    f = EKF1750(j2=False, accel_psd=Q_PSD, max_step=0.5)
+    f.init(0.0, R0, V0, P=P0)
+    x, P = f.x, f.P
+    fl, n = ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.3))
+    assert n == 3 and fl == 0 and f.t == pytest.approx(1.3, abs=1e-9)
+    for h in (0.5, 0.5, 0.3):
+        F = phi(x, h)                                   # gradient at the step's start
+        P = F @ P @ F.T + qmat(Q_PSD, h)
+        x = rk4(x, h)
+    assert f.x[:3] == pytest.approx(x[:3], abs=1e-3) and f.x[3:] == pytest.approx(x[3:], abs=1e-5)
+    assert np.abs(f.P - P).max() / np.abs(P).max() < 1e-6
+    words = f.E.copy()
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.3 + 5e-7))[1] == 0
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.0))[1] == 0
+    assert np.array_equal(f.E, words)
+    f = EKF1750(j2=False, max_step=1e-3)
+    f.init(0.0, R0, V0)
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(200.0))[1] == 100001
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_los", "coincident")
+def test_line_of_sight_from_the_spacecraft_to_itself():
+    f = EKF1750()
+    f.init(0.0, R0, V0)
+    assert ekf_los(f.E, *f.E[E_X:E_X + 3]) == (0, 0, 0, 0, FLAG_DOMAIN)
+
+
+def _m_words(M):
+    return np.array([encode32(float(v), rounding="nearest") if v else 0 for v in M.ravel()],
+                    np.int64)
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_update", "gated", "covariance-guard")
+def test_updates_refused_by_the_innovation_gate_or_the_covariance_guard():
+    rsc = np.array([7.0e6, 0.0, 0.0])
+    d = np.array([1.0, 0.3, 0.2]) * 1.0e6               # target 1.06 Mm away, off the X axis
+    f = EKF1750(gate_sigma=5.0)
+    f.init(0.0, rsc + d, V0, P=np.diag([100.0] * 3 + [1.0] * 3))
+    x0, P0_ = f.x, f.P
+    l_ = d / np.linalg.norm(d)
+    # M = I: the measurement is l itself; 1e-3 rad off with sqrt(s) ~ 1e-5 rad -> far outside 5 sigma
+    res = f.update(l_[1:] + 1e-3, np.eye(3), rsc, (1e-6) ** 2)
+    assert [a for a, _, _ in res] == [False, False]
+    assert res[0][1] == pytest.approx(1e-3, rel=1e-3)                   # nu = z - h
+    assert np.array_equal(f.x, x0) and np.array_equal(f.P, P0_)
+    # a covariance that is not positive definite: P_vx,vx = 0 with P_x,vx = 500 -> the update
+    # would leave P_vx,vx = -c^2/s < 0
+    E = f.E
+    E[E_P + UT[3, 3]] = 0
+    E[E_P + UT[0, 3]] = _w48(500.0)
+    words = E.copy()
+    ok, nu, s_, fl = ekf_update(E, f.K, f.wk, 1, encode32(float(l_[1]), rounding="nearest"),
+                                _m_words(np.eye(3)), *[_w48(v) for v in rsc], _w48(1e-10))
+    assert not ok and fl & EKF_FLAG_COV and np.array_equal(E, words)

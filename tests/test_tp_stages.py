@@ -345,6 +345,7 @@ def test_command_writes_what_it_has_and_nan_for_the_rest(rel, nominal, want):
         assert np.isnan(qp).all()
 
 
+@pytest.mark.cases("flightsw.tp.ekf.ekf_sigmas", "typical")
 @pytest.mark.cases("flightsw.tp.command.filter_outputs", "running", "off")
 def test_filter_outputs_decode_the_state_and_the_root_traces():
     E = _state48(R_E, V_E, E_WORDS, E_X)
