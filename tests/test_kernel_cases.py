@@ -40,7 +40,7 @@ PENDING_MODULES: set[str] = {
     "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features", "flightsw.ip.fftfilter",
     "flightsw.ip.filters", "flightsw.ip.frame", "flightsw.ip.preprocess", "flightsw.ip.rank",
     "flightsw.ip.sequence", "flightsw.ip.threshold",
-    "flightsw.tp.trajectory", "hil_harness.checksum",
+    "hil_harness.checksum",
 }
 
 
