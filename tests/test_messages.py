@@ -14,9 +14,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flightsw.messages import (_CRC_TABLE, CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES, OBJECT_TYPE_CODES,
-                               TC_STATUS_NAMES, CandidateMessage, MessageError, TrackCommand,
-                               _crc_range, crc16_ccitt, crc16_ccitt_bytes)
+from flightsw.messages import (_CRC_TABLE, CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES,
+                               OBJECT_TYPE_CODES, TC_STATUS_NAMES, CandidateMessage, MessageError,
+                               TrackCommand, _crc_range, crc16_ccitt, crc16_ccitt_bytes)
 from flightsw.records import Record, RecordError, load_record
 
 FUZZ_CASES = int(os.environ.get("UVISI_FUZZ_CASES", "300"))
@@ -112,7 +112,8 @@ def test_candidate_message_hand_made_layout():
     assert CandidateMessage.from_words(w) == m
 
 
-@pytest.mark.cases("flightsw.messages._track_encode_k", "present-groups", "absent-groups", "reserved-and-crc")
+@pytest.mark.cases("flightsw.messages._track_encode_k", "present-groups", "absent-groups",
+                   "reserved-and-crc")
 @pytest.mark.cases("flightsw.messages._track_check_k", "well-formed")
 @pytest.mark.cases("flightsw.messages._group", "all-finite", "all-nan")
 def test_track_command_hand_made_layout():
@@ -399,8 +400,9 @@ def _with_crc(w):
     (20, 0x2000, r"word 20 \(candidate 0 size\): not a normalised"),
     (14, 24, r"word 14 \(count\): candidate count above 23"),
     (1, 44, r"word 1 \(length\)"), (0, 0x4951, r"word 0 \(id\): wrong message id")])
-@pytest.mark.cases("flightsw.messages._cand_check_k", "compaction-zero", "bad-imager", "bad-time-tag", "bad-alpha",
-                   "bad-candidate-float", "bad-count", "bad-length", "bad-id")
+@pytest.mark.cases("flightsw.messages._cand_check_k", "compaction-zero", "bad-imager",
+                   "bad-time-tag", "bad-alpha", "bad-candidate-float", "bad-count", "bad-length",
+                   "bad-id")
 def test_candidate_rules(word, value, match):
     m = _message(1)
     m.candidates["distance"], m.candidates["size"] = 10.0, 0.25
@@ -422,8 +424,9 @@ def test_candidate_rules(word, value, match):
     (23, 0x0000, r"word 23 \(predicted_col\): not a normalised"),
     (31, 0x0001, r"word 31 \(r_est\): reserved or absent"),                  # estimate absent
     (1, 56, r"word 1 \(length\)")])
-@pytest.mark.cases("flightsw.messages._track_check_k", "bad-object-type", "status-bits", "flags-bits",
-                   "absent-header-word", "reserved-word", "absent-value", "bad-float", "bad-length")
+@pytest.mark.cases("flightsw.messages._track_check_k", "bad-object-type", "status-bits",
+                   "flags-bits", "absent-header-word", "reserved-word", "absent-value", "bad-float",
+                   "bad-length")
 def test_track_command_rules(word, value, match):
     c = TrackCommand(frame_count=9, time_tag=0.5, imager="wfov_uv", object_type="aurora",
                      locked=True, decided_frame=2, mode="opportunity", predicted_row=10.0,

@@ -320,7 +320,7 @@ def test_updates_refused_by_the_innovation_gate_or_the_covariance_guard():
     f.init(0.0, rsc + d, V0, P=np.diag([100.0] * 3 + [1.0] * 3))
     x0, P0_ = f.x, f.P
     l_ = d / np.linalg.norm(d)
-    # M = I: the measurement is l itself; 1e-3 rad off with sqrt(s) ~ 1e-5 rad -> far outside 5 sigma
+    # M = I: the measurement is l itself; 1e-3 rad off with sqrt(s) ~ 1e-5 rad: far outside 5 sigma
     res = f.update(l_[1:] + 1e-3, np.eye(3), rsc, (1e-6) ** 2)
     assert [a for a, _, _ in res] == [False, False]
     assert res[0][1] == pytest.approx(1e-3, rel=1e-3)                   # nu = z - h

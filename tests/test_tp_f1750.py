@@ -42,7 +42,8 @@ def d(*ps):
     (1 + 2.0 ** -23, (p32(0x400000, 1), 0)),           # a tie: to the even mantissa 0x400000
     (1 + 3 * 2.0 ** -23, (p32(0x400002, 1), 0)),       # a tie: to the even mantissa 0x400002
     (1 + 1.1 * 2.0 ** -23, (p32(0x400001, 1), 0)),     # above the tie: up
-    (2.0 ** 128, (0x7FFFFF7F, FLAG_FLOAT_OVERFLOW)), (-(2.0 ** 128), (0x8000007F, FLAG_FLOAT_OVERFLOW)),
+    (2.0 ** 128, (0x7FFFFF7F, FLAG_FLOAT_OVERFLOW)),
+    (-(2.0 ** 128), (0x8000007F, FLAG_FLOAT_OVERFLOW)),
     (2.0 ** -131, (0, FLAG_FLOAT_UNDERFLOW)), (2.0 ** -129, (p32(0x400000, -128), 0)),
     (math.nan, (0, FLAG_DOMAIN)), (-math.inf, (0, FLAG_DOMAIN))])
 @pytest.mark.cases("flightsw.tp.f1750._enc", "zero", "non-finite", "nearest", "negative",

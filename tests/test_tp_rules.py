@@ -53,7 +53,8 @@ def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
 
 
-@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "within-threshold", "reversed")
+@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "within-threshold",
+                   "reversed")
 def test_rule3_star_residuals_exceed_object_residuals():
     assert rule3(w(6e-8), w(1e-8), 1, THR)[0]          # 5e-8 > 4e-8, object gate populated
     assert not rule3(w(6e-8), w(1e-8), 0, THR)[0]      # object gate empty this frame
@@ -61,7 +62,8 @@ def test_rule3_star_residuals_exceed_object_residuals():
     assert not rule3(w(1e-8), w(6e-8), 1, THR)[0]      # the other way round: rule 4's case
 
 
-@pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold", "reversed")
+@pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold",
+                   "reversed")
 def test_rule4_object_residuals_exceed_star_residuals():
     assert rule4(w(1e-8), w(6e-8), 1, THR)[0]
     assert not rule4(w(1e-8), w(6e-8), 0, THR)[0]      # star gate empty this frame
@@ -119,7 +121,8 @@ def _obs(points):
     return OBS
 
 
-@pytest.mark.cases("flightsw.tp.rules.reinitialise", "places", "gates-alive", "object-held", "no-evidence")
+@pytest.mark.cases("flightsw.tp.rules.reinitialise", "places", "gates-alive", "object-held",
+                   "no-evidence")
 @pytest.mark.cases("flightsw.tp.rules.place_pairs", "every-usable", "unusable-skipped")
 def test_reinitialisation_places_a_pair_on_every_usable_observation_only_when_all_gates_are_gone():
     C, S, G, V, GP, cyc = _state()
@@ -151,8 +154,8 @@ def _tan(v):
 @pytest.mark.cases("flightsw.tp.geometry.make_dR", "typical")
 @pytest.mark.cases("flightsw.tp.geometry.rot_tan", "typical")
 @pytest.mark.cases("flightsw.tp.geometry.tan_int", "truncate")
-@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "star-gate", "object-gate-nominal", "learned-velocity",
-                   "velocity-kept", "dead-skipped")
+@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "star-gate", "object-gate-nominal",
+                   "learned-velocity", "velocity-kept", "dead-skipped")
 def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     C, S, G, V, GP, cyc = _state()
     a0, b0 = 0.02, -0.01
@@ -342,7 +345,7 @@ def test_object_observed_needs_a_held_fed_object_and_usable_evidence():
     assert not object_observed(S, V)
 
 
-# ---- gates: the remaining branches ----------------------------------------------------------------
+# ---- gates: the remaining branches ---------------------------------------------------------------
 @pytest.mark.cases("flightsw.tp.gates.kill_pair", "typical")
 @pytest.mark.cases("flightsw.tp.gates.any_gate_alive", "none-alive", "last-row-alive")
 @pytest.mark.cases("flightsw.tp.gates.gate_half_width", "typical")
@@ -360,7 +363,7 @@ def test_kill_pair_any_gate_alive_and_the_half_width_word():
                    "no-object")
 def test_drop_all_gates_after_a_long_gap():
     C, S, G, V, GP, cyc = _state()
-    G[[1, 4, 5, L.NG - 2], L.G_ALIVE] = 1               # a half-dead pair, a pair, the last star gate
+    G[[1, 4, 5, L.NG - 2], L.G_ALIVE] = 1               # half-dead pair, a pair, last star gate
     drop_all_gates(S, G, V)
     assert not G[:, L.G_ALIVE].any() and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
     S[L.S_DEC] = 0
@@ -374,7 +377,8 @@ def _img(sc, sr):
     return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
 
 
-@pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2), (0.6e-4, 1.0e-4, 0.5, 0.0),
+@pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2),
+                                              (0.6e-4, 1.0e-4, 0.5, 0.0),
                                               (1.0e-4, 1.0e-4, 0.0, 0.2)])
 @pytest.mark.cases("flightsw.tp.gates.gate_params", "col-scale-larger", "row-scale-larger",
                    "thresholds", "beta", "beta-zero", "dt-zero")

@@ -359,7 +359,8 @@ def test_filter_outputs_decode_the_state_and_the_root_traces():
     filter_outputs(E, V, out, np.zeros(8, np.int64))
     assert out[L.O_R:L.O_R + 3].tolist() == [decode48(int(x)) for x in E[E_X:E_X + 3]]
     assert out[L.O_V:L.O_V + 3] == pytest.approx(V_E, abs=1e-6)
-    assert out[L.O_SP] == pytest.approx(np.sqrt(1400.0), rel=1e-6) and out[L.O_SV] == pytest.approx(3.0)
+    assert out[L.O_SP] == pytest.approx(np.sqrt(1400.0), rel=1e-6)
+    assert out[L.O_SV] == pytest.approx(3.0, rel=1e-6)
     assert V[L.V_STATUS] == TC_EKF_RUNNING
 
 

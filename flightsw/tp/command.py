@@ -158,7 +158,7 @@ def pointing(V, u0, u1, u2):
 
     Cases
     -----
-    typical : ``q_point`` turns +X body onto ``u`` with no component about the boresight.
+    typical : ``q_point = q (x) d`` turns +X body onto ``u``; ``d`` has no component about +X.
     boresight : ``u = +X`` -> ``d`` = identity, ``q_point = q``.
     behind : ``1 + u_x <= 2**-7`` (``u`` within ~7.2 deg of -X, the edge included) -> not ok.
     """
@@ -181,9 +181,9 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
     -----
     tracked : direction, predicted pixel, line of sight and pointing all written.
     nothing : no direction -> pointing, pixel and line of sight NaN, ``S_PRED_OK = 0``.
-    off-imager : direction outside the imager's forward half -> pixel and line of sight NaN,
-        pointing written.
-    behind : direction behind the spacecraft -> pointing NaN as well.
+    off-imager : direction not in front of the imager -> pixel and line of sight NaN, pointing
+        written.
+    behind : direction within ~7 deg of -X (``1 + u_x <= 2**-7``) -> pointing NaN as well.
     """
     have_u, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, opportunity, nominal)
     have_pix = False

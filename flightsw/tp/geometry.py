@@ -143,7 +143,7 @@ def pix_to_tan(img, row, col):
 @njit(cache=True)
 def tan_int(a):
     """Packed tangent coordinate -> 16-bit integer, LSB 2**-16 rad (FM by 2**16, FIX), saturated
-    to +-32767 when the FIX overflows (|a| >= 0.5 rad, outside every imager).
+    to +-32767 when the FIX overflows (a >= 0.5 or a < -0.5 rad, outside every imager).
 
     Cases
     -----

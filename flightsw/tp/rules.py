@@ -110,7 +110,7 @@ def rule3(res_s, res_o, ko, thr_o):
 
     Cases
     -----
-    decides : ``res_s - res_o > thr_o`` with the object gate populated -> (True, 0).
+    decides : ``res_s - res_o > thr_o`` with the object gate populated -> True.
     object-gate-empty : ``ko == 0`` -> False however large the difference.
     within-threshold : difference positive but ``<= thr_o`` -> False.
     reversed : ``res_o > res_s`` (negative difference, rule 4's side) -> False.
@@ -129,7 +129,7 @@ def rule4(res_s, res_o, ks, thr_s):
 
     Cases
     -----
-    decides : ``res_o - res_s > thr_s`` with the star gate populated -> (True, 0).
+    decides : ``res_o - res_s > thr_s`` with the star gate populated -> True.
     star-gate-empty : ``ks <= 0`` -> (False, 0) without subtracting.
     within-threshold : difference positive but ``<= thr_s`` -> False.
     reversed : ``res_s > res_o`` (negative difference, rule 3's side) -> False.
