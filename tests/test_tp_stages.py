@@ -1,6 +1,7 @@
 """Hand-made cases for the track processor's kernels not covered by ``test_tp_rules.py`` (issue 22:
 every listed case of a kernel is reached by a test): the target-of-opportunity tracker, the track
-command, ...
+command (direction, predicted pixel, pointing, outputs, end of frame), the alpha-beta arrays and the
+layout accessors.
 
 Inputs are 1750A words built with ``encode32``; the expected outcomes are float64 closed forms (the
 alpha-beta step, the gnomonic projection) or worked by hand from the kernels' specification.
