@@ -40,7 +40,6 @@ PENDING_MODULES: set[str] = {
     "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features", "flightsw.ip.fftfilter",
     "flightsw.ip.filters", "flightsw.ip.frame", "flightsw.ip.preprocess", "flightsw.ip.rank",
     "flightsw.ip.sequence", "flightsw.ip.threshold",
-    "hil_harness.checksum",
 }
 
 
