@@ -38,11 +38,7 @@ PENDING_MODULES: set[str] = {
     "flightsw.arith.m1750_int", "flightsw.arith.m1750_lanes", "flightsw.arith.m1750_math",
     "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features", "flightsw.ip.fftfilter",
     "flightsw.ip.filters", "flightsw.ip.frame", "flightsw.ip.preprocess", "flightsw.ip.rank",
-    "flightsw.ip.sequence", "flightsw.ip.threshold", "flightsw.messages",
-    "flightsw.tp.alphabeta", "flightsw.tp.association", "flightsw.tp.attitude",
-    "flightsw.tp.command", "flightsw.tp.dynamics", "flightsw.tp.frame", "flightsw.tp.ekf", "flightsw.tp.f1750",
-    "flightsw.tp.gates", "flightsw.tp.geometry", "flightsw.tp.layout", "flightsw.tp.opportunity",
-    "flightsw.tp.rules", "flightsw.tp.trajectory", "hil_harness.event.checksum",
+    "flightsw.ip.sequence", "flightsw.ip.threshold",
 }
 
 

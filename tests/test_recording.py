@@ -78,6 +78,8 @@ def test_reading_a_non_recording_fails_clearly(tmp_path):
 
 
 # ------------------------------------------------------------------------------ checksums
+@pytest.mark.cases("hil_harness.event.checksum.adler32_rows_kernel", "typical", "empty-row", "multi-block",
+                   "sums-wrap")
 def test_adler32_rows_equal_zlib():
     rng = np.random.default_rng(2)
     for shape in ((3, 0), (1, 1), (4, 7), (2, 244, 256), (1, (1 << 20) + 4099)):

@@ -26,8 +26,13 @@ def adler32_rows_kernel(data, out):
     out : uint32[n]
         Written with the checksums.
 
-    Cases handled: empty rows (1, as zlib), rows longer than one inner block (sums reduced modulo
-    65521 between blocks), every byte value 0..255.
+    Cases
+    -----
+    typical : each row's value equals ``zlib.adler32`` of its bytes (RFC 1950).
+    empty-row : ``m == 0`` -> 1, as zlib.
+    multi-block : rows longer than one inner block (2**20 bytes) -> sums reduced modulo 65521
+        between blocks, same value.
+    sums-wrap : runs of 0xFF bytes whose sums pass 65521 many times -> reduced, same value.
     """
     n, m = data.shape
     for r in range(n):
