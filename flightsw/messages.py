@@ -97,7 +97,16 @@ _CRC_TABLE = _crc_table()
 
 @njit(cache=True)
 def _crc_range(w, n, table):
-    """Table-driven CRC-16/CCITT-FALSE of the first ``n`` 16-bit words of ``w`` (MSB first)."""
+    """Table-driven CRC-16/CCITT-FALSE of the first ``n`` 16-bit words of ``w`` (MSB first).
+
+    ``w`` int64 or uint16 [>= n] words 0..0xFFFF; ``table`` uint16 [256] (poly 0x1021) -> int.
+
+    Cases
+    -----
+    typical : equals CRC-16/CCITT-FALSE (init 0xFFFF, no reflection) of the words' big-endian bytes.
+    prefix : only the first ``n`` words count (the encoders' trailing CRC word is excluded).
+    empty : ``n == 0`` -> the initial value 0xFFFF.
+    """
     crc = 0xFFFF
     for i in range(n):
         x = w[i]
@@ -209,7 +218,14 @@ _REASONS = {_BAD_WORD: "not a 16-bit word (0..0xFFFF)", _BAD_ID: "wrong message 
 
 @njit(cache=True)
 def _words_ok(w):
-    """Index of the first word outside 0..0xFFFF, -1 if none."""
+    """Index of the first word outside 0..0xFFFF, -1 if none (``w`` int64 [n]).
+
+    Cases
+    -----
+    all-words : every value in 0..0xFFFF (both ends included) -> -1.
+    negative : a negative value -> its index (the first bad one).
+    too-large : a value above 0xFFFF -> its index.
+    """
     for i in range(w.shape[0]):
         if w[i] < 0 or w[i] > 0xFFFF:
             return i
@@ -218,11 +234,23 @@ def _words_ok(w):
 
 @njit(cache=True)
 def _f32_at(w, i):
+    """Words ``i``, ``i + 1`` of ``w`` (int64, 16-bit values) -> the packed 32-bit 1750A float.
+
+    Cases
+    -----
+    typical : ``(w[i] << 16) | w[i + 1]`` (mantissa high word first, as MIL-STD-1750A 4.1.5).
+    """
     return (w[i] << 16) | w[i + 1]
 
 
 @njit(cache=True)
 def _f48_at(w, i):
+    """Words ``i`` .. ``i + 2`` of ``w`` (int64, 16-bit values) -> the packed 48-bit 1750A float.
+
+    Cases
+    -----
+    typical : ``(w[i] << 32) | (w[i + 1] << 16) | w[i + 2]`` (the standard's 48-bit word order).
+    """
     return (w[i] << 32) | (w[i + 1] << 16) | w[i + 2]
 
 
@@ -234,7 +262,18 @@ def _cand_encode_k(head, t, alpha, iv, fv, out, table):
     """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words (3-5 and
     11-12 are filled here from the time tag ``t`` and ``alpha``, finite float64), ``iv``/``fv``
     int64/float64 views (k, 15) of the candidates. Returns -1 when written, else the candidate
-    index of a label outside 0..0xFFFF (``k + i``: of candidate ``i``'s non-finite value)."""
+    index of a label outside 0..0xFFFF (``k + i``: of candidate ``i``'s non-finite value).
+
+    Cases
+    -----
+    header : words 3-5 the time tag (48-bit, nearest), 11-12 alpha (32-bit, nearest), the rest as
+        given.
+    candidates : per candidate its label word then 14 values as 32-bit floats (two words each).
+    crc : the last word is the CRC of all the words before it.
+    no-candidates : ``k == 0`` -> the 15 header words and the CRC.
+    bad-label : a label outside 0..0xFFFF -> its candidate index, nothing written.
+    non-finite : a NaN or infinite value in candidate i -> ``k + i``, nothing written.
+    """
     p = encode_k(t, 39, True)
     head[3], head[4], head[5] = (p >> 32) & 0xFFFF, (p >> 16) & 0xFFFF, p & 0xFFFF
     p = encode_k(alpha, 23, True)
@@ -265,7 +304,25 @@ def _cand_encode_k(head, t, alpha, iv, fv, out, table):
 @njit(cache=True)
 def _cand_check_k(w, table, imager_ok):
     """Every rule of the candidate message on int64 words ``w`` -> (verdict, word index, time tag,
-    alpha); verdict 0 when the message is well formed (:data:`_REASONS` otherwise)."""
+    alpha); verdict 0 when the message is well formed (:data:`_REASONS` otherwise).
+
+    Rules in this order; the first that fails gives the verdict and the word it names.
+
+    Cases
+    -----
+    well-formed : verdict 0 with the decoded time tag and alpha.
+    bad-word : a value outside 0..0xFFFF -> ``_BAD_WORD`` at its index.
+    short : fewer than 16 words -> ``_BAD_LENGTH`` at word 1 (word 0 when at most one word).
+    bad-id : word 0 not 0x4950 -> ``_BAD_ID``.
+    bad-count : count (word 14) above 23 -> ``_BAD_COUNT``.
+    bad-length : length word, count and words received disagree -> ``_BAD_LENGTH`` at word 1.
+    bad-crc : last word not the CRC of the others -> ``_BAD_CRC`` at the last word.
+    bad-imager : unknown imager code (word 6 high byte) -> ``_BAD_CODE``.
+    compaction-zero : compaction (word 6 low byte) 0 -> ``_BAD_RANGE``.
+    bad-time-tag : words 3-5 not a normalised 48-bit float or zero -> ``_BAD_FLOAT`` at 3.
+    bad-alpha : words 11-12 not normalised -> ``_BAD_FLOAT`` at 11.
+    bad-candidate-float : a candidate value not normalised -> ``_BAD_FLOAT`` at its first word.
+    """
     n = w.shape[0]
     bad = _words_ok(w)
     if bad >= 0:
@@ -299,7 +356,13 @@ def _cand_check_k(w, table, imager_ok):
 
 @njit(cache=True)
 def _cand_fill_k(w, iv, fv):
-    """Candidates of checked words ``w`` into the int64/float64 views (k, 15) of the array."""
+    """Candidates of checked words ``w`` into the int64/float64 views (k, 15) of the array.
+
+    Cases
+    -----
+    typical : per candidate the label and 14 exactly decoded 32-bit values (column 0 of ``fv``
+        is the label's slot and left to ``iv``).
+    """
     for i in range(iv.shape[0]):
         b = 15 + 29 * i
         iv[i, 0] = w[b]
@@ -329,7 +392,16 @@ def _candidate_field(i: int, n: int) -> str:
 # ================================================================================================
 @njit(cache=True)
 def _group(v, lo, hi):
-    """1 all finite, 0 all NaN, -1 mixed (an optional group of the track command)."""
+    """1 all finite, 0 all NaN, -1 mixed (an optional group ``v[lo:hi]`` of the track command,
+    float64).
+
+    Cases
+    -----
+    all-finite : every value finite -> 1.
+    all-nan : every value NaN -> 0.
+    mixed : finite and NaN together -> -1.
+    infinite : an infinite value is neither (the group is mixed) -> -1.
+    """
     nf = 0
     nn = 0
     for i in range(lo, hi):
@@ -356,7 +428,16 @@ def _track_encode_k(head, t, v, out, table):
     """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
     presence bits; words 3-5 are the time tag ``t``, finite, encoded here), ``v`` float64[17]
     (:data:`_TC_AT` order). False when a group (q_point; the prediction; the estimate) is partly
-    present (nothing useful written)."""
+    present (nothing useful written).
+
+    Cases
+    -----
+    present-groups : each group all finite sets its presence flag (0x10 q_point, 0x02 the
+        prediction, 0x04 the estimate) and its values are encoded (nearest), 48-bit for r, v.
+    absent-groups : a group all NaN leaves its flag clear and its words zero.
+    reserved-and-crc : word 53 zero, word 54 the CRC of words 0-53.
+    partial-group : a group partly finite -> False.
+    """
     gp = _group(v, 0, 4)
     gr = _group(v, 4, 9)
     ge = _group(v, 9, 17)
@@ -388,7 +469,26 @@ def _track_encode_k(head, t, v, out, table):
 @njit(cache=True)
 def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
     """Every rule of the track command on int64[55] words ``w``; fills ``v`` (NaN when absent).
-    Returns (verdict, word index, time tag); verdict 0 when well formed."""
+    Returns (verdict, word index, time tag); verdict 0 when well formed.
+
+    Cases
+    -----
+    well-formed : verdict 0, ``v`` the decoded values (NaN for absent groups).
+    bad-word : a value outside 0..0xFFFF -> ``_BAD_WORD`` at its index.
+    bad-id : word 0 not 0x5450 -> ``_BAD_ID``.
+    bad-length : word 1 not 55 -> ``_BAD_LENGTH``.
+    bad-crc : word 54 not the CRC -> ``_BAD_CRC``.
+    bad-imager : unknown imager code -> ``_BAD_CODE`` at 6.
+    bad-object-type : unknown object type code -> ``_BAD_CODE2`` at 6.
+    status-bits : status bits outside the defined mask -> ``_BAD_FLAGS`` at 7.
+    flags-bits : flag bits above 0x7F -> ``_BAD_FLAGS`` at 8.
+    absent-header-word : decided frame (11) or object index (12) non-zero while its flag is
+        clear -> ``_NOT_ZERO``.
+    reserved-word : word 53 non-zero -> ``_NOT_ZERO``.
+    bad-time-tag : time tag not a normalised 48-bit float -> ``_BAD_FLOAT`` at 3.
+    absent-value : an absent group's words non-zero -> ``_NOT_ZERO`` at the value's first word.
+    bad-float : a present 32-bit or 48-bit value not normalised -> ``_BAD_FLOAT`` there.
+    """
     bad = _words_ok(w)
     if bad >= 0:
         return _BAD_WORD, bad, 0.0

@@ -14,9 +14,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from flightsw.messages import (CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES, OBJECT_TYPE_CODES,
-                               TC_STATUS_NAMES, CandidateMessage, MessageError, TrackCommand,
-                               crc16_ccitt, crc16_ccitt_bytes)
+from flightsw.messages import (_CRC_TABLE, CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES,
+                               OBJECT_TYPE_CODES, TC_STATUS_NAMES, CandidateMessage, MessageError,
+                               TrackCommand, _crc_range, crc16_ccitt, crc16_ccitt_bytes)
 from flightsw.records import Record, RecordError, load_record
 
 FUZZ_CASES = int(os.environ.get("UVISI_FUZZ_CASES", "300"))
@@ -48,6 +48,7 @@ def words48(mant: int, exp: int) -> list:
     return [m >> 24, ((m >> 16) & 0xFF) << 8 | (exp & 0xFF), m & 0xFFFF]
 
 
+@pytest.mark.cases("flightsw.messages._crc_range", "typical")
 def test_crc_check_value_and_stdlib_oracle():
     assert binascii.crc_hqx(b"123456789", 0xFFFF) == 0x29B1          # the catalogue check value
     assert crc16_ccitt_bytes(b"123456789") == 0x29B1
@@ -80,6 +81,7 @@ def _message(k, alpha=3.0):
 
 
 @pytest.mark.parametrize("value,w0,w1,mant_exp", STANDARD_32)
+@pytest.mark.cases("flightsw.messages._f32_at", "typical")
 def test_standard_32_bit_floats_travel_as_the_standards_words(value, w0, w1, mant_exp):
     assert [w0, w1] == words32(*mant_exp)
     exact = f1750(*mant_exp)
@@ -89,6 +91,11 @@ def test_standard_32_bit_floats_travel_as_the_standards_words(value, w0, w1, man
     assert CandidateMessage.from_words(w).alpha == exact
 
 
+@pytest.mark.cases("flightsw.messages._cand_encode_k", "header", "candidates", "crc")
+@pytest.mark.cases("flightsw.messages._cand_check_k", "well-formed")
+@pytest.mark.cases("flightsw.messages._cand_fill_k", "typical")
+@pytest.mark.cases("flightsw.messages._crc_range", "prefix")
+@pytest.mark.cases("flightsw.messages._f48_at", "typical")
 def test_candidate_message_hand_made_layout():
     m = _message(1)
     m.candidates["label"] = 0x0102
@@ -105,6 +112,10 @@ def test_candidate_message_hand_made_layout():
     assert CandidateMessage.from_words(w) == m
 
 
+@pytest.mark.cases("flightsw.messages._track_encode_k", "present-groups", "absent-groups",
+                   "reserved-and-crc")
+@pytest.mark.cases("flightsw.messages._track_check_k", "well-formed")
+@pytest.mark.cases("flightsw.messages._group", "all-finite", "all-nan")
 def test_track_command_hand_made_layout():
     c = TrackCommand(frame_count=9, time_tag=0.5, imager="wfov_uv", object_type="aurora",
                      locked=True, status=0x0041, n_star_gates=3, n_object_gates=4, decided_frame=2,
@@ -389,6 +400,9 @@ def _with_crc(w):
     (20, 0x2000, r"word 20 \(candidate 0 size\): not a normalised"),
     (14, 24, r"word 14 \(count\): candidate count above 23"),
     (1, 44, r"word 1 \(length\)"), (0, 0x4951, r"word 0 \(id\): wrong message id")])
+@pytest.mark.cases("flightsw.messages._cand_check_k", "compaction-zero", "bad-imager",
+                   "bad-time-tag", "bad-alpha", "bad-candidate-float", "bad-count", "bad-length",
+                   "bad-id")
 def test_candidate_rules(word, value, match):
     m = _message(1)
     m.candidates["distance"], m.candidates["size"] = 10.0, 0.25
@@ -410,6 +424,9 @@ def test_candidate_rules(word, value, match):
     (23, 0x0000, r"word 23 \(predicted_col\): not a normalised"),
     (31, 0x0001, r"word 31 \(r_est\): reserved or absent"),                  # estimate absent
     (1, 56, r"word 1 \(length\)")])
+@pytest.mark.cases("flightsw.messages._track_check_k", "bad-object-type", "status-bits",
+                   "flags-bits", "absent-header-word", "reserved-word", "absent-value", "bad-float",
+                   "bad-length")
 def test_track_command_rules(word, value, match):
     c = TrackCommand(frame_count=9, time_tag=0.5, imager="wfov_uv", object_type="aurora",
                      locked=True, decided_frame=2, mode="opportunity", predicted_row=10.0,
@@ -421,6 +438,9 @@ def test_track_command_rules(word, value, match):
         TrackCommand.from_words(_with_crc(w))
 
 
+@pytest.mark.cases("flightsw.messages._cand_encode_k", "non-finite")
+@pytest.mark.cases("flightsw.messages._track_encode_k", "partial-group")
+@pytest.mark.cases("flightsw.messages._group", "mixed")
 def test_encoders_refuse_what_the_format_cannot_carry():
     with pytest.raises(MessageError, match="compaction"):
         CandidateMessage(compaction=0).to_words()
@@ -440,3 +460,86 @@ def test_encoders_refuse_what_the_format_cannot_carry():
         TrackCommand(mode="hover").to_words()
     with pytest.raises(MessageError, match="q_point"):
         TrackCommand(q_point=np.zeros(3)).to_words()
+
+
+# ------------------------------------------------------------------------------------------------
+# the codec kernels' remaining cases (issue 22): each checked through the public codec where it
+# can be reached, against the format definition and the standard-library CRC
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.cases("flightsw.messages._crc_range", "empty")
+def test_crc_of_no_words_is_the_initial_value():
+    assert _crc_range(np.array([0x1234, 0x5678], np.int64), 0, _CRC_TABLE) == 0xFFFF
+    assert crc_oracle([]) == 0xFFFF
+
+
+@pytest.mark.cases("flightsw.messages._words_ok", "all-words", "negative", "too-large")
+@pytest.mark.cases("flightsw.messages._cand_check_k", "bad-word")
+@pytest.mark.cases("flightsw.messages._track_check_k", "bad-word")
+def test_words_outside_16_bits_are_refused_naming_the_first():
+    good = _message(1).to_words().astype(np.int64)
+    good[7] = 0xFFFF                                      # the top of the range is a word
+    CandidateMessage.from_words(_with_crc(good))
+    for bad in ({3: -1, 9: 0x10000}, {9: 0x10000, 20: -5}):
+        w = good.copy()
+        for i, v in bad.items():
+            w[i] = v
+        with pytest.raises(MessageError, match="not a 16-bit word") as exc:
+            CandidateMessage.from_words(w)
+        assert exc.value.word == min(bad)
+    w = TrackCommand().to_words().astype(np.int64)
+    w[40] = 0x10000
+    with pytest.raises(MessageError, match=r"word 40 .*not a 16-bit word"):
+        TrackCommand.from_words(w)
+
+
+@pytest.mark.cases("flightsw.messages._cand_encode_k", "no-candidates", "bad-label")
+def test_candidate_message_without_candidates_and_with_a_bad_label():
+    w = _message(0).to_words()
+    head = [0x4950, 16, 5, *words48(0x4000000000, 1), (3 << 8) | 2, 0xFFF8, 128, 64, 64,
+            0x6000, 0x0002, 7, 0]
+    assert w.tolist() == head + [crc_oracle(head)]
+    for label in (-1, 0x10000):
+        m = _message(3)
+        m.candidates["label"][2] = label
+        with pytest.raises(MessageError, match=r"candidates\[2\]: label must be 0..65535"):
+            m.to_words()
+
+
+@pytest.mark.cases("flightsw.messages._cand_check_k", "short", "bad-crc")
+def test_candidate_message_too_short_or_with_a_bad_crc():
+    w = _message(1).to_words().astype(np.int64)
+    for n, word in ((15, 1), (2, 1), (1, 0)):
+        with pytest.raises(MessageError, match="length") as exc:
+            CandidateMessage.from_words(w[:n])
+        assert exc.value.word == word
+    w[-1] ^= 1
+    with pytest.raises(MessageError, match=r"word 44 \(crc\): bad checksum") as exc:
+        CandidateMessage.from_words(w)
+
+
+@pytest.mark.cases("flightsw.messages._group", "infinite")
+def test_an_infinite_value_makes_its_group_neither_present_nor_absent():
+    with pytest.raises(MessageError, match="all finite or all NaN"):
+        TrackCommand(q_point=np.full(4, np.inf)).to_words()
+
+
+@pytest.mark.parametrize("word,value,match", [
+    (0, 0x5451, r"word 0 \(id\): wrong message id"),
+    (54, None, r"word 54 \(crc\): bad checksum"),
+    (6, 0x0705, r"word 6 \(imager/object_type\): unknown imager code"),
+    (3, 0x2000, r"word 3 \(time_tag\): not a normalised"),
+    (31, 0x2000, r"word 31 \(r_est\): not a normalised")])          # a 48-bit value present
+@pytest.mark.cases("flightsw.messages._track_check_k", "bad-id", "bad-crc", "bad-imager",
+                   "bad-time-tag", "bad-float")
+def test_track_command_header_rules_and_48_bit_values(word, value, match):
+    c = TrackCommand(frame_count=9, time_tag=0.5, imager="wfov_uv", object_type="aurora",
+                     r_est=np.array([1.0, 2.0, 3.0]), v_est=np.array([0.5, 0.5, 0.5]),
+                     sigma_pos=1.0, sigma_vel=1.0)
+    w = c.to_words().astype(np.int64)
+    if value is None:
+        w[word] ^= 0x8000
+    else:
+        w[word] = value
+        w = _with_crc(w)
+    with pytest.raises(MessageError, match=match):
+        TrackCommand.from_words(w)

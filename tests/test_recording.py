@@ -10,9 +10,9 @@ import h5py
 import numpy as np
 import pytest
 
-from hil_harness.checksum import adler32_rows
-from hil_harness.recording import Recorder, Recording, RecordingDamaged, partial_path
-from hil_harness.run_folder import RunFolder
+from hil_harness.event.checksum import adler32_rows
+from hil_harness.event.recording import Recorder, Recording, RecordingDamaged, partial_path
+from hil_harness.event.run_folder import RunFolder
 
 
 def test_round_trip_tables_arrays_and_host_timings(tmp_path):
@@ -78,6 +78,8 @@ def test_reading_a_non_recording_fails_clearly(tmp_path):
 
 
 # ------------------------------------------------------------------------------ checksums
+@pytest.mark.cases("hil_harness.event.checksum.adler32_rows_kernel", "typical", "empty-row", "multi-block",
+                   "sums-wrap")
 def test_adler32_rows_equal_zlib():
     rng = np.random.default_rng(2)
     for shape in ((3, 0), (1, 1), (4, 7), (2, 244, 256), (1, (1 << 20) + 4099)):
@@ -171,7 +173,7 @@ def test_run_folder_lock_stops_a_second_writer_and_dies_with_its_process(tmp_pat
     with RunFolder(d):
         with pytest.raises(ValueError, match=f"another uvisi event .pid {os.getpid()}."):
             RunFolder(d, replace=True).acquire()
-    code = ("import sys, time; from hil_harness.run_folder import RunFolder; "
+    code = ("import sys, time; from hil_harness.event.run_folder import RunFolder; "
             f"RunFolder({str(d)!r}).acquire(); print('locked', flush=True); time.sleep(60)")
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     try:

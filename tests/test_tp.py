@@ -37,6 +37,9 @@ GEOM = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), SCALE, SCALE)
 # ================================================================================================
 # alpha-beta
 # ================================================================================================
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_scalar", "beta-zero")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_update", "beta-zero")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_predict", "zero-velocity")
 def test_alpha_quarter_reaches_90pct_of_a_step_in_8_frames():
     x, v = 0.0, 0.0
     xs = []
@@ -49,6 +52,9 @@ def test_alpha_quarter_reaches_90pct_of_a_step_in_8_frames():
 
 
 @pytest.mark.parametrize("alpha", [0.25, 0.5])
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_scalar", "typical")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_update", "beta")
+@pytest.mark.cases("flightsw.tp.alphabeta.ab_predict", "typical")
 def test_alpha_beta_steady_state_lags_match_closed_forms(alpha):
     dt = 0.5
     u = 3.0e-4                                        # ramp slope, rad/s
@@ -75,6 +81,7 @@ def test_alpha_beta_steady_state_lags_match_closed_forms(alpha):
     assert abs(0.5 * c * (599 * dt) ** 2 - x - (1 - alpha) * c * dt ** 2 / beta) < 4 * 2.0 ** -23
 
 
+@pytest.mark.cases("flightsw.tp.alphabeta._ab_many", "typical")
 def test_alpha_beta_step_arrays_and_errors():
     x, v = alpha_beta_step(np.zeros(3), np.ones(3), np.array([1.0, 2.0, 3.0]), 0.25, 0.1, 0.5)
     assert x.shape == (3,) and np.allclose(x, 0.5 + 0.25 * (np.array([1.0, 2.0, 3.0]) - 0.5), rtol=1e-6)
@@ -99,6 +106,12 @@ def _dcm(q):
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
+@pytest.mark.cases("flightsw.tp.geometry.pix_to_tan", "typical")
+@pytest.mark.cases("flightsw.tp.geometry._p2t_many", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.vec_to_pix", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.directions_to_pixels", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.pix_unit", "typical")
+@pytest.mark.cases("flightsw.tp.geometry._unit_many", "typical")
 def test_pixel_to_body_tangent_and_back_match_float64_closed_form():
     q = _qrot([0.3, -1.0, 0.5], 0.02)                 # a 20 mrad misaligned narrow imager
     sc, sr = 1.09e-4, 1.1e-4
@@ -362,6 +375,7 @@ def test_star_object_decision_correct_in_99pct_of_1000_synthetic_streams():
     assert ok.mean() >= 0.99
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "dedicated")
 def test_decided_object_is_tracked_by_the_ekf_and_predicted_to_a_fraction_of_a_pixel():
     s = Stream(77, "track", n_frames=40, p_miss=0.0, n_clutter=0.0)
     tp = s.processor()
@@ -474,6 +488,7 @@ def _locked(seed=77):
     return s, tp
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-evidence")
 def test_bad_input_coasts_says_so_and_never_raises():
     s, tp = _locked()
     # empty message
@@ -526,6 +541,7 @@ def test_bad_input_coasts_says_so_and_never_raises():
     assert tp.last_error == ""
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "long-gap")
 def test_long_gap_deletes_the_gates_and_keeps_the_ekf_predicting():
     s, tp = _locked()
     cmd = tp.step(*s.frame(45)[:2])                    # 13 s after frame 19 > max_coast_s = 10 s
@@ -555,6 +571,7 @@ def test_huge_innovation_is_rejected_and_the_filter_recovers():
     assert np.all(np.isfinite(r_before))
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-attitude")
 def test_no_attitude_ever_commands_nothing():
     s = Stream(4, "track")
     tp = s.processor()
@@ -635,6 +652,7 @@ def test_reset_forgets_everything():
     assert cmd.status & TC_REINITIALISED and not cmd.decided and not cmd.status & TC_EKF_RUNNING
 
 
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "no-nominal")
 def test_dedicated_without_nominal_commands_nothing():
     s = Stream(3, "stare")
     tp = TrackProcessor(TPConfig(imagers={"wfov_vis": GEOM}, object_type="none", nominal=None))
@@ -678,6 +696,7 @@ def test_boosting_target_nominal_with_acceleration_fit():
 # ================================================================================================
 # targets of opportunity
 # ================================================================================================
+@pytest.mark.cases("flightsw.tp.frame.tp_frame", "opportunity")
 def test_opportunity_tracks_the_highest_ranked_candidate_in_the_gate_with_beta():
     """An auroral hot spot drifting across a staring field (no nominal): acquisition on the
     highest-ranked candidate, then the highest-ranked one inside the gate feeds an alpha-beta track

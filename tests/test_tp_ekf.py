@@ -12,12 +12,21 @@
 import math
 
 import numpy as np
+import pytest
 from filterpy.kalman import ExtendedKalmanFilter
 from scipy import stats
 from scipy.integrate import solve_ivp
 
-from flightsw.tp import EKF1750, NominalTrajectory
-from flightsw.tp.dynamics import J2_EARTH, MU_EARTH, R_EARTH
+from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, decode48, encode32, encode48
+from flightsw.messages import TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMINAL
+from flightsw.tp import EKF1750, ImagerGeometry, NominalTrajectory
+from flightsw.tp import layout as L
+from flightsw.tp.dynamics import J2_EARTH, MU_EARTH, R_EARTH, dyn_table
+from flightsw.tp.ekf import (E_HAVE_LOS, E_LOS, E_NREJ, E_P, E_RUN, E_T, E_WORDS, E_X,
+                             EKF_FLAG_COV, K_P0R, K_P0V, UT, ekf_init, ekf_los, ekf_params,
+                             ekf_predict, ekf_reset_cov, ekf_update)
+from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
+                                    start_ekf, update_ekf)
 
 H = 0.5                      # frame period, s
 SIGMA = 3.0e-5               # measurement sigma, rad (0.27 NFOV pixel)
@@ -153,6 +162,15 @@ class RefEKF(ExtendedKalmanFilter):
         self.x = rk4(self.x.ravel(), H).reshape(6, 1)
 
 
+@pytest.mark.cases("flightsw.tp.ekf._init_from_floats", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._predict_float", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._update_floats", "typical")
+@pytest.mark.cases("flightsw.tp.ekf._decode_state", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_init", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_los", "typical")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_update", "accepted")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "whole-steps")
+@pytest.mark.cases("flightsw.tp.ekf._cov_step", "typical")
 def test_ekf_1750_tracks_filterpy_reference_within_1750a_precision():
     n = 120
     rng = np.random.default_rng(7)
@@ -175,7 +193,6 @@ def test_ekf_1750_tracks_filterpy_reference_within_1750a_precision():
         los = M @ ((X[k, :3] - rs[k]) / np.linalg.norm(X[k, :3] - rs[k]))
         z = los[1:] + rng.normal(0.0, SIGMA, 2)
         # the same inputs for both: what the 1750A receives, decoded
-        from flightsw.arith.m1750 import decode32, decode48, encode32, encode48
         Mq = np.vectorize(lambda v: decode32(encode32(float(v), rounding="nearest")))(M)
         zq = [decode32(encode32(float(v), rounding="nearest")) for v in z]
         rq = np.array([decode48(encode48(float(v), rounding="nearest")) for v in rs[k]])
@@ -234,3 +251,227 @@ def test_ekf_nees_over_200_monte_carlo_passes_inside_95pct_band():
     assert rejected == 0
     assert lo <= anees[-1] <= hi
     assert lo <= anees[n // 2] <= hi
+
+
+# ------------------------------------------------------------------------------------------------
+# the kernels' remaining cases (issue 22), against the float64 model above
+# ------------------------------------------------------------------------------------------------
+R0, V0 = np.array([7.2e6, 1.0e5, 2.0e5]), np.array([0.0, 6.4e3, 3.6e3])
+
+
+def _w48(x):
+    return encode48(float(x), rounding="nearest") if x else 0
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_reset_cov", "typical")
+def test_default_start_and_covariance_reset_are_diagonal_and_keep_the_state():
+    f = EKF1750(sigma_pos0=1000.0, sigma_vel0=10.0)
+    f.init(5.0, R0, V0)
+    assert np.array_equal(f.P, np.diag([1e6] * 3 + [100.0] * 3)) and f.t == 5.0
+    assert f.x == pytest.approx(np.concatenate([R0, V0]), abs=1e-6)
+    assert (f.E[E_RUN], f.E[E_NREJ], f.E[E_HAVE_LOS]) == (1, 0, 0)
+    f.E[E_P:E_P + 21] = _w48(3.0)
+    x_words = f.E[E_X:E_X + 6].copy()
+    f.E[E_NREJ] = 2
+    ekf_reset_cov(f.E, _w48(4.0), _w48(0.25))
+    assert np.array_equal(f.P, np.diag([4.0] * 3 + [0.25] * 3))
+    assert np.array_equal(f.E[E_X:E_X + 6], x_words) and f.E[E_NREJ] == 2 and f.t == 5.0
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "last-partial", "tiny", "step-cap")
+def test_prediction_steps_match_float64_rk4_and_first_order_covariance():
+    f = EKF1750(j2=False, accel_psd=Q_PSD, max_step=0.5)
+    f.init(0.0, R0, V0, P=P0)
+    x, P = f.x, f.P
+    fl, n = ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.3))
+    assert n == 3 and fl == 0 and f.t == pytest.approx(1.3, abs=1e-9)
+    for h in (0.5, 0.5, 0.3):
+        F = phi(x, h)                                   # gradient at the step's start
+        P = F @ P @ F.T + qmat(Q_PSD, h)
+        x = rk4(x, h)
+    assert f.x[:3] == pytest.approx(x[:3], abs=1e-3) and f.x[3:] == pytest.approx(x[3:], abs=1e-5)
+    assert np.abs(f.P - P).max() / np.abs(P).max() < 1e-6
+    words = f.E.copy()
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.3 + 5e-7))[1] == 0
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.0))[1] == 0
+    assert np.array_equal(f.E, words)
+    f = EKF1750(j2=False, max_step=1e-3)
+    f.init(0.0, R0, V0)
+    assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(200.0))[1] == 100001
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_los", "coincident")
+def test_line_of_sight_from_the_spacecraft_to_itself():
+    f = EKF1750()
+    f.init(0.0, R0, V0)
+    assert ekf_los(f.E, *f.E[E_X:E_X + 3]) == (0, 0, 0, 0, FLAG_DOMAIN)
+
+
+def _m_words(M):
+    return np.array([encode32(float(v), rounding="nearest") if v else 0 for v in M.ravel()],
+                    np.int64)
+
+
+@pytest.mark.cases("flightsw.tp.ekf.ekf_update", "gated", "covariance-guard")
+def test_updates_refused_by_the_innovation_gate_or_the_covariance_guard():
+    rsc = np.array([7.0e6, 0.0, 0.0])
+    d = np.array([1.0, 0.3, 0.2]) * 1.0e6               # target 1.06 Mm away, off the X axis
+    f = EKF1750(gate_sigma=5.0)
+    f.init(0.0, rsc + d, V0, P=np.diag([100.0] * 3 + [1.0] * 3))
+    x0, P0_ = f.x, f.P
+    l_ = d / np.linalg.norm(d)
+    # M = I: the measurement is l itself; 1e-3 rad off with sqrt(s) ~ 1e-5 rad: far outside 5 sigma
+    res = f.update(l_[1:] + 1e-3, np.eye(3), rsc, (1e-6) ** 2)
+    assert [a for a, _, _ in res] == [False, False]
+    assert res[0][1] == pytest.approx(1e-3, rel=1e-3)                   # nu = z - h
+    assert np.array_equal(f.x, x0) and np.array_equal(f.P, P0_)
+    # a covariance that is not positive definite: P_vx,vx = 0 with P_x,vx = 500 -> the update
+    # would leave P_vx,vx = -c^2/s < 0
+    E = f.E
+    E[E_P + UT[3, 3]] = 0
+    E[E_P + UT[0, 3]] = _w48(500.0)
+    words = E.copy()
+    ok, nu, s_, fl = ekf_update(E, f.K, f.wk, 1, encode32(float(l_[1]), rounding="nearest"),
+                                _m_words(np.eye(3)), *[_w48(v) for v in rsc], _w48(1e-10))
+    assert not ok and fl & EKF_FLAG_COV and np.array_equal(E, words)
+
+
+# ------------------------------------------------------------------------------------------------
+# the trajectory stages of the TP frame (flightsw.tp.trajectory) on hand-made states
+# ------------------------------------------------------------------------------------------------
+RSC = np.array([7.0e6, 0.0, 0.0])
+RT, VT = np.array([7.5e6, 2.0e5, -1.0e5]), np.array([0.0, 7.0e3, 1.0e3])
+ONE32 = 0x40000001
+
+
+def _traj_arrays():
+    C = np.zeros(L.C_WORDS, np.int64)
+    C[L.C_SIG_PX] = encode32(0.5, rounding="nearest")
+    C[L.C_EKF_MAX_REJ] = 3
+    D = dyn_table(None, False, 0.0)
+    K = ekf_params(Q_PSD, 0.5, 5.0, 100.0, 1.0)
+    S = np.zeros(L.S_WORDS, np.int64)
+    V = np.zeros(L.V_WORDS, np.int64)
+    V[L.V_RS:L.V_RS + 3] = [_w48(x) for x in RSC]
+    RM = np.array([ONE32, 0, 0, 0, ONE32, 0, 0, 0, ONE32], np.int64)    # body = ECI
+    return C, D, K, S, V, RM, np.zeros(8, np.int64)
+
+
+def _tan(r):
+    d = r - RSC
+    return np.array([d[1] / d[0], d[2] / d[0]])
+
+
+def _f2b(x):
+    return np.concatenate([x[3:], accel(x[:3])])
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.propagate_nominal", "first-frame", "motion",
+                   "propagated")
+def test_nominal_line_of_sight_change_over_a_frame():
+    C, D, K, S, V, RM, cyc = _traj_arrays()
+    N = np.zeros(L.N_WORDS, np.int64)
+    N[L.N_X:L.N_X + 6] = [_w48(x) for x in (*RT, *VT)]
+    propagate_nominal(C, D, K, S, N, V, RM, cyc)               # t = 0: no step, no change
+    assert V[L.V_DN] == 0 and V[L.V_DN + 1] == 0 and S[L.S_NL_OK] == 1
+    S[L.S_HAVE_PREV] = 1
+    V[L.V_T] = _w48(0.5)
+    propagate_nominal(C, D, K, S, N, V, RM, cyc)
+    x = rk4(np.concatenate([RT, VT]), 0.5)        # two-body; the module's rk4 has no J2 by default
+    assert decode48(int(N[L.N_T])) == 0.5
+    assert [decode48(int(v)) for v in N[:3]] == pytest.approx(x[:3], abs=1e-3)
+    dn = [decode32(int(v)) for v in V[L.V_DN:L.V_DN + 2]]
+    assert dn == pytest.approx(_tan(x[:3]) - _tan(RT), abs=3e-7)
+    assert abs(dn[0]) > 1e-3                                    # a real change (7 mrad)
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.predict_ekf", "not-running", "first", "motion")
+@pytest.mark.cases("flightsw.tp.trajectory.start_ekf", "typical")
+@pytest.mark.cases("flightsw.tp.trajectory.ekf_running", "typical")
+def test_ekf_start_and_prediction_of_its_line_of_sight():
+    C, D, K, S, V, RM, cyc = _traj_arrays()
+    N = np.zeros(L.N_WORDS, np.int64)
+    N[L.N_X:L.N_X + 6] = [_w48(x) for x in (*RT, *VT)]
+    E = np.zeros(E_WORDS, np.int64)
+    wk = np.zeros(80, np.int64)
+    predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
+    assert not ekf_running(E) and V[L.V_EKF_ON] == 0 and not E.any()
+    V[L.V_T] = _w48(2.0)
+    start_ekf(K, N, E, V)
+    assert ekf_running(E) and V[L.V_EKF_ON] == 1 and decode48(int(E[E_T])) == 2.0
+    assert np.array_equal(E[E_X:E_X + 6], N[L.N_X:L.N_X + 6])
+    P = np.array([[decode48(int(E[E_P + UT[i, j]])) for j in range(6)] for i in range(6)])
+    assert np.array_equal(P, np.diag([1e4] * 3 + [1.0] * 3))
+    l_ = (RT - RSC) / np.linalg.norm(RT - RSC)
+    assert [decode32(int(v)) for v in E[E_LOS:E_LOS + 3]] == pytest.approx(l_, abs=2e-7)
+    V[L.V_T], V[L.V_EKF_ON] = _w48(2.5), 0                      # next frame; S: no previous
+    predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
+    assert V[L.V_EKF_ON] == 1 and V[L.V_DE] == 0 and decode48(int(E[E_T])) == 2.5
+    S[L.S_HAVE_PREV] = 1
+    V[L.V_T] = _w48(3.0)
+    predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
+    x1 = rk4(np.concatenate([RT, VT]), 0.5)
+    x2 = rk4(x1, 0.5)
+    de = [decode32(int(v)) for v in V[L.V_DE:L.V_DE + 2]]
+    assert de == pytest.approx(_tan(x2[:3]) - _tan(x1[:3]), abs=3e-7) and abs(de[0]) > 1e-3
+
+
+def _update_case(dx, dy, nrej=0):
+    """An EKF 1 Mm ahead with P = diag(1e4 m^2, 1 (m/s)^2), one candidate (dx, dy) rad off the
+    estimate's line of sight (aligned imager, body = ECI, 1e-4 rad/px, sigma 0.5 px)."""
+    C, D, K, S, V, RM, cyc = _traj_arrays()
+    E = np.zeros(E_WORDS, np.int64)
+    ekf_init(E, *[_w48(x) for x in (*(RSC + [1.0e6, 50.0, -30.0]), *VT)], 0, K[K_P0R], K[K_P0V])
+    E[E_NREJ] = nrej
+    IMG = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 1e-4, 1e-4).table_row()[None, :]
+    x, y = 5e-5 + dx, -3e-5 + dy
+    rows, cols = np.zeros(L.MAX_OBS), np.zeros(L.MAX_OBS)
+    rows[0], cols[0] = 122.0 + y / 1e-4, 128.0 + x / 1e-4
+    V[L.V_OBJ] = 0
+    update_ekf(C, K, IMG, E, V, np.zeros(80, np.int64), RM, np.zeros(9, np.int64), rows, cols, cyc)
+    return E, V, np.array([x, y]) / math.sqrt(1 + x * x + y * y)
+
+
+def _decoded(E):
+    x = np.array([decode48(int(E[E_X + i])) for i in range(6)])
+    P = np.array([[decode48(int(E[E_P + UT[i, j]])) for j in range(6)] for i in range(6)])
+    return x, P
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "both-accepted")
+def test_update_ekf_is_two_sequential_scalar_updates():
+    E, V, z = _update_case(1e-5, -2e-5)
+    assert V[L.V_STATUS] == 0 and E[E_NREJ] == 0
+    x = np.concatenate([RSC + [1.0e6, 50.0, -30.0], VT])
+    P = np.diag([1e4] * 3 + [1.0] * 3)
+    for comp, R in ((1, (0.5e-4) ** 2), (2, (0.5e-4) ** 2)):       # float64 reference update
+        hz, Hrow = meas(x, RSC, np.eye(3), comp)
+        s = float((Hrow @ P @ Hrow.T)[0, 0]) + R
+        k = (P @ Hrow.T / s).ravel()
+        x = x + k * (z[comp - 1] - hz)
+        P = P - np.outer(k, k) * s
+    got_x, got_P = _decoded(E)
+    sig = np.sqrt(np.diag(P))
+    assert np.abs(got_x - x).max() / sig.min() < 1e-3 and abs(got_x[1] - 50.0) > 1.0
+    assert np.abs(got_P - P).max() / np.abs(P).max() < 1e-5
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "one-rejected", "both-rejected", "reset")
+def test_update_ekf_rejections_counted_and_the_covariance_reset():
+    E, V, z = _update_case(0.0, 5e-3, nrej=2)                 # y 100 sigma off, x on
+    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 0
+    E, V, z = _update_case(5e-3, 5e-3, nrej=1)
+    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 2
+    x0, P0_ = _decoded(E)
+    assert np.array_equal(P0_, np.diag([1e4] * 3 + [1.0] * 3))  # refused: P untouched
+    E, V, z = _update_case(5e-3, 5e-3, nrej=2)                # the third frame running: reset
+    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED | TC_EKF_RESET and E[E_NREJ] == 0
+    assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.no_nominal", "typical")
+def test_no_nominal_says_so_and_nothing_else():
+    V = np.zeros(L.V_WORDS, np.int64)
+    V[L.V_STATUS] = TC_EKF_RESET
+    no_nominal(V)
+    assert V[L.V_STATUS] == TC_EKF_RESET | TC_NO_NOMINAL and np.count_nonzero(V) == 1

@@ -10,14 +10,18 @@ import numpy as np
 import pytest
 
 from flightsw.arith.m1750 import decode32, encode32
-from flightsw.messages import TC_NEW_DECISION, TC_OBJECT_LOST, TC_REINITIALISED
+from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
+                               TC_REINITIALISED)
 from flightsw.tp import layout as L
-from flightsw.tp.association import associate
+from flightsw.tp.association import associate, in_gate_pairs, sort_pairs
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
-                               propagate_gates, smooth_gates)
+                               any_gate_alive, drop_all_gates, gate_half_width, gate_params,
+                               kill_pair, propagate_gates, smooth_gates)
+from flightsw.tp.geometry import ImagerGeometry
 from flightsw.tp.geometry import make_dR, tan_int
-from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, pair_conclusion,
-                               reinitialise, rule1, rule2, rule3, rule4, verify_object)
+from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, object_observed,
+                               pair_conclusion, reinitialise, report_object, rule1, rule2, rule3,
+                               rule4, verify_object)
 
 
 def w(x):
@@ -29,6 +33,8 @@ N = 3                     # successive empty frames for rules 1 and 2
 
 
 # ---- the rules as functions ----------------------------------------------------------------------
+@pytest.mark.cases("flightsw.tp.rules.rule1", "decides", "star-gate-recent", "object-gate-missed",
+                    "run-capped-2n", "inconsistent")
 def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
     assert rule1(3, 3, w(1e-8), N, THR)                 # empty n, populated since, consistent
     assert rule1(7, 6, w(1e-8), N, THR)                 # at most 2n populated frames asked for
@@ -37,6 +43,8 @@ def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
     assert not rule1(3, 3, w(5e-8), N, THR)             # inconsistent object gate
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule2", "decides", "object-gate-recent", "star-gate-missed",
+                    "inconsistent", "residual-at-threshold")
 def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, w(1e-8), N, THR)
     assert not rule2(2, 3, w(1e-8), N, THR)
@@ -45,6 +53,8 @@ def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "within-threshold",
+                   "reversed")
 def test_rule3_star_residuals_exceed_object_residuals():
     assert rule3(w(6e-8), w(1e-8), 1, THR)[0]          # 5e-8 > 4e-8, object gate populated
     assert not rule3(w(6e-8), w(1e-8), 0, THR)[0]      # object gate empty this frame
@@ -52,6 +62,8 @@ def test_rule3_star_residuals_exceed_object_residuals():
     assert not rule3(w(1e-8), w(6e-8), 1, THR)[0]      # the other way round: rule 4's case
 
 
+@pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold",
+                   "reversed")
 def test_rule4_object_residuals_exceed_star_residuals():
     assert rule4(w(1e-8), w(6e-8), 1, THR)[0]
     assert not rule4(w(1e-8), w(6e-8), 0, THR)[0]      # star gate empty this frame
@@ -69,7 +81,11 @@ def test_rule4_object_residuals_exceed_star_residuals():
     (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 1 fails; residual rules suspended
     (12, 0, 0, 3, 9e-8, 9e-8, (DELETE, 0)),            # star gate empty 4n: stale pair deleted
     (0, 12, 3, 0, 9e-8, 9e-8, (DELETE, 0)),
+    (0, 3, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 2 fails; residual rules suspended
 ])
+@pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "both-empty", "rule1-object", "rule2-star",
+                   "rule3-object", "rule4-star", "within-threshold", "star-empty-suspended",
+                   "object-empty-suspended", "star-empty-stale", "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
     concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
     assert (concl, rule) == want and flags == 0
@@ -105,6 +121,9 @@ def _obs(points):
     return OBS
 
 
+@pytest.mark.cases("flightsw.tp.rules.reinitialise", "places", "gates-alive", "object-held",
+                   "no-evidence")
+@pytest.mark.cases("flightsw.tp.rules.place_pairs", "every-usable", "unusable-skipped")
 def test_reinitialisation_places_a_pair_on_every_usable_observation_only_when_all_gates_are_gone():
     C, S, G, V, GP, cyc = _state()
     OBS = _obs([(0.01, 0.02), (-0.03, 0.0), (0.0, 0.04)])
@@ -132,6 +151,11 @@ def _tan(v):
     return v[1] / v[0], v[2] / v[0]
 
 
+@pytest.mark.cases("flightsw.tp.geometry.make_dR", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.rot_tan", "typical")
+@pytest.mark.cases("flightsw.tp.geometry.tan_int", "truncate")
+@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "star-gate", "object-gate-nominal",
+                   "learned-velocity", "velocity-kept", "dead-skipped")
 def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     C, S, G, V, GP, cyc = _state()
     a0, b0 = 0.02, -0.01
@@ -178,6 +202,9 @@ def _two_frames(obs_motion, nominal_motion):
     return C, S, G, V
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "object-decided")
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "held-fed")
+@pytest.mark.cases("flightsw.tp.gates.smooth_gates", "empty")
 def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     C, S, G, V = _two_frames((3e-3, 0.0), (3e-3, 0.0))   # 3 mrad: out of the star gate
     assert G[0, L.G_MISS] == 1 and G[1, L.G_MISS] == 0 and G[1, L.G_RUN] == 2
@@ -187,6 +214,7 @@ def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     assert verify_object(C, S, G, V) and V[L.V_OBJ] == 0
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "star-deleted")
 def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule_2():
     C, S, G, V = _two_frames((0.0, 0.0), (3e-3, 0.0))
     assert G[1, L.G_MISS] == 1 and G[0, L.G_RUN] == 2
@@ -195,6 +223,7 @@ def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule
     assert not V[L.V_STATUS] & TC_NEW_DECISION
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "undecided-kept")
 def test_two_frames_both_gates_fed_and_consistent_stay_undecided():
     C, S, G, V = _two_frames((0.0, 0.0), (0.0, 0.0))
     assert G[0, L.G_RUN] == 2 and G[1, L.G_RUN] == 2 and G[:2, L.G_ALIVE].all()
@@ -216,6 +245,7 @@ def test_rules_3_and_4_decide_on_accumulated_residuals_of_populated_gates():
     assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 1]
 
 
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "best-of-several")
 def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spurious():
     C, S, G, V, GP, cyc = _state()
     for p, s_o in enumerate([2e-8, 1e-8]):
@@ -225,6 +255,7 @@ def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spu
     assert S[L.S_DEC] == 1 and S[L.S_NSPURIOUS] == 1 and not G[0:2, L.G_ALIVE].any()
 
 
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "held-coasting", "lost-empty")
 def test_verified_object_lost_after_n_lost_empty_frames():
     C, S, G, V, GP, cyc = _state()
     S[L.S_DEC] = 4
@@ -234,3 +265,250 @@ def test_verified_object_lost_after_n_lost_empty_frames():
     assert not verify_object(C, S, G, V)
     assert S[L.S_DEC] == -1 and G[9, L.G_ALIVE] == 0 and V[L.V_STATUS] & TC_OBJECT_LOST
     assert S[L.S_NLOST] == 1
+
+
+# ---- the remaining branches of the rules stage (issue 22: each kernel's listed cases) -----------
+@pytest.mark.cases("flightsw.tp.rules.rule1", "residual-at-threshold")
+@pytest.mark.cases("flightsw.tp.rules.rule2", "run-capped-2n")
+def test_rules_1_2_threshold_is_inclusive_and_at_most_2n_populated_frames_are_asked_for():
+    assert rule1(3, 3, THR, N, THR)                     # S_o == thr: "within" the threshold
+    assert rule2(9, 6, w(1e-8), N, THR)                 # empty 3n frames: 2n = 6 populated suffice
+    assert not rule2(9, 5, w(1e-8), N, THR)
+
+
+@pytest.mark.cases("flightsw.tp.rules.apply_rules", "stale-deleted", "object-while-held",
+                   "half-pair-skipped")
+def test_apply_rules_stale_pairs_counted_objects_while_held_spurious_and_the_held_pair_skipped():
+    C, S, G, V, GP, cyc = _state()                      # n = n' = 1 empty frame
+    S[L.S_DEC] = 0
+    G[1, L.G_ALIVE], G[1, L.G_MISS] = 1, 9              # held object: star gate gone, not ruled on
+    G[2, L.G_ALIVE], G[2, L.G_MISS] = 1, 4              # pair 1: star gate empty 4n, object
+    G[3, L.G_ALIVE], G[3, L.G_RES] = 1, w(9e-8)         #   gate never populated -> stale
+    for row, res in ((4, 9e-8), (5, 1e-8)):             # pair 2: rule 3 says object
+        G[row, L.G_ALIVE], G[row, L.G_RES], G[row, L.G_RUN] = 1, w(res), 2
+    apply_rules(C, S, G, V, GP, cyc)
+    assert S[L.S_NSTALE] == 1 and not G[2:4, L.G_ALIVE].any()
+    assert S[L.S_NSPURIOUS] == 1 and not G[4:6, L.G_ALIVE].any()
+    assert S[L.S_DEC] == 0 and G[1, L.G_ALIVE] == 1 and S[L.S_NDEC] == 0
+    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 0]
+    assert not V[L.V_STATUS] & TC_NEW_DECISION
+
+
+@pytest.mark.cases("flightsw.tp.rules.verify_object", "none-held", "lost-deleted")
+def test_verify_object_without_an_object_and_with_its_gate_deleted():
+    C, S, G, V, GP, cyc = _state()
+    assert not verify_object(C, S, G, V) and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
+    S[L.S_DEC] = 2                                      # gate row 5 never alive
+    assert not verify_object(C, S, G, V)
+    assert S[L.S_DEC] == -1 and S[L.S_NLOST] == 1 and V[L.V_STATUS] & TC_OBJECT_LOST
+
+
+@pytest.mark.cases("flightsw.tp.rules.reinitialise", "nothing-usable")
+@pytest.mark.cases("flightsw.tp.rules.place_pairs", "no-observations")
+def test_reinitialise_without_usable_observations_places_nothing_and_says_nothing():
+    C, S, G, V, GP, cyc = _state()
+    OBS = _obs([(0.01, 0.02)])
+    OBS[0, L.OBS_OK] = 0
+    V[L.V_NUSE] = 1
+    assert reinitialise(S, G, OBS, V, cyc) == 0
+    V[L.V_NUSE] = 0
+    OBS[0, L.OBS_OK] = 1
+    assert reinitialise(S, G, OBS, V, cyc) == 0
+    assert V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 0 and not G[:, L.G_ALIVE].any()
+    assert cyc.sum() == 0
+
+
+@pytest.mark.cases("flightsw.tp.rules.report_object", "none-held", "locked", "coasting")
+def test_report_object_status_words():
+    C, S, G, V, GP, cyc = _state()
+    report_object(S, V)
+    assert V[L.V_STATUS] == 0 and V[L.V_LOCKED] == 0
+    S[L.S_DEC], V[L.V_OBJ] = 3, 0
+    report_object(S, V)
+    assert V[L.V_STATUS] == TC_OBJECT_DECIDED and V[L.V_LOCKED] == 1
+    V[L.V_STATUS], V[L.V_LOCKED], V[L.V_OBJ] = 0, 0, -1
+    report_object(S, V)
+    assert V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_COASTING and V[L.V_LOCKED] == 0
+
+
+@pytest.mark.cases("flightsw.tp.rules.object_observed", "observed", "none-held", "not-fed",
+                   "no-evidence")
+def test_object_observed_needs_a_held_fed_object_and_usable_evidence():
+    C, S, G, V, GP, cyc = _state()
+    S[L.S_DEC], V[L.V_OBJ] = 1, 2
+    assert object_observed(S, V)
+    V[L.V_EVIDENCE] = 0
+    assert not object_observed(S, V)
+    V[L.V_EVIDENCE], V[L.V_OBJ] = 1, -1
+    assert not object_observed(S, V)
+    S[L.S_DEC], V[L.V_OBJ] = -1, 2
+    assert not object_observed(S, V)
+
+
+# ---- gates: the remaining branches ---------------------------------------------------------------
+@pytest.mark.cases("flightsw.tp.gates.kill_pair", "typical")
+@pytest.mark.cases("flightsw.tp.gates.any_gate_alive", "none-alive", "last-row-alive")
+@pytest.mark.cases("flightsw.tp.gates.gate_half_width", "typical")
+def test_kill_pair_any_gate_alive_and_the_half_width_word():
+    C, S, G, V, GP, cyc = _state()
+    assert not any_gate_alive(G) and gate_half_width(GP) == 66
+    G[L.NG - 1, L.G_ALIVE] = 1
+    assert any_gate_alive(G)
+    G[:, L.G_ALIVE] = 1
+    kill_pair(G, 3)
+    assert np.flatnonzero(G[:, L.G_ALIVE] == 0).tolist() == [6, 7]
+
+
+@pytest.mark.cases("flightsw.tp.gates.drop_all_gates", "gates-deleted", "object-held-lost",
+                   "no-object")
+def test_drop_all_gates_after_a_long_gap():
+    C, S, G, V, GP, cyc = _state()
+    G[[1, 4, 5, L.NG - 2], L.G_ALIVE] = 1               # half-dead pair, a pair, last star gate
+    drop_all_gates(S, G, V)
+    assert not G[:, L.G_ALIVE].any() and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
+    S[L.S_DEC] = 0
+    G[1, L.G_ALIVE] = 1
+    drop_all_gates(S, G, V)
+    assert not G[:, L.G_ALIVE].any() and S[L.S_DEC] == -1 and S[L.S_NLOST] == 1
+    assert V[L.V_STATUS] & TC_OBJECT_LOST
+
+
+def _img(sc, sr):
+    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+
+
+@pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2),
+                                              (0.6e-4, 1.0e-4, 0.5, 0.0),
+                                              (1.0e-4, 1.0e-4, 0.0, 0.2)])
+@pytest.mark.cases("flightsw.tp.gates.gate_params", "col-scale-larger", "row-scale-larger",
+                   "thresholds", "beta", "beta-zero", "dt-zero")
+def test_gate_params_from_pixels_to_radians(sc, sr, dt, beta):
+    C, S, G, V, GP, cyc = _state()
+    C[L.C_GATE_PX], C[L.C_THR_OBJ], C[L.C_THR_STAR], C[L.C_BETA] = w(7.3), w(2.0), w(3.0), w(beta)
+    V[L.V_DT] = w(dt) if dt else 0
+    gate_params(C, _img(sc, sr), V, GP, cyc)
+    assert GP[GP_HALF] == int(7.3 * max(sc, sr) * 2 ** 16)     # 47: FIX truncates, far from a tie
+    assert decode32(GP[GP_THR_OBJ]) == pytest.approx(2.0 * sc * sr, rel=1e-6)
+    assert decode32(GP[GP_THR_STAR]) == pytest.approx(3.0 * sc * sr, rel=1e-6)
+    if dt == 0:
+        assert GP[GP_INV_DT] == 0 and GP[GP_GAIN_V] == 0
+    else:
+        assert decode32(GP[GP_INV_DT]) == pytest.approx(1 / dt, rel=1e-6)
+        gain = decode32(GP[GP_GAIN_V]) if GP[GP_GAIN_V] else 0.0
+        assert gain == pytest.approx(beta / dt, rel=1e-6)
+    assert V[L.V_FLAGS] == 0
+
+
+@pytest.mark.cases("flightsw.tp.gates.propagate_gates", "object-gate-ekf", "dt-zero")
+def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_velocity():
+    C, S, G, V, GP, cyc = _state()
+    S[L.S_DEC] = 1                                      # pair 1: rows 2, 3
+    for row in (1, 3):
+        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B], G[row, L.G_VA] = 1, w(0.01), w(0.02), 77
+    V[L.V_EKF_ON] = 1
+    V[L.V_DN], V[L.V_DN + 1] = w(1e-3), w(2e-3)
+    V[L.V_DE], V[L.V_DE + 1] = w(-3e-3), w(4e-3)
+    GP[GP_INV_DT] = 0
+    dR = np.zeros(9, np.int64)
+    make_dR(0, 0, 0, w(0.5), dR)                        # body still: dR = I
+    propagate_gates(S, G, V, GP, dR, cyc)
+    got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731
+    assert got(1) == pytest.approx((0.011, 0.022), abs=1e-8)               # nominal motion
+    assert got(3) == pytest.approx((0.007, 0.024), abs=1e-8)               # the EKF's motion
+    assert G[1, L.G_VA] == 77 and G[3, L.G_VA] == 77                        # not re-formed
+
+
+@pytest.mark.parametrize("beta", [0.0, 0.2])
+@pytest.mark.cases("flightsw.tp.gates.smooth_gates", "fed", "fed-with-beta", "dead-skipped")
+def test_smoothing_a_fed_gate_is_the_alpha_beta_step_and_accumulates_squared_residuals(beta):
+    C, S, G, V, GP, cyc = _state()                      # alpha 0.5, dt 0.5
+    GP[GP_GAIN_V] = w(beta / 0.5) if beta else 0
+    a0, b0, va, vb, res0 = 0.01, 0.02, 1e-3, -2e-3, 3e-8
+    G[1, L.G_ALIVE], G[1, L.G_A], G[1, L.G_B], G[1, L.G_OBS] = 1, w(a0), w(b0), 0
+    G[1, L.G_DVA], G[1, L.G_DVB], G[1, L.G_RES], G[1, L.G_RUN], G[1, L.G_HITS] = \
+        w(va), w(vb), w(res0), 2, 3
+    G[1, L.G_MISS] = 0
+    G[3, L.G_OBS] = 0                                   # dead row: left alone
+    za, zb = 0.0103, 0.0196
+    smooth_gates(C, G, _obs([(za, zb)]), V, GP, cyc)
+    ra, rb = za - a0, zb - b0
+    assert decode32(G[1, L.G_A]) == pytest.approx(a0 + 0.5 * ra, abs=2e-9)
+    assert decode32(G[1, L.G_B]) == pytest.approx(b0 + 0.5 * rb, abs=2e-9)
+    assert decode32(G[1, L.G_DVA]) == pytest.approx(va + beta / 0.5 * ra, rel=1e-5)
+    assert decode32(G[1, L.G_DVB]) == pytest.approx(vb + beta / 0.5 * rb, rel=1e-5)
+    assert decode32(G[1, L.G_RES]) == pytest.approx(res0 + ra * ra + rb * rb, rel=1e-4)
+    assert (G[1, L.G_RUN], G[1, L.G_HITS], G[1, L.G_MISS]) == (3, 4, 0)
+    assert G[3].tolist() == [0] * L.GC
+
+
+# ---- association, on the 16-bit integer coordinates (LSB 2**-16 rad) -----------------------------
+def _int_gates(rows):
+    """{row: (ia, ib)} -> live gates at those integer coordinates."""
+    G = np.zeros((L.NG, L.GC), np.int64)
+    G[:, L.G_OBS] = -1
+    for row, (ia, ib) in rows.items():
+        G[row, L.G_ALIVE], G[row, L.G_IA], G[row, L.G_IB] = 1, ia, ib
+    return G
+
+
+def _int_obs(points):
+    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    for j, (ia, ib) in enumerate(points):
+        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB], OBS[j, L.OBS_OK] = ia, ib, 1
+    return OBS
+
+
+def _scratch():
+    return np.zeros((L.NG * L.MAX_OBS, 3), np.int64), np.zeros(L.MAX_OBS, np.int64), \
+        np.zeros(8, np.int64)
+
+
+@pytest.mark.cases("flightsw.tp.association.in_gate_pairs", "inside", "edge-inclusive", "outside",
+                   "one-class", "dead-skipped", "unusable-skipped", "no-observations")
+def test_in_gate_pairs_square_gate_on_integer_coordinates():
+    G = _int_gates({0: (100, -50), 1: (100, -50), 2: (0, 0)})
+    G[2, L.G_ALIVE] = 0                                  # dead star gate at the origin
+    OBS = _int_obs([(110, -45), (90, -60), (111, -50), (100, -39), (0, 0), (105, -50)])
+    OBS[5, L.OBS_OK] = 0                                  # unusable, though inside
+    PW, TAKEN, cyc = _scratch()
+    n = in_gate_pairs(G, OBS, 6, 0, 10, PW, cyc)          # star class, half-width 10
+    got = sorted(map(tuple, PW[:n].tolist()))
+    # by hand: obs 0 (10, 5) and obs 1 (-10, -10) are inside (edges included); obs 2 (11, 0) and
+    # obs 3 (0, 11) are out on one axis; obs 4 is only near the dead gate
+    assert got == [(125, 0, 0), (200, 0, 1)]
+    n = in_gate_pairs(G, OBS, 6, 1, 10, PW, cyc)          # object class: row 1 only
+    assert sorted(map(tuple, PW[:n].tolist())) == [(125, 1, 0), (200, 1, 1)]
+    assert in_gate_pairs(G, OBS, 0, 0, 10, PW, cyc) == 0
+
+
+@pytest.mark.cases("flightsw.tp.association.sort_pairs", "sorted", "ties-stable", "short")
+def test_sort_pairs_is_a_stable_sort_by_distance():
+    rng = np.random.default_rng(5)
+    PW, TAKEN, cyc = _scratch()
+    rows = [(int(d), r, j) for r, (d, j) in enumerate(zip(rng.integers(0, 6, 40), range(40)))]
+    PW[:40] = rows
+    PW[40] = (-1, -1, -1)
+    sort_pairs(PW, 40, cyc)
+    assert PW[:40].tolist() == [list(t) for t in sorted(rows, key=lambda t: t[0])]  # Python: stable
+    assert PW[40].tolist() == [-1, -1, -1]
+    PW[:2] = [(9, 0, 0), (1, 1, 1)]
+    sort_pairs(PW, 1, cyc)
+    sort_pairs(PW, 0, cyc)
+    assert PW[:2].tolist() == [[9, 0, 0], [1, 1, 1]]
+
+
+@pytest.mark.cases("flightsw.tp.association.associate", "nearest-first", "one-per-gate",
+                   "classes-independent", "contested-fallback", "no-pairs")
+def test_associate_greedy_nearest_neighbour_per_class():
+    # star gates at rows 0 (a = 0) and 2 (a = 2), object gate row 1 (a = 6); obs 0 at a = 3, obs 1
+    # at a = 6. Star pairs by d2: (g2, o0) 1, (g0, o0) 9, (g2, o1) 16, (g0, o1) 36. Nearest first:
+    # gate 2 takes obs 0 (and keeps it: one per gate), gate 0 falls back to obs 1. The object gate
+    # sees obs 1 (d2 0) and obs 0 (d2 9): it takes obs 1 though the star class used it too.
+    G = _int_gates({0: (0, 0), 2: (2, 0), 1: (6, 0)})
+    OBS = _int_obs([(3, 0), (6, 0)])
+    PW, TAKEN, cyc = _scratch()
+    associate(G, OBS, 2, 10, PW, TAKEN, cyc)
+    assert (G[0, L.G_OBS], G[2, L.G_OBS], G[1, L.G_OBS]) == (1, 0, 1)
+    G = _int_gates({0: (0, 0), 1: (0, 0)})
+    associate(G, _int_obs([(40, 0), (0, -11)]), 2, 10, PW, TAKEN, cyc)
+    assert (G[:, L.G_OBS] == -1).all()

@@ -38,7 +38,13 @@ AB_UPDATE_MIX = {"FS": 1, "FM": 2, "FA": 2, "L": 4, "ST": 2}
 
 @njit(cache=True)
 def ab_predict(x, v, dt):
-    """x + v dt -> (x_p, flags) (packed 32-bit)."""
+    """x + v dt -> (x_p, flags) (packed 32-bit 1750A floats; FM then FA).
+
+    Cases
+    -----
+    typical : ``x + v dt`` within the 32-bit rounding.
+    zero-velocity : ``v == 0`` -> ``x`` unchanged, exactly.
+    """
     p, f = fm32(v, dt)
     xp, g = fa32(x, p)
     return xp, f | g
@@ -47,7 +53,16 @@ def ab_predict(x, v, dt):
 @njit(cache=True)
 def ab_update(xp, v, z, alpha, gain_v):
     """Correct a predicted position with observation z: ``r = z - x_p``, ``x = x_p + alpha r``,
-    ``v = v + gain_v r`` (``gain_v = beta / dt``; 0 leaves v unchanged) -> (x, v, r, flags)."""
+    ``v = v + gain_v r`` (``gain_v = beta / dt``; 0 leaves v unchanged) -> (x, v, r, flags).
+
+    All arguments packed 32-bit 1750A floats.
+
+    Cases
+    -----
+    beta-zero : ``gain_v == 0`` -> ``x_p + alpha r``, ``v`` returned unchanged (same word).
+    beta : ``gain_v != 0`` -> ``v + gain_v r``.
+    exact-hit : ``z == x_p`` -> ``r = 0`` and ``x = x_p``.
+    """
     r, f = fs32(z, xp)
     p, g = fm32(alpha, r); f |= g
     x, g = fa32(xp, p); f |= g
@@ -59,6 +74,14 @@ def ab_update(xp, v, z, alpha, gain_v):
 
 @njit(cache=True)
 def _ab_many(x, v, z, alpha, beta, dt, xo, vo):
+    """One alpha-beta step per element (float64 [n] inputs rounded to 32-bit, nearest) into ``xo``,
+    ``vo`` (float64 [n], decoded exactly) -> the OR of the flags.
+
+    Cases
+    -----
+    typical : element i is the scalar step on element i.
+    beta-zero : ``beta[i] == 0`` -> no ``beta / dt`` division, ``vo[i] = v[i]`` (as rounded).
+    """
     fl = 0
     for i in range(x.shape[0]):
         px, g0 = enc32(x[i])
@@ -79,6 +102,13 @@ def _ab_many(x, v, z, alpha, beta, dt, xo, vo):
 
 @njit(cache=True)
 def _ab_scalar(x, v, z, alpha, beta, dt):
+    """One alpha-beta step on float64 scalars rounded to 32-bit (nearest) -> (x, v) decoded.
+
+    Cases
+    -----
+    typical : ``x_p = x + v dt``, ``x_p + alpha (z - x_p)``, ``v + beta / dt (z - x_p)``.
+    beta-zero : ``beta == 0`` -> ``v`` returned as rounded.
+    """
     px, g0 = enc32(x)
     pv, g1 = enc32(v)
     pz, g2 = enc32(z)

@@ -28,7 +28,21 @@ CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
-    ``PW`` (int64 [NG * MAX_OBS, 3]) -> their number."""
+    ``PW`` (int64 [NG * MAX_OBS, 3]) -> their number.
+
+    ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]); coordinates are
+    the 16-bit integers (LSB 2**-16 rad), distances their integer squares.
+
+    Cases
+    -----
+    inside : ``|da| <= half`` and ``|db| <= half`` -> a triple ``(da^2 + db^2, row, j)``.
+    edge-inclusive : ``|da| == half`` (either sign) is inside.
+    outside : ``|da| > half`` or ``|db| > half`` (either axis alone) -> no triple.
+    one-class : only rows of parity ``kind`` are tested.
+    dead-skipped : dead gates give no triple.
+    unusable-skipped : observations with ``OBS_OK == 0`` give no triple.
+    no-observations : ``nuse == 0`` -> 0.
+    """
     npairs = 0
     for row in range(kind, NG, 2):
         if G[row, G_ALIVE] == 0:
@@ -52,7 +66,15 @@ def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
 
 @njit(cache=True, inline="always")
 def sort_pairs(PW, npairs, cyc):
-    """Insertion sort of the first ``npairs`` rows of ``PW`` by distance (stable; ~1 per gate)."""
+    """Insertion sort of the first ``npairs`` rows of ``PW`` (int64 [>= npairs, 3]) by distance
+    (column 0; stable; ~1 per gate), in place.
+
+    Cases
+    -----
+    sorted : rows end in ascending distance, rows beyond ``npairs`` untouched.
+    ties-stable : equal distances keep their input order.
+    short : ``npairs`` 0 or 1 -> nothing moves.
+    """
     for i in range(1, npairs):
         d0_, r0_, j0_ = PW[i, 0], PW[i, 1], PW[i, 2]
         m = i - 1
@@ -66,7 +88,20 @@ def sort_pairs(PW, npairs, cyc):
 @njit(cache=True)
 def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
     """Set each live gate's ``G_OBS`` to the observation it is fed this frame (-1: none; the gates
-    must have been propagated, which clears it), nearest pairs first within each class."""
+    must have been propagated, which clears it), nearest pairs first within each class.
+
+    ``half`` the 16-bit gate half-width; ``PW`` (int64 [NG * MAX_OBS, 3]) and ``TAKEN`` (int64
+    [MAX_OBS]) scratch.
+
+    Cases
+    -----
+    nearest-first : an observation inside two gates of one class feeds the nearer gate.
+    one-per-gate : a gate with two observations inside is fed the nearer one.
+    classes-independent : one observation may feed a star gate and an object gate.
+    contested-fallback : a gate whose nearest observation went to a nearer gate takes its next
+        observation inside.
+    no-pairs : nothing inside any gate -> every ``G_OBS`` stays -1.
+    """
     for kind in range(2):
         npairs = in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc)
         sort_pairs(PW, npairs, cyc)

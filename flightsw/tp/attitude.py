@@ -5,7 +5,7 @@ the last frame.
 MSX paper, "Track processing algorithms": the TP takes the IP's candidate message and the attitude
 processor's data each frame. A message whose time tag is not after the last frame's is treated as
 lost (the TP's clock advances one period). The attitude is "out of range" when
-``| |q|^2 - 1 | > quat_norm_tol^2``, ``|w| > max_rate``, ``|r_sc|`` outside 6200 km .. 100 000 km,
+``| |q|^2 - 1 | > quat_norm_tol``, ``|w| > max_rate``, ``|r_sc|`` outside 6200 km .. 100 000 km,
 ``|v_sc| > 20 km/s`` or ``|t_att - t| > max_time_skew``; then (as when ``valid`` is False or the
 data are missing) the last good attitude is propagated with its rate and the observations are not
 used.
@@ -46,7 +46,23 @@ CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     """The frame's time ``V[V_T]`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit)
     and gap flags from the message header (``msg_ok`` False: the message was lost) and the last
-    frame's state ``S``; ``att`` float64 [16] the attitude inputs (``att[0]`` its time tag)."""
+    frame's state ``S``; ``att`` float64 [16] the attitude inputs (``att[0]`` its time tag).
+
+    Cases
+    -----
+    first-frame : no previous frame -> the message's time, ``dt = 0``, no gap flag.
+    in-order : time after the last, count the last + 1 -> ``dt = t - t_prev`` (32- and 48-bit).
+    lost-message : ``msg_ok`` False -> ``TC_BAD_MESSAGE``; time ``t_prev + frame_dt``, count the
+        last + 1, the last imager.
+    lost-first-frame : lost with no previous frame -> the attitude's time tag (0 if it does not
+        encode), count 0.
+    not-after : a time tag equal to or before the last -> treated as lost.
+    not-encodable : a non-finite time tag -> treated as lost.
+    count-gap : a frame count other than the last + 1 (mod 2**16) -> ``TC_FRAME_GAP``.
+    count-wrap : count 0 after 0xFFFF is in order.
+    time-gap : ``dt > 1.5 frame_dt`` -> ``TC_FRAME_GAP``.
+    long-gap : ``dt > max_coast_s`` -> ``V_LONG_GAP = 1``.
+    """
     fl = 0
     st = 0
     have_prev = S[S_HAVE_PREV] != 0
@@ -94,7 +110,20 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
 @njit(cache=True, inline="always")
 def read_attitude(C, V, att):
     """Encode and check the attitude inputs ``att`` (float64 [16]: t, valid, q (4), rate (3),
-    r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable."""
+    r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable.
+
+    Cases
+    -----
+    usable : every check passes -> True; ``V`` holds q (normalised), w, r_sc, v_sc.
+    not-valid : ``att[1] == 0`` (invalid or missing) -> False.
+    not-encodable : a non-finite input (or one outside the 1750A range) -> False.
+    quat-norm : ``| |q|^2 - 1 | > quat_norm_tol`` -> False.
+    rate : ``|w|^2 > max_rate^2`` -> False.
+    radius : ``|r_sc|^2`` below ``6200 km`` squared or above ``100 000 km`` squared -> False.
+    speed : ``|v_sc|^2 > (20 km/s)^2`` -> False.
+    skew : ``|t_att - t| > max_time_skew`` (either sign) -> False.
+    refused-not-stored : a refused attitude leaves ``V``'s attitude words untouched.
+    """
     if att[1] == 0.0:
         return False
     g = 0
@@ -146,7 +175,13 @@ def read_attitude(C, V, att):
 @njit(cache=True, inline="always")
 def coast_attitude(S, V):
     """No usable attitude this frame: the last one propagated with its rate,
-    ``q <- q (x) (1, w dt / 2)``, ``r += v dt``."""
+    ``q <- q (x) (1, w dt / 2)``, ``r += v dt``.
+
+    Cases
+    -----
+    typical : q turned by ``w dt`` (first order, renormalised), r advanced by ``v dt`` (48-bit),
+        w and v kept, the mean rate = w.
+    """
     fl = 0
     dt, dt48 = V[V_DT], V[V_DT48]
     w0, w1, w2 = S[S_W], S[S_W + 1], S[S_W + 2]
@@ -175,7 +210,13 @@ def coast_attitude(S, V):
 @njit(cache=True, inline="always")
 def mean_rate(S, V):
     """The interval's mean body rate ``(w + w_prev) / 2`` into ``V[V_WM]`` (this frame's rate when
-    there is no previous attitude)."""
+    there is no previous attitude).
+
+    Cases
+    -----
+    mean : a previous frame with an attitude -> ``(w + w_prev) / 2`` per axis.
+    first : no previous attitude -> this frame's w.
+    """
     fl = 0
     for i in range(3):
         V[V_WM + i] = V[V_W + i]
@@ -194,7 +235,18 @@ def frame_attitude(C, S, V, att, RM, dR, cyc):
     ``dR = R_t^T R_prev = DCM(q_t* (x) q_prev)`` when the last attitude is known (the body rate
     sampled at the frame times is not the interval's mean rate when the controller's rate varies
     within the frame: a stepwise-commanded slew, 20 % low on the launch), else ``exp(-[w dt]x)``
-    to second order."""
+    to second order.
+
+    Cases
+    -----
+    measured-with-previous : usable attitude and a previous one -> ``RM = DCM(q)``,
+        ``dR = DCM(q* (x) q_prev)``, evidence when the message is good too.
+    measured-first : usable attitude, no previous -> ``dR = exp(-[w_mean dt]x)`` to second order.
+    coasted : attitude refused after a good one -> ``TC_ATTITUDE_INVALID``, the last one
+        propagated, no evidence -> True.
+    never : attitude refused and none ever -> ``TC_ATTITUDE_INVALID`` -> False.
+    message-lost : usable attitude, message lost -> no evidence.
+    """
     had_att = S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0   # last frame's (measured or coasted)
     att_ok = read_attitude(C, V, att)
     cyc[ST_INPUT] += CYC_INPUT
@@ -225,7 +277,13 @@ def frame_attitude(C, S, V, att, RM, dR, cyc):
 
 @njit(cache=True)
 def no_attitude_frame(S, V, out):
-    """Close a frame that has no attitude ever: only the clock advances -> status."""
+    """Close a frame that has no attitude ever: only the clock advances -> status.
+
+    Cases
+    -----
+    typical : time, frame count, imager kept in ``S`` (``S_NFRAMES`` + 1), ``TC_COASTING``, the
+        outputs' time, frame, imager set and no decision or object (-1).
+    """
     t, fc, img_idx = V[V_T], V[V_FC], V[V_IMG]
     S[S_HAVE_PREV] = 1
     S[S_T] = t

@@ -42,7 +42,17 @@ CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 @njit(cache=True, inline="always")
 def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
     """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
-    body (u0..u2), range (rho), flags."""
+    body (u0..u2), range (rho), flags.
+
+    ``T`` the frame interval (packed 48-bit s); ``x0..x5`` r (m), v (m/s) packed 48-bit; the
+    spacecraft's ``V[V_RS]`` (48-bit m) and ``V[V_VS]`` (32-bit m/s); ``RM`` (int64 [9], packed
+    32-bit) body -> ECI. ``l = unit(r + vT - r_sc - v_sc T)`` (32-bit), ``u = RM^T l``.
+
+    Cases
+    -----
+    typical : the unit line of sight in ECI and body axes and the range ``|d|``.
+    coincident : target and spacecraft at one point -> ``rho = 0``, zero vectors, FLAG_DOMAIN.
+    """
     fl = 0
     p, g = fm48(x3, T); fl |= g
     y0, g = fa48(x0, p); fl |= g
@@ -67,7 +77,22 @@ def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
 @njit(cache=True, inline="always")
 def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
-    flags); ``have`` False when nothing is tracked or predicted."""
+    flags); ``have`` False when nothing is tracked or predicted.
+
+    ``N`` nominal state (int64 [N_WORDS]), ``E`` EKF state (int64 [E_WORDS]), ``RM`` body -> ECI
+    (packed 32-bit [9]); ``opportunity``, ``nominal``: the event's mode and whether a nominal is
+    held.
+
+    Cases
+    -----
+    ekf : EKF running (dedicated mode) -> the line of sight to the EKF's state, nominal or not.
+    nominal : EKF off, nominal held -> the line of sight to the nominal's state.
+    nothing-tracked : dedicated, EKF off, no nominal -> ``have`` False.
+    coincident : the state at the spacecraft (``rho = 0``) -> ``have`` False.
+    opportunity : opportunity mode with a live track -> ``u = unit(1, x + v T)`` (body),
+        ``l = RM u``.
+    opportunity-no-track : opportunity mode without a track -> ``have`` False.
+    """
     T = C[C_FRAME_DT]
     if not opportunity and (V[V_EKF_ON] != 0 or nominal):
         src = E if V[V_EKF_ON] != 0 else N
@@ -93,7 +118,19 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
     (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
     imager -> (row, col, ok, n0, n1, n2, flags): packed 32-bit pixels and the turned direction
-    (body axes)."""
+    (body axes).
+
+    ``dR`` (packed 32-bit [9]) the body's rotation over the last interval dt; ``wk`` (int64 [80])
+    scratch (``wk[64:73]`` receives the rotation over the next frame).
+
+    Cases
+    -----
+    mean-rate : a previous attitude, ``dt != 0``, no long gap -> the rate ``(dR - dR^T) / (2 dt)``
+        (skew part) turns ``u`` over the frame interval.
+    sampled-rate : no previous attitude, or ``dt == 0``, or a long gap -> the measured
+        ``V[V_W]`` turns ``u``.
+    behind : the turned direction behind the imager -> ``ok`` False.
+    """
     fl = 0
     dt = V[V_DT]
     pw0, pw1, pw2 = V[V_W], V[V_W + 1], V[V_W + 2]
@@ -115,7 +152,16 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
 @njit(cache=True, inline="always")
 def pointing(V, u0, u1, u2):
     """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
-    target is behind (``1 + u_x <= 2**-7``)."""
+    target is behind (``1 + u_x <= 2**-7``).
+
+    ``u0..u2`` packed 32-bit unit direction (body); ``V[V_Q]`` the attitude (scalar first).
+
+    Cases
+    -----
+    typical : ``q_point = q (x) d`` turns +X body onto ``u``; ``d`` has no component about +X.
+    boresight : ``u = +X`` -> ``d`` = identity, ``q_point = q``.
+    behind : ``1 + u_x <= 2**-7`` (``u`` within ~7.2 deg of -X, the edge included) -> not ok.
+    """
     c0, fl = fa32(_ONE32, u0)
     if fc32(c0, _BEHIND) <= 0:
         return False, 0, 0, 0, 0, fl
@@ -126,7 +172,19 @@ def pointing(V, u0, u1, u2):
 
 @njit(cache=True)
 def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
-    """The track command's direction, predicted pixel and pointing into ``out``."""
+    """The track command's direction, predicted pixel and pointing into ``out``.
+
+    ``out`` float64 [O_WORDS] (decoded values; NaN where absent); the predicted direction is kept
+    in ``S[S_PRED]`` (``S_PRED_OK`` says whether there is one).
+
+    Cases
+    -----
+    tracked : direction, predicted pixel, line of sight and pointing all written.
+    nothing : no direction -> pointing, pixel and line of sight NaN, ``S_PRED_OK = 0``.
+    off-imager : direction not in front of the imager -> pixel and line of sight NaN, pointing
+        written.
+    behind : direction within ~7 deg of -X (``1 + u_x <= 2**-7``) -> pointing NaN as well.
+    """
     have_u, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, opportunity, nominal)
     have_pix = False
     have_q = False
@@ -157,7 +215,16 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
 def prediction_in(img, S):
     """The last frame's predicted direction through another imager (table row ``img``) -> (row,
     col, ok) packed 32-bit pixels: the prediction in the pixel frame of the imager in force after
-    an imager switch, in the TP's arithmetic. Not ok without a prediction or behind the imager."""
+    an imager switch, in the TP's arithmetic. Not ok without a prediction or behind the imager.
+
+    ``img`` one imager table row (int64 [IMG_WORDS]).
+
+    Cases
+    -----
+    through-imager : the kept direction through the imager's alignment and scales.
+    no-prediction : ``S_PRED_OK == 0`` -> (0, 0, False).
+    behind : the direction behind the imager -> not ok.
+    """
     if S[S_PRED_OK] == 0:
         return 0, 0, False
     row, col, ok, g = vec_to_pix(img, S[S_PRED], S[S_PRED + 1], S[S_PRED + 2])
@@ -166,7 +233,15 @@ def prediction_in(img, S):
 
 @njit(cache=True)
 def filter_outputs(E, V, out, cyc):
-    """The EKF's state and 1-sigma position/velocity into ``out`` (NaN when it is not running)."""
+    """The EKF's state and 1-sigma position/velocity into ``out`` (NaN when it is not running).
+
+    ``E`` EKF words (int64 [E_WORDS], 48-bit state and covariance), ``out`` float64 [O_WORDS].
+
+    Cases
+    -----
+    running : r, v (m, m/s) decoded, ``sqrt(tr P_rr)``, ``sqrt(tr P_vv)``, ``TC_EKF_RUNNING``.
+    off : r, v and sigmas NaN, no status bit.
+    """
     if V[V_EKF_ON] != 0:
         V[V_STATUS] |= TC_EKF_RUNNING
         sp, sv, g = ekf_sigmas(E)
@@ -188,7 +263,16 @@ def filter_outputs(E, V, out, cyc):
 @njit(cache=True)
 def end_frame(S, G, V, out, opportunity):
     """The frame's counts, flags and identity into ``out``; this frame's time, attitude and status
-    remembered in ``S`` -> status."""
+    remembered in ``S`` -> status.
+
+    Cases
+    -----
+    counts : live star gates (even rows) and object gates (odd rows) counted separately.
+    arith-flag : a 1750A flag of ``PI_FLAGS`` raised this frame -> ``TC_ARITH_FLAG``.
+    decided : dedicated mode with an object held -> ``O_DECF`` = its decision frame.
+    no-decision : no object held, or opportunity mode -> ``O_DECF = -1``.
+    remembered : time, frame, imager, attitude and status kept in ``S``; ``S_NFRAMES`` + 1.
+    """
     nstar = 0
     nobj = 0
     for p in range(NPAIR):

@@ -160,7 +160,12 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray
 @njit(cache=True, inline="always")
 def _radius_terms(D, r0, r1, r2):
     """The radius terms the gravity routines share, from a position (packed 32-bit, m):
-    (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3)."""
+    (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
+
+    Cases
+    -----
+    typical : the four terms within the 32-bit rounding (``D[D_NMU]`` = -mu).
+    """
     f = 0
     x2, g = fm32(r0, r0); f |= g
     y2, g = fm32(r1, r1); f |= g
@@ -182,6 +187,13 @@ def accel(D, r0, r1, r2, tau):
 
         a = -mu r / |r|^3 [1 + k (1 - 5 z^2/r^2), same, 1 + k (3 - 5 z^2/r^2)] + a_fit(tau),
         k = 1.5 J2 Re^2 / r^2 (J2 on).
+
+    Cases
+    -----
+    two-body : J2 off, no fit -> ``-mu r / |r|^3``.
+    j2 : J2 on -> the zonal factors above (x, y differ from z).
+    curve-fit : a fit of K terms -> the polynomial in ``tau`` by Horner's rule added per axis.
+    constant-fit : K = 1 -> a constant acceleration added (no multiply by ``tau``).
     """
     z2, inv, inv2, m3, f = _radius_terms(D, r0, r1, r2)
     cxy = m3
@@ -221,7 +233,12 @@ def accel(D, r0, r1, r2, tau):
 @njit(cache=True)
 def grav_gradient_h(D, r0, r1, r2, h):
     """``C = h G`` of two-body gravity at r (packed 32-bit), ``G = mu/r^3 (3 u u^T - I)``; returns
-    the six distinct elements (c00, c01, c02, c11, c12, c22, flags), packed 32-bit, 1/s."""
+    the six distinct elements (c00, c01, c02, c11, c12, c22, flags), packed 32-bit, 1/s.
+
+    Cases
+    -----
+    typical : ``h mu / r^3 (3 u_i u_j - delta_ij)`` for the upper triangle.
+    """
     _, inv, _, c, f = _radius_terms(D, r0, r1, r2)         # c = -mu/r^3
     u0, g = fm32(r0, inv); f |= g
     u1, g = fm32(r1, inv); f |= g
@@ -252,7 +269,12 @@ def grav_gradient_h(D, r0, r1, r2, h):
 def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
     """One RK4 intermediate state ``(r + c k_r, v + c k_v)``: position in 48-bit (``c`` packed
     48-bit, ``k`` the previous stage's velocity), velocity increment ``c32 * a`` formed in 32-bit
-    and added in 48-bit -> (s0, s1, s2, w0, w1, w2, flags)."""
+    and added in 48-bit -> (s0, s1, s2, w0, w1, w2, flags).
+
+    Cases
+    -----
+    typical : ``r + c k`` (48-bit) and ``v + c32 a`` (product 32-bit, sum 48-bit).
+    """
     f = 0
     p, g = fm48(c, k0); f |= g
     s0, g = fa48(r0, p); f |= g
@@ -272,7 +294,13 @@ def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
 @njit(cache=True)
 def rk4_step(D, X, o, t, h):
     """One classical RK4 step of ``h`` (packed 48-bit, s) from time ``t`` (packed 48-bit) of the
-    state ``X[o:o+6]`` (r, v; packed 48-bit), in place -> flags."""
+    state ``X[o:o+6]`` (r, v; packed 48-bit), in place -> flags.
+
+    Cases
+    -----
+    typical : the classical RK4 combination ``h/6 (k1 + 2 k2 + 2 k3 + k4)`` of the plant, the fit
+        evaluated at ``t - t0``, ``t - t0 + h/2`` and ``t - t0 + h``.
+    """
     f = 0
     h2, g = fm48(h, _HALF48); f |= g
     h6, g = fd48(h, _SIX48); f |= g
@@ -327,7 +355,16 @@ def rk4_step(D, X, o, t, h):
 @njit(cache=True)
 def propagate(D, X, o, t_from, t_to, max_step):
     """Integrate ``X[o:o+6]`` from ``t_from`` to ``t_to`` (packed 48-bit) in RK4 steps of at most
-    ``max_step`` -> flags (OR) in the low bits and the number of steps taken << 32."""
+    ``max_step`` -> flags (OR) in the low bits and the number of steps taken << 32.
+
+    Cases
+    -----
+    whole-steps : an interval of n ``max_step`` -> n steps.
+    last-partial : a remainder below ``max_step`` -> one shorter last step.
+    tiny : an interval of at most 1 us -> no step, ``X`` untouched.
+    backward : ``t_to`` before ``t_from`` -> no step.
+    step-cap : more than 100 000 steps needed -> stops after 100 001.
+    """
     f = 0
     t = t_from
     n = 0

@@ -110,7 +110,13 @@ def ekf_predict_step_cycles(j2: bool, k: int) -> int:
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True)
 def ekf_reset_cov(E, p0r, p0v):
-    """``P <- diag(p0r I, p0v I)`` (packed 48-bit, m^2 and (m/s)^2); the state is kept."""
+    """``P <- diag(p0r I, p0v I)`` (packed 48-bit, m^2 and (m/s)^2); the state is kept.
+
+    Cases
+    -----
+    typical : the 21 upper-triangle words: the six diagonal words set, the 15 others zero; state,
+        time and counters untouched.
+    """
     for k in range(21):
         E[E_P + k] = 0
     for i in range(3):
@@ -120,7 +126,12 @@ def ekf_reset_cov(E, p0r, p0v):
 
 @njit(cache=True)
 def ekf_init(E, r0, r1, r2, v0, v1, v2, t, p0r, p0v):
-    """Start the filter at (r, v) (packed 48-bit) and time t with P = diag(p0r I, p0v I)."""
+    """Start the filter at (r, v) (packed 48-bit) and time t with P = diag(p0r I, p0v I).
+
+    Cases
+    -----
+    typical : state and time set, P diagonal, running, no rejections, no line of sight yet.
+    """
     E[E_X], E[E_X + 1], E[E_X + 2] = r0, r1, r2
     E[E_X + 3], E[E_X + 4], E[E_X + 5] = v0, v1, v2
     ekf_reset_cov(E, p0r, p0v)
@@ -132,7 +143,16 @@ def ekf_init(E, r0, r1, r2, v0, v1, v2, t, p0r, p0v):
 
 @njit(cache=True)
 def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
-    """P <- Phi P Phi^T + Q for Phi = [[I, hI], [C, I]] (C = h G symmetric, packed 32-bit)."""
+    """P <- Phi P Phi^T + Q for Phi = [[I, hI], [C, I]] (C = h G symmetric, packed 32-bit).
+
+    ``E`` the filter words (P upper triangle, 48-bit), ``wk`` int64 [>= 54] scratch, ``h`` and
+    ``q`` packed 48-bit (s, m^2/s^3) -> flags.
+
+    Cases
+    -----
+    typical : the transition of the covariance and the white-acceleration
+        ``Q = q [[h^3/3 I, h^2/2 I], [h^2/2 I, h I]]``, stored as the upper triangle.
+    """
     f = 0
     P = E_P
     # unpack A (r-r), B (r-v), D (v-v) and C into wk (row-major 3x3, 48-bit)
@@ -198,7 +218,19 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
 
 @njit(cache=True)
 def ekf_predict(E, D, K, wk, t_to):
-    """Propagate state and covariance from E[E_T] to t_to (packed 48-bit) -> (flags, steps)."""
+    """Propagate state and covariance from E[E_T] to t_to (packed 48-bit) -> (flags, steps).
+
+    ``D`` the plant table, ``K`` the filter parameters, ``wk`` scratch (int64 [>= 54]).
+
+    Cases
+    -----
+    whole-steps : steps of ``max_step``; per step the gradient at the step's start, the
+        covariance transition, then the RK4 state.
+    last-partial : a remainder below ``max_step`` -> one shorter last step.
+    tiny : an interval of at most 1 us, or a backward one -> no step, state, covariance and
+        ``E_T`` unchanged.
+    step-cap : more than 100 000 steps needed -> stops after 100 001.
+    """
     f = 0
     t = E[E_T]
     n = 0
@@ -222,7 +254,13 @@ def ekf_predict(E, D, K, wk, t_to):
 @njit(cache=True)
 def ekf_los(E, rs0, rs1, rs2):
     """Unit line of sight from the spacecraft (packed 48-bit r_sc) to the estimate -> (l0, l1, l2,
-    rho, flags), packed 32-bit."""
+    rho, flags), packed 32-bit.
+
+    Cases
+    -----
+    typical : ``unit(r - r_sc)`` (difference in 48-bit, cut to 32-bit) and the range.
+    coincident : the estimate at the spacecraft -> zeros, ``rho = 0``, FLAG_DOMAIN.
+    """
     f = 0
     d0, g = fs48(E[E_X], rs0); f |= g
     d1, g = fs48(E[E_X + 1], rs1); f |= g
@@ -236,7 +274,16 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     """Sequential scalar update with component ``comp`` (1 or 2) of the imager-frame unit line of
     sight ``z`` (packed 32-bit), ``M`` the ECI -> imager rotation (int64[9], packed 32-bit),
     ``r_sc`` packed 48-bit, ``rvar`` the measurement variance (packed 48-bit, rad^2), ``wk`` scratch
-    -> (accepted, nu (packed 32), s (packed 48), flags)."""
+    -> (accepted, nu (packed 32), s (packed 48), flags).
+
+    Cases
+    -----
+    accepted : ``x <- x + k nu``, ``P <- P - k c^T`` with ``c = P H^T``, ``s = H c + R``,
+        ``k = c / s``.
+    gated : ``nu^2 > gate^2 s`` -> refused, state and covariance untouched.
+    covariance-guard : an update that would leave a diagonal element of P zero or negative ->
+        refused with EKF_FLAG_COV, nothing changed.
+    """
     f = 0
     l0, l1, l2, rho, g = ekf_los(E, rs0, rs1, rs2); f |= g
     b = 3 * comp
@@ -296,7 +343,12 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
 
 @njit(cache=True)
 def ekf_sigmas(E):
-    """(sqrt(tr P_rr), sqrt(tr P_vv)) packed 32-bit -> (sp, sv, flags)."""
+    """(sqrt(tr P_rr), sqrt(tr P_vv)) packed 32-bit -> (sp, sv, flags).
+
+    Cases
+    -----
+    typical : root traces of the position and velocity blocks (m, m/s).
+    """
     f = 0
     a, g = fa48(E[E_P + 0], E[E_P + 6]); f |= g
     a, g = fa48(a, E[E_P + 11]); f |= g
@@ -324,6 +376,12 @@ def ekf_params(accel_psd: float, max_step: float, gate_sigma: float, sigma_pos0:
 
 @njit(cache=True)
 def _init_from_floats(E, K, x, t):
+    """:func:`ekf_init` from float64 ``x`` [6] (m, m/s) and ``t`` (s), rounded to 48-bit -> flags.
+
+    Cases
+    -----
+    typical : the nearest 48-bit words, P from ``K``'s initial variances.
+    """
     f = 0
     w = np.empty(6, np.int64)
     for i in range(6):
@@ -335,6 +393,12 @@ def _init_from_floats(E, K, x, t):
 
 @njit(cache=True)
 def _predict_float(E, D, K, wk, t):
+    """:func:`ekf_predict` to float64 time ``t`` (s) -> flags.
+
+    Cases
+    -----
+    typical : the prediction to the nearest 48-bit time.
+    """
     tt, f = enc48(t)
     g, n = ekf_predict(E, D, K, wk, tt)
     return f | g
@@ -342,6 +406,14 @@ def _predict_float(E, D, K, wk, t):
 
 @njit(cache=True)
 def _update_floats(E, K, wk, z, Mf, rsc, rvar, out):
+    """Two sequential :func:`ekf_update` calls from float64 ``z`` [2], ``Mf`` [9] (row-major),
+    ``rsc`` [3] (m), ``rvar`` (rad^2); ``out`` float64 [2, 3] (accepted, nu, s) per component ->
+    flags.
+
+    Cases
+    -----
+    typical : component 1 then component 2, each written to its row of ``out``.
+    """
     f = 0
     M = np.empty(9, np.int64)
     for i in range(9):
@@ -362,6 +434,12 @@ def _update_floats(E, K, wk, z, Mf, rsc, rvar, out):
 
 @njit(cache=True)
 def _decode_state(E, x, P):
+    """State into ``x`` (float64 [6]) and the full symmetric covariance into ``P`` (float64 [6, 6]).
+
+    Cases
+    -----
+    typical : exact decodes; ``P[i, j] == P[j, i]`` from the one stored upper-triangle word.
+    """
     for i in range(6):
         x[i] = dec48(E[E_X + i])
         for j in range(6):

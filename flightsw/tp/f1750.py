@@ -55,6 +55,18 @@ def cycles(m: dict) -> int:
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True)
 def _enc(x, W):
+    """float64 ``x`` -> (nearest packed 1750A float with ``W`` fraction bits: 23 for 32-bit, 39 for
+    48-bit, flags).
+
+    Cases
+    -----
+    zero : 0.0 -> (0, 0), the floating zero.
+    non-finite : NaN or +-inf -> (0, FLAG_DOMAIN).
+    nearest : the nearest mantissa; an exact tie goes to the even mantissa.
+    negative : two's-complement mantissa (``-1.0`` -> 0x80000000, mantissa -1, exponent 0).
+    overflow : exponent above 127 -> MAX32/MAX48 (MIN32/MIN48 when negative), FLAG_FLOAT_OVERFLOW.
+    underflow : exponent below -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    """
     if not math.isfinite(x):
         return 0, FLAG_DOMAIN
     if x == 0.0:
@@ -73,13 +85,23 @@ def _enc(x, W):
 
 @njit(cache=True)
 def enc32(x):
-    """float64 -> (nearest packed 32-bit 1750A float, flags); non-finite -> (0, FLAG_DOMAIN)."""
+    """float64 -> (nearest packed 32-bit 1750A float, flags); non-finite -> (0, FLAG_DOMAIN).
+
+    Cases
+    -----
+    typical : the standard's 32-bit words (``_enc`` with 23 fraction bits).
+    """
     return _enc(x, 23)
 
 
 @njit(cache=True)
 def enc48(x):
-    """float64 -> (nearest packed 48-bit 1750A float, flags)."""
+    """float64 -> (nearest packed 48-bit 1750A float, flags).
+
+    Cases
+    -----
+    typical : the standard's 48-bit words (``_enc`` with 39 fraction bits).
+    """
     return _enc(x, 39)
 
 
@@ -101,7 +123,13 @@ QDCM_MIX = {"FM": 12, "FA": 6, "FS": 6, "ST": 9, "L": 4}
 
 @njit(cache=True)
 def dot3(a0, a1, a2, b0, b1, b2):
-    """a . b (FM, FM, FA, FM, FA) -> (s, flags)."""
+    """a . b (FM, FM, FA, FM, FA) -> (s, flags), packed 32-bit.
+
+    Cases
+    -----
+    typical : ``a0 b0 + a1 b1 + a2 b2`` within a few 32-bit roundings.
+    overflow : a product above the 32-bit range -> FLAG_FLOAT_OVERFLOW in the flags.
+    """
     p, f0 = fm32(a0, b0)
     q, f1 = fm32(a1, b1)
     s, f2 = fa32(p, q)
@@ -112,7 +140,12 @@ def dot3(a0, a1, a2, b0, b1, b2):
 
 @njit(cache=True)
 def mv3(R, x0, x1, x2):
-    """R @ x for R int64[9] row-major -> (y0, y1, y2, flags)."""
+    """R @ x for R int64[9] row-major -> (y0, y1, y2, flags).
+
+    Cases
+    -----
+    typical : the matrix-vector product (rows of R dotted with x).
+    """
     y0, f0 = dot3(R[0], R[1], R[2], x0, x1, x2)
     y1, f1 = dot3(R[3], R[4], R[5], x0, x1, x2)
     y2, f2 = dot3(R[6], R[7], R[8], x0, x1, x2)
@@ -121,7 +154,12 @@ def mv3(R, x0, x1, x2):
 
 @njit(cache=True)
 def mtv3(R, x0, x1, x2):
-    """R.T @ x -> (y0, y1, y2, flags)."""
+    """R.T @ x -> (y0, y1, y2, flags).
+
+    Cases
+    -----
+    typical : the transposed product (columns of R dotted with x).
+    """
     y0, f0 = dot3(R[0], R[3], R[6], x0, x1, x2)
     y1, f1 = dot3(R[1], R[4], R[7], x0, x1, x2)
     y2, f2 = dot3(R[2], R[5], R[8], x0, x1, x2)
@@ -131,7 +169,12 @@ def mtv3(R, x0, x1, x2):
 @njit(cache=True)
 def mv1ab(R, a, b):
     """R @ (1, a, b) for R int64[9] row-major (no multiply by the leading 1): v_i = R[i,0] +
-    R[i,1] a + R[i,2] b -> (v0, v1, v2, flags)."""
+    R[i,1] a + R[i,2] b -> (v0, v1, v2, flags).
+
+    Cases
+    -----
+    typical : equals ``R @ (1, a, b)``.
+    """
     f = 0
     p, g = fm32(R[1], a); f |= g
     v0, g = fa32(R[0], p); f |= g
@@ -150,7 +193,13 @@ def mv1ab(R, a, b):
 
 @njit(cache=True)
 def unit3(x0, x1, x2):
-    """x / |x| -> (u0, u1, u2, |x|, flags); |x| = 0 -> zeros with FLAG_DOMAIN."""
+    """x / |x| -> (u0, u1, u2, |x|, flags); |x| = 0 -> zeros with FLAG_DOMAIN.
+
+    Cases
+    -----
+    typical : the unit vector and the norm.
+    zero : ``x = 0`` -> (0, 0, 0, 0) with FLAG_DOMAIN.
+    """
     n2, f = dot3(x0, x1, x2, x0, x1, x2)
     n, f1 = sqrt32(n2)
     f |= f1
@@ -168,7 +217,12 @@ def unit3(x0, x1, x2):
 
 @njit(cache=True)
 def qmul(a0, a1, a2, a3, b0, b1, b2, b3):
-    """Hamilton product a (x) b of scalar-first quaternions -> (c0, c1, c2, c3, flags)."""
+    """Hamilton product a (x) b of scalar-first quaternions -> (c0, c1, c2, c3, flags).
+
+    Cases
+    -----
+    typical : the Hamilton product (``i j = k``, not commutative).
+    """
     f = 0
     p, g = fm32(a0, b0); f |= g
     q, g = fm32(a1, b1); f |= g
@@ -209,6 +263,10 @@ def qdcm(w, x, y, z, R):
         R = [[1 - 2(y^2 + z^2), 2(xy - wz),       2(xz + wy)      ],
              [2(xy + wz),       1 - 2(x^2 + z^2), 2(yz - wx)      ],
              [2(xz - wy),       2(yz + wx),       1 - 2(x^2 + y^2)]]
+
+    Cases
+    -----
+    typical : the active rotation matrix of a unit quaternion (scalar first).
     """
     f = 0
     two = 0x40000002
@@ -245,7 +303,13 @@ QNORM_MIX = mix({"FM": 4, "FA": 3, "FD": 1, "sqrt32": 1}, {"FM": 4})
 
 @njit(cache=True)
 def qnormalize(q0, q1, q2, q3):
-    """q / |q| -> (q0, q1, q2, q3, |q|^2, flags)."""
+    """q / |q| -> (q0, q1, q2, q3, |q|^2, flags).
+
+    Cases
+    -----
+    typical : the unit quaternion and the squared norm.
+    zero : ``q = 0`` -> the identity (1, 0, 0, 0), ``|q|^2 = 0``, FLAG_DOMAIN.
+    """
     f = 0
     n2, g = dot3(q1, q2, q3, q1, q2, q3); f |= g
     p, g = fm32(q0, q0); f |= g

@@ -55,6 +55,17 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
     (working values); inputs ``hdr`` float64 [H_WORDS] (message header), ``att`` float64 [16]
     (attitude data), ``rows``/``cols`` float64 [MAX_OBS] (candidate centroids, pixels); outputs
     ``out`` float64 [O_WORDS] and ``cyc`` int64 [len(STAGES)] (clocks per stage).
+
+    Cases
+    -----
+    no-attitude : attitude unusable -> the frame only coasts (:func:`no_attitude_frame`).
+    dedicated : nominal held -> gates propagated, associated, smoothed, ruled; the verified
+        object starts and updates the EKF; the command follows the EKF.
+    no-nominal : dedicated event without a nominal -> no velocity filter, nothing commanded.
+    long-gap : a gap over ``max_coast_s`` drops every gate (object lost) before propagation.
+    no-evidence : bad message or no usable observation -> gates propagated, no association, no
+        rule, no empty frame counted.
+    opportunity : the alpha-beta opportunity tracker instead of the velocity filter.
     """
     wk, RM, dR, M, GP, TAKEN = work_views(W)
     msg_ok, img_idx, t_msg, frame_count, n_obs = message_header(hdr)

@@ -60,19 +60,36 @@ GP_WORDS = 5
 
 @njit(cache=True, inline="always")
 def gate_half_width(GP):
-    """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`."""
+    """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`.
+
+    Cases
+    -----
+    typical : returns ``GP[GP_HALF]`` as stored.
+    """
     return GP[GP_HALF]
 
 
 @njit(cache=True, inline="always")
 def kill_pair(G, p):
-    """Delete both gates of pair p."""
+    """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, int64 [NG, GC]).
+
+    Cases
+    -----
+    typical : both gates of pair p dead, every other row untouched.
+    """
     G[2 * p, G_ALIVE] = 0
     G[2 * p + 1, G_ALIVE] = 0
 
 
 @njit(cache=True, inline="always")
 def any_gate_alive(G):
+    """True when any gate of ``G`` (int64 [NG, GC]) is alive.
+
+    Cases
+    -----
+    none-alive : every row dead -> False.
+    last-row-alive : only the last row (``NG - 1``) alive -> True (the scan reaches the table end).
+    """
     for row in range(NG):
         if G[row, G_ALIVE] != 0:
             return True
@@ -82,7 +99,14 @@ def any_gate_alive(G):
 @njit(cache=True)
 def drop_all_gates(S, G, V):
     """After a gap longer than ``max_coast_s`` no gate can be trusted: all deleted, the verified
-    object lost."""
+    object lost.
+
+    Cases
+    -----
+    gates-deleted : every live gate deleted, half-dead pairs included.
+    object-held-lost : an object held -> ``S_DEC = -1``, ``S_NLOST`` counted, ``TC_OBJECT_LOST``.
+    no-object : none held -> no status bit, no count.
+    """
     for p in range(NPAIR):
         if G[2 * p, G_ALIVE] != 0 or G[2 * p + 1, G_ALIVE] != 0:
             kill_pair(G, p)
@@ -97,7 +121,20 @@ def gate_params(C, IMG, V, GP, cyc):
     """This frame's gate constants into ``GP`` (int64 [GP_WORDS]): the gate half-width as a 16-bit
     integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules' residual
     thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and ``beta/dt``
-    (packed 32-bit; 0 when dt is 0 or beta is 0)."""
+    (packed 32-bit; 0 when dt is 0 or beta is 0).
+
+    ``C`` config, ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``V`` frame words, ``cyc``
+    ledger (int64).
+
+    Cases
+    -----
+    col-scale-larger : ``scale_col >= scale_row`` -> half-width ``FIX(gate_px scale_col 2**16)``.
+    row-scale-larger : ``scale_row > scale_col`` -> half-width from ``scale_row``.
+    thresholds : residual thresholds ``thr_px2 * scale_col * scale_row`` (rad^2).
+    beta : dt and beta non-zero -> ``1/dt`` and ``beta/dt``.
+    beta-zero : beta 0 -> ``GP_GAIN_V = 0`` (``1/dt`` still formed).
+    dt-zero : dt 0 (first frame) -> ``GP_INV_DT = GP_GAIN_V = 0``, no division.
+    """
     fl = 0
     img = IMG[V[V_IMG]]
     sc = img[IMG_SC]
@@ -122,7 +159,21 @@ def gate_params(C, IMG, V, GP, cyc):
 @njit(cache=True)
 def propagate_gates(S, G, V, GP, dR, cyc):
     """Every live gate moved to this frame (star: attitude change; object: plus the a priori
-    motion; both: a learned velocity); its apparent velocity kept, its observation cleared."""
+    motion; both: a learned velocity); its apparent velocity kept, its observation cleared.
+
+    ``dR`` (int64 [9], packed 32-bit) the body's rotation since the last frame.
+
+    Cases
+    -----
+    star-gate : even row moved by the attitude change only, ``(a, b) <- T(dR (1, a, b))``.
+    object-gate-nominal : odd row moved by the attitude change plus the nominal's ``V_DN``.
+    object-gate-ekf : the verified object's gate with the EKF running moves by ``V_DE``; the other
+        object gates still by ``V_DN``.
+    learned-velocity : a gate with ``(G_DVA, G_DVB) != 0`` also moves by ``v dt``.
+    velocity-kept : ``(G_VA, G_VB) = (new - old) / dt`` when ``1/dt`` is known.
+    dt-zero : ``GP_INV_DT == 0`` -> ``G_VA``, ``G_VB`` left as they were.
+    dead-skipped : dead rows untouched (``G_OBS`` not cleared).
+    """
     fl = 0
     dt = V[V_DT]
     inv_dt = GP[GP_INV_DT]
@@ -163,7 +214,18 @@ def propagate_gates(S, G, V, GP, dR, cyc):
 @njit(cache=True)
 def smooth_gates(C, G, OBS, V, GP, cyc):
     """Each live gate with an associated observation (``G_OBS``) smoothed by the alpha-beta tracker,
-    its squared residual accumulated, its populated run counted; the others counted empty."""
+    its squared residual accumulated, its populated run counted; the others counted empty.
+
+    ``OBS`` observations (int64 [MAX_OBS, OBS_C], packed 32-bit tangent coordinates, rad).
+
+    Cases
+    -----
+    fed : ``x <- x_p + alpha (z - x_p)`` per axis, ``G_RES += r_a^2 + r_b^2``, ``G_MISS = 0``,
+        ``G_RUN``, ``G_HITS`` + 1; velocity unchanged with ``gain_v == 0``.
+    fed-with-beta : ``gain_v = beta/dt != 0`` -> velocity ``v + gain_v r`` per axis.
+    empty : no observation -> ``G_MISS`` + 1, ``G_RUN = 0``, position unchanged.
+    dead-skipped : dead rows untouched.
+    """
     fl = 0
     gain_v = GP[GP_GAIN_V]
     for row in range(NG):

@@ -121,7 +121,13 @@ class ImagerGeometry:
 @njit(cache=True)
 def pix_to_tan(img, row, col):
     """Pixel (packed row, col) -> body tangent coordinates (a, b), v_x -> (a, b, vx, flags).
-    ``img`` is the imager's table row. ``v = A (1, x, y)``, ``a = v_y / v_x``, ``b = v_z / v_x``."""
+    ``img`` is the imager's table row. ``v = A (1, x, y)``, ``a = v_y / v_x``, ``b = v_z / v_x``.
+
+    Cases
+    -----
+    typical : the gnomonic tangent coordinates through the alignment matrix, ``v_x`` returned for
+        the caller's behind-the-imager test.
+    """
     f = 0
     dx, g = fs32(col, img[IMG_C0]); f |= g
     x, g = fm32(dx, img[IMG_SC]); f |= g
@@ -137,7 +143,15 @@ def pix_to_tan(img, row, col):
 @njit(cache=True)
 def tan_int(a):
     """Packed tangent coordinate -> 16-bit integer, LSB 2**-16 rad (FM by 2**16, FIX), saturated
-    to +-32767 when the FIX overflows (|a| >= 0.5 rad, outside every imager)."""
+    to +-32767 when the FIX overflows (a >= 0.5 or a < -0.5 rad, outside every imager).
+
+    Cases
+    -----
+    truncate : ``a 2**16`` truncated toward zero (FIX): +1.5 LSB -> 1, -1.5 LSB -> -1.
+    saturate-high : ``a >= 0.5`` (FIX overflow) -> 32767.
+    saturate-low : ``a < -0.5`` (FIX overflow) -> -32767.
+    minus-half : ``a = -0.5`` exactly is ``-1.0 * 2**15``, no FIX overflow -> -32768.
+    """
     s, f = fm32(a, _C2_16)
     i, g = fix32(s)
     if g != 0:
@@ -150,7 +164,13 @@ def tan_int(a):
 def vec_to_pix(img, v0, v1, v2):
     """Body direction (packed, any length, v must point forward of the imager) -> (row, col, ok,
     flags): ``p = A.T v``, ``col = p_y / p_x / scale_col + COL0``, ``row = p_z / p_x / scale_row +
-    ROW0``; ``ok`` False when ``p_x <= 0`` (behind the imager)."""
+    ROW0``; ``ok`` False when ``p_x <= 0`` (behind the imager).
+
+    Cases
+    -----
+    typical : the gnomonic pixel through the transposed alignment, ``ok`` True.
+    behind : ``p_x <= 0`` (zero included) -> (0, 0, False).
+    """
     f = 0
     p0, p1, p2, g = mtv3(img[0:9], v0, v1, v2); f |= g
     if p0 == 0 or (p0 >> 31) & 1:
@@ -168,7 +188,12 @@ def vec_to_pix(img, v0, v1, v2):
 @njit(cache=True)
 def pix_unit(img, row, col):
     """Pixel -> imager-frame unit vector components 2 and 3 (the paper's e1, e2):
-    ``(x, y) / sqrt(1 + x^2 + y^2)`` -> (e1, e2, flags)."""
+    ``(x, y) / sqrt(1 + x^2 + y^2)`` -> (e1, e2, flags).
+
+    Cases
+    -----
+    typical : components 2 and 3 of the imager-frame unit vector of the pixel.
+    """
     f = 0
     dx, g = fs32(col, img[IMG_C0]); f |= g
     x, g = fm32(dx, img[IMG_SC]); f |= g
@@ -195,21 +220,40 @@ _HALF32 = 0x40000000
 
 @njit(cache=True, inline="always")
 def neg32(p):
-    """-p (packed 32-bit)."""
+    """-p (packed 32-bit).
+
+    Cases
+    -----
+    typical : the negated value, exactly (``0 - p``).
+    zero : 0 -> 0.
+    """
     r, f = fs32(0, p)
     return r
 
 
 @njit(cache=True, inline="always")
 def i16abs(x):
-    """|x| of a 16-bit gate coordinate difference."""
+    """|x| of a 16-bit gate coordinate difference (int).
+
+    Cases
+    -----
+    typical : ``x >= 0`` -> x; ``x < 0`` -> -x.
+    """
     return -x if x < 0 else x
 
 
 @njit(cache=True)
 def make_dR(w0, w1, w2, dt, R):
     """``R <- I - [theta]x + [theta]x^2 / 2``, theta = w dt (packed 32-bit) -> flags. Maps an
-    inertially fixed direction in body axes over dt (the body turning at rate w)."""
+    inertially fixed direction in body axes over dt (the body turning at rate w).
+
+    ``w0..w2`` rad/s and ``dt`` s, packed 32-bit; ``R`` int64 [9] row-major, packed 32-bit.
+
+    Cases
+    -----
+    typical : the second-order rotation ``I - [theta]x + [theta]x^2 / 2``.
+    zero-rate : ``w = 0`` (or ``dt = 0``) -> the identity, exactly.
+    """
     f = 0
     x, g = fm32(w0, dt); f |= g
     y, g = fm32(w1, dt); f |= g
@@ -243,7 +287,13 @@ def make_dR(w0, w1, w2, dt, R):
 
 @njit(cache=True)
 def rot_tan(R, a, b):
-    """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0."""
+    """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0.
+
+    Cases
+    -----
+    typical : the turned direction's tangent coordinates.
+    behind : ``v_x <= 0`` -> (a, b) returned unchanged with FLAG_DOMAIN.
+    """
     v0, v1, v2, f = mv1ab(R, a, b)
     if v0 == 0 or (v0 >> 31) & 1:
         return a, b, f | FLAG_DOMAIN
@@ -255,7 +305,15 @@ def rot_tan(R, a, b):
 
 @njit(cache=True)
 def los_tan(RM, l0, l1, l2):
-    """ECI direction -> body tangent coordinates T(R^T l) -> (a, b, ok, flags)."""
+    """ECI direction -> body tangent coordinates T(R^T l) -> (a, b, ok, flags).
+
+    ``RM`` body -> ECI (packed 32-bit [9]); ``l0..l2`` packed 32-bit.
+
+    Cases
+    -----
+    typical : ``(b_y / b_x, b_z / b_x)`` of ``b = RM^T l``, ok.
+    behind : ``b_x <= 0`` -> (0, 0, False).
+    """
     b0, b1, b2, f = mtv3(RM, l0, l1, l2)
     if b0 == 0 or (b0 >> 31) & 1:
         return 0, 0, False, f
@@ -269,7 +327,13 @@ def los_tan(RM, l0, l1, l2):
 def los_delta(RM, l0, l1, l2, p0, p1, p2):
     """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
     both seen in the current attitude RM -> (da, db, flags); (0, 0) if either is behind the
-    tangent plane."""
+    tangent plane.
+
+    Cases
+    -----
+    typical : ``T(RM^T l) - T(RM^T p)`` per coordinate.
+    behind : either direction behind the body's tangent plane -> (0, 0).
+    """
     an, bn, okn, f = los_tan(RM, l0, l1, l2)
     ap, bp, okp, g = los_tan(RM, p0, p1, p2); f |= g
     if not (okn and okp):
@@ -281,7 +345,13 @@ def los_delta(RM, l0, l1, l2, p0, p1, p2):
 
 @njit(cache=True, inline="always")
 def host_to32(x):
-    """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest)."""
+    """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest).
+
+    Cases
+    -----
+    typical : the nearest 32-bit word (a decoded 1750A value comes back exactly).
+    non-finite : NaN or inf -> 0 (the flags are dropped).
+    """
     p, f = enc32(x)
     return p
 
@@ -292,7 +362,18 @@ def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
     body tangent coordinates of the imager in force -> ``OBS`` (int64 [MAX_OBS, OBS_C]: a, b packed
     32-bit, their 16-bit integers, usable flag) and ``V[V_NUSE]``. *"Each observation is converted
     from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
-    coordinates."* A frame without evidence (message or attitude bad) uses none and coasts."""
+    coordinates."* A frame without evidence (message or attitude bad) uses none and coasts.
+
+    Cases
+    -----
+    converts : each centroid -> (a, b), their 16-bit integers, usable; ``V_NUSE`` = the count.
+    no-evidence : ``V_EVIDENCE == 0`` -> ``TC_COASTING``, nothing converted, ``V_NUSE`` untouched.
+    empty-message : no candidates -> ``TC_EMPTY_MESSAGE | TC_COASTING``, ``V_NUSE = 0``.
+    capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked) used.
+    not-representable : a centroid that does not encode (NaN, inf) -> unusable (``OBS_OK = 0``).
+    behind : a pixel whose direction is behind the body's tangent plane (``v_x <= 0``) ->
+        unusable.
+    """
     if V[V_EVIDENCE] == 0:
         V[V_STATUS] |= TC_COASTING
         return
@@ -329,6 +410,13 @@ def _row(geom: ImagerGeometry) -> np.ndarray:
 
 @njit(cache=True)
 def _p2t_many(img, rows, cols, out):
+    """Pixels ``rows``, ``cols`` (float64 [n]) -> tangent coordinates ``out`` (float64 [n, 2], rad)
+    through :func:`pix_to_tan` -> the OR of the flags.
+
+    Cases
+    -----
+    typical : row i of ``out`` is ``pix_to_tan`` of pixel i, decoded exactly.
+    """
     fl = 0
     for i in range(rows.shape[0]):
         r, g1 = enc32(rows[i])
@@ -344,7 +432,13 @@ def _p2t_many(img, rows, cols, out):
 def directions_to_pixels(img, vecs, out):
     """Body directions ``vecs`` float64 [n, 3] -> pixels ``out`` float64 [n, 2] (row, col) of the
     imager whose table row is ``img``, through the 1750A kernel (NaN when not representable or
-    behind the imager) -> the OR of the arithmetic flags."""
+    behind the imager) -> the OR of the arithmetic flags.
+
+    Cases
+    -----
+    typical : row i is the pixel of direction i.
+    behind : a direction behind the imager -> NaN row.
+    """
     fl = 0
     for i in range(vecs.shape[0]):
         v0, g0 = enc32(vecs[i, 0])
@@ -359,6 +453,13 @@ def directions_to_pixels(img, vecs, out):
 
 @njit(cache=True)
 def _unit_many(img, rows, cols, out):
+    """Pixels ``rows``, ``cols`` (float64 [n]) -> ``(e1, e2)`` into ``out`` (float64 [n, 2]) through
+    :func:`pix_unit` -> the OR of the flags.
+
+    Cases
+    -----
+    typical : row i is ``pix_unit`` of pixel i, decoded exactly.
+    """
     fl = 0
     for i in range(rows.shape[0]):
         r, g1 = enc32(rows[i])

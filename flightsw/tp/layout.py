@@ -84,31 +84,56 @@ ST_INPUT, ST_GEOM, ST_NOM, ST_GATES, ST_EKF_PRED, ST_EKF_UPD, ST_OPP, ST_CMD = r
 # ---- named accessors -----------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def opportunity_mode(C):
-    """True for a target-of-opportunity event (no velocity filtering)."""
+    """True for a target-of-opportunity event (no velocity filtering).
+
+    Cases
+    -----
+    typical : ``C[C_MODE] == 1`` -> True; 0 (dedicated) -> False.
+    """
     return C[C_MODE] == 1
 
 
 @njit(cache=True, inline="always")
 def has_nominal(C):
-    """True when the ground uplinked a nominal trajectory."""
+    """True when the ground uplinked a nominal trajectory.
+
+    Cases
+    -----
+    typical : ``C[C_HAVE_NOM] == 1`` -> True; 0 -> False.
+    """
     return C[C_HAVE_NOM] == 1
 
 
 @njit(cache=True, inline="always")
 def evidence(V):
-    """True when this frame's observations may be used (message and attitude both good)."""
+    """True when this frame's observations may be used (message and attitude both good).
+
+    Cases
+    -----
+    typical : ``V[V_EVIDENCE]`` non-zero -> True; 0 -> False.
+    """
     return V[V_EVIDENCE] != 0
 
 
 @njit(cache=True, inline="always")
 def long_gap(V):
-    """True when this frame follows a gap longer than ``max_coast_s``."""
+    """True when this frame follows a gap longer than ``max_coast_s``.
+
+    Cases
+    -----
+    typical : ``V[V_LONG_GAP]`` non-zero -> True; 0 -> False.
+    """
     return V[V_LONG_GAP] != 0
 
 
 @njit(cache=True, inline="always")
 def n_used(V):
-    """Number of candidates of this frame's message in use (observations ``OBS[:n]``)."""
+    """Number of candidates of this frame's message in use (observations ``OBS[:n]``).
+
+    Cases
+    -----
+    typical : returns ``V[V_NUSE]``.
+    """
     return V[V_NUSE]
 
 
@@ -116,20 +141,37 @@ def n_used(V):
 def work_views(W):
     """The scratch views of ``W``: (wk [80] EKF/command work, RM [9] body -> ECI DCM, dR [9] the
     body's rotation since the last frame, M [9] the EKF's measurement matrix, GP [8] the gate
-    constants, TAKEN [MAX_OBS] association marks)."""
+    constants, TAKEN [MAX_OBS] association marks).
+
+    Cases
+    -----
+    typical : six contiguous, non-overlapping views covering ``W[0:W_WORDS]`` (writes go to ``W``).
+    """
     return (W[W_WK:W_RM], W[W_RM:W_DR], W[W_DR:W_M], W[W_M:W_GP], W[W_GP:W_TAKEN],
             W[W_TAKEN:W_WORDS])
 
 
 @njit(cache=True, inline="always")
 def message_header(hdr):
-    """(usable, imager index, time tag s, frame count, candidates) of the frame's message."""
+    """(usable, imager index, time tag s, frame count, candidates) of the frame's message.
+
+    Cases
+    -----
+    typical : ``hdr`` float64 [H_WORDS] read as (bool, int, float, int, int).
+    unusable : ``hdr[H_OK] == 0`` -> usable False.
+    """
     return hdr[H_OK] != 0.0, int(hdr[H_IMG]), hdr[H_T], int(hdr[H_FC]), int(hdr[H_N])
 
 
 @njit(cache=True)
 def begin_frame(V, out, cyc):
-    """Clear the frame's working values, cycle counters and outputs (NaN where absent)."""
+    """Clear the frame's working values, cycle counters and outputs (NaN where absent).
+
+    Cases
+    -----
+    typical : ``V`` all 0 except ``V_OBJ = -1``; ``cyc`` all 0; ``out`` NaN from ``O_QP`` to
+        ``O_SV`` (pointing, pixel, line of sight, estimate, sigmas), 0 elsewhere.
+    """
     for i in range(V.shape[0]):
         V[i] = 0
     V[V_OBJ] = -1

@@ -30,7 +30,19 @@ CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, 
 @njit(cache=True, inline="always")
 def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
-    its index (-1: none) and flags."""
+    its index (-1: none) and flags.
+
+    ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``C`` config, ``OBS`` observations (int64
+    [MAX_OBS, OBS_C]), ``V`` frame words; ``a``, ``b`` packed 32-bit tangent coordinates (rad).
+    The half-width is ``FIX(opp_gate_px * max(scale_col, scale_row) * 2**16)``, edges inclusive.
+
+    Cases
+    -----
+    highest-ranked : several observations inside -> the first in rank order, not the nearest.
+    row-scale-larger : ``scale_row > scale_col`` -> the gate is sized by ``scale_row``.
+    unusable-skipped : an unusable observation inside the gate is passed over.
+    none-inside : nothing inside -> -1.
+    """
     fl = 0
     img = IMG[V[V_IMG]]
     sc = img[IMG_SC]
@@ -52,7 +64,22 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
 @njit(cache=True, inline="always")
 def follow_track(C, IMG, S, OBS, V, dR, cyc):
     """The live opportunity track predicted to this frame and smoothed with the observation in
-    its gate (or counted empty, and lost after ``opp_n_lost`` empty frames)."""
+    its gate (or counted empty, and lost after ``opp_n_lost`` empty frames).
+
+    State in ``S`` (``S_OPP_X``, ``S_OPP_V``: packed 32-bit rad, rad/s); ``dR`` (int64 [9]) the
+    body's rotation since the last frame.
+
+    Cases
+    -----
+    predicted : position ``T(dR (1, x)) + v dt`` whatever the evidence.
+    fed : an observation in the gate -> alpha-beta update (velocity by ``opp_beta / dt`` times the
+        residual), ``S_OPP_MISS = 0``, ``S_OPP_HITS`` + 1, ``V_OBJ`` = the observation.
+    fed-beta-zero : ``opp_beta == 0`` -> the velocity is kept.
+    empty : evidence but nothing in the gate -> ``S_OPP_MISS`` + 1, position the prediction.
+    lost : ``S_OPP_MISS`` reaches ``opp_n_lost`` -> ``S_OPP_ALIVE = 0``, ``S_NLOST`` counted,
+        ``TC_OBJECT_LOST``.
+    no-evidence : frame not usable -> prediction only, no empty frame counted.
+    """
     fl = 0
     dt = V[V_DT]
     a, b, g = rot_tan(dR, S[S_OPP_X], S[S_OPP_X + 1]); fl |= g
@@ -90,7 +117,15 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
 
 @njit(cache=True, inline="always")
 def acquire_track(S, OBS, V):
-    """No live track: start one on the highest-ranked usable observation."""
+    """No live track: start one on the highest-ranked usable observation.
+
+    Cases
+    -----
+    first-usable : the track starts at the first usable observation (velocity 0, one hit,
+        ``S_NREINIT`` counted, ``TC_REINITIALISED``, ``V_OBJ`` = its index).
+    unusable-skipped : unusable observations ranked higher are passed over.
+    nothing-usable : no usable observation -> no track, nothing set.
+    """
     for j in range(V[V_NUSE]):
         if OBS[j, OBS_OK] == 0:
             continue
@@ -109,7 +144,18 @@ def acquire_track(S, OBS, V):
 
 @njit(cache=True)
 def track_opportunity(C, IMG, S, OBS, V, dR, cyc):
-    """One frame of the opportunity tracker (follow or acquire) and its status."""
+    """One frame of the opportunity tracker (follow or acquire) and its status.
+
+    Cases
+    -----
+    acquire : no track and evidence -> a track started; ``TC_OBJECT_DECIDED``, not locked (one
+        hit).
+    follow-locked : a track fed this frame with two hits or more -> ``V_LOCKED = 1``.
+    coasting : a track not fed this frame -> ``TC_OBJECT_DECIDED | TC_COASTING``, not locked.
+    lost-reacquired : the track lost on this frame is restarted on the frame's observations.
+    long-gap : after a long gap the track is dropped (not counted lost) and reacquired.
+    no-track : no track and no evidence -> no status bit; ``S_OPP_OBS = -1``.
+    """
     if V[V_LONG_GAP] != 0:
         S[S_OPP_ALIVE] = 0
     if S[S_OPP_ALIVE] != 0:

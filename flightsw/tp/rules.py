@@ -64,20 +64,57 @@ CYC_NEW_PAIR = cycles({"L": 4, "ST": 22})
 
 @njit(cache=True, inline="always")
 def rule1(ms, ko, res_o, n, thr_o):
-    """Star gate empty ``n`` frames, object gate populated since and consistent -> moving object."""
+    """Star gate empty ``n`` frames, object gate populated since and consistent -> moving object.
+
+    ``ms``, ``ko``: successive empty / populated frame counts (int); ``res_o``, ``thr_o``: packed
+    32-bit 1750A floats (rad^2); ``n``: the star gate's empty limit -> bool.
+
+    Cases
+    -----
+    decides : ``ms >= n``, ``ko >= min(ms, 2n)`` and ``res_o <= thr_o`` -> True.
+    star-gate-recent : ``ms < n`` -> False whatever the object gate does.
+    object-gate-missed : ``ko < min(ms, 2n)`` (the object gate missed a frame since) -> False.
+    run-capped-2n : ``ms > 2n``: ``ko = 2n`` populated frames suffice -> True.
+    inconsistent : ``res_o > thr_o`` -> False.
+    residual-at-threshold : ``res_o == thr_o`` counts as within the threshold -> True.
+    """
     return ms >= n and ko >= min(ms, 2 * n) and fc32(res_o, thr_o) <= 0
 
 
 @njit(cache=True, inline="always")
 def rule2(mo, ks, res_s, n_o, thr_s):
-    """Object gate empty ``n'`` frames, star gate populated since and consistent -> star."""
+    """Object gate empty ``n'`` frames, star gate populated since and consistent -> star.
+
+    ``mo``, ``ks``: successive empty / populated frame counts (int); ``res_s``, ``thr_s``: packed
+    32-bit 1750A floats (rad^2); ``n_o``: the object gate's empty limit -> bool.
+
+    Cases
+    -----
+    decides : ``mo >= n'``, ``ks >= min(mo, 2n')`` and ``res_s <= thr_s`` -> True.
+    object-gate-recent : ``mo < n'`` -> False.
+    star-gate-missed : ``ks < min(mo, 2n')`` -> False.
+    run-capped-2n : ``mo > 2n'``: ``ks = 2n'`` populated frames suffice -> True.
+    inconsistent : ``res_s > thr_s`` -> False.
+    residual-at-threshold : ``res_s == thr_s`` counts as within the threshold -> True.
+    """
     return mo >= n_o and ks >= min(mo, 2 * n_o) and fc32(res_s, thr_s) <= 0
 
 
 @njit(cache=True, inline="always")
 def rule3(res_s, res_o, ko, thr_o):
     """Star gate's residuals exceed the object gate's by more than ``thr`` while the object gate
-    is populated -> (moving object, flags)."""
+    is populated -> (moving object, flags).
+
+    ``res_s``, ``res_o``, ``thr_o``: packed 32-bit 1750A floats (rad^2); ``ko``: the object gate's
+    populated run (int); flags: the 1750A subtraction's status bits.
+
+    Cases
+    -----
+    decides : ``res_s - res_o > thr_o`` with the object gate populated -> True.
+    object-gate-empty : ``ko == 0`` -> False however large the difference.
+    within-threshold : difference positive but ``<= thr_o`` -> False.
+    reversed : ``res_o > res_s`` (negative difference, rule 4's side) -> False.
+    """
     d, f = fs32(res_s, res_o)
     return ko > 0 and fc32(d, thr_o) > 0, f
 
@@ -85,7 +122,18 @@ def rule3(res_s, res_o, ko, thr_o):
 @njit(cache=True, inline="always")
 def rule4(res_s, res_o, ks, thr_s):
     """Object gate's residuals exceed the star gate's by more than ``thr'`` while the star gate is
-    populated -> (star, flags)."""
+    populated -> (star, flags).
+
+    ``res_s``, ``res_o``, ``thr_s``: packed 32-bit 1750A floats (rad^2); ``ks``: the star gate's
+    populated run (int); flags: the 1750A subtraction's status bits.
+
+    Cases
+    -----
+    decides : ``res_o - res_s > thr_s`` with the star gate populated -> True.
+    star-gate-empty : ``ks <= 0`` -> (False, 0) without subtracting.
+    within-threshold : difference positive but ``<= thr_s`` -> False.
+    reversed : ``res_s > res_o`` (negative difference, rule 3's side) -> False.
+    """
     if ks <= 0:
         return False, 0
     d, f = fs32(res_o, res_s)
@@ -94,7 +142,25 @@ def rule4(res_s, res_o, ks, thr_s):
 
 @njit(cache=True, inline="always")
 def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o):
-    """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags)."""
+    """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags).
+
+    Counts are ints, residuals and thresholds packed 32-bit 1750A floats (rad^2).
+
+    Cases
+    -----
+    both-empty : both gates empty for their limits -> (DELETE, 0) at once.
+    rule1-object : star gate empty ``n``, object gate populated and consistent -> (OBJECT, 1).
+    rule2-star : object gate empty ``n'``, star gate populated and consistent -> (STAR, 2).
+    rule3-object : star residuals exceed the object's by more than ``thr`` -> (OBJECT, 3).
+    rule4-star : object residuals exceed the star's by more than ``thr'`` -> (STAR, 4).
+    within-threshold : both gates live, residual difference within the thresholds -> UNDECIDED.
+    star-empty-suspended : star gate empty ``n``..``4n - 1`` frames, rule 1 fails -> UNDECIDED
+        (the residual rules are not tried).
+    object-empty-suspended : object gate empty ``n'``..``4n' - 1`` frames, rule 2 fails ->
+        UNDECIDED.
+    star-empty-stale : star gate empty ``4n`` frames without rule 1 -> (DELETE, 0).
+    object-empty-stale : object gate empty ``4n'`` frames without rule 2 -> (DELETE, 0).
+    """
     star_empty = ms >= n
     obj_empty = mo >= n_o
     if star_empty and obj_empty:
@@ -119,7 +185,23 @@ def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o):
 @njit(cache=True)
 def apply_rules(C, S, G, V, GP, cyc):
     """The four rules on every live pair; the best object conclusion becomes the verified object
-    (``S[S_DEC]``) when none is held, the others are deleted as spurious."""
+    (``S[S_DEC]``) when none is held, the others are deleted as spurious.
+
+    ``C`` config, ``S`` state, ``G`` gates (int64 [NG, GC]), ``V`` frame words, ``GP`` gate
+    parameters, ``cyc`` cycle ledger (all int64, :mod:`flightsw.tp.layout`); updated in place.
+
+    Cases
+    -----
+    object-decided : one OBJECT conclusion, none held -> ``S[S_DEC]`` = the pair, its star gate
+        deleted, ``S_DEC_FRAME``, ``S_RULE``, ``S_NDEC`` set, ``TC_NEW_DECISION`` raised.
+    star-deleted : a STAR conclusion deletes both gates and counts its rule (no decision).
+    stale-deleted : a DELETE conclusion without a rule deletes both gates and counts ``S_NSTALE``.
+    undecided-kept : an UNDECIDED pair keeps both gates.
+    best-of-several : several OBJECT conclusions on one frame: the smallest object residual wins,
+        the others are deleted and counted ``S_NSPURIOUS``.
+    object-while-held : an OBJECT conclusion while an object is held is deleted as spurious.
+    half-pair-skipped : a pair with one gate deleted (the held object's) is not ruled on.
+    """
     fl = 0
     n, n_o = C[C_N_EMPTY], C[C_N_EMPTY_OBJ]
     thr_s, thr_o = GP[GP_THR_STAR], GP[GP_THR_OBJ]
@@ -164,7 +246,17 @@ def apply_rules(C, S, G, V, GP, cyc):
 @njit(cache=True)
 def verify_object(C, S, G, V):
     """The verified object's gate: lost when deleted or empty ``n_lost`` frames; else its
-    observation this frame becomes the object (``V[V_OBJ]``, -1 none) -> True while it is held."""
+    observation this frame becomes the object (``V[V_OBJ]``, -1 none) -> True while it is held.
+
+    Cases
+    -----
+    none-held : ``S[S_DEC] < 0`` -> False, nothing changed.
+    held-fed : the object gate alive and fed -> True, ``V[V_OBJ]`` = its observation.
+    held-coasting : alive, empty fewer than ``n_lost`` frames -> True, ``V[V_OBJ] = -1``.
+    lost-empty : empty ``n_lost`` frames -> gate deleted, ``S_DEC = -1``, ``S_NLOST`` counted,
+        ``TC_OBJECT_LOST`` raised -> False.
+    lost-deleted : the object gate already deleted -> lost as above -> False.
+    """
     dec = S[S_DEC]
     if dec < 0:
         return False
@@ -181,7 +273,18 @@ def verify_object(C, S, G, V):
 
 @njit(cache=True, inline="always")
 def place_pairs(G, OBS, nuse, frame_count):
-    """A star and an object gate on every usable observation j (pair j) -> pairs placed."""
+    """A star and an object gate on every usable observation j (pair j) -> pairs placed.
+
+    ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]), ``nuse`` the
+    observations to use, ``frame_count`` the seeding frame.
+
+    Cases
+    -----
+    every-usable : rows ``2j`` (star) and ``2j + 1`` (object) alive at observation j's position,
+        velocity and residual zero, one hit, seeded by j on this frame.
+    unusable-skipped : an observation with ``OBS_OK == 0`` gets no pair (its rows untouched).
+    no-observations : ``nuse == 0`` -> 0 pairs.
+    """
     placed = 0
     for j in range(nuse):
         if OBS[j, OBS_OK] == 0:
@@ -209,7 +312,17 @@ def place_pairs(G, OBS, nuse, frame_count):
 @njit(cache=True)
 def reinitialise(S, G, OBS, V, cyc):
     """If, and only if, every gate is deleted and no object is held (and the frame's observations
-    are usable): new pairs on the observations -> pairs placed."""
+    are usable): new pairs on the observations -> pairs placed.
+
+    Cases
+    -----
+    places : no gate alive, none held, evidence -> pairs placed, ``TC_REINITIALISED`` raised,
+        ``S_NREINIT`` counted.
+    gates-alive : a gate alive -> 0, nothing changed.
+    object-held : an object held -> 0.
+    no-evidence : the frame's observations unusable (``V_EVIDENCE == 0``) -> 0.
+    nothing-usable : evidence but no usable observation -> 0, no flag, not counted.
+    """
     if V[V_EVIDENCE] == 0 or S[S_DEC] >= 0 or any_gate_alive(G):
         return 0
     placed = place_pairs(G, OBS, V[V_NUSE], V[V_FC])
@@ -223,7 +336,14 @@ def reinitialise(S, G, OBS, V, cyc):
 @njit(cache=True)
 def report_object(S, V):
     """Status of the verified object: decided; locked when its gate was fed this frame, else
-    coasting."""
+    coasting.
+
+    Cases
+    -----
+    none-held : no object -> status untouched.
+    locked : held and fed this frame -> ``TC_OBJECT_DECIDED``, ``V_LOCKED = 1``.
+    coasting : held, not fed -> ``TC_OBJECT_DECIDED | TC_COASTING``, not locked.
+    """
     if S[S_DEC] >= 0:
         V[V_STATUS] |= TC_OBJECT_DECIDED
         if V[V_OBJ] >= 0:
@@ -234,5 +354,13 @@ def report_object(S, V):
 
 @njit(cache=True, inline="always")
 def object_observed(S, V):
-    """The verified object was fed an observation this frame (usable evidence)."""
+    """The verified object was fed an observation this frame (usable evidence).
+
+    Cases
+    -----
+    observed : held, fed and the evidence usable -> True.
+    none-held : ``S[S_DEC] < 0`` -> False.
+    not-fed : ``V[V_OBJ] < 0`` -> False.
+    no-evidence : ``V[V_EVIDENCE] == 0`` -> False.
+    """
     return S[S_DEC] >= 0 and V[V_OBJ] >= 0 and V[V_EVIDENCE] != 0

@@ -37,14 +37,29 @@ CYC_EKF_MEAS = cycles(mix({"FM": 27, "FA": 18, "ST": 9}, {"FM": 4, "EFM": 2}))
 
 @njit(cache=True, inline="always")
 def ekf_running(E):
-    """True once the EKF has been started (on the verified object)."""
+    """True once the EKF has been started (on the verified object).
+
+    Cases
+    -----
+    typical : ``E[E_RUN]`` non-zero -> True; 0 -> False.
+    """
     return E[E_RUN] != 0
 
 
 @njit(cache=True)
 def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     """The nominal state to this frame's time (RK4, 48-bit) and the change of its line of sight
-    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame)."""
+    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame).
+
+    ``N`` the nominal (int64 [N_WORDS], 48-bit state and time), ``RM`` body -> ECI (packed 32-bit
+    [9]); the line of sight is kept in ``S[S_NL]`` for the next frame.
+
+    Cases
+    -----
+    first-frame : no previous line of sight -> ``V[V_DN]`` left 0; this one kept.
+    motion : a previous line of sight -> ``V[V_DN] = T(RM^T l) - T(RM^T l_prev)``.
+    propagated : the nominal state integrated to this frame's time, ``N[N_T]`` = that time.
+    """
     fl = 0
     t = V[V_T]
     r = propagate(D, N, N_X, N[N_T], t, K[K_MAXSTEP])
@@ -67,13 +82,25 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
 
 @njit(cache=True, inline="always")
 def no_nominal(V):
-    """A dedicated event without a nominal trajectory: said in the status."""
+    """A dedicated event without a nominal trajectory: said in the status.
+
+    Cases
+    -----
+    typical : ``TC_NO_NOMINAL`` raised, nothing else changed.
+    """
     V[V_STATUS] |= TC_NO_NOMINAL
 
 
 @njit(cache=True)
 def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
-    """A running EKF to this frame's time and the change of its line of sight -> ``V[V_DE]``."""
+    """A running EKF to this frame's time and the change of its line of sight -> ``V[V_DE]``.
+
+    Cases
+    -----
+    not-running : EKF not started -> nothing changed (``V_EKF_ON`` stays 0).
+    first : no previous line of sight -> predicted, ``V[V_DE]`` left 0, the line of sight kept.
+    motion : a previous line of sight -> ``V[V_DE]`` = its change seen in this frame's attitude.
+    """
     if E[E_RUN] == 0:
         return
     fl = 0
@@ -92,7 +119,13 @@ def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
 
 @njit(cache=True)
 def start_ekf(K, N, E, V):
-    """The object just verified: start the EKF on the nominal state at this frame's time."""
+    """The object just verified: start the EKF on the nominal state at this frame's time.
+
+    Cases
+    -----
+    typical : state = the nominal's words, time ``V[V_T]``, P diagonal from ``K``, the line of
+        sight to it kept, ``V_EKF_ON = 1``.
+    """
     ekf_init(E, N[N_X], N[N_X + 1], N[N_X + 2], N[N_X + 3], N[N_X + 4], N[N_X + 5],
              V[V_T], K[K_P0R], K[K_P0V])
     V[V_EKF_ON] = 1
@@ -105,7 +138,19 @@ def start_ekf(K, N, E, V):
 @njit(cache=True)
 def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
-    updates of the EKF; both refused ``ekf_max_rejects`` frames running -> covariance reset."""
+    updates of the EKF; both refused ``ekf_max_rejects`` frames running -> covariance reset.
+
+    Measurement matrix ``M = (RM A)^T`` (``A`` the imager alignment), measurement the pixel's
+    imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis.
+
+    Cases
+    -----
+    both-accepted : both components incorporated -> ``E_NREJ = 0``, no status bit.
+    one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ = 0``.
+    both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
+    reset : both refused for the ``ekf_max_rejects``-th frame running -> P reset to its initial
+        diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
+    """
     fl = 0
     img = IMG[V[V_IMG]]
     j_obj = V[V_OBJ]

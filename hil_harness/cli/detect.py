@@ -1,0 +1,312 @@
+"""``uvisi detect``: the flight image processor on real image files.
+
+``uvisi detect IMAGE... [--record NAME|FILE] [--sequence NAME|FILE] [--compaction N]
+[--window full|64] [--no-scale] [--max-candidates K] [--json OUT] [--plot PNG]``
+
+Reads FITS, TIFF, PNG/JPEG, NPY/NPZ (every plane of a cube, in order: :mod:`hil_harness.images`),
+turns each frame into the flight's 12-bit counts (:func:`hil_harness.images.to_counts`: counts pass
+unchanged, wide integers with zero low bits are shifted, anything else is mapped from its sky level
+and noise -- not stretched to its maximum), flags bad frames, runs the flight IP (compaction, the
+sequence's front end, blob colouring, the 12 features, ranking against the record) and reports per
+image the candidates with full-resolution centroids (0-based ``[row, col]``, pixel centres at
++0.5)::
+
+    {"images": [{"path", "time_utc", "shape", "flags", "scale", "compaction", "mode", "windows",
+                 "record", "sequence", "gate",
+                 "candidates": [{"rank", "row", "col", "distance", "gof", "features": {...}}]}]}
+
+Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
+missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
+still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
+tiling (:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help``
+text.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from hil_harness.images import ImageError, frame_flags, read_images, scale_note, to_counts
+
+__all__ = ["register", "run", "detect_one", "read_frames", "to_12bit", "HELP_TEXT"]
+
+HELP_TEXT = """\
+Run the flight image processor on image files. Every plane of every file (FITS, TIFF, PNG/JPEG,
+NPY/NPZ) becomes 12-bit counts: counts pass unchanged, wide integers whose low bits are always zero
+are shifted (a 12-bit reading stored << 4), anything else is mapped linearly from its sky level and
+pixel noise (sky -> 200 counts, noise -> 8 counts or more; never the maximum stretch). The mapping
+is in the JSON as "scale". Bad frames (blank, constant, nan, saturated, missing) are flagged in the
+JSON ("flags") and on stderr; the IP's answer for them is still given.
+
+Jobs (--record; the job's sequence follows unless --sequence is given):
+  star     (default) point sources: stars, distant satellites, any unresolved spot. Sequence
+           'star': compaction 1, high-pass detrend, 5x5 smoothing, clipped threshold at 3 sigma.
+           Candidates pass a significance gate (peak in the smoothed image >= 4.5 pixel-noise
+           sigmas, the noise measured on the frame) and come brightest first.
+  streak   satellite or meteor trails 100 px and longer. Sequence 'streak': compaction 4, one
+           candidate per trail with its orientation (degrees from +column toward +row).
+  aurora   extended UV glow, auroral arcs and surges. Sequence 'aurora': compaction 2, no
+           detrend, clipped threshold at 1.5 sigma.
+
+Modes: --window full (default) processes the whole compacted image as one window when it fits in
+one tile, else as overlapping flight windows (tiles of 64 x 64 compacted pixels every 16 for point
+sources, so that a bright star does not raise the threshold over faint ones beside it; 128 x 128
+every 32 for the streak and aurora sequences, so that one trail or arc stays in one window), each
+through the flight code unchanged, with duplicates merged across windows; --window 64 is the
+flight window about the image centre (no track prediction).
+"""
+
+
+def register(sub) -> None:
+    from hil_harness.detect.jobs import JOBS
+    jobs = "; ".join(f"{k}: {v[2]}" for k, v in JOBS.items())
+    import argparse
+    p = sub.add_parser("detect", help="run the flight image processor on image files",
+                       description=HELP_TEXT, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("images", nargs="+", help="FITS, TIFF, PNG/JPEG, NPY or NPZ files (cubes: "
+                                             "every plane)")
+    p.add_argument("--record", default="star",
+                   help=f"a priori record: shipped name or a .toml file (default: star). Jobs -- "
+                        f"{jobs}")
+    p.add_argument("--sequence", default=None,
+                   help="processing sequence: shipped name (star, streak, aurora, satellite, "
+                        "satellite_c2) or a .toml file (default: the record's job sequence)")
+    p.add_argument("--compaction", type=int, default=None, choices=(1, 2, 4),
+                   help="compaction factor (default: the sequence's)")
+    p.add_argument("--window", default="full", choices=("full", "64"),
+                   help="full-frame mode or the 64x64 flight window (default: full)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--scale-to-12bit", action="store_true",
+                   help="map the pixels to 12-bit counts (the default; kept for old scripts)")
+    g.add_argument("--no-scale", action="store_true",
+                   help="insist that the pixels already are 12-bit counts (integers 0..4095)")
+    p.add_argument("--max-candidates", type=int, default=23,
+                   help="candidates reported per image, 1..1000 (default 23, the flight limit)")
+    p.add_argument("--json", default=None, help="output JSON file (default: a table on stdout)")
+    p.add_argument("--plot", default=None,
+                   help="PNG with candidates marked and numbered by rank (one per image: "
+                        "_<i> is added when there are several)")
+    p.set_defaults(func=run)
+
+
+# ------------------------------------------------------------------------------------------------
+# kept for callers of the old interface
+# ------------------------------------------------------------------------------------------------
+def read_frames(path) -> list:
+    """``[(name, 2-D array)]`` of one file (:func:`hil_harness.images.read_images`)."""
+    return [(f.name, f.data) for f in read_images([path])]
+
+
+def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
+    """The old maximum-stretch conversion, unchanged for the tuning code that still calls it:
+    integers above 4095 are shifted right by the fewest bits that fit, floats scaled so that their
+    maximum is 4095 (NaN -> 0). ``uvisi detect`` itself uses
+    :func:`hil_harness.images.to_counts`."""
+    a = np.asarray(a)
+    if np.issubdtype(a.dtype, np.bool_):
+        a = a.astype(np.uint16)
+    if np.issubdtype(a.dtype, np.integer):
+        if a.size and a.min() < 0:
+            if not scale:
+                raise ValueError(f"{label}: negative pixel values (use --scale-to-12bit)")
+            a = a.astype(np.int64) - int(a.min())
+        mx = int(a.max()) if a.size else 0
+        if mx > 4095:
+            if not scale:
+                raise ValueError(f"{label}: values up to {mx} are not 12-bit counts "
+                                 f"(use --scale-to-12bit)")
+            a = a.astype(np.int64) >> max(0, mx.bit_length() - 12)
+        return a.astype(np.uint16)
+    if np.issubdtype(a.dtype, np.floating):
+        if not scale:
+            raise ValueError(f"{label}: floating-point pixels (use --scale-to-12bit)")
+        a = np.nan_to_num(a.astype(np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        a = a - min(0.0, float(a.min()))
+        mx = float(a.max())
+        return np.clip(np.rint(a * (4095.0 / mx if mx > 0 else 1.0)), 0, 4095).astype(np.uint16)
+    raise ValueError(f"{label}: unsupported pixel type {a.dtype}")
+
+
+# ------------------------------------------------------------------------------------------------
+# one image
+# ------------------------------------------------------------------------------------------------
+def detect_one(img12, seq, record, compaction, window_mode="full", max_candidates=23,
+               gate_sigma=None, tile=None) -> dict:
+    """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
+    ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
+    ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
+    job's peak gate (:func:`hil_harness.detect.jobs.peak_gate_record`) at this many sigmas of the
+    processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
+    :func:`hil_harness.detect.jobs.tile_for`)."""
+    from flightsw.ip.preprocess import compact
+    from flightsw.messages import FEATURE_NAMES
+    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record, tile_for
+    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.images import noise_sigma
+    gate = None
+    if gate_sigma:
+        noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
+        noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+        # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
+        # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
+        noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
+        record = peak_gate_record(record, noise, gate_sigma)
+        gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
+                "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
+    out = detect_frame(img12, seq, record, compaction, window_mode, max_candidates,
+                       tile_for(seq) if tile is None else tile)
+    cands = []
+    for i, ft in enumerate(out["feats"]):
+        cands.append({"rank": i + 1, "row": float(ft["row"]), "col": float(ft["col"]),
+                      "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
+                      "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
+    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+
+
+# ------------------------------------------------------------------------------------------------
+# output
+# ------------------------------------------------------------------------------------------------
+def _plot(path, img, cands, title):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    H, W = img.shape
+    fig, ax = plt.subplots(figsize=(8, 8 * H / W + 0.4), dpi=110)
+    lo, hi = np.percentile(img, [1, 99.7])
+    ax.imshow(img, cmap="gray", vmin=lo, vmax=max(hi, lo + 1), origin="upper",
+              extent=(0, W, H, 0), interpolation="nearest")
+    for c in cands:
+        # marker radius from the blob's semimajor axis, capped so an extended blob (a sunlit limb)
+        # does not hide the picture; the label sits on the marker and is clipped to the axes
+        r = min(max(4.0, 2.5 * c["features"]["semimajor"]), 0.06 * max(H, W))
+        ax.add_patch(plt.Circle((c["col"], c["row"]), r, fill=False, color="#ff4040", lw=1.0))
+        ax.text(c["col"] + r * 0.8, c["row"] - r * 0.8, str(c["rank"]), color="#ffdd33",
+                fontsize=8, fontweight="bold", clip_on=True)
+    ax.set_title(title, fontsize=9)
+    ax.set_xlim(0, W)
+    ax.set_ylim(H, 0)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
+def _scale_text(m: dict) -> str:
+    if m["method"] == "shift":
+        return f"shift >> {m['shift']}"
+    if m["method"] == "robust" and m.get("noise") is not None:
+        return f"robust: gain {m['gain']:.4g}, noise {m['noise_counts']:.1f} counts"
+    return m["method"]
+
+
+def _table(entry) -> str:
+    """A readable block for one image (stdout when there is no --json)."""
+    flags = ", ".join(entry["flags"]) or "-"
+    lines = [f"{entry['path']}: {entry['shape'][0]}x{entry['shape'][1]}, scale "
+             f"{_scale_text(entry['scale'])}, flags {flags}, record {entry['record']}, sequence "
+             f"{entry['sequence']}, {len(entry['candidates'])} candidates",
+             f"  {entry['mode']}"]
+    if entry["candidates"]:
+        lines.append(f"  {'rank':>4} {'row':>9} {'col':>9} {'gof':>8} {'size':>7} "
+                     f"{'peak':>7} {'orient':>7}")
+        for c in entry["candidates"]:
+            f = c["features"]
+            lines.append(f"  {c['rank']:>4} {c['row']:>9.2f} {c['col']:>9.2f} {c['gof']:>8.4f} "
+                         f"{f['size']:>7.0f} {f['max_brightness']:>7.0f} "
+                         f"{f['orientation']:>7.1f}")
+    return "\n".join(lines)
+
+
+def _finite(o):
+    """JSON-safe copy: non-finite floats -> None, NumPy scalars -> Python numbers."""
+    if isinstance(o, dict):
+        return {k: _finite(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_finite(v) for v in o]
+    if isinstance(o, np.generic):
+        o = o.item()
+    if isinstance(o, float) and not math.isfinite(o):
+        return None
+    return o
+
+
+def _write_json(path, entries):
+    """Write the JSON whole or not at all (a temporary file renamed into place)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.name + ".part")
+    try:
+        with open(tmp, "w") as fh:
+            json.dump({"images": _finite(entries)}, fh, indent=1, allow_nan=False)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+# ------------------------------------------------------------------------------------------------
+# the command
+# ------------------------------------------------------------------------------------------------
+def _setup(args):
+    from flightsw.records import load_record
+    from hil_harness.detect.jobs import default_sequence_name, resolve_sequence
+    record = load_record(args.record)
+    seq = resolve_sequence(args.sequence or default_sequence_name(record))
+    f = args.compaction if args.compaction is not None else seq.preprocess.compaction
+    if not 1 <= args.max_candidates <= 1000:
+        raise ValueError("--max-candidates must be in 1..1000")
+    gate = None
+    if record.name == "star" and args.record == "star":
+        from hil_harness.detect.jobs import GATE_SIGMA
+        gate = GATE_SIGMA
+    return record, seq, f, gate
+
+
+def run(args) -> int:
+    from tqdm import tqdm
+    record, seq, f, gate = _setup(args)
+    frames = read_images(args.images)
+    entries, plots = [], []
+    bar = tqdm(frames, desc="detect", unit="frame", file=sys.stderr,
+               disable=len(frames) < 4 or None)
+    for fr in bar:
+        flags = frame_flags(fr.data)
+        try:
+            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits)
+        except ImageError as exc:
+            raise ImageError(f"{fr.name}: {exc}") from None
+        note = scale_note(fr.name, scale)
+        if note:
+            tqdm.write(f"uvisi detect: note: {note}", file=sys.stderr)
+        if flags:
+            tqdm.write(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
+                       f"answer is still given)", file=sys.stderr)
+        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate)
+        entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
+                 "flags": flags, "scale": scale, "compaction": f, "mode": out["mode"],
+                 "windows": out["windows"], "record": record.name, "sequence": seq.name,
+                 "gate": out["gate"], "candidates": out["candidates"]}
+        entries.append(entry)
+        plots.append((img, entry["candidates"], f"{Path(fr.name).name}: "
+                      f"{len(entry['candidates'])} candidates, record {record.name}"
+                      + (f" [{', '.join(flags)}]" if flags else "")))
+    if args.json:
+        _write_json(args.json, entries)
+        for e in entries:
+            top = e["candidates"][0] if e["candidates"] else None
+            print(f"{e['path']}: {e['shape'][0]}x{e['shape'][1]}, {len(e['candidates'])} "
+                  f"candidates" + (f", best at row {top['row']:.2f} col {top['col']:.2f}"
+                                   if top else "") + (f" [{', '.join(e['flags'])}]"
+                                                      if e["flags"] else ""))
+    else:
+        print("\n\n".join(_table(e) for e in entries))
+    if args.plot:
+        base = Path(args.plot)
+        base.parent.mkdir(parents=True, exist_ok=True)
+        for i, (img, cands, title) in enumerate(plots):
+            p = base if len(plots) == 1 else base.with_name(f"{base.stem}_{i}{base.suffix}")
+            _plot(p, img, cands, title)
+    return 0

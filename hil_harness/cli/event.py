@@ -1,0 +1,105 @@
+"""``uvisi event SCENARIO [--seed N] [--frames N] [--out DIR [--force]] [--no-frames]``: run one
+closed-loop tracking event.
+
+The ground simulator renders each 2 Hz frame of the scenario; the flight image processor turns it into
+a candidate message, the track processor into a pointing command, which the spacecraft follows. Writes
+``recording.h5``, the figures (processing stages, centroid track, track error, gates, budget, an animated
+GIF) and ``summary.json`` to DIR, and prints a short table. SCENARIO is a shipped name (``uvisi
+scenarios`` lists them) or a TOML file.
+
+The recording is written in blocks of 20 frames as ``recording.partial.h5`` and renamed
+``recording.h5`` at the end; an interrupted event (Ctrl-C, SIGTERM, kill -9) leaves the partial file
+readable up to its last block. A DIR given with ``--out`` that holds another run is refused unless
+``--force``; the default folder ``./events/<scenario>`` is simply replaced. One event at a time
+writes to a folder.
+"""
+from __future__ import annotations
+
+import json
+import signal
+import sys
+import threading
+from pathlib import Path
+
+from hil_harness.console import progress_enabled
+
+
+def register(sub) -> None:
+    p = sub.add_parser("event", help="run a closed-loop tracking event on a scenario",
+                       description=__doc__)
+    p.add_argument("scenario", nargs="?", default="satellite_over_stars",
+                   help="shipped scenario name or TOML file (default: satellite_over_stars)")
+    p.add_argument("--seed", type=int, default=None, help="seed (default: the scenario's)")
+    p.add_argument("--frames", type=int, default=None, help="stop after N frames")
+    p.add_argument("--out", default=None, help="output directory (default: ./events/<scenario>, "
+                                               "replaced on each run)")
+    p.add_argument("--force", action="store_true",
+                   help="replace another run found in --out (removed first)")
+    p.add_argument("--no-frames", action="store_true",
+                   help="do not store the frames in the recording (smaller; no replay)")
+    p.add_argument("--no-figures", action="store_true", help="skip the figures")
+    p.add_argument("--sequence", default=None, help="processing sequence: shipped name or TOML file")
+    p.add_argument("--record", default=None, help="a priori record: shipped name or TOML file")
+    p.add_argument("--handover", action="store_true",
+                   help="enable the wide -> narrow FOV hand-over once locked")
+    p.add_argument("--hypothesis", default=None, metavar="NAME",
+                   help="price every frame under a budget hypothesis (uvisi budget --explain lists "
+                        "them), overruns included; default: today's cycle model")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
+    p.set_defaults(func=run)
+
+
+_TERMINATED = []
+
+
+def _terminate(signum, frame):
+    """SIGTERM ends the event as Ctrl-C does (what was recorded is kept)."""
+    _TERMINATED.append(signum)
+    raise KeyboardInterrupt
+
+
+def run(args) -> int:
+    from groundsim.scenario import Scenario
+    from hil_harness.event.io import EventInterrupted, run_event, summary_table
+    from hil_harness.event.selection import SelectionParams
+    name = args.scenario
+    if name not in Scenario.shipped() and not Path(name).exists():
+        raise ValueError(f"scenario {name!r}: not a shipped scenario ({', '.join(Scenario.shipped())}) "
+                         f"nor a file")
+    if args.frames is not None and args.frames < 1:
+        raise ValueError(f"--frames {args.frames}: must be >= 1")
+    if args.seed is not None and args.seed < 0:
+        raise ValueError(f"--seed {args.seed}: must be >= 0")
+    if args.hypothesis is not None:
+        from hil_harness.budget.hypotheses import HYPOTHESES
+        names = [h.name for h in HYPOTHESES]
+        if args.hypothesis not in names:
+            raise ValueError(f"--hypothesis {args.hypothesis!r}: not one of {', '.join(names)}")
+    out = Path(args.out) if args.out else Path("events") / Path(name).stem
+    replace = bool(getattr(args, "force", False)) or not args.out
+    _TERMINATED.clear()
+    main_thread = threading.current_thread() is threading.main_thread()
+    prev = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
+    try:
+        s = run_event(name, seed=args.seed, frames=args.frames, out=out,
+                      record_frames=not args.no_frames, figures=not args.no_figures,
+                      progress=progress_enabled(), sequence=args.sequence, record=args.record,
+                      selection=SelectionParams(handover=args.handover), force=replace,
+                      hypothesis=args.hypothesis)
+    except EventInterrupted as exc:
+        how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
+        print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "
+              f"complete = False)", file=sys.stderr)
+        return 143 if _TERMINATED else 130
+    finally:
+        if main_thread:
+            signal.signal(signal.SIGTERM, prev)
+    if args.json:
+        print(json.dumps(s, indent=2, default=str))
+    else:
+        print(summary_table(s))
+        print(f"recording: {s['recording']}")
+        print(f"summary:   {out / 'summary.json'}")
+        if s.get("figures"):
+            print("figures:   " + ", ".join(s["figures"]))
+    return 0

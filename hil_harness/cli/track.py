@@ -1,0 +1,218 @@
+"""``uvisi track``: the flight IP and TP over a real image sequence.
+
+``uvisi track IMAGES... --record R [--sequence S] --json OUT [--plot PNG] [--frame-dt S]
+[--fov DEG] [--no-scale]``
+
+The frames (every frame of every file, in order: single images, or a multi-frame NPZ / FITS / TIFF
+cube) are read and turned into the flight's 12-bit counts by :mod:`hil_harness.images` (counts pass
+unchanged, wide integers by a known shift, anything else by a robust map from the background and
+the noise; ``--no-scale`` insists on counts), then replayed exactly as in the closed loop
+(:mod:`hil_harness.tuning.closed_loop`), without a spacecraft: each frame's window is placed and the
+record's centroid means are set from the TP's prediction of the previous frame (the first frame
+from the image centre); the TP runs in target-of-opportunity mode with a stand-in attitude (fixed
+pointing), imager pixel scale from ``--fov`` (degrees across the columns) or the UVISI wide field
+of view (13.1 deg across 256 columns, scaled to the frame width), and a nominal 0.5 s per input
+frame unless ``--frame-dt`` is given (real sequences can be minutes apart, beyond the TP's coast
+limit). Real time tags, where the input has them, are written beside each frame.
+
+Bad frames (:func:`hil_harness.images.frame_flags`: blank, constant, all-NaN, saturated, mostly
+missing) are reported in the JSON and on stderr; the IP's answer for them is still given, but their
+candidate message does not reach the TP: a flagged frame does not move the track.
+
+Output (``--json``)::
+
+    {"record", "sequence", "frame_dt", "fov_deg", "scale_rad_per_px",
+     "frames": [{"index", "input", "time_utc", "t", "shape", "flags", "scale",
+                 "window": {"row0", "col0", "rows", "cols", "compaction"},
+                 "prior": {"row", "col"} | null,
+                 "candidates": [{"rank", "row", "col", "distance", "gof", "features": {...}}],
+                 "chosen": rank of the candidate the TP used (1-based) | null,
+                 "track": {"locked", "decided", "coasting", "status", "object_index",
+                           "object_type", "predicted_row", "predicted_col", "mode"}
+                          | {"skipped": true, "reason": "flagged: ..."}}]}
+
+Candidates are best first, centroids in full-resolution pixels (0-based, pixel centres at +0.5),
+as ``uvisi detect`` writes them.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from hil_harness.fileio import temp_beside
+
+#: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
+WFOV_DEG = 13.1
+NOMINAL_DT = 0.5
+
+
+def register(sub) -> None:
+    p = sub.add_parser("track", help="the flight IP + TP over a real image sequence",
+                       description=__doc__.split("\n\n")[1])
+    p.add_argument("images", nargs="+",
+                   help="image files in order (FITS, TIFF, PNG, NPY, NPZ; a cube gives one frame "
+                        "per plane)")
+    p.add_argument("--record", required=True,
+                   help="a priori record: shipped name (aurora, star, satellite, plume) or .toml")
+    p.add_argument("--sequence", default=None,
+                   help="processing sequence: shipped name or .toml (default: 'aurora' for an "
+                        "aurora record, else 'satellite')")
+    p.add_argument("--json", required=True, help="output JSON file")
+    p.add_argument("--plot", default=None, help="PNG: the track over the last good frame")
+    p.add_argument("--frame-dt", type=float, default=NOMINAL_DT,
+                   help="seconds between input frames on the TP's clock (default 0.5)")
+    p.add_argument("--fov", type=float, default=None,
+                   help="field of view across the columns, degrees (default: the UVISI wide "
+                        "field, 13.1 deg over 256 columns, scaled to the frame width)")
+    p.add_argument("--no-scale", action="store_true",
+                   help="the pixels must already be 12-bit counts (no mapping)")
+    p.set_defaults(func=run)
+
+
+def read_sequence(paths, no_scale: bool = False):
+    """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags)."""
+    from tqdm import tqdm
+
+    from hil_harness.images import frame_flags, read_images, scale_note, to_counts
+    frames = read_images(paths)
+    if not frames:
+        raise ValueError(f"{paths[0]}: no frames")
+    shape = frames[0].data.shape
+    counts, scales, flags = [], [], []
+    for fr in tqdm(frames, desc="[track] read", unit="frame", disable=len(frames) < 50,
+                   file=sys.stderr):
+        if fr.data.shape != shape:
+            raise ValueError(f"{fr.name}: frame shape {fr.data.shape} differs from the first "
+                             f"frame's {shape} (one sequence, one imager)")
+        c, m = to_counts(fr.data, no_scale=no_scale, bits=fr.bits)
+        note = scale_note(fr.name, m)
+        if note:
+            print(f"uvisi track: note: {note}", file=sys.stderr)
+        counts.append(c)
+        scales.append(m)
+        flags.append(frame_flags(fr.data))
+    return ([f.name for f in frames], np.array(counts, np.uint16), scales, flags,
+            [f.time_utc for f in frames])
+
+
+def _sequence(name, record, shape):
+    from hil_harness.tuning.data import load_sequence
+    if name is None:
+        name = "aurora" if record.object_type == "aurora" else "satellite"
+    return load_sequence(name, None, tuple(shape))
+
+
+def _num(x):
+    x = float(x)
+    return x if math.isfinite(x) else None
+
+
+def _candidates(cands) -> list:
+    from flightsw.messages import FEATURE_NAMES
+    return [{"rank": i + 1, "row": float(c["row"]), "col": float(c["col"]),
+             "distance": _num(c["distance"]), "gof": _num(c["gof"]),
+             "features": {n: _num(c[n]) for n in FEATURE_NAMES}} for i, c in enumerate(cands)]
+
+
+def _frame_entry(k, name, tag, rf, scale, flags) -> dict:
+    r0, c0, rows, cols, f = rf.window
+    prior = None if not math.isfinite(rf.prior[0]) else {"row": rf.prior[0], "col": rf.prior[1]}
+    track = dict(rf.track)
+    if track.get("skipped"):
+        track["reason"] = "flagged: " + ", ".join(flags)
+    return {"index": k, "input": name, "time_utc": tag, "t": rf.t,
+            "flags": list(flags), "scale": scale,
+            "window": {"row0": int(r0), "col0": int(c0), "rows": int(rows), "cols": int(cols),
+                       "compaction": int(f)},
+            "prior": prior, "candidates": _candidates(rf.candidates),
+            "chosen": rf.chosen + 1 if rf.chosen >= 0 else None, "track": track}
+
+
+def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None):
+    """IP + TP over ``counts`` (uint16 [F, H, W]) -> (list of ReplayFrame, ImagerGeometry).
+
+    ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames)."""
+    from hil_harness.tuning.closed_loop import ReplayEvent, replay
+    from hil_harness.tuning.events import imager_geometry
+    if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
+        raise ValueError(f"--frame-dt {frame_dt!r} must be a positive number of seconds")
+    w = counts.shape[2]
+    fov = fov_deg if fov_deg is not None else math.degrees(
+        2 * math.atan(w / 256.0 * math.tan(math.radians(WFOV_DEG) / 2)))
+    geom = imager_geometry("real", fov, counts.shape[1:])
+    ev = ReplayEvent(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
+                     name="input", object_type=record.object_type)
+    return replay(ev, sequence, record, "tp", skip=skip), geom, fov
+
+
+def _write_json(path, obj):
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp")
+    try:
+        with os.fdopen(fd, "w") as fh:
+            json.dump(obj, fh, indent=1, allow_nan=False)
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+
+
+def run(args) -> int:
+    from flightsw.records import load_record
+    record = load_record(args.record)
+    if args.fov is not None and not 0.0 < args.fov < 90.0:
+        raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
+    names, counts, scales, flags, tags = read_sequence(args.images, args.no_scale)
+    seq = _sequence(args.sequence, record, counts.shape[1:])
+    skip = np.array([bool(f) for f in flags])
+    for n, f in zip(names, flags):
+        if f:
+            print(f"uvisi track: warning: {n}: flagged {', '.join(f)} (the IP still answers; the "
+                  f"track does not move on it)", file=sys.stderr)
+    frames, geom, fov = track_sequence(counts, record, seq, args.frame_dt, args.fov, skip)
+    out = {"record": record.name, "sequence": seq.name, "frame_dt": args.frame_dt,
+           "fov_deg": fov, "scale_rad_per_px": geom.scale_col,
+           "frames": [_frame_entry(k, names[k], tags[k], rf, scales[k], flags[k])
+                      for k, rf in enumerate(frames)]}
+    _write_json(args.json, out)
+    locked = sum(1 for e in out["frames"] if e["track"].get("locked"))
+    print(f"{len(frames)} frames ({int(skip.sum())} flagged), record {record.name}, sequence "
+          f"{seq.name}: the TP locked on {locked}; wrote {args.json}")
+    if args.plot:
+        _plot(args.plot, counts, out["frames"], skip)
+    return 0
+
+
+def _plot(path, counts, frames, skip):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    good = np.flatnonzero(~skip)
+    img = counts[good[-1] if good.size else -1]
+    H, W = img.shape
+    fig, ax = plt.subplots(figsize=(7, 7 * H / W + 0.4), dpi=110)
+    lo, hi = np.percentile(img, [1, 99.7])
+    ax.imshow(img, cmap="gray", vmin=lo, vmax=max(hi, lo + 1), extent=(0, W, H, 0))
+    pts = [(e["candidates"][e["chosen"] - 1]["col"], e["candidates"][e["chosen"] - 1]["row"])
+           for e in frames if e["chosen"]]
+    if pts:
+        ax.plot(*zip(*pts), "-o", color="#ff4040", ms=3, lw=1, label="TP's object")
+    pr = [(e["prior"]["col"], e["prior"]["row"]) for e in frames if e["prior"]]
+    if pr:
+        ax.plot(*zip(*pr), "x", color="#33ddff", ms=4, label="prediction (window centre)")
+    ax.legend(fontsize=7, loc="lower right")
+    ax.set_title(f"{len(frames)} frames ({int(np.sum(skip))} flagged); last good frame shown",
+                 fontsize=9)
+    ax.set_xlim(0, W)
+    ax.set_ylim(H, 0)
+    fig.tight_layout()
+    p = Path(path)
+    p.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(p)
+    plt.close(fig)

@@ -1,0 +1,81 @@
+"""The jobs ``uvisi detect`` offers (star, streak, aurora): which shipped sequence goes with a
+record, sequences by name or file, and the star job's significance gate.
+
+Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gate_record`,
+:func:`tile_for`, :data:`JOBS`, :data:`GATE_SIGMA`, :data:`EXTENDED_TILE`.
+"""
+from __future__ import annotations
+
+from hil_harness.sequences import resolve_sequence  # noqa: F401  (re-exported: public here before)
+
+__all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "resolve_sequence",
+           "default_sequence_name", "peak_gate_record", "tile_for"]
+
+#: job -> (shipped sequence, shipped record, when to use it)
+JOBS = {
+    "star": ("star", "star",
+             "point sources (stars, distant satellites, any unresolved spot): compaction 1, "
+             "centroids to a few hundredths of a pixel, brightest first"),
+    "streak": ("streak", "streak",
+               "elongated trails (satellites or meteors crossing the frame, 100 px and longer): "
+               "compaction 4, one candidate per trail with its orientation"),
+    "aurora": ("aurora", "aurora",
+               "extended glow (auroral arcs and surges in UV frames): compaction 2, no detrend"),
+}
+
+#: the star job's gate: a candidate's peak in the smoothed, detrended image must be at least this
+#: many pixel-noise sigmas (noise of the processed image, :func:`hil_harness.images.noise_sigma`)
+GATE_SIGMA = 4.5
+#: upper end of the gate window (above any 12-bit peak)
+GATE_TOP = 8192.0
+
+
+#: full-frame tile (compacted pixels) for the sequences of extended objects: one trail or one
+#: auroral form stays in one window (point sources use detect.fullframe.DEFAULT_TILE, 64)
+EXTENDED_TILE = {"streak": 128, "aurora": 128}
+
+
+def tile_for(seq) -> int:
+    """Full-frame tile size (compacted pixels) for a ProcessingSequence, by its name."""
+    from hil_harness.detect.fullframe import DEFAULT_TILE
+    return EXTENDED_TILE.get(seq.name, DEFAULT_TILE)
+
+
+def default_sequence_name(record) -> str:
+    """The shipped sequence for a record: the job's own for the job records (star, streak,
+    aurora), by object type otherwise (aurora -> aurora, satellite -> satellite, else star)."""
+    for seq_name, rec_name, _ in JOBS.values():
+        if record.name == rec_name:
+            return seq_name
+    return {"aurora": "aurora", "satellite": "satellite"}.get(record.object_type, "star")
+
+
+def peak_gate_record(record, noise_counts: float, sigma: float = GATE_SIGMA):
+    """The star job's ranking record: ``record`` with one weighted feature, ``max_brightness``,
+    turned into a window ``[cut, GATE_TOP]`` with ``cut = sigma * noise_counts``.
+
+    Mean ``(cut + top) / 2``, sigma ``(top - cut) / 2``, weight 1 (n = 1) and GOF threshold 0.5:
+    ``d = ((x - mean) / sigma)^2 <= 1`` exactly when ``cut <= x <= top``, and the flight GOF
+    ``exp(-d^2 ln 2)`` is 0.5 at the cut and grows with the peak, so the ranking is brightest
+    first. The other features keep their values with weight 0. ``noise_counts``: pixel noise of
+    the processed (compacted) image in counts. Returns a new Record (same name, id, version).
+    """
+    from flightsw.messages import FEATURE_NAMES
+    if not noise_counts > 0:
+        raise ValueError(f"noise_counts={noise_counts!r} must be > 0")
+    cut = float(sigma) * float(noise_counts)
+    if not 0 < cut < GATE_TOP:
+        raise ValueError(f"gate cut {cut:.6g} counts is outside 0..{GATE_TOP:g}")
+    i = FEATURE_NAMES.index("max_brightness")
+
+    def put(values, v):
+        out = list(values)
+        out[i] = v
+        return tuple(out)
+
+    return record.replace(
+        mean=put(record.mean, (cut + GATE_TOP) / 2.0),
+        sigma=put(record.sigma, (GATE_TOP - cut) / 2.0),
+        weight=tuple(1.0 if k == i else 0.0 for k in range(len(FEATURE_NAMES))),
+        lower=put(record.lower, cut), upper=put(record.upper, GATE_TOP),
+        gof_threshold=0.5)

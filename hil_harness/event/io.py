@@ -1,0 +1,677 @@
+"""An event's products: the HDF5 recording, ``summary.json``, the figures, and the replay check.
+
+Recording layout (:mod:`.recording`, written in blocks as ``recording.partial.h5`` and renamed
+``recording.h5`` when complete; ``docs/formats.md``; every table one row per frame unless said)::
+
+    attrs     format, complete, run_id, software versions, scenario (name, raw TOML table as JSON),
+              seed, config (JSON: sequence, record, selection, TP overrides, processor models),
+              record_words (the record's uplink words), n_frames
+    tables/frames      k, t, imager, skip, n_candidates, n_blobs, alpha, locked, status, predicted and
+                       tracked pixels, error_urad, overrun, cycles per processor, gate counts, q_point
+    tables/attitude    the AttitudeData handed to the TP (replay feeds these back)
+    tables/truth       target pixel / in_field / LOS / range, imager attitude, number of stars
+    tables/candidates  one row per reported candidate: k, rank and the message's candidate fields
+    tables/ledger      one row per (frame, processor, stage): cycles
+    tables/switches    imager/record switches with their reasons
+    tables/tp          the TP's per-frame snapshot (scalars and fixed-size arrays)
+    arrays/message_words, arrays/command_words   the bus words, zero-padded, lengths in tables/frames
+    arrays/frames      uint16[N, 244, 256] (unless --no-frames), arrays/stage_<name> of one frame
+    host/timing        host wall time per stage (us); excluded from determinism checks
+    checksums          (dataset, row, adler32) of every stored row (``Recording.verify``)
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import platform
+import signal
+import time
+import uuid
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from flightsw.budget import DSP, IP1750, TP1750
+from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
+
+from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
+                   EventConfig, FrameOutcome)
+from .recording import Recorder, Recording
+from .run_folder import RunFolder
+
+MAX_COMMAND_WORDS = 128
+#: tables/ledger: one row per (frame, processor, stage)
+LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
+#: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
+GIF_MAX_FRAMES = 60
+_IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
+
+
+def _versions() -> dict:
+    import numba
+    from importlib.metadata import PackageNotFoundError, version
+    try:
+        uv = version("uvisi")
+    except PackageNotFoundError:
+        uv = "unknown"
+    return {"uvisi": uv, "numpy": np.__version__, "numba": numba.__version__,
+            "python": platform.python_version()}
+
+
+def _config_dict(ev: Event) -> dict:
+    c = ev.config
+    return {"sequence": ev.sequence.to_dict(), "record": ev.record_name,
+            "selection": asdict(c.selection), "overrun_policy": c.overrun_policy,
+            "tp": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.tp.items()},
+            "frames": ev.n_frames, "stage_frame": c.stage_frame, "hypothesis": c.hypothesis,
+            "processors": None if not c.processors else {
+                k: {"name": p.name, "clock_hz": float(p.clock_hz), "costs": dict(p.costs)}
+                for k, p in c.processors.items()}}
+
+
+def _pad(words, n) -> np.ndarray:
+    out = np.zeros(n, np.uint16)
+    if words is not None:
+        w = np.asarray(words, np.uint16)
+        if len(w) > n:
+            raise ValueError(f"message of {len(w)} words exceeds the recorded maximum {n}")
+        out[:len(w)] = w
+    return out
+
+
+def _f(x) -> float:
+    try:
+        return float(x)
+    except (TypeError, ValueError):
+        return float("nan")
+
+
+def _cmd_fields(cmd) -> dict:
+    """The track command's scalars for the frames table (NaN / -1 when there is no command)."""
+    if cmd is None:
+        return {"locked": np.int8(-1), "status": np.int32(-1), "n_star_gates": np.int16(-1),
+                "n_object_gates": np.int16(-1), "q_point": np.full(4, np.nan)}
+    q = np.asarray(getattr(cmd, "q_point", np.full(4, np.nan)), float)
+    return {"locked": np.int8(bool(cmd.locked)), "status": np.int32(int(getattr(cmd, "status", 0))),
+            "n_star_gates": np.int16(int(getattr(cmd, "n_star_gates", 0))),
+            "n_object_gates": np.int16(int(getattr(cmd, "n_object_gates", 0))), "q_point": q}
+
+
+class EventWriter:
+    """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
+    ``on_frame`` hook)."""
+
+    def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True,
+                 kill_at: int | None = None):
+        self.rec = recorder
+        self.ev = event
+        self.record_frames = record_frames
+        self.kill_at = kill_at
+        self._snap_kinds: dict = {}
+        self.stage_frame = None
+        self.record_s = 0.0           # host time spent here (appends and block writes)
+        self.frames = 0
+
+    @property
+    def mean_record_us(self) -> float | None:
+        """Mean host time per frame spent recording (us), block writes included."""
+        return 1e6 * self.record_s / self.frames if self.frames else None
+
+    def __call__(self, o: FrameOutcome) -> None:
+        t0 = time.perf_counter()
+        self._append(o)
+        self.rec.end_frame()
+        self.record_s += time.perf_counter() - t0
+        self.frames += 1
+        if self.kill_at is not None and o.k == self.kill_at:
+            os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
+
+    def _append(self, o: FrameOutcome) -> None:
+        r, L = self.rec, o.ledger
+        cyc = {p: (L.cycles(p) if L is not None else 0) for p in (DSP, IP1750, TP1750)}
+        row = {"k": np.int32(o.k), "t": np.float64(o.t), "imager": np.int8(IMAGER_CODES[o.imager]),
+               "skip": np.int8(o.skip),
+               "n_candidates": np.int16(o.message.count if o.message is not None else -1),
+               "n_blobs": np.int32(o.n_blobs), "alpha": np.float64(o.alpha),
+               "msg_len": np.int16(0 if o.message_words is None else len(o.message_words)),
+               "cmd_len": np.int16(0 if o.command_words is None else len(o.command_words)),
+               "pred_row": np.float64(o.pred_row), "pred_col": np.float64(o.pred_col),
+               "track_row": np.float64(o.track_row), "track_col": np.float64(o.track_col),
+               "error_urad": np.float64(o.error_urad), "overrun": np.int8(o.overrun),
+               "att_valid": np.int8(bool(getattr(o.attitude, "valid", True))),
+               "dsp_cycles": np.int64(cyc[DSP]), "ip1750_cycles": np.int64(cyc[IP1750]),
+               "tp1750_cycles": np.int64(cyc[TP1750])}
+        row.update(_cmd_fields(o.command))
+        r.append("frames", row, per_frame=True)
+        a = o.attitude
+        r.append("attitude", {"k": np.int32(o.k), "t": np.float64(a.t),
+                              "q": np.asarray(a.q_body_to_eci, np.float64),
+                              "rate": np.asarray(a.rate_body, np.float64),
+                              "r": np.asarray(a.r_eci, np.float64), "v": np.asarray(a.v_eci, np.float64),
+                              "valid": np.int8(bool(a.valid))}, per_frame=True)
+        tg = (o.truth or {}).get("target") or {}
+        r.append("truth", {"k": np.int32(o.k), "t": np.float64(o.t),
+                           "row": np.float64(_f(tg.get("row"))), "col": np.float64(_f(tg.get("col"))),
+                           "in_field": np.int8(bool(tg.get("in_field", False))),
+                           "los_eci": np.asarray(tg.get("los_eci", np.full(3, np.nan)), np.float64),
+                           "range_m": np.float64(_f(tg.get("range_m"))),
+                           "q_imager_to_eci": np.asarray((o.truth or {}).get("q_imager_to_eci",
+                                                                             np.full(4, np.nan)),
+                                                         np.float64),
+                           "n_stars": np.int32(len((o.truth or {}).get("stars", ())))},
+                 per_frame=True)
+        if o.message is not None and o.message.count:
+            c = o.message.candidates
+            rows = np.zeros(len(c), np.dtype([("k", np.int32), ("rank", np.int16)] +
+                                             CANDIDATE_DTYPE.descr))
+            rows["k"] = o.k
+            rows["rank"] = np.arange(1, len(c) + 1)
+            for n in CANDIDATE_DTYPE.names:
+                rows[n] = c[n]
+            r.append_rows("candidates", rows)
+        if L is not None:
+            led = [(o.k, p.encode(), s.encode(), cy) for p in L.processors
+                   for s, cy in L.stages(p).items()]
+            if led:
+                r.append_rows("ledger", np.array(led, LEDGER_DTYPE))
+        for sw in o.switches:
+            r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
+                                  "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
+        snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
+        if snap:
+            r.append("tp", snap)
+        r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
+        r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
+        if self.record_frames:
+            r.append_array("frames", o.frame, per_frame=True)
+        if o.stages:
+            for name, img in o.stages:
+                r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
+            self.stage_frame = int(o.k)          # an attribute, set when the recording closes
+        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
+                                       for k in ("render", "ip", "tp", "world", "total")}})
+
+
+def _snapshot_row(tp, k, kinds: dict) -> dict:
+    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays); ``kinds`` caches
+    how each key is stored ("s" string, "v" value, "x" left out) across frames."""
+    snap = getattr(tp, "snapshot", None)
+    if snap is None:
+        return {}
+    row = {"k": np.int32(k)}
+    for key, v in snap().items():
+        kind = kinds.get(key)
+        if kind is None:
+            a = np.asarray(v)
+            kind = kinds[key] = "s" if a.dtype.kind in "US" or a.dtype == object else \
+                "x" if a.dtype.names is not None else "v"
+        if kind == "v":
+            row[key] = v
+        elif kind == "s":
+            row[key] = str(v)[:64]
+    return row
+
+
+# ================================================================================================
+# summary
+# ================================================================================================
+def _pct(x, q):
+    x = np.asarray(x, float)
+    x = x[np.isfinite(x)]
+    return float(np.percentile(x, q)) if len(x) else None
+
+
+def summarise(ev: Event) -> dict:
+    """The event's ``summary.json`` content (plain data)."""
+    outs = ev.outcomes
+    n = len(outs)
+    cmds = [o.command for o in outs]
+    locked = np.array([bool(c.locked) if c is not None else False for c in cmds])
+    lock_frame = int(np.argmax(locked)) if locked.any() else None
+    in_field = np.array([bool(((o.truth or {}).get("target") or {}).get("in_field", False))
+                         for o in outs])
+    first_in = int(np.argmax(in_field)) if in_field.any() else None
+    err = np.array([o.error_urad for o in outs], float)
+    after = err[lock_frame:] if lock_frame is not None else err[:0]
+    imager_px = {iid: 1e6 * math.hypot(g[0], g[1]) / math.sqrt(2) for iid, g in ev.geometry.items()}
+    comp = ev.sequence.preprocess.compaction
+    # star/object decision: the first frame the TP says it verified the object
+    dec = None
+    for o in outs:
+        c = o.command
+        if c is not None and getattr(c, "decided", False):
+            dec = o
+            break
+    decision = {"frame": None, "t": None, "latency_frames": None, "latency_s": None,
+                "correct": None}
+    if dec is not None:
+        decision["frame"], decision["t"] = dec.k, dec.t
+        if first_in is not None:
+            decision["latency_frames"] = dec.k - first_in
+            decision["latency_s"] = (dec.k - first_in) * FRAME_DT
+        tg = (dec.truth or {}).get("target") or {}
+        if tg.get("in_field") and np.isfinite(dec.track_row):
+            sc, sr, _ = ev.geometry[dec.imager]
+            e = math.hypot((dec.track_col - tg["col"]) * sc, (dec.track_row - tg["row"]) * sr)
+            decision["correct"] = bool(e <= 3 * comp * math.hypot(sc, sr) / math.sqrt(2))
+    budget = {}
+    for p in (DSP, IP1750, TP1750):
+        ms = np.array([1e3 * o.ledger.seconds(p) for o in outs if o.ledger is not None and o.skip == 0])
+        budget[p] = {"worst_ms": float(ms.max()) if len(ms) else 0.0,
+                     "median_ms": float(np.median(ms)) if len(ms) else 0.0,
+                     "worst_frame": int([o.k for o in outs if o.ledger is not None and o.skip == 0]
+                                        [int(np.argmax(ms))]) if len(ms) else None}
+    budget["overruns"] = int(sum(o.overrun for o in outs))
+    host_total = np.array([o.host_us.get("total", np.nan) for o in outs])
+    stages_us = {}
+    for key in ("render", "ip", "tp", "world"):
+        v = np.array([o.host_us.get(key, np.nan) for o in outs])
+        stages_us[key] = _pct(v, 50)
+    loop_s = float(np.nansum(host_total)) * 1e-6
+    status_counts = {}
+    for c in cmds:
+        if c is not None:
+            for name in getattr(c, "status_names", lambda: [])():
+                status_counts[name] = status_counts.get(name, 0) + 1
+    ttype = ev.object_type
+    from .metrics import held_after_lock
+    held = held_after_lock(outs, ev.geometry, comp)
+    held_err = held.pop("error_px")
+    return {
+        "scenario": ev.scenario.name, "seed": int(ev.scenario.seed), "object_type": ttype,
+        "frames": n, "duration_s": n * FRAME_DT,
+        "frames_processed": int(sum(o.skip == SKIP_NONE for o in outs)),
+        "frames_skipped": {"dropped": int(sum(o.skip == SKIP_DROPPED for o in outs)),
+                           "overrun": int(sum(o.skip == SKIP_OVERRUN for o in outs))},
+        "attitude_invalid_frames": int(sum(not bool(getattr(o.attitude, "valid", True)) for o in outs)),
+        "lock_frame": lock_frame, "lock_t": None if lock_frame is None else lock_frame * FRAME_DT,
+        "locked_fraction_after_lock": float(locked[lock_frame:].mean()) if lock_frame is not None else 0.0,
+        "held_fraction_after_lock": held["rate"],
+        "held_after_lock": {**held, "definition": (
+            "frames k after the lock frame L (k > L, dropped and skipped frames included) on which the "
+            "TP command in force (the last one issued before k) is locked, the object is in the field "
+            "and the prediction for k lies within radius_px processed pixels (compaction x imager "
+            "pixel) of the true pixel; rate = k / n, ci95 Wilson")},
+        "track_error_processed_px": {"median": _pct(held_err, 50), "p90": _pct(held_err, 90),
+                                     "n": int(np.isfinite(held_err).sum()),
+                                     "definition": "the prediction error on the frames counted by "
+                                                   "held_after_lock, in processed pixels"},
+        "first_frame_in_field": first_in,
+        "decision": decision,
+        "track_error_urad": {"median": _pct(after, 50), "p90": _pct(after, 90), "p997": _pct(after, 99.7),
+                             "max": _pct(after, 100), "n": int(np.isfinite(after).sum()),
+                             "definition": "the TP's predicted object pixel for a frame (made the frame "
+                                           "before) against the true pixel, as an angle"},
+        "processed_pixel_urad": {iid: v * comp for iid, v in imager_px.items()},
+        "budget": budget,
+        "host": {"loop_s": loop_s, "median_frame_us": _pct(host_total, 50),
+                 # steady state: the median frame, so first-frame cache loads do not count
+                 "real_time_factor": (1e6 * FRAME_DT / _pct(host_total, 50))
+                 if _pct(host_total, 50) else None,
+                 "compile_s": float(np.nansum([o.host_us.get("compile", 0.0) for o in outs])) * 1e-6,
+                 "median_stage_us": stages_us},
+        "switches": [{"frame": s.frame, "t": s.t, "kind": s.kind, "from": s.old, "to": s.new,
+                      "reason": s.reason} for s in ev.switches],
+        "faults": list(ev.events_log),
+        "uplinks": list(ev.uplinks_log),
+        "bus": {"commands_rejected_by_ip": int(ev.ip.rejected_commands),
+                "candidate_messages_rejected_by_tp": int(status_counts.get("bad_message", 0))},
+        "tp_status_frames": status_counts,
+        "sequence": ev.sequence.name, "record": ev.record_name,
+    }
+
+
+def summary_table(s: dict) -> str:
+    """A short human-readable table of the summary."""
+    te = s["track_error_urad"]
+    fmt = lambda v, f="{:.1f}": "-" if v is None else f.format(v)  # noqa: E731
+    b = s["budget"]
+    lines = [
+        f"event {s['scenario']} (seed {s['seed']}, {s['object_type']}): {s['frames']} frames, "
+        f"{s['frames_processed']} processed, skipped {s['frames_skipped']['dropped']} dropped / "
+        f"{s['frames_skipped']['overrun']} overrun",
+        f"  lock frame          {fmt(s['lock_frame'], '{}')}  (t = {fmt(s['lock_t'], '{:.1f}')} s)",
+        f"  object decision     frame {fmt(s['decision']['frame'], '{}')}, latency "
+        f"{fmt(s['decision']['latency_frames'], '{}')} frames, correct {s['decision']['correct']}",
+        f"  track error (urad)  median {fmt(te['median'])}  p90 {fmt(te['p90'])}  "
+        f"p99.7 {fmt(te['p997'])}  (n = {te['n']})",
+    ]
+    if "held_after_lock" in s:
+        h, tp = s["held_after_lock"], s["track_error_processed_px"]
+        lines.append(f"  held after lock     {s['held_fraction_after_lock']:.1%} ({h['k']}/{h['n']} frames "
+                     f"within {h['radius_px']:g} processed px, 95 % CI {h['ci95'][0]:.1%}-"
+                     f"{h['ci95'][1]:.1%}); error median {fmt(tp['median'], '{:.2f}')} p90 "
+                     f"{fmt(tp['p90'], '{:.2f}')} processed px")
+    for p in (DSP, IP1750, TP1750):
+        lines.append(f"  budget {p:<7}      median {b[p]['median_ms']:.2f} ms  worst "
+                     f"{b[p]['worst_ms']:.2f} ms of 500")
+    lines.append(f"  overruns            {b['overruns']}")
+    h = s["host"]
+    lines.append(f"  host                {fmt(h['median_frame_us'], '{:.0f}')} us/frame median, "
+                 f"real-time factor {fmt(h['real_time_factor'], '{:.0f}')}x")
+    for sw in s["switches"]:
+        lines.append(f"  switch at frame {sw['frame']}: {sw['kind']} {sw['from']} -> {sw['to']} "
+                     f"({sw['reason']})")
+    for f in s.get("faults", []):
+        if f["kind"] in ("attitude_gap",):
+            continue                        # one line per gap frame would drown the rest
+        lines.append(f"  fault at frame {f['frame']}: {f['kind']} -> {f['verdict']} ({f['reaction']})")
+    gaps = [f["frame"] for f in s.get("faults", []) if f["kind"] == "attitude_gap"]
+    if gaps:
+        lines.append(f"  attitude gap        {len(gaps)} frames ({gaps[0]}..{gaps[-1]}): the TP "
+                     f"propagated without attitude data")
+    for u in s.get("uplinks", []):
+        why = f": {u['reason']}" if u["reason"] else f", in force from frame {u['effective_frame']}"
+        lines.append(f"  uplink at t = {u['t']:.1f} s: {u['kind']} {u['source']} "
+                     f"{u['verdict']}{why}")
+    return "\n".join(lines)
+
+
+# ================================================================================================
+# figures
+# ================================================================================================
+def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
+    """The figures of issue 8 beside the recording; returns their paths."""
+    from hil_harness import figures as fig
+    from hil_harness.console import note
+    note(f"uvisi event: writing the figures{' and the GIF' if gif else ''} to {out_dir} ...")
+    out_dir = Path(out_dir)
+    outs = ev.outcomes
+    paths = []
+    t = np.array([o.t for o in outs])
+    st = next((o for o in outs if o.stages), None)
+    if st is not None:
+        paths.append(fig.stages(st.stages, out_dir / "stages.png",
+                                title=f"{ev.scenario.name}: processing stages of frame {st.k}"))
+    tr = np.array([o.track_row for o in outs])
+    tc = np.array([o.track_col for o in outs])
+    truth_r = np.array([_f(((o.truth or {}).get("target") or {}).get("row")) for o in outs])
+    truth_c = np.array([_f(((o.truth or {}).get("target") or {}).get("col")) for o in outs])
+    paths.append(fig.centroid_track(t, tr, tc, out_dir / "centroid_track.png", truth_r, truth_c,
+                                    title=f"{ev.scenario.name}: tracked object centroid",
+                                    zoom=True))
+    comp = ev.sequence.preprocess.compaction
+    iid = outs[0].imager if outs else ev.scenario.imager
+    g = ev.geometry[iid]
+    locked = [o.k for o in outs if o.command is not None and o.command.locked]
+    paths.append(fig.track_error(t, [o.error_urad for o in outs], out_dir / "track_error.png",
+                                 pixel_urad=1e6 * comp * math.hypot(g[0], g[1]) / math.sqrt(2),
+                                 lock_t=locked[0] * FRAME_DT if locked else None))
+    ns = np.array([getattr(o.command, "n_star_gates", 0) if o.command is not None else 0 for o in outs])
+    no = np.array([getattr(o.command, "n_object_gates", 0) if o.command is not None else 0 for o in outs])
+    dec = next((o.t for o in outs if o.command is not None and getattr(o.command, "decided", False)),
+               None)
+    paths.append(fig.gate_history(t, ns, no, out_dir / "gates.png", decision_t=dec))
+    per_stage = {}
+    ks = np.array([o.k for o in outs])
+    for i, o in enumerate(outs):
+        if o.ledger is None:
+            continue
+        for p, proc in o.ledger.processors.items():
+            for s, c in o.ledger.stages(p).items():
+                key = f"{p}/{s}"
+                per_stage.setdefault(key, np.zeros(len(outs)))[i] = 1e3 * proc.seconds(c)
+    paths.append(fig.budget(ks, per_stage, out_dir / "budget.png",
+                            title=f"{ev.scenario.name}: emulated flight time per frame"))
+    if gif:
+        frames, marks = [], []
+        stride = max(1, -(-len(outs) // GIF_MAX_FRAMES))
+        for o in outs[::stride]:
+            if o.frame is None:
+                continue
+            frames.append(o.frame)
+            m = {"t": o.t, "frame": o.k}
+            if o.message is not None and o.message.count:
+                m["candidates"] = np.stack([o.message.candidates["row"], o.message.candidates["col"]], 1)
+            if np.isfinite(o.track_row):
+                m["tracked"] = (o.track_row, o.track_col)
+            if np.isfinite(o.pred_row):
+                m["gate"] = (o.pred_row, o.pred_col, 32 * comp)
+            tg = (o.truth or {}).get("target") or {}
+            if tg.get("in_field"):
+                m["truth"] = (tg["row"], tg["col"])
+            marks.append(m)
+        if frames:
+            paths.append(fig.event_gif(frames, out_dir / "event.gif", marks, fps=4 * stride // 2 or 2,
+                                       scale=1))
+    return paths
+
+
+# ================================================================================================
+# run_event / replay
+# ================================================================================================
+#: test hook: ``UVISI_TEST_KILL_AT_FRAME=k`` makes a recorded event SIGKILL itself once frame k is
+#: handed to the recorder (the kill tests use it instead of timing)
+KILL_HOOK_ENV = "UVISI_TEST_KILL_AT_FRAME"
+
+
+class EventInterrupted(KeyboardInterrupt):
+    """An interrupted recorded event: ``recording`` (the partial file kept), ``frames`` (held)."""
+
+    def __init__(self, recording: Path, frames: int):
+        super().__init__(f"interrupted; partial recording {recording} holds {frames} frames")
+        self.recording = recording
+        self.frames = frames
+
+
+def _kill_hook() -> int | None:
+    v = os.environ.get(KILL_HOOK_ENV)
+    if v is None or v == "":
+        return None
+    try:
+        return int(v)
+    except ValueError:
+        raise ValueError(f"{KILL_HOOK_ENV}={v!r}: must be a frame number") from None
+
+
+def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frames: int | None = None,
+              out: str | Path | None = None, record_frames: bool = True, figures: bool = True,
+              progress: bool = False, force: bool = False, flush_every: int = 20,
+              **config) -> dict:
+    """Run one closed-loop event; with ``out`` write the recording, figures and ``summary.json`` there.
+
+    Parameters
+    ----------
+    scenario : str or Path
+        Shipped scenario name or TOML path.
+    seed, frames : optional
+        Seed override, frame limit.
+    out : directory, optional
+        Output directory (created; locked while the event runs). Without it nothing is written.
+    record_frames : bool
+        Store every frame in the recording (needed by ``uvisi replay``).
+    figures : bool
+        Write the figures (only with ``out``).
+    force : bool
+        Replace another run found in ``out`` (otherwise ``ValueError``).
+    flush_every : int
+        Frames per recording block (the most a kill loses).
+    **config
+        Further :class:`~hil_harness.event.EventConfig` fields (sequence, record, selection, tp, ...).
+
+    Returns
+    -------
+    dict : the summary (``summary.json``), plus ``"recording"`` and ``"figures"`` paths when written.
+
+    Raises
+    ------
+    EventInterrupted
+        On SIGINT (KeyboardInterrupt): the frames recorded so far are kept in
+        ``recording.partial.h5`` (``complete`` = False).
+    """
+    cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
+    ev = Event(cfg, keep_frames=bool(out) and figures)
+    if out is None:
+        ev.run(progress=progress)
+        return summarise(ev)
+    kill_at = _kill_hook()
+    with RunFolder(out, replace=force):
+        return _run_recorded(ev, Path(out), record_frames, figures, progress, flush_every, kill_at)
+
+
+def _recorded_scenario(ev: Event) -> dict:
+    """The scenario as it is stored in the recording: its uplinks name their recorded words
+    (attribute ``uplink_words``) instead of files that may change or be elsewhere at replay."""
+    raw = _jsonable(ev.scenario.raw)
+    for i, u in enumerate(raw.get("uplinks", []) or []):
+        if isinstance(u, dict):
+            for key in ("record", "sequence"):
+                if key in u:
+                    u[key] = f"recorded:{i}"
+    return raw
+
+
+def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, progress: bool,
+                  flush_every: int, kill_at: int | None) -> dict:
+    run_id = uuid.uuid4().hex
+    rec = Recorder(out / "recording.h5", attrs={
+        "run_id": run_id, "versions": _versions(), "scenario": ev.scenario.name,
+        "scenario_raw": _recorded_scenario(ev), "seed": int(ev.scenario.seed),
+        "uplink_words": [np.asarray(w).tolist() for w in ev.uplink_words],
+        "config": _config_dict(ev), "record_words": ev.record.to_words().tolist(),
+        "n_frames": int(ev.n_frames), "record_frames": bool(record_frames)},
+        flush_every=flush_every)
+    writer = EventWriter(rec, ev, record_frames, kill_at=kill_at)
+    try:
+        ev.run(progress=progress, on_frame=writer)
+    except KeyboardInterrupt:
+        path = rec.keep()
+        raise EventInterrupted(path, rec.frames_written) from None
+    except OSError as exc:         # the disk is full, the folder went away...
+        try:
+            rec.keep()
+        except OSError:
+            pass
+        raise ValueError(f"{rec.partial}: cannot write the recording ({exc.strerror or exc}); "
+                         f"the {rec.frames_written} frames written before are kept") from None
+    except BaseException:
+        rec.keep()                 # what was recorded stays readable, marked incomplete
+        raise
+    s = summarise(ev)
+    s["run_id"] = run_id
+    s["host"]["mean_record_us"] = writer.mean_record_us
+    rec.set_attr("summary", s)
+    if writer.stage_frame is not None:
+        rec.set_attr("stage_frame", writer.stage_frame)
+    path = rec.close()
+    s["recording"] = str(path)
+    if figures:
+        s["figures"] = [str(p) for p in event_figures(ev, out)]
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(s, indent=2, default=_json_default))
+    tmp.replace(out / "summary.json")
+    return s
+
+
+def _json_default(o):
+    if isinstance(o, (np.integer,)):
+        return int(o)
+    if isinstance(o, (np.floating,)):
+        return float(o)
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    return str(o)
+
+
+def _jsonable(d):
+    return json.loads(json.dumps(d, default=_json_default))
+
+
+class _ReplayEvent(Event):
+    """An Event fed from a recording's frames and attitude data instead of the ground simulator."""
+
+    def __init__(self, config, recording: Recording):
+        self._rec = recording
+        self._frames_ds = recording.array("frames")
+        self._att = recording.table("attitude")
+        self._fr = recording.table("frames")
+        self._truth = recording.table("truth")
+        super().__init__(config, keep_frames=False)
+
+    def _uplink_words(self, index, uplink):
+        """The uplink's words as recorded (the scenario's files are not needed to replay)."""
+        return np.asarray(self._rec.attrs["uplink_words"][index], np.uint16)
+
+    def _acquire(self, k, imager):
+        from flightsw.messages import AttitudeData
+        a = self._att[k]
+        att = AttitudeData(float(a["t"]), np.array(a["q"]), np.array(a["rate"]), np.array(a["r"]),
+                           np.array(a["v"]), bool(a["valid"]))
+        tr = self._truth[k]
+        truth = {"target": {"row": float(tr["row"]), "col": float(tr["col"]),
+                            "in_field": bool(tr["in_field"])}}
+        return att, np.asarray(self._frames_ds[k]), truth, int(self._fr[k]["skip"]) == SKIP_DROPPED
+
+
+def _replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
+    """The :class:`EventConfig` a recording was made with (scenario, sequence, record, selection,
+    TP overrides, processor models), for its first ``n`` frames."""
+    from flightsw.budget import Processor
+    from flightsw.ip import ProcessingSequence
+    from flightsw.records import Record
+    from groundsim.scenario import Scenario
+    from .selection import SelectionParams
+    at = rec.attrs
+    cfgd = at["config"] if isinstance(at["config"], dict) else json.loads(at["config"])
+    raw = at["scenario_raw"] if isinstance(at["scenario_raw"], dict) else json.loads(at["scenario_raw"])
+    scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=int(at["seed"]))
+    record = cfgd["record"]
+    if "record_words" in at:                      # the record as uplinked, not a file that may change
+        record = Record.from_words(np.asarray(at["record_words"], np.int64), name=str(cfgd["record"]))
+    procs = cfgd.get("processors")
+    if procs:
+        procs = {k: Processor(v["name"], float(v["clock_hz"]), dict(v["costs"])) for k, v in procs.items()}
+    return EventConfig(scenario=scn, frames=n, sequence=ProcessingSequence.from_dict(cfgd["sequence"]),
+                       record=record, selection=SelectionParams(**cfgd["selection"]),
+                       tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
+                       processors=procs or None, hypothesis=cfgd.get("hypothesis"))
+
+
+def replay(path) -> dict:
+    """Verify a recording's checksums, then re-run the flight code (IP + TP) on its frames and
+    attitude data and compare every candidate message and track command word with the recorded ones.
+    A partial recording (``complete`` = False) is replayed over the frames it holds.
+
+    Returns ``{"recording", "complete", "planned", "frames", "verified", "checksums", "compared",
+    "identical", "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and
+    replayed, ``verified``: frames whose stored data matched their checksums, ``checksums``: False
+    for a recording made before them (nothing verified), ``planned``: the event's length).
+
+    Raises
+    ------
+    RecordingDamaged
+        (a ``ValueError``) naming the dataset and frame whose stored data changed.
+    """
+    path = Path(path)
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no such recording")
+    with Recording(path) as rec:
+        at = rec.attrs
+        checked = rec.verify() if rec.has_checksums else {"frames": 0}
+        n = rec.n_frames or 0
+        out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
+               "frames": n, "verified": checked["frames"], "checksums": rec.has_checksums,
+               "compared": 0, "identical": True, "mismatches": []}
+        if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
+            raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
+                             f"replay needs them")
+        if n == 0:
+            return out
+        ev = _ReplayEvent(_replay_config(path, rec, n), rec)
+        fr = rec.table("frames")
+        mw, cw = rec.array("message_words"), rec.array("command_words")
+        mism = []
+        for k in range(n):
+            o = ev.step()
+            for what, got, ds, ln in (("message", o.message_words, mw, fr[k]["msg_len"]),
+                                      ("command", o.command_words, cw, fr[k]["cmd_len"])):
+                want = np.asarray(ds[k])[:int(ln)]
+                g = np.zeros(0, np.uint16) if got is None else np.asarray(got, np.uint16)
+                if len(g) != len(want) or not np.array_equal(g, want):
+                    diff = np.nonzero(g[:min(len(g), len(want))] != want[:min(len(g), len(want))])[0]
+                    mism.append({"k": k, "what": what,
+                                 "first_word": int(diff[0]) if len(diff) else min(len(g), len(want))})
+        out.update(compared=2 * n, identical=not mism, mismatches=mism)
+        return out
