@@ -2,9 +2,9 @@
 in ``flightsw`` and ``hil_harness`` no private name imported from another module or read as
 ``module._name``, no import cycle; in ``flightsw`` no function longer than ~120 lines.
 
-Existing offenders outside the track processor are listed in explicit allow-lists below (each with
-the place it lives) so that any NEW offender fails. Owners who fix an entry delete it from the list
-(a fixed entry does not fail the test, so parallel branches can fix theirs independently).
+The allow-lists below are empty: every offender that predated the test has been fixed, so any
+offender fails. (A fixed entry left in a list would not fail, which let parallel branches fix
+theirs independently.)
 """
 from __future__ import annotations
 
@@ -17,11 +17,10 @@ ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("flightsw", "hil_harness")
 MAX_FUNCTION_LINES = 120
 
-# ---- allow-lists: offenders that predate this test (to be fixed by their owners) -----------------
-#: (importing module, imported module, name) private imports across modules (they belong to
-#: flightsw.arith, flightsw.ip and hil_harness)
-ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = {
-}
+# ---- allow-lists: empty (every offender that predated this test is fixed); an entry here would
+# name a known exception, with its owner
+#: (importing module, imported module, name) private imports across modules
+ALLOWED_PRIVATE_IMPORTS: set[tuple[str, str, str]] = set()
 #: (module, accessed module, name) ``module._name`` reads
 ALLOWED_PRIVATE_ACCESS: set[tuple[str, str, str]] = set()
 #: import cycles, each as the sorted tuple of its modules
