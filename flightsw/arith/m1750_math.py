@@ -588,8 +588,8 @@ def _cos_poly48(r):
 @njit(cache=True, inline="always")
 def _trig32(x, quad_shift):
     """``sin x`` (``quad_shift = 0``) or ``cos x`` (``quad_shift = 1``, ``cos x = sin(x + pi/2)``)
-    of a packed 32-bit float ``x`` -> ``(word, flags)``: 48-bit reduction, quadrant ``q = (n +
-    quad_shift) & 3``, 32-bit polynomial.
+    of a packed 32-bit float ``x`` -> ``(word, flags)``: 48-bit reduction, quadrant
+    ``q = (n + quad_shift) & 3``, 32-bit polynomial.
 
     Cases
     -----
