@@ -146,8 +146,10 @@ def test_atan2_error(W, name):
     _check(name, W, (y, x), np.arctan2, args=2)
 
 
-@pytest.mark.cases("flightsw.arith.m1750_math._sqrt32_k", "zero", "negative")
-@pytest.mark.cases("flightsw.arith.m1750_math._sqrt48_k", "zero", "negative")
+@pytest.mark.cases("flightsw.arith.m1750_math._sqrt32_k",
+                   "zero", "negative", "even-exponent", "odd-exponent")
+@pytest.mark.cases("flightsw.arith.m1750_math._sqrt48_k",
+                   "zero", "negative", "even-exponent", "odd-exponent")
 @pytest.mark.cases("flightsw.arith.m1750_math._exp32_k",
                    "zero", "saturate-high", "saturate-low", "overflow", "underflow")
 @pytest.mark.cases("flightsw.arith.m1750_math._scale32", "overflow-positive", "underflow")
@@ -180,6 +182,7 @@ def test_math_special_cases():
     assert m.sqrt32(0) == (0, 0) and m.sqrt48(0) == (0, 0)
     assert m.sqrt32(E32(-4.0)) == (0, m.FLAG_DOMAIN) and m.sqrt48(E48(-4.0)) == (0, m.FLAG_DOMAIN)
     assert D32(m.sqrt32(E32(4.0))[0]) == 2.0 and m.decode48(m.sqrt48(E48(9.0))[0]) == 3.0
+    assert m.sqrt32(E32(9.0)) == (E32(3.0), 0) and m.sqrt48(E48(4.0)) == (E48(2.0), 0)
     assert m.exp32(0) == (m.ONE32, 0)
     assert m.exp32(E32(89.0)) == (m.MAX32, m.FLAG_FLOAT_OVERFLOW)
     assert m.exp32(E32(300.0)) == (m.MAX32, m.FLAG_FLOAT_OVERFLOW)

@@ -235,9 +235,9 @@ def _sqrt32_k(x):
     zero : ``x = 0`` returns ``(0, 0)``.
     negative : ``x < 0`` returns ``(0, FLAG_DOMAIN)``.
     even-exponent : ``x = f * 2**e``, ``e`` even: ``g = f`` in [0.5, 1), result exponent + ``e/2``;
-        within 1.5 ulp of sqrt(x) (exact squares such as 4 -> 2, 9 -> 3 come out exact).
-    odd-exponent : ``e`` odd: ``g = f/2`` in [0.25, 0.5), result exponent + ``(e+1)/2``; within 1.5
-        ulp.
+        within 1.5 ulp of sqrt(x) (9 -> 3 exactly).
+    odd-exponent : ``e`` odd: ``g = f/2`` in [0.25, 0.5), result exponent + ``(e+1)/2``; within
+        1.5 ulp (4 = 0.5 * 2**3 -> 2 exactly).
     range-ends : the smallest (``0.5 * 2**-128``) and largest (``MAX32``) magnitudes: ``k`` stays
         in -64..64, so the result never overflows or underflows; within 1.5 ulp, flags 0.
     """
