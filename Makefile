@@ -13,7 +13,7 @@ $(STAMP_RUN): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --progress-bar on -e . | grep -E --line-buffered '^(Collecting|Successfully)' || true
-	@$(BIN)/python -c "import hil_harness.event_io" || (echo "make: the install failed" >&2; exit 1)
+	@$(BIN)/python -c "import hil_harness.event.io" || (echo "make: the install failed" >&2; exit 1)
 	@touch $(STAMP_RUN)
 
 $(STAMP): $(STAMP_RUN)

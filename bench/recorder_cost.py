@@ -1,7 +1,7 @@
 """The event recorder's cost alone: ``python -m bench.recorder_cost [REPEATS]``.
 
 Runs the 181 frames of ``satellite_over_stars`` once, keeping every frame's outcome in memory, then
-writes them REPEATS times (default 4) through :class:`hil_harness.event_io.EventWriter` into a fresh
+writes them REPEATS times (default 4) through :class:`hil_harness.event.io.EventWriter` into a fresh
 recording (open, every frame, close) and prints the mean wall and CPU time per frame, the median
 per-frame call (appends only; every 20th call also writes a block) and the file size. CPU time is
 given beside wall time because on a shared machine the wall time mostly measures the neighbours.
@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from hil_harness.event import Event, EventConfig
-from hil_harness.event_io import EventWriter
-from hil_harness.recording import Recorder
+from hil_harness.event.io import EventWriter
+from hil_harness.event.recording import Recorder
 
 
 def main(argv=None) -> int:

@@ -20,8 +20,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from hil_harness.event_io import replay
-from hil_harness.recording import Recording, RecordingDamaged
+from hil_harness.event.io import replay
+from hil_harness.event.recording import Recording, RecordingDamaged
 
 
 def _command(out: Path) -> list[str]:

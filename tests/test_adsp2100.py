@@ -25,17 +25,22 @@ def q15(w):
 
 
 # ---------------------------------------------------------------- MAC
+@pytest.mark.cases("flightsw.arith.adsp2100.product40", "signed")
+@pytest.mark.cases("flightsw.arith.adsp2100._mac_k", "set")
 def test_fractional_product_half_times_half():
     mr, mv = dsp.mac(0, 0x4000, 0x4000, op="=")
     assert mr == 0x00_2000_0000 and mv == 0          # 0.5 * 0.5 = 0.25 in MR1
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.product40", "minus-one-squared")
+@pytest.mark.cases("flightsw.arith.adsp2100._mac_k", "mv")
 def test_minus_one_squared_follows_manual_not_mame():
     mr, mv = dsp.mac(0, 0x8000, 0x8000, op="=", signs="ss")
     assert dsp.DECISION_8000_SQUARED == "manual"
     assert (mr, mv) == (0x00_8000_0000, 1)            # +1.0 does not fit 1.31: MV set
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.product40", "unsigned-as-signed")
 def test_uu_product_is_taken_as_signed_32_bits():
     mr, _ = dsp.mac(0, 0xFFFF, 0xFFFF, op="=", signs="uu")
     assert s40(mr) == (0xFFFE0001 - (1 << 32)) * 2
@@ -43,6 +48,7 @@ def test_uu_product_is_taken_as_signed_32_bits():
     assert s40(mr) == 0x7FFF * 0x7FFF * 2
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.product40", "mixed")
 def test_mixed_signedness():
     mr, _ = dsp.mac(0, 0xFFFF, 0x0002, op="=", signs="su")   # -1 * 2
     assert s40(mr) == -4
@@ -61,6 +67,7 @@ def test_accumulation_is_exact_rational_sum_and_mv_flags_overflow(terms):
     assert mv == (not (-1 <= exact < 1))                        # MV: does not fit 1.31
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._mac_k", "wrap-40")
 def test_40_bit_wraparound_after_many_overflows():
     mr = 0
     for _ in range(300):                                        # 300 * (+1.0) = 2**31 * 300 > 2**39
@@ -68,6 +75,7 @@ def test_40_bit_wraparound_after_many_overflows():
     assert mr == (300 * (1 << 31)) & dsp.MASK40
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._sat_mr_k", "no-mv", "positive", "negative")
 def test_sat_mr_values():
     assert dsp.sat_mr(0x00_8000_0000) == 0x00_7FFF_FFFF
     assert dsp.sat_mr(0xFF_7FFF_FFFF) == 0xFF_8000_0000
@@ -86,12 +94,15 @@ def test_rnd_is_round_half_even_of_mr_over_2_16(v):
     assert out & 0xFFFF == ((v & 0xFFFF) + 0x8000) & 0xFFFF    # MR0 = old + 0x8000
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.rnd40", "tie-even", "above-half")
+@pytest.mark.cases("flightsw.arith.adsp2100._rnd_mr_k", "tie-even", "round")
 def test_rnd_midpoints():
     assert dsp.rnd_mr(0x00_0001_8000) >> 16 == 0x0002          # 1.5 -> 2
     assert dsp.rnd_mr(0x00_0002_8000) >> 16 == 0x0002          # 2.5 -> 2
     assert dsp.rnd_mr(0x00_0002_8001) >> 16 == 0x0003
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._mac_k", "rnd-tie-full-sum")
 def test_rnd_midpoint_tests_full_sum_as_the_manual_says():
     # product low word 0x4000, MR low word 0x4000: the sum sits exactly on the midpoint
     mr, _ = dsp.mac(0x00_0000_4000, 0x2000, 0x0001, op="+", rnd=True)
@@ -115,6 +126,7 @@ def test_alu_add_and_sub_flags_against_integer_arithmetic(x, y):
     assert s16(sat) == max(-32768, min(32767, s16(x) - s16(y)))
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._alu_add_k", "sat-positive", "sat-negative")
 def test_ar_sat_rule():
     assert dsp.alu_add(0x7FFF, 0x0001, ar_sat=True) == (0x7FFF, 0, 1)
     assert dsp.alu_add(0x8000, 0xFFFF, ar_sat=True) == (0x8000, 1, 1)
@@ -133,6 +145,8 @@ def test_ashift_lshift_are_multiplications_by_powers_of_two(x, n):
     assert l_lo == ((x << n) & 0xFFFFFFFF if n >= 0 else x >> -n) or abs(n) >= 32
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._ashift_k", "right-off-scale", "left-off-scale")
+@pytest.mark.cases("flightsw.arith.adsp2100._lshift_k", "right-off-scale")
 def test_shift_off_scale_counts():
     assert dsp.ashift(0x8000, -40) == 0xFFFFFFFF                # all sign bits
     assert dsp.ashift(0x4000, -40) == 0
@@ -163,6 +177,8 @@ def test_double_precision_exponent(v):
     assert se == -redundant
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._exp_hi_k", "hix-overflow")
+@pytest.mark.cases("flightsw.arith.adsp2100._norm_k", "hi-carry-right")
 def test_exp_hix_after_overflow_and_norm_recovers_with_carry():
     ar, ac, av = dsp.alu_add(0x7000, 0x7000)                    # overflow: 0xE000, carry 0
     se, _ = dsp.exp_hi(ar, hix=True, av=av)
@@ -171,6 +187,7 @@ def test_exp_hix_after_overflow_and_norm_recovers_with_carry():
     assert sr >> 16 == 0x7000                                   # (0x7000 + 0x7000) / 2
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100._expadj_k", "initial", "larger")
 def test_expadj_block_exponent():
     sb = -16
     for w in (0x0010, 0xFF00, 0x0200):
@@ -232,6 +249,7 @@ def _oracle_correlate(img, kern):
 
 
 @pytest.mark.parametrize("k", [3, 5, 7])
+@pytest.mark.cases("flightsw.arith.adsp2100.correlate_valid_q15", "typical")
 def test_correlate_equals_rounded_scipy_on_12_bit_images(k):
     rng = np.random.default_rng(k)
     img = rng.integers(0, 4096, (70, 70)).astype(np.int16)
@@ -239,6 +257,7 @@ def test_correlate_equals_rounded_scipy_on_12_bit_images(k):
     np.testing.assert_array_equal(dsp.correlate_valid_q15(img, kern), _oracle_correlate(img, kern))
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.correlate_valid_q15", "saturate-high", "saturate-low")
 def test_correlate_saturates_near_full_scale():
     img = np.full((9, 9), 32767, np.int16)
     kern = np.full((3, 3), 32767, np.int16)                     # sum ~ 9 * 32767: far over range
@@ -248,6 +267,7 @@ def test_correlate_saturates_near_full_scale():
     np.testing.assert_array_equal(dsp.correlate_valid_q15(-img, kern), _oracle_correlate(-img, kern))
 
 
+@pytest.mark.cases("flightsw.arith.adsp2100.dot_q15", "typical")
 def test_dot_q15_matches_exact_rational_dot_product():
     rng = np.random.default_rng(1)
     x = rng.integers(-32768, 32768, 200)

@@ -82,7 +82,7 @@ def test_tuned_aurora_record_words_round_trip(toml, words):
 def test_default_aurora_record_is_the_shipped_tuned_one():
     """`uvisi event` uses aurora_surge for aurora (package data), Table 1 stays `aurora`."""
     from flightsw.records import load_record
-    from hil_harness.selection import RECORD_FOR_TYPE
+    from hil_harness.event.selection import RECORD_FOR_TYPE
     assert RECORD_FOR_TYPE["aurora"] == "aurora_surge"
     rec = load_record("aurora_surge")
     assert rec.record_id == 7 and rec.gof_threshold == 0.0 and rec.object_type == "aurora"

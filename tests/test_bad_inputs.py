@@ -61,7 +61,7 @@ def _variants(tmp: Path, kind: str, h5_source: Path) -> dict:
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
-    from hil_harness.event_io import run_event
+    from hil_harness.event.io import run_event
     d = tmp_path_factory.mktemp("rec")
     run_event("satellite_over_stars", frames=6, out=d / "ev", figures=False)
     return d / "ev" / "recording.h5"

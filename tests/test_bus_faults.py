@@ -15,9 +15,9 @@ import pytest
 
 from flightsw.records import load_record
 from groundsim.scenario import SCENARIO_DIR, Scenario
-from hil_harness.bus import fault_rng, flip_bits
+from hil_harness.event.bus import fault_rng, flip_bits
 from hil_harness.event import Event, EventConfig
-from hil_harness.event_io import replay, run_event
+from hil_harness.event.io import replay, run_event
 
 
 def _raw(name: str) -> dict:

@@ -19,9 +19,9 @@ import numpy as np
 import pyarrow.parquet as pq
 import pytest
 
-from hil_harness.campaign import (CampaignSpec, finished_runs, merge_parts, run_campaign,
-                                  run_id_of)
-from hil_harness.campaign_jobs import identification, split_overrides
+from hil_harness.campaign import (CampaignSpec, finished_runs, merge_parts, resolve_job,
+                                  run_campaign, run_id_of)
+from hil_harness.campaign.jobs import identification, split_overrides
 from hil_harness.cli import main
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -32,7 +32,7 @@ def _spec(tmp_path, n=6, seconds=0.0, extra="", name="t"):
     p.write_text(f"""
 [campaign]
 name = "{name}"
-job = "hil_harness.campaign_jobs:sleep"
+job = "hil_harness.campaign.jobs:sleep"
 seeds = {{ start = 0, count = {n} }}
 [params]
 seconds = {seconds}
@@ -56,7 +56,7 @@ def _executions(tmp_path):
 # ------------------------------------------------------------------------------------------------
 def test_spec_expands_seeds_times_axes():
     spec = CampaignSpec.from_dict({
-        "campaign": {"name": "x", "seeds": [3, 4, 5], "job": "hil_harness.campaign_jobs:sleep"},
+        "campaign": {"name": "x", "seeds": [3, 4, 5], "job": "hil_harness.campaign.jobs:sleep"},
         "params": {"frames": 4},
         "axes": {"record": ["aurora", "star"], "target.spot_kR": [10.0, 20.0]}})
     assert len(spec.runs) == 3 * 2 * 2
@@ -72,7 +72,7 @@ def test_spec_expands_seeds_times_axes():
 
 @pytest.mark.parametrize("bad, msg", [
     ({"campaign": {"name": "x", "job": "nosuch.module:f"}}, "cannot import"),
-    ({"campaign": {"name": "x", "job": "hil_harness.campaign_jobs:nope"}}, "no function"),
+    ({"campaign": {"name": "x", "job": "hil_harness.campaign.jobs:nope"}}, "no function"),
     ({"campaign": {"name": "x", "job": "justaname"}}, "module:function"),
     ({"campaign": {"name": "x", "seeds": [1, 1]}}, "duplicates"),
     ({"campaign": {"name": "x", "seeds": {"count": 0}}}, "count >= 1"),
@@ -85,6 +85,20 @@ def test_spec_expands_seeds_times_axes():
 def test_spec_errors(bad, msg):
     with pytest.raises(ValueError, match=msg):
         CampaignSpec.from_dict(bad)
+
+
+@pytest.mark.parametrize("old, new", [
+    ("hil_harness.campaign_jobs:identification", "hil_harness.campaign.jobs:identification"),
+    ("hil_harness.campaign_jobs:event", "hil_harness.campaign.jobs:event"),
+    ("hil_harness.tuning_closed:identification_job",
+     "hil_harness.tuning.closed:identification_job"),
+])
+def test_job_paths_from_before_the_subpackages_still_resolve(old, new):
+    """Users' own campaign files may name the flat module paths of before: the same function."""
+    assert resolve_job(old) is resolve_job(new)
+    with pytest.raises(ValueError, match="no function 'nope'") as exc:
+        resolve_job(old.split(":")[0] + ":nope")
+    assert "\n" not in str(exc.value)
 
 
 def test_split_overrides():
@@ -241,7 +255,7 @@ record = ["aurora", "star"]
     assert all(r["status"] == "ok" and r["frames"] == 3 for r in rows)
     assert {r["record_id"] for r in rows} == {1, 2}
     out = capsys.readouterr().out
-    assert "4 runs of hil_harness.campaign_jobs:identification" in out
+    assert "4 runs of hil_harness.campaign.jobs:identification" in out
     # errors are one line, exit 2
     assert main(["campaign", str(tmp_path / "nope.toml")]) == 2
     assert main(["campaign", str(spec), "--out", str(tmp_path / "o"), "--serial"]) == 2
@@ -253,7 +267,7 @@ def test_event_job_when_the_event_runner_exists():
     mod = pytest.importorskip("hil_harness.event")
     if not hasattr(mod, "run_event"):
         pytest.skip("hil_harness.event.run_event not there yet")
-    from hil_harness.campaign_jobs import event
+    from hil_harness.campaign.jobs import event
     r = event({"scenario": "aurora_surge_wfov_uv", "seed": 1, "frames": 4})
     assert isinstance(r, dict) and r
     assert all(isinstance(v, (bool, int, float, str)) for v in r.values())

@@ -43,7 +43,7 @@ def test_version_names_the_distribution(capsys):
 def test_internal_error_is_one_line_and_a_traceback_file(monkeypatch, capsys):
     import re
 
-    import hil_harness.cli_scenarios as cmd
+    import hil_harness.cli.scenarios as cmd
 
     def boom(args):
         raise RuntimeError("an invariant broke\nsecond line")
@@ -136,8 +136,8 @@ def test_help_texts_are_plain_sentences():
 
 def test_plain_turns_roles_into_names():
     from hil_harness.cli import plain
-    assert plain("see :func:`hil_harness.event_io.run_event` and ``--out``") == \
-        "see hil_harness.event_io.run_event and --out"
+    assert plain("see :func:`hil_harness.event.io.run_event` and ``--out``") == \
+        "see hil_harness.event.io.run_event and --out"
     assert plain(":class:`~flightsw.tp.TrackProcessor` steps") == "TrackProcessor steps"
 
 

@@ -1,4 +1,4 @@
-"""Closed-loop replay (hil_harness.closed_loop): IP + TP over fixed frames.
+"""Closed-loop replay (hil_harness.tuning.closed_loop): IP + TP over fixed frames.
 
 Oracles: a hand-made two-frame sequence whose answer is known (a faint blob where the TP predicts
 the object, a brighter one elsewhere); SciPy's binomial test for the Wilson interval; the replay
@@ -15,7 +15,7 @@ from scipy.stats import binomtest
 from flightsw.ip import load_default_sequence
 from flightsw.records import load_record
 from flightsw.tp import ImagerGeometry
-from hil_harness.closed_loop import ReplayEvent, replay, score_top1
+from hil_harness.tuning.closed_loop import ReplayEvent, replay, score_top1
 from hil_harness.rates import rate
 from hil_harness.rates import wilson_interval as wilson
 
@@ -124,7 +124,7 @@ def test_skipped_frame_does_not_move_the_track():
 def test_one_night_is_cross_validated_by_blocks():
     """A single event (one night) is cut into contiguous blocks of >= 4 frames, each held out and
     replayed afresh; the pooled counts cover every frame with the object once."""
-    from hil_harness.tuning_closed import Replayer, cross_validate_closed
+    from hil_harness.tuning.closed import Replayer, cross_validate_closed
     rng = np.random.default_rng(5)
     pos = [(120.0 + k, 110.0 + 2 * k) for k in range(12)]
     blobs = [[(*p, 1100.0), (80.0 + rng.uniform(0, 10), 190.0, 1400.0, 5.0)] for p in pos]
@@ -142,7 +142,7 @@ def test_one_night_is_cross_validated_by_blocks():
 def test_cross_validation_by_scenario_holds_out_whole_entries():
     """``by="scenario"``: every seed of a set entry (the event name before '/') is in one fold, so a
     held-out fold is a scenario the fold's record never saw; the pooled counts cover every event."""
-    from hil_harness.tuning_closed import Replayer, cross_validate_closed
+    from hil_harness.tuning.closed import Replayer, cross_validate_closed
     evs = []
     for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
         pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(6)])

@@ -260,7 +260,7 @@ def test_no_scale_and_errors(tmp_path, capsys):
 # the pieces: tiles, merging, the star gate
 # ------------------------------------------------------------------------------------------------
 def test_tile_starts_cover_the_axis():
-    from hil_harness.fullframe import tile_starts
+    from hil_harness.detect.fullframe import tile_starts
     assert tile_starts(100, 128, 32) == [0]
     assert tile_starts(256, 64, 16) == list(range(0, 193, 16))
     assert tile_starts(200, 64, 16) == [0, 16, 32, 48, 64, 80, 96, 112, 128, 136]
@@ -274,7 +274,7 @@ def test_tile_starts_cover_the_axis():
 
 def test_merge_keeps_the_largest_and_drops_what_lies_inside_it():
     from flightsw.ip.features import FEATURE_DTYPE
-    from hil_harness.fullframe import merge_duplicates
+    from hil_harness.detect.fullframe import merge_duplicates
     f = np.zeros(6, FEATURE_DTYPE)
     # 0: a trail along +col (semi-axes 80 x 2), 1: a piece of it cut by a window edge, 2: the same
     # star seen by two windows (3 and 4, 0.3 px apart), 5: a star 10 px off the trail's axis
@@ -294,7 +294,7 @@ def test_star_gate_cuts_at_the_stated_peak_and_ranks_brightest_first():
     from flightsw.ip.features import FEATURE_DTYPE, struct_to_words
     from flightsw.ip.rank import rank_words
     from flightsw.records import load_record
-    from hil_harness.detect_jobs import GATE_SIGMA, peak_gate_record
+    from hil_harness.detect.jobs import GATE_SIGMA, peak_gate_record
     rec = peak_gate_record(load_record("star"), noise_counts=8.0)
     cut = GATE_SIGMA * 8.0
     assert rec.n_weighted == 1 and rec.name == "star"

@@ -9,7 +9,7 @@ import pytest
 from flightsw.budget import ADSP2100, DSP, IP1750, PACE1750A, TP1750, Processor
 from hil_harness.cli import main
 from hil_harness.event import SKIP_DROPPED, SKIP_OVERRUN, Event, EventConfig, run_event
-from hil_harness.event_io import replay
+from hil_harness.event.io import replay
 
 
 @pytest.fixture(scope="module")
@@ -152,7 +152,7 @@ def test_star_rich_slew_faults_no_false_lock():
 def test_aurora_attitude_gap_and_dropped_frame_tracked():
     ev = Event(EventConfig("aurora_surge_wfov_uv"))
     ev.run()
-    from hil_harness.event_io import summarise
+    from hil_harness.event.io import summarise
     s = summarise(ev)
     assert s["attitude_invalid_frames"] == 4                  # gap 30-32 s
     assert [o.skip for o in ev.outcomes].count(SKIP_DROPPED) == 1
@@ -219,7 +219,7 @@ def test_crc_table_matches_bitwise():
 
 
 def test_handover_to_the_narrow_field_keeps_the_lock():
-    from hil_harness.selection import SelectionParams
+    from hil_harness.event.selection import SelectionParams
     s = run_event("satellite_over_stars", frames=60,
                   selection=SelectionParams(handover=True, handover_lock_frames=10))
     sw = s["switches"]

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.stats import binomtest
 
-from hil_harness.event_metrics import held_after_lock, processed_pixel_urad
+from hil_harness.event.metrics import held_after_lock, processed_pixel_urad
 from hil_harness.rates import wilson_interval
 
 SC = 1e-3                                     # 1 mrad per imager pixel, both axes
@@ -61,7 +61,7 @@ def test_short_event_holds_the_surge_with_the_defaults(name):
     """16 closed-loop frames with the defaults a user gets (sequence, record, TP): the limb / dayglow
     band is in the field, the TP locks at once and holds the hot spot. With the aurora sequence's
     former alpha 1.5 both events hold 0 of 14 frames (the track sits on a limb blob 30-40 px away)."""
-    from hil_harness.event_io import run_event
+    from hil_harness.event.io import run_event
     s = run_event(name, frames=16, figures=False)
     h = s["held_after_lock"]
     assert s["lock_frame"] is not None and s["lock_frame"] <= 2

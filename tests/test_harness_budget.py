@@ -83,9 +83,9 @@ def test_budget_cli(tmp_path, capsys):
     assert "outside" in capsys.readouterr().err
 
 
-# --- hypotheses for the 64x64 limit (hil_harness.budget_hypotheses) ------------------------------
+# --- hypotheses for the 64x64 limit (hil_harness.budget.hypotheses) ------------------------------
 from flightsw.budget import PACE1750A                                   # noqa: E402
-from hil_harness import budget_hypotheses as H                           # noqa: E402
+from hil_harness.budget import hypotheses as H                           # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -2,7 +2,8 @@
 import numpy as np
 import pytest
 
-from hil_harness.selection import (ImagerSelector, SelectionParams, convert_pixel, record_name_for)
+from hil_harness.event.selection import (ImagerSelector, SelectionParams, convert_pixel,
+                                         record_name_for)
 
 Q0 = np.array([1.0, 0.0, 0.0, 0.0])
 WIDE = (np.radians(13.1) / 256, np.radians(10.5) / 244, Q0)

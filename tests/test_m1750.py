@@ -278,6 +278,7 @@ def test_encode_arrays_match_scalar():
     assert np.array_equal(m.decode48_array(p), [m.decode48(int(w)) for w in p])
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._enc_k", "overflow-32", "overflow-48", "underflow")
 def test_encode_out_of_range_and_errors():
     assert m.encode32(1e39) == m.MAX32 and m.encode32(-1e39) == m.MIN32
     assert m.encode48(1e300) == m.MAX48 and m.encode48(-1e300) == m.MIN48
@@ -320,6 +321,9 @@ def test_flag_constants_are_pi_bits():
     assert (OV, FX, UN) == (0x1000, 0x0800, 0x0200)
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._add_core", "overflow", "underflow", "cancel-zero",
+                   "a-zero", "align-b")
+@pytest.mark.cases("flightsw.arith.m1750_float._overflow", "positive", "negative")
 def test_add_overflow_underflow():
     assert m.fa32(m.MAX32, m.MAX32) == (m.MAX32, OV)
     assert m.fa32(m.MIN32, m.MIN32) == (m.MIN32, OV)
@@ -334,6 +338,9 @@ def test_add_overflow_underflow():
     assert m.fa32(E32(1.0), E32(-2.0 ** -40)) == (E32(1.0 - 2.0 ** -22), 0)
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._fm32_k", "minus-one-squared",
+                   "minus-one-squared-overflow", "exp-overflow", "exp-underflow",
+                   "norm-underflow", "zero-operand")
 def test_fm_special_cases():
     assert m.fm32(0x80000000, 0x80000000) == (0x40000001, 0)            # (-1)(-1) = 0.5*2**1
     assert m.fm32(0x80000005, 0x80000007) == (0x4000000D, 0)            # 0.5 * 2**(5+7+1)
@@ -347,6 +354,8 @@ def test_fm_special_cases():
     assert m.fm32(0, m.MAX32) == (0, 0)
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._div_core", "divide-by-zero", "zero-dividend",
+                   "exp-overflow", "exp-underflow", "minus-half", "minus-one", "negative-floor")
 def test_fd_special_cases():
     assert m.fd32(E32(1.0), 0) == (m.MAX32, OV) and m.fd32(E32(-1.0), 0) == (m.MIN32, OV)
     assert m.fd32(0, 0) == (m.MAX32, OV)
@@ -360,6 +369,9 @@ def test_fd_special_cases():
     assert m.fd32(E32(-1.0), E32(3.0))[0] == E32(-1.0 / 3.0)             # floor, not chop
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._fabs_core", "minus-one", "overflow", "negative")
+@pytest.mark.cases("flightsw.arith.m1750_float._fneg_core", "minus-one", "minus-one-overflow",
+                   "half", "half-underflow", "zero", "typical")
 def test_fabs_fneg():
     for n in (-128, -5, 0, 7, 126):
         w = m.pack32.py_func(-(1 << 23), n)
@@ -381,6 +393,12 @@ def test_fabs_fneg():
         same_as_zero_minus()
 
 
+@pytest.mark.cases("flightsw.arith.m1750_float._fix32_k", "overflow", "positive", "negative",
+                   "minus-32768", "tiny", "zero")
+@pytest.mark.cases("flightsw.arith.m1750_float._fix48_k", "overflow", "positive", "negative",
+                   "minus-2-31")
+@pytest.mark.cases("flightsw.arith.m1750_float._flt32_k", "zero", "positive", "negative")
+@pytest.mark.cases("flightsw.arith.m1750_float._flt48_k", "positive", "negative")
 def test_fix_flt():
     s16 = m.to_signed16
     assert m.fix32(E32(32767.99)) == (32767, 0)
@@ -744,6 +762,8 @@ def _adversarial(W, rng, n):
 
 
 @pytest.mark.parametrize("W", [23, 39])
+@pytest.mark.cases("flightsw.arith.m1750_float._quotient_floor", "w23", "w39-estimate-exact",
+                   "exact-quotient")
 def test_quotient_floor_equals_integer_division(W):
     """floor(A 2**(W+1) / B) and the sticky bit from one float64 division + fix-up equal Python's
     exact integer division on 400,000 random and adversarial operand pairs per width."""

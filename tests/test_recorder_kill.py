@@ -11,8 +11,8 @@ import pytest
 
 from flightsw.budget import ADSP2100, DSP, IP1750, PACE1750A, TP1750, Processor
 from hil_harness.cli import main
-from hil_harness.event_io import KILL_HOOK_ENV, EventInterrupted, EventWriter, replay, run_event
-from hil_harness.recording import Recording
+from hil_harness.event.io import KILL_HOOK_ENV, EventInterrupted, EventWriter, replay, run_event
+from hil_harness.event.recording import Recording
 
 FLUSH = 20          # the recorder's block (run_event's default)
 N = 50              # frames asked of each killed event
@@ -126,7 +126,7 @@ def test_output_folder_rules(tmp_path, monkeypatch, capsys):
 
 
 def test_a_failing_disk_is_one_line_and_keeps_the_blocks_written(tmp_path, monkeypatch, capsys):
-    from hil_harness.recording import Recorder
+    from hil_harness.event.recording import Recorder
     real = Recorder._write
     calls = []
 

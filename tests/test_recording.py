@@ -10,9 +10,9 @@ import h5py
 import numpy as np
 import pytest
 
-from hil_harness.checksum import adler32_rows
-from hil_harness.recording import Recorder, Recording, RecordingDamaged, partial_path
-from hil_harness.run_folder import RunFolder
+from hil_harness.event.checksum import adler32_rows
+from hil_harness.event.recording import Recorder, Recording, RecordingDamaged, partial_path
+from hil_harness.event.run_folder import RunFolder
 
 
 def test_round_trip_tables_arrays_and_host_timings(tmp_path):
@@ -171,7 +171,7 @@ def test_run_folder_lock_stops_a_second_writer_and_dies_with_its_process(tmp_pat
     with RunFolder(d):
         with pytest.raises(ValueError, match=f"another uvisi event .pid {os.getpid()}."):
             RunFolder(d, replace=True).acquire()
-    code = ("import sys, time; from hil_harness.run_folder import RunFolder; "
+    code = ("import sys, time; from hil_harness.event.run_folder import RunFolder; "
             f"RunFolder({str(d)!r}).acquire(); print('locked', flush=True); time.sleep(60)")
     p = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True)
     try:

@@ -13,7 +13,7 @@ from flightsw.records import load_record
 from groundsim.assess import recording_stars as RS
 from groundsim.scenario import Scenario
 from hil_harness.cli import main
-from hil_harness.recording import Recorder
+from hil_harness.event.recording import Recorder
 
 ALIGN_ERR_URAD = [0.0, 400.0, -300.0]
 
@@ -148,7 +148,7 @@ def test_centroid_sigmas_inflate_repeats():
 @pytest.fixture(scope="module")
 def misaligned(tmp_path_factory):
     """The first 20 s of the shipped star_rich_misaligned event, closed loop, frames recorded."""
-    from hil_harness.event_io import run_event
+    from hil_harness.event.io import run_event
     out = tmp_path_factory.mktemp("misaligned")
     run_event("star_rich_misaligned", frames=40, out=out, figures=False)
     return out / "recording.h5"
@@ -187,7 +187,7 @@ def test_reconstruction_does_not_degrade_an_aligned_imager(tmp_path):
     """star_rich_slew (no misalignment, 5 urad knowledge noise): nothing is significant, nothing is
     applied, the knowledge is left as it was (before the fix the smoother moved roll by 733 urad)."""
     from groundsim.assess.rde_reconstruct import reconstruct_from_npz
-    from hil_harness.event_io import run_event
+    from hil_harness.event.io import run_event
     run_event("star_rich_slew", frames=40, out=tmp_path, figures=False)
     _, rep = reconstruct_from_npz(RS.control_points_from_recording(tmp_path / "recording.h5"))
     assert rep["rms_pointing_error_urad_after"] <= rep["rms_pointing_error_urad_before"] * 1.05

@@ -1,6 +1,6 @@
 """TrackProcessor.predicted_pixel: the prediction in the pixel frame of the imager in force after
 an imager switch, computed by the TP in 1750A arithmetic (issue 21). Checked against the float64
-ground conversion ``hil_harness.selection.convert_pixel`` (gnomonic closed form through both
+ground conversion ``hil_harness.event.selection.convert_pixel`` (gnomonic closed form through both
 alignments) on every frame of the behaviour fixtures.
 """
 import math
@@ -12,7 +12,7 @@ import pytest
 
 from flightsw.messages import AttitudeData, TrackCommand
 from flightsw.tp import TrackProcessor
-from hil_harness.selection import convert_pixel
+from hil_harness.event.selection import convert_pixel
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
 import flight_replay as FR  # noqa: E402

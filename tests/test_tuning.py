@@ -24,8 +24,8 @@ from hil_harness.tuning import (build_set, check_record_file, cross_validate, ev
                                 export_record, fit_record, flight_rank, load_labels, load_set,
                                 object_rows, optimise_record, read_words, threshold_sweep,
                                 top1_rate, validate, write_words)
-from hil_harness.tuning_data import TrainingSet, scenario_from_entry
-from hil_harness.tuning_fit import FastRanker, threshold_record
+from hil_harness.tuning.data import TrainingSet, scenario_from_entry
+from hil_harness.tuning.fit import FastRanker, threshold_record
 
 ROOT = Path(__file__).resolve().parents[1]
 WIC = ROOT / "data" / "real" / "wic_20000828_0928-0957_15frames.npz"
@@ -266,7 +266,7 @@ def test_cross_validation_holds_out_whole_groups():
 
 def test_smallest_kappa_hand_made():
     """The smallest widening whose held-out closed-loop loss is within frr; None if none is."""
-    from hil_harness.tuning_closed import smallest_kappa
+    from hil_harness.tuning.closed import smallest_kappa
     losses = {1.0: (30, 1000), 2.0: (6, 1000), 3.0: (5, 1000), 5.0: (0, 1000)}
     assert smallest_kappa(losses, 0.005) == 3.0 and smallest_kappa(losses, 0.006) == 2.0
     assert smallest_kappa(losses, 0.0) == 5.0 and smallest_kappa(losses, 0.05) == 1.0
@@ -548,7 +548,7 @@ def test_cli_tune_bad_input_one_line(tmp_path, capsys):
 
 
 def test_identification_job_reports_the_three_rates():
-    from hil_harness.tuning_closed import identification_job
+    from hil_harness.tuning.closed import identification_job
     r = identification_job({"scenario": "aurora_surge_wfov_uv", "seed": 5, "frames": 6,
                             "record": "aurora", "target.spot_kR": 25.0})
     assert r["frames"] == 6 and r["frames_with_object"] == 6

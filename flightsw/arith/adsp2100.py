@@ -85,21 +85,42 @@ def _flag(name, v):
 # --------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def s16(w):
-    """Sign-extend a 16-bit pattern to a Python/numba int."""
+    """Sign-extend a 16-bit pattern to a Python/numba int.
+
+    Cases
+    -----
+    positive : 0..0x7FFF -> 0..32767.
+    negative : 0x8000..0xFFFF -> -32768..-1.
+    wide-input : bits above 15 are ignored (0x1FFFF -> -1).
+    """
     w = w & 0xFFFF
     return w - 0x10000 if w & 0x8000 else w
 
 
 @njit(cache=True, inline="always")
 def s40(mr):
-    """Sign-extend a 40-bit MR pattern."""
+    """Sign-extend a 40-bit MR pattern.
+
+    Cases
+    -----
+    positive : MR2 MSB 0 -> 0..2**39-1.
+    negative : MR2 MSB 1 -> -2**39..-1.
+    wide-input : bits above 39 are ignored.
+    """
     mr = mr & 0xFFFFFFFFFF
     return mr - 0x10000000000 if mr & 0x8000000000 else mr
 
 
 @njit(cache=True, inline="always")
 def mv_of(mr):
-    """MV condition: MR bits 39..31 not all equal (the value does not fit 32-bit MR1:MR0)."""
+    """MV condition: MR bits 39..31 not all equal (the value does not fit 32-bit MR1:MR0).
+
+    Cases
+    -----
+    fits : bits 39..31 all 0 or all 1 (-1.0 <= MR < 1.0 in 1.31) -> 0.
+    overflow-positive : a positive MR of 2**31 or more -> 1.
+    overflow-negative : a negative MR below -2**31 -> 1.
+    """
     top = (mr >> 31) & 0x1FF
     return 1 if (top != 0 and top != 0x1FF) else 0
 
@@ -107,7 +128,17 @@ def mv_of(mr):
 @njit(cache=True, inline="always")
 def product40(x, y, x_signed, y_signed):
     """The multiplier's contribution to MR: 16x16 product, taken as signed 32 bits, sign-extended to
-    40 bits and shifted left one bit (fractional mode). Returns the signed value (no masking)."""
+    40 bits and shifted left one bit (fractional mode). Returns the signed value (no masking).
+
+    Cases
+    -----
+    signed : SS: the signed product times 2 (0x4000 * 0x4000 -> 2**29, 0.25 in 1.31).
+    mixed : SU/US: the signed operand times the unsigned one, times 2.
+    unsigned-as-signed : UU: the true product with bit 31 set is read as negative 32 bits
+        (0xFFFF * 0xFFFF -> (0xFFFE0001 - 2**32) * 2).
+    minus-one-squared : SS 0x8000 * 0x8000 -> +2**31 (+1.0, which does not fit 1.31: the caller's
+        MV is set; the manual's reading, not MAME's).
+    """
     xv = s16(x) if x_signed else (x & 0xFFFF)
     yv = s16(y) if y_signed else (y & 0xFFFF)
     p = (xv * yv) & 0xFFFFFFFF
@@ -118,7 +149,18 @@ def product40(x, y, x_signed, y_signed):
 
 @njit(cache=True, inline="always")
 def rnd40(res, lo_unrounded):
-    """Unbiased rounding at the MR0/MR1 boundary of a 40-bit value (both as patterns)."""
+    """Unbiased rounding at the MR0/MR1 boundary of a 40-bit value (both as patterns): add 0x8000; if
+    the unrounded low word ``lo_unrounded`` was exactly 0x8000, clear bit 16. MR0 keeps
+    ``old + 0x8000``.
+
+    Cases
+    -----
+    below-half : low word < 0x8000 -> MR1 unchanged.
+    above-half : low word > 0x8000 -> MR1 + 1 (carrying into MR2).
+    tie-even : low word = 0x8000 -> MR1 rounded to even (1.5 -> 2, 2.5 -> 2).
+    wrap-40 : the sum leaves 40 bits -> reduced mod 2**40 (7F_FFFF_8001 -> 80_0000_0001, which
+        reads negative; FF_FFFF_8000 -> 0).
+    """
     res = (res + 0x8000) & 0xFFFFFFFFFF
     if lo_unrounded == 0x8000:
         res &= ~0x10000 & 0xFFFFFFFFFF
@@ -127,6 +169,18 @@ def rnd40(res, lo_unrounded):
 
 @njit(cache=True)
 def _mac_k(mr, x, y, op, x_signed, y_signed, rnd):
+    """One MAC instruction on patterns -> (new MR pattern, MV); see :func:`mac`.
+
+    Cases
+    -----
+    set : op 0, ``MR = X*Y``: the old MR is ignored.
+    add : op 1, ``MR = MR + X*Y``.
+    sub : op 2, ``MR = MR - X*Y``.
+    mv : the result does not fit 1.31 (MR[39:31] not all equal) -> MV = 1, MR not saturated.
+    wrap-40 : the accumulation leaves 40 bits (over 255 products of +1.0) -> reduced mod 2**40.
+    rnd-tie-full-sum : ``(RND)``: the midpoint test is on the full sum's low word (MR 0x4000 plus
+        product 0x4000 -> exactly 0x8000 -> rounds to even), not on the product's.
+    """
     p = product40(x, y, x_signed, y_signed)
     if op == 0:
         res = p
@@ -142,6 +196,14 @@ def _mac_k(mr, x, y, op, x_signed, y_signed, rnd):
 
 @njit(cache=True)
 def _sat_mr_k(mr):
+    """``IF MV SAT MR`` on a 40-bit pattern -> the new MR pattern.
+
+    Cases
+    -----
+    no-mv : MR fits 1.31 -> unchanged.
+    positive : MV and MR2 MSB 0 -> 00_7FFF_FFFF.
+    negative : MV and MR2 MSB 1 -> FF_8000_0000.
+    """
     if mv_of(mr):
         return 0xFF80000000 if (mr >> 39) & 1 else 0x007FFFFFFF
     return mr
@@ -149,11 +211,30 @@ def _sat_mr_k(mr):
 
 @njit(cache=True)
 def _rnd_mr_k(mr):
+    """``MR = MR (RND)`` on a 40-bit pattern: :func:`rnd40` with MR's own low word.
+
+    Cases
+    -----
+    round : low word not 0x8000 -> MR1 rounded to nearest, MR0 = old + 0x8000.
+    tie-even : low word 0x8000 -> MR1 rounded to even.
+    """
     return rnd40(mr, mr & 0xFFFF)
 
 
 @njit(cache=True)
 def _alu_add_k(x, y, ar_sat):
+    """``AR = X + Y`` on 16-bit patterns -> (AR, AC, AV); see :func:`alu_add`.
+
+    Cases
+    -----
+    no-overflow : the signed sum fits -> AR = sum, AV = 0.
+    carry : the unsigned sum exceeds 0xFFFF -> AC = 1 (0xFFFF + 1 -> 0, AC 1, AV 0).
+    overflow-positive : two positives give a negative AR -> AV = 1, AR wrapped.
+    overflow-negative : two negatives give a positive AR -> AV = 1, AC = 1, AR wrapped.
+    sat-positive : AR_SAT, AV = 1, AC = 0 -> 0x7FFF.
+    sat-negative : AR_SAT, AV = 1, AC = 1 -> 0x8000.
+    sat-no-overflow : AR_SAT without overflow -> AR is the plain sum.
+    """
     r = x + y
     ac = (r >> 16) & 1
     r &= 0xFFFF
@@ -165,6 +246,17 @@ def _alu_add_k(x, y, ar_sat):
 
 @njit(cache=True)
 def _alu_sub_k(x, y, ar_sat):
+    """``AR = X - Y`` (X + NOT Y + 1) on 16-bit patterns -> (AR, AC, AV); see :func:`alu_sub`.
+
+    Cases
+    -----
+    no-overflow : the signed difference fits -> AR = difference, AV = 0.
+    borrow : X < Y as unsigned -> AC = 0 (AC is NOT borrow); X >= Y -> AC = 1.
+    overflow-positive : positive minus negative gives a negative AR -> AV = 1.
+    overflow-negative : negative minus positive gives a positive AR -> AV = 1.
+    sat-positive : AR_SAT, AV = 1, AC = 0 -> 0x7FFF.
+    sat-negative : AR_SAT, AV = 1, AC = 1 -> 0x8000.
+    """
     r = x + ((~y) & 0xFFFF) + 1
     ac = (r >> 16) & 1          # carry = NOT borrow
     r &= 0xFFFF
@@ -176,6 +268,18 @@ def _alu_sub_k(x, y, ar_sat):
 
 @njit(cache=True)
 def _ashift_k(x, se, hi):
+    """``SR = ASHIFT x BY se (HI|LO)`` -> the 32-bit SR pattern; see :func:`ashift`.
+
+    Cases
+    -----
+    hi : HI: the word placed at SR[31:16] before the shift.
+    lo : LO: the word sign-extended into SR[15:0] before the shift.
+    left : 0 < se < 32 -> shifted left, bits above 31 lost.
+    right : -32 < se < 0 -> shifted right, sign bits shifted in.
+    zero-count : se = 0 -> the placed word.
+    left-off-scale : se >= 32 -> 0.
+    right-off-scale : se <= -32 -> all sign bits (0 or 0xFFFFFFFF).
+    """
     xv = s16(x) << 16 if hi else s16(x)
     if se > 0:
         res = (xv << se) if se < 32 else 0
@@ -186,6 +290,17 @@ def _ashift_k(x, se, hi):
 
 @njit(cache=True)
 def _lshift_k(x, se, hi):
+    """``SR = LSHIFT x BY se (HI|LO)`` -> the 32-bit SR pattern; see :func:`lshift`.
+
+    Cases
+    -----
+    hi : HI: the word placed at SR[31:16] before the shift.
+    lo : LO: the word zero-extended into SR[15:0] (no sign extension).
+    left : 0 < se < 32 -> shifted left, bits above 31 lost.
+    right : -32 < se < 0 -> shifted right, zeros shifted in.
+    left-off-scale : se >= 32 -> 0.
+    right-off-scale : se <= -32 -> 0.
+    """
     xv = (x & 0xFFFF) << 16 if hi else (x & 0xFFFF)
     if se > 0:
         res = (xv << se) if se < 32 else 0
@@ -196,6 +311,19 @@ def _lshift_k(x, se, hi):
 
 @njit(cache=True)
 def _norm_k(x, se, hi, ac):
+    """``SR = NORM x (HI|LO)`` with shift code ``se`` (left by ``-se``) -> the 32-bit SR pattern; see
+    :func:`norm`.
+
+    Cases
+    -----
+    hi-left : HI, se <= 0 -> the word at SR[31:16] shifted left by -se.
+    hi-carry-right : HI, se > 0 (after EXP HIX of an overflow) -> shifted right, the ALU carry AC
+        enters at the MSB (se = 1: AR 0xE000 with AC 0 -> 0x7000).
+    hi-off-scale : HI, se <= -32 -> 0.
+    lo-left : LO, se <= 0 -> the zero-extended word shifted left by -se.
+    lo-right : LO, se > 0 -> the word shifted right logically.
+    lo-off-scale : LO, |se| >= 32 -> 0.
+    """
     if hi:
         xv = s16(x) << 16
         if se > 0:
@@ -217,6 +345,15 @@ def _norm_k(x, se, hi, ac):
 
 @njit(cache=True)
 def _redundant_sign_bits(x):
+    """Redundant sign bits of a 16-bit word (bits after the sign equal to it), 0..15.
+
+    Cases
+    -----
+    positive : 0 < x -> the leading zeros after the sign bit (0x0010 -> 10).
+    negative : x < 0 -> the leading ones after the sign bit (0xFF00 -> 7).
+    normalised : 0x4000..0x7FFF, 0x8000..0xBFFF -> 0.
+    all-sign : 0 or 0xFFFF -> 15 (the count stops at 15).
+    """
     xv = s16(x) << 16
     n = 0
     if xv < 0:
@@ -233,6 +370,15 @@ def _redundant_sign_bits(x):
 
 @njit(cache=True)
 def _exp_hi_k(x, hix, av):
+    """``SE = EXP x (HI|HIX)`` -> (SE, SS); see :func:`exp_hi`.
+
+    Cases
+    -----
+    typical : SE = -(redundant sign bits) in 0..-15, SS = the sign bit.
+    all-sign : 0 or 0xFFFF -> SE = -15.
+    hix-overflow : HIX with AV = 1 -> SE = +1 and SS = the inverted sign bit.
+    hix-no-overflow : HIX with AV = 0 -> as HI.
+    """
     ss = 1 if x & 0x8000 else 0
     if hix and av:
         # the value overflowed into the carry: one right shift (NORM HI) brings it back
@@ -242,6 +388,16 @@ def _exp_hi_k(x, hix, av):
 
 @njit(cache=True)
 def _exp_lo_k(x, se, ss):
+    """``SE = EXP x (LO)`` for the low word of a double-precision value -> the new SE; see
+    :func:`exp_lo`.
+
+    Cases
+    -----
+    hi-decided : se != -15 (the high word had a significant bit) -> se unchanged.
+    positive-continue : se = -15, SS = 0 -> counts the low word's leading zeros on (-15..-31).
+    negative-continue : se = -15, SS = 1 -> counts the low word's leading ones on (-15..-31).
+    all-sign : a low word of sign bits only (0 with SS 0, 0xFFFF with SS 1) -> -31.
+    """
     if se != -15:
         return se
     n = 15
@@ -260,12 +416,28 @@ def _exp_lo_k(x, se, ss):
 
 @njit(cache=True)
 def _expadj_k(x, sb):
+    """``SB = EXPADJ x`` -> the new SB; see :func:`expadj`.
+
+    Cases
+    -----
+    larger : the word's exponent (-redundant sign bits) above SB -> taken.
+    not-larger : the word's exponent <= SB -> SB kept.
+    initial : SB = -16 (the initial value) -> any word's exponent is taken.
+    """
     e = -_redundant_sign_bits(x)
     return e if e > sb else sb
 
 
 @njit(cache=True)
 def _divs_k(af, ay0, x):
+    """``DIVS AF, X`` -> (AF, AY0, AQ): AQ = sign(AF) XOR sign(X), AF:AY0 shifted left one bit with AQ
+    entering AY0.
+
+    Cases
+    -----
+    same-sign : dividend and divisor signs equal -> AQ = 0.
+    different-sign : signs differ -> AQ = 1.
+    """
     t = (x ^ af) & 0xFFFF
     aq = (t >> 15) & 1
     af_new = ((af << 1) | (ay0 >> 15)) & 0xFFFF
@@ -275,6 +447,13 @@ def _divs_k(af, ay0, x):
 
 @njit(cache=True)
 def _divq_k(af, ay0, x, aq):
+    """``DIVQ X`` -> (AF, AY0, AQ): one non-restoring step; the new quotient bit (NOT AQ) enters AY0.
+
+    Cases
+    -----
+    subtract : AQ = 0 -> AF - X.
+    add : AQ = 1 -> AF + X.
+    """
     res = (af + x) if aq else (af - x)
     t = res ^ x
     aq_new = (t >> 15) & 1
@@ -285,6 +464,16 @@ def _divq_k(af, ay0, x, aq):
 
 @njit(cache=True)
 def _divide_signed_k(hi, lo, divisor):
+    """DIVS + 15 DIVQ of ``hi:lo`` by ``divisor`` (patterns) -> (quotient AY0, partial remainder AF);
+    see :func:`divide_signed`.
+
+    Cases
+    -----
+    positive : dividend and divisor positive -> the 1.15 quotient within one LSB.
+    negative-dividend : negative dividend, positive divisor -> negative quotient within one LSB.
+    negative-divisor : positive dividend, negative divisor -> negative quotient within one LSB.
+    both-negative : both negative -> positive quotient within one LSB.
+    """
     af, ay0, aq = _divs_k(hi, lo, divisor)
     for _ in range(15):
         af, ay0, aq = _divq_k(af, ay0, divisor, aq)
@@ -293,6 +482,15 @@ def _divide_signed_k(hi, lo, divisor):
 
 @njit(cache=True)
 def _divide_unsigned_k(hi, lo, divisor):
+    """Cleared AQ + 16 DIVQ of ``hi:lo`` by ``divisor`` -> (quotient AY0, partial remainder AF); see
+    :func:`divide_unsigned` (``1 <= divisor <= 0x7FFF``, ``hi < divisor``).
+
+    Cases
+    -----
+    typical : quotient = floor((hi:lo) / (2 * divisor)).
+    zero-dividend : 0 -> quotient 0.
+    max-quotient : hi:lo = divisor * 2**16 - 1 -> the largest quotient, 0x7FFF.
+    """
     af, ay0, aq = hi & 0xFFFF, lo & 0xFFFF, 0
     for _ in range(16):
         af, ay0, aq = _divq_k(af, ay0, divisor, aq)
@@ -530,7 +728,16 @@ def _divide_unsigned_ov(hi, lo, divisor):
 def block_bitlen(img):
     """Bit length of the largest-magnitude 16-bit word of ``img`` (``x`` for x >= 0, ``~x`` for
     x < 0): the block exponent an EXPADJ pass over the block yields, as a count of significant
-    bits (0..15). ``img``: integer array, any shape, values in 16-bit range."""
+    bits (0..15). ``img``: integer array, any shape, values in 16-bit range.
+
+    Cases
+    -----
+    empty : no elements -> 0.
+    all-sign : only 0 and -1 -> 0.
+    positive : the largest positive word decides (bit length of x).
+    negative : a negative word counts as ~x (-256 -> 8, -257 -> 9).
+    extremes : 32767 or -32768 -> 15.
+    """
     f = img.ravel()
     m = np.int32(0)
     for i in range(f.size):
@@ -541,7 +748,13 @@ def block_bitlen(img):
 
 @njit(cache=True, inline="always")
 def bitlen(v):
-    """Number of significant bits of a non-negative integer (0 for 0)."""
+    """Number of significant bits of a non-negative integer (0 for 0).
+
+    Cases
+    -----
+    zero : 0 -> 0.
+    positive : v > 0 -> its bit length (1 -> 1, 0x7FFF -> 15).
+    """
     n = 0
     while v > 0:
         n += 1
@@ -552,7 +765,18 @@ def bitlen(v):
 @njit(cache=True)
 def finish_mr(acc, rnd, sat):
     """Store step of a MAC loop: the 40-bit accumulation ``acc`` (signed int) -> the word MR1 holds
-    after ``(RND)`` on the last MAC and ``IF MV SAT MR``. Returns a signed 16-bit value."""
+    after ``(RND)`` on the last MAC and ``IF MV SAT MR``. Returns a signed 16-bit value.
+
+    Cases
+    -----
+    truncate : rnd False -> MR1 as is (the sum's floor at 2**-15 in Q1.15).
+    round-tie-even : rnd True, low word 0x8000 -> rounded to even.
+    round : rnd True, other low words -> rounded to nearest.
+    sat-positive : sat True, MV, positive -> 32767.
+    sat-negative : sat True, MV, negative -> -32768.
+    no-sat-wrap : sat False, MV -> MR1 of the overflowed value (wrapped bits).
+    wrap-40 : acc beyond 40 bits -> reduced mod 2**40 first, as the chip's MR wraps.
+    """
     mr = acc & 0xFFFFFFFFFF
     if rnd:
         mr = rnd40(mr, mr & 0xFFFF)
@@ -568,7 +792,16 @@ def dot_q15(x, y, rnd=True, sat=True):
     x, y : int16/int32/int64 arrays of signed 16-bit values. With Q1.15 operands the result is the
     Q1.15 dot product; with an integer x and a Q1.15 y it is the integer-scaled result. The 40-bit
     accumulator wraps exactly as on the chip (int64 holds every partial sum of <= 2**23 terms, and the
-    final value is reduced to 40 bits). Cycles: ``len(x) + 2`` (MACs, SAT, store) plus loop set-up."""
+    final value is reduced to 40 bits). Cycles: ``len(x) + 2`` (MACs, SAT, store) plus loop set-up.
+
+    Cases
+    -----
+    typical : the exact dot product rounded half to even at 2**-15.
+    empty : no terms -> 0.
+    saturate : the sum leaves [-1, 1) -> 32767 or -32768.
+    no-rnd : rnd False -> the exact sum truncated toward minus infinity.
+    no-sat : sat False -> the overflowed MR1 (wraps).
+    """
     acc = 0
     for i in range(x.shape[0]):
         acc += (np.int64(x[i]) * np.int64(y[i])) << 1
@@ -596,6 +829,15 @@ def correlate_valid_q15(img, kern, rnd=True, sat=True):
     than 256 taps no partial sum leaves 40 bits (the manual's "more than 255 overflows" rule) and
     int64 accumulation equals the 40-bit MR bit for bit; beyond 255 taps the result is reduced mod
     2**40 before rounding, which is what the chip's wrap-around does too.
+
+    Cases
+    -----
+    typical : every output equals the exact correlation rounded half to even (SciPy's, scaled).
+    saturate-high : a sum at or above +1.0 -> 32767.
+    saturate-low : a sum below -1.0 -> -32768.
+    single-output : image the kernel's size -> a 1 x 1 output.
+    rectangular : a k x k' kernel with k != k' -> (H, W) from each axis.
+    no-rnd-no-sat : rnd and sat False -> truncated, wrapping MR1 as the chip stores it.
     """
     kh, kw = kern.shape
     h = img.shape[0] - kh + 1

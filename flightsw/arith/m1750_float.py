@@ -141,7 +141,16 @@ ZERO = 0
 # ================================================================================================
 @njit(cache=True, inline="always")
 def unpack32(p):
-    """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent)."""
+    """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent).
+
+    Cases
+    -----
+    positive : sign bit 0: mantissa 0..7FFFFF as is (0x40000001 -> (0x400000, 1)).
+    negative-mantissa : sign bit 1: the 24-bit field read as 2's complement (0x80000000 ->
+        (-2**23, 0)).
+    negative-exponent : exponent byte 80..FF read as -128..-1 (0x40000080 -> (0x400000, -128)).
+    zero : floating zero 0 -> (0, 0).
+    """
     m = ((p >> 8) & 0xFFFFFF) ^ 0x800000
     e = (p & 0xFF) ^ 0x80
     return m - 0x800000, e - 0x80
@@ -149,7 +158,16 @@ def unpack32(p):
 
 @njit(cache=True, inline="always")
 def unpack48(p):
-    """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent)."""
+    """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent).
+
+    Cases
+    -----
+    positive : sign bit 0: the 40-bit mantissa (w0 w1 high byte, w2) as is.
+    negative-mantissa : sign bit 1: the 40-bit field read as 2's complement (0x800000000000 ->
+        (-2**39, 0)).
+    negative-exponent : exponent byte 80..FF read as -128..-1.
+    zero : floating zero 0 -> (0, 0).
+    """
     m = ((((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)) ^ 0x8000000000
     e = ((p >> 16) & 0xFF) ^ 0x80
     return m - 0x8000000000, e - 0x80
@@ -157,41 +175,87 @@ def unpack48(p):
 
 @njit(cache=True, inline="always")
 def pack32(m, e):
-    """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks)."""
+    """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks).
+
+    Cases
+    -----
+    positive : mantissa and exponent fields written as is ((0x400000, 1) -> 0x40000001).
+    negative : a negative mantissa or exponent is written as its 24-/8-bit 2's complement
+        ((-2**23, -128) -> 0x80000080).
+    """
     return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
 
 
 @njit(cache=True, inline="always")
 def pack48(m, e):
-    """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks)."""
+    """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks).
+
+    Cases
+    -----
+    positive : mantissa bits 39..16 into w0 w1, the exponent byte, bits 15..0 into w2.
+    negative : a negative mantissa or exponent is written as its 40-/8-bit 2's complement
+        ((-2**39, -128) -> 0x800000800000).
+    """
     return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
 
 
 @njit(cache=True, inline="always")
-def _unpack(p, W):
+def unpack_w(p, W):
+    """:func:`unpack32` (W = 23) or :func:`unpack48` (W = 39) of packed word ``p``.
+
+    Cases
+    -----
+    w23 : W = 23: the 32-bit layout (:func:`unpack32`).
+    w39 : any other W (39): the 48-bit layout (:func:`unpack48`).
+    """
     if W == 23:
         return unpack32(p)
     return unpack48(p)
 
 
 @njit(cache=True, inline="always")
-def _pack(m, e, W):
+def pack_w(m, e, W):
+    """:func:`pack32` (W = 23) or :func:`pack48` (W = 39) of ``(m, e)`` (no checks).
+
+    Cases
+    -----
+    w23 : W = 23: the 32-bit layout (:func:`pack32`).
+    w39 : any other W (39): the 48-bit layout (:func:`pack48`).
+    """
     if W == 23:
         return pack32(m, e)
     return pack48(m, e)
 
 
 @njit(cache=True, inline="always")
-def _norm_shift(m, W):
+def norm_shift(m, W):
     """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
-    bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift)."""
+    bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift). ``m`` must
+    be non-zero (every caller tests ``m == 0`` first). W is not limited to 23/39: FM normalises its
+    double-length product with W = 46.
+
+    Cases
+    -----
+    normalised : already normalised (0.5 <= m < 1 or -1 <= m < -0.5) -> 0.
+    positive : 0 < m < 0.5 -> the shift that brings the leading 1 to bit W-1 (0.25 -> 1).
+    negative : -0.5 < m < 0 -> the shift that brings the leading 0 to bit W-1 (-0.375 -> 1).
+    minus-power-of-two : -2**-k -> k, i.e. normalised to -1.0 (-0.5 -> 1, -0.25 -> 2).
+    """
     return leading_zeros(m ^ (m >> 63)) - (64 - W)
 
 
 @njit(cache=True, inline="always")
-def _overflow_word(neg, W):
+def overflow_word(neg, W):
     """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
-    negative."""
+    negative.
+
+    Cases
+    -----
+    positive-32 : W = 23, not neg -> MAX32 0x7FFFFF7F.
+    negative-32 : W = 23, neg -> MIN32 0x8000007F.
+    positive-48 : W = 39, not neg -> MAX48 0x7FFFFF7FFFFF.
+    negative-48 : W = 39, neg -> MIN48 0x8000007F0000.
+    """
     if W == 23:
         return MIN32 if neg else MAX32
     return MIN48 if neg else MAX48
@@ -199,23 +263,40 @@ def _overflow_word(neg, W):
 
 @njit(cache=True, inline="always")
 def _overflow(neg, W):
-    """Standard overflow result and its PI flag."""
-    return _overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
+    """Standard overflow result and its PI flag.
+
+    Cases
+    -----
+    positive : not neg -> (7FFF..FF/7F, FLAG_FLOAT_OVERFLOW).
+    negative : neg -> (8000..00/7F, FLAG_FLOAT_OVERFLOW).
+    """
+    return overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
 @njit(cache=True, inline="always")
 def _finish(m, e, W):
-    """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags)."""
+    """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags).
+
+    Cases
+    -----
+    zero : m == 0 -> (0, 0), floating zero whatever e.
+    normalised : m already normalised, e in range -> packed (m, e), flags 0.
+    normalise-shift : m not normalised -> shifted left (exponent decremented) until it is;
+        -0.5 becomes -1.0 * 2**(e-1).
+    underflow : the exponent after the shift is below -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    overflow : e above 127 -> the overflow word of m's sign + FLAG_FLOAT_OVERFLOW (no caller
+        passes such an e: the add core and FLT stop at 127; kept for the standard's rule).
+    """
     if m == 0:
         return 0, 0
-    s = _norm_shift(m, W)
+    s = norm_shift(m, W)
     m = m << s
     e = e - s
     if e < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
     if e > 127:
         return _overflow(m < 0, W)
-    return _pack(m, e, W), 0
+    return pack_w(m, e, W), 0
 
 
 # ================================================================================================
@@ -223,8 +304,32 @@ def _finish(m, e, W):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _add_core(a, b, W, subtract):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    """FA/FS on packed words of W fraction bits -> (p, flags) (see the module docstring: no guard
+    bits, FS negates the subtrahend exactly before aligning it).
+
+    Cases
+    -----
+    a-zero : MA = 0 -> EA <- EO, no shift: the result is b (or -b for FS), normalised.
+    b-zero : MO = 0 (and MA != 0) -> no shift: the result is a.
+    align-b : EA > EO -> MO shifted right arithmetic EA - EO bits, the bits shifted out are lost
+        (a negative b then lowers the sum by up to one unit of a's last place).
+    align-a : EA < EO -> MA shifted right arithmetic, EA <- EO.
+    far-operand : exponent difference over 63 -> shift capped at 63: the smaller operand becomes 0
+        (positive) or -1 unit (negative) of the larger operand's last place.
+    mantissa-overflow : the sum leaves [-1, 1) -> shifted right 1, exponent + 1 (0.75 + 0.75 =
+        0.75 * 2).
+    overflow : mantissa overflow at exponent 127 -> overflow word of the sum's sign +
+        FLAG_FLOAT_OVERFLOW.
+    cancel-zero : the mantissas cancel exactly -> (0, 0).
+    cancel-normalise : partial cancellation -> normalised by a left shift (zeros shifted in).
+    underflow : normalising takes the exponent below -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    subtract-negate-first : FS: MO negated exactly before it is aligned, so a - b is truncated
+        toward minus infinity (1.0 - (0.5 + 2**-23) = 0.5 - 2**-22, not the literal RTL's 0.5).
+    subtract-minus-one : FS of -1.0 * 2**e: the negation +1.0 needs the extra bit of the wide
+        register and is renormalised (0 - (-1.0) = 0.5 * 2**1).
+    """
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     if subtract:                     # negate first (exact, wide register): see DECISION_FS_*
         mo = -mo
     n = ea - eo
@@ -250,21 +355,45 @@ def _add_core(a, b, W, subtract):
 
 @njit(cache=True)
 def _fa32_k(a, b):
+    """FA (5.60): packed 32-bit ``a + b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_add_core` with W = 23 (its cases), no subtraction.
+    """
     return _add_core(a, b, 23, False)
 
 
 @njit(cache=True)
 def _fs32_k(a, b):
+    """FS (5.68): packed 32-bit ``a - b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_add_core` with W = 23 (its cases), subtrahend negated first.
+    """
     return _add_core(a, b, 23, True)
 
 
 @njit(cache=True)
 def _fa48_k(a, b):
+    """EFA (5.61): packed 48-bit ``a + b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_add_core` with W = 39 (its cases), no subtraction.
+    """
     return _add_core(a, b, 39, False)
 
 
 @njit(cache=True)
 def _fs48_k(a, b):
+    """EFS (5.69): packed 48-bit ``a - b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_add_core` with W = 39 (its cases), subtrahend negated first.
+    """
     return _add_core(a, b, 39, True)
 
 
@@ -273,7 +402,14 @@ def _fs48_k(a, b):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _mul_exp_checks(ma, mo, n, W):
-    """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags)."""
+    """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags).
+
+    Cases
+    -----
+    overflow : n > 127 -> (True, overflow word of the product's sign, FLAG_FLOAT_OVERFLOW).
+    underflow : n < -128 -> (True, 0, FLAG_FLOAT_UNDERFLOW).
+    in-range : -128 <= n <= 127 -> (False, 0, 0): the multiply goes on.
+    """
     if n > 127:
         p, f = _overflow((ma < 0) != (mo < 0), W)
         return True, p, f
@@ -284,6 +420,24 @@ def _mul_exp_checks(ma, mo, n, W):
 
 @njit(cache=True)
 def _fm32_k(a, b):
+    """FM (5.74): packed 32-bit ``a * b`` -> (p, flags); exact double-length product, normalised,
+    truncated toward minus infinity.
+
+    Cases
+    -----
+    zero-operand : either mantissa 0 -> (0, 0), before any exponent check.
+    exp-overflow : EA + EO > 127 -> overflow word of the product's sign + FLAG_FLOAT_OVERFLOW
+        (even when the normalised product would fit: 0.5*2**64 * 0.5*2**64).
+    exp-underflow : EA + EO < -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    minus-one-squared : (-1.0)(-1.0) -> 0.5 * 2**(n+1).
+    minus-one-squared-overflow : (-1.0)(-1.0) with n = 127 -> (MAX32, FLAG_FLOAT_OVERFLOW).
+    no-shift : |product| >= 0.5 -> mantissa taken as is (truncated).
+    one-shift : |product| < 0.5 -> one left shift, exponent - 1.
+    negative-floor : an inexact negative product is truncated toward minus infinity.
+    minus-half : a product of exactly -0.5 is normalised to -1.0 * 2**(n-1).
+    norm-underflow : the normalising shift takes the exponent below -128 ->
+        (0, FLAG_FLOAT_UNDERFLOW).
+    """
     ma, ea = unpack32(a)
     mo, eo = unpack32(b)
     if ma == 0 or mo == 0:
@@ -298,7 +452,7 @@ def _fm32_k(a, b):
         if n > 127:
             return MAX32, FLAG_FLOAT_OVERFLOW
         return pack32(0x400000, n), 0
-    s = _norm_shift(P, 46)            # normalise the double-length product, then truncate
+    s = norm_shift(P, 46)            # normalise the double-length product, then truncate
     n -= s
     if n < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
@@ -306,10 +460,18 @@ def _fm32_k(a, b):
 
 
 @njit(cache=True, inline="always")
-def _prod80(A, B):
+def prod80(A, B):
     """A * B for 0 <= A, B <= 2**39 as (H, L) with A * B = H * 2**40 + L, 0 <= L < 2**40: the
     80-bit product from 20-bit limbs (no intermediate exceeds 63 bits). Branch-free, so the lane
-    form of EFM uses it too."""
+    form of EFM uses it too.
+
+    Cases
+    -----
+    zero : A or B = 0 -> (0, 0).
+    typical : any operands in range -> the exact split of the 80-bit product.
+    max : A = B = 2**39 -> (2**38, 0), the largest product.
+    carry : the low limbs' sum reaches 2**40 and carries into H.
+    """
     M20 = (np.int64(1) << 20) - 1
     a1 = A >> 20
     a0 = A & M20
@@ -322,6 +484,25 @@ def _prod80(A, B):
 
 @njit(cache=True)
 def _fm48_k(a, b):
+    """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (:func:`prod80`)
+    normalised and truncated toward minus infinity.
+
+    Cases
+    -----
+    zero-operand : either mantissa 0 -> (0, 0), before any exponent check.
+    exp-overflow : EA + EO > 127 -> overflow word of the product's sign + FLAG_FLOAT_OVERFLOW.
+    exp-underflow : EA + EO < -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    minus-one-squared : (-1.0)(-1.0) -> 0.5 * 2**(n+1).
+    minus-one-squared-overflow : (-1.0)(-1.0) with n = 127 -> (MAX48, FLAG_FLOAT_OVERFLOW).
+    positive-no-shift : positive product >= 0.5 -> floor(|P| / 2**39).
+    positive-shift : positive product < 0.5 -> floor(|P| / 2**38), exponent - 1.
+    negative-no-shift : negative product, |P| > 0.5 -> -ceil(|P| / 2**39) (floor of the signed
+        value).
+    negative-shift : negative product, |P| < 0.5 -> -ceil(|P| / 2**38), exponent - 1.
+    minus-half : a product of exactly -0.5 -> -1.0 * 2**(n-1).
+    norm-underflow : the normalising shift takes the exponent below -128 ->
+        (0, FLAG_FLOAT_UNDERFLOW).
+    """
     ma, ea = unpack48(a)
     mo, eo = unpack48(b)
     if ma == 0 or mo == 0:
@@ -338,7 +519,7 @@ def _fm48_k(a, b):
         if n > 127:
             return MAX48, FLAG_FLOAT_OVERFLOW
         return pack48(1 << 38, n), 0
-    H, L = _prod80(A, B)              # |P| = H * 2**40 + L; value |P| / 2**78
+    H, L = prod80(A, B)              # |P| = H * 2**40 + L; value |P| / 2**78
     half = 1 << 37                    # |P| = 2**77  <=>  |product| = 0.5
     if not neg:
         if H >= half:                 # normalised as is: floor(|P| / 2**39)
@@ -375,7 +556,20 @@ def _quotient_floor(A, B, W):
     ``A * 2**40 - Q * B`` fixes it. The remainder is computed modulo 2**64 (int64 wrap-around)
     and is exact because its true value lies in (-B, 2B). Measured on this host: 10 ns latency
     instead of 17 for the long division. Equal to Python's exact integer division on 400,000
-    operand pairs per width, random and adversarial (tests/test_m1750.py)."""
+    operand pairs per width, random and adversarial (tests/test_m1750.py).
+
+    The estimate is never one too low: at this scale every integer is a float64 grid point, so the
+    correctly rounded ``q * 2**40`` of a true quotient ``X >= N`` is ``>= N``; the ``r >= B``
+    fix-up is a guard that no operand pair reaches.
+
+    Cases
+    -----
+    w23 : W = 23: exact int64 floor division, sticky = remainder != 0.
+    w39-estimate-exact : W = 39, the float64 estimate is already the floor: no fix-up.
+    w39-estimate-high : W = 39, the estimate is one too high (remainder < 0: the true quotient
+        is just below an integer and rounds up to it) -> Q - 1.
+    exact-quotient : B divides A * 2**(W+1) -> sticky False.
+    """
     if W == 23:
         num = A << 24
         Q = num // B
@@ -393,8 +587,27 @@ def _quotient_floor(A, B, W):
 
 @njit(cache=True, inline="always")
 def _div_core(a, b, W):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    """FD/EFD on packed words of W fraction bits -> (p, flags); the quotient truncated toward minus
+    infinity (see the module docstring for the reading of "|MQ| >= 1.0").
+
+    Cases
+    -----
+    divide-by-zero : MO = 0 -> overflow word of the dividend's sign + FLAG_FLOAT_OVERFLOW
+        (0 / 0 -> 7FF..F/7F).
+    exp-overflow : EA - EO > 127 -> overflow word of the quotient's sign + FLAG_FLOAT_OVERFLOW.
+    exp-underflow : EA - EO < -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    zero-dividend : MA = 0 (divisor non-zero) -> (0, 0) whatever the exponents.
+    no-shift : |quotient| < 1 -> packed at exponent EA - EO.
+    quotient-shift : quotient outside [-1, 1) -> shifted right 1, exponent + 1 (0.75 / 0.5).
+    shift-overflow : that shift at exponent 127 -> overflow word + FLAG_FLOAT_OVERFLOW.
+    minus-one : an exact quotient of -1.0 stays -1.0 * 2**n (no shift).
+    minus-half : an exact quotient of -0.5 is normalised to -1.0 * 2**(n-1).
+    minus-half-underflow : that normalisation at n = -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    negative-floor : an inexact negative quotient is truncated toward minus infinity
+        (-1/3 -> the word just below -1/3).
+    """
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     n = ea - eo
     if ma == 0:
         n = 0
@@ -426,16 +639,28 @@ def _div_core(a, b, W):
         n -= 1
         if n < -128:
             return 0, FLAG_FLOAT_UNDERFLOW
-    return _pack(Q, n, W), 0
+    return pack_w(Q, n, W), 0
 
 
 @njit(cache=True)
 def _fd32_k(a, b):
+    """FD (5.79): packed 32-bit ``a / b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_div_core` with W = 23 (its cases).
+    """
     return _div_core(a, b, 23)
 
 
 @njit(cache=True)
 def _fd48_k(a, b):
+    """EFD (5.80): packed 48-bit ``a / b`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_div_core` with W = 39 (its cases).
+    """
     return _div_core(a, b, 39)
 
 
@@ -444,50 +669,94 @@ def _fd48_k(a, b):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _fabs_core(a, W):
-    m, e = _unpack(a, W)
+    """FABS on a packed word of W fraction bits -> (p, flags).
+
+    Cases
+    -----
+    non-negative : MA >= 0 (zero included) -> a unchanged, flags 0.
+    negative : MA < 0 -> (-MA, E).
+    minus-one : -1.0 * 2**e -> 0.5 * 2**(e+1).
+    overflow : -1.0 * 2**127 -> (7FF..F/7F, FLAG_FLOAT_OVERFLOW).
+    """
+    m, e = unpack_w(a, W)
     if m >= 0:
         return a, 0
     if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
         e += 1
         if e > 127:
             return _overflow(False, W)
-        return _pack(1 << (W - 1), e, W), 0
-    return _pack(-m, e, W), 0
+        return pack_w(1 << (W - 1), e, W), 0
+    return pack_w(-m, e, W), 0
 
 
 @njit(cache=True, inline="always")
 def _fneg_core(a, W):
-    m, e = _unpack(a, W)
+    """FNEG on a packed word of W fraction bits -> (p, flags).
+
+    Cases
+    -----
+    zero : 0 -> (0, 0).
+    typical : any other mantissa -> (-MA, E).
+    minus-one : -1.0 * 2**e -> 0.5 * 2**(e+1).
+    minus-one-overflow : -1.0 * 2**127 -> (7FF..F/7F, FLAG_FLOAT_OVERFLOW).
+    half : 0.5 * 2**e -> -1.0 * 2**(e-1).
+    half-underflow : 0.5 * 2**-128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    """
+    m, e = unpack_w(a, W)
     if m == 0:
         return 0, 0
     if m == -(1 << W):               # -1.0 * 2**e -> 0.5 * 2**(e+1)
         if e == 127:
             return _overflow(False, W)
-        return _pack(1 << (W - 1), e + 1, W), 0
+        return pack_w(1 << (W - 1), e + 1, W), 0
     if m == (1 << (W - 1)):          # 0.5 * 2**e -> -1.0 * 2**(e-1)
         if e == -128:
             return 0, FLAG_FLOAT_UNDERFLOW
-        return _pack(-(1 << W), e - 1, W), 0
-    return _pack(-m, e, W), 0
+        return pack_w(-(1 << W), e - 1, W), 0
+    return pack_w(-m, e, W), 0
 
 
 @njit(cache=True)
 def _fabs32_k(a):
+    """FABS (5.62): packed 32-bit ``|a|`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_fabs_core` with W = 23 (its cases).
+    """
     return _fabs_core(a, 23)
 
 
 @njit(cache=True)
 def _fabs48_k(a):
+    """48-bit analogue of FABS: packed 48-bit ``|a|`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_fabs_core` with W = 39 (its cases).
+    """
     return _fabs_core(a, 39)
 
 
 @njit(cache=True)
 def _fneg32_k(a):
+    """FNEG (5.70): packed 32-bit ``-a`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_fneg_core` with W = 23 (its cases).
+    """
     return _fneg_core(a, 23)
 
 
 @njit(cache=True)
 def _fneg48_k(a):
+    """48-bit negate (``0 EFS a``): packed 48-bit ``-a`` -> (p, flags).
+
+    Cases
+    -----
+    typical : :func:`_fneg_core` with W = 39 (its cases).
+    """
     return _fneg_core(a, 39)
 
 
@@ -496,6 +765,17 @@ def _fneg48_k(a):
 # ================================================================================================
 @njit(cache=True)
 def _fix32_k(a):
+    """FIX (5.85): packed 32-bit float -> (16-bit integer pattern, flags), truncated toward zero.
+
+    Cases
+    -----
+    overflow : exponent > 15 -> (0, FLAG_FIXED_OVERFLOW) (the hardware leaves RA unchanged).
+    positive : truncated toward zero (32767.99 -> 32767).
+    negative : truncated toward zero, not toward minus infinity (-1.5 -> -1 = 0xFFFF).
+    minus-32768 : -1.0 * 2**15 -> 0x8000, no flag.
+    tiny : exponent below -40 -> shift capped at 63 -> 0 (either sign).
+    zero : 0 -> (0, 0).
+    """
     m, e = unpack32(a)
     if e > 15:
         return 0, FLAG_FIXED_OVERFLOW
@@ -508,6 +788,17 @@ def _fix32_k(a):
 
 @njit(cache=True)
 def _fix48_k(a):
+    """EFIX (5.87): packed 48-bit float -> (32-bit integer pattern, flags), truncated toward zero.
+
+    Cases
+    -----
+    overflow : exponent > 31 -> (0, FLAG_FIXED_OVERFLOW).
+    positive : truncated toward zero (2**31 - 0.5 -> 0x7FFFFFFF).
+    negative : truncated toward zero (-123456.9 -> -123456).
+    minus-2-31 : -1.0 * 2**31 -> 0x80000000, no flag.
+    tiny : exponent below -24 -> shift capped at 63 -> 0 (either sign).
+    zero : 0 -> (0, 0).
+    """
     m, e = unpack48(a)
     if e > 31:
         return 0, FLAG_FIXED_OVERFLOW
@@ -520,6 +811,14 @@ def _fix48_k(a):
 
 @njit(cache=True)
 def _flt32_k(i):
+    """FLT (5.86): 16-bit integer pattern -> (packed 32-bit float, 0), exact.
+
+    Cases
+    -----
+    zero : 0 -> (0, 0).
+    positive : 1..32767 -> normalised from exponent 15 (1 -> 0x40000001).
+    negative : 0x8000..0xFFFF read as -32768..-1 (0x8000 -> -1.0 * 2**15 = 0x8000000F).
+    """
     v = ((i & 0xFFFF) ^ 0x8000) - 0x8000
     if v == 0:
         return 0, 0
@@ -528,6 +827,14 @@ def _flt32_k(i):
 
 @njit(cache=True)
 def _flt48_k(i):
+    """EFLT (5.88): 32-bit integer pattern -> (packed 48-bit float, 0), exact.
+
+    Cases
+    -----
+    zero : 0 -> (0, 0).
+    positive : 1..2**31-1 -> normalised from exponent 31.
+    negative : 0x80000000.. read as 2's complement (0x80000000 -> -1.0 * 2**31 = 0x8000001F0000).
+    """
     v = ((i & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
     if v == 0:
         return 0, 0
@@ -539,8 +846,19 @@ def _flt48_k(i):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _fc_core(a, b, W):
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    """FC/EFC on packed words of W fraction bits -> -1 (a < b), 0 (a = b), 1 (a > b).
+
+    Cases
+    -----
+    sign-differs : different signs (zero counted as its own sign) -> ordered by sign.
+    both-zero : both floating zero -> 0.
+    exponent-differs : same sign, different exponents -> larger exponent is larger in magnitude,
+        reversed for negatives.
+    mantissa-differs : same sign and exponent -> ordered by mantissa.
+    equal : same words -> 0.
+    """
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     sa = -1 if ma < 0 else (1 if ma > 0 else 0)
     so = -1 if mo < 0 else (1 if mo > 0 else 0)
     if sa != so:
@@ -557,24 +875,49 @@ def _fc_core(a, b, W):
 
 @njit(cache=True)
 def _fc32_k(a, b):
+    """FC (5.94): compare packed 32-bit floats -> -1, 0, 1.
+
+    Cases
+    -----
+    typical : :func:`_fc_core` with W = 23 (its cases).
+    """
     return _fc_core(a, b, 23)
 
 
 @njit(cache=True)
 def _fc48_k(a, b):
+    """EFC (5.95): compare packed 48-bit floats -> -1, 0, 1.
+
+    Cases
+    -----
+    typical : :func:`_fc_core` with W = 39 (its cases).
+    """
     return _fc_core(a, b, 39)
 
 
 @njit(cache=True, inline="always")
 def to48(p):
-    """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact."""
+    """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact.
+
+    Cases
+    -----
+    typical : ``w0 w1`` kept, ``w2 = 0``: the same value (0x40000001 -> 0x400000010000).
+    """
     return (p & 0xFFFFFFFF) << 16
 
 
 @njit(cache=True, inline="always")
 def to32(p):
     """48-bit float -> 32-bit float by dropping ``w2``: the 40-bit 2's complement mantissa is cut to
-    24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised."""
+    24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised.
+
+    Cases
+    -----
+    exact : ``w2 = 0`` -> the same value.
+    truncate-positive : positive with ``w2 != 0`` -> the next 32-bit value below (toward zero).
+    truncate-negative : negative with ``w2 != 0`` -> the next 32-bit value below (away from
+        zero).
+    """
     return (p >> 16) & 0xFFFFFFFF
 
 
@@ -603,14 +946,18 @@ def is_normalized48(p: int) -> bool:
     return ((m >> 39) ^ (m >> 38)) & 1 == 1
 
 
-def _f32(name, v):
+def check32(name, v):
+    """``v`` as an int if it is a normalised packed 32-bit float or floating zero, else
+    ``ValueError`` naming ``name`` and the value."""
     v = _int_in(name, v, MASK32)
     if not is_normalized32(v):
         raise ValueError(f"{name}={v:#010x} is not a normalised 1750A 32-bit float or floating zero")
     return v
 
 
-def _f48(name, v):
+def check48(name, v):
+    """``v`` as an int if it is a normalised packed 48-bit float or floating zero, else
+    ``ValueError`` naming ``name`` and the value."""
     v = _int_in(name, v, MASK48)
     if not is_normalized48(v):
         raise ValueError(f"{name}={v:#014x} is not a normalised 1750A 48-bit float or floating zero")
@@ -701,14 +1048,14 @@ def encode48(x, rounding: str = "floor") -> int:
 
 def decode32(p) -> float:
     """Packed 32-bit 1750A float -> Python float (exact). Non-normalised words -> ``ValueError``."""
-    p = _f32("decode32: p", p)
+    p = check32("decode32: p", p)
     m, e = unpack32.py_func(p)
     return math.ldexp(float(m), e - 23)
 
 
 def decode48(p) -> float:
     """Packed 48-bit 1750A float -> Python float (exact: 40-bit mantissas fit a double)."""
-    p = _f48("decode48: p", p)
+    p = check48("decode48: p", p)
     m, e = unpack48.py_func(p)
     return math.ldexp(float(m), e - 39)
 
@@ -717,7 +1064,18 @@ def decode48(p) -> float:
 def enc_mantissa(x, W, nearest):
     """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
     32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.
-    The one normalisation every jitted encoder uses (:func:`_enc_k`, ``flightsw.tp.f1750.enc32``)."""
+    The one normalisation every jitted encoder uses (:func:`_enc_k`, ``flightsw.tp.f1750.enc32``).
+
+    Cases
+    -----
+    exact : x representable in W + 1 bits -> its mantissa and exponent.
+    floor : not nearest -> truncated toward minus infinity (a negative x gets the next lower
+        mantissa).
+    nearest : nearest -> the closer mantissa; below half a unit down, above half up.
+    nearest-tie-even : exactly half a unit -> the even mantissa.
+    round-up-carry : rounding up to 2**W -> halved, exponent + 1.
+    minus-half : a mantissa of -0.5 (x = -2**k, or rounded to it) -> -1.0 * 2**(e-1).
+    """
     f, e = math.frexp(x)
     v = math.ldexp(f, W)
     fl = math.floor(v)
@@ -739,7 +1097,17 @@ def enc_mantissa(x, W, nearest):
 @njit(cache=True)
 def _enc_k(x, W, nearest):
     """One finite float64 -> packed 1750A word (W = 23: 32-bit, 39: 48-bit); exactly
-    :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding)."""
+    :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding).
+
+    Cases
+    -----
+    zero : x = 0.0 (either sign) -> 0.
+    typical-32 : W = 23, in range -> the packed 32-bit word.
+    typical-48 : W = 39, in range -> the packed 48-bit word.
+    underflow : exponent below -128 -> 0 (floating zero, the underflow result).
+    overflow-32 : W = 23, exponent above 127 -> MAX32 (positive) or MIN32 (negative).
+    overflow-48 : W = 39, exponent above 127 -> MAX48 or MIN48.
+    """
     if x == 0.0:
         return 0
     mi, e = enc_mantissa(x, W, nearest)
@@ -756,7 +1124,14 @@ def _enc_k(x, W, nearest):
 
 @njit(cache=True)
 def _enc_array_k(x, W, nearest, out):
-    """Encode the flat float64 ``x`` into ``out`` (int64); False (nothing written) if any is not finite."""
+    """Encode the flat float64 ``x`` into ``out`` (int64); False (nothing written) if any is not finite.
+
+    Cases
+    -----
+    all-finite : every element encoded with :func:`_enc_k` -> True.
+    non-finite : any NaN or infinity -> False, ``out`` untouched.
+    empty : zero-length ``x`` -> True, nothing written.
+    """
     for i in range(x.shape[0]):
         if not math.isfinite(x[i]):
             return False
@@ -773,21 +1148,43 @@ _POW2 = np.ldexp(1.0, np.arange(-192, 192))
 @njit(cache=True)
 def _dec32_k(p):
     """Packed 32-bit float -> float64 (exact: 24-bit mantissa times a power of two, no subnormals
-    in the 1750A range), in jitted code."""
+    in the 1750A range), in jitted code.
+
+    Cases
+    -----
+    zero : 0 -> 0.0.
+    typical : m * 2**(e - 23) exactly.
+    exponent-extremes : exponents -128 and 127 (the power-of-two table's ends in use) exact.
+    """
     m, e = unpack32(p)
     return float(m) * _POW2[e + (192 - 23)]
 
 
 @njit(cache=True)
 def _dec48_k(p):
-    """Packed 48-bit float -> float64 (exact), in jitted code."""
+    """Packed 48-bit float -> float64 (exact), in jitted code.
+
+    Cases
+    -----
+    zero : 0 -> 0.0.
+    typical : m * 2**(e - 39) exactly (40-bit mantissas fit a double).
+    exponent-extremes : exponents -128 and 127 exact.
+    """
     m, e = unpack48(p)
     return float(m) * _POW2[e + (192 - 39)]
 
 
 @njit(cache=True)
 def _norm48_k(p):
-    """:func:`is_normalized48` of a 48-bit pattern (in range)."""
+    """:func:`is_normalized48` of a 48-bit pattern (in range).
+
+    Cases
+    -----
+    zero : all bits 0 -> True.
+    zero-mantissa : mantissa 0 with a non-zero exponent -> False.
+    normalised : mantissa bits 0 and 1 differ (either sign) -> True.
+    not-normalised : mantissa bits 0 and 1 equal -> False.
+    """
     m = (((p >> 24) & 0xFFFFFF) << 16) | (p & 0xFFFF)
     if m == 0:
         return p == 0
@@ -796,7 +1193,15 @@ def _norm48_k(p):
 
 @njit(cache=True)
 def _norm32_k(p):
-    """:func:`is_normalized32` of a 32-bit pattern (in range)."""
+    """:func:`is_normalized32` of a 32-bit pattern (in range).
+
+    Cases
+    -----
+    zero : all bits 0 -> True.
+    zero-mantissa : mantissa 0 with a non-zero exponent -> False.
+    normalised : mantissa bits 0 and 1 differ (either sign) -> True.
+    not-normalised : mantissa bits 0 and 1 equal -> False.
+    """
     m = (p >> 8) & 0xFFFFFF
     if m == 0:
         return p == 0
@@ -812,6 +1217,14 @@ is_normalized32_k, is_normalized48_k = _norm32_k, _norm48_k
 
 @njit(cache=True)
 def _dec_array_k(p, W, out):
+    """Decode the flat packed words ``p`` (int64) into ``out`` (float64, same length), exactly.
+
+    Cases
+    -----
+    w23 : W = 23: every word through :func:`_dec32_k`.
+    w39 : W = 39: every word through :func:`_dec48_k`.
+    empty : zero-length ``p`` -> nothing written.
+    """
     for i in range(p.shape[0]):
         out[i] = _dec32_k(p[i]) if W == 23 else _dec48_k(p[i])
 
@@ -894,36 +1307,40 @@ _DOC_ADD = ("``{n}(a, b) -> (a {op} b, flags)``: {mn} (MIL-STD-1750A {sec}). Pac
             "normalise; overflow -> 7FF..F/7F or 800..0/7F + FLAG_FLOAT_OVERFLOW, underflow -> 0 + "
             "FLAG_FLOAT_UNDERFLOW.")
 
-fa32 = _binary("fa32", _fa32_k, _f32, _DOC_ADD.format(n="fa32", op="+", mn="FA", sec="5.60", w=32))
-fs32 = _binary("fs32", _fs32_k, _f32, _DOC_ADD.format(n="fs32", op="-", mn="FS", sec="5.68", w=32))
-fa48 = _binary("fa48", _fa48_k, _f48, _DOC_ADD.format(n="fa48", op="+", mn="EFA", sec="5.61", w=48))
-fs48 = _binary("fs48", _fs48_k, _f48, _DOC_ADD.format(n="fs48", op="-", mn="EFS", sec="5.69", w=48))
+fa32 = _binary("fa32", _fa32_k, check32,
+               _DOC_ADD.format(n="fa32", op="+", mn="FA", sec="5.60", w=32))
+fs32 = _binary("fs32", _fs32_k, check32,
+               _DOC_ADD.format(n="fs32", op="-", mn="FS", sec="5.68", w=32))
+fa48 = _binary("fa48", _fa48_k, check48,
+               _DOC_ADD.format(n="fa48", op="+", mn="EFA", sec="5.61", w=48))
+fs48 = _binary("fs48", _fs48_k, check48,
+               _DOC_ADD.format(n="fs48", op="-", mn="EFS", sec="5.69", w=48))
 _DOC_MUL = ("``{n}(a, b) -> (a * b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponents added and "
             "checked first (> 7F overflow, < 80 underflow), exact double-length mantissa product "
             "shifted left 1, (-1.0)(-1.0) -> 0.5 * 2**(n+m+1), normalised, truncated toward minus "
             "infinity.")
-fm32 = _binary("fm32", _fm32_k, _f32, _DOC_MUL.format(n="fm32", mn="FM", sec="5.74"))
-fm48 = _binary("fm48", _fm48_k, _f48, _DOC_MUL.format(n="fm48", mn="EFM", sec="5.75"))
+fm32 = _binary("fm32", _fm32_k, check32, _DOC_MUL.format(n="fm32", mn="FM", sec="5.74"))
+fm48 = _binary("fm48", _fm48_k, check48, _DOC_MUL.format(n="fm48", mn="EFM", sec="5.75"))
 _DOC_DIV = ("``{n}(a, b) -> (a / b, flags)``: {mn} (MIL-STD-1750A {sec}). Exponent difference "
             "checked first; quotient truncated toward minus infinity, shifted right once if it does "
             "not fit the mantissa. Divide by zero -> overflow result + FLAG_FLOAT_OVERFLOW.")
-fd32 = _binary("fd32", _fd32_k, _f32, _DOC_DIV.format(n="fd32", mn="FD", sec="5.79"))
-fd48 = _binary("fd48", _fd48_k, _f48, _DOC_DIV.format(n="fd48", mn="EFD", sec="5.80"))
-fabs32 = _unary("fabs32", _fabs32_k, _f32,
+fd32 = _binary("fd32", _fd32_k, check32, _DOC_DIV.format(n="fd32", mn="FD", sec="5.79"))
+fd48 = _binary("fd48", _fd48_k, check48, _DOC_DIV.format(n="fd48", mn="EFD", sec="5.80"))
+fabs32 = _unary("fabs32", _fabs32_k, check32,
                 "``fabs32(a) -> (|a|, flags)``: FABS (5.62). |-1.0*2**n| = 0.5*2**(n+1); "
                 "|-1.0*2**127| overflows to 7FFFFF/7F.")
-fabs48 = _unary("fabs48", _fabs48_k, _f48,
+fabs48 = _unary("fabs48", _fabs48_k, check48,
                 "``fabs48(a) -> (|a|, flags)``: 48-bit analogue of FABS (the standard has no EFABS).")
-fneg32 = _unary("fneg32", _fneg32_k, _f32,
+fneg32 = _unary("fneg32", _fneg32_k, check32,
                 "``fneg32(a) -> (-a, flags)``: FNEG (5.70). -(-1.0*2**n) = 0.5*2**(n+1), "
                 "-(0.5*2**n) = -1.0*2**(n-1); -(-1.0*2**127) overflows, -(0.5*2**-128) underflows.")
-fneg48 = _unary("fneg48", _fneg48_k, _f48,
+fneg48 = _unary("fneg48", _fneg48_k, check48,
                 "``fneg48(a) -> (-a, flags)``: 48-bit negate (no EFNEG exists; identical to "
                 "``0 EFS a`` and to FNEG's rules).")
-fix32 = _unary("fix32", _fix32_k, _f32,
+fix32 = _unary("fix32", _fix32_k, check32,
                "``fix32(a) -> (int16 pattern, flags)``: FIX (5.85), truncation toward zero; "
                "exponent > 0F -> (0, FLAG_FIXED_OVERFLOW) (the hardware leaves RA unchanged).")
-fix48 = _unary("fix48", _fix48_k, _f48,
+fix48 = _unary("fix48", _fix48_k, check48,
                "``fix48(a) -> (int32 pattern, flags)``: EFIX (5.87), truncation toward zero; "
                "exponent > 1F -> (0, FLAG_FIXED_OVERFLOW).")
 flt32 = _unary("flt32", _flt32_k, _int16,
@@ -937,15 +1354,15 @@ flt48 = _unary("flt48", _flt48_k, _int32,
 def fc32(a, b) -> int:
     """``fc32(a, b) -> -1 | 0 | 1``: FC (5.94), the condition status of ``a : b`` (a < b, =, >).
     Never interrupts, so no flags are returned."""
-    return int(_fc32_k(_f32("fc32: a", a), _f32("fc32: b", b)))
+    return int(_fc32_k(check32("fc32: a", a), check32("fc32: b", b)))
 
 
 def fc48(a, b) -> int:
     """``fc48(a, b) -> -1 | 0 | 1``: EFC (5.95)."""
-    return int(_fc48_k(_f48("fc48: a", a), _f48("fc48: b", b)))
+    return int(_fc48_k(check48("fc48: a", a), check48("fc48: b", b)))
 
 
-def _ov2(kern):
+def overload_impl2(kern):
     """numba overload typing function for a public 2-argument primitive: calls ``kern``."""
     def ov(a, b):
         def impl(a, b):
@@ -954,7 +1371,8 @@ def _ov2(kern):
     return ov
 
 
-def _ov1(kern):
+def overload_impl1(kern):
+    """numba overload typing function for a public 1-argument primitive: calls ``kern``."""
     def ov(a):
         def impl(a):
             return kern(a)
@@ -969,9 +1387,9 @@ def _register_overloads():
     pairs1 = [(fabs32, _fabs32_k), (fabs48, _fabs48_k), (fneg32, _fneg32_k), (fneg48, _fneg48_k),
               (fix32, _fix32_k), (fix48, _fix48_k), (flt32, _flt32_k), (flt48, _flt48_k)]
     for pub, kern in pairs2:
-        overload(pub, jit_options={"cache": True})(_ov2(kern))
+        overload(pub, jit_options={"cache": True})(overload_impl2(kern))
     for pub, kern in pairs1:
-        overload(pub, jit_options={"cache": True})(_ov1(kern))
+        overload(pub, jit_options={"cache": True})(overload_impl1(kern))
 
 
 _register_overloads()

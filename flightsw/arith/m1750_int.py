@@ -29,7 +29,7 @@ import numpy as np
 from numba import njit
 from numba.extending import overload
 
-from flightsw.arith.m1750_float import FLAG_FIXED_OVERFLOW, _ov1, _ov2
+from flightsw.arith.m1750_float import FLAG_FIXED_OVERFLOW, overload_impl1, overload_impl2
 
 __all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32",
            "mul16", "mul16x32", "mul32", "div16", "div32_16", "div32", "INT_OP_MIX"]
@@ -354,7 +354,8 @@ for _pub, _k, _n in [(add16, _add16_k, 2), (sub16, _sub16_k, 2), (add32, _add32_
                      (abs16, _abs16_k, 1), (abs32, _abs32_k, 1), (mul16, _mul16_k, 2),
                      (mul16x32, _mul16x32_k, 2), (mul32, _mul32_k, 2), (div16, _div16_k, 2),
                      (div32_16, _div32_16_k, 2), (div32, _div32_k, 2)]:
-    overload(_pub, jit_options={"cache": True})(_ov2(_k) if _n == 2 else _ov1(_k))
+    overload(_pub, jit_options={"cache": True})(
+        overload_impl2(_k) if _n == 2 else overload_impl1(_k))
 
 #: budget keys of each integer primitive (memory-operand forms). MS, DM, DV, D, DD, DA, DS, NEG,
 #: ABS have no entry of their own in flightsw.budget: they are priced like the nearest listed

@@ -36,7 +36,7 @@ from numba.extending import overload
 
 from flightsw.arith.m1750_float import (
     FLAG_FIXED_OVERFLOW, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48,
-    _norm_shift, _overflow_word, _pack, _prod80, _unpack, pack32, pack48, unpack32, unpack48,
+    norm_shift, overflow_word, pack_w, prod80, unpack_w, pack32, pack48, unpack32, unpack48,
 )
 
 __all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fd32_pos_v", "fa48_v", "fs48_v", "fm48_v",
@@ -64,13 +64,13 @@ def _finish_v(m, e, W):
         ``FLAG_FLOAT_OVERFLOW``.
     underflow : exponent below -128 after the shift: ``(0, FLAG_FLOAT_UNDERFLOW)``.
     """
-    s = np.int64(_norm_shift(m, W)) if m != 0 else 0
+    s = np.int64(norm_shift(m, W)) if m != 0 else 0
     m2 = m << s
     e2 = e - s
-    p = _pack(m2, e2, W)
+    p = pack_w(m2, e2, W)
     hi = e2 > 127
     lo = e2 < -128
-    p = _overflow_word(m2 < 0, W) if hi else p
+    p = overflow_word(m2 < 0, W) if hi else p
     f = _FOV if hi else 0
     p = 0 if lo else p
     f = _FUN if lo else f
@@ -97,8 +97,8 @@ def _add_v(a, b, W, subtract):
         ``FLAG_FLOAT_OVERFLOW``.
     underflow : normalising the sum takes the exponent below -128: ``(0, FLAG_FLOAT_UNDERFLOW)``.
     """
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     if subtract:                               # a compile-time constant: not a data branch
         mo = -mo
     both = (ma != 0) & (mo != 0)               # only then are the mantissas aligned
@@ -202,7 +202,7 @@ def _mul_pre_v(p, f, ma, mo, n, W):
     exp-underflow : ``n < -128``: ``(0, FLAG_FLOAT_UNDERFLOW)``.
     zero-operand : a zero mantissa: ``(0, 0)``, over every other outcome.
     """
-    p = _overflow_word((ma < 0) != (mo < 0), W) if n > 127 else p
+    p = overflow_word((ma < 0) != (mo < 0), W) if n > 127 else p
     f = _FOV if n > 127 else f
     p = 0 if n < -128 else p
     f = _FUN if n < -128 else f
@@ -233,7 +233,7 @@ def fm32_v(a, b):
     mo, eo = unpack32(b)
     n = ea + eo
     P = ma * mo                                # exact, value P / 2**46
-    s = np.int64(_norm_shift(P, 46)) if P != 0 else 0
+    s = np.int64(norm_shift(P, 46)) if P != 0 else 0
     n2 = n - s
     p = pack32((P << s) >> 23, n2)
     f = 0
@@ -268,7 +268,7 @@ def fm48_v(a, b):
     neg = (ma < 0) != (mo < 0)
     A = -ma if ma < 0 else ma
     B = -mo if mo < 0 else mo
-    H, L = _prod80(A, B)
+    H, L = prod80(A, B)
     half = np.int64(1) << 37
     mA = (H << 1) | (L >> 39)                  # floor(|P| / 2**39), normalised as is
     mB = (H << 2) | (L >> 38)                  # floor(|P| / 2**38), one left shift
@@ -308,8 +308,8 @@ def _div_v(a, b, W):
     exp-overflow : ``n = EA - EO > 127``: overflow word of the quotient's sign.
     exp-underflow : ``n < -128``: ``(0, FLAG_FLOAT_UNDERFLOW)``.
     """
-    ma, ea = _unpack(a, W)
-    mo, eo = _unpack(b, W)
+    ma, ea = unpack_w(a, W)
+    mo, eo = unpack_w(b, W)
     n = ea - eo if ma != 0 else 0
     neg = (ma < 0) != (mo < 0)
     A = -ma if ma < 0 else ma
@@ -332,21 +332,21 @@ def _div_v(a, b, W):
     fit = (Q >= top) | (Q < -top)
     Q = (Q >> 1) if fit else Q
     n2 = n + 1 if fit else n
-    p = _pack(Q, n2, W)
+    p = pack_w(Q, n2, W)
     f = 0
-    p = _overflow_word(Q < 0, W) if n2 > 127 else p
+    p = overflow_word(Q < 0, W) if n2 > 127 else p
     f = _FOV if n2 > 127 else f
     mh = Q == -(np.int64(1) << (W - 1))        # exactly -0.5 -> -1.0 * 2**(n-1)
-    p = (0 if n2 - 1 < -128 else _pack(-top, n2 - 1, W)) if mh else p
+    p = (0 if n2 - 1 < -128 else pack_w(-top, n2 - 1, W)) if mh else p
     f = (_FUN if n2 - 1 < -128 else 0) if mh else f
     # the RTL's checks before the division, highest precedence last
     p = 0 if ma == 0 else p
     f = 0 if ma == 0 else f
     p = 0 if n < -128 else p
     f = _FUN if n < -128 else f
-    p = _overflow_word(neg, W) if n > 127 else p
+    p = overflow_word(neg, W) if n > 127 else p
     f = _FOV if n > 127 else f
-    p = _overflow_word(ma < 0, W) if mo == 0 else p
+    p = overflow_word(ma < 0, W) if mo == 0 else p
     f = _FOV if mo == 0 else f
     return p, f
 
@@ -579,7 +579,7 @@ def scale32_v(p, k):
     m, e = unpack32(p)
     e2 = e + k
     r = (p & 0xFFFFFF00) | (e2 & 0xFF)
-    r = _overflow_word(m < 0, 23) if e2 > 127 else r
+    r = overflow_word(m < 0, 23) if e2 > 127 else r
     f = _FOV if e2 > 127 else 0
     r = 0 if e2 < -128 else r
     f = _FUN if e2 < -128 else f
@@ -671,8 +671,8 @@ def _all_nn(a, b, n, W):
     """
     ok = True
     for i in range(n):
-        ma, ea = _unpack(_el(a, i), W)
-        mo, eo = _unpack(_el(b, i), W)
+        ma, ea = unpack_w(_el(a, i), W)
+        mo, eo = unpack_w(_el(b, i), W)
         ok &= _nn_domain(ma, ea, mo, eo)
     return ok
 

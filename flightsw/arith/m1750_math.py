@@ -63,8 +63,9 @@ from numba.extending import overload
 
 from flightsw.arith.m1750_float import (
     FLAG_DOMAIN, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48, MIN32, MIN48, ONE32, ONE48,
-    HALF32, HALF48, OP_MIX, _f32, _f48, _ov1, _ov2, fa32, fa48, fabs32, fabs48, fc32, fc48, fd32,
-    fd48, fix32, fix48, flt32, flt48, fm32, fm48, fneg32, fneg48, fs32, fs48, m1750_cycles,
+    HALF32, HALF48, OP_MIX, check32, check48, overload_impl1, overload_impl2, fa32, fa48, fabs32,
+    fabs48, fc32, fc48, fd32, fd48, fix32, fix48, flt32, flt48, fm32, fm48, fneg32, fneg48, fs32,
+    fs48, m1750_cycles,
     to32, to48, unpack32, unpack48,
 )
 from flightsw.arith.m1750_lanes import (
@@ -905,7 +906,7 @@ def _pub1(name, kern, check, doc):
         return int(r), int(f)
     fn.__name__ = fn.__qualname__ = name
     fn.__doc__ = doc
-    overload(fn, jit_options={"cache": True})(_ov1(kern))
+    overload(fn, jit_options={"cache": True})(overload_impl1(kern))
     return fn
 
 
@@ -915,39 +916,39 @@ def _pub2(name, kern, check, doc):
         return int(r), int(f)
     fn.__name__ = fn.__qualname__ = name
     fn.__doc__ = doc
-    overload(fn, jit_options={"cache": True})(_ov2(kern))
+    overload(fn, jit_options={"cache": True})(overload_impl2(kern))
     return fn
 
 
-sqrt32 = _pub1("sqrt32", _sqrt32_k, _f32,
+sqrt32 = _pub1("sqrt32", _sqrt32_k, check32,
                "``sqrt32(x) -> (sqrt(x), flags)``, packed 32-bit floats. x < 0 -> (0, FLAG_DOMAIN). "
                "Max error 1.5 ulp (see MAX_ERROR).")
-sqrt48 = _pub1("sqrt48", _sqrt48_k, _f48,
+sqrt48 = _pub1("sqrt48", _sqrt48_k, check48,
                "``sqrt48(x) -> (sqrt(x), flags)``, packed 48-bit floats. x < 0 -> (0, FLAG_DOMAIN). "
                "Max error 1.5 ulp.")
-exp32 = _pub1("exp32", _exp32_k, _f32,
+exp32 = _pub1("exp32", _exp32_k, check32,
               "``exp32(x) -> (e**x, flags)``; overflow (x > ~88.03, e**x >= 2**127) -> (7FFFFF7F, "
               "FLAG_FLOAT_OVERFLOW), underflow (x < ~-89.41, e**x < 2**-129) -> (0, "
               "FLAG_FLOAT_UNDERFLOW). "
               "Max error 3 ulp.")
-ln32 = _pub1("ln32", _ln32_k, _f32,
+ln32 = _pub1("ln32", _ln32_k, check32,
              "``ln32(x) -> (ln x, flags)``; x <= 0 -> (8000007F, FLAG_DOMAIN). Max error 4 ulp.")
-sin32 = _pub1("sin32", _sin32_k, _f32,
+sin32 = _pub1("sin32", _sin32_k, check32,
               "``sin32(x) -> (sin x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
               "Max absolute error 3.5 * 2**-23.")
-cos32 = _pub1("cos32", _cos32_k, _f32,
+cos32 = _pub1("cos32", _cos32_k, check32,
               "``cos32(x) -> (cos x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
               "Max absolute error 3.5 * 2**-23.")
-sin48 = _pub1("sin48", _sin48_k, _f48,
+sin48 = _pub1("sin48", _sin48_k, check48,
               "``sin48(x) -> (sin x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
               "Max absolute error 4 * 2**-39.")
-cos48 = _pub1("cos48", _cos48_k, _f48,
+cos48 = _pub1("cos48", _cos48_k, check48,
               "``cos48(x) -> (cos x, flags)``, |x| < 2**15 else (0, FLAG_DOMAIN). "
               "Max absolute error 4 * 2**-39.")
-atan2_32 = _pub2("atan2_32", _atan2_32_k, _f32,
+atan2_32 = _pub2("atan2_32", _atan2_32_k, check32,
                  "``atan2_32(y, x) -> (atan2(y, x), flags)`` in [-pi, pi]; atan2(0, 0) = 0. "
                  "Max error 8 ulp.")
-atan2_48 = _pub2("atan2_48", _atan2_48_k, _f48,
+atan2_48 = _pub2("atan2_48", _atan2_48_k, check48,
                  "``atan2_48(y, x) -> (atan2(y, x), flags)`` in [-pi, pi]. Max error 6 ulp.")
 
 

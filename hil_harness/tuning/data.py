@@ -12,7 +12,7 @@ A set is described by a *set spec* (TOML, or the same as a dict)::
                                  # for the stored blobs: "centre" (none, the default), "previous"
                                  # (the previous frame's label), "truth" (label + noise: leans on
                                  # truth). uvisi tune optimise / validate ignore it: their prior is
-                                 # the flight TP's (hil_harness.tuning_closed)
+                                 # the flight TP's (hil_harness.tuning.closed)
     predict_noise_px = 3.0       # Gaussian sigma per axis for predict = "truth"
     workers = 1                  # processes used to build the set (runs are independent)
 
@@ -59,12 +59,11 @@ import numpy as np
 
 from flightsw.arith.m1750 import decode32_array
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
-
-from .fileio import temp_beside
+from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
            "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence",
-           "map_jobs"]
+           "map_jobs", "deep_merge", "frame_prediction"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -419,11 +418,13 @@ def load_sequence(name_or_path, base_dir=None, frame_shape=None):
     return seq
 
 
-def _deep_merge(base, over):
+def deep_merge(base, over):
+    """A deep copy of the table ``base`` with ``over`` merged in (nested tables merged key by key,
+    anything else replaced)."""
     out = copy.deepcopy(base)
     for k, v in over.items():
         if isinstance(v, dict) and isinstance(out.get(k), dict):
-            out[k] = _deep_merge(out[k], v)
+            out[k] = deep_merge(out[k], v)
         else:
             out[k] = copy.deepcopy(v)
     return out
@@ -439,7 +440,7 @@ def scenario_from_entry(name, override=None, seed=None, base_dir=None):
         return scn if seed is None else Scenario.from_dict(scn.raw, scn.path, seed=seed)
     if not isinstance(override, dict):
         raise ValueError(f"scenario override must be a table, got {override!r}")
-    return Scenario.from_dict(_deep_merge(scn.raw, override), scn.path, seed=seed)
+    return Scenario.from_dict(deep_merge(scn.raw, override), scn.path, seed=seed)
 
 
 def _window_centre(sub):
@@ -460,8 +461,11 @@ def _ip_frame(img, seq, record, pred, imager):
     return res.backend.feature_words.copy(), (float(mean[0]), float(mean[1])), res
 
 
-def _prediction(mode, label, prev, noise, rng):
-    """The TP prediction for a frame (None: no prediction)."""
+def frame_prediction(mode, label, prev, noise, rng):
+    """The TP prediction for a frame (None: no prediction), pixels ``(row, col)``.
+
+    ``mode`` is one of :data:`PREDICT_MODES`: "centre" (none), "previous" (``prev``, else
+    ``label``), "truth" (``label`` plus Gaussian noise of ``noise`` px drawn from ``rng``)."""
     if mode == "centre":
         return None
     if mode == "previous":
@@ -519,8 +523,8 @@ def scenario_run_set(entry, seed, sequence, base_dir=None, record=None) -> Train
             frame, truth = world.render()
             tg = truth["target"]
             pos = (float(tg["row"]), float(tg["col"])) if tg.get("in_field") else None
-            pred = _prediction(entry.get("predict", "centre"), pos, prev,
-                               entry.get("predict_noise_px", 0.0), rng)
+            pred = frame_prediction(entry.get("predict", "centre"), pos, prev,
+                                    entry.get("predict_noise_px", 0.0), rng)
             label = pos if entry.get("object", True) else None
             words, mean, _ = _ip_frame(frame, seq, record, pred, truth["imager"])
             acc.add(words, group=group, source=f"{scn.name}#{seed}", index=k, t=float(world.t),
@@ -606,8 +610,8 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
         label = mine[fr]
         # previous mode: the previous *labelled* frame of the sequence (the TP's last fix)
         prev_l = mine.get(fr - 1) if (fr - 1) in mine else prev
-        pred = _prediction(entry.get("predict", "centre"), label, prev_l,
-                           entry.get("predict_noise_px", 0.0), rng)
+        pred = frame_prediction(entry.get("predict", "centre"), label, prev_l,
+                                entry.get("predict_noise_px", 0.0), rng)
         words, mean, _ = _ip_frame(img, seq, record, pred, entry.get("imager", "wfov_vis"))
         acc.add(words, group=entry.get("group", "r"), source=f"{name}", index=fr, t=float(fr),
                 label_row=label[0] if label else math.nan,

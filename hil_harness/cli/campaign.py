@@ -2,7 +2,7 @@
 [--serial] [--job module:function] [--no-progress]`` or ``uvisi campaign --show DIR``
 
 Run a Monte Carlo campaign (``hil_harness.campaign``): every run of the spec (seeds x axes) executes
-the spec's job (default ``hil_harness.campaign_jobs:identification``) on a Dask cluster -- a local
+the spec's job (default ``hil_harness.campaign.jobs:identification``) on a Dask cluster -- a local
 one of ``--workers`` processes (default 2), or the existing scheduler at ``--scheduler`` -- and the
 results land in ``DIR/results.parquet`` (one row per run). Each finished run is committed at once
 (``DIR/parts/``); after an interruption ``--resume`` runs only what is missing. ``--serial`` runs in

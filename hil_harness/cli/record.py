@@ -31,7 +31,7 @@ def register(sub) -> None:
 
 
 def _check(args) -> int:
-    from hil_harness.tuning_export import check_record_file
+    from hil_harness.tuning.export import check_record_file
     bad = 0
     for f in args.files:
         res = check_record_file(f)
@@ -46,7 +46,7 @@ def _check(args) -> int:
 
 def _export(args) -> int:
     from flightsw.records import load_record
-    from hil_harness.tuning_export import export_record
+    from hil_harness.tuning.export import export_record
     if not args.toml and not args.words:
         raise ValueError("give --toml and/or --words")
     rec = load_record(args.record)

@@ -16,7 +16,7 @@ from flightsw.ip.sequence import DEFAULT_SEQUENCES
 from flightsw.ip.sequence_words import sequence_to_words
 from flightsw.records import load_record, shipped_records
 
-from .tuning_export import read_words
+from hil_harness.tuning.export import read_words
 
 __all__ = ["FAULT_CODES", "flip_bits", "fault_rng", "uplink_words"]
 

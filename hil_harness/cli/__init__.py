@@ -18,22 +18,22 @@ import tempfile
 import time
 import traceback
 
-from . import console
+from hil_harness import console
 
 #: modules that add subcommands, in the order they appear in ``uvisi --help``
 SUBCOMMAND_MODULES = (
-    "hil_harness.cli_demo",
-    "hil_harness.cli_detect",
-    "hil_harness.cli_track",
-    "hil_harness.cli_event",
-    "hil_harness.cli_replay",
-    "hil_harness.cli_scenarios",
-    "hil_harness.cli_budget",
-    "hil_harness.cli_tune",
-    "hil_harness.cli_record",
-    "hil_harness.cli_campaign",
-    "hil_harness.cli_rde",
-    "hil_harness.cli_inr",
+    "hil_harness.cli.demo",
+    "hil_harness.cli.detect",
+    "hil_harness.cli.track",
+    "hil_harness.cli.event",
+    "hil_harness.cli.replay",
+    "hil_harness.cli.scenarios",
+    "hil_harness.cli.budget",
+    "hil_harness.cli.tune",
+    "hil_harness.cli.record",
+    "hil_harness.cli.campaign",
+    "hil_harness.cli.rde",
+    "hil_harness.cli.inr",
 )
 
 
@@ -163,6 +163,3 @@ def main(argv: list[str] | None = None) -> int:
     except Exception:                       # noqa: BLE001 - the last resort: one line + a file
         return _internal_error(args.command, args.debug)
 
-
-if __name__ == "__main__":
-    sys.exit(main())

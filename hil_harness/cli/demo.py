@@ -59,7 +59,7 @@ def _m1750_report() -> list[tuple[str, str, bool]]:
 def run(args) -> int:
     if not getattr(args, "arith", False):
         import argparse
-        from .cli_event import run as run_event
+        from hil_harness.cli.event import run as run_event
         return run_event(argparse.Namespace(
             scenario="satellite_over_stars", seed=None, frames=None, out=args.out,
             force=getattr(args, "force", False), no_frames=False, no_figures=False, sequence=None,

@@ -24,9 +24,9 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.messages import FEATURE_NAMES
+from hil_harness.fileio import temp_beside
 
-from .fileio import temp_beside
-from .tuning_fit import COL, ROW, flight_rank, object_rows
+from .fit import COL, ROW, flight_rank, object_rows
 
 __all__ = ["evaluate", "validate", "threshold_sweep", "write_metrics", "atomic_text",
            "CONFUSION_OBJECT", "CONFUSION_EMPTY", "CLOSED_LOOP_ROWS"]
@@ -290,7 +290,7 @@ def validate(tset, records, out_dir, title="Record validation", primary=None,
     ``rate_vs_threshold.png`` and ``rank_over_time.png`` to ``out_dir``. Returns the metrics.
 
     ``tset`` is one TrainingSet or ``{label: TrainingSet}``: the frames each record's own closed
-    loop produced (:mod:`hil_harness.tuning_closed`). ``closed_loop`` (``{label: rates}``) adds
+    loop produced (:mod:`hil_harness.tuning.closed`). ``closed_loop`` (``{label: rates}``) adds
     ``top1_closed_loop``, ``top1_no_prior`` and ``top1_truth_prior`` (each k, n, rate, ci95) to
     the record's metrics; ``top1`` is then the closed-loop rate."""
     out = Path(out_dir)

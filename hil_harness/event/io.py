@@ -1,6 +1,6 @@
 """An event's products: the HDF5 recording, ``summary.json``, the figures, and the replay check.
 
-Recording layout (``hil_harness.recording``, written in blocks as ``recording.partial.h5`` and renamed
+Recording layout (:mod:`.recording`, written in blocks as ``recording.partial.h5`` and renamed
 ``recording.h5`` when complete; ``docs/formats.md``; every table one row per frame unless said)::
 
     attrs     format, complete, run_id, software versions, scenario (name, raw TOML table as JSON),
@@ -36,8 +36,8 @@ import numpy as np
 from flightsw.budget import DSP, IP1750, TP1750
 from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
 
-from .event import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
-                    EventConfig, FrameOutcome)
+from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
+                   EventConfig, FrameOutcome)
 from .recording import Recorder, Recording
 from .run_folder import RunFolder
 
@@ -276,7 +276,7 @@ def summarise(ev: Event) -> dict:
             for name in getattr(c, "status_names", lambda: [])():
                 status_counts[name] = status_counts.get(name, 0) + 1
     ttype = ev.object_type
-    from .event_metrics import held_after_lock
+    from .metrics import held_after_lock
     held = held_after_lock(outs, ev.geometry, comp)
     held_err = held.pop("error_px")
     return {
@@ -374,8 +374,8 @@ def summary_table(s: dict) -> str:
 # ================================================================================================
 def event_figures(ev: Event, out_dir: Path, gif: bool = True) -> list[Path]:
     """The figures of issue 8 beside the recording; returns their paths."""
-    from . import figures as fig
-    from .console import note
+    from hil_harness import figures as fig
+    from hil_harness.console import note
     note(f"uvisi event: writing the figures{' and the GIF' if gif else ''} to {out_dir} ...")
     out_dir = Path(out_dir)
     outs = ev.outcomes

@@ -7,7 +7,7 @@ The frames (every frame of every file, in order: single images, or a multi-frame
 cube) are read and turned into the flight's 12-bit counts by :mod:`hil_harness.images` (counts pass
 unchanged, wide integers by a known shift, anything else by a robust map from the background and
 the noise; ``--no-scale`` insists on counts), then replayed exactly as in the closed loop
-(:mod:`hil_harness.closed_loop`), without a spacecraft: each frame's window is placed and the
+(:mod:`hil_harness.tuning.closed_loop`), without a spacecraft: each frame's window is placed and the
 record's centroid means are set from the TP's prediction of the previous frame (the first frame
 from the image centre); the TP runs in target-of-opportunity mode with a stand-in attitude (fixed
 pointing), imager pixel scale from ``--fov`` (degrees across the columns) or the UVISI wide field
@@ -44,7 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .fileio import temp_beside
+from hil_harness.fileio import temp_beside
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
 WFOV_DEG = 13.1
@@ -101,7 +101,7 @@ def read_sequence(paths, no_scale: bool = False):
 
 
 def _sequence(name, record, shape):
-    from hil_harness.tuning_data import load_sequence
+    from hil_harness.tuning.data import load_sequence
     if name is None:
         name = "aurora" if record.object_type == "aurora" else "satellite"
     return load_sequence(name, None, tuple(shape))
@@ -137,8 +137,8 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
     """IP + TP over ``counts`` (uint16 [F, H, W]) -> (list of ReplayFrame, ImagerGeometry).
 
     ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames)."""
-    from hil_harness.closed_loop import ReplayEvent, replay
-    from hil_harness.tuning_events import imager_geometry
+    from hil_harness.tuning.closed_loop import ReplayEvent, replay
+    from hil_harness.tuning.events import imager_geometry
     if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
         raise ValueError(f"--frame-dt {frame_dt!r} must be a positive number of seconds")
     w = counts.shape[2]

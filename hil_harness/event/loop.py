@@ -43,10 +43,10 @@ from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, IMAGER
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
 from groundsim.scenario import Scenario
+from hil_harness.console import compile_seconds
+from hil_harness.sequences import resolve_sequence
 
 from .bus import fault_rng, flip_bits, uplink_words
-from .console import compile_seconds
-from .sequences import resolve_sequence
 from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
 
 FRAME_DT = 0.5
@@ -75,7 +75,7 @@ class EventConfig:
         scenario's compaction.
     record : str, Path or flightsw.records.Record, optional
         A priori record (shipped name, TOML file or the record itself); default by the object type
-        (:data:`hil_harness.selection.RECORD_FOR_TYPE`).
+        (:data:`hil_harness.event.selection.RECORD_FOR_TYPE`).
     selection : SelectionParams
         Imager hand-over criteria.
     overrun_policy : str
@@ -87,7 +87,7 @@ class EventConfig:
     stage_frame : int, optional
         Frame whose stage images are kept for the Figure-3 panel (default: the 11th processed frame).
     hypothesis : str, optional
-        A budget hypothesis (``hil_harness.budget_hypotheses.HYPOTHESES``) to price every frame
+        A budget hypothesis (``hil_harness.budget.hypotheses.HYPOTHESES``) to price every frame
         under, overruns included; default: today's cycle model.
     """
 
@@ -211,7 +211,7 @@ class Event:
         self.uplink_words = [self._uplink_words(i, u) for i, u in enumerate(scn.uplinks)]
         self._budget_hypothesis = None
         if cfg.hypothesis is not None:
-            from .budget_hypotheses import hypothesis
+            from hil_harness.budget.hypotheses import hypothesis
             self._budget_hypothesis = hypothesis(cfg.hypothesis)
         ground = [(float(t), str(i)) for t, i in scn.faults.imager_switch]
         self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
@@ -449,7 +449,7 @@ class Event:
         h = self._budget_hypothesis
         if h is None:
             return ledger
-        from .budget_hypotheses import hypothesis_ledger
+        from hil_harness.budget.hypotheses import hypothesis_ledger
         return hypothesis_ledger(h, self.ip.sequence, res.subimage.image.shape, ledger)
 
     def run(self, progress: bool = False, on_frame=None) -> list:
@@ -488,9 +488,3 @@ def _tracked_centroid(cmd, message) -> tuple[float, float]:
         return float("nan"), float("nan")
     c = message.candidates[i]
     return float(c["row"]), float(c["col"])
-
-
-def run_event(scenario="satellite_over_stars", **kw) -> dict:
-    """Run one event and write its products: see :func:`hil_harness.event_io.run_event`."""
-    from .event_io import run_event as _run
-    return _run(scenario, **kw)

@@ -33,8 +33,7 @@ from flightsw.budget import (ADSP2100, ADSP2100A, DSP, FRAME_PERIOD_S, IP1750, P
                              Ledger)
 from flightsw.ip.cycles import (DOCUMENTED, TODAY, CycleModel, housekeeping_cycles, ipc_clocks,
                                 sequence_listings, window_in_cycles)
-
-from .budget import sequence_buffers
+from hil_harness.budget import sequence_buffers
 
 __all__ = ["Hypothesis", "HypothesisResult", "HYPOTHESES", "WORST_SEQUENCES", "GRID", "POW2",
            "WindowScene", "sequence_at", "measure_scene", "window_cost", "evaluate", "break_even",
@@ -586,7 +585,7 @@ def rescore_recording(path, h: Hypothesis) -> dict:
     from scipy.stats import binomtest
 
     from flightsw.ip import ProcessingSequence
-    from .recording import Recording
+    from hil_harness.event.recording import Recording
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")

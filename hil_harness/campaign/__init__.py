@@ -6,7 +6,7 @@ Spec (TOML)::
     [campaign]
     name = "aurora_mc"
     description = "..."
-    job = "hil_harness.campaign_jobs:identification"   # "module:function"; default DEFAULT_JOB
+    job = "hil_harness.campaign.jobs:identification"   # "module:function"; default DEFAULT_JOB
     seeds = { start = 0, count = 50 }                  # or a list of ints
 
     [params]                    # passed to every run as they are
@@ -51,7 +51,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .fileio import temp_beside
+from hil_harness.fileio import temp_beside
 
 __all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_parts",
            "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
@@ -59,7 +59,7 @@ __all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_
 
 #: the job run when the spec names none (``hil_harness.campaign.DEFAULT_JOB`` or the environment
 #: variable ``UVISI_CAMPAIGN_JOB`` override it)
-DEFAULT_JOB = "hil_harness.campaign_jobs:identification"
+DEFAULT_JOB = "hil_harness.campaign.jobs:identification"
 _META = ("run_id", "run", "status", "error", "elapsed_s", "worker")
 
 

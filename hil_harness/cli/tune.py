@@ -15,7 +15,7 @@
     candidate record: fit on the blobs the base record saw in closed loop, weights maximising the
     closed-loop top-1 rate (SciPy differential evolution) with a penalty that stops them leaning
     on the position prior alone, GOF threshold for the stated false-rejection rate; the
-    cross-validation groups by event (``hil_harness.tuning_closed``).
+    cross-validation groups by event (``hil_harness.tuning.closed``).
 
 ``uvisi tune validate SPEC.toml --record TUNED.toml [--compare aurora ...] --report DIR
 [--require-top1 0.95] [--events DIR]``
@@ -114,7 +114,7 @@ def _naming(q):
 
 
 def _get_set(args):
-    from hil_harness.tuning_data import build_set
+    from hil_harness.tuning.data import build_set
     p = Path(args.set)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such set spec or set")
@@ -142,8 +142,8 @@ def _set(args) -> int:
 
 
 def _fit(args) -> int:
-    from hil_harness.tuning_export import export_record
-    from hil_harness.tuning_fit import fit_record, top1_rate
+    from hil_harness.tuning.export import export_record
+    from hil_harness.tuning.fit import fit_record, top1_rate
     ts = _get_set(args)
     if args.save_set:
         ts.save(args.save_set)
@@ -159,9 +159,9 @@ def _fit(args) -> int:
 
 def _replayer(args):
     """Render (or read back from ``--events``) every event of the spec once -> Replayer."""
-    from hil_harness.tuning_closed import Replayer
-    from hil_harness.tuning_data import SetSpec
-    from hil_harness.tuning_events import build_events, event_radius
+    from hil_harness.tuning.closed import Replayer
+    from hil_harness.tuning.data import SetSpec
+    from hil_harness.tuning.events import build_events, event_radius
     p = Path(args.set)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such set spec")
@@ -183,9 +183,9 @@ def _rate_text(r) -> str:
 
 
 def _optimise(args) -> int:
-    from hil_harness.tuning_closed import cross_validate_closed, optimise_closed_loop
-    from hil_harness.tuning_export import export_record
-    from hil_harness.tuning_validate import atomic_text
+    from hil_harness.tuning.closed import cross_validate_closed, optimise_closed_loop
+    from hil_harness.tuning.export import export_record
+    from hil_harness.tuning.validate import atomic_text
     if not 0.0 <= args.frr < 1.0:
         raise ValueError(f"--frr {args.frr} must be in [0, 1)")
     if args.folds < 1 or args.maxiter < 1 or args.popsize < 1:
@@ -229,7 +229,7 @@ def _optimise(args) -> int:
 
 def _validate(args) -> int:
     from flightsw.records import load_record
-    from hil_harness.tuning_closed import validate_closed_loop
+    from hil_harness.tuning.closed import validate_closed_loop
     rec = load_record(args.record)
     records = {rec.name: rec}
     for c in args.compare or []:

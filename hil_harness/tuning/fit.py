@@ -1,4 +1,4 @@
-"""Fit and optimise an a priori record on a :class:`~hil_harness.tuning_data.TrainingSet`.
+"""Fit and optimise an a priori record on a :class:`~hil_harness.tuning.data.TrainingSet`.
 
 Fit (:func:`fit_record`)
     * **means and sigmas** from the object's candidates (per labelled frame the object blob nearest

@@ -10,7 +10,7 @@ import math
 
 import numpy as np
 
-from .rates import wilson_interval
+from hil_harness.rates import wilson_interval
 
 __all__ = ["HELD_RADIUS_PX", "held_after_lock", "processed_pixel_urad"]
 

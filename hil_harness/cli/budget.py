@@ -6,7 +6,7 @@ Prints, per window size, the emulated time per processor and the DSP data memory
 compaction (today's event model, ``hil_harness.budget``); then, at compaction 1, the 64x64 window's
 time per stage and processor under ``--hypothesis`` (default ``today``) with its share of 500 ms and
 the margin, and the largest window each hypothesis for the paper's 64x64 limit allows
-(``hil_harness.budget_hypotheses``). ``--explain`` adds what would make 64 the limit under each
+(``hil_harness.budget.hypotheses``). ``--explain`` adds what would make 64 the limit under each
 hypothesis and every parameter's source. ``--plot`` draws that window's stages against the 500 ms
 line; ``--sensitivity`` the largest window vs the code overhead factor and the DSP clock.
 ``--recording REC.h5`` re-prices a recorded event's frames under the hypotheses instead (the
@@ -17,7 +17,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from .budget_hypotheses import HYPOTHESES
+from hil_harness.budget.hypotheses import HYPOTHESES
 
 
 def register(sub) -> None:
@@ -59,7 +59,7 @@ def _sources(results) -> str:
 
 
 def _run_recording(args) -> int:
-    from . import budget_hypotheses as bh
+    from hil_harness.budget import hypotheses as bh
     names = [args.hypothesis] if args.hypothesis != "today" else [h.name for h in bh.HYPOTHESES]
     rows = [bh.rescore_recording(args.recording, bh.hypothesis(n)) for n in names]
     rec = rows[0]["overruns_recorded"]
@@ -91,10 +91,10 @@ def run(args) -> int:
     from flightsw.ip import load_default_sequence
     from flightsw.records import load_record
     from groundsim.scenario import Scenario
-    from . import budget_hypotheses as bh
-    from .budget import budget_report
-    from .sequences import resolve_sequence
-    from .selection import record_name_for
+    from hil_harness.budget import budget_report
+    from hil_harness.budget import hypotheses as bh
+    from hil_harness.event.selection import record_name_for
+    from hil_harness.sequences import resolve_sequence
     scn = Scenario.load(args.scenario)
     frame, truth = scn.world().render()
     tt = scn.target_type
@@ -119,7 +119,7 @@ def run(args) -> int:
     if args.explain:
         print(_sources(results))
     if args.plot:
-        from .figures import budget_bars
+        from hil_harness.figures import budget_bars
         cost = bh.window_cost(chosen, ws)
         clock = {"dsp": chosen.dsp_clock_hz, "ip1750": PACE1750A.clock_hz}
         stage_ms = {f"{p}/{s}": 1e3 * c / clock[p] for p in clock for s, c in cost[p].items()}

@@ -21,7 +21,7 @@ import sys
 import threading
 from pathlib import Path
 
-from .console import progress_enabled
+from hil_harness.console import progress_enabled
 
 
 def register(sub) -> None:
@@ -60,8 +60,8 @@ def _terminate(signum, frame):
 
 def run(args) -> int:
     from groundsim.scenario import Scenario
-    from .event_io import EventInterrupted, run_event, summary_table
-    from .selection import SelectionParams
+    from hil_harness.event.io import EventInterrupted, run_event, summary_table
+    from hil_harness.event.selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
         raise ValueError(f"scenario {name!r}: not a shipped scenario ({', '.join(Scenario.shipped())}) "
@@ -71,7 +71,7 @@ def run(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
     if args.hypothesis is not None:
-        from hil_harness.budget_hypotheses import HYPOTHESES
+        from hil_harness.budget.hypotheses import HYPOTHESES
         names = [h.name for h in HYPOTHESES]
         if args.hypothesis not in names:
             raise ValueError(f"--hypothesis {args.hypothesis!r}: not one of {', '.join(names)}")

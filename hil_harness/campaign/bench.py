@@ -2,7 +2,7 @@
 cluster of N workers, alternated ``--repeat`` times; prints every wall time and the speed-up of the
 best (least disturbed) run of each, end to end (cluster start-up included).
 
-    .venv/bin/python -m hil_harness.campaign_bench campaigns/aurora_identification.toml \\
+    .venv/bin/python -m hil_harness.campaign.bench campaigns/aurora_identification.toml \\
         --workers 2 --repeat 2 --out /tmp/campaign_bench
 
 Every run starts from an empty output directory (nothing is resumed). On a shared machine other

@@ -14,7 +14,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .event_io import replay
+    from hil_harness.event.io import replay
     r = replay(args.recording)
     head = f"{r['recording']}: {r['verified']} frames verified (checksums)"
     if not r["checksums"]:

@@ -17,8 +17,9 @@ image the candidates with full-resolution centroids (0-based ``[row, col]``, pix
 
 Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
 missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
-still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect_jobs`) and the full-frame
-tiling (:mod:`hil_harness.fullframe`) are described in :data:`HELP_TEXT`, the ``--help`` text.
+still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
+tiling (:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help``
+text.
 """
 from __future__ import annotations
 
@@ -62,7 +63,7 @@ flight window about the image centre (no track prediction).
 
 
 def register(sub) -> None:
-    from hil_harness.detect_jobs import JOBS
+    from hil_harness.detect.jobs import JOBS
     jobs = "; ".join(f"{k}: {v[2]}" for k, v in JOBS.items())
     import argparse
     p = sub.add_parser("detect", help="run the flight image processor on image files",
@@ -139,13 +140,13 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
     ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
     ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
-    job's peak gate (:func:`hil_harness.detect_jobs.peak_gate_record`) at this many sigmas of the
+    job's peak gate (:func:`hil_harness.detect.jobs.peak_gate_record`) at this many sigmas of the
     processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
-    :func:`hil_harness.detect_jobs.tile_for`)."""
+    :func:`hil_harness.detect.jobs.tile_for`)."""
     from flightsw.ip.preprocess import compact
     from flightsw.messages import FEATURE_NAMES
-    from hil_harness.detect_jobs import GATE_TOP, peak_gate_record, tile_for
-    from hil_harness.fullframe import detect_frame
+    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record, tile_for
+    from hil_harness.detect.fullframe import detect_frame
     from hil_harness.images import noise_sigma
     gate = None
     if gate_sigma:
@@ -251,7 +252,7 @@ def _write_json(path, entries):
 # ------------------------------------------------------------------------------------------------
 def _setup(args):
     from flightsw.records import load_record
-    from hil_harness.detect_jobs import default_sequence_name, resolve_sequence
+    from hil_harness.detect.jobs import default_sequence_name, resolve_sequence
     record = load_record(args.record)
     seq = resolve_sequence(args.sequence or default_sequence_name(record))
     f = args.compaction if args.compaction is not None else seq.preprocess.compaction
@@ -259,7 +260,7 @@ def _setup(args):
         raise ValueError("--max-candidates must be in 1..1000")
     gate = None
     if record.name == "star" and args.record == "star":
-        from hil_harness.detect_jobs import GATE_SIGMA
+        from hil_harness.detect.jobs import GATE_SIGMA
         gate = GATE_SIGMA
     return record, seq, f, gate
 

@@ -32,8 +32,7 @@ import numpy as np
 
 from flightsw.messages import FEATURE_NAMES
 from flightsw.records import RECORD_WORDS, Record
-
-from .fileio import temp_beside
+from hil_harness.fileio import temp_beside
 
 __all__ = ["export_record", "write_words", "read_words", "check_record_file", "check_record",
            "unit_problems", "CheckResult", "BINARY_SUFFIXES"]

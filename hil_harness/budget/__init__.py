@@ -22,7 +22,7 @@ stops the flight sequence near 64x64: three 64x64 buffers and the reserve take 1
 three 72x72 ones 16,576 (72x72 would fit only with fewer than 832 reserved words). Window sides are
 swept in steps of 8 pixels. :func:`budget_report` states both bounds and which one binds. Whether
 this is the paper's reason for 64x64 (off the 8-pixel grid the same model fits 71x71) is what the
-hypotheses of ``hil_harness.budget_hypotheses`` test.
+hypotheses of ``hil_harness.budget.hypotheses`` test.
 """
 from __future__ import annotations
 

@@ -6,7 +6,7 @@ Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gat
 """
 from __future__ import annotations
 
-from .sequences import resolve_sequence  # noqa: F401  (re-exported: public here before)
+from hil_harness.sequences import resolve_sequence  # noqa: F401  (re-exported: public here before)
 
 __all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "resolve_sequence",
            "default_sequence_name", "peak_gate_record", "tile_for"]
@@ -31,13 +31,13 @@ GATE_TOP = 8192.0
 
 
 #: full-frame tile (compacted pixels) for the sequences of extended objects: one trail or one
-#: auroral form stays in one window (point sources use hil_harness.fullframe.DEFAULT_TILE, 64)
+#: auroral form stays in one window (point sources use detect.fullframe.DEFAULT_TILE, 64)
 EXTENDED_TILE = {"streak": 128, "aurora": 128}
 
 
 def tile_for(seq) -> int:
     """Full-frame tile size (compacted pixels) for a ProcessingSequence, by its name."""
-    from hil_harness.fullframe import DEFAULT_TILE
+    from hil_harness.detect.fullframe import DEFAULT_TILE
     return EXTENDED_TILE.get(seq.name, DEFAULT_TILE)
 
 

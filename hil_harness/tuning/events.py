@@ -1,10 +1,10 @@
 """Events for closed-loop tuning and validation: each scenario run or real sequence of a set spec
-rendered (or read) once into a :class:`~hil_harness.closed_loop.ReplayEvent`, kept on disk if asked,
-then replayed through IP + TP for every record (:mod:`hil_harness.tuning_closed`).
+rendered (or read) once into a :class:`~hil_harness.tuning.closed_loop.ReplayEvent`, kept on disk if
+asked, then replayed through IP + TP for every record (:mod:`hil_harness.tuning.closed`).
 
 An **event** is one scenario run (scenario + seed: every frame from ``start``, every ``every``-th,
 at most ``frames``); a **night** is one real sequence (a ``[[real]]`` entry: its labelled frames in
-order). The spec format is :mod:`hil_harness.tuning_data`'s; ``predict`` is no longer read (the
+order). The spec format is :mod:`hil_harness.tuning.data`'s; ``predict`` is no longer read (the
 prior is the TP's), ``radius_px`` and ``object`` are.
 
 Real frames are read and become 12-bit counts as ``uvisi detect`` and ``uvisi track`` do it
@@ -22,10 +22,10 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.tp import ImagerGeometry
+from hil_harness.fileio import temp_beside
 
 from .closed_loop import ReplayEvent
-from .fileio import temp_beside
-from .tuning_data import SetSpec, load_labels, map_jobs, resolve_path, scenario_from_entry
+from .data import SetSpec, load_labels, map_jobs, resolve_path, scenario_from_entry
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
            "imager_geometry", "real_to_counts", "NOMINAL_DT"]
