@@ -302,12 +302,12 @@ def sqrt32_lanes(xs, out):
         # (x <= 0 lanes, selected away at the end, divide 1/2 instead: fd32_pos needs g > 0)
         g[i] = _set_exp32(x, -1 if odd else 0) if m > 0 else HALF32
         k[i] = (e + 1) >> 1 if odd else e >> 1
-    fm32_lanes(g, SQRT_INIT32[1], z)
-    fa32_lanes(z, SQRT_INIT32[0], y)
+    fm32_lanes(g, np.int64(SQRT_INIT32[1]), z)
+    fa32_lanes(z, np.int64(SQRT_INIT32[0]), y)
     for _j in range(SQRT32_STEPS):
         fd32_pos_lanes(g, y, out)                # g in [1/4, 1), y near 1: both positive
         fa32_lanes(y, out, z)
-        fm32_lanes(z, HALF32, y)
+        fm32_lanes(z, np.int64(HALF32), y)
     flags = 0
     for i in range(K):
         m, _ = unpack32(xs[i])
@@ -809,8 +809,8 @@ def atan2_32_lanes(ys, xs, out):
         den[i] = ONE32 if both0 else (ay[i] if sw else ax[i])
         swap[i] = sw
     fd32_lanes(num, den, t)
-    fm32_lanes(t, EIGHT32, u)
-    fa32_lanes(u, HALF32, c)
+    fm32_lanes(t, np.int64(EIGHT32), u)
+    fa32_lanes(u, np.int64(HALF32), c)
     fix32_lanes(c, z)
     for i in range(K):
         kk = z[i] & 0xF
@@ -818,19 +818,19 @@ def atan2_32_lanes(ys, xs, out):
         ak[i] = _ATANK_32[kk]
     fs32_lanes(t, c, num)
     fm32_lanes(t, c, ay)
-    fa32_lanes(ay, ONE32, den)
+    fa32_lanes(ay, np.int64(ONE32), den)
     fd32_lanes(num, den, u)
     fm32_lanes(u, u, z)
-    fm32_lanes(ATAN32[1], z, c)
-    fa32_lanes(c, ATAN32[0], ax)
+    fm32_lanes(np.int64(ATAN32[1]), z, c)
+    fa32_lanes(c, np.int64(ATAN32[0]), ax)
     fm32_lanes(z, ax, num)
     fm32_lanes(u, num, t)
     fa32_lanes(u, t, ay)
     fa32_lanes(ak, ay, den)                      # a = atan(k/8) + u + u z P(z)
-    fs32_lanes(PIO2_32, den, num)
+    fs32_lanes(np.int64(PIO2_32), den, num)
     for i in range(K):
         den[i] = num[i] if swap[i] != 0 else den[i]
-    fs32_lanes(PI32, den, num)
+    fs32_lanes(np.int64(PI32), den, num)
     for i in range(K):
         den[i] = num[i] if (xs[i] & 0x80000000) != 0 else den[i]   # sign of the mantissa of x
     fneg32_lanes(den, num)
