@@ -70,7 +70,7 @@ class FFTTables(NamedTuple):
 class PolyTables(NamedTuple):
     """The polynomial detrender's ground constants for the window shape (h, w)."""
 
-    tables: np.ndarray  #: int16 [6, h, w] scaled basis tables (a [6, 1, 1] dummy if unused)
+    tables: np.ndarray  #: int16 [6, h, w] scaled basis tables
     js: np.ndarray      #: int64 [6] table shifts
     rs: np.ndarray      #: int64 [6] reciprocals
     ps: np.ndarray      #: int64 [6] their exponents
@@ -92,17 +92,24 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
         out, t4, m4, d4, s = th.threshold_k(img, aq, mode)
         sh = np.int64(s)
     elif op == OP_FFT:
-        j = front.fft[i]
-        T, kk, ek, ksum = ffts.ints[j, 0], ffts.ints[j, 1], ffts.ints[j, 2], ffts.ints[j, 3]
-        kr = np.ascontiguousarray(ffts.kr[j, :T * T]).reshape((T, T))
-        ki = np.ascontiguousarray(ffts.ki[j, :T * T]).reshape((T, T))
-        out = fft.fft_correlate_k(img, T, kk, kr, ki, ek, ffts.floats[j, 0], ffts.floats[j, 1],
-                                  ffts.floats[j, 2], ksum, np.ascontiguousarray(ffts.brev[j, :T]),
-                                  np.ascontiguousarray(ffts.twc[j, :T // 2]),
-                                  np.ascontiguousarray(ffts.tws[j, :T // 2]), ffts.floats[j, 3],
-                                  True)[0]
+        if ffts is None:                    # a plan without FFT steps: this branch is not compiled
+            out = img
+        else:
+            j = front.fft[i]
+            T, kk, ek, ksum = ffts.ints[j, 0], ffts.ints[j, 1], ffts.ints[j, 2], ffts.ints[j, 3]
+            kr = np.ascontiguousarray(ffts.kr[j, :T * T]).reshape((T, T))
+            ki = np.ascontiguousarray(ffts.ki[j, :T * T]).reshape((T, T))
+            out = fft.fft_correlate_k(img, T, kk, kr, ki, ek, ffts.floats[j, 0],
+                                      ffts.floats[j, 1], ffts.floats[j, 2], ksum,
+                                      np.ascontiguousarray(ffts.brev[j, :T]),
+                                      np.ascontiguousarray(ffts.twc[j, :T // 2]),
+                                      np.ascontiguousarray(ffts.tws[j, :T // 2]),
+                                      ffts.floats[j, 3], True)[0]
     elif op == OP_POLY:
-        out = dt.polynomial_k(img, poly.tables, poly.js, poly.rs, poly.ps)[0]
+        if poly is None:                    # a plan without the polynomial detrender: not compiled
+            out = img
+        else:
+            out = dt.polynomial_k(img, poly.tables, poly.js, poly.rs, poly.ps)[0]
     else:                                                  # OP_NONE
         out = img
     return out, op == OP_THRESHOLD, t4, m4, d4, sh
@@ -119,7 +126,9 @@ def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w,
         The frame (12-bit counts; ``f``, ``r0``, ``c0``, ``h``, ``w`` cut the window: compaction
         factor and window origin and shape in compacted pixels), or a window the caller cut
         (``f = 1``, origin 0).
-    front, ffts, poly : FrontOps, FFTTables, PolyTables
+    front, ffts, poly : FrontOps, FFTTables or None, PolyTables or None
+        None when the sequence has no such step: numba then prunes (does not compile) the FFT or
+        polynomial branch, which keeps a first run's compilation to the kernels the sequence uses
     aq, mode : the threshold's alpha (Q4.12 word) and mode (``threshold.BINARIZE``/``CLIP``)
     rec, prm, r0w, c0w, mean_row, mean_col : the back end's words (:func:`backend_k`; the centroid
         means are always given: the TP's prediction or the window centre)
@@ -231,11 +240,10 @@ def _fft_tables(kernels):
     return FFTTables(ints, floats, kr, ki, brev, twc, tws)
 
 
-def poly_tables(h: int, w: int, used: bool = True) -> PolyTables:
-    """:class:`PolyTables` for an h x w window (a small dummy when no step uses them)."""
+def poly_tables(h: int, w: int, used: bool = True) -> PolyTables | None:
+    """:class:`PolyTables` for an h x w window (None when no step uses them)."""
     if not used:
-        z = np.zeros(6, np.int64)
-        return PolyTables(np.zeros((6, 1, 1), np.int16), z, z, z)
+        return None
     tables, js, _, rs, ps = dt.polynomial_basis(h, w)
     return PolyTables(tables, js, np.array(rs, np.int64), np.array(ps, np.int64))
 
@@ -316,7 +324,7 @@ class FramePlan:
         self.sequence, self.record, self.imager, self.rank_record = sequence, record, imager, rec
         self.f, self.pre = pre.compaction, pre
         self.front, kernels, self.step_names, self.costs, thr = _front(sequence)
-        self.ffts = _fft_tables(kernels)
+        self.ffts = _fft_tables(kernels) if kernels else None
         self.uses_poly = bool((self.front.ops == OP_POLY).any())
         h, w = pre.window_shape
         self.poly = poly_tables(h, w, self.uses_poly)
@@ -378,7 +386,7 @@ class FramePlan:
             prm = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
                                  self.imager, mc_limit)
         poly = self.poly
-        if self.uses_poly and (h, w) != tuple(poly.tables.shape[1:]):
+        if poly is not None and (h, w) != tuple(poly.tables.shape[1:]):
             poly = poly_tables(h, w)
         aq = self.aq if alpha_q12 is None else int(alpha_q12)
         out = ip_frame_k(img, 1, 0, 0, h, w, self.front, self.ffts, poly, aq, self.mode,

@@ -1,0 +1,115 @@
+"""First-run compilation on both cores: while a command compiles the ground simulator and the image
+processor, a second process compiles the 1750A lane operations the image processor's back end uses,
+then the track processor and the bus codecs, into the same numba cache.
+
+numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
+are ``@njit(cache=True)``). On a machine's first run an event compiles everything in one process,
+one kernel after another, while the second core idles. :func:`start` (called by the console's
+compile listener on the first compilation it sees, so never on a warm run) launches
+``python -m hil_harness.warmup``. It first calls the lane operations (:mod:`flightsw.arith.m1750_lanes`,
+the heaviest part of the IP's compilation, needed only once the IP's front end is compiled) with the
+argument types the feature and ranking kernels pass, then steps a :class:`flightsw.tp.TrackProcessor`
+through a few synthetic frames and runs the message codecs: the same specialisations the event will
+ask for (the kernels take word and state arrays whose types do not depend on the scenario). When the
+event reaches them they are usually in the cache already; if not, numba compiles them in the
+event's process as it would have anyway. numba writes cache
+files atomically, so the two processes never leave a broken entry.
+"""
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+__all__ = ["start", "warm_lanes", "warm_track_processor", "WARMUP_ENV"]
+
+#: set in the child's environment, so that its own compilations do not start another child
+WARMUP_ENV = "UVISI_WARMUP_CHILD"
+_STARTED: list = []
+
+
+def start() -> bool:
+    """Launch the warm-up process once per process (not from inside a warm-up child, not when
+    ``UVISI_WARMUP=0``). Returns True if one was started."""
+    if _STARTED or os.environ.get(WARMUP_ENV) or os.environ.get("UVISI_WARMUP", "1") == "0":
+        return False
+    _STARTED.append(True)
+    env = dict(os.environ, **{WARMUP_ENV: "1"})
+    try:
+        subprocess.Popen([sys.executable, "-m", "hil_harness.warmup"], env=env,
+                         stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                         stderr=subprocess.DEVNULL, start_new_session=True)
+    except OSError:
+        return False
+    return True
+
+
+def warm_lanes():
+    """Call the 1750A lane operations with the argument types the IP's features, normalisation and
+    ranking pass (int64 word arrays; some with one int64 word), in the order the features use
+    them. Returns the last result, atan2(1.5, 0.75) in every lane (1750A 32-bit words)."""
+    import numpy as np
+
+    from flightsw.arith import m1750_lanes as L
+    from flightsw.arith import m1750_math as M
+    from flightsw.arith.m1750 import encode32, encode48
+
+    n = 4
+    a32 = np.full(n, encode32(1.5), np.int64)
+    b32 = np.full(n, encode32(0.75), np.int64)
+    a48 = np.full(n, encode48(1.5), np.int64)
+    b48 = np.full(n, encode48(0.75), np.int64)
+    out = np.empty(n, np.int64)
+    one32, one48 = np.int64(encode32(1.0)), np.int64(encode48(1.0))
+    for op in (L.fd48_lanes, L.fm48_lanes, L.fs48_lanes):
+        op(a48, b48, out)
+    L.fa48_lanes(a48, b48, out)
+    L.fa48_lanes(a48, one48, out)
+    L.flt48_lanes(a32, out)
+    for op in (L.fm32_lanes, L.fd32_lanes, L.fa32_lanes, L.fs32_lanes, L.fd32_pos_lanes):
+        op(a32, b32, out)
+    for op in (L.fa32_lanes, L.fm32_lanes, L.fs32_lanes):
+        op(a32, one32, out)
+    for op in (L.fm32_lanes, L.fs32_lanes):
+        op(one32, a32, out)
+    for op in (L.fabs32_lanes, L.fneg32_lanes, L.fix32_lanes):
+        op(a32, out)
+    M.sqrt32_lanes(a32, out)
+    M.atan2_32_lanes(a32, b32, out)
+    return out
+
+
+def warm_track_processor(n_frames: int = 4):
+    """Step a TrackProcessor through ``n_frames`` synthetic frames (a staring imager, a few
+    candidates, attitude data every frame), ask for its prediction in pixels, and run the
+    candidate-message and track-command codecs both ways. Returns the last track command."""
+    import numpy as np
+
+    from flightsw.messages import CANDIDATE_DTYPE, AttitudeData, CandidateMessage, TrackCommand
+    from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
+
+    scale = 2.0e-4
+    geom = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), scale, scale)
+    r0 = np.array([7.0e6, 0.0, 0.0])
+    v0 = np.array([0.0, 7.5e3, 0.0])
+    tp = TrackProcessor(TPConfig(imagers={"wfov_vis": geom},
+                                 nominal=NominalTrajectory(0.0, r0 + 1.0e5, v0), j2=True))
+    rng = np.random.default_rng(0)
+    for k in range(n_frames):
+        cand = np.zeros(5, CANDIDATE_DTYPE)
+        cand["row"] = 122.0 + rng.normal(0, 0.2, 5) + np.arange(5) * 20
+        cand["col"] = 128.0 + rng.normal(0, 0.2, 5)
+        cand["gof"] = np.linspace(0.9, 0.1, 5)
+        t = 0.5 * k
+        words = CandidateMessage(frame_count=k, time_tag=t, candidates=cand).to_words()
+        CandidateMessage.from_words(words)
+        att = AttitudeData(t=t, q_body_to_eci=np.array([1.0, 0.0, 0.0, 0.0]),
+                           rate_body=np.zeros(3), r_eci=r0 + v0 * t, v_eci=v0.copy())
+        cmd = TrackCommand.from_words(tp.step(words, att).to_words())
+        tp.predicted_pixel("wfov_vis")
+    return cmd
+
+
+if __name__ == "__main__":      # python -m hil_harness.warmup (started by start())
+    warm_lanes()
+    warm_track_processor()
