@@ -22,7 +22,7 @@ under a :class:`CycleModel`:
 modules charge the frame's :class:`~flightsw.budget.Ledger` (``filter_cycles``, ``highpass_cycles``,
 ``polynomial_cycles``, ``threshold_cycles``, ``fft_filter_cycles``; tested), so event recordings
 keep their ledger; the other models are the budget hypotheses of
-``hil_harness.budget_hypotheses``.
+``hil_harness.budget.hypotheses``.
 
 What no stage listing holds, priced by its own function with its parameters: moving the window from
 the preprocessor board into DSP memory (:func:`window_in_cycles`), the DSP-to-1750A transfer of the

@@ -10,7 +10,7 @@ a gate, one to one (:func:`groundsim.assess.rde_reconstruct.associate_stars`). T
   correlation when the recording holds the frames (:func:`inr_table_from_recording`).
 
 Only frames of one imager are used (the one with most processed frames unless named). The recording
-is read with h5py directly (the layout is documented in ``hil_harness.event_io``).
+is read with h5py directly (the layout is documented in ``docs/formats.md`` and ``hil_harness.event.io``).
 
 For the RDE the flight centroids are not good enough: at compaction 2 a WFOV star mostly falls in one
 2 x 2 processed pixel and the IP's centroid is that pixel's centre (errors uniform over +-1 px, RMS
@@ -62,7 +62,7 @@ BLEND_PX = 4.0
 
 def _frames_held(f: h5py.File) -> int | None:
     """Frames every per-frame dataset of the recording holds with their checksum records (the
-    rule of ``hil_harness.recording``; None: all, an older recording)."""
+    rule of ``hil_harness.event.recording``; None: all, an older recording)."""
     counts = np.bincount(f["checksums"]["dataset"]) if "checksums" in f else None
     n = None
     for top in ("tables", "arrays"):
