@@ -378,6 +378,8 @@ def test_polynomial_exact_surface_is_removed_and_saturation():
 
 
 # ------------------------------------------------------------------ threshold
+@pytest.mark.cases("flightsw.ip.threshold.isqrt32", "zero", "perfect-square", "between-squares",
+                   "top")
 def test_isqrt_is_floor_sqrt():
     rng = np.random.default_rng(2)
     vals = np.concatenate([np.arange(0, 2000), rng.integers(0, 2 ** 32, 3000),
@@ -387,6 +389,10 @@ def test_isqrt_is_floor_sqrt():
         assert th.isqrt32(int(v)) == math.isqrt(int(v))
 
 
+@pytest.mark.cases("flightsw.ip.threshold._stats_k", "no-shift")
+@pytest.mark.cases("flightsw.ip.threshold._threshold_value", "typical", "alpha-zero")
+@pytest.mark.cases("flightsw.ip.threshold._apply_k", "binarize", "clip")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_k", "binarize", "clip")
 @pytest.mark.parametrize("alpha", [0.0, 1.0, 2.5, 4.0, 7.9])
 def test_threshold_value_against_numpy(alpha):
     for img in WINDOWS + [dt.detrend_highpass(w) for w in WINDOWS[:6]]:
@@ -402,6 +408,8 @@ def test_threshold_value_against_numpy(alpha):
         assert np.array_equal(out, np.where(16 * x > t4, img, 0))
 
 
+@pytest.mark.cases("flightsw.ip.threshold._stats_k", "block-shift", "negative")
+@pytest.mark.cases("flightsw.ip.threshold._threshold_value", "block-shift")
 def test_threshold_full_scale_block_shift():
     rng = np.random.default_rng(9)
     img = rng.integers(-32768, 32768, (64, 64)).astype(np.int16)
