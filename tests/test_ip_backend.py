@@ -323,6 +323,7 @@ def test_normalisation_and_projection():
 # ------------------------------------------------------------------------------------------------
 # ranking
 # ------------------------------------------------------------------------------------------------
+@pytest.mark.cases("flightsw.ip.rank._flight_gof_kernel", "half-at-n", "typical")
 def test_gof_half_at_d_equals_n_and_chi2_comparison():
     for n in (1, 6, 10, 12):
         assert flight_gof([float(n)], n)[0] == pytest.approx(0.5, abs=4 * 2.0 ** -24)
@@ -349,6 +350,7 @@ def _feats(rng, rec, k, spread=2.0):
     return words_to_struct(struct_to_words(F))
 
 
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "typical", "zero-weight", "max-out")
 def test_rank_matches_float64_distance_and_order():
     rec = load_record("aurora")
     rng = np.random.default_rng(8)
@@ -365,6 +367,8 @@ def test_rank_matches_float64_distance_and_order():
     assert np.allclose(res.gof, gof_approx(res.distance[res.order], 10), rtol=1e-5, atol=1e-30)
 
 
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "override", "quantize", "reject")
+@pytest.mark.cases("flightsw.ip.rank._sigmoid", "typical")
 def test_rank_threshold_centroid_override_and_quantisation():
     rec = load_record("aurora")
     rng = np.random.default_rng(9)

@@ -44,3 +44,60 @@ def test_threshold_clip_keeps_negative_words_above_a_negative_threshold():
     assert t4 == -1240 and out.tolist() == [[0, 0, 0, -10]]
     out, _ = th.threshold(img, 0.0, "binarize")
     assert out.tolist() == [[0, 0, 0, 1]]
+
+
+# ------------------------------------------------------------------ rank
+from flightsw.arith.m1750 import decode32, encode32  # noqa: E402
+from flightsw.ip import rank as rk  # noqa: E402
+from flightsw.messages import FEATURE_NAMES  # noqa: E402
+from flightsw.records import load_record  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.rank._sigmoid", "zero", "mid", "exp-underflow")
+def test_sigmoid_zero_mid_and_saturation():
+    mid = 8.0
+    a2 = encode32(np.log(2.0) / mid ** 2, rounding="nearest")
+    ops = np.zeros(9, np.int64)
+    r, f = rk._sigmoid(encode32(0.0), a2, ops)
+    assert decode32(r) == 0.0 and f == 0                 # 1 - exp(0) = 1 - 1
+    r, f = rk._sigmoid(encode32(mid), a2, ops)
+    assert abs(decode32(r) - 0.5) < 8 * 2.0 ** -24      # 1 - exp(-ln 2)
+    r, f = rk._sigmoid(encode32(200.0), a2, ops)         # a^2 x^2 = 433: exp underflows
+    assert decode32(r) == 1.0 and f == 0
+    assert ops[8] == 3
+
+
+@pytest.mark.cases("flightsw.ip.rank._flight_gof_kernel", "zero", "underflow", "empty")
+def test_flight_gof_ends():
+    assert rk.flight_gof([0.0], 10)[0] == 1.0
+    assert rk.flight_gof([1000.0], 10)[0] == 0.0         # 1e4 ln2 / 1 > 256 -> 0
+    assert rk.flight_gof(np.zeros(0), 3).size == 0
+
+
+def _words(rows):
+    """Feature words int64 [k, 12] of float64 rows (nearest rounding)."""
+    return np.array([[encode32(float(v), rounding="nearest") for v in r] for r in rows],
+                    np.int64).reshape(-1, 12)
+
+
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "ties", "gof-underflow", "no-candidates")
+def test_rank_ties_underflow_and_no_candidates():
+    rec = load_record("aurora").replace(gof_threshold=0.0)
+    m = np.array(rec.mean, float)
+    assert rec.weight[0] != 0
+    far = m.copy()
+    far[0] += 1e6 * rec.sigma[0]                         # d ~ 1e12 w_0
+    near = m.copy()
+    near[0] += rec.sigma[0]                              # d = w_0
+    rows = [far, near, near, m, near]                    # d: huge, w0, w0, 0, w0
+    res = rk.rank_words(_words(rows), rec, max_candidates=3)
+    assert res.order.tolist() == [3, 1, 2]               # equal d keep blob order; 4 cut
+    assert res.gof[0] == 1.0
+    res = rk.rank_words(_words(rows), rec)
+    assert res.order.tolist() == [3, 1, 2, 4, 0]
+    assert res.gof[-1] == 0.0 and res.flags == 0         # exp underflow absorbed
+    cut = rk.rank_words(_words(rows), rec.replace(gof_threshold=1e-6))
+    assert cut.order.tolist() == [3, 1, 2, 4]            # GOF 0 < threshold
+    none = rk.rank_words(np.zeros((0, len(FEATURE_NAMES)), np.int64), rec)
+    assert none.order.size == none.distance.size == none.gof.size == 0
+    assert none.cycles == rk.rank_cycles([1, 10, 0, 0, 0, 0, 0, 0, 0])

@@ -62,6 +62,7 @@ WINDOWS = [pp.preprocess(f, c, None if k == 0 else (60.0 + 30 * k, 200.0), 64).i
 
 
 # ------------------------------------------------------------------ preprocessor
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "f1", "f2", "f4", "round-half-up")
 @pytest.mark.parametrize("f", [1, 2, 4])
 def test_compaction_equals_integer_block_mean(f):
     for frame in FRAMES:
@@ -71,6 +72,7 @@ def test_compaction_equals_integer_block_mean(f):
         assert np.array_equal(pp.compact(frame, f), (blocks + n // 2) // n)
 
 
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "round-half-up")
 def test_compaction_rounds_halves_up_and_rejects_bad_input():
     frame = np.zeros(pp.FRAME_SHAPE, np.uint16)
     frame[0, 0:2] = 1                      # block sum 2 of 4 pixels -> 0.5 -> 1
@@ -102,6 +104,7 @@ def test_window_centre_clamping_and_projection():
         pp.window(c, 2, size=130)
 
 
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "offset-window")
 def test_fused_preprocess_equals_compact_then_window():
     for frame in FRAMES:
         for f in (1, 2, 4):

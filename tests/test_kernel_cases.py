@@ -38,7 +38,6 @@ PENDING_MODULES: set[str] = {
     "flightsw.arith.m1750_int", "flightsw.arith.m1750_lanes", "flightsw.arith.m1750_math",
     "flightsw.ip.backend", "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features",
     "flightsw.ip.fftfilter", "flightsw.ip.filters", "flightsw.ip.pipeline",
-    "flightsw.ip.preprocess", "flightsw.ip.rank",
 }
 
 

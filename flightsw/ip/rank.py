@@ -73,7 +73,18 @@ def rank_cycles(ops) -> int:
 
 @njit(cache=True, inline="always")
 def _sigmoid(x, a2, ops):
-    """x' = 1 - exp(-a^2 x^2) (packed 32-bit)."""
+    """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
+
+    ``x``, ``a2``: packed 32-bit 1750A floats; ``ops``: int64 [9] event counts (``ops[8]``, the
+    exp, incremented). Returns ``(x', flags)``: packed word in [0, 1] and the OR of the PI flags.
+
+    Cases
+    -----
+    zero : ``x == 0`` -> exp(0) = 1 exactly and ``x' = 0``.
+    mid : ``x^2 = 1 / a^2`` (``x`` the mid of lower and upper) -> 1/2 (within the exp's ulps).
+    typical : ``1 - exp(-a^2 x^2)`` within a few ulps.
+    exp-underflow : ``a^2 x^2 >= 256`` -> exp underflows to 0, the flag is absorbed, ``x' = 1``.
+    """
     fl = 0
     t, f = fm32(x, x); fl |= f
     t, f = fm32(t, a2); fl |= f
@@ -88,7 +99,26 @@ def _sigmoid(x, a2, ops):
 def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
     """fwt int64 [12, k] normalised feature words, feature-major (row i = feature i of every
     candidate); rec int64 [5, 12] (mean, sigma, weight, lower, upper words). Returns (order int64
-    [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9])."""
+    [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9]).
+
+    ``mean_row``, ``mean_col``: packed 32-bit words replacing the record's centroid means when
+    ``override``; ``quantize``: the record's coarse-quantisation flag; ``thr``: the GOF threshold
+    word; ``max_out``: at most this many reported (23 in flight).
+
+    Cases
+    -----
+    typical : ``d = sum c_i (x_i - m_i)^2``, ``c_i = w_i / sigma_i^2``; ascending ``d``, GOF
+        ``exp(-d^2 ln2 / n^2)``.
+    zero-weight : features of weight 0 are skipped; ``n`` counts the non-zero weights.
+    override : ``override`` -> the centroid means (col, row) are ``mean_col``, ``mean_row``.
+    quantize : ``quantize`` -> features and means through the sigmoid, ``c_i = 12 w_i``.
+    max-out : more than ``max_out`` candidates -> the ``max_out`` smallest ``d`` kept.
+    ties : equal ``d`` keep blob order (also across the ``max_out`` cut: the later one is dropped).
+    reject : a GOF below ``thr`` is dropped from order and gof (``d`` still returned for all).
+    gof-underflow : a very large ``d`` -> exp underflows, GOF 0 (flag absorbed); kept when
+        ``thr == 0``, rejected otherwise.
+    no-candidates : ``k == 0`` -> empty order, d and gof; only the per-frame set-up is counted.
+    """
     ops = np.zeros(9, np.int64)
     flags = 0
     k = fwt.shape[1]
@@ -310,6 +340,17 @@ def gof_approx(d, n):
 
 @njit(cache=True)
 def _flight_gof_kernel(dw, n):
+    """The flight GOF ``exp(-d^2 ln2 / n^2)`` of packed 32-bit distance words ``dw`` (int64 [k])
+    with ``n`` (int, 1 .. 32767) degrees of freedom -> packed words int64 [k].
+
+    Cases
+    -----
+    half-at-n : ``d == n`` -> 1/2 (within the exp's ulps).
+    zero : ``d == 0`` -> exactly 1.
+    typical : non-increasing in ``d``, the float64 approximation within 1e-6.
+    underflow : ``d^2 ln2 / n^2 >= 256`` -> exp underflows to 0.
+    empty : ``k == 0`` -> an empty array.
+    """
     out = np.zeros(dw.size, np.int64)
     nf, f = flt32(n)
     n2, f = fm32(nf, nf)
