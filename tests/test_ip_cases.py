@@ -101,3 +101,46 @@ def test_rank_ties_underflow_and_no_candidates():
     none = rk.rank_words(np.zeros((0, len(FEATURE_NAMES)), np.int64), rec)
     assert none.order.size == none.distance.size == none.gof.size == 0
     assert none.cycles == rk.rank_cycles([1, 10, 0, 0, 0, 0, 0, 0, 0])
+
+
+# ------------------------------------------------------------------ spatial filters
+from flightsw.ip import filters as flt  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.filters.pad_nearest", "no-pad", "replicate", "pad-wider-than-image")
+def test_pad_nearest_is_numpy_edge_padding():
+    rng = np.random.default_rng(0)
+    for shape in ((1, 1), (2, 5), (6, 3), (8, 8)):
+        img = rng.integers(-32768, 32768, shape).astype(np.int16)
+        for p in range(4):
+            assert np.array_equal(flt.pad_nearest(img, p), np.pad(img, p, mode="edge")), (shape, p)
+
+
+@pytest.mark.cases("flightsw.ip.filters._maxabs", "most-negative", "empty")
+def test_maxabs_of_the_most_negative_word_and_of_nothing():
+    assert flt._maxabs(np.array([[3, -32768, 7]], np.int16)) == 32768
+    assert flt._maxabs(np.array([[3, -5, 4]], np.int16)) == 5
+    assert flt._maxabs(np.zeros((0, 4), np.int16)) == 0
+
+
+@pytest.mark.cases("flightsw.ip.filters._finish", "tie-even", "sat-high")
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int64-path")
+def test_int64_path_rounds_ties_to_even_and_saturates():
+    # all nine taps 1/2: sum|k| = 147456, a 32767 in the image -> the int64 path
+    img = np.zeros((12, 12), np.int16)
+    img[0, 0] = 32767                        # its neighbourhood: 4 x 32767 / 2 -> 65534 -> 32767
+    img[6, 6] = 3                            # only word near (6, 6) and (6, 9): 3/2 -> 2 (even)
+    img[6, 9] = 1                            # 1/2 -> 0 (even)
+    out = flt.correlate_q15_k(img, np.full((3, 3), 0x4000, np.int16))
+    assert out[6, 6] == 2 and out[6, 9] == 0 and out[0, 0] == 32767
+
+
+@pytest.mark.cases("flightsw.ip.filters._finish32", "sat-high", "sat-low")
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int32-path")
+def test_int32_path_saturates_inside_its_bound():
+    k = np.zeros((3, 3), np.int16)
+    k[1, 1] = k[1, 2] = 32767                # gain 65534 / 32768
+    for v, want in ((32767, 32767), (-32768, -32768)):
+        assert abs(v) * 65534 < flt.INT32_LIMIT  # the int32 path is taken
+        img = np.full((4, 4), v, np.int16)
+        assert (flt.correlate_q15_k(img, k) == want).all()   # v * 1.99994 leaves the word

@@ -128,6 +128,11 @@ def test_default_kernels():
     assert abs((g * g).sum() - 1) < 1e-3 and g[1, 1] > 0 > g[0, 0]
 
 
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int32-path", "edges")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "typical")
+@pytest.mark.cases("flightsw.ip.filters._finish32", "round-nearest")
+@pytest.mark.cases("flightsw.ip.filters.pad_nearest", "replicate")
+@pytest.mark.cases("flightsw.ip.filters._maxabs", "typical")
 @pytest.mark.parametrize("ki", range(len(KERNELS)))
 def test_filter_against_scipy_correlate_nearest(ki):
     """|ours - float64 correlate(same Q1.15 taps)| <= 1/2: the 40-bit sum is exact, only the final
@@ -149,6 +154,9 @@ def test_filter_against_ideal_gaussian_kernel():
         assert np.abs(flt.correlate_q15(img, flt.smoothing_kernel(7)) - ref).max() <= 0.5
 
 
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int64-path")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k64", "typical", "saturate")
+@pytest.mark.cases("flightsw.ip.filters._finish", "round-nearest", "sat-high", "sat-low")
 def test_filter_saturates_and_int64_path_matches_mr_emulation():
     rng = np.random.default_rng(3)
     img = rng.integers(30000, 32768, (20, 24)).astype(np.int16)     # near full scale
@@ -168,6 +176,8 @@ def test_filter_saturates_and_int64_path_matches_mr_emulation():
         assert np.array_equal(flt.correlate_q15(x, k), flt.correlate_q15_exact(x, k))
 
 
+@pytest.mark.cases("flightsw.ip.filters._finish32", "tie-even")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "zero-taps")   # 8 of 9 taps 0
 def test_rnd_ties_round_half_to_even():
     img = np.zeros((3, 3), np.int16)
     img[1, 1] = 1
