@@ -172,6 +172,8 @@ def _oracle(img, lab, n, intensity=True):
     return out
 
 
+@pytest.mark.cases("flightsw.ip.features.features_k", "intensity", "geometric", "negative-angle")
+@pytest.mark.cases("flightsw.ip.features._features_kernel", "typical")
 @pytest.mark.parametrize("intensity", [True, False])
 def test_features_match_float64_oracle(intensity):
     rng = np.random.default_rng(11)
@@ -228,6 +230,7 @@ def test_features_against_skimage_regionprops():
         assert F["max_brightness"][k] == p.intensity_max
 
 
+@pytest.mark.cases("flightsw.ip.features.features_k", "one-pixel")
 def test_feature_values_are_1750a_words():
     img = np.zeros((8, 8), np.int16)
     img[2:5, 3:5] = [[1, 2], [3, 4], [5, 6]]
@@ -300,6 +303,7 @@ def test_intensity_centroid_of_gaussian_spots_within_a_tenth_pixel():
     assert rad.mean() < 0.1
 
 
+@pytest.mark.cases("flightsw.ip.features.normalise_k", "typical")
 def test_normalisation_and_projection():
     img = np.zeros((64, 64), np.int16)
     img[10:13, 20:24] = 10

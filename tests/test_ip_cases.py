@@ -1,6 +1,8 @@
 """Hand-made cases of the IP kernels (issue 22, Build 7) that the oracle tests of
 ``test_ip_frontend.py`` / ``test_ip_backend.py`` do not reach by construction. Each answer is worked
 out by hand or with Python integers in the test."""
+import importlib
+
 import numpy as np
 import pytest
 
@@ -144,3 +146,72 @@ def test_int32_path_saturates_inside_its_bound():
         assert abs(v) * 65534 < flt.INT32_LIMIT  # the int32 path is taken
         img = np.full((4, 4), v, np.int16)
         assert (flt.correlate_q15_k(img, k) == want).all()   # v * 1.99994 leaves the word
+
+
+# ------------------------------------------------------------------ features
+import flightsw.ip as ip  # noqa: E402
+from flightsw.arith.m1750_float import decode48  # noqa: E402
+ft = importlib.import_module("flightsw.ip.features")  # the package exports a function "features"
+from flightsw.ip.colour import NSUM, blob_sums  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.features._i2f48", "fits-32", "wide")
+def test_i2f48_converts_sums_beyond_32_bits_exactly():
+    for v in (0, 5, -7, 2 ** 31 - 1, -2 ** 31, 2 ** 31, -2 ** 31 - 1, 3 * 2 ** 37 + 12345,
+              -(2 ** 38) + 99, 2 ** 39 - 1):
+        assert decode48(ft._i2f48(np.int64(v))) == float(v), v
+
+
+@pytest.mark.cases("flightsw.ip.features.features_k", "line")
+def test_line_has_unit_semiminor_and_axis_orientation():
+    img = np.zeros((32, 32), np.int16)
+    img[10, 3:25] = 50
+    f = ip.features(img, *ip.label(img))[0]
+    # 22 pixels along the columns: mu20 = (22**2 - 1) / 12, mu02 = mu11 = 0
+    assert f["semiminor"] == 1.0 and f["orientation"] == 0.0
+    assert f["semimajor"] == pytest.approx(np.sqrt(2 * (22 ** 2 - 1) / 12 + 1), rel=1e-6)
+    g = ip.features(img.T.copy(), *ip.label(img.T.copy()))[0]
+    assert g["semiminor"] == 1.0 and g["orientation"] == pytest.approx(90.0, abs=1e-4)
+
+
+@pytest.mark.cases("flightsw.ip.features.features_k", "nonpositive-intensity", "nonpositive-max")
+def test_signed_blobs_fall_back_to_geometric_weights_and_zero_ratio():
+    img = np.zeros((5, 5), np.int16)
+    img[2, 2:4] = (-5, 3)                       # sum I = -2 <= 0: geometric centroid
+    f = ip.features(img, *ip.label(img))[0]
+    assert (f["col"], f["row"]) == (3.0, 2.5)   # not (-5 * 2.5 + 3 * 3.5) / -2 = 1.0
+    assert (f["total_brightness"], f["avg_brightness"], f["max_brightness"]) == (-2, -1, 3)
+    assert f["brightness_ratio"] == pytest.approx(-1 / 3, rel=1e-6)
+    img[2, 2:4] = (-5, -3)                      # max I = -3 <= 0: ratio 0
+    f = ip.features(img, *ip.label(img))[0]
+    assert f["max_brightness"] == -3 and f["brightness_ratio"] == 0.0
+
+
+@pytest.mark.cases("flightsw.ip.features.features_k", "wide-sums")
+def test_a_full_bright_window_takes_the_multiword_conversion():
+    img = np.full((64, 64), 4095, np.int16)     # sum c**2 I = 85344 * 64 * 4095 > 2**31
+    f = ip.features(img, *ip.label(img))[0]
+    m = (64 ** 2 - 1) / 12                      # central second moment of 0..63
+    assert (f["col"], f["row"], f["eccentricity"], f["orientation"]) == (32.0, 32.0, 0.0, 0.0)
+    assert f["semimajor"] == pytest.approx(np.sqrt(2 * m + 1), rel=1e-6)
+    assert f["semiminor"] == pytest.approx(np.sqrt(2 * m + 1), rel=1e-6)
+    assert (f["size"], f["total_brightness"], f["brightness_ratio"]) == (4096, 4096 * 4095, 1.0)
+
+
+@pytest.mark.cases("flightsw.ip.features.features_k", "no-blobs")
+@pytest.mark.cases("flightsw.ip.features._features_kernel", "no-blobs")
+@pytest.mark.cases("flightsw.ip.features.normalise_k", "empty")
+def test_no_blobs_give_empty_feature_tables():
+    words, flags = ft.features_words(np.zeros((1, NSUM), np.int64))
+    assert words.shape == (0, 12) and flags == 0
+    out, flags = ft.normalise_words(words, 4, (10.0, 20.0))
+    assert out.shape == (0, 12) and flags == 0
+
+
+@pytest.mark.cases("flightsw.ip.features.normalise_k", "identity")
+def test_normalise_at_the_reference_scale_is_the_identity():
+    img = np.zeros((16, 16), np.int16)
+    img[3:6, 4:9] = np.arange(15).reshape(3, 5) + 1
+    words, _ = ft.features_words(blob_sums(img, *ip.label(img)))
+    out, flags = ft.normalise_words(words, 1, (0, 0), "wfov_vis")
+    assert np.array_equal(out, words) and flags == 0
