@@ -215,3 +215,94 @@ def test_normalise_at_the_reference_scale_is_the_identity():
     words, _ = ft.features_words(blob_sums(img, *ip.label(img)))
     out, flags = ft.normalise_words(words, 1, (0, 0), "wfov_vis")
     assert np.array_equal(out, words) and flags == 0
+
+
+# ------------------------------------------------------------------ detrenders
+import scipy.ndimage as ndi  # noqa: E402
+
+from flightsw.ip import detrend as dt  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "twelve-bit", "full-scale", "cap")
+def test_headroom_is_the_redundant_sign_bits_capped():
+    for words, gmax, want in [((4095, -4096), 8, 3), ((32767,), 8, 0), ((-32768, 5), 8, 0),
+                              ((100, -3), 8, 8), ((0,), 8, 8), ((0,), 5, 5), ((1000,), 8, 5)]:
+        assert dt._headroom(np.array([words], np.int16), gmax) == want, (words, gmax)
+
+
+def _lowpass_oracle(img, taps):
+    t = np.asarray(taps, np.float64) / 32768
+    return ndi.correlate(img.astype(np.float64), np.outer(t, t), mode="nearest")
+
+
+@pytest.mark.cases("flightsw.ip.detrend._lowpass_k", "asymmetric", "edges")
+def test_lowpass_with_asymmetric_taps_is_within_its_bound():
+    taps = [2000, 3000, 5000, 8000, 7000, 4768, 3000]           # sum 32768, not mirror-equal
+    rng = np.random.default_rng(4)
+    img = rng.integers(0, 4096, (20, 17)).astype(np.int16)     # g = 3
+    err = np.abs(dt.lowpass_q15(img, taps) - _lowpass_oracle(img, taps))
+    assert err.max() <= 0.5 + 2.0 ** -4
+
+
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "headroom-cap")
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "cap")
+def test_highpass_of_small_data_uses_the_capped_headroom():
+    img = np.random.default_rng(7).integers(-40, 41, (16, 16)).astype(np.int16)   # g = 8
+    ref = img - _lowpass_oracle(img, dt.default_taps())
+    assert np.abs(dt.detrend_highpass(img) - ref).max() <= 0.5 + 2.0 ** -9
+
+
+def _basis(h, w):
+    """The orthogonal basis B_0..B_5 by its definition (Python integers)."""
+    out = []
+    for r in range(h):
+        for c in range(w):
+            U, V = 2 * c - (w - 1), 2 * r - (h - 1)
+            out.append((r, c, (1, U, V, 3 * U * U - (w * w - 1), U * V, 3 * V * V - (h * h - 1))))
+    return out
+
+
+@pytest.mark.cases("flightsw.ip.detrend._moments_k", "typical", "shifted")
+def test_moments_are_the_exact_integer_projections():
+    h, w = 7, 9
+    tables, js, _, _, _ = dt.polynomial_basis(h, w)
+    rng = np.random.default_rng(12)
+    for lo, hi, s in ((0, 4096, 0), (-32768, 32768, 3)):
+        img = rng.integers(lo, hi, (h, w)).astype(np.int16)
+        want = [0] * 6
+        for r, c, B in _basis(h, w):
+            x = int(img[r, c]) // 2 ** s                        # floor, as an arithmetic shift
+            for k in range(6):
+                want[k] += x * B[k]
+        assert list(dt._moments_k(img, tables, js, s)) == want
+
+
+def _surface(hi, s=0, x=0):
+    """One pixel, every table word 2**14 (0.5 in the MAC's fractional product): the surface is
+    sum(hi_k) / 2 exactly when the low coefficient words are 0."""
+    tables = np.full((6, 1, 1), 16384, np.int16)
+    cw = np.array([int(v) << 16 for v in hi] + [0] * (6 - len(hi)), np.int64)
+    return int(dt._surface_sub_k(np.full((1, 1), x, np.int16), tables, cw, s)[0, 0])
+
+
+@pytest.mark.cases("flightsw.ip.detrend._surface_sub_k", "tie-even", "surface-sat", "ar-sat",
+                   "shift")
+def test_surface_rounding_ties_saturation_and_shift():
+    # x - round_half_even(sum hi / 2)
+    assert [_surface([v]) for v in (1, 3, 5, -1, -3, 4)] == [0, -2, -2, 0, 2, -2]
+    # 6 x 32767 / 2 leaves the MR1 word: SAT -> 32767; then -32768 - 32767 -> AR_SAT
+    assert _surface([32767] * 6, x=100) == 100 - 32767
+    assert _surface([32767] * 6, x=-32768) == -32768
+    assert _surface([-32768] * 6, x=32767) == 32767
+    assert _surface([-32768] * 6, x=-100) == -100 + 32768
+    assert _surface([3], s=2, x=100) == 100 - (2 << 2)          # round(1.5) = 2, shifted by 2
+
+
+@pytest.mark.xfail(strict=True, reason="polynomial_coefficients_k returns 2**31 - 1 for M_k = 0 "
+                   "when sh <= -16 (unreachable from polynomial_basis, where sh >= -1)")
+def test_polynomial_coefficients_of_a_zero_moment_at_a_large_left_shift():
+    M = np.zeros(6, np.int64)
+    js = np.zeros(6, np.int64)
+    ps = np.full(6, 15, np.int64)                                # sh = 15 + 0 - 31 = -16
+    rs = np.full(6, 2 ** 30, np.int64)
+    assert list(dt.polynomial_coefficients_k(M, js, rs, ps)) == [0] * 6   # 0 * R = 0

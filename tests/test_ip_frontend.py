@@ -312,6 +312,9 @@ def test_filter_fft_sequence_step():
 
 
 # ------------------------------------------------------------------ high-pass detrender
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "typical")
+@pytest.mark.cases("flightsw.ip.detrend._lowpass_k", "symmetric", "edges")
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "twelve-bit")
 def test_highpass_against_quantised_and_ideal_gaussian():
     sigma = 1.5
     taps = flt.gaussian_taps_q15(sigma)
@@ -330,6 +333,8 @@ def test_highpass_against_quantised_and_ideal_gaussian():
         assert np.abs(ours - ref).max() <= bound
 
 
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "saturate")
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "full-scale")
 def test_highpass_signed_full_range_saturates():
     rng = np.random.default_rng(5)
     img = np.where(rng.random((32, 32)) < 0.5, -32768, 32767).astype(np.int16)
@@ -370,6 +375,9 @@ def test_polynomial_basis_is_orthogonal_and_fits_16_bits():
         assert np.abs(tables).max() < 2 ** 15
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_k", "typical")
+@pytest.mark.cases("flightsw.ip.detrend._block_shift", "no-shift")
+@pytest.mark.cases("flightsw.ip.detrend._surface_sub_k", "typical")
 def test_polynomial_against_lstsq():
     """|ours - (x - lstsq surface)| <= 1/2 + 2**-12."""
     for img in WINDOWS:
@@ -378,6 +386,8 @@ def test_polynomial_against_lstsq():
         assert np.abs(ours - ref).max() <= 0.5 + 2.0 ** -12
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_k", "block-shift")
+@pytest.mark.cases("flightsw.ip.detrend._block_shift", "shift")
 def test_polynomial_exact_surface_is_removed_and_saturation():
     h, w = 64, 64
     v, u = np.mgrid[:h, :w]
@@ -681,6 +691,8 @@ def _coefficients_by_python_ints(M, js, rs, ps):
     return out
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_coefficients_k", "round-two-step",
+                   "round-one-step", "left-shift", "saturate", "zero-moment")
 def test_polynomial_coefficients_match_unbounded_integer_arithmetic():
     """The jitted coefficient routine forms a product of up to 71 bits in two int64 halves; Python
     integers give the exact answer for the flight window sizes and for synthetic shifts below 16
