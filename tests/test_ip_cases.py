@@ -306,3 +306,88 @@ def test_polynomial_coefficients_of_a_zero_moment_at_a_large_left_shift():
     ps = np.full(6, 15, np.int64)                                # sh = 15 + 0 - 31 = -16
     rs = np.full(6, 2 ** 30, np.int64)
     assert list(dt.polynomial_coefficients_k(M, js, rs, ps)) == [0] * 6   # 0 * R = 0
+
+
+# ------------------------------------------------------------------ frequency-domain filter
+from flightsw.ip import fftfilter as fft  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter._rnd15", "round-nearest", "tie-even")
+def test_rnd15_rounds_half_to_even():
+    for a, want in [(0x4000, 0), (3 * 0x4000, 2), (5 * 0x4000, 2), (-0x4000, 0),
+                    (-3 * 0x4000, -2), (0x4001, 1), (0x3FFF, 0), (-0x4001, -1), (7 << 15, 7)]:
+        assert fft._rnd15(np.int64(a)) == want, hex(a)
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter._floor_m2", "no-shift", "typical")
+def test_floor_second_moment_is_the_mean_over_the_low_bits():
+    assert fft._floor_m2(0) == 0.0
+    for sh in (1, 2, 5, 12):
+        d = 2 ** sh
+        assert fft._floor_m2(sh) == pytest.approx(np.mean((np.arange(d) / d) ** 2), rel=1e-12)
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter._block_bitlen", "typical", "zero", "rows-beyond-nv")
+@pytest.mark.cases("flightsw.ip.fftfilter._transpose", "typical")
+def test_block_bitlen_and_transpose():
+    re = np.zeros((4, 4), np.int64)
+    im = np.zeros((4, 4), np.int64)
+    re[3, 0] = 30000                              # row 3: beyond nv = 3
+    assert fft._block_bitlen(re, im, 3, 4) == 0
+    re[0, 0], im[1, 2] = -1, -1
+    assert fft._block_bitlen(re, im, 3, 4) == 0   # ~(-1) = 0
+    im[2, 1] = -257                               # ~x = 256: 9 bits
+    re[1, 3] = 200                                # 8 bits
+    assert fft._block_bitlen(re, im, 3, 4) == (256).bit_length()
+    assert fft._block_bitlen(re, im, 4, 4) == (30000).bit_length()
+    a = np.arange(16, dtype=np.int64).reshape(4, 4)
+    assert np.array_equal(fft._transpose(a, 4), a.T)
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter._row_pass", "forward", "inverse", "no-shift",
+                   "block-shift", "partial-rows")
+def test_row_pass_is_the_dft_within_its_l2_bound():
+    T = 16
+    c, s, dw = fft.twiddles_q15(T)
+    rng = np.random.default_rng(1)
+    for inverse in (False, True):
+        for amp in (1000, 32767):
+            re = np.full((T, T), 7, np.int64)
+            im = np.full((T, T), 7, np.int64)
+            x = rng.integers(-amp, amp + 1, (3, T)) + 1j * rng.integers(-amp, amp + 1, (3, T))
+            re[:3], im[:3] = x.real, x.imag
+            bl = int(max(np.abs(x.real).max(), np.abs(x.imag).max())).bit_length()
+            log = np.zeros((4, 3), np.int64)
+            _, E, _, sh = fft._row_pass(re, im, 3, T, fft.bitrev(T), c, s, inverse, bl, 0.0, 0.0,
+                                        dw, log)
+            ref = T * np.fft.ifft(x, axis=1) if inverse else np.fft.fft(x, axis=1)
+            got = (re[:3] + 1j * im[:3]) * 2.0 ** sh
+            assert np.linalg.norm(got - ref) <= E * 2.0 ** sh
+            assert (re[3:] == 7).all() and (im[3:] == 7).all()          # rows past nv untouched
+            assert sh == log[:, 2].sum()
+            if amp == 1000:
+                assert sh == 0                    # 10-bit inputs grow to 14 bits: no shift
+            else:
+                assert log[0, 1] == 15 and log[0, 2] == 2                  # 15 bits -> >> 2
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "tie-even", "dc-removal")
+def test_fft_output_ties_round_to_even():
+    k = np.zeros((9, 9), np.int16)
+    k[4, 4] = 16384                               # x / 2: a constant c -> c / 2 exactly
+    for cst, want in ((3, 2), (5, 2), (7, 4), (-3, -2), (8, 4)):
+        out = fft.fft_correlate(np.full((20, 20), cst, np.int16), k, tile=16)
+        assert (out == want).all(), cst
+
+
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "fine-exponent")
+def test_fft_with_tiny_taps_takes_the_fine_exponent_branch():
+    import scipy.ndimage as ndi
+    k = np.zeros((9, 9), np.int16)
+    k[3:5, 4] = 50                                # gain 100 / 32768: spectrum exponent -8
+    # a bright flat window: after the DC removal the FFT sees 2 bits and never shifts
+    img = (4000 + np.random.default_rng(3).integers(0, 4, (24, 24))).astype(np.int16)
+    out, info = fft.fft_correlate(img, k, tile=16, return_info=True)
+    assert (info["D"] < -15).all() and info["mean"] == 4001 and out.min() >= 12
+    ref = ndi.correlate(img.astype(np.float64), k / 32768.0, mode="nearest")
+    assert np.all(np.abs(out - ref) <= fft.bound_map(info, img.shape))

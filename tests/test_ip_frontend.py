@@ -222,6 +222,12 @@ def _fft_oracles(img, k):
     return a
 
 
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "typical", "tiles", "dc-removal")
+@pytest.mark.cases("flightsw.ip.fftfilter._row_pass", "forward", "inverse", "block-shift")
+@pytest.mark.cases("flightsw.ip.fftfilter._rnd15", "round-nearest")
+@pytest.mark.cases("flightsw.ip.fftfilter._block_bitlen", "typical")
+@pytest.mark.cases("flightsw.ip.fftfilter._transpose", "typical")
+@pytest.mark.cases("flightsw.ip.fftfilter._floor_m2", "typical")
 @pytest.mark.parametrize("ci", range(len(FFT_CASES)))
 def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
     """Every pixel within the rigorous bound the block exponents give, every tile's RMS within its L2
@@ -247,6 +253,8 @@ def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
           f"{max(rms_ratio):.2f}, rigorous bound (last window) {info['bound']:.1f}")
 
 
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "saturate", "dc-does-not-fit",
+                   "dc-removal", "no-dc")
 def test_fft_filter_saturation_constant_and_no_dc_removal():
     rng = np.random.default_rng(11)
     # near full scale with a kernel of gain 2: both directions saturate, still within the bound
