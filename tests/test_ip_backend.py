@@ -41,6 +41,12 @@ def _random_images(rng, n):
         yield rng.random((h, w)) < p
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "diagonal", "four-connected", "merge")
+@pytest.mark.cases("flightsw.ip.colour._label_kernel", "typical")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "labels", "narrow")
+@pytest.mark.cases("flightsw.ip.colour._colour_at", "outside", "off", "on")
+@pytest.mark.cases("flightsw.ip.colour._find", "root", "chain")
+@pytest.mark.cases("flightsw.ip.colour._merge", "link", "same-root")
 @pytest.mark.parametrize("diagonal", [True, False])
 def test_label_equals_scipy_on_random_images(diagonal):
     rng = np.random.default_rng(4 + diagonal)
@@ -54,6 +60,9 @@ def test_label_equals_scipy_on_random_images(diagonal):
     assert n == 2500
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "full-width", "merge")
+@pytest.mark.cases("flightsw.ip.colour._run_end", "to-bit-63")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "no-blobs")
 @pytest.mark.parametrize("diagonal", [True, False])
 def test_label_special_cases(diagonal):
     for shape in [(1, 1), (1, 64), (64, 1), (64, 64), (5, 7)]:
@@ -74,6 +83,7 @@ def test_label_special_cases(diagonal):
     assert ip.label(v, diagonal)[1] == (1 if diagonal else 3)
 
 
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "sums", "events")
 def test_label_counts_and_cycles():
     im = np.array([[0, 3, 0, 5], [7, 0, 0, 5], [0, 0, 2, 0]], np.int16)
     led = Ledger()
@@ -113,6 +123,9 @@ def test_mask_scan_equals_pixel_scan_event_for_event():
                 assert np.array_equal(np.asarray(a), np.asarray(b)), (im.shape, diagonal)
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_pixels", "diagonal", "four-connected", "merge",
+                   "out-of-range")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "wide", "out-of-range")
 def test_label_wide_windows_and_input_dtypes():
     """Windows wider than 64 columns (the pixel scan) and every direct dtype equal scipy."""
     rng = np.random.default_rng(13)
@@ -130,6 +143,8 @@ def test_label_wide_windows_and_input_dtypes():
         backend(np.full((4, 4), -40000, np.int64), load_record("star"))
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "out-of-range")
+@pytest.mark.cases("flightsw.ip.colour._label_kernel", "out-of-range")
 def test_label_validation():
     with pytest.raises(ValueError, match="2-D"):
         ip.label(np.zeros(5))

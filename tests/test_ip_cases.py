@@ -391,3 +391,92 @@ def test_fft_with_tiny_taps_takes_the_fine_exponent_branch():
     assert (info["D"] < -15).all() and info["mean"] == 4001 and out.min() >= 12
     ref = ndi.correlate(img.astype(np.float64), k / 32768.0, mode="nearest")
     assert np.all(np.abs(out - ref) <= fft.bound_map(info, img.shape))
+
+
+# ------------------------------------------------------------------ blob colouring
+colour_mod = importlib.import_module("flightsw.ip.colour")
+
+
+@pytest.mark.cases("flightsw.ip.colour._find", "root", "chain")
+@pytest.mark.cases("flightsw.ip.colour._merge", "link", "same-root")
+def test_colour_array_find_and_merge():
+    parent = np.array([0, 1, 1, 2, 3, 5], np.int32)        # 4 -> 3 -> 2 -> 1, 5 alone
+    assert colour_mod._find(parent, 1) == (1, 0)
+    assert colour_mod._find(parent, 4) == (1, 2)           # 4 -> 2 (halved) -> 1
+    assert parent.tolist() == [0, 1, 1, 2, 2, 5]
+    assert colour_mod._merge(parent, 5, 3) == 1            # roots 5 and 1 (3 -> 2 -> 1, halved)
+    assert parent.tolist() == [0, 1, 1, 1, 2, 1]           # 5 links to the smaller root 1
+    assert colour_mod._merge(parent, 2, 5) == 2            # same root 1: nothing linked
+    assert parent.tolist() == [0, 1, 1, 1, 2, 1]
+
+
+@pytest.mark.cases("flightsw.ip.colour._low", "typical", "full")
+@pytest.mark.cases("flightsw.ip.colour._run_end", "inside", "to-bit-63")
+@pytest.mark.cases("flightsw.ip.colour._colour_at", "outside", "off", "on")
+def test_mask_helpers():
+    assert [int(colour_mod._low(n)) for n in (0, 1, 5, 63)] == [0, 1, 31, 2 ** 63 - 1]
+    assert int(colour_mod._low(64)) == 2 ** 64 - 1
+    U = np.uint64(0b0111_0110 | (0b11 << 62))               # runs 1..2, 4..6, 62..63
+    assert [colour_mod._run_end(U, c) for c in (1, 2, 4, 6, 62, 63)] == [3, 3, 7, 7, 64, 64]
+    S = np.uint64(0b0001_0010 | (1 << 62))                  # the run starts 1, 4, 62
+    srow = np.zeros(66, np.int32)
+    srow[1 + 1], srow[4 + 1], srow[62 + 1] = 7, 9, 11       # colours of the runs
+    got = [int(colour_mod._colour_at(U, S, srow, x)) for x in (-1, 0, 1, 2, 3, 5, 6, 7, 63, 64)]
+    assert got == [0, 0, 7, 7, 0, 9, 9, 0, 11, 0]
+
+
+def _sums_oracle(img, lab, n):
+    """The SUM_NAMES integers of each blob from their definitions (Python integers)."""
+    out = np.zeros((n + 1, colour_mod.NSUM), np.int64)
+    for k in range(1, n + 1):
+        rows, cols = np.nonzero(lab == k)
+        v = [int(img[r, c]) for r, c in zip(rows, cols)]
+        rc = list(zip(rows.tolist(), cols.tolist()))
+        out[k] = [len(v), sum(v), sum(x * c for x, (r, c) in zip(v, rc)),
+                  sum(x * r for x, (r, c) in zip(v, rc)),
+                  sum(x * c * c for x, (r, c) in zip(v, rc)),
+                  sum(x * r * r for x, (r, c) in zip(v, rc)),
+                  sum(x * r * c for x, (r, c) in zip(v, rc)),
+                  sum(c for r, c in rc), sum(r for r, c in rc), sum(c * c for r, c in rc),
+                  sum(r * r for r, c in rc), sum(r * c for r, c in rc), max(v)]
+    return out
+
+
+@pytest.mark.cases("flightsw.ip.colour._flush", "typical", "first-max", "max")
+@pytest.mark.cases("flightsw.ip.colour._accumulate", "typical", "first-max", "max")
+@pytest.mark.cases("flightsw.ip.colour._sums_from_labels", "typical")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "sums")
+def test_blob_sums_equal_their_definitions():
+    img = np.array([[0, -7, -3, 0, 0, 9],
+                    [0, -5, 0, 0, 4, 2],
+                    [0, -2, -1, 0, 0, 0],
+                    [0, 0, 0, 0, 3, 12]], np.int16)          # a negative blob: max -1
+    img[0, 4] = 6                                            # blob 2 starts at 6, then 9, 12
+    res = colour_mod.colour(img)
+    lab, n = ndi.label(img != 0, structure=np.ones((3, 3)))
+    want = _sums_oracle(img, lab, n)
+    assert np.array_equal(res.labels, lab) and np.array_equal(res.sums, want)
+    assert res.sums[1, 12] == -1                             # not 0: the first run set it
+    assert np.array_equal(colour_mod.blob_sums(img, lab, n), want)
+
+
+@pytest.mark.cases("flightsw.ip.colour._sums_from_labels", "outside-labels", "no-blobs")
+def test_sums_from_labels_skip_labels_outside_the_count():
+    img = np.array([[5, 6], [7, 8]], np.int32)
+    lab = np.array([[1, 2], [-1, 3]], np.int32)
+    s = colour_mod._sums_from_labels(img, lab, 2)
+    assert s.shape == (3, colour_mod.NSUM) and s[1, 1] == 5 and s[2, 1] == 6   # 3, -1 skipped
+    assert s[:, 0].tolist() == [0, 1, 1]
+    z = colour_mod._sums_from_labels(img, lab, 0)
+    assert z.shape == (1, colour_mod.NSUM) and not z.any()
+
+
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "no-sums", "no-labels")
+def test_colour_k_without_labels_or_sums():
+    img = np.array([[1, 0, 2], [0, 0, 3], [4, 0, 0]], np.int16)
+    lab, n, sums, ops, bad = colour_mod.colour_k(img, True, True)
+    lab2, n2, sums2, ops2, _ = colour_mod.colour_k(img, True, False)
+    assert lab2.shape == (0, 0) and n2 == n == 3 and np.array_equal(sums2, sums)
+    lab3, n3, sums3, _, _ = colour_mod.colour_k(img, True, True, False)
+    assert np.array_equal(lab3, lab) and n3 == 3 and sums3.shape == (4, colour_mod.NSUM)
+    assert not sums3.any() and sums[3, 1] == 4 and not bad
