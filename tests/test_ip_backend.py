@@ -126,6 +126,7 @@ def test_mask_scan_equals_pixel_scan_event_for_event():
 @pytest.mark.cases("flightsw.ip.colour._scan_pixels", "diagonal", "four-connected", "merge",
                    "out-of-range")
 @pytest.mark.cases("flightsw.ip.colour.colour_k", "wide", "out-of-range")
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "out-of-range")
 def test_label_wide_windows_and_input_dtypes():
     """Windows wider than 64 columns (the pixel scan) and every direct dtype equal scipy."""
     rng = np.random.default_rng(13)
@@ -496,6 +497,7 @@ def test_process_frame_end_to_end():
     assert np.array_equal(be.order, res.backend.order)
 
 
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "candidate-table")
 def test_process_frame_without_stage_images_gives_the_same_message():
     """Stage images are an output option of the one pipeline: with or without them, the same
     message, ledger and threshold, for the shipped sequences, predictions and alpha overrides; the
@@ -563,6 +565,7 @@ def test_process_frame_feedback_moves_window_and_means():
     assert math.hypot(best["row"] - tgt[0], best["col"] - tgt[1]) < 2.0
 
 
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "typical", "flags", "override", "max-out")
 def test_sequence_with_back_end_steps_via_registry():
     seq = ProcessingSequence.from_dict({
         "name": "t", "preprocess": {"compaction": 1, "window": 64},

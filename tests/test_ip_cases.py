@@ -480,3 +480,31 @@ def test_colour_k_without_labels_or_sums():
     lab3, n3, sums3, _, _ = colour_mod.colour_k(img, True, True, False)
     assert np.array_equal(lab3, lab) and n3 == 3 and sums3.shape == (4, colour_mod.NSUM)
     assert not sums3.any() and sums[3, 1] == 4 and not bad
+
+
+# ------------------------------------------------------------------ back end
+from flightsw.ip.backend import backend  # noqa: E402
+from flightsw.ip.colour import colour_cycles  # noqa: E402
+
+
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "typical", "no-override", "cycles",
+                   "no-labels", "no-blobs")
+def test_backend_is_the_stage_kernels_composed():
+    rec = load_record("star").replace(gof_threshold=0.0)
+    rng = np.random.default_rng(30)
+    img = np.where(rng.random((40, 48)) < 0.08, rng.integers(1, 4096, (40, 48)), 0).astype(np.int16)
+    be = backend(img, rec, compaction=2, window_origin=(20, 40))       # no centroid_mean
+    col = colour_mod.colour(img)
+    raw, _ = ft.features_words(col.sums)
+    words, _ = ft.normalise_words(raw, 2, (20, 40))
+    rk_ = rk.rank_words(words, rec)                                     # the record's means
+    assert be.count == col.count > 23 and np.array_equal(be.labels, col.labels)
+    assert np.array_equal(be.feature_words, words)
+    assert np.array_equal(be.order, rk_.order) and np.array_equal(be.gof_words, rk_.gof_words)
+    assert np.array_equal(be.all_distance_words, rk_.distance_words)
+    assert be.cycles == {"colour": colour_cycles(col.ops), "rank": rk_.cycles,
+                         "features": ft.features_cycles(col.count)}
+    nolab = backend(img, rec, compaction=2, window_origin=(20, 40), want_labels=False)
+    assert nolab.labels.shape == (0, 0) and np.array_equal(nolab.pack, be.pack)
+    empty = backend(np.zeros((8, 8), np.int16), rec)
+    assert (empty.count, empty.m, len(empty.order), empty.candidates().size) == (0, 0, 0, 0)

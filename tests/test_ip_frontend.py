@@ -512,6 +512,8 @@ def test_shipped_sequences_load_and_run_with_stages():
                                             "filter3x3_matched", "threshold"]
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "threshold")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "threshold-words")
 def test_sequence_steps_equal_the_kernels():
     seq = ProcessingSequence.from_toml(GOOD)
     sub = pp.preprocess(FRAMES[0], 2)
@@ -642,6 +644,9 @@ SEQUENCES = FUSABLE + [
 ]
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "filter", "highpass", "threshold", "fft",
+                   "poly", "none")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "stages", "no-stages", "no-steps")
 @pytest.mark.parametrize("si", range(len(SEQUENCES)))
 def test_pipeline_stages_are_the_stage_kernels_in_order(si):
     """The pipeline's stage images (one compiled call) equal the single-stage kernels composed in
@@ -666,6 +671,55 @@ def test_pipeline_stages_are_the_stage_kernels_in_order(si):
             assert fast.stages == [] and fast.message == res.message
             assert fast.context.get("threshold") == res.context.get("threshold")
             assert l1.table() == l2.table()
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "not-threshold")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "no-threshold", "no-stages")
+def test_pipeline_without_a_threshold_step_returns_zero_words():
+    from flightsw.ip.pipeline import FramePlan, ip_frame_k
+    seq = ProcessingSequence(SEQUENCES[2], {"compaction": 2, "window": 64})    # no threshold
+    plan = FramePlan(seq, RECORD)
+    h, w, r0, c0, _, _, r0w, c0w, mr, mc = plan.default
+    out = ip_frame_k(FRAMES[0], plan.f, r0, c0, h, w, plan.front, plan.ffts, plan.poly, 5000,
+                     plan.mode, plan.recw, plan.prm[False], r0w, c0w, mr, mc, False)
+    assert tuple(int(v) for v in out[11:15]) == (0, 0, 0, 0)
+    assert out[2].shape == (0, h, w) and out[3].shape == (0, h, w)
+    assert "threshold" not in run_stages(seq, FRAMES[0]).context
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "rank-image", "no-blobs")
+def test_pipeline_rank_image_numbers_the_reported_blobs_by_rank():
+    seq = ProcessingSequence(SEQUENCES[0] + [{"op": "rank", "max_candidates": 3}],
+                             {"compaction": 1, "window": 64})
+    rec = RECORD.replace(gof_threshold=0.0)
+    for frame in (FRAMES[5], np.zeros(pp.FRAME_SHAPE, np.uint16)):     # 5 blobs; none
+        res = process_frame(frame, seq, rec, want_stages=True)
+        labels, rank_img = res.stages[-2].image, res.stages[-1].image
+        want = np.zeros_like(labels)
+        for q, k in enumerate(res.backend.order):
+            want[labels == k + 1] = q + 1
+        assert np.array_equal(rank_img, want)
+        if not frame.any():                       # a constant window: nothing passes
+            assert res.backend.count == 0 and res.message.count == 0 and not rank_img.any()
+        else:
+            assert res.backend.count > res.message.count == 3  # some blobs are not reported
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "caller-window", "stages")
+def test_pipeline_on_a_window_the_caller_cut():
+    from flightsw.ip.frame import process_window
+    for si in (0, len(FUSABLE)):                  # with the polynomial detrender: new tables
+        seq = ProcessingSequence(SEQUENCES[si], {"compaction": 2, "window": 64})
+        full = pp.compact(FRAMES[1], 2)
+        sub = pp.Subimage(full[10:50, 20:70].astype(np.int16), (10, 20), 2, (40, 50))
+        res = process_window(sub, seq, RECORD, (40.0, 90.0))
+        assert np.array_equal(res.stages[0].image, sub.image)
+        want = _front_by_kernels(seq.steps, sub.image, None)
+        got = [s.image for s in res.stages[1:len(want) + 1]]
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))
+        fast = process_window(sub, seq, RECORD, (40.0, 90.0), want_stages=False)
+        assert fast.message == res.message and fast.stages == []
+        assert (res.message.window_row0, res.message.window_col0) == (20, 40)
 
 
 def test_budget_tables_render():
