@@ -342,16 +342,16 @@ def _cand_check_k(w, table, imager_ok):
         return _BAD_CODE, 6, 0.0, 0.0
     if (w[6] & 0xFF) == 0:
         return _BAD_RANGE, 6, 0.0, 0.0
-    if not is_normalized48_k(_f48_at(w, 3)):
+    if not is_normalized48_k(_f48_at(w, np.int64(3))):
         return _BAD_FLOAT, 3, 0.0, 0.0
-    if not is_normalized32_k(_f32_at(w, 11)):
+    if not is_normalized32_k(_f32_at(w, np.int64(11))):
         return _BAD_FLOAT, 11, 0.0, 0.0
     for i in range(k):
         b = 15 + 29 * i
         for j in range(14):
             if not is_normalized32_k(_f32_at(w, b + 1 + 2 * j)):
                 return _BAD_FLOAT, b + 1 + 2 * j, 0.0, 0.0
-    return 0, 0, decode48_k(_f48_at(w, 3)), decode32_k(_f32_at(w, 11))
+    return 0, 0, decode48_k(_f48_at(w, np.int64(3))), decode32_k(_f32_at(w, np.int64(11)))
 
 
 @njit(cache=True)
@@ -438,9 +438,9 @@ def _track_encode_k(head, t, v, out, table):
     reserved-and-crc : word 53 zero, word 54 the CRC of words 0-53.
     partial-group : a group partly finite -> False.
     """
-    gp = _group(v, 0, 4)
-    gr = _group(v, 4, 9)
-    ge = _group(v, 9, 17)
+    gp = _group(v, np.int64(0), np.int64(4))
+    gr = _group(v, np.int64(4), np.int64(9))
+    ge = _group(v, np.int64(9), np.int64(17))
     if gp < 0 or gr < 0 or ge < 0:
         return False
     for i in range(13):
@@ -462,7 +462,7 @@ def _track_encode_k(head, t, v, out, table):
             out[a] = (p >> 16) & 0xFFFF
             out[a + 1] = p & 0xFFFF
     out[53] = 0
-    out[54] = _crc_range(out, 54, table)
+    out[54] = _crc_range(out, np.int64(54), table)
     return True
 
 
@@ -496,7 +496,7 @@ def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
         return _BAD_ID, 0, 0.0
     if w[1] != 55:
         return _BAD_LENGTH, 1, 0.0
-    if _crc_range(w, 54, table) != w[54]:
+    if _crc_range(w, np.int64(54), table) != w[54]:
         return _BAD_CRC, 54, 0.0
     if not imager_ok[w[6] >> 8]:
         return _BAD_CODE, 6, 0.0
@@ -513,7 +513,7 @@ def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
         return _NOT_ZERO, 12, 0.0
     if w[53] != 0:
         return _NOT_ZERO, 53, 0.0
-    if not is_normalized48_k(_f48_at(w, 3)):
+    if not is_normalized48_k(_f48_at(w, np.int64(3))):
         return _BAD_FLOAT, 3, 0.0
     for i in range(17):
         a = _TC_AT[i]
@@ -531,7 +531,7 @@ def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
             if not is_normalized32_k(p):
                 return _BAD_FLOAT, a, 0.0
             v[i] = decode32_k(p)
-    return 0, 0, decode48_k(_f48_at(w, 3))
+    return 0, 0, decode48_k(_f48_at(w, np.int64(3)))
 
 
 _TC_VALUE_NAMES = ("q_point",) * 4 + ("predicted_row", "predicted_col") + ("los_eci",) * 3 \

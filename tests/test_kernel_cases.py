@@ -34,9 +34,7 @@ HEADER = re.compile(r"^Cases\s*$")
 
 #: modules whose kernels are still being given case lists (each owner deletes its entry; a module
 #: listed here is skipped, a module not listed must be complete)
-PENDING_MODULES: set[str] = {
-    "flightsw.arith.m1750_int", "flightsw.arith.m1750_lanes", "flightsw.arith.m1750_math",
-}
+PENDING_MODULES: set[str] = set()
 
 
 def _is_njit(dec: ast.expr) -> bool:

@@ -530,6 +530,173 @@ def test_int_special_cases():
         m.div32_16(0, 65536)
 
 
+# every case of the m1750_int kernels on hand-worked operands: (function, operands, expected), the
+# expected words worked out by hand (the comment gives the signed arithmetic)
+INT_CASES = [
+    # -1 + 2
+    pytest.param("add16", (0xFFFF, 2), (1, 0), marks=[
+        pytest.mark.cases("flightsw.arith.m1750_int._add16_k", "no-overflow"),
+        pytest.mark.cases("flightsw.arith.m1750_int._s16", "negative", "non-negative")]),
+    # 32767 + 1
+    pytest.param("add16", (0x7FFF, 1), (0x8000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._add16_k", "overflow-positive")),
+    # -32768 - 1
+    pytest.param("add16", (0x8000, 0xFFFF), (0x7FFF, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._add16_k", "overflow-negative")),
+    # 1 - 2 = -1
+    pytest.param("sub16", (1, 2), (0xFFFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub16_k", "no-overflow")),
+    # 32767 - -1
+    pytest.param("sub16", (0x7FFF, 0xFFFF), (0x8000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub16_k", "overflow-positive")),
+    # -32768 - 1
+    pytest.param("sub16", (0x8000, 1), (0x7FFF, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub16_k", "overflow-negative")),
+    # -1 + -1
+    pytest.param("add32", (0xFFFFFFFF, 0xFFFFFFFF), (0xFFFFFFFE, 0), marks=[
+        pytest.mark.cases("flightsw.arith.m1750_int._add32_k", "no-overflow"),
+        pytest.mark.cases("flightsw.arith.m1750_int._s32", "negative")]),
+    # 2**31 - 1 + 1
+    pytest.param("add32", (0x7FFFFFFF, 1), (0x80000000, FX), marks=[
+        pytest.mark.cases("flightsw.arith.m1750_int._add32_k", "overflow-positive"),
+        pytest.mark.cases("flightsw.arith.m1750_int._s32", "non-negative")]),
+    # -2**32
+    pytest.param("add32", (0x80000000, 0x80000000), (0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._add32_k", "overflow-negative")),
+    # 0 - 1
+    pytest.param("sub32", (0, 1), (0xFFFFFFFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub32_k", "no-overflow")),
+    # 2**31 - 1 - -1
+    pytest.param("sub32", (0x7FFFFFFF, 0xFFFFFFFF), (0x80000000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub32_k", "overflow-positive")),
+    # -2**31 - 1
+    pytest.param("sub32", (0x80000000, 1), (0x7FFFFFFF, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._sub32_k", "overflow-negative")),
+    pytest.param("neg16", (5,), (0xFFFB, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._neg16_k", "typical")),
+    pytest.param("neg16", (0,), (0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._neg16_k", "typical")),
+    pytest.param("neg16", (0x8000,), (0x8000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._neg16_k", "most-negative")),
+    pytest.param("neg32", (0xFFFFFFFB,), (5, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._neg32_k", "typical")),
+    pytest.param("neg32", (0x80000000,), (0x80000000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._neg32_k", "most-negative")),
+    pytest.param("abs16", (0x7FFF,), (0x7FFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs16_k", "non-negative")),
+    pytest.param("abs16", (0,), (0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs16_k", "non-negative")),
+    # |-32767|
+    pytest.param("abs16", (0x8001,), (0x7FFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs16_k", "negative")),
+    pytest.param("abs16", (0x8000,), (0x8000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs16_k", "most-negative")),
+    pytest.param("abs32", (0x12345678,), (0x12345678, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs32_k", "non-negative")),
+    pytest.param("abs32", (0xFFFFFFFE,), (2, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs32_k", "negative")),
+    pytest.param("abs32", (0x80000000,), (0x80000000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._abs32_k", "most-negative")),
+    # -256 * 128 = -32768
+    pytest.param("mul16", (0xFF00, 0x80), (0x8000, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16_k", "fits")),
+    # -3 * 7 = -21
+    pytest.param("mul16", (0xFFFD, 7), (0xFFEB, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16_k", "fits")),
+    pytest.param("mul16", (0, 0x8000), (0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16_k", "fits")),
+    # +32768
+    pytest.param("mul16", (0x8000, 0xFFFF), (0x8000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16_k", "overflow")),
+    # 65536
+    pytest.param("mul16", (0x100, 0x100), (0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16_k", "overflow")),
+    # -21
+    pytest.param("mul16x32", (0xFFFD, 7), (0xFFFFFFEB, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16x32_k", "typical")),
+    # 2**30
+    pytest.param("mul16x32", (0x8000, 0x8000), (0x40000000, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16x32_k", "most-negative")),
+    # -32768 * 32767
+    pytest.param("mul16x32", (0x8000, 0x7FFF), (0xC0008000, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul16x32_k", "most-negative")),
+    # -(2**31 - 1)
+    pytest.param("mul32", (0xFFFFFFFF, 0x7FFFFFFF), (0x80000001, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul32_k", "fits")),
+    pytest.param("mul32", (0x10000, 0x7FFF), (0x7FFF0000, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul32_k", "fits")),
+    # 2**62
+    pytest.param("mul32", (0x80000000, 0x80000000), (0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul32_k", "overflow")),
+    # +2**31
+    pytest.param("mul32", (0x10000, 0x8000), (0x80000000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._mul32_k", "overflow")),
+    pytest.param("div16", (7, 2), (3, 1, 0), marks=[
+        pytest.mark.cases("flightsw.arith.m1750_int._div16_k", "typical"),
+        pytest.mark.cases("flightsw.arith.m1750_int._tdivmod", "same-signs")]),
+    # -7/2 = -3 r -1
+    pytest.param("div16", (0xFFF9, 2), (0xFFFD, 0xFFFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._tdivmod", "negative-dividend")),
+    # 7/-2 = -3 r 1
+    pytest.param("div16", (7, 0xFFFE), (0xFFFD, 1, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._tdivmod", "negative-divisor")),
+    # -7/-2 = 3 r -1
+    pytest.param("div16", (0xFFF9, 0xFFFE), (3, 0xFFFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._tdivmod", "both-negative")),
+    pytest.param("div16", (12, 4), (3, 0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._tdivmod", "exact")),
+    pytest.param("div16", (5, 0), (0, 0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div16_k", "divide-by-zero")),
+    # -32768/-1
+    pytest.param("div16", (0x8000, 0xFFFF), (0x8000, 0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div16_k", "overflow")),
+    # -65536/3 = -21845 r -1
+    pytest.param("div32_16", (0xFFFF0000, 3), (0xAAAB, 0xFFFF, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k", "typical")),
+    # 32767 fits
+    pytest.param("div32_16", (0x7FFF, 1), (0x7FFF, 0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k", "typical")),
+    # -32768 fits
+    pytest.param("div32_16", (0xFFFF8000, 1), (0x8000, 0, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k", "typical")),
+    pytest.param("div32_16", (5, 0), (0, 0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k", "divide-by-zero")),
+    # +32768
+    pytest.param("div32_16", (0x8000, 1), (0x8000, 0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k",
+                                         "overflow-positive")),
+    # 65537/2 = 32768 r 1
+    pytest.param("div32_16", (0x10001, 2), (0x8000, 1, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k",
+                                         "overflow-positive")),
+    # -32769
+    pytest.param("div32_16", (0xFFFF7FFF, 1), (0x7FFF, 0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_16_k",
+                                         "overflow-negative")),
+    # -7/2 = -3
+    pytest.param("div32", (0xFFFFFFF9, 2), (0xFFFFFFFD, 0),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_k", "typical")),
+    pytest.param("div32", (5, 0), (0, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_k", "divide-by-zero")),
+    # -2**31/-1
+    pytest.param("div32", (0x80000000, 0xFFFFFFFF), (0x80000000, FX),
+                 marks=pytest.mark.cases("flightsw.arith.m1750_int._div32_k", "overflow")),
+]
+
+
+@pytest.mark.parametrize("fn,args,want", INT_CASES)
+def test_int_kernel_cases(fn, args, want):
+    """Each integer kernel case on hand-worked operands; the Python-integer oracle below agrees."""
+    assert getattr(m, fn)(*args) == want
+    bits = {"add16": 16, "sub16": 16, "add32": 32, "sub32": 32, "mul16": 16, "mul32": 32}
+    if fn in bits:                                 # the exact result, reduced and range-checked
+        n = bits[fn]
+        a, b = (_s(v, n) for v in args)
+        exact = {"add": a + b, "sub": a - b, "mul": a * b}[fn[:3]]
+        fits = -2 ** (n - 1) <= exact < 2 ** (n - 1)
+        assert want == (exact & ((1 << n) - 1), 0 if fits else FX)
+
+
 # ------------------------------------------------------------------------------------------------
 # numba path and costs
 # ------------------------------------------------------------------------------------------------

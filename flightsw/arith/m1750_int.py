@@ -37,40 +37,101 @@ __all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32
 
 @njit(cache=True, inline="always")
 def _s16(w):
+    """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
+
+    Cases
+    -----
+    non-negative : bit 15 clear: the pattern's value (0..32767).
+    negative : bit 15 set: the pattern minus 65536 (0xFFFF -> -1, 0x8000 -> -32768).
+    """
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
 @njit(cache=True, inline="always")
 def _s32(w):
+    """The low 32 bits of ``w`` (int) read as a two's complement integer.
+
+    Cases
+    -----
+    non-negative : bit 31 clear: the pattern's value.
+    negative : bit 31 set: the pattern minus 2**32 (0xFFFFFFFF -> -1, 0x80000000 -> -2**31).
+    """
     return ((w & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
 
 
 @njit(cache=True)
 def _add16_k(a, b):
+    """``a + b`` of two 16-bit patterns (ints 0..0xFFFF) -> ``(pattern, flags)``: A/AR (5.55).
+
+    Cases
+    -----
+    no-overflow : the exact sum fits -32768..32767: its 16-bit pattern, flags 0.
+    overflow-positive : the exact sum is above 32767: its low 16 bits (a negative pattern) and
+        ``FLAG_FIXED_OVERFLOW``.
+    overflow-negative : the exact sum is below -32768: its low 16 bits (a non-negative pattern) and
+        ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s16(a) + _s16(b)
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
 @njit(cache=True)
 def _sub16_k(a, b):
+    """``a - b`` of two 16-bit patterns (ints 0..0xFFFF) -> ``(pattern, flags)``: S/SR (5.63).
+
+    Cases
+    -----
+    no-overflow : the exact difference fits -32768..32767: its 16-bit pattern, flags 0.
+    overflow-positive : the exact difference is above 32767: its low 16 bits (a negative pattern)
+        and ``FLAG_FIXED_OVERFLOW``.
+    overflow-negative : the exact difference is below -32768: its low 16 bits (a non-negative
+        pattern) and ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s16(a) - _s16(b)
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
 @njit(cache=True)
 def _add32_k(a, b):
+    """``a + b`` of two 32-bit patterns (ints 0..0xFFFFFFFF) -> ``(pattern, flags)``: DA/DAR (5.59).
+
+    Cases
+    -----
+    no-overflow : the exact sum fits -2**31..2**31 - 1: its 32-bit pattern, flags 0.
+    overflow-positive : the exact sum is above 2**31 - 1: its low 32 bits (a negative pattern) and
+        ``FLAG_FIXED_OVERFLOW``.
+    overflow-negative : the exact sum is below -2**31: its low 32 bits (a non-negative pattern) and
+        ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s32(a) + _s32(b)
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
 @njit(cache=True)
 def _sub32_k(a, b):
+    """``a - b`` of two 32-bit patterns (ints 0..0xFFFFFFFF) -> ``(pattern, flags)``: DS/DSR (5.67).
+
+    Cases
+    -----
+    no-overflow : the exact difference fits -2**31..2**31 - 1: its 32-bit pattern, flags 0.
+    overflow-positive : the exact difference is above 2**31 - 1: its low 32 bits (a negative
+        pattern) and ``FLAG_FIXED_OVERFLOW``.
+    overflow-negative : the exact difference is below -2**31: its low 32 bits (a non-negative
+        pattern) and ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s32(a) - _s32(b)
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
 @njit(cache=True)
 def _neg16_k(a):
+    """``-a`` of a 16-bit pattern -> ``(pattern, flags)``: NEG (5.65).
+
+    Cases
+    -----
+    typical : any pattern but 0x8000: the two's complement negation (0 -> 0, 0xFFFF -> 1), flags 0.
+    most-negative : 0x8000 (-32768) is returned unchanged with ``FLAG_FIXED_OVERFLOW``.
+    """
     a = a & 0xFFFF
     if a == 0x8000:
         return a, FLAG_FIXED_OVERFLOW
@@ -79,6 +140,13 @@ def _neg16_k(a):
 
 @njit(cache=True)
 def _neg32_k(a):
+    """``-a`` of a 32-bit pattern -> ``(pattern, flags)``: DNEG (5.66).
+
+    Cases
+    -----
+    typical : any pattern but 0x80000000: the two's complement negation (0 -> 0), flags 0.
+    most-negative : 0x80000000 is returned unchanged with ``FLAG_FIXED_OVERFLOW``.
+    """
     a = a & 0xFFFFFFFF
     if a == 0x80000000:
         return a, FLAG_FIXED_OVERFLOW
@@ -87,6 +155,14 @@ def _neg32_k(a):
 
 @njit(cache=True)
 def _abs16_k(a):
+    """``|a|`` of a 16-bit pattern -> ``(pattern, flags)``: ABS (5.57).
+
+    Cases
+    -----
+    non-negative : bit 15 clear (0 included): returned unchanged, flags 0.
+    negative : 0x8001..0xFFFF: the negation (0xFFFF -> 1), flags 0.
+    most-negative : 0x8000 is returned unchanged with ``FLAG_FIXED_OVERFLOW``.
+    """
     a = a & 0xFFFF
     if a == 0x8000:
         return a, FLAG_FIXED_OVERFLOW
@@ -95,6 +171,14 @@ def _abs16_k(a):
 
 @njit(cache=True)
 def _abs32_k(a):
+    """``|a|`` of a 32-bit pattern -> ``(pattern, flags)``: DABS (5.58).
+
+    Cases
+    -----
+    non-negative : bit 31 clear (0 included): returned unchanged, flags 0.
+    negative : 0x80000001..0xFFFFFFFF: the negation, flags 0.
+    most-negative : 0x80000000 is returned unchanged with ``FLAG_FIXED_OVERFLOW``.
+    """
     a = a & 0xFFFFFFFF
     if a == 0x80000000:
         return a, FLAG_FIXED_OVERFLOW
@@ -103,24 +187,62 @@ def _abs32_k(a):
 
 @njit(cache=True)
 def _mul16_k(a, b):
+    """``a * b`` of two 16-bit patterns, single-precision result -> ``(low 16 bits, flags)``: MS
+    (5.71).
+
+    Cases
+    -----
+    fits : the product is in -32768..32767 (any product with a zero operand; 0xFF00 * 0x0080 =
+        -32768): its pattern, flags 0.
+    overflow : the product is outside -32768..32767 (0x8000 * 0xFFFF = +32768, 256 * 256): its low
+        16 bits and ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s16(a) * _s16(b)
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
 @njit(cache=True)
 def _mul16x32_k(a, b):
+    """``a * b`` of two 16-bit patterns as a 32-bit pattern -> ``(pattern, 0)``: M/MR (5.72).
+
+    Cases
+    -----
+    typical : the exact product as a 32-bit two's complement pattern (negative products included),
+        flags 0.
+    most-negative : 0x8000 * 0x8000 = 0x40000000 (+2**30) and 0x8000 * 0x7FFF: exact, never an
+        overflow.
+    """
     return (_s16(a) * _s16(b)) & 0xFFFFFFFF, 0
 
 
 @njit(cache=True)
 def _mul32_k(a, b):
+    """``a * b`` of two 32-bit patterns -> ``(low 32 bits, flags)``: DM (5.73). The exact product
+    (``|p| <= 2**62``) fits int64.
+
+    Cases
+    -----
+    fits : the product is in -2**31..2**31 - 1: its pattern, flags 0.
+    overflow : the product is outside (0x80000000 squared, 2**16 * 2**16, 2**16 * 2**15 = +2**31):
+        its low 32 bits and ``FLAG_FIXED_OVERFLOW``.
+    """
     r = _s32(a) * _s32(b)          # |r| <= 2**62: exact in int64
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
 @njit(cache=True, inline="always")
 def _tdivmod(x, y):
-    """Truncating division (toward zero), remainder with the dividend's sign."""
+    """Truncating division (toward zero), remainder with the dividend's sign.
+
+    Cases
+    -----
+    same-signs : both operands positive: ``q = x // y``, remainder >= 0 (7 / 2 = 3 r 1).
+    negative-dividend : ``x < 0 < y``: quotient truncated toward zero, remainder negative (-7 / 2 =
+        -3 r -1).
+    negative-divisor : ``y < 0 < x``: -3 r 1 for 7 / -2 (remainder keeps the dividend's sign).
+    both-negative : ``x, y < 0``: -7 / -2 = 3 r -1.
+    exact : the remainder is 0 (12 / 4 = 3 r 0).
+    """
     ax = -x if x < 0 else x
     ay = -y if y < 0 else y
     q = ax // ay
@@ -134,6 +256,16 @@ def _tdivmod(x, y):
 
 @njit(cache=True)
 def _div16_k(a, b):
+    """``a / b`` of two 16-bit patterns -> ``(quotient, remainder, flags)``: DV/DVR (5.76).
+
+    Cases
+    -----
+    typical : ``b != 0`` and the quotient fits: truncated quotient and the remainder with the
+        dividend's sign, as 16-bit patterns, flags 0.
+    divide-by-zero : ``b = 0``: ``(0, 0, FLAG_FIXED_OVERFLOW)``.
+    overflow : 0x8000 / 0xFFFF (+32768 does not fit): quotient 0x8000 (its low 16 bits), remainder
+        0, ``FLAG_FIXED_OVERFLOW``; the only 16/16 quotient that does not fit.
+    """
     y = _s16(b)
     if y == 0:
         return 0, 0, FLAG_FIXED_OVERFLOW
@@ -143,6 +275,19 @@ def _div16_k(a, b):
 
 @njit(cache=True)
 def _div32_16_k(a, b):
+    """``a / b`` of a 32-bit dividend pattern by a 16-bit divisor pattern -> ``(quotient16,
+    remainder16, flags)``: D/DR (5.77).
+
+    Cases
+    -----
+    typical : ``b != 0`` and the quotient is in -32768..32767 (both ends included): truncated
+        quotient and the remainder with the dividend's sign, 16-bit patterns, flags 0.
+    divide-by-zero : ``b = 0``: ``(0, 0, FLAG_FIXED_OVERFLOW)``.
+    overflow-positive : quotient above 32767 (0x8000 / 1, 0x10000 / 1): its low 16 bits, the
+        remainder's pattern, ``FLAG_FIXED_OVERFLOW``.
+    overflow-negative : quotient below -32768 (-32769 / 1): its low 16 bits,
+        ``FLAG_FIXED_OVERFLOW``.
+    """
     y = _s16(b)
     if y == 0:
         return 0, 0, FLAG_FIXED_OVERFLOW
@@ -152,6 +297,15 @@ def _div32_16_k(a, b):
 
 @njit(cache=True)
 def _div32_k(a, b):
+    """``a / b`` of two 32-bit patterns -> ``(quotient32, flags)``: DD/DDR (5.78); no remainder.
+
+    Cases
+    -----
+    typical : ``b != 0`` and the quotient fits: the quotient truncated toward zero, flags 0.
+    divide-by-zero : ``b = 0``: ``(0, FLAG_FIXED_OVERFLOW)``.
+    overflow : 0x80000000 / 0xFFFFFFFF (+2**31 does not fit): quotient 0x80000000,
+        ``FLAG_FIXED_OVERFLOW``.
+    """
     y = _s32(b)
     if y == 0:
         return 0, FLAG_FIXED_OVERFLOW

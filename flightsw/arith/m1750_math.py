@@ -126,17 +126,43 @@ EXP32 = (0x40000000, 0x555555fe, 0x555555fc, 0x444424fa, 0x5b069ef7, 0x6868eaf4,
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _set_exp32(p, e):
+    """Replace the exponent byte of packed 32-bit float ``p`` (int) with ``e`` (int, -128..127); the
+    mantissa bits are kept (a 1750A integer/logical edit, no float operation, no checks).
+
+    Cases
+    -----
+    replace : returns ``p`` with its low byte replaced by ``e & 0xFF`` (negative ``e`` written as
+        its 8-bit two's complement), the 24 mantissa bits unchanged.
+    """
     return (p & 0xFFFFFF00) | (e & 0xFF)
 
 
 @njit(cache=True, inline="always")
 def _set_exp48(p, e):
+    """Replace the exponent byte (bits 16..23) of packed 48-bit float ``p`` (int) with ``e`` (int,
+    -128..127); the 40 mantissa bits (``w0``, the high byte of ``w1``, ``w2``) are kept. No checks.
+
+    Cases
+    -----
+    replace : returns ``p`` with bits 16..23 replaced by ``e & 0xFF``, ``w0``, the mantissa byte of
+        ``w1`` and ``w2`` unchanged.
+    """
     return (p & 0xFFFFFF00FFFF) | ((e & 0xFF) << 16)
 
 
 @njit(cache=True, inline="always")
 def _scale32(p, k):
-    """p * 2**k by exponent edit, with the standard's overflow/underflow results."""
+    """p * 2**k by exponent edit, with the standard's overflow/underflow results.
+
+    Cases
+    -----
+    zero : floating zero returns ``(0, 0)`` whatever ``k``.
+    in-range : new exponent in -128..127 (both ends included): the exponent edited, the mantissa
+        kept (exactly ``p * 2**k``), flags 0.
+    overflow-positive : new exponent above 127, positive mantissa: ``(MAX32, FLAG_FLOAT_OVERFLOW)``.
+    overflow-negative : new exponent above 127, negative mantissa: ``(MIN32, FLAG_FLOAT_OVERFLOW)``.
+    underflow : new exponent below -128: ``(0, FLAG_FLOAT_UNDERFLOW)``.
+    """
     m, e = unpack32(p)
     if m == 0:
         return 0, 0
@@ -150,6 +176,18 @@ def _scale32(p, k):
 
 @njit(cache=True, inline="always")
 def _scale48(p, k):
+    """``p * 2**k`` for a packed 48-bit float ``p`` by exponent edit, with the standard's
+    overflow/underflow results -> ``(word, flags)`` (the 48-bit form of :func:`_scale32`).
+
+    Cases
+    -----
+    zero : floating zero returns ``(0, 0)`` whatever ``k``.
+    in-range : new exponent in -128..127 (both ends included): exactly ``p * 2**k``, all 40 mantissa
+        bits kept, flags 0.
+    overflow-positive : new exponent above 127, positive mantissa: ``(MAX48, FLAG_FLOAT_OVERFLOW)``.
+    overflow-negative : new exponent above 127, negative mantissa: ``(MIN48, FLAG_FLOAT_OVERFLOW)``.
+    underflow : new exponent below -128: ``(0, FLAG_FLOAT_UNDERFLOW)``.
+    """
     m, e = unpack48(p)
     if m == 0:
         return 0, 0
@@ -163,11 +201,25 @@ def _scale48(p, k):
 
 @njit(cache=True, inline="always")
 def _s16(w):
+    """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
+
+    Cases
+    -----
+    non-negative : bit 15 clear: the pattern's value (0..32767).
+    negative : bit 15 set: the pattern minus 65536 (0xFFFF -> -1, 0x8000 -> -32768).
+    """
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
 @njit(cache=True, inline="always")
 def _s32(w):
+    """The low 32 bits of ``w`` (int) read as a two's complement integer.
+
+    Cases
+    -----
+    non-negative : bit 31 clear: the pattern's value.
+    negative : bit 31 set: the pattern minus 2**32 (0xFFFFFFFF -> -1).
+    """
     return ((w & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
 
 
@@ -176,6 +228,20 @@ def _s32(w):
 # ================================================================================================
 @njit(cache=True)
 def _sqrt32_k(x):
+    """sqrt of a packed 32-bit float ``x`` -> ``(word, flags)``: ``x = g * 4**k`` with ``g`` in
+    [0.25, 1) by exponent edit, linear seed, 2 Heron steps in FD/FA/FM, exponent + ``k``.
+
+    Cases
+    -----
+    zero : ``x = 0`` returns ``(0, 0)``.
+    negative : ``x < 0`` returns ``(0, FLAG_DOMAIN)``.
+    even-exponent : ``x = f * 2**e``, ``e`` even: ``g = f`` in [0.5, 1), result exponent + ``e/2``;
+        within 1.5 ulp of sqrt(x) (9 -> 3 exactly).
+    odd-exponent : ``e`` odd: ``g = f/2`` in [0.25, 0.5), result exponent + ``(e+1)/2``; within
+        1.5 ulp (4 = 0.5 * 2**3 -> 2 exactly).
+    range-ends : the smallest (``0.5 * 2**-128``) and largest (``MAX32``) magnitudes: ``k`` stays
+        in -64..64, so the result never overflows or underflows; within 1.5 ulp, flags 0.
+    """
     m, e = unpack32(x)
     if m == 0:
         return 0, 0
@@ -203,7 +269,29 @@ def sqrt32_lanes(xs, out):
     The same instructions as :func:`sqrt32` for each element, each applied to all elements at once
     in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`: SIMD on the host; the Heron
     division, whose operands are positive, in FD's positive-operand form ``fd32_pos``, the same
-    words); the zero and domain cases are selected at the end."""
+    words); the zero and domain cases are selected at the end.
+
+    Parameters
+    ----------
+    xs : int64 [K]
+        Packed 32-bit floats (normalised or zero).
+    out : int64 [K]
+        Receives the packed square roots.
+
+    Returns
+    -------
+    int
+        The OR of every lane's flags (``FLAG_DOMAIN`` if any lane is negative).
+
+    Cases
+    -----
+    empty : ``K = 0``: nothing written, returns 0.
+    zero : a zero lane gives 0.
+    negative : a negative lane gives 0 and ``FLAG_DOMAIN`` in the returned OR.
+    even-exponent : lanes with an even exponent: within 1.5 ulp of sqrt (exact squares exact).
+    odd-exponent : lanes with an odd exponent: within 1.5 ulp.
+    mixed-block : zero, negative and positive lanes in one call: each lane as alone, flags OR-ed.
+    """
     K = xs.size
     buf = np.empty((4, K), np.int64)             # g, k, y, z (q is out; no op writes its input)
     g, k, y, z = buf[0], buf[1], buf[2], buf[3]
@@ -214,12 +302,12 @@ def sqrt32_lanes(xs, out):
         # (x <= 0 lanes, selected away at the end, divide 1/2 instead: fd32_pos needs g > 0)
         g[i] = _set_exp32(x, -1 if odd else 0) if m > 0 else HALF32
         k[i] = (e + 1) >> 1 if odd else e >> 1
-    fm32_lanes(g, SQRT_INIT32[1], z)
-    fa32_lanes(z, SQRT_INIT32[0], y)
+    fm32_lanes(g, np.int64(SQRT_INIT32[1]), z)
+    fa32_lanes(z, np.int64(SQRT_INIT32[0]), y)
     for _j in range(SQRT32_STEPS):
         fd32_pos_lanes(g, y, out)                # g in [1/4, 1), y near 1: both positive
         fa32_lanes(y, out, z)
-        fm32_lanes(z, HALF32, y)
+        fm32_lanes(z, np.int64(HALF32), y)
     flags = 0
     for i in range(K):
         m, _ = unpack32(xs[i])
@@ -231,6 +319,19 @@ def sqrt32_lanes(xs, out):
 
 @njit(cache=True)
 def _sqrt48_k(x):
+    """sqrt of a packed 48-bit float ``x`` -> ``(word, flags)``; as :func:`_sqrt32_k` in EFD/EFA/EFM
+    with 3 Heron steps.
+
+    Cases
+    -----
+    zero : ``x = 0`` returns ``(0, 0)``.
+    negative : ``x < 0`` returns ``(0, FLAG_DOMAIN)``.
+    even-exponent : ``x = f * 2**e``, ``e`` even: ``g = f``, result exponent + ``e/2``; within 1.5
+        ulp (48-bit ulp; 9 -> 3 exactly).
+    odd-exponent : ``e`` odd: ``g = f/2``, result exponent + ``(e+1)/2``; within 1.5 ulp.
+    range-ends : ``0.5 * 2**-128`` and values near ``2**127``: no overflow or underflow, within 1.5
+        ulp, flags 0.
+    """
     m, e = unpack48(x)
     if m == 0:
         return 0, 0
@@ -256,6 +357,24 @@ def _sqrt48_k(x):
 # ================================================================================================
 @njit(cache=True)
 def _exp32_k(x):
+    """``e**x`` of a packed 32-bit float ``x`` -> ``(word, flags)``: ``n = round(x / ln2)``, ``r = x
+    - n ln2`` in 48-bit with a 2-part ln2, ``1 + r + r**2 P(r)``, exponent + ``n``.
+
+    Cases
+    -----
+    zero : ``exp(0)`` returns ``(ONE32, 0)`` exactly.
+    saturate-high : ``x >= 256`` (exponent above 8): ``(MAX32, FLAG_FLOAT_OVERFLOW)`` at once.
+    saturate-low : ``x <= -256``: ``(0, FLAG_FLOAT_UNDERFLOW)`` at once.
+    overflow : ``~88.03 < x < 256``: the final exponent edit overflows: ``(MAX32,
+        FLAG_FLOAT_OVERFLOW)``.
+    underflow : ``-256 < x < ~-89.41``: the final exponent edit underflows: ``(0,
+        FLAG_FLOAT_UNDERFLOW)``.
+    positive : ``0 < x <= 88``: ``n`` from ``x log2(e) + 0.5`` truncated by FIX (halves away from
+        zero); within 3 ulp, flags 0.
+    negative : ``-88.7 <= x < 0``: ``n`` from ``x log2(e) - 0.5`` truncated toward zero (``n <=
+        0``); within 3 ulp, flags 0.
+    tiny : ``|x| <= 1e-3``: ``n = 0``, ``r = x``; ``1 + x`` within 3 ulp.
+    """
     m, e = unpack32(x)
     if m == 0:
         return ONE32, 0
@@ -287,6 +406,23 @@ def _exp32_k(x):
 
 @njit(cache=True)
 def _ln32_k(x):
+    """Natural log of a packed 32-bit float ``x`` -> ``(word, flags)``: ``x = f * 2**E`` with ``f``
+    in [sqrt(1/2), sqrt(2)), ``s = (f-1)/(f+1)``, ``ln f = s (2 + s**2 P(s**2))``, plus ``E ln2``
+    (two parts) combined in 48-bit.
+
+    Cases
+    -----
+    non-positive : ``x = 0`` or ``x < 0``: ``(MIN32, FLAG_DOMAIN)``.
+    one : ``ln 1 = 0`` exactly (floating zero), flags 0.
+    low-mantissa : mantissa below ``sqrt(1/2)`` (``f`` in [0.5, 0.7071)): ``f`` doubled to [1, sqrt
+        2) and ``E - 1``; within 4 ulp.
+    high-mantissa : ``f`` in [0.7071, 1): ``f - 1`` formed exactly as ``(f - 0.5) - 0.5``; within 4
+        ulp.
+    near-one : ``|x - 1| <= 1e-3`` and the ranges [1.41, 2), [0.5, 0.71) where ``E ln2`` and ``ln
+        f`` cancel (summed in 48-bit, no guard bits lost): within 4 ulp of the small result.
+    range-ends : ``0.5 * 2**-128`` and ``1.7e38``: within 4 ulp, flags 0 (the result never
+        overflows).
+    """
     m, e = unpack32(x)
     if m <= 0:
         return MIN32, FLAG_DOMAIN
@@ -323,7 +459,13 @@ def _ln32_k(x):
 # ================================================================================================
 @njit(cache=True, inline="always")
 def _reduce_n(x48):
-    """n = round(x * 2/pi) (48-bit FM, FA +-0.5, EFIX) -> (n signed, n as 48-bit float)."""
+    """n = round(x * 2/pi) (48-bit FM, FA +-0.5, EFIX) -> (n signed, n as 48-bit float).
+
+    Cases
+    -----
+    positive : ``x >= 0``: ``n = trunc(x 2/pi + 0.5)``, halves rounded away from zero, ``n >= 0``.
+    negative : ``x < 0``: ``n = trunc(x 2/pi - 0.5)`` (EFIX truncates toward zero), ``n <= 0``.
+    """
     t, _ = fm48(x48, TWO_OVER_PI48)
     m, _ = unpack48(t)
     t, _ = fa48(t, HALF48 if m >= 0 else MHALF48)
@@ -334,7 +476,18 @@ def _reduce_n(x48):
 
 @njit(cache=True, inline="always")
 def _reduce48(x):
-    """r = x - n*pi/2 in 48-bit, exact up to the C2/C3 terms. x is a 48-bit float, |x| < 2**15."""
+    """r = x - n*pi/2 in 48-bit, exact up to the C2/C3 terms. x is a 48-bit float, |x| < 2**15.
+
+    Returns ``(n, r)``: ``n`` signed int (the quadrant count), ``r`` packed 48-bit float.
+
+    Cases
+    -----
+    first-octant : ``|x| < pi/4`` (``n = 0``): ``r = x`` exactly (head, tail and zero products add
+        back without loss).
+    reduce : ``pi/4 <= |x| < 2**15``: ``r = x - n pi/2`` with ``n C1``, ``n C2`` and the head
+        subtraction exact; ``|r| <= ~pi/4`` and within ``2**-37`` of the exact ``x - n pi/2``.
+    negative : ``x < 0``: ``n <= 0``, ``r`` within the same ``2**-37``.
+    """
     n, nf = _reduce_n(x)
     xhi = x & 0xFFFFFFFF0000                    # 24-bit head (zero w2): floor, same exponent
     xlo, _ = fs48(x, xhi)                       # exact tail
@@ -350,6 +503,15 @@ def _reduce48(x):
 
 @njit(cache=True, inline="always")
 def _sin_poly32(r):
+    """``sin r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``r + r z P(z)``, ``z = r*r``
+    (FM/FA).
+
+    Cases
+    -----
+    typical : ``|r| <= ~pi/4``: within 3.5 * 2**-23 absolute of sin r.
+    tiny : ``r*r`` underflows (``|r| < ~2**-65``): the term flushes to zero (flag absorbed) and
+        ``r`` is returned unchanged.
+    """
     z, _ = fm32(r, r)
     q = SIN32[3]
     for i in range(2, -1, -1):
@@ -363,6 +525,14 @@ def _sin_poly32(r):
 
 @njit(cache=True, inline="always")
 def _cos_poly32(r):
+    """``cos r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``1 + z (-1/2 + z Q(z))``, ``z =
+    r*r``.
+
+    Cases
+    -----
+    typical : ``|r| <= ~pi/4``: within 3.5 * 2**-23 absolute of cos r.
+    tiny : ``r*r`` underflows (``|r| < ~2**-65``): returns ``ONE32`` exactly.
+    """
     z, _ = fm32(r, r)
     q = COS32[3]
     for i in range(2, -1, -1):
@@ -377,6 +547,13 @@ def _cos_poly32(r):
 
 @njit(cache=True, inline="always")
 def _sin_poly48(r):
+    """``sin r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``P``, EFM/EFA).
+
+    Cases
+    -----
+    typical : ``|r| <= ~pi/4``: within 4 * 2**-39 absolute of sin r.
+    tiny : ``r*r`` underflows (``|r| < ~2**-65``): returns ``r`` unchanged.
+    """
     z, _ = fm48(r, r)
     q = SIN48[6]
     for i in range(5, -1, -1):
@@ -390,6 +567,13 @@ def _sin_poly48(r):
 
 @njit(cache=True, inline="always")
 def _cos_poly48(r):
+    """``cos r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``Q``, EFM/EFA).
+
+    Cases
+    -----
+    typical : ``|r| <= ~pi/4``: within 4 * 2**-39 absolute of cos r.
+    tiny : ``r*r`` underflows (``|r| < ~2**-65``): returns ``ONE48`` exactly.
+    """
     z, _ = fm48(r, r)
     q = COS48[6]
     for i in range(5, -1, -1):
@@ -404,6 +588,22 @@ def _cos_poly48(r):
 
 @njit(cache=True, inline="always")
 def _trig32(x, quad_shift):
+    """``sin x`` (``quad_shift = 0``) or ``cos x`` (``quad_shift = 1``, ``cos x = sin(x + pi/2)``)
+    of a packed 32-bit float ``x`` -> ``(word, flags)``: 48-bit reduction, quadrant
+    ``q = (n + quad_shift) & 3``, 32-bit polynomial.
+
+    Cases
+    -----
+    zero : ``x = 0``: sin ``(0, 0)``, cos ``(ONE32, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    domain-edge : exponent 15 (``2**14 <= |x| < 2**15``, e.g. 32767, and ``-2**15 = -1.0 * 2**15``)
+        is reduced and evaluated normally.
+    quadrant-0 : ``q = 0``: the sin polynomial of ``r``.
+    quadrant-1 : ``q = 1``: the cos polynomial of ``r``.
+    quadrant-2 : ``q = 2``: the sin polynomial, negated (FNEG).
+    quadrant-3 : ``q = 3``: the cos polynomial, negated (FNEG).
+    negative : ``x < 0``: ``n < 0`` and ``q`` is ``n`` mod 4 (two's complement ``& 3``).
+    """
     m, e = unpack32(x)
     if m == 0:
         return (0 if quad_shift == 0 else ONE32), 0
@@ -420,6 +620,21 @@ def _trig32(x, quad_shift):
 
 @njit(cache=True, inline="always")
 def _trig48(x, quad_shift):
+    """``sin x`` / ``cos x`` (``quad_shift`` 0 / 1) of a packed 48-bit float ``x`` -> ``(word,
+    flags)``, as :func:`_trig32` with the 48-bit polynomials.
+
+    Cases
+    -----
+    zero : ``x = 0``: sin ``(0, 0)``, cos ``(ONE48, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    domain-edge : exponent 15 (``2**14 <= |x| < 2**15`` and ``-2**15``) is reduced and evaluated
+        normally.
+    quadrant-0 : ``q = 0``: sin polynomial.
+    quadrant-1 : ``q = 1``: cos polynomial.
+    quadrant-2 : ``q = 2``: sin polynomial negated.
+    quadrant-3 : ``q = 3``: cos polynomial negated.
+    negative : ``x < 0``: ``q`` is ``n`` mod 4.
+    """
     m, e = unpack48(x)
     if m == 0:
         return (0 if quad_shift == 0 else ONE48), 0
@@ -435,21 +650,53 @@ def _trig48(x, quad_shift):
 
 @njit(cache=True)
 def _sin32_k(x):
+    """``sin x`` of a packed 32-bit float -> ``(word, flags)`` (:func:`_trig32`, shift 0).
+
+    Cases
+    -----
+    zero : ``sin 0 = (0, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    typical : ``0 < |x| < 2**15``: within 3.5 * 2**-23 absolute, flags 0.
+    """
     return _trig32(x, 0)
 
 
 @njit(cache=True)
 def _cos32_k(x):
+    """``cos x`` of a packed 32-bit float -> ``(word, flags)`` (:func:`_trig32`, shift 1).
+
+    Cases
+    -----
+    zero : ``cos 0 = (ONE32, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    typical : ``0 < |x| < 2**15``: within 3.5 * 2**-23 absolute, flags 0.
+    """
     return _trig32(x, 1)
 
 
 @njit(cache=True)
 def _sin48_k(x):
+    """``sin x`` of a packed 48-bit float -> ``(word, flags)`` (:func:`_trig48`, shift 0).
+
+    Cases
+    -----
+    zero : ``sin 0 = (0, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    typical : ``0 < |x| < 2**15``: within 4 * 2**-39 absolute, flags 0.
+    """
     return _trig48(x, 0)
 
 
 @njit(cache=True)
 def _cos48_k(x):
+    """``cos x`` of a packed 48-bit float -> ``(word, flags)`` (:func:`_trig48`, shift 1).
+
+    Cases
+    -----
+    zero : ``cos 0 = (ONE48, 0)``.
+    domain : exponent above 15 (``|x| >= 2**15`` except ``-2**15``): ``(0, FLAG_DOMAIN)``.
+    typical : ``0 < |x| < 2**15``: within 4 * 2**-39 absolute, flags 0.
+    """
     return _trig48(x, 1)
 
 
@@ -458,6 +705,26 @@ def _cos48_k(x):
 # ================================================================================================
 @njit(cache=True)
 def _atan2_32_k(y, x):
+    """``atan2(y, x)`` of packed 32-bit floats -> ``(word, 0)`` in [-pi, pi]: ``t = min/max`` of
+    ``|y|, |x|``, ``k = round(8t)``, ``atan t = atan(k/8) + atan(u)``, octant/quadrant fix-ups.
+    Flags are always 0.
+
+    Cases
+    -----
+    origin : ``atan2(0, 0) = (0, 0)``.
+    positive-x-axis : ``y = 0``, ``x > 0``: 0.
+    negative-x-axis : ``y = 0``, ``x < 0``: ``PI32`` (pi rounded to nearest; there is no -0, so
+        never -pi).
+    y-axis : ``x = 0``, ``y != 0``: ``PIO2_32`` or its FNEG.
+    first-octant : ``|y| < |x|``: ``t = |y|/|x|``, no fix-up; within 8 ulp.
+    swap : ``|y| > |x|``: ``t = |x|/|y|`` and ``a = pi/2 - a``; within 8 ulp.
+    diagonal : ``|y| = |x|`` (FC equal, no swap): ``k = 8``, ``u = 0``, ``a`` is the table's atan(1)
+        word, pi/4 rounded to nearest (0x6487ED00), before the fix-ups.
+    negative-x : ``x < 0``: ``a = pi - a``; within 8 ulp.
+    negative-y : ``y < 0``: ``a`` negated (FNEG); within 8 ulp.
+    ratio-underflow : ``min/max`` below the smallest float (FD underflow, flag absorbed): ``t = 0``,
+        so the result is exactly 0, pi/2 (``PIO2_32``), pi or their negations.
+    """
     my, _ = unpack32(y)
     mx, _ = unpack32(x)
     if my == 0 and mx == 0:
@@ -503,7 +770,30 @@ def atan2_32_lanes(ys, xs, out):
     """atan2_32 of every pair (ys[i], xs[i]) into ``out`` int64 [K]; returns the OR of the flags
     (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, each
     applied to all elements at once in its lane form (see :func:`sqrt32_lanes`); the octant
-    choices are computed for every element and selected, ``atan2(0, 0) = 0`` at the end."""
+    choices are computed for every element and selected, ``atan2(0, 0) = 0`` at the end.
+
+    Parameters
+    ----------
+    ys, xs : int64 [K]
+        Packed 32-bit floats (normalised or zero).
+    out : int64 [K]
+        Receives the packed angles in [-pi, pi].
+
+    Returns
+    -------
+    int
+        Always 0.
+
+    Cases
+    -----
+    empty : ``K = 0``: nothing written, returns 0.
+    origin : a ``(0, 0)`` lane gives 0 (its division is done as 0/1 so the block keeps the positive
+        division form).
+    axes : ``y = 0`` lanes give 0 or ``PI32``; ``x = 0`` lanes ``PIO2_32`` or its FNEG.
+    octants : lanes in every octant (swap, ``x < 0``, ``y < 0`` selected per lane): within 8 ulp of
+        atan2; diagonal lanes exactly the atan(1) word (or its fix-ups).
+    ratio-underflow : ``min/max`` below the smallest float: ``t = 0``, exactly 0 or pi/2.
+    """
     K = ys.size
     buf = np.empty((10, K), np.int64)
     ay, ax, t, c, ak, num, den, u, z, swap = (buf[0], buf[1], buf[2], buf[3], buf[4], buf[5],
@@ -519,8 +809,8 @@ def atan2_32_lanes(ys, xs, out):
         den[i] = ONE32 if both0 else (ay[i] if sw else ax[i])
         swap[i] = sw
     fd32_lanes(num, den, t)
-    fm32_lanes(t, EIGHT32, u)
-    fa32_lanes(u, HALF32, c)
+    fm32_lanes(t, np.int64(EIGHT32), u)
+    fa32_lanes(u, np.int64(HALF32), c)
     fix32_lanes(c, z)
     for i in range(K):
         kk = z[i] & 0xF
@@ -528,19 +818,19 @@ def atan2_32_lanes(ys, xs, out):
         ak[i] = _ATANK_32[kk]
     fs32_lanes(t, c, num)
     fm32_lanes(t, c, ay)
-    fa32_lanes(ay, ONE32, den)
+    fa32_lanes(ay, np.int64(ONE32), den)
     fd32_lanes(num, den, u)
     fm32_lanes(u, u, z)
-    fm32_lanes(ATAN32[1], z, c)
-    fa32_lanes(c, ATAN32[0], ax)
+    fm32_lanes(np.int64(ATAN32[1]), z, c)
+    fa32_lanes(c, np.int64(ATAN32[0]), ax)
     fm32_lanes(z, ax, num)
     fm32_lanes(u, num, t)
     fa32_lanes(u, t, ay)
     fa32_lanes(ak, ay, den)                      # a = atan(k/8) + u + u z P(z)
-    fs32_lanes(PIO2_32, den, num)
+    fs32_lanes(np.int64(PIO2_32), den, num)
     for i in range(K):
         den[i] = num[i] if swap[i] != 0 else den[i]
-    fs32_lanes(PI32, den, num)
+    fs32_lanes(np.int64(PI32), den, num)
     for i in range(K):
         den[i] = num[i] if (xs[i] & 0x80000000) != 0 else den[i]   # sign of the mantissa of x
     fneg32_lanes(den, num)
@@ -552,6 +842,23 @@ def atan2_32_lanes(ys, xs, out):
 
 @njit(cache=True)
 def _atan2_48_k(y, x):
+    """``atan2(y, x)`` of packed 48-bit floats -> ``(word, 0)`` in [-pi, pi], as :func:`_atan2_32_k`
+    with a degree-4 ``P``. Flags are always 0.
+
+    Cases
+    -----
+    origin : ``atan2(0, 0) = (0, 0)``.
+    positive-x-axis : ``y = 0``, ``x > 0``: 0.
+    negative-x-axis : ``y = 0``, ``x < 0``: ``PI48`` (pi rounded to nearest; never -pi).
+    y-axis : ``x = 0``, ``y != 0``: ``PIO2_48`` or its negation.
+    first-octant : ``|y| < |x|``: no fix-up; within 6 ulp.
+    swap : ``|y| > |x|``: ``a = pi/2 - a``; within 6 ulp.
+    diagonal : ``|y| = |x|``: ``a`` is the table's atan(1) word (pi/4 rounded to nearest) before
+        the fix-ups.
+    negative-x : ``x < 0``: ``a = pi - a``; within 6 ulp.
+    negative-y : ``y < 0``: ``a`` negated; within 6 ulp.
+    ratio-underflow : ``min/max`` underflows: ``t = 0``, result exactly 0, pi/2, pi or a negation.
+    """
     my, _ = unpack48(y)
     mx, _ = unpack48(x)
     if my == 0 and mx == 0:

@@ -15,6 +15,7 @@ words are packed 1750A floats (32-bit unless marked 48-bit).
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import fa32, fa48, fc32, fc48, fm32, fm48, fs32, fs48, to32, to48
@@ -189,7 +190,7 @@ def coast_attitude(S, V):
     e1, g = fm32(w0, hdt); fl |= g
     e2, g = fm32(w1, hdt); fl |= g
     e3, g = fm32(w2, hdt); fl |= g
-    q0, q1, q2, q3, g = qmul(S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3], ONE32, e1, e2, e3)
+    q0, q1, q2, q3, g = qmul(S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3], np.int64(ONE32), e1, e2, e3)
     fl |= g
     q0, q1, q2, q3, n2, g = qnormalize(q0, q1, q2, q3); fl |= g
     vs0, vs1, vs2 = S[S_VS], S[S_VS + 1], S[S_VS + 2]

@@ -107,7 +107,7 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
         a, g = fa32(S[S_OPP_X], p); fl |= g
         p, g = fm32(S[S_OPP_V + 1], T32); fl |= g
         b, g = fa32(S[S_OPP_X + 1], p); fl |= g
-        u0, u1, u2, nn, g = unit3(_ONE32, a, b); fl |= g
+        u0, u1, u2, nn, g = unit3(np.int64(_ONE32), a, b); fl |= g
         l0, l1, l2, g = mv3(RM, u0, u1, u2); fl |= g
         return True, l0, l1, l2, u0, u1, u2, fl
     return False, 0, 0, 0, 0, 0, 0, 0
@@ -165,7 +165,7 @@ def pointing(V, u0, u1, u2):
     c0, fl = fa32(_ONE32, u0)
     if fc32(c0, _BEHIND) <= 0:
         return False, 0, 0, 0, 0, fl
-    d0, d1, d2, d3, n2, g = qnormalize(c0, 0, neg32(u2), u1); fl |= g
+    d0, d1, d2, d3, n2, g = qnormalize(c0, np.int64(0), neg32(u2), u1); fl |= g
     q0, q1, q2, q3, g = qmul(V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3], d0, d1, d2, d3); fl |= g
     return True, q0, q1, q2, q3, fl
 

@@ -242,7 +242,7 @@ def ekf_predict(E, D, K, wk, t_to):
         c00, c01, c02, c11, c12, c22, g = grav_gradient_h(D, to32(E[E_X]), to32(E[E_X + 1]),
                                                           to32(E[E_X + 2]), to32(h)); f |= g
         f |= _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, K[K_Q])
-        f |= rk4_step(D, E, E_X, t, h)
+        f |= rk4_step(D, E, np.int64(E_X), t, h)
         t, g = fa48(t, h); f |= g
         n += 1
         if n > 100000:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
@@ -91,7 +92,7 @@ def enc32(x):
     -----
     typical : the standard's 32-bit words (``_enc`` with 23 fraction bits).
     """
-    return _enc(x, 23)
+    return _enc(x, np.int64(23))
 
 
 @njit(cache=True)
@@ -102,7 +103,7 @@ def enc48(x):
     -----
     typical : the standard's 48-bit words (``_enc`` with 39 fraction bits).
     """
-    return _enc(x, 39)
+    return _enc(x, np.int64(39))
 
 
 dec32 = decode32_k          # packed 32-bit float -> float64 (exact)

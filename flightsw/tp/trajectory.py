@@ -11,6 +11,7 @@ Stages read and write the frame's working values ``V`` (:mod:`flightsw.tp.layout
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import FLAG_DOMAIN, fm32, fm48, fs48, to32, to48
@@ -62,7 +63,7 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     """
     fl = 0
     t = V[V_T]
-    r = propagate(D, N, N_X, N[N_T], t, K[K_MAXSTEP])
+    r = propagate(D, N, np.int64(N_X), N[N_T], t, K[K_MAXSTEP])
     fl |= r & 0xFFFFFFFF
     nsteps = r >> 32
     N[N_T] = t
@@ -167,8 +168,8 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     sgy, g = fm32(C[C_SIG_PX], img[IMG_SR]); fl |= g
     rv1, g = fm48(to48(sgx), to48(sgx)); fl |= g
     rv2, g = fm48(to48(sgy), to48(sgy)); fl |= g
-    ok1, nu1, s1, g = ekf_update(E, K, wk, 1, e1, M, rs0, rs1, rs2, rv1); fl |= g & PI_FLAGS
-    ok2, nu2, s2, g = ekf_update(E, K, wk, 2, e2, M, rs0, rs1, rs2, rv2); fl |= g & PI_FLAGS
+    ok1, nu1, s1, g = ekf_update(E, K, wk, np.int64(1), e1, M, rs0, rs1, rs2, rv1); fl |= g & PI_FLAGS
+    ok2, nu2, s2, g = ekf_update(E, K, wk, np.int64(2), e2, M, rs0, rs1, rs2, rv2); fl |= g & PI_FLAGS
     cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
     if not (ok1 and ok2):
         V[V_STATUS] |= TC_INNOVATION_REJECTED
