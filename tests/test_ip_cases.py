@@ -471,7 +471,7 @@ def test_sums_from_labels_skip_labels_outside_the_count():
     assert z.shape == (1, colour_mod.NSUM) and not z.any()
 
 
-@pytest.mark.cases("flightsw.ip.colour.colour_k", "no-sums", "no-labels")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "no-sums", "no-labels", "no-blobs", "events")
 def test_colour_k_without_labels_or_sums():
     img = np.array([[1, 0, 2], [0, 0, 3], [4, 0, 0]], np.int16)
     lab, n, sums, ops, bad = colour_mod.colour_k(img, True, True)
@@ -480,6 +480,9 @@ def test_colour_k_without_labels_or_sums():
     lab3, n3, sums3, _, _ = colour_mod.colour_k(img, True, True, False)
     assert np.array_equal(lab3, lab) and n3 == 3 and sums3.shape == (4, colour_mod.NSUM)
     assert not sums3.any() and sums[3, 1] == 4 and not bad
+    lab, n, sums, ops, bad = colour_mod.colour_k(np.zeros((5, 6), np.int16), False, True)
+    assert n == 0 and sums.shape == (1, colour_mod.NSUM) and not sums.any() and not lab.any()
+    assert ops.tolist() == [30, 0, 0, 0, 0, 0]
 
 
 # ------------------------------------------------------------------ back end
