@@ -82,6 +82,22 @@ def _words(rows):
                     np.int64).reshape(-1, 12)
 
 
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "at-threshold", "reject")
+def test_rank_keeps_a_gof_equal_to_the_threshold():
+    rec = load_record("aurora").replace(gof_threshold=0.0)
+    rows = []
+    for j in range(4):
+        x = np.array(rec.mean, float)
+        x[0] += (j + 1) * rec.sigma[0]                   # d = w_0 (j + 1)**2: GOFs decrease
+        rows.append(x)
+    res = rk.rank_words(_words(rows), rec)
+    assert res.order.tolist() == [0, 1, 2, 3]
+    g = float(res.gof[1])                                # an exact 1750A value: the same word
+    assert encode32(g) == res.gof_words[1]
+    cut = rk.rank_words(_words(rows), rec.replace(gof_threshold=g))
+    assert cut.order.tolist() == [0, 1] and cut.gof_words[1] == res.gof_words[1]
+
+
 @pytest.mark.cases("flightsw.ip.rank.rank_k", "ties", "gof-underflow", "no-candidates")
 def test_rank_ties_underflow_and_no_candidates():
     rec = load_record("aurora").replace(gof_threshold=0.0)

@@ -115,6 +115,7 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
     max-out : more than ``max_out`` candidates -> the ``max_out`` smallest ``d`` kept.
     ties : equal ``d`` keep blob order (also across the ``max_out`` cut: the later one is dropped).
     reject : a GOF below ``thr`` is dropped from order and gof (``d`` still returned for all).
+    at-threshold : a GOF equal to ``thr`` is kept (only FC < 0 rejects).
     gof-underflow : a very large ``d`` -> exp underflows, GOF 0 (flag absorbed); kept when
         ``thr == 0``, rejected otherwise.
     no-candidates : ``k == 0`` -> empty order, d and gof; only the per-frame set-up is counted.
