@@ -59,6 +59,13 @@ imager's full-resolution pixel frame: ``col_full = f * col + C0``, ``row_full = 
 ``(R0, C0)`` the window's top-left corner in full-resolution pixels (a processed pixel ``k`` covers
 full-resolution pixels ``[k f, (k + 1) f)``). Other features are scale-free and unchanged.
 
+Host execution (:func:`features_k`): every blob goes through the identical sequence of 1750A
+operations (the flight's per-blob routine). The host runs it *blob-parallel*: each instruction of the
+routine is applied to all blobs before the next one, in its branch-free lane form
+(:mod:`flightsw.arith.m1750_lanes`), so the blobs run side by side in SIMD lanes (the intermediates
+are rows of one array). Per blob the operations, their operands and their order are those of the
+routine, so the words are the same; the PI flags are OR-ed (order-free).
+
 Cycle costs: :data:`FEATURE_MIX` per blob (plus the math routines) on ``"ip1750"``.
 """
 from __future__ import annotations
@@ -160,32 +167,19 @@ def _features_kernel(sums, count, intensity):
 @njit(cache=True)
 def features_k(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [12, count], feature-major: row i
-    = feature i of every blob; PI flags OR).
-
-    Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
-    routine). The host runs it *blob-parallel*: each instruction of the routine is applied to all
-    blobs before the next one, in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`),
-    so the blobs run side by side in SIMD lanes (the intermediates are rows of one array). Per
-    blob the operations, their operands and their order are those of the routine, so the words
-    are the same; the PI flags are OR-ed (order-free).
-
-    ``sums``: the colouring sums (:data:`flightsw.ip.colour.SUM_NAMES`; row 0 unused);
-    ``count``: number of blobs; ``intensity``: the uplink intensity-centroid flag. Units of the
-    results: the module docstring's table.
+    = feature i of every blob; PI flags OR). Every blob runs the flight's per-blob routine; the host
+    applies each instruction to all blobs in its lane form (the same words; module docstring).
 
     Cases
     -----
-    intensity : ``intensity`` and ``sum I > 0`` -> intensity-weighted centroids and moments.
-    geometric : ``intensity`` off -> every pixel weight 1.
-    nonpositive-intensity : ``intensity`` on but ``sum I <= 0`` (signed clipped data) -> the
-        geometric weights; brightness features still from the intensities.
+    intensity : flag on and ``sum I > 0`` -> intensity-weighted centroids and moments.
+    geometric : flag off -> every pixel weight 1.
+    nonpositive-intensity : flag on, ``sum I <= 0`` -> geometric weights (brightness unchanged).
     one-pixel : zero moments exactly -> semi-axes 1, eccentricity 0, orientation 0.
-    line : a one-pixel-wide line -> semiminor exactly 1; orientation 0 along the columns, 90
-        along the rows.
+    line : a one-pixel-wide line -> semiminor exactly 1; orientation 0 or 90.
     negative-angle : ``atan2 < 0`` -> orientation + 180 (always in [0, 180)).
     nonpositive-max : ``max I <= 0`` -> brightness ratio 0 (no division).
-    wide-sums : a sum beyond 32 bits (a large bright blob's second moments) -> the multiword
-        conversion (:func:`_i2f48`), same values.
+    wide-sums : a sum beyond 32 bits -> the multiword conversion (:func:`_i2f48`), same values.
     no-blobs : ``count == 0`` -> words int64 [12, 0].
     """
     K = count

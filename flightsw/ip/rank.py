@@ -97,28 +97,21 @@ def _sigmoid(x, a2, ops):
 
 @njit(cache=True)
 def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
-    """fwt int64 [12, k] normalised feature words, feature-major (row i = feature i of every
-    candidate); rec int64 [5, 12] (mean, sigma, weight, lower, upper words). Returns (order int64
-    [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9]).
-
-    ``mean_row``, ``mean_col``: packed 32-bit words replacing the record's centroid means when
-    ``override``; ``quantize``: the record's coarse-quantisation flag; ``thr``: the GOF threshold
-    word; ``max_out``: at most this many reported (23 in flight).
+    """fwt int64 [12, k] feature words (feature-major), rec int64 [5, 12] record words, centroid
+    means used if ``override`` -> (order [m], d words [k], gof words [m], flags, ops [9]) int64.
 
     Cases
     -----
-    typical : ``d = sum c_i (x_i - m_i)^2``, ``c_i = w_i / sigma_i^2``; ascending ``d``, GOF
-        ``exp(-d^2 ln2 / n^2)``.
-    zero-weight : features of weight 0 are skipped; ``n`` counts the non-zero weights.
+    typical : ascending ``d = sum w_i (x_i - m_i)^2 / sigma_i^2``; GOF ``exp(-d^2 ln2 / n^2)``.
+    zero-weight : weight-0 features skipped; ``n`` counts the non-zero weights.
     override : ``override`` -> the centroid means (col, row) are ``mean_col``, ``mean_row``.
-    quantize : ``quantize`` -> features and means through the sigmoid, ``c_i = 12 w_i``.
+    quantize : features and means through the sigmoid, ``c_i = 12 w_i``.
     max-out : more than ``max_out`` candidates -> the ``max_out`` smallest ``d`` kept.
-    ties : equal ``d`` keep blob order (also across the ``max_out`` cut: the later one is dropped).
-    reject : a GOF below ``thr`` is dropped from order and gof (``d`` still returned for all).
+    ties : equal ``d`` keep blob order (also across the ``max_out`` cut).
+    reject : a GOF below ``thr`` is dropped (``d`` still returned for every candidate).
     at-threshold : a GOF equal to ``thr`` is kept (only FC < 0 rejects).
-    gof-underflow : a very large ``d`` -> exp underflows, GOF 0 (flag absorbed); kept when
-        ``thr == 0``, rejected otherwise.
-    no-candidates : ``k == 0`` -> empty order, d and gof; only the per-frame set-up is counted.
+    gof-underflow : a huge ``d`` -> exp underflows, GOF 0 (flag absorbed; kept if ``thr == 0``).
+    no-candidates : ``k == 0`` -> empty order, d and gof; only the frame set-up is counted.
     """
     ops = np.zeros(9, np.int64)
     flags = 0
