@@ -502,7 +502,7 @@ def test_colour_k_without_labels_or_sums():
 
 
 # ------------------------------------------------------------------ back end
-from flightsw.ip.backend import backend  # noqa: E402
+from flightsw.ip.backend import PACK_HEAD, backend  # noqa: E402
 from flightsw.ip.colour import colour_cycles  # noqa: E402
 
 
@@ -527,3 +527,4 @@ def test_backend_is_the_stage_kernels_composed():
     assert nolab.labels.shape == (0, 0) and np.array_equal(nolab.pack, be.pack)
     empty = backend(np.zeros((8, 8), np.int16), rec)
     assert (empty.count, empty.m, len(empty.order), empty.candidates().size) == (0, 0, 0, 0)
+    assert empty.pack.size == PACK_HEAD                                 # the header only
