@@ -41,6 +41,12 @@ def _random_images(rng, n):
         yield rng.random((h, w)) < p
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "diagonal", "four-connected", "merge")
+@pytest.mark.cases("flightsw.ip.colour._label_kernel", "typical")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "labels", "narrow")
+@pytest.mark.cases("flightsw.ip.colour._colour_at", "outside", "off", "on")
+@pytest.mark.cases("flightsw.ip.colour._find", "root", "chain")
+@pytest.mark.cases("flightsw.ip.colour._merge", "link", "same-root")
 @pytest.mark.parametrize("diagonal", [True, False])
 def test_label_equals_scipy_on_random_images(diagonal):
     rng = np.random.default_rng(4 + diagonal)
@@ -54,6 +60,9 @@ def test_label_equals_scipy_on_random_images(diagonal):
     assert n == 2500
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "full-width", "merge")
+@pytest.mark.cases("flightsw.ip.colour._run_end", "to-bit-63")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "no-blobs")
 @pytest.mark.parametrize("diagonal", [True, False])
 def test_label_special_cases(diagonal):
     for shape in [(1, 1), (1, 64), (64, 1), (64, 64), (5, 7)]:
@@ -74,6 +83,7 @@ def test_label_special_cases(diagonal):
     assert ip.label(v, diagonal)[1] == (1 if diagonal else 3)
 
 
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "sums", "events")
 def test_label_counts_and_cycles():
     im = np.array([[0, 3, 0, 5], [7, 0, 0, 5], [0, 0, 2, 0]], np.int16)
     led = Ledger()
@@ -113,6 +123,10 @@ def test_mask_scan_equals_pixel_scan_event_for_event():
                 assert np.array_equal(np.asarray(a), np.asarray(b)), (im.shape, diagonal)
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_pixels", "diagonal", "four-connected", "merge",
+                   "out-of-range")
+@pytest.mark.cases("flightsw.ip.colour.colour_k", "wide", "out-of-range")
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "out-of-range")
 def test_label_wide_windows_and_input_dtypes():
     """Windows wider than 64 columns (the pixel scan) and every direct dtype equal scipy."""
     rng = np.random.default_rng(13)
@@ -130,6 +144,8 @@ def test_label_wide_windows_and_input_dtypes():
         backend(np.full((4, 4), -40000, np.int64), load_record("star"))
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_masks", "out-of-range")
+@pytest.mark.cases("flightsw.ip.colour._label_kernel", "out-of-range")
 def test_label_validation():
     with pytest.raises(ValueError, match="2-D"):
         ip.label(np.zeros(5))
@@ -172,6 +188,8 @@ def _oracle(img, lab, n, intensity=True):
     return out
 
 
+@pytest.mark.cases("flightsw.ip.features.features_k", "intensity", "geometric", "negative-angle")
+@pytest.mark.cases("flightsw.ip.features._features_kernel", "typical")
 @pytest.mark.parametrize("intensity", [True, False])
 def test_features_match_float64_oracle(intensity):
     rng = np.random.default_rng(11)
@@ -228,6 +246,7 @@ def test_features_against_skimage_regionprops():
         assert F["max_brightness"][k] == p.intensity_max
 
 
+@pytest.mark.cases("flightsw.ip.features.features_k", "one-pixel")
 def test_feature_values_are_1750a_words():
     img = np.zeros((8, 8), np.int16)
     img[2:5, 3:5] = [[1, 2], [3, 4], [5, 6]]
@@ -300,6 +319,7 @@ def test_intensity_centroid_of_gaussian_spots_within_a_tenth_pixel():
     assert rad.mean() < 0.1
 
 
+@pytest.mark.cases("flightsw.ip.features.normalise_k", "typical")
 def test_normalisation_and_projection():
     img = np.zeros((64, 64), np.int16)
     img[10:13, 20:24] = 10
@@ -323,6 +343,7 @@ def test_normalisation_and_projection():
 # ------------------------------------------------------------------------------------------------
 # ranking
 # ------------------------------------------------------------------------------------------------
+@pytest.mark.cases("flightsw.ip.rank._flight_gof_kernel", "half-at-n", "typical")
 def test_gof_half_at_d_equals_n_and_chi2_comparison():
     for n in (1, 6, 10, 12):
         assert flight_gof([float(n)], n)[0] == pytest.approx(0.5, abs=4 * 2.0 ** -24)
@@ -349,6 +370,7 @@ def _feats(rng, rec, k, spread=2.0):
     return words_to_struct(struct_to_words(F))
 
 
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "typical", "zero-weight", "max-out")
 def test_rank_matches_float64_distance_and_order():
     rec = load_record("aurora")
     rng = np.random.default_rng(8)
@@ -365,6 +387,8 @@ def test_rank_matches_float64_distance_and_order():
     assert np.allclose(res.gof, gof_approx(res.distance[res.order], 10), rtol=1e-5, atol=1e-30)
 
 
+@pytest.mark.cases("flightsw.ip.rank.rank_k", "override", "quantize", "reject")
+@pytest.mark.cases("flightsw.ip.rank._sigmoid", "typical")
 def test_rank_threshold_centroid_override_and_quantisation():
     rec = load_record("aurora")
     rng = np.random.default_rng(9)
@@ -473,6 +497,7 @@ def test_process_frame_end_to_end():
     assert np.array_equal(be.order, res.backend.order)
 
 
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "candidate-table")
 def test_process_frame_without_stage_images_gives_the_same_message():
     """Stage images are an output option of the one pipeline: with or without them, the same
     message, ledger and threshold, for the shipped sequences, predictions and alpha overrides; the
@@ -540,6 +565,7 @@ def test_process_frame_feedback_moves_window_and_means():
     assert math.hypot(best["row"] - tgt[0], best["col"] - tgt[1]) < 2.0
 
 
+@pytest.mark.cases("flightsw.ip.backend.backend_k", "typical", "flags", "override", "max-out")
 def test_sequence_with_back_end_steps_via_registry():
     seq = ProcessingSequence.from_dict({
         "name": "t", "preprocess": {"compaction": 1, "window": 64},

@@ -62,6 +62,7 @@ WINDOWS = [pp.preprocess(f, c, None if k == 0 else (60.0 + 30 * k, 200.0), 64).i
 
 
 # ------------------------------------------------------------------ preprocessor
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "f1", "f2", "f4", "round-half-up")
 @pytest.mark.parametrize("f", [1, 2, 4])
 def test_compaction_equals_integer_block_mean(f):
     for frame in FRAMES:
@@ -71,6 +72,7 @@ def test_compaction_equals_integer_block_mean(f):
         assert np.array_equal(pp.compact(frame, f), (blocks + n // 2) // n)
 
 
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "round-half-up")
 def test_compaction_rounds_halves_up_and_rejects_bad_input():
     frame = np.zeros(pp.FRAME_SHAPE, np.uint16)
     frame[0, 0:2] = 1                      # block sum 2 of 4 pixels -> 0.5 -> 1
@@ -102,6 +104,7 @@ def test_window_centre_clamping_and_projection():
         pp.window(c, 2, size=130)
 
 
+@pytest.mark.cases("flightsw.ip.preprocess.compact_k", "offset-window")
 def test_fused_preprocess_equals_compact_then_window():
     for frame in FRAMES:
         for f in (1, 2, 4):
@@ -125,6 +128,11 @@ def test_default_kernels():
     assert abs((g * g).sum() - 1) < 1e-3 and g[1, 1] > 0 > g[0, 0]
 
 
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int32-path", "edges")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "typical")
+@pytest.mark.cases("flightsw.ip.filters._finish32", "round-nearest")
+@pytest.mark.cases("flightsw.ip.filters.pad_nearest", "replicate")
+@pytest.mark.cases("flightsw.ip.filters._maxabs", "typical")
 @pytest.mark.parametrize("ki", range(len(KERNELS)))
 def test_filter_against_scipy_correlate_nearest(ki):
     """|ours - float64 correlate(same Q1.15 taps)| <= 1/2: the 40-bit sum is exact, only the final
@@ -146,6 +154,9 @@ def test_filter_against_ideal_gaussian_kernel():
         assert np.abs(flt.correlate_q15(img, flt.smoothing_kernel(7)) - ref).max() <= 0.5
 
 
+@pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int64-path")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k64", "typical", "saturate")
+@pytest.mark.cases("flightsw.ip.filters._finish", "round-nearest", "sat-high", "sat-low")
 def test_filter_saturates_and_int64_path_matches_mr_emulation():
     rng = np.random.default_rng(3)
     img = rng.integers(30000, 32768, (20, 24)).astype(np.int16)     # near full scale
@@ -165,6 +176,8 @@ def test_filter_saturates_and_int64_path_matches_mr_emulation():
         assert np.array_equal(flt.correlate_q15(x, k), flt.correlate_q15_exact(x, k))
 
 
+@pytest.mark.cases("flightsw.ip.filters._finish32", "tie-even")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "zero-taps")   # 8 of 9 taps 0
 def test_rnd_ties_round_half_to_even():
     img = np.zeros((3, 3), np.int16)
     img[1, 1] = 1
@@ -209,6 +222,12 @@ def _fft_oracles(img, k):
     return a
 
 
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "typical", "tiles", "dc-removal")
+@pytest.mark.cases("flightsw.ip.fftfilter._row_pass", "forward", "inverse", "block-shift")
+@pytest.mark.cases("flightsw.ip.fftfilter._rnd15", "round-nearest")
+@pytest.mark.cases("flightsw.ip.fftfilter._block_bitlen", "typical")
+@pytest.mark.cases("flightsw.ip.fftfilter._transpose", "typical")
+@pytest.mark.cases("flightsw.ip.fftfilter._floor_m2", "typical")
 @pytest.mark.parametrize("ci", range(len(FFT_CASES)))
 def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
     """Every pixel within the rigorous bound the block exponents give, every tile's RMS within its L2
@@ -234,6 +253,8 @@ def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
           f"{max(rms_ratio):.2f}, rigorous bound (last window) {info['bound']:.1f}")
 
 
+@pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "saturate", "dc-does-not-fit",
+                   "dc-removal", "no-dc")
 def test_fft_filter_saturation_constant_and_no_dc_removal():
     rng = np.random.default_rng(11)
     # near full scale with a kernel of gain 2: both directions saturate, still within the bound
@@ -299,6 +320,9 @@ def test_filter_fft_sequence_step():
 
 
 # ------------------------------------------------------------------ high-pass detrender
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "typical")
+@pytest.mark.cases("flightsw.ip.detrend._lowpass_k", "symmetric", "edges")
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "twelve-bit")
 def test_highpass_against_quantised_and_ideal_gaussian():
     sigma = 1.5
     taps = flt.gaussian_taps_q15(sigma)
@@ -317,6 +341,8 @@ def test_highpass_against_quantised_and_ideal_gaussian():
         assert np.abs(ours - ref).max() <= bound
 
 
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "saturate")
+@pytest.mark.cases("flightsw.ip.detrend._headroom", "full-scale")
 def test_highpass_signed_full_range_saturates():
     rng = np.random.default_rng(5)
     img = np.where(rng.random((32, 32)) < 0.5, -32768, 32767).astype(np.int16)
@@ -357,6 +383,9 @@ def test_polynomial_basis_is_orthogonal_and_fits_16_bits():
         assert np.abs(tables).max() < 2 ** 15
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_k", "typical")
+@pytest.mark.cases("flightsw.ip.detrend._block_shift", "no-shift")
+@pytest.mark.cases("flightsw.ip.detrend._surface_sub_k", "typical")
 def test_polynomial_against_lstsq():
     """|ours - (x - lstsq surface)| <= 1/2 + 2**-12."""
     for img in WINDOWS:
@@ -365,6 +394,8 @@ def test_polynomial_against_lstsq():
         assert np.abs(ours - ref).max() <= 0.5 + 2.0 ** -12
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_k", "block-shift")
+@pytest.mark.cases("flightsw.ip.detrend._block_shift", "shift")
 def test_polynomial_exact_surface_is_removed_and_saturation():
     h, w = 64, 64
     v, u = np.mgrid[:h, :w]
@@ -378,6 +409,8 @@ def test_polynomial_exact_surface_is_removed_and_saturation():
 
 
 # ------------------------------------------------------------------ threshold
+@pytest.mark.cases("flightsw.ip.threshold.isqrt32", "zero", "perfect-square", "between-squares",
+                   "top")
 def test_isqrt_is_floor_sqrt():
     rng = np.random.default_rng(2)
     vals = np.concatenate([np.arange(0, 2000), rng.integers(0, 2 ** 32, 3000),
@@ -387,6 +420,10 @@ def test_isqrt_is_floor_sqrt():
         assert th.isqrt32(int(v)) == math.isqrt(int(v))
 
 
+@pytest.mark.cases("flightsw.ip.threshold._stats_k", "no-shift")
+@pytest.mark.cases("flightsw.ip.threshold._threshold_value", "typical", "alpha-zero")
+@pytest.mark.cases("flightsw.ip.threshold._apply_k", "binarize", "clip")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_k", "binarize", "clip")
 @pytest.mark.parametrize("alpha", [0.0, 1.0, 2.5, 4.0, 7.9])
 def test_threshold_value_against_numpy(alpha):
     for img in WINDOWS + [dt.detrend_highpass(w) for w in WINDOWS[:6]]:
@@ -402,6 +439,8 @@ def test_threshold_value_against_numpy(alpha):
         assert np.array_equal(out, np.where(16 * x > t4, img, 0))
 
 
+@pytest.mark.cases("flightsw.ip.threshold._stats_k", "block-shift", "negative")
+@pytest.mark.cases("flightsw.ip.threshold._threshold_value", "block-shift")
 def test_threshold_full_scale_block_shift():
     rng = np.random.default_rng(9)
     img = rng.integers(-32768, 32768, (64, 64)).astype(np.int16)
@@ -473,6 +512,8 @@ def test_shipped_sequences_load_and_run_with_stages():
                                             "filter3x3_matched", "threshold"]
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "threshold")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "threshold-words")
 def test_sequence_steps_equal_the_kernels():
     seq = ProcessingSequence.from_toml(GOOD)
     sub = pp.preprocess(FRAMES[0], 2)
@@ -603,6 +644,9 @@ SEQUENCES = FUSABLE + [
 ]
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "filter", "highpass", "threshold", "fft",
+                   "poly", "none")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "stages", "no-stages", "no-steps")
 @pytest.mark.parametrize("si", range(len(SEQUENCES)))
 def test_pipeline_stages_are_the_stage_kernels_in_order(si):
     """The pipeline's stage images (one compiled call) equal the single-stage kernels composed in
@@ -627,6 +671,55 @@ def test_pipeline_stages_are_the_stage_kernels_in_order(si):
             assert fast.stages == [] and fast.message == res.message
             assert fast.context.get("threshold") == res.context.get("threshold")
             assert l1.table() == l2.table()
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "not-threshold")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "no-threshold", "no-stages")
+def test_pipeline_without_a_threshold_step_returns_zero_words():
+    from flightsw.ip.pipeline import FramePlan, ip_frame_k
+    seq = ProcessingSequence(SEQUENCES[2], {"compaction": 2, "window": 64})    # no threshold
+    plan = FramePlan(seq, RECORD)
+    h, w, r0, c0, _, _, r0w, c0w, mr, mc = plan.default
+    out = ip_frame_k(FRAMES[0], plan.f, r0, c0, h, w, plan.front, plan.ffts, plan.poly, 5000,
+                     plan.mode, plan.recw, plan.prm[False], r0w, c0w, mr, mc, False)
+    assert tuple(int(v) for v in out[11:15]) == (0, 0, 0, 0)
+    assert out[2].shape == (0, h, w) and out[3].shape == (0, h, w)
+    assert "threshold" not in run_stages(seq, FRAMES[0]).context
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "rank-image", "no-blobs")
+def test_pipeline_rank_image_numbers_the_reported_blobs_by_rank():
+    seq = ProcessingSequence(SEQUENCES[0] + [{"op": "rank", "max_candidates": 3}],
+                             {"compaction": 1, "window": 64})
+    rec = RECORD.replace(gof_threshold=0.0)
+    for frame in (FRAMES[5], np.zeros(pp.FRAME_SHAPE, np.uint16)):     # 5 blobs; none
+        res = process_frame(frame, seq, rec, want_stages=True)
+        labels, rank_img = res.stages[-2].image, res.stages[-1].image
+        want = np.zeros_like(labels)
+        for q, k in enumerate(res.backend.order):
+            want[labels == k + 1] = q + 1
+        assert np.array_equal(rank_img, want)
+        if not frame.any():                       # a constant window: nothing passes
+            assert res.backend.count == 0 and res.message.count == 0 and not rank_img.any()
+        else:
+            assert res.backend.count > res.message.count == 3  # some blobs are not reported
+
+
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "caller-window", "stages")
+def test_pipeline_on_a_window_the_caller_cut():
+    from flightsw.ip.frame import process_window
+    for si in (0, len(FUSABLE)):                  # with the polynomial detrender: new tables
+        seq = ProcessingSequence(SEQUENCES[si], {"compaction": 2, "window": 64})
+        full = pp.compact(FRAMES[1], 2)
+        sub = pp.Subimage(full[10:50, 20:70].astype(np.int16), (10, 20), 2, (40, 50))
+        res = process_window(sub, seq, RECORD, (40.0, 90.0))
+        assert np.array_equal(res.stages[0].image, sub.image)
+        want = _front_by_kernels(seq.steps, sub.image, None)
+        got = [s.image for s in res.stages[1:len(want) + 1]]
+        assert all(np.array_equal(g, w) for g, w in zip(got, want))
+        fast = process_window(sub, seq, RECORD, (40.0, 90.0), want_stages=False)
+        assert fast.message == res.message and fast.stages == []
+        assert (res.message.window_row0, res.message.window_col0) == (20, 40)
 
 
 def test_budget_tables_render():
@@ -660,6 +753,8 @@ def _coefficients_by_python_ints(M, js, rs, ps):
     return out
 
 
+@pytest.mark.cases("flightsw.ip.detrend.polynomial_coefficients_k", "round-two-step",
+                   "round-one-step", "left-shift", "saturate", "zero-moment")
 def test_polynomial_coefficients_match_unbounded_integer_arithmetic():
     """The jitted coefficient routine forms a product of up to 71 bits in two int64 halves; Python
     integers give the exact answer for the flight window sizes and for synthetic shifts below 16

@@ -34,11 +34,7 @@ HEADER = re.compile(r"^Cases\s*$")
 
 #: modules whose kernels are still being given case lists (each owner deletes its entry; a module
 #: listed here is skipped, a module not listed must be complete)
-PENDING_MODULES: set[str] = {
-    "flightsw.ip.backend", "flightsw.ip.colour", "flightsw.ip.detrend", "flightsw.ip.features",
-    "flightsw.ip.fftfilter", "flightsw.ip.filters", "flightsw.ip.pipeline",
-    "flightsw.ip.preprocess", "flightsw.ip.rank", "flightsw.ip.threshold",
-}
+PENDING_MODULES: set[str] = set()
 
 
 def _is_njit(dec: ast.expr) -> bool:

@@ -61,6 +61,20 @@ def backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     (:data:`PACK_HEAD` words), then order [m], gof [m], the reported distances [m], every distance
     [count], the feature words [count, 12] and the candidate table [m, 15] (CANDIDATE_DTYPE layout,
     decoded exactly).
+
+    Cases
+    -----
+    typical : the stage kernels in order (colour, features, normalise, rank): the same order, words
+        and candidate table as the single-stage functions composed with the same flags and record.
+    flags : ``diagonal`` off and ``intensity`` off reach the colouring and the features.
+    override : ``override != 0`` -> the centroid means are ``mean_row``, ``mean_col``.
+    no-override : ``override == 0`` -> the record's centroid means.
+    max-out : at most ``max_out`` candidates (``m <= max_out``).
+    candidate-table : row q = (order[q] + 1, d, GOF, the twelve features) decoded exactly.
+    cycles : header words 3..5 = the colour, features and rank cycles of the event counts.
+    no-labels : ``want_labels`` off -> labels an empty [0, 0] array, the same pack.
+    no-blobs : an empty window -> count 0, m 0, a pack of the header only.
+    out-of-range : a word outside -32768..65535 -> header word 21 set (the callers raise).
     """
     diagonal, intensity, want_labels = prm[0] != 0, prm[1] != 0, prm[2] != 0
     area, lin, fw = prm[3], prm[4], prm[5]

@@ -96,7 +96,16 @@ OP_CYCLES = np.array([m1750_cycles(COLOUR_MIX[e]) for e in _EVENTS], np.int64)
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _find(parent, k):
-    """Root of colour k along the colour array (path halving); returns (root, steps)."""
+    """Root of colour k along the colour array (path halving); returns (root, steps).
+
+    ``parent``: int32 [>= k + 1] the intermediate colour array (updated in place); ``k``: colour.
+
+    Cases
+    -----
+    root : ``parent[k] == k`` -> ``(k, 0)``, nothing stored.
+    chain : a chain of links -> the root and the number of steps; each visited entry now points to
+        its grandparent (path halving).
+    """
     steps = 0
     while parent[k] != k:
         parent[k] = parent[parent[k]]        # path halving (a store while walking)
@@ -107,7 +116,13 @@ def _find(parent, k):
 
 @njit(cache=True, inline="always")
 def _merge(parent, x, y):
-    """Link the colours of x and y (the larger root to the smaller); returns the find steps."""
+    """Link the colours of x and y (the larger root to the smaller); returns the find steps.
+
+    Cases
+    -----
+    link : different roots -> the larger root's entry is set to the smaller root (either order).
+    same-root : already one colour -> no link.
+    """
     rx, s1 = _find(parent, x)
     ry, s2 = _find(parent, y)
     if rx < ry:
@@ -119,7 +134,17 @@ def _merge(parent, x, y):
 
 @njit(cache=True, inline="always")
 def _accumulate(psums, k, v, r, c):
-    """Add on pixel (r, c) of intensity v to the sums of colour k."""
+    """Add on pixel (r, c) of intensity v to the sums of colour k.
+
+    ``psums``: int64 [>= k + 1, NSUM] (row k updated); ``v``: pixel word; ``r``, ``c``: 0-based.
+
+    Cases
+    -----
+    typical : every sum of :data:`SUM_NAMES` gains the pixel's term.
+    first-max : the colour's first pixel sets max I whatever its sign (a negative blob's max is
+        its largest negative word, not 0).
+    max : a later pixel replaces max I only when larger.
+    """
     vi = np.int64(v)
     vc = vi * c
     vr = vi * r
@@ -141,7 +166,17 @@ def _accumulate(psums, k, v, r, c):
 
 @njit(cache=True, inline="always")
 def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
-    """Add a run (row r) of colour k to its sums."""
+    """Add a run (row r) of colour k to its sums.
+
+    ``psums``: int64 [>= k + 1, NSUM]; ``cnt``, ``sv``, ``svc``, ``svcc``, ``sc``, ``scc``,
+    ``vmax``: the run's count, sum I, sum I c, sum I c^2, sum c, sum c^2 and max I.
+
+    Cases
+    -----
+    typical : the run's terms (rows from ``r``) added to every sum, as pixel by pixel.
+    first-max : the colour's first run sets max I whatever its sign.
+    max : a later run replaces max I only when larger.
+    """
     first = psums[k, _N] == 0
     psums[k, _N] += cnt
     psums[k, _S] += sv
@@ -162,7 +197,18 @@ def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
 @njit(cache=True)
 def _scan_pixels(img, diagonal, raw, parent, run_r, run_a, run_b):
     """The raster scan, pixel by pixel (any width). Returns (ncol, nrun, n_on, n_merge, n_steps,
-    bad) with ``bad`` set when a pixel is outside the 16-bit word range -32768..65535."""
+    bad) with ``bad`` set when a pixel is outside the 16-bit word range -32768..65535.
+
+    ``img``: integer [H, W]; ``raw``: int32 [H + 1, W + 2] zeroed provisional colours; ``parent``:
+    int32 colour array; ``run_r``, ``run_a``, ``run_b``: int32 run lists (row, first, one past).
+
+    Cases
+    -----
+    diagonal : 8-connectivity -> the labels of ``scipy.ndimage.label`` (3x3 structure).
+    four-connected : ``diagonal`` off -> the 4-connected labels.
+    merge : U shapes and n = 5/9/13 (10 without diagonals) -> colours merged in the colour array.
+    out-of-range : a word outside -32768..65535 -> ``bad`` set.
+    """
     H, W = img.shape
     bad = False
     for r in range(H):
@@ -242,7 +288,13 @@ _ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 @njit(cache=True, inline="always")
 def _low(n):
-    """uint64 with bits 0..n-1 set (0 <= n <= 64)."""
+    """uint64 with bits 0..n-1 set (0 <= n <= 64).
+
+    Cases
+    -----
+    typical : ``n < 64`` -> ``2**n - 1`` (0 for ``n == 0``).
+    full : ``n >= 64`` -> all 64 bits.
+    """
     if n >= 64:
         return _ONES
     return (np.uint64(1) << np.uint64(n)) - np.uint64(1)
@@ -252,7 +304,14 @@ def _low(n):
 def _colour_at(U, S, srow, x):
     """Provisional colour of pixel ``x`` (-1 <= x <= 64) of the row above, from its on mask ``U``,
     its run-start mask ``S`` and its run-start colours ``srow`` (``srow[p + 1]`` = colour of the run
-    starting at ``p``; ``srow[0]`` = 0): 0 if the pixel is off. Branch-free."""
+    starting at ``p``; ``srow[0]`` = 0): 0 if the pixel is off. Branch-free.
+
+    Cases
+    -----
+    outside : ``x < 0`` or ``x >= 64`` -> 0 (the border's off neighbours).
+    off : pixel ``x`` off -> 0.
+    on : pixel ``x`` on -> the colour of the run it belongs to (its last run start <= x).
+    """
     if x < 0 or x >= 64:
         return np.int32(0)
     on = (U >> np.uint64(x)) & np.uint64(1)
@@ -271,7 +330,16 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
     A run holds one provisional colour (its first pixel's), so ``raw`` keeps it only at the run's
     first pixel and the row above is read through its masks (:func:`_colour_at`); ``raw`` need not
     be cleared (only column 0, the "no run" slot, which this function zeroes).
-    Returns (ncol, nrun, n_on, n_merge, n_steps, bad)."""
+    Returns (ncol, nrun, n_on, n_merge, n_steps, bad).
+
+    Cases
+    -----
+    diagonal : 8-connectivity -> the labels of ``scipy.ndimage.label`` (3x3 structure).
+    four-connected : ``diagonal`` off -> the 4-connected labels.
+    merge : U shapes and n = 5/9/13 (10 without diagonals) -> colours merged in the colour array.
+    full-width : a run reaching column 63 of a 64-column window (mask bit 63) -> ends at 64.
+    out-of-range : a word outside -32768..65535 -> ``bad`` set.
+    """
     H, W = img.shape
     bad = False
     nrun = 0
@@ -354,7 +422,13 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
 
 @njit(cache=True, inline="always")
 def _run_end(U, c):
-    """One past the last pixel of the run of mask ``U`` that contains pixel ``c``."""
+    """One past the last pixel of the run of mask ``U`` that contains pixel ``c``.
+
+    Cases
+    -----
+    inside : the run ends before bit 63 -> the first off bit above ``c``.
+    to-bit-63 : the run reaches bit 63 -> 64.
+    """
     rest = ~(U >> np.uint64(c))
     return np.int64(64) if rest == 0 else c + np.int64(trailing_zeros(rest))
 
@@ -373,7 +447,21 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
     through the left neighbours, so it holds one provisional colour, that of its first pixel) and
     adds the same integers per run into the final colour's sums afterwards (which also writes the
     label image). Integer sums do not depend on the order of addition, so the results are
-    identical."""
+    identical.
+
+    Cases
+    -----
+    labels : blobs numbered 1..N in the order of their first pixel (``scipy.ndimage.label``'s
+        numbering), 8- or 4-connected by ``diagonal``.
+    sums : ``want_sums`` -> row k holds blob k's :data:`SUM_NAMES` integers.
+    no-sums : ``want_sums`` false -> sums all zero (labels and N unchanged).
+    no-labels : ``want_labels`` false -> labels an empty [0, 0] array (sums unchanged).
+    no-blobs : no on pixel -> N = 0, sums [1, NSUM] zeros, labels all 0.
+    narrow : ``W <= 64`` -> the mask scan.
+    wide : ``W > 64`` -> the pixel scan, the same labels.
+    out-of-range : a word outside -32768..65535 -> ``bad`` true.
+    events : ``ops`` = (pixels, on pixels, new colours, merges, find steps, folds).
+    """
     H, W = img.shape
     # provisional colours, with a zero border: row 0 above the first row, columns 0 and W + 1
     # beside the first and last columns (the paper's special cases: those neighbours are off)
@@ -448,14 +536,30 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
 
 @njit(cache=True)
 def _label_kernel(img, diagonal):
-    """:func:`colour_k` without the sums: (labels, N, bad) (fewer arrays to hand back)."""
+    """:func:`colour_k` without the sums: (labels, N, bad) (fewer arrays to hand back).
+
+    Cases
+    -----
+    typical : the labels and N of :func:`colour_k`.
+    out-of-range : ``bad`` true for a word outside the 16-bit range.
+    """
     labels, n, _, _, bad = colour_k(img, diagonal, True, False)
     return labels, n, bad
 
 
 @njit(cache=True)
 def _sums_from_labels(img, labels, count):
-    """Per-blob sums (as :func:`colour_k`) of an image given its labels 1..count."""
+    """Per-blob sums (as :func:`colour_k`) of an image given its labels 1..count.
+
+    ``img``: int32 [H, W]; ``labels``: int32 [H, W]; ``count``: int. Returns int64
+    [count + 1, NSUM].
+
+    Cases
+    -----
+    typical : row k holds the :data:`SUM_NAMES` integers of the pixels labelled k.
+    outside-labels : labels ``<= 0`` or ``> count`` are skipped.
+    no-blobs : ``count == 0`` -> one zero row.
+    """
     H, W = img.shape
     sums = np.zeros((count + 1, NSUM), np.int64)
     for r in range(H):

@@ -95,7 +95,16 @@ G_MAX = 8          # cap of the block headroom used by the high-pass intermediat
 
 @njit(cache=True)
 def _headroom(img, gmax):
-    """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``."""
+    """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``.
+
+    ``img``: int16 [h, w]; ``gmax``: int. Returns ``g = min(15 - bitlen(max|x|), gmax)``.
+
+    Cases
+    -----
+    twelve-bit : 12-bit data (-4096 .. 4095) -> 3.
+    full-scale : a word of 15 significant bits (32767 or -32768) -> 0.
+    cap : small data (bitlen <= 15 - gmax, all zeros included) -> ``gmax``.
+    """
     return min(15 - block_bitlen(img), gmax)
 
 
@@ -104,7 +113,18 @@ def _lowpass_k(img, taps, g):
     """Separable low-pass: row pass to Q(16-g).g, column pass to Q16.0 (see module docstring).
 
     Host speed-up: with symmetric taps the two pixels sharing a tap are added before the multiply
-    (exact: integer addition is associative and no partial sum exceeds the proven bound)."""
+    (exact: integer addition is associative and no partial sum exceeds the proven bound).
+
+    ``img``: int16 [h, w] (Q16.0); ``taps``: int16 [n] Q1.15, >= 0, sum 32768; ``g``: the block
+    headroom (0 .. 8). Returns ``(lp int32 [h, w], shift)``: the background is ``lp >> shift``
+    (Q16.0).
+
+    Cases
+    -----
+    symmetric : mirror-equal taps -> the paired-add path; ``|lp - exact| <= 1/2 + 2**-(g+1)``.
+    asymmetric : other taps -> one MAC per tap, the same bound.
+    edges : border pixels use replicated edge words (rows and columns, SciPy ``"nearest"``).
+    """
     h, w = img.shape
     n = taps.shape[0]
     p = n // 2
@@ -185,7 +205,14 @@ def _lowpass_k(img, taps, g):
 @njit(cache=True)
 def highpass_k(img, taps, gmax):
     """The high-pass detrender on an int16 [h, w] window (Q16.0) with 7 Q1.15 ``taps``; the block
-    headroom is capped at ``gmax``. Returns int16 [h, w] (Q16.0, AR_SAT)."""
+    headroom is capped at ``gmax``. Returns int16 [h, w] (Q16.0, AR_SAT).
+
+    Cases
+    -----
+    typical : ``x - lowpass(x)`` within ``1/2 + 2**-(g+1)`` of the float64 correlation.
+    saturate : full-range signed input -> ``x - lp`` beyond 16 bits saturates to 32767 / -32768.
+    headroom-cap : small data -> ``g = gmax``, the same bound with ``2**-(gmax+1)``.
+    """
     g = _headroom(img, gmax)
     lp, sh2 = _lowpass_k(img, taps, g)
     h, w = img.shape
@@ -315,12 +342,28 @@ def polynomial_basis(h, w):
 
 @njit(cache=True)
 def _block_shift(img):
+    """Block shift of the polynomial moments: ``max(0, bitlen(max|x|) - 12)`` of int16 [h, w].
+
+    Cases
+    -----
+    no-shift : 12-bit data -> 0.
+    shift : full-scale data -> 3 (``|x >> 3| <= 4096``).
+    """
     return max(0, block_bitlen(img) - 12)
 
 
 @njit(cache=True)
 def _moments_k(img, tables, js, s):
-    """Exact moments ``M_k = sum (x >> s) * B_k`` (B_k = B'_k >> j_k, exact since B'_k = B_k << j_k)."""
+    """Exact moments ``M_k = sum (x >> s) * B_k`` (B_k = B'_k >> j_k, exact since B'_k = B_k << j_k).
+
+    ``img``: int16 [h, w]; ``tables``: int16 [6, h, w]; ``js``: int64 [6]; ``s``: block shift.
+    Returns int64 [6].
+
+    Cases
+    -----
+    typical : the six integer moments against the orthogonal basis, exactly.
+    shifted : ``s > 0`` -> the moments of ``x >> s`` (arithmetic shift, towards -inf).
+    """
     h, w = img.shape
     M = np.zeros(6, np.int64)
     for r in range(h):
@@ -333,7 +376,20 @@ def _moments_k(img, tables, js, s):
 
 @njit(cache=True)
 def _surface_sub_k(img, tables, cw, s):
-    """Surface by double-precision MACs and subtraction (see module docstring)."""
+    """Surface by double-precision MACs and subtraction (see module docstring).
+
+    ``img``: int16 [h, w]; ``tables``: int16 [6, h, w]; ``cw``: int64 [6] Q1.31 coefficient words;
+    ``s``: block shift. Returns int16 [h, w] ``x - (surface << s)``, AR_SAT.
+
+    Cases
+    -----
+    typical : the surface rounded to the nearest count (within 1/2 + 2**-12 of the lstsq fit).
+    tie-even : a surface exactly halfway (MR0 == 0x8000) rounds to even (0.5 -> 0, 1.5 -> 2,
+        -1.5 -> -2).
+    surface-sat : an MR beyond 32 bits -> the surface saturates to 32767 / -32768 (IF MV SAT MR).
+    ar-sat : ``x - surface`` beyond 16 bits -> 32767 / -32768.
+    shift : ``s > 0`` -> the surface is shifted up by ``s`` before the subtraction.
+    """
     h, w = img.shape
     out = np.empty((h, w), np.int16)
     lo = np.empty(6, np.int64)
@@ -378,6 +434,14 @@ def polynomial_coefficients_k(M, js, rs, ps):
     bits, so it is formed as ``A 2**16 + B`` (``0 <= B < 2**16``) and rounded in two steps:
     ``floor((A 2**16 + B + half) / 2**sh) = floor((A + floor((B + half) / 2**16)) / 2**(sh - 16))``.
     Returns int64 [6].
+
+    Cases
+    -----
+    round-two-step : ``sh >= 16`` (every flight window) -> the two-step round half up, exact.
+    round-one-step : ``0 < sh < 16`` -> one round half up of ``A 2**16 + B``.
+    left-shift : ``sh <= 0`` -> the product shifted left, no rounding.
+    saturate : a result beyond 32 bits (either sign, any ``sh``) -> 2**31 - 1 / -2**31.
+    zero-moment : ``M_k == 0`` -> 0 (for ``sh > -16``).
     """
     out = np.empty(6, np.int64)
     lim = np.int64(2 ** 31 - 1)
@@ -407,7 +471,13 @@ def polynomial_k(img, tables, js, rs, ps):
     """The polynomial detrender on an int16 [h, w] window (Q16.0): block shift, the six moments,
     the Q1.31 coefficients and the surface subtraction. ``tables`` int16 [6, h, w] and ``js``, ``rs``,
     ``ps`` int64 [6] are :func:`polynomial_basis`'s ground constants. Returns (out int16 [h, w],
-    coefficient words int64 [6], block shift s)."""
+    coefficient words int64 [6], block shift s).
+
+    Cases
+    -----
+    typical : ``x - lstsq surface`` within ``1/2 + 2**-12`` (12-bit data, s = 0).
+    block-shift : full-scale data -> s = 3, coefficients inside 32 bits, int16 output.
+    """
     s = _block_shift(img)
     M = _moments_k(img, tables, js, s)
     cw = polynomial_coefficients_k(M, js, rs, ps)

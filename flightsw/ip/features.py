@@ -59,6 +59,13 @@ imager's full-resolution pixel frame: ``col_full = f * col + C0``, ``row_full = 
 ``(R0, C0)`` the window's top-left corner in full-resolution pixels (a processed pixel ``k`` covers
 full-resolution pixels ``[k f, (k + 1) f)``). Other features are scale-free and unchanged.
 
+Host execution (:func:`features_k`): every blob goes through the identical sequence of 1750A
+operations (the flight's per-blob routine). The host runs it *blob-parallel*: each instruction of the
+routine is applied to all blobs before the next one, in its branch-free lane form
+(:mod:`flightsw.arith.m1750_lanes`), so the blobs run side by side in SIMD lanes (the intermediates
+are rows of one array). Per blob the operations, their operands and their order are those of the
+routine, so the words are the same; the PI flags are OR-ed (order-free).
+
 Cycle costs: :data:`FEATURE_MIX` per blob (plus the math routines) on ``"ip1750"``.
 """
 from __future__ import annotations
@@ -120,7 +127,17 @@ def features_cycles(count: int, normalise: bool = True) -> int:
 @njit(cache=True, inline="always")
 def _i2f48(v):
     """int64 sum -> 48-bit float: EFLT when it fits 32 bits, else hi * 2**31 + lo (EFLT, EFM,
-    EFLT, EFA), as a multiword flight routine would."""
+    EFLT, EFA), as a multiword flight routine would.
+
+    ``v``: int64 (|v| < 2**62). Returns the packed 48-bit float word (int64), exact for
+    ``|v| < 2**39``.
+
+    Cases
+    -----
+    fits-32 : ``-2**31 <= v < 2**31`` -> one EFLT, exact.
+    wide : ``v`` beyond 32 bits (either sign) -> ``(v >> 31) * 2**31 + (v & 0x7FFFFFFF)``, exact
+        below 2**39.
+    """
     if -2147483648 <= v <= 2147483647:
         r, f = flt48(v & 0xFFFFFFFF)
         return r
@@ -136,7 +153,13 @@ def _i2f48(v):
 @njit(cache=True)
 def _features_kernel(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)
-    (:func:`features_k`, blob-major)."""
+    (:func:`features_k`, blob-major).
+
+    Cases
+    -----
+    typical : row ``k - 1`` holds the twelve features of blob ``k`` (FEATURE_NAMES order).
+    no-blobs : ``count == 0`` -> words int64 [0, 12], flags 0.
+    """
     o, fl = features_k(sums, count, intensity)
     return np.ascontiguousarray(o.T), fl
 
@@ -144,14 +167,21 @@ def _features_kernel(sums, count, intensity):
 @njit(cache=True)
 def features_k(sums, count, intensity):
     """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [12, count], feature-major: row i
-    = feature i of every blob; PI flags OR).
+    = feature i of every blob; PI flags OR). Every blob runs the flight's per-blob routine; the host
+    applies each instruction to all blobs in its lane form (the same words; module docstring).
 
-    Every blob goes through the identical sequence of 1750A operations (the flight's per-blob
-    routine). The host runs it *blob-parallel*: each instruction of the routine is applied to all
-    blobs before the next one, in its branch-free lane form (:mod:`flightsw.arith.m1750_lanes`),
-    so the blobs run side by side in SIMD lanes (the intermediates are rows of one array). Per
-    blob the operations, their operands and their order are those of the routine, so the words
-    are the same; the PI flags are OR-ed (order-free)."""
+    Cases
+    -----
+    intensity : flag on and ``sum I > 0`` -> intensity-weighted centroids and moments.
+    geometric : flag off -> every pixel weight 1.
+    nonpositive-intensity : flag on, ``sum I <= 0`` -> geometric weights (brightness unchanged).
+    one-pixel : zero moments exactly -> semi-axes 1, eccentricity 0, orientation 0.
+    line : a one-pixel-wide line -> semiminor exactly 1; orientation 0 or 90.
+    negative-angle : ``atan2 < 0`` -> orientation + 180 (always in [0, 180)).
+    nonpositive-max : ``max I <= 0`` -> brightness ratio 0 (no division).
+    wide-sums : a sum beyond 32 bits -> the multiword conversion (:func:`_i2f48`), same values.
+    no-blobs : ``count == 0`` -> words int64 [12, 0].
+    """
     K = count
     buf = np.empty((42, K), np.int64)            # the intermediates and the output, one allocation
     iw, ia, ib, ic, idd, ie = buf[0], buf[1], buf[2], buf[3], buf[4], buf[5]      # integer sums
@@ -259,7 +289,18 @@ def features_k(sums, count, intensity):
 def normalise_k(words, area, lin, f, r0, c0):
     """Feature-major words int64 [12, K] -> (normalised copy [12, K], flags): size, total *= area;
     axes *= lin; col = f col + c0; row = f row + r0 (packed 32-bit floats; the blobs side by side in
-    the instructions' lane forms)."""
+    the instructions' lane forms).
+
+    ``area``, ``lin``, ``f``, ``r0``, ``c0``: packed 32-bit words ``(f s)**2``, ``f s``,
+    ``f``, and the window's full-resolution origin (row, col).
+
+    Cases
+    -----
+    typical : size and total times ``area``, axes times ``lin``, centroids ``f x + origin``;
+        the other features copied.
+    identity : ``f = 1``, scale 1, origin (0, 0) -> the same words.
+    empty : ``K == 0`` -> an empty [12, 0] copy, flags 0.
+    """
     out = words.copy()
     tmp = np.empty(words.shape[1], np.int64)
     flags = fm32_lanes(words[0], area, out[0])

@@ -286,7 +286,16 @@ def fft_dm_words(h, w, tile):
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
 def _rnd15(a):
-    """MR (RND) read from MR1 for MR = 2a: round half to even of a / 2**15."""
+    """MR (RND) read from MR1 for MR = 2a: round half to even of a / 2**15.
+
+    ``a``: int64 sum of Q.15 products. Returns int64.
+
+    Cases
+    -----
+    round-nearest : ``a / 2**15`` to the nearest integer, either sign.
+    tie-even : ``a & 0x7FFF == 0x4000`` -> the even neighbour (0.5 -> 0, 1.5 -> 2, -0.5 -> 0,
+        -1.5 -> -2).
+    """
     q = (a + 0x4000) >> 15
     if (a & 0x7FFF) == 0x4000:
         q &= ~np.int64(1)
@@ -298,7 +307,20 @@ def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
     """Radix-2 DIT FFT along axis 1 of rows 0..nv-1 (stage by stage over the whole block, one block
     exponent). ``bl``: bit length of the block's largest magnitude on entry; ``E``: the L2 error
     bound, ``Vv``: the statistical error energy (module docstring). Returns (bl, E, Vv, shifts)
-    after the pass; ``log`` [nstages, 3] receives (n, bl, sh) per stage."""
+    after the pass; ``log`` [nstages, 3] receives (n, bl, sh) per stage.
+
+    ``re``, ``im``: int64 [T, T] rows of complex words, transformed in place (natural order out);
+    ``brev``: int64 [T] bit-reversal table; ``twc``, ``tws``: int64 [T/2] Q1.15 twiddle words;
+    ``dw``: the twiddle table's error. The result times ``2**shifts`` is the DFT.
+
+    Cases
+    -----
+    forward : ``inverse`` false -> ``numpy.fft.fft`` of each row within the L2 bound ``E``.
+    inverse : ``inverse`` true (conjugate twiddles) -> ``T * numpy.fft.ifft`` within ``E``.
+    no-shift : every stage's inputs within 13 bits -> no shift, ``shifts == 0``.
+    block-shift : wider inputs -> each stage shifts by ``bitlen - 13`` (``log`` records it).
+    partial-rows : ``nv < T`` -> rows ``nv..`` untouched.
+    """
     tmp_r = np.empty(T, np.int64)
     tmp_i = np.empty(T, np.int64)
     for r in range(nv):
@@ -365,13 +387,30 @@ def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
 
 @njit(cache=True, inline="always")
 def _floor_m2(sh):
-    """Second moment of the floor error of ``>> sh`` on uniformly distributed low bits."""
+    """Second moment of the floor error of ``>> sh`` on uniformly distributed low bits.
+
+    ``sh``: int >= 0. Returns float ``(d - 1)(2d - 1) / (6 d**2)``, ``d = 2**sh`` (in output LSBs).
+
+    Cases
+    -----
+    no-shift : ``sh == 0`` -> 0.
+    typical : the mean of ``(k / d)**2`` over the ``d`` equally likely low-bit patterns.
+    """
     d = 2.0 ** sh
     return (d - 1.0) * (2.0 * d - 1.0) / (6.0 * d * d)
 
 
 @njit(cache=True)
 def _block_bitlen(re, im, nv, T):
+    """Bit length (``x`` or ``~x``) of the largest word in rows ``0..nv-1`` of ``re`` and ``im``
+    (int64 [T, T]): the tile's block exponent on entry.
+
+    Cases
+    -----
+    typical : the largest positive or negative (``~x``) word of either array decides.
+    zero : all words 0 or -1 -> 0.
+    rows-beyond-nv : rows ``nv..`` are not looked at.
+    """
     orv = np.int64(0)
     for r in range(nv):
         for c in range(T):
@@ -383,6 +422,12 @@ def _block_bitlen(re, im, nv, T):
 
 @njit(cache=True)
 def _transpose(a, T):
+    """Transposed copy of an int64 [T, T] array (the row-column FFT's corner turn).
+
+    Cases
+    -----
+    typical : ``out[c, r] = a[r, c]``.
+    """
     out = np.empty((T, T), np.int64)
     for r in range(T):
         for c in range(T):
@@ -395,7 +440,27 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
                      use_mean):
     """The whole frequency path on an int16 window (module docstring). Returns (out int16 [h, w],
     bounds float64 [nti, ntj], info int64 [nti, ntj, 4] = (forward shifts, product shift, inverse
-    shifts, D), m)."""
+    shifts, D), m).
+
+    ``img``: int16 [h, w] (Q16.0); ``T``: tile size; ``kk``: odd kernel size; ``kr``, ``ki``,
+    ``ek``, ``kmax``, ``k2mean``, ``dk``, ``ksum``: the :class:`FFTKernel` fields; ``brev``,
+    ``twc``, ``tws``, ``dw``: the tables; ``use_mean``: the DC removal. Also returns ``rms
+    float64 [nti, ntj]`` (the predicted RMS) before ``info``.
+
+    Cases
+    -----
+    typical : every pixel within its tile's bound of ``scipy.ndimage.correlate(mode="nearest")``.
+    tiles : several overlap-save tiles, the last row/column of tiles partly valid, tile rows past
+        the padded window zero.
+    dc-removal : ``m = round_half_up(mean)`` removed before and ``m sum(k)`` added after; a constant
+        window comes out exact.
+    no-dc : ``use_mean`` false -> ``m = 0`` (still within its larger bound).
+    dc-does-not-fit : ``x - m`` outside 16 bits -> ``m = 0``.
+    saturate : outputs beyond 16 bits -> 32767 / -32768.
+    tie-even : an output exactly halfway rounds to even.
+    fine-exponent : ``D + 15 < 0`` (a kernel of tiny taps) -> ``m sum(k)`` is shifted left to the
+        sum's scale instead; still within the bound.
+    """
     h, w = img.shape
     p = kk // 2
     V = T - kk + 1

@@ -139,7 +139,17 @@ def _finish(a):
     """MR1 after (RND) and IF MV SAT MR, from the exact sum ``a = sum x*k`` (MR = 2a, 40 bits).
 
     ``(2a + 0x8000) >> 16 == (a + 0x4000) >> 15``; the RND tie (MR0 == 0x8000, i.e. ``a & 0x7FFF ==
-    0x4000``) clears bit 16 (the result's LSB); SAT of the rounded MR equals clamping MR1."""
+    0x4000``) clears bit 16 (the result's LSB); SAT of the rounded MR equals clamping MR1.
+
+    ``a``: int64 exact sum of Q16.0 x Q1.15 products (Q.15). Returns int16 (Q16.0).
+
+    Cases
+    -----
+    round-nearest : ``a / 2**15`` rounded to the nearest integer (``|err| <= 1/2``).
+    tie-even : ``a & 0x7FFF == 0x4000`` (exactly half) -> the even neighbour (0.5 -> 0, 1.5 -> 2).
+    sat-high : a rounded sum above 32767 -> 32767.
+    sat-low : a rounded sum below -32768 -> -32768.
+    """
     a = np.int64(a)
     q = (a + 0x4000) >> 15
     t = np.int64(1) if (a & 0x7FFF) == 0x4000 else np.int64(0)
@@ -149,7 +159,17 @@ def _finish(a):
 
 @njit(cache=True)
 def pad_nearest(img, p):
-    """Replicate-edge padding by ``p`` (SciPy mode="nearest"). int16 -> int16."""
+    """Replicate-edge padding by ``p`` (SciPy mode="nearest"). int16 -> int16.
+
+    ``img``: int16 [h, w], h, w >= 1; ``p``: int >= 0. Returns int16 [h + 2p, w + 2p].
+
+    Cases
+    -----
+    no-pad : ``p == 0`` -> a copy.
+    replicate : the border rows/columns repeat the edge pixels, corners the corner pixel
+        (``numpy.pad(mode="edge")``).
+    pad-wider-than-image : ``p >= h`` or ``p >= w`` (a 1x1 image) -> every word the edge word.
+    """
     h, w = img.shape
     out = np.empty((h + 2 * p, w + 2 * p), np.int16)
     for r in range(h + 2 * p):
@@ -166,6 +186,14 @@ def pad_nearest(img, p):
 
 @njit(cache=True)
 def _maxabs(img):
+    """max |x| of an int16 array (any shape) as int32 (-32768 -> 32768).
+
+    Cases
+    -----
+    typical : the largest magnitude of either sign.
+    most-negative : -32768 -> 32768 (no int16 wrap).
+    empty : no elements -> 0.
+    """
     f = img.ravel()
     m = np.int32(0)
     for i in range(f.size):
@@ -177,7 +205,19 @@ def _maxabs(img):
 
 @njit(cache=True)
 def _finish32(acc, out):
-    """Vectorised :func:`_finish` over int32 sums (no overflow: the caller's bound)."""
+    """Vectorised :func:`_finish` over int32 sums (no overflow: the caller's bound).
+
+    ``acc``: int32 [h, w] sums (Q.15), ``|acc| < 2**31 - 2**14``; ``out``: int16 [h, w] written
+    in place (Q16.0).
+
+    Cases
+    -----
+    round-nearest : as :func:`_finish`, ``|err| <= 1/2``.
+    tie-even : exactly half -> the even neighbour.
+    sat-high : above 32767 after rounding -> 32767 (reachable inside the int32 bound: 32767 x
+        kernel gain ~2).
+    sat-low : below -32768 -> -32768.
+    """
     a1 = acc.ravel()
     o1 = out.ravel()
     for n in range(a1.size):
@@ -192,6 +232,16 @@ def _finish32(acc, out):
 
 @njit(cache=True)
 def _correlate_k32(pad, kern, h, w):
+    """Correlation with int32 sums (the caller proved ``max|x| sum|k| < 2**31 - 2**14``).
+
+    ``pad``: int16 [h + 2p, w + 2p] replicate-padded image; ``kern``: int16 [k, k] Q1.15. Returns
+    int16 [h, w] (Q16.0).
+
+    Cases
+    -----
+    typical : the exact sum rounded as :func:`_finish32` (``scipy.ndimage.correlate`` within 1/2).
+    zero-taps : taps equal to 0 are skipped (no effect on the sum).
+    """
     kh, kw = kern.shape
     acc = np.zeros((h, w), np.int32)
     for i in range(kh):
@@ -211,6 +261,17 @@ def _correlate_k32(pad, kern, h, w):
 
 @njit(cache=True)
 def _correlate_k64(pad, kern, h, w):
+    """Correlation with int64 sums (any 16-bit data and kernel).
+
+    ``pad``: int16 [h + 2p, w + 2p] replicate-padded image; ``kern``: int16 [k, k] Q1.15. Returns
+    int16 [h, w] (Q16.0).
+
+    Cases
+    -----
+    typical : the exact sum rounded and saturated as :func:`_finish`.
+    saturate : full-scale data with a large-gain kernel -> 32767 / -32768 where the sum leaves the
+        word.
+    """
     kh, kw = kern.shape
     acc = np.zeros((h, w), np.int64)
     for i in range(kh):
@@ -235,7 +296,17 @@ INT32_LIMIT = 2 ** 31 - 2 ** 14     # a + 0x4000 must not overflow int32 in the 
 @njit(cache=True)
 def correlate_q15_k(img, kern):
     """Correlate an int16 image with an int16 Q1.15 kernel, replicate edges, ADSP RND/SAT store.
-    Chooses the int32 accumulator when ``max|x| * sum|k| < 2**31 - 2**14`` proves it exact."""
+    Chooses the int32 accumulator when ``max|x| * sum|k| < 2**31 - 2**14`` proves it exact.
+
+    ``img``: int16 [h, w] (Q16.0); ``kern``: int16 [k, k] Q1.15, k odd. Returns int16 [h, w]
+    (Q16.0), the same words on either path.
+
+    Cases
+    -----
+    int32-path : the bound holds (12-bit data, unit-gain kernels) -> :func:`_correlate_k32`.
+    int64-path : the bound fails (full-scale data or large kernels) -> :func:`_correlate_k64`.
+    edges : border pixels see replicated edge words (SciPy ``mode="nearest"``).
+    """
     kh, kw = kern.shape
     p = kh // 2
     h, w = img.shape

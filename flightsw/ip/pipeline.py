@@ -80,7 +80,24 @@ class PolyTables(NamedTuple):
 def front_step_k(img, i, front, ffts, poly, aq, mode):
     """Front-end step ``i`` of ``front`` on the int16 [h, w] image ``img``. Returns (image int16
     [h, w], is_threshold, t4, mean4, std4, shift): the threshold's words (Q.4 and the block
-    shift) when the step is the threshold, else zeros."""
+    shift) when the step is the threshold, else zeros.
+
+    ``front``: :class:`FrontOps`; ``ffts``: :class:`FFTTables`; ``poly``: :class:`PolyTables`;
+    ``aq``: alpha, Q4.12 word; ``mode``: ``threshold.BINARIZE`` or ``CLIP``.
+
+    Cases
+    -----
+    filter : ``OP_FILTER`` -> :func:`flightsw.ip.filters.correlate_q15_k` with the step's k x k
+        kernel.
+    highpass : ``OP_HIGHPASS`` -> :func:`flightsw.ip.detrend.highpass_k` with the step's taps.
+    threshold : ``OP_THRESHOLD`` -> :func:`flightsw.ip.threshold.threshold_k` and its words
+        (t4, mean4, std4, shift), ``is_threshold`` true.
+    fft : ``OP_FFT`` -> :func:`flightsw.ip.fftfilter.fft_correlate_k` with the step's tables
+        (DC removal on).
+    poly : ``OP_POLY`` -> :func:`flightsw.ip.detrend.polynomial_k` with the window's tables.
+    none : ``OP_NONE`` -> the image unchanged.
+    not-threshold : any other op -> the threshold words 0 and ``is_threshold`` false.
+    """
     op = front.ops[i]
     t4, m4, d4, sh = np.int64(0), np.int64(0), np.int64(0), np.int64(0)
     if op == OP_FILTER:
@@ -142,6 +159,20 @@ def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w,
     blobs numbered by rank; [0, h, w] without), count, m, flags, colour, features and rank cycles,
     the range flag, the threshold's t4, mean4, std4 and shift): a flat tuple, which boxes faster
     than a header slice.
+
+    Cases
+    -----
+    stages : ``want_stages`` -> the window and each front-end step's output are the stage kernels
+        composed in the sequence's order; the colour image is the labels.
+    no-stages : ``want_stages`` off -> empty [0, h, w] stage arrays, the same pack and words.
+    threshold-words : a threshold step -> its t4, mean4, std4 and shift.
+    no-threshold : no threshold step -> those words 0.
+    no-steps : an empty front end -> the window goes to the back end as it is.
+    rank-image : the rank stage numbers each reported blob's pixels by its rank (1 = best), 0
+        elsewhere.
+    caller-window : a window the caller cut (``f = 1``, origin 0) -> the window stage is that
+        window, the rest as for a frame.
+    no-blobs : nothing passes the threshold -> count 0, m 0, rank image all 0.
     """
     win = compact_k(src, f, r0, c0, h, w)
     n = front.ops.size

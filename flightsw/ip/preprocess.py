@@ -95,7 +95,20 @@ def compact_k(frame, f, r0, c0, h, w):
     """Rounded block mean over blocks ``r0..r0+h-1``, ``c0..c0+w-1`` (compacted indices). Q16.0.
 
     The f rows of a block row are first added column by column (the board's vertical adders), then
-    the f columns of each block, plus ``n // 2``, shifted right by log2(n) (n = 1, 4, 16)."""
+    the f columns of each block, plus ``n // 2``, shifted right by log2(n) (n = 1, 4, 16).
+
+    ``frame``: uint16 [244, 256] 12-bit counts; ``f``: 1, 2 or 4; ``r0, c0``: window origin and
+    ``h, w``: window size, in compacted pixels (inside ``frame.shape // f``). Returns int16 [h, w].
+
+    Cases
+    -----
+    f1 : ``f == 1`` -> the window's pixels copied unchanged.
+    f2 : ``f == 2`` -> ``(sum of the 2x2 block + 2) >> 2``.
+    f4 : ``f == 4`` -> ``(sum of the 4x4 block + 8) >> 4``.
+    round-half-up : a block mean ending in exactly 1/2 rounds up (sum 2 of 4 -> 1), below 1/2 down.
+    offset-window : ``r0, c0 > 0`` -> only the blocks of the window, the same words as compacting
+        the whole frame and cutting the window.
+    """
     out = np.empty((h, w), np.int16)
     n = f * f
     sh = 0 if f == 1 else (2 if f == 2 else 4)

@@ -73,7 +73,18 @@ def rank_cycles(ops) -> int:
 
 @njit(cache=True, inline="always")
 def _sigmoid(x, a2, ops):
-    """x' = 1 - exp(-a^2 x^2) (packed 32-bit)."""
+    """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
+
+    ``x``, ``a2``: packed 32-bit 1750A floats; ``ops``: int64 [9] event counts (``ops[8]``, the
+    exp, incremented). Returns ``(x', flags)``: packed word in [0, 1] and the OR of the PI flags.
+
+    Cases
+    -----
+    zero : ``x == 0`` -> exp(0) = 1 exactly and ``x' = 0``.
+    mid : ``x^2 = 1 / a^2`` (``x`` the mid of lower and upper) -> 1/2 (within the exp's ulps).
+    typical : ``1 - exp(-a^2 x^2)`` within a few ulps.
+    exp-underflow : ``a^2 x^2 >= 256`` -> exp underflows to 0, the flag is absorbed, ``x' = 1``.
+    """
     fl = 0
     t, f = fm32(x, x); fl |= f
     t, f = fm32(t, a2); fl |= f
@@ -86,9 +97,22 @@ def _sigmoid(x, a2, ops):
 
 @njit(cache=True)
 def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
-    """fwt int64 [12, k] normalised feature words, feature-major (row i = feature i of every
-    candidate); rec int64 [5, 12] (mean, sigma, weight, lower, upper words). Returns (order int64
-    [m], d words int64 [k], gof words int64 [m], flags, ops int64 [9])."""
+    """fwt int64 [12, k] feature words (feature-major), rec int64 [5, 12] record words, centroid
+    means used if ``override`` -> (order [m], d words [k], gof words [m], flags, ops [9]) int64.
+
+    Cases
+    -----
+    typical : ascending ``d = sum w_i (x_i - m_i)^2 / sigma_i^2``; GOF ``exp(-d^2 ln2 / n^2)``.
+    zero-weight : weight-0 features skipped; ``n`` counts the non-zero weights.
+    override : ``override`` -> the centroid means (col, row) are ``mean_col``, ``mean_row``.
+    quantize : features and means through the sigmoid, ``c_i = 12 w_i``.
+    max-out : more than ``max_out`` candidates -> the ``max_out`` smallest ``d`` kept.
+    ties : equal ``d`` keep blob order (also across the ``max_out`` cut).
+    reject : a GOF below ``thr`` is dropped (``d`` still returned for every candidate).
+    at-threshold : a GOF equal to ``thr`` is kept (only FC < 0 rejects).
+    gof-underflow : a huge ``d`` -> exp underflows, GOF 0 (flag absorbed; kept if ``thr == 0``).
+    no-candidates : ``k == 0`` -> empty order, d and gof; only the frame set-up is counted.
+    """
     ops = np.zeros(9, np.int64)
     flags = 0
     k = fwt.shape[1]
@@ -310,6 +334,17 @@ def gof_approx(d, n):
 
 @njit(cache=True)
 def _flight_gof_kernel(dw, n):
+    """The flight GOF ``exp(-d^2 ln2 / n^2)`` of packed 32-bit distance words ``dw`` (int64 [k])
+    with ``n`` (int, 1 .. 32767) degrees of freedom -> packed words int64 [k].
+
+    Cases
+    -----
+    half-at-n : ``d == n`` -> 1/2 (within the exp's ulps).
+    zero : ``d == 0`` -> exactly 1.
+    typical : non-increasing in ``d``, the float64 approximation within 1e-6.
+    underflow : ``d^2 ln2 / n^2 >= 256`` -> exp underflows to 0.
+    empty : ``k == 0`` -> an empty array.
+    """
     out = np.zeros(dw.size, np.int64)
     nf, f = flt32(n)
     n2, f = fm32(nf, nf)

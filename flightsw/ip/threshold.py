@@ -63,7 +63,17 @@ def alpha_to_q12(alpha):
 
 @njit(cache=True)
 def isqrt32(v):
-    """floor(sqrt(v)) for 0 <= v < 2**32: the DSP's restoring bit-pair square root (16 steps)."""
+    """floor(sqrt(v)) for 0 <= v < 2**32: the DSP's restoring bit-pair square root (16 steps).
+
+    ``v``: int, 0 .. 2**32 - 1 (the Q.8 variance word). Returns int64 ``floor(sqrt(v))`` (0 .. 65535).
+
+    Cases
+    -----
+    zero : ``v == 0`` -> 0 (the start bit shifts down to 0, no iteration subtracts).
+    perfect-square : ``v = r**2`` -> exactly ``r`` (remainder 0).
+    between-squares : ``r**2 < v < (r + 1)**2`` -> ``r`` (floor, never rounded up).
+    top : ``v = 2**32 - 1`` -> 65535 (the largest radicand, start bit 2**30 kept).
+    """
     root = np.int64(0)
     rem = np.int64(v)
     bit = np.int64(1) << 30
@@ -81,6 +91,17 @@ def isqrt32(v):
 
 @njit(cache=True)
 def _stats_k(img):
+    """Block shift and the two sums of the threshold pass.
+
+    ``img``: int16 [h, w] (Q16.0). Returns ``(s, S1, S2)``: ``s = max(0, bitlen(max|x|) - 12)``,
+    ``S1 = sum(x >> s)``, ``S2 = sum((x >> s)**2)`` (int64, exact; ``>>`` arithmetic, floor).
+
+    Cases
+    -----
+    no-shift : data within 12 bits signed (-4096 .. 4095) -> ``s = 0``, sums of the raw words.
+    block-shift : wider data -> ``s = bitlen - 12`` (full-scale int16 -> 3) and ``|x >> s| <= 4096``.
+    negative : negative words shift towards -inf (-32768 >> 3 = -4096) and square positive.
+    """
     f = img.ravel()
     s = max(0, block_bitlen(img) - 12)
     s1 = np.int64(0)
@@ -100,12 +121,37 @@ def _stats_k(img):
 
 @njit(cache=True)
 def _rhu_div(a, b):
-    """round_half_up(a / b) for b > 0 (floor division, exact integers)."""
+    """round_half_up(a / b) for b > 0 (floor division, exact integers).
+
+    ``a``: int64 (any sign), ``b``: int64 > 0. Returns int64 ``floor((2a + b) / 2b)``.
+
+    Cases
+    -----
+    exact : ``b`` divides ``a`` -> ``a / b``.
+    tie-up : a quotient exactly halfway rounds towards +inf (5/2 -> 3, -5/2 -> -2).
+    nearest : otherwise the nearest integer (7/3 -> 2, -7/3 -> -2, 8/3 -> 3).
+    """
     return (2 * a + b) // (2 * b)
 
 
 @njit(cache=True)
 def _threshold_value(img, alpha_q12):
+    """Threshold words of a window (step 3 and 4 of the module docstring).
+
+    ``img``: int16 [h, w], h*w <= 16384; ``alpha_q12``: int, Q4.12 (0 .. 32767). Returns int64
+    ``(T4, m4, d4, s)``: threshold Q.4 (in unshifted counts), mean Q.4 and std Q.4 of ``x >> s``,
+    block shift ``s``.
+
+    Cases
+    -----
+    typical : ``m4 = rhu(16 S1 / n)``, ``d4 = isqrt(rhu(256 (n S2 - S1**2) / n**2))``,
+        ``T4 = (m4 + rhu(alpha d4 / 4096)) << s``.
+    alpha-zero : ``alpha_q12 == 0`` -> ``T4 = m4 << s`` (the mean).
+    constant : a constant window -> ``d4 = 0`` and ``T4 = 16 c``.
+    max-spread : half the words -4096, half 4095 (the widest 12-bit spread) -> ``v8 = 4293918784``,
+        below the clamp at ``2**32 - 1`` (the clamp never binds for int16 input).
+    block-shift : full-scale data -> ``T4`` is the shifted threshold ``<< s``.
+    """
     s, s1, s2 = _stats_k(img)
     n = np.int64(img.shape[0] * img.shape[1])
     m4 = _rhu_div(16 * s1, n)                                  # Q.4
@@ -120,6 +166,18 @@ def _threshold_value(img, alpha_q12):
 
 @njit(cache=True)
 def _apply_k(img, t4, mode):
+    """Apply the threshold: pass ``x`` where ``16 x > T4`` (strictly).
+
+    ``img``: int16 [h, w]; ``t4``: int, Q.4; ``mode``: 0 binarise, otherwise clip. Returns int16
+    [h, w].
+
+    Cases
+    -----
+    binarize : ``mode == 0`` -> 1 where ``16 x > T4``, else 0.
+    clip : ``mode != 0`` -> ``x`` where ``16 x > T4``, else 0.
+    equal-fails : ``16 x == T4`` does not pass (0).
+    negative : negative words pass when above a negative threshold (clip keeps them negative).
+    """
     h, w = img.shape
     out = np.empty((h, w), np.int16)
     f = img.ravel()
@@ -136,6 +194,17 @@ def _apply_k(img, t4, mode):
 
 @njit(cache=True)
 def threshold_k(img, alpha_q12, mode):
+    """The threshold step in one compiled call.
+
+    ``img``: int16 [h, w], h*w <= 16384 (Q16.0); ``alpha_q12``: int, Q4.12; ``mode``: 0 binarise,
+    1 clip. Returns ``(out int16 [h, w], T4, m4, d4, s)`` (int64 words as :func:`_threshold_value`).
+
+    Cases
+    -----
+    binarize : ``mode == 0`` -> a 0/1 image of the pixels strictly above the threshold.
+    clip : ``mode == 1`` -> the passing pixels keep their words, the rest 0.
+    constant : a constant window (std 0, ``16 x == T4`` everywhere) -> all 0.
+    """
     t4, m4, d4, s = _threshold_value(img, alpha_q12)
     return _apply_k(img, t4, mode), t4, m4, d4, s
 
