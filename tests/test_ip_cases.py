@@ -314,9 +314,8 @@ def test_surface_rounding_ties_saturation_and_shift():
     assert _surface([3], s=2, x=100) == 100 - (2 << 2)          # round(1.5) = 2, shifted by 2
 
 
-@pytest.mark.xfail(strict=True, reason="polynomial_coefficients_k returns 2**31 - 1 for M_k = 0 "
-                   "when sh <= -16 (unreachable from polynomial_basis, where sh >= -1)")
 def test_polynomial_coefficients_of_a_zero_moment_at_a_large_left_shift():
+    """(Found while listing the cases: a zero product at a left shift of 16 or more saturated.)"""
     M = np.zeros(6, np.int64)
     js = np.zeros(6, np.int64)
     ps = np.full(6, 15, np.int64)                                # sh = 15 + 0 - 31 = -16

@@ -768,13 +768,13 @@ def test_polynomial_coefficients_match_unbounded_integer_arithmetic():
             M[rng.random(6) < 0.2] = 0
             assert list(dt.polynomial_coefficients_k(M, js, rs, ps)) == \
                 _coefficients_by_python_ints(M, js, rs, ps)
-    for sh in (-3, 0, 1, 5, 15, 16, 17):
+    for sh in (-70, -40, -20, -16, -3, 0, 1, 5, 15, 16, 17):
         ps = np.full(6, 31, np.int64)
         js = np.full(6, sh, np.int64) if sh >= 0 else np.zeros(6, np.int64)
         if sh < 0:
             ps[:] = 31 + sh
         rs = rng.integers(2 ** 30, 2 ** 31, 6, dtype=np.int64)
-        for mag in (2 ** 5, 2 ** 20, 2 ** 31, 2 ** 40):
+        for mag in (1, 2, 2 ** 5, 2 ** 20, 2 ** 31, 2 ** 40):
             M = rng.integers(-mag, mag, 6, dtype=np.int64)
             assert list(dt.polynomial_coefficients_k(M, js, rs, ps)) == \
                 _coefficients_by_python_ints(M, js, rs, ps), (sh, mag)

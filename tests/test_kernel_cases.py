@@ -25,17 +25,10 @@ import ast
 import re
 from pathlib import Path
 
-import pytest
-
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGES = ("flightsw", "hil_harness")
 CASE_ID = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 HEADER = re.compile(r"^Cases\s*$")
-
-#: modules whose kernels are still being given case lists (each owner deletes its entry; a module
-#: listed here is skipped, a module not listed must be complete)
-PENDING_MODULES: set[str] = set()
-
 
 def _is_njit(dec: ast.expr) -> bool:
     node = dec.func if isinstance(dec, ast.Call) else dec
@@ -118,10 +111,6 @@ KERNELS = kernels()
 NAMED = named_cases()
 
 
-def _module_of(kernel: str) -> str:
-    return kernel.rpartition(".")[0]
-
-
 def test_the_scan_finds_the_kernels():
     assert len(KERNELS) > 250
     assert "flightsw.ip.threshold.isqrt32" in KERNELS
@@ -152,8 +141,6 @@ def test_parse_cases_reads_a_hand_written_section():
 def test_every_kernel_lists_its_cases():
     missing, bad = [], []
     for name, (path, line, cases) in KERNELS.items():
-        if _module_of(name) in PENDING_MODULES:
-            continue
         where = f"{path.relative_to(ROOT)}:{line} {name}"
         if not cases:
             missing.append(where)
@@ -166,7 +153,7 @@ def test_every_kernel_lists_its_cases():
 
 def test_every_case_is_named_by_a_test():
     unnamed = [f"{name}: {c}" for name, (_, _, cases) in KERNELS.items()
-               if _module_of(name) not in PENDING_MODULES for c in cases or ()
+               for c in cases or ()
                if (name, c) not in NAMED]
     assert not unnamed, "cases no test names (add @pytest.mark.cases):\n" + "\n".join(unnamed)
 
@@ -179,8 +166,3 @@ def test_every_marker_names_a_listed_case():
         elif case not in (KERNELS[name][2] or ()):
             stale.append(f"{where[0]}: {name} lists no case {case!r}")
     assert not stale, "\n".join(stale)
-
-
-@pytest.mark.parametrize("module", sorted(PENDING_MODULES))
-def test_pending_modules_exist(module):
-    assert any(_module_of(k) == module for k in KERNELS), f"{module}: no kernels (drop the entry)"

@@ -441,7 +441,7 @@ def polynomial_coefficients_k(M, js, rs, ps):
     round-one-step : ``0 < sh < 16`` -> one round half up of ``A 2**16 + B``.
     left-shift : ``sh <= 0`` -> the product shifted left, no rounding.
     saturate : a result beyond 32 bits (either sign, any ``sh``) -> 2**31 - 1 / -2**31.
-    zero-moment : ``M_k == 0`` -> 0 (for ``sh > -16``).
+    zero-moment : ``M_k == 0`` -> 0, whatever the shift.
     """
     out = np.empty(6, np.int64)
     lim = np.int64(2 ** 31 - 1)
@@ -460,8 +460,14 @@ def polynomial_coefficients_k(M, js, rs, ps):
             c = ((a << 16) + b + (np.int64(1) << (sh - 1))) >> sh
         elif abs(a) >= np.int64(1) << 30:      # |prod| >= 2**46 before the left shift
             c = lim if a > 0 else -lim - 1
-        else:
-            c = ((a << 16) + b) << (-sh) if -sh < 16 else (lim if a >= 0 else -lim - 1)
+        else:                                  # |prod| < 2**46 + 2**16, shifted left by -sh
+            p = (a << 16) + b
+            if p == 0:
+                c = np.int64(0)
+            elif -sh < 62 and abs(p) < np.int64(1) << (62 + sh):
+                c = p << (-sh)
+            else:
+                c = lim if p > 0 else -lim - 1
         out[k] = min(max(c, -lim - 1), lim)
     return out
 
