@@ -15,7 +15,8 @@ from flightsw.ip.colour import colour, blob_sums, COLOUR_MIX, colour_cycles
 from flightsw.ip.features import (FEATURE_DTYPE, features_words, normalise, normalise_words,
                                   struct_to_words, words_to_struct)
 from flightsw.ip.frame import backend, process_frame
-from flightsw.ip.rank import (flight_gof, gof_approx, gof_chi2, quantise, rank, rank_words)
+from flightsw.ip.rank import flight_gof, quantise, rank, rank_words
+from ip_reference import gof_approx, gof_chi2
 from flightsw.ip.sequence import ProcessingSequence, SequenceError, load_default_sequence
 from flightsw.messages import (CANDIDATE_DTYPE, FEATURE_NAMES, AttitudeData, CandidateMessage,
                                Feedback, crc16_ccitt, crc16_ccitt_bytes)

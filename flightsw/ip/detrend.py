@@ -28,7 +28,7 @@ input units), which the column pass carries with gain ``sum t = 1``; the column 
 ``|lp - lp_exact(quantised taps)| <= 1/2 + 2**-(g+1)`` (0.5625 for 12-bit data) and the detrended
 output, ``x - lp``, has the same bound. Against the ideal Gaussian (``scipy.ndimage.gaussian_filter``
 with ``truncate = 3 / sigma``) add ``max|x| * sum|t_q t_q^T / 2**30 - T T^T|`` (tap quantisation,
-:func:`highpass_bound`).
+``tests/ip_reference.py``).
 
 Cycles per pixel: EXPADJ 1; row pass 1 rounding tap + 7 MAC + 2 shifts + 1 store + 1 pointer
 modify = 12; column pass 1 + 7 + 2 + 1 subtract + 1 store + 1 modify = 13; i.e. 26 a pixel, plus
@@ -82,7 +82,7 @@ from flightsw.ip.filters import gaussian_taps_q15
 
 __all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
            "highpass_k", "polynomial_k", "polynomial_coefficients_k", "check_taps", "default_taps",
-           "polynomial_cycles", "highpass_bound", "lowpass_q15", "polynomial_basis",
+           "polynomial_cycles", "lowpass_q15", "polynomial_basis",
            "DEFAULT_HIGHPASS_SIGMA", "G_MAX"]
 
 DEFAULT_HIGHPASS_SIGMA = 1.5
@@ -270,16 +270,6 @@ def detrend_highpass(img, taps=None, ledger=None, stage="detrend_highpass"):
 def default_taps(sigma=DEFAULT_HIGHPASS_SIGMA):
     """The 7 Q1.15 taps of the normalised Gaussian of ``sigma`` (pixels), cached."""
     return gaussian_taps_q15(sigma, 7)
-
-
-def highpass_bound(taps, maxabs, sigma):
-    """Bound of ``|ours - (x - gaussian_filter(x, sigma, truncate=3/sigma))|`` for 12-bit data (g=3):
-    ``1/2 + 2**-4 + maxabs * sum|t_q t_q^T / 2**30 - T T^T|`` (host float; for tests)."""
-    i = np.arange(-3, 4)
-    T = np.exp(-0.5 * (i / sigma) ** 2)
-    T /= T.sum()
-    tq = np.asarray(taps, np.float64) / 32768
-    return 0.5 + 2.0 ** -4 + maxabs * np.abs(np.outer(tq, tq) - np.outer(T, T)).sum()
 
 
 def highpass_cycles(h, w, n=7):

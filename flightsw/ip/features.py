@@ -80,7 +80,7 @@ from flightsw.arith.m1750 import (
     ONE32, HALF48, decode32_array, encode32, fa48, flt48, fm48, to32,
 )
 from flightsw.arith.m1750_lanes import (
-    fa32_lanes, fa32_v, fa48_lanes, fc32_v, fd32_lanes, fd32_v, fd48_lanes, fm32_lanes, fm32_v,
+    fa32_lanes, fa32_v, fa48_lanes, fc32_v, fd32_lanes, fd32_v, fd48_lanes, fm32_lanes,
     fm48_lanes, flt48_lanes, fs32_lanes, fs48_lanes,
 )
 from flightsw.arith.m1750_math import MATH_CYCLES, atan2_32_lanes, sqrt32_lanes

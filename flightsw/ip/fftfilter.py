@@ -108,7 +108,7 @@ from flightsw.arith.adsp2100 import bitlen
 
 __all__ = ["FFT_TILES", "FLIGHT_TILES", "MAX_FFT_KERNEL", "FFTKernel", "fft_kernel",
            "fft_correlate", "fft_filter_cycles", "fft_cycles_1d", "twiddles_q15",
-           "gaussian_kernel_q15", "choose_tile", "fft_dm_words", "bound_map"]
+           "gaussian_kernel_q15", "choose_tile", "fft_dm_words"]
 
 FFT_TILES = (16, 32, 64)
 FLIGHT_TILES = (16, 32)          # tile buffers that fit the DSP data memory beside a 64x64 window
@@ -493,7 +493,6 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
     re = np.zeros((T, T), np.int64)
     im = np.zeros((T, T), np.int64)
     mk = m * ksum
-    sq2 = math.sqrt(2.0)
     for ti in range(nti):
         for tj in range(ntj):
             # ---- fill: replicate-padded window rows ti*V.., cols tj*V.., x - m, zeros past it ----
@@ -636,9 +635,3 @@ def fft_correlate(img, taps, tile=None, ledger=None, stage=None, return_info=Fal
                  "ek": kern.ek, "cycles": cyc}
 
 
-def bound_map(info, shape):
-    """Per-pixel error bound (h, w) from :func:`fft_correlate`'s info (each pixel gets its tile's)."""
-    V = info["valid"]
-    b = info["bounds"]
-    h, w = shape
-    return np.repeat(np.repeat(b, V, 0), V, 1)[:h, :w]

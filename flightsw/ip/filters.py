@@ -42,7 +42,7 @@ from numba import njit
 from flightsw.arith.adsp2100 import correlate_cycles
 
 __all__ = ["SPATIAL_SIZES", "DEFAULT_KERNELS", "smoothing_kernel", "matched_kernel",
-           "validate_kernel", "correlate_q15", "correlate_q15_exact", "filter_cycles", "pad_cycles",
+           "validate_kernel", "correlate_q15", "filter_cycles", "pad_cycles",
            "gaussian_taps_q15", "matched_kernel_any"]
 
 SPATIAL_SIZES = (3, 5, 7)
@@ -352,15 +352,6 @@ def correlate_q15(img, kern, ledger=None, stage=None):
         k = kern.shape[0]
         ledger.charge("dsp", stage or f"filter{k}x{k}", filter_cycles(img.shape[0], img.shape[1], k))
     return out
-
-
-def correlate_q15_exact(img, kern):
-    """Reference path through :func:`flightsw.arith.adsp2100.correlate_valid_q15` (int64 MR emulation)
-    on the replicate-padded image; bit-identical to :func:`correlate_q15`."""
-    from flightsw.arith.adsp2100 import correlate_valid_q15
-    kern = np.asarray(kern, np.int16)
-    img = as_words(img)
-    return correlate_valid_q15(pad_nearest(img, kern.shape[0] // 2), kern)
 
 
 def pad_cycles(h, w, p):

@@ -27,8 +27,7 @@ from flightsw.ip import detrend as dt
 from flightsw.ip import fftfilter as fft
 from flightsw.ip import filters as flt
 from flightsw.ip import threshold as th
-from flightsw.ip.backend import (BACK_KEYS, BackendResult, backend_k, backend_params, enc32,
-                                 result_from_pack)
+from flightsw.ip.backend import BACK_KEYS, BackendResult, backend_k, backend_params, enc32
 from flightsw.ip.preprocess import Subimage, compact_k, window_origin
 from flightsw.ip.rank import record_words
 from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, DetrendParams,

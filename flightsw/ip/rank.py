@@ -42,7 +42,7 @@ from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
 
-__all__ = ["rank", "rank_words", "RankResult", "gof_chi2", "gof_approx", "flight_gof",
+__all__ = ["rank", "rank_words", "RankResult", "flight_gof",
            "quantise", "RANK_MIX", "rank_cycles"]
 
 _LN2 = encode32(math.log(2.0), rounding="nearest")
@@ -313,25 +313,6 @@ def rank(feats, record, centroid_mean=None, ledger: Ledger | None = None,
 # ------------------------------------------------------------------------------------------------
 # ground-side comparisons (float64; not in the flight path)
 # ------------------------------------------------------------------------------------------------
-def gof_chi2(d, n):
-    """Exact GOF: ``P(chi2_n >= d) = scipy.stats.chi2.sf(d, n)`` (ground-side comparison)."""
-    from scipy.stats import chi2
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n={n!r} must be an int >= 1")
-    d = np.asarray(d, np.float64)
-    if np.any(d < 0) or not np.all(np.isfinite(d)):
-        raise ValueError("d must be finite and >= 0")
-    return chi2.sf(d, n)
-
-
-def gof_approx(d, n):
-    """The paper's approximation ``exp(-d^2 ln2 / n^2)`` in float64 (ground-side reference)."""
-    if not isinstance(n, (int, np.integer)) or n < 1:
-        raise ValueError(f"n={n!r} must be an int >= 1")
-    d = np.asarray(d, np.float64)
-    return np.exp(-d * d * math.log(2.0) / (n * n))
-
-
 @njit(cache=True)
 def _flight_gof_kernel(dw, n):
     """The flight GOF ``exp(-d^2 ln2 / n^2)`` of packed 32-bit distance words ``dw`` (int64 [k])

@@ -27,7 +27,7 @@ Error bound against float64 ``T = mean + alpha * std`` (population std, ``numpy.
 ``|m4/16 - mean| <= 1/32``; ``|v8/256 - var| <= 1/512``, so ``sqrt(v8)`` is within
 ``1/(512 * std)`` of std (tiny for std >= 1) and the floor loses ``< 1/16``: ``d4/16`` is in
 ``(std - 1/16 - eps, std]``; then ``alpha * d4`` is rounded to 1/16 with alpha exactly ``alpha_q12 /
-4096``. Hence ``|T4/16 - T| <= 1/32 + alpha * (1/16 + eps) + 1/32`` (:func:`threshold_bound`).
+4096``. Hence ``|T4/16 - T| <= 1/32 + alpha * (1/16 + eps) + 1/32`` (checked in ``tests/ip_reference.py``).
 
 Cycles: EXPADJ 1 + shift 1 + MAC 1 + double add 2 per pixel (stats), compare/select/store 4 per pixel,
 3 per row and pass, + 250 for the divisions (2 x 32/16 multiprecision divides), the multiprecision
@@ -43,7 +43,7 @@ from numba import njit
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.budget import m1750_cycles
 
-__all__ = ["threshold", "threshold_stats", "threshold_cycles", "threshold_bound", "isqrt32",
+__all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
            "ISQRT_CYCLES"]
 
@@ -244,12 +244,6 @@ def threshold(img, alpha, mode="binarize", ledger=None, stage="threshold", alpha
 def threshold_cycles(h, w):
     """ADSP-2100 cycles of the threshold step on an h x w window."""
     return int(h * w * (5 + 4) + 2 * 3 * h + 250)
-
-
-def threshold_bound(alpha, std):
-    """Bound of ``|T4/16 - (mean + alpha*std)|`` (s = 0), host float for tests."""
-    eps = 1.0 / (512 * std) if std > 0 else 1 / 16
-    return 1 / 32 + alpha * (1 / 16 + eps) + 1 / 32
 
 
 @dataclass
