@@ -6,16 +6,22 @@ Entry points: ``Scenario.load(name_or_path, seed=None)`` -> ``.frames()`` / ``.w
 ``RealSequence.load(path)``.
 """
 from .imagers import IMAGER_IDS, IMAGERS, Imager, get_imager
-from .realdata import RealSequence
 from .scenario import Scenario, ScenarioError
-from .sky import StarCatalog
 
 __all__ = ["Scenario", "ScenarioError", "RealSequence", "StarCatalog", "Imager", "IMAGERS", "IMAGER_IDS",
            "get_imager", "World"]
 
 
 def __getattr__(name):
+    """The heavier parts load on first use (a command that only reads scenario files does not pay
+    for SciPy and the renderer's kernels)."""
     if name == "World":
         from .world import World
         return World
+    if name == "RealSequence":
+        from .realdata import RealSequence
+        return RealSequence
+    if name == "StarCatalog":
+        from .sky import StarCatalog
+        return StarCatalog
     raise AttributeError(name)

@@ -162,8 +162,9 @@ def test_budget_cli_explain(tmp_path, capsys):
     assert "window_in" in text and "margin" in text and "assumed" in text
     d = json.loads(out.read_text())
     assert {h["name"]: h["verdict"] for h in d["hypotheses"]}["memory-fft-pow2"] == "YES"
-    with pytest.raises(SystemExit):
-        main(["budget", "--hypothesis", "nope"])
+    assert main(["budget", "--hypothesis", "nope"]) == 2        # one line, exit 2
+    err = capsys.readouterr().err
+    assert err.startswith("uvisi budget: error: --hypothesis 'nope': not one of today,")
 
 
 def test_rescore_prices_a_frame_under_a_hypothesis(scene):

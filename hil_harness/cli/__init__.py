@@ -141,7 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     console.set_level(console.QUIET if args.quiet else console.VERBOSE if args.verbose
                       else console.NORMAL)
-    console.watch_compilation()
+    if getattr(args, "compiles", True):      # commands that run no flight code say compiles=False
+        console.watch_compilation()
     if not getattr(args, "func", None):
         parser.print_help()
         return EXIT_OK

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 def register(sub) -> None:
     p = sub.add_parser("scenarios", help="list the shipped scenarios", description=__doc__)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, compiles=False)
 
 
 def run(args) -> int:

@@ -6,10 +6,18 @@ Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gat
 """
 from __future__ import annotations
 
-from hil_harness.sequences import resolve_sequence  # noqa: F401  (re-exported: public here before)
 
 __all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "resolve_sequence",
            "default_sequence_name", "peak_gate_record", "tile_for"]
+
+def __getattr__(name):
+    """``resolve_sequence`` stays importable from here (it was public here before) without loading
+    the flight code when only :data:`JOBS` is read (``uvisi --help`` builds its text from it)."""
+    if name == "resolve_sequence":
+        from hil_harness.sequences import resolve_sequence
+        return resolve_sequence
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: job -> (shipped sequence, shipped record, when to use it)
 JOBS = {
