@@ -42,6 +42,9 @@ from .recording import Recorder, Recording
 from .run_folder import RunFolder
 
 MAX_COMMAND_WORDS = 128
+#: tables/stars: the catalogued stars in the field of each frame (truth, for the viewer)
+STARS_DTYPE = np.dtype([("k", np.int32), ("hip", np.int32), ("row", np.float32),
+                        ("col", np.float32), ("mag", np.float32)])
 #: tables/ledger: one row per (frame, processor, stage)
 LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
@@ -179,8 +182,16 @@ class EventWriter:
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
+        stars = (o.truth or {}).get("stars")
+        if stars is not None and len(stars):
+            st = np.empty(len(stars), STARS_DTYPE)
+            st["k"] = o.k
+            for name in ("hip", "row", "col", "mag"):
+                st[name] = stars[name]
+            r.append_rows("stars", st)
         snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
         if snap:
+            snap["ekf_p_pos"] = _ekf_position_cov(self.ev.tp)
             r.append("tp", snap)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
@@ -192,6 +203,17 @@ class EventWriter:
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
                                        for k in ("render", "ip", "tp", "world", "total")}})
+
+
+def _ekf_position_cov(tp) -> np.ndarray:
+    """The TP's EKF position covariance (3, 3), m^2, decoded from its 1750A words (NaN when the
+    EKF does not run): the snapshot keeps its diagonal only, the viewer draws the ellipse."""
+    from flightsw.arith.m1750 import decode48_array
+    from flightsw.tp.ekf import E_P, E_RUN, UT
+    e = getattr(tp, "E", None)
+    if e is None or not e[E_RUN]:
+        return np.full((3, 3), np.nan)
+    return decode48_array(e[E_P + UT[:3, :3]])
 
 
 def _snapshot_row(tp, k, kinds: dict) -> dict:
@@ -558,11 +580,20 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
     path = rec.close()
     s["recording"] = str(path)
     if figures:
-        s["figures"] = [str(p) for p in event_figures(ev, out)]
+        s["figures"] = [str(p) for p in event_figures(ev, out)] + [str(_view_page(path, progress))]
     tmp = out / "summary.json.tmp"
     tmp.write_text(json.dumps(s, indent=2, default=_json_default))
     tmp.replace(out / "summary.json")
     return s
+
+
+def _view_page(recording: Path, progress: bool) -> Path:
+    """``view.html`` beside the recording: the event viewer's page (:mod:`hil_harness.view`)."""
+    from hil_harness.console import note
+    from hil_harness.view import write_page
+    out = recording.parent / "view.html"
+    note(f"uvisi event: writing the event viewer page {out} ...")
+    return write_page(recording, out, progress=progress)
 
 
 def _json_default(o):
@@ -627,6 +658,21 @@ def _replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
                        record=record, selection=SelectionParams(**cfgd["selection"]),
                        tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
                        processors=procs or None, hypothesis=cfgd.get("hypothesis"))
+
+
+def replay_frames(rec: Recording, stages: bool = False):
+    """Re-run the flight IP and TP on an open recording's frames (as :func:`replay` does), yielding
+    each frame's :class:`FrameOutcome` in order; with ``stages`` every processed frame carries its
+    stage images (``outcome.stages``: ``[(name, image)...]``). The recording must hold frames."""
+    n = rec.n_frames or 0
+    if n and "frames" not in rec.arrays():
+        raise ValueError(f"{rec.path}: the recording holds no frames (it was made with --no-frames)")
+    if n == 0:
+        return
+    ev = _ReplayEvent(_replay_config(rec.path, rec, n), rec)
+    ev.all_stages = bool(stages)
+    for _ in range(n):
+        yield ev.step()
 
 
 def replay(path) -> dict:
