@@ -15,24 +15,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from .data import extract
+from .data import extract, open_recording
 from .server import make_server
 
 __all__ = ["extract", "write_page", "make_server", "open_recording"]
-
-
-def open_recording(path):
-    """Open a recording for viewing: ``recording.h5`` or an interrupted ``recording.partial.h5``
-    (given either name, the one that exists); FileNotFoundError / ValueError with one line."""
-    from hil_harness.event.recording import Recording, partial_path
-    p = Path(path)
-    if p.is_dir():
-        raise IsADirectoryError(f"{p}: is a folder; give its recording.h5")
-    if not p.exists() and partial_path(p).exists():
-        p = partial_path(p)
-    if not p.exists():
-        raise FileNotFoundError(f"{p}: no such recording")
-    return Recording(p)
 
 
 def write_page(recording, out=None, progress: bool = False) -> Path:

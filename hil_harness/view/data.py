@@ -17,6 +17,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 
@@ -34,6 +35,20 @@ _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
 _FRAME_COLUMNS = ("k", "t", "skip", "n_candidates", "n_blobs", "alpha", "pred_row", "pred_col",
                   "track_row", "track_col", "error_urad", "overrun", "att_valid", "locked",
                   "status", "n_star_gates", "n_object_gates")
+
+
+def open_recording(path):
+    """Open a recording for viewing: ``recording.h5`` or an interrupted ``recording.partial.h5``
+    (given either name, the one that exists); FileNotFoundError / ValueError with one line."""
+    from hil_harness.event.recording import Recording, partial_path
+    p = Path(path)
+    if p.is_dir():
+        raise IsADirectoryError(f"{p}: is a folder; give its recording.h5")
+    if not p.exists() and partial_path(p).exists():
+        p = partial_path(p)
+    if not p.exists():
+        raise FileNotFoundError(f"{p}: no such recording")
+    return Recording(p)
 
 
 def _num(x, nd: int = 6):

@@ -21,7 +21,7 @@ from pathlib import Path
 
 from hil_harness.console import debug
 
-from .data import extract
+from .data import extract, open_recording
 
 HOST = "127.0.0.1"
 _ROUTE = re.compile(r"^/(frames|stages)/(\d+)$")
@@ -33,7 +33,6 @@ class ViewServer(ThreadingHTTPServer):
     daemon_threads = True
 
     def __init__(self, recording, port: int):
-        from . import open_recording
         from .page import page_html, script_json
         from .stages import StageReplay, stage_note
         self.rec = open_recording(recording)

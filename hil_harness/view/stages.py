@@ -2,7 +2,7 @@
 
 The recorder keeps the stage images of one frame only (``stage_frame``: 7 images of 64 x 64 are
 ~40 kB a frame, too much for every frame). The viewer replays the flight IP and TP on the recorded
-frames and attitude data (:func:`hil_harness.event.io.replay_frames`, the code ``uvisi replay``
+frames and attitude data (:func:`hil_harness.event.replay.replay_frames`, the code ``uvisi replay``
 runs) with the stage images kept for every processed frame, and checks that each replayed candidate
 message and track command equals the recorded words: the stages shown are those of the run that
 produced the recording, bit for bit, or the page says from which frame they are not.
@@ -27,7 +27,7 @@ class StageReplay:
     """
 
     def __init__(self, rec):
-        from hil_harness.event.io import replay_frames
+        from hil_harness.event.replay import replay_frames
         self.rec = rec
         self.n = int(rec.n_frames or 0)
         self.done: dict[int, list] = {}
