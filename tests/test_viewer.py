@@ -210,6 +210,13 @@ def test_serve_fetches_frames_on_demand(event, tmp_path):
         st = json.loads(body)
         assert status == 200 and {e["name"] for e in st["stages"]} == stage_names
         assert st["mismatch"] is None
+        with h5py.File(rec_path, "r") as f:
+            st = f["tables/stars"][()]
+        st = st[st["k"] == 9]
+        got = np.array(json.loads(_get(srv.url + "stars/9")[1]))
+        assert data["stars"] == [] and len(got) == len(st) > 50        # stars come per frame
+        np.testing.assert_allclose(got[:, 0], st["row"], atol=0.005)
+        np.testing.assert_allclose(got[:, 2], st["mag"], atol=0.05)
         assert _get(srv.url + f"frames/{FRAMES}")[0] == 404
         assert _get(srv.url + "etc/passwd")[0] == 404
         assert json.loads(_get(srv.url + "data.json")[1])["recording"]["frames_held"] == FRAMES

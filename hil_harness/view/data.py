@@ -51,8 +51,9 @@ def open_recording(path):
     return Recording(p)
 
 
-def _num(x, nd: int = 6):
-    """A JSON number (rounded to ``nd`` significant digits) or None for NaN / inf."""
+def _num(x, nd: int = 9):
+    """A JSON number (``nd`` significant digits: 9 keep a 1750A 32-bit value exact) or None for
+    NaN / inf."""
     x = float(x)
     if not math.isfinite(x):
         return None
@@ -152,7 +153,7 @@ def _candidates(rec, n: int) -> list:
             out.append([])
             continue
         rows = rows[np.argsort(rows["rank"], kind="stable")]
-        out.append([[int(r["rank"])] + [_num(r[x], 7) if x != "label" else int(r[x]) for x in names]
+        out.append([[int(r["rank"])] + [_num(r[x]) if x != "label" else int(r[x]) for x in names]
                     for r in rows])
     return out
 
@@ -211,13 +212,14 @@ def _tp_state(rec, n: int) -> list:
     return out
 
 
-def _stars(rec, n: int) -> list | None:
-    """Per frame the catalogued stars in the field ``[[row, col, mag], ...]`` (None: not recorded)."""
+def stars(rec, n: int) -> list | None:
+    """Per frame the catalogued stars in the field ``[[row, col, mag], ...]`` (pixels to 0.01,
+    magnitude to 0.1; None: not recorded)."""
     st = _table(rec, "stars")
     if st is None:
         return None
-    return [[[_num(r["row"]), _num(r["col"]), _num(r["mag"], 3)] for r in rows]
-            for rows in _by_frame(st, n)]
+    return [[[round(float(r["row"]), 2), round(float(r["col"]), 2), round(float(r["mag"]), 1)]
+             for r in rows] for rows in _by_frame(st, n)]
 
 
 def _imagers(at: dict) -> dict:
@@ -338,7 +340,8 @@ def extract(rec) -> dict:
     the ``tables/frames`` fields, ``imager``, truth, ``window``, the decoded command's
     ``object_index`` / ``status_names`` / ...), ``candidates`` (per frame, rows ``[rank, label,
     distance, gof, 12 features]``), ``tp`` (per frame snapshot and gates), ``ellipse`` (per frame
-    ``[row, col, a, b, angle]`` or null), ``stars`` (per frame ``[[row, col, mag]]`` or null),
+    ``[row, col, a, b, angle]`` or null), ``stars`` (per frame ``[[row, col, mag]]``, null when
+    not recorded; the ``--serve`` page fetches them per frame instead),
     ``budget`` (stage names and per frame ``[[stage, ms]]``), ``events``, and constants
     (``feature_names``, ``candidate_columns``, ``rules``, ``gate``, ``processors``, ``period_ms``).
     """
@@ -373,7 +376,7 @@ def extract(rec) -> dict:
         "candidates": _candidates(rec, n),
         "tp": _tp_state(rec, n),
         "ellipse": ellipse, "covariance": cov,
-        "stars": _stars(rec, n),
+        "stars": stars(rec, n),
         "budget": {"stages": stage_names, "frames": budget},
         "events": _events(at, rec, n),
         "feature_names": list(FEATURE_NAMES),

@@ -75,6 +75,16 @@ async function stageImages(k) {
   if (state.stageCache.size > 16) state.stageCache.delete(state.stageCache.keys().next().value);
   return p;
 }
+async function starsOf(k) {               // the catalogued stars of frame k (fetched when served)
+  if (!D.stars) return [];
+  if (IMG.mode === "inline") return D.stars[k] || [];
+  if (!state.starCache) state.starCache = new Map();
+  if (!state.starCache.has(k)) {
+    state.starCache.set(k, fetch(`stars/${k}`).then((r) => (r.ok ? r.json() : [])));
+    if (state.starCache.size > 64) state.starCache.delete(state.starCache.keys().next().value);
+  }
+  return (await state.starCache.get(k)) || [];
+}
 function percentile(pix, q) {
   const a = Float64Array.from(pix).sort();
   return a[Math.min(a.length - 1, Math.max(0, Math.floor(q / 100 * (a.length - 1))))];
@@ -105,6 +115,7 @@ const off = document.createElement("canvas");
 async function drawFrame() {
   const k = state.k, cv = $("frame"), ctx = cv.getContext("2d");
   const img = await frameImage(k);
+  const stars = $("show-stars").checked ? await starsOf(k) : [];
   if (k !== state.k) return;
   cv.width = D.image_shape[1] * S; cv.height = D.image_shape[0] * S;
   ctx.fillStyle = "#000"; ctx.fillRect(0, 0, cv.width, cv.height);
@@ -119,7 +130,7 @@ async function drawFrame() {
                  "recorded with --no-frames: no images", 20, 30);
   }
   state.img = img;
-  overlays(ctx, k);
+  overlays(ctx, k, stars);
 }
 function box(ctx, r0, c0, h, w, color, dash) {
   ctx.strokeStyle = color; ctx.setLineDash(dash || []);
@@ -130,14 +141,12 @@ function cross(ctx, r, c, color, size) {
   ctx.strokeStyle = color; ctx.beginPath();
   ctx.moveTo(x - s, y); ctx.lineTo(x + s, y); ctx.moveTo(x, y - s); ctx.lineTo(x, y + s); ctx.stroke();
 }
-function overlays(ctx, k) {
+function overlays(ctx, k, stars) {
   ctx.lineWidth = 1.5; ctx.font = "11px sans-serif";
   const w = F.window, comp = w.compaction[k] || 1;
   if (w.row0[k] !== null) box(ctx, w.row0[k], w.col0[k], w.rows[k] * comp, w.cols[k] * comp, COLORS.window);
-  if ($("show-stars").checked && D.stars) {
-    ctx.strokeStyle = COLORS.stars;
-    for (const [r, c] of D.stars[k] || []) { ctx.beginPath(); ctx.arc(c * S, r * S, 5, 0, 7); ctx.stroke(); }
-  }
+  ctx.strokeStyle = COLORS.stars;
+  for (const [r, c] of stars) { ctx.beginPath(); ctx.arc(c * S, r * S, 5, 0, 7); ctx.stroke(); }
   const ci = D.candidate_columns.indexOf("row"), cj = D.candidate_columns.indexOf("col");
   for (const row of D.candidates[k]) {
     const chosen = row[0] === F.object_index[k] + 1;
@@ -247,7 +256,8 @@ function budgetPanel(k) {
     ctx.fillStyle = "#333"; ctx.fillText(p, 2, y + 12);
     ctx.fillStyle = "#eee"; ctx.fillRect(x0, y, w, 16);
     ctx.fillStyle = ms > D.period_ms ? "#d33" : "#48c"; ctx.fillRect(x0, y, Math.min(1, ms / D.period_ms) * w, 16);
-    ctx.fillStyle = "#000"; ctx.fillText(`${ms.toFixed(2)} ms`, x0 + 4, y + 12);
+    ctx.fillStyle = "#000"; ctx.textAlign = "right";
+    ctx.fillText(`${ms.toFixed(2)} ms`, x0 + w - 4, y + 12); ctx.textAlign = "left";
   });
   $("budget-table").tBodies[0].innerHTML = rows.map(([i, ms]) =>
     `<tr><td style="text-align:left">${D.budget.stages[i]}</td><td data-stage="${D.budget.stages[i]}">${fmt(ms, 4)}</td></tr>`).join("");
@@ -339,7 +349,10 @@ function go(k) {
   $("imager").textContent = `${F.imager[k]}${F.skip[k] ? ` (${F.skip_reason[k]})` : ""}`;
   if (location.hash !== `#frame=${k}`) history.replaceState(null, "", `#frame=${k}`);
   tpPanel(k); candTable(k); budgetPanel(k); drawStrips();
-  shown = Promise.all([drawFrame(), stagesPanel(k)]).then(() => { document.body.dataset.frame = k; })
+  const drawn = drawFrame().then(() => {
+    if (window.uvisiView.firstFrameMs === null) window.uvisiView.firstFrameMs = performance.now();
+  });
+  shown = Promise.all([drawn, stagesPanel(k)]).then(() => { document.body.dataset.frame = k; })
     .catch((err) => { console.error(err); throw err; });
   return shown;
 }
@@ -402,6 +415,8 @@ function init() {
   go(fromHash());
 }
 // for tests and the console: the frame shown, a pixel's stored value, a promise of the current draw
-window.uvisiView = { go, get frame() { return state.k; }, pixel: pixelAt, shown: () => shown, data: D };
+// (firstFrameMs: performance.now() when the first frame was drawn, the load time bench/ measures)
+window.uvisiView = { go, get frame() { return state.k; }, pixel: pixelAt, shown: () => shown, data: D,
+                     firstFrameMs: null };
 init();
 })();

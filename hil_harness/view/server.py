@@ -1,14 +1,16 @@
 """``uvisi view --serve``: the page of a recording too large to inline, served from 127.0.0.1.
 
-The page carries the per-frame data (tables, candidates, TP state: ~1 kB a frame) and fetches each
-frame's image when it is shown, never all of them up front. Routes (GET)::
+The page carries the per-frame data (tables, candidates, TP state: ~2 kB a frame) and fetches each
+frame's image, stages and stars when it is shown, never all of them up front. Routes (GET)::
 
     /                the page (no images inside)
     /data.json       the page's data (:func:`.data.extract`)
     /frames/<k>      frame k packed (:func:`.codec.pack`: deflated byte planes of uint16[244, 256])
+    /stars/<k>       frame k's catalogued stars, JSON ``[[row, col, mag]...]`` (null: not recorded)
     /stages/<k>      frame k's stage images, JSON ``{"stages": [{"name", "shape", "dtype", "data"}],
                      "mismatch": first frame the replay did not reproduce or null}``, replayed on
-                     demand in frame order (:class:`.stages.StageReplay`)
+                     demand in frame order (:class:`.stages.StageReplay`), and ahead of
+                     the requests by a background thread
 
 Anything else is 404; a frame number outside the recording is 404 with a one-line reason.
 """
@@ -22,9 +24,11 @@ from pathlib import Path
 from hil_harness.console import debug
 
 from .data import extract, open_recording
+from .page import frame_bytes, page_html, script_json
+from .stages import StageReplay, stage_note
 
 HOST = "127.0.0.1"
-_ROUTE = re.compile(r"^/(frames|stages)/(\d+)$")
+_ROUTE = re.compile(r"^/(frames|stages|stars)/(\d+)$")
 
 
 class ViewServer(ThreadingHTTPServer):
@@ -33,11 +37,11 @@ class ViewServer(ThreadingHTTPServer):
     daemon_threads = True
 
     def __init__(self, recording, port: int):
-        from .page import page_html, script_json
-        from .stages import StageReplay, stage_note
         self.rec = open_recording(recording)
         try:
             self.data = extract(self.rec)
+            self.stars = self.data["stars"]
+            self.data["stars"] = [] if self.stars is not None else None    # fetched per frame
             self.stage_replay = StageReplay(self.rec)
             self.data["stage_mismatch"] = None
             self.data["stage_note"] = stage_note(self.data, replayed=True)
@@ -48,25 +52,36 @@ class ViewServer(ThreadingHTTPServer):
         except BaseException:
             self.rec.close()
             raise
+        self._closing = threading.Event()
+        self._ahead = threading.Thread(target=self._replay_ahead, daemon=True)
+        self._ahead.start()
+
+    def _replay_ahead(self) -> None:
+        """Replay the stages of every frame in the background, one frame per lock, so that a jump
+        far into the event finds its stages ready (a request for a later frame replays up to it)."""
+        while not self._closing.is_set():
+            with self.lock:
+                if self._closing.is_set() or not self.stage_replay.advance():
+                    return
 
     @property
     def url(self) -> str:
         return f"http://{HOST}:{self.server_address[1]}/"
 
     def frame(self, k: int) -> bytes:
-        from .page import frame_bytes
         with self.lock:
             return frame_bytes(self.rec, k)
 
     def stages(self, k: int) -> bytes:
-        from .page import script_json
         with self.lock:
             st = self.stage_replay.get(k)
             return script_json({"stages": st, "mismatch": self.stage_replay.mismatch}).encode("utf-8")
 
     def server_close(self) -> None:
+        self._closing.set()
         super().server_close()
-        self.rec.close()
+        with self.lock:
+            self.rec.close()
 
 
 class ViewHandler(BaseHTTPRequestHandler):
@@ -78,7 +93,10 @@ class ViewHandler(BaseHTTPRequestHandler):
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
         self.end_headers()
-        self.wfile.write(body)
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):
+            debug(f"uvisi view: {self.path}: the browser went away before the answer")
 
     def do_GET(self) -> None:                                   # noqa: N802 (http.server's name)
         srv, path = self.server, self.path.split("?", 1)[0]
@@ -98,6 +116,9 @@ class ViewHandler(BaseHTTPRequestHandler):
             if not srv.data["recording"]["has_frames"]:
                 return self._send(404, b"recorded with --no-frames: no images\n", "text/plain")
             return self._send(200, srv.frame(k), "application/octet-stream")
+        if kind == "stars":
+            st = srv.stars[k] if srv.stars is not None else None
+            return self._send(200, script_json(st).encode("utf-8"), "application/json")
         return self._send(200, srv.stages(k), "application/json")
 
     def log_message(self, fmt, *args) -> None:
