@@ -95,7 +95,7 @@ def main(argv=None) -> int:
             pg = browser.new_page(viewport={"width": 1400, "height": 1000})
             pg.goto(page.as_uri() + "#frame=112")
             pg.wait_for_function("document.body.dataset.frame === '112'")
-            pg.screenshot(path=args.screenshot)
+            pg.screenshot(path=args.screenshot, full_page=True)
             print(f"screenshot: {args.screenshot}")
         if not args.no_long:
             serve_long(browser, tmp)

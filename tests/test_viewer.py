@@ -188,7 +188,7 @@ def _get(url):
         return exc.code, exc.read()
 
 
-def test_serve_fetches_frames_on_demand(event, tmp_path):
+def test_serve_fetches_frames_on_demand(event, tmp_path, capsys):
     rec_path = tmp_path / "recording.h5"
     shutil.copy(event / "recording.h5", rec_path)
     srv = make_server(rec_path, port=0)
@@ -220,6 +220,9 @@ def test_serve_fetches_frames_on_demand(event, tmp_path):
         assert _get(srv.url + f"frames/{FRAMES}")[0] == 404
         assert _get(srv.url + "etc/passwd")[0] == 404
         assert json.loads(_get(srv.url + "data.json")[1])["recording"]["frames_held"] == FRAMES
+        port = str(srv.server_address[1])                  # a second server on the same port
+        assert cli(["view", str(rec_path), "--serve", "--port", port]) == 2
+        assert "cannot listen on 127.0.0.1" in capsys.readouterr().err
     finally:
         srv.shutdown()
         srv.server_close()

@@ -107,7 +107,9 @@ const COLORS = { window: "#39f", cand: "#ff0", chosen: "#0f0", truth: "#f0f", pr
 function legend() {
   const items = [["window", "processing window"], ["cand", "candidates (rank)"],
                  ["chosen", "TP's choice"], ["truth", "truth: object"], ["pred", "TP prediction + gate"],
-                 ["star", "star gate"], ["object", "object gate"], ["ellipse", "EKF 1-sigma ellipse"]];
+                 ["star", "star gate"], ["object", "object gate"],
+                 ["ellipse", D.covariance === "diagonal" ? "EKF 1-sigma ellipse (recorded diagonal only)" :
+                  "EKF 1-sigma ellipse"]];
   $("legend").innerHTML = items.map(([c, t]) => `<span><i style="background:${COLORS[c]}"></i>${t}</span>`)
     .join("");
 }

@@ -48,11 +48,11 @@ class ViewServer(ThreadingHTTPServer):
             self.page = page_html(self.data, {"mode": "serve"}).encode("utf-8")
             self.data_json = script_json(self.data).encode("utf-8")
             self.lock = threading.Lock()
+            self._closing = threading.Event()
             super().__init__((HOST, int(port)), ViewHandler)
         except BaseException:
             self.rec.close()
             raise
-        self._closing = threading.Event()
         self._ahead = threading.Thread(target=self._replay_ahead, daemon=True)
         self._ahead.start()
 
