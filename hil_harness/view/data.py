@@ -217,7 +217,9 @@ def stars(rec, n: int) -> list | None:
     magnitude to 0.1; None: not recorded)."""
     st = _table(rec, "stars")
     if st is None:
-        return None
+        tr = _table(rec, "truth")        # no star in any frame, or a recording made before stars
+        none_in_field = tr is not None and "n_stars" in tr.dtype.names and not tr["n_stars"].any()
+        return [[] for _ in range(n)] if none_in_field else None
     return [[[round(float(r["row"]), 2), round(float(r["col"]), 2), round(float(r["mag"]), 1)]
              for r in rows] for rows in _by_frame(st, n)]
 

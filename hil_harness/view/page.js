@@ -327,8 +327,10 @@ function drawStrips() {
   const ctx = cvs[STRIPS.length].getContext("2d");
   ctx.clearRect(0, 0, 900, 44); ctx.fillStyle = "#fff"; ctx.fillRect(110, 0, 790, 44);
   ctx.fillStyle = "#333"; ctx.fillText("faults / uplinks", 2, 18);
+  ctx.fillStyle = "#777"; ctx.fillText("red: refused", 2, 34);
   for (const e of D.events) {
-    ctx.fillStyle = e.kind.startsWith("uplink") ? "#2a2" : e.kind.startsWith("switch") ? "#a2a" : "#d22";
+    ctx.fillStyle = /refused|rejected/.test(e.verdict) ? "#d22" : e.kind.startsWith("uplink") ? "#2a2" :
+      e.kind.startsWith("switch") ? "#a2a" : "#e80";
     ctx.fillRect(xs(e.frame) - 1, 4, 3, 36);
   }
   F.skip.forEach((s, k) => { if (s) { ctx.fillStyle = "#999"; ctx.fillRect(xs(k), 38, 2, 6); } });
