@@ -125,6 +125,20 @@ def test_stars_recorded_and_stages_replayed_for_every_frame(event):
         assert np.array_equal(replayed[name], img), name
 
 
+def test_page_of_a_recording_replay_cannot_run(event, tmp_path):
+    path = tmp_path / "recording.h5"
+    shutil.copy(event / "recording.h5", path)
+    with h5py.File(path, "r+") as f:               # a configuration replay cannot rebuild
+        cfg = json.loads(f.attrs["config"])
+        del cfg["sequence"]
+        f.attrs["config"] = json.dumps(cfg)
+        sk = int(f.attrs["stage_frame"])
+    data, images = page_parts(write_page(path).read_text())
+    assert list(images["stages"]) == [str(sk)]      # the recording's own stage frame, and why
+    assert "could not be replayed" in data["stage_note"] and data["stage_error"]
+    assert data["candidates"] and len(images["frames"]) == FRAMES
+
+
 def test_covariance_ellipse_closed_form():
     from groundsim.imagers import get_imager
     im = get_imager("wfov_vis")

@@ -66,6 +66,11 @@ async function stageImages(k) {
         $("warnings").insertAdjacentHTML("beforeend", `<div class="warn" data-warning>The replay of the ` +
           `stages differs from the recording from frame ${o.mismatch}.</div>`);
       }
+      if (o.error && !state.stageError) {
+        state.stageError = o.error;
+        $("warnings").insertAdjacentHTML("beforeend", `<div class="warn" data-warning>The stages could ` +
+          `not be replayed (${o.error}): only the recording's own stage frame is shown.</div>`);
+      }
       return o.stages;
     });
   }

@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from .codec import pack, pack_b64
+from .codec import pack
 from .data import extract
+from .stages import recorded_stages, stage_entries, stage_note, stages_by_frame
 
 #: bytes above which ``uvisi view`` suggests ``--serve`` (a browser holds the whole page in memory)
 LARGE_PAGE_BYTES = 100_000_000
@@ -54,23 +55,6 @@ def page_html(data: dict, images: dict) -> str:
     return html
 
 
-def recorded_stages(rec) -> tuple[int | None, list]:
-    """The stage images the recording holds (one frame): ``(frame, [(name, image)...])`` in the
-    order they were recorded."""
-    names = [a for a in rec.arrays() if a.startswith("stage_")]
-    if not names:
-        return None, []
-    names.sort(key=lambda a: int(rec.array(a).attrs.get("checksum_id", 0)))
-    k = rec.attrs.get("stage_frame")
-    out = [(a[len("stage_"):], np.asarray(rec.array(a)[0])) for a in names if rec.array(a).shape[0]]
-    return (int(k) if k is not None else None), out
-
-
-def stage_entries(stages: list) -> list:
-    """``[(name, image)...]`` as the page's packed entries."""
-    return [dict(pack_b64(img), name=name) for name, img in stages]
-
-
 def frame_bytes(rec, k: int) -> bytes:
     """Frame ``k`` of a recording, packed (:func:`.codec.pack`)."""
     return pack(np.asarray(rec.array("frames")[k]))
@@ -109,7 +93,6 @@ def write_atomic(path: Path, text: str) -> Path:
 
 def build(rec, progress: bool = False, replay_stages: bool = True) -> str:
     """The self-contained page of an open recording."""
-    from .stages import stage_note, stages_by_frame
     data = extract(rec)
     stages = stages_by_frame(rec, data, progress=progress) if replay_stages else {}
     replayed = bool(stages)

@@ -8,9 +8,9 @@ frame's image, stages and stars when it is shown, never all of them up front. Ro
     /frames/<k>      frame k packed (:func:`.codec.pack`: deflated byte planes of uint16[244, 256])
     /stars/<k>       frame k's catalogued stars, JSON ``[[row, col, mag]...]`` (null: not recorded)
     /stages/<k>      frame k's stage images, JSON ``{"stages": [{"name", "shape", "dtype", "data"}],
-                     "mismatch": first frame the replay did not reproduce or null}``, replayed on
-                     demand in frame order (:class:`.stages.StageReplay`), and ahead of
-                     the requests by a background thread
+                     "mismatch": first frame the replay did not reproduce or null, "error": why
+                     the replay could not run or null}``, replayed in frame order on demand
+                     (:class:`.stages.StageReplay`) and ahead of the requests in a thread
 
 Anything else is 404; a frame number outside the recording is 404 with a one-line reason.
 """
@@ -75,7 +75,8 @@ class ViewServer(ThreadingHTTPServer):
     def stages(self, k: int) -> bytes:
         with self.lock:
             st = self.stage_replay.get(k)
-            return script_json({"stages": st, "mismatch": self.stage_replay.mismatch}).encode("utf-8")
+            return script_json({"stages": st, "mismatch": self.stage_replay.mismatch,
+                                "error": self.stage_replay.error}).encode("utf-8")
 
     def server_close(self) -> None:
         self._closing.set()

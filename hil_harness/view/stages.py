@@ -14,8 +14,21 @@ import numpy as np
 from .codec import pack_b64
 
 
-def _entries(stages) -> list:
+def stage_entries(stages) -> list:
+    """``[(name, image)...]`` as the page's packed entries ``{"name", "shape", "dtype", "data"}``."""
     return [dict(pack_b64(np.asarray(img)), name=str(name)) for name, img in stages or ()]
+
+
+def recorded_stages(rec) -> tuple[int | None, list]:
+    """The stage images the recording holds (one frame): ``(frame, [(name, image)...])`` in the
+    order they were recorded."""
+    names = [a for a in rec.arrays() if a.startswith("stage_")]
+    if not names:
+        return None, []
+    names.sort(key=lambda a: int(rec.array(a).attrs.get("checksum_id", 0)))
+    k = rec.attrs.get("stage_frame")
+    out = [(a[len("stage_"):], np.asarray(rec.array(a)[0])) for a in names if rec.array(a).shape[0]]
+    return (int(k) if k is not None else None), out
 
 
 class StageReplay:
@@ -23,7 +36,8 @@ class StageReplay:
 
     ``get(k)`` returns frame k's entries (``[{"name", "shape", "dtype", "data"}]``, empty for a
     frame the IP did not process); ``mismatch`` is the first frame whose replayed words differ from
-    the recorded ones (None while none does).
+    the recorded ones (None while none does); ``error`` why the replay stopped, if it failed (then
+    ``get`` answers with the recording's own stage frame only).
     """
 
     def __init__(self, rec):
@@ -32,6 +46,7 @@ class StageReplay:
         self.n = int(rec.n_frames or 0)
         self.done: dict[int, list] = {}
         self.mismatch: int | None = None
+        self.error: str | None = None
         self._fr = rec.table("frames")
         self._it = replay_frames(rec, stages=True) if self._replayable() else iter(())
 
@@ -54,9 +69,15 @@ class StageReplay:
             o = next(self._it)
         except StopIteration:
             return False
+        except (ValueError, KeyError, TypeError, OSError) as exc:   # a recording replay cannot run
+            self.error = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            self._it = iter(())
+            k, st = recorded_stages(self.rec)
+            self.done = {k: stage_entries(st)} if st and k is not None else {}
+            return False
         if self.mismatch is None and not self._same(o.k, o):
             self.mismatch = int(o.k)
-        self.done[int(o.k)] = _entries(o.stages)
+        self.done[int(o.k)] = stage_entries(o.stages)
         return True
 
     def get(self, k: int) -> list:
@@ -81,7 +102,8 @@ def stages_by_frame(rec, data: dict, progress: bool = False) -> dict:
         if bar is not None:
             bar.close()
     data["stage_mismatch"] = sr.mismatch
-    return {k: v for k, v in sr.done.items() if v}
+    data["stage_error"] = sr.error
+    return {k: v for k, v in sr.done.items() if v} if sr.error is None else {}
 
 
 def stage_note(data: dict, replayed: bool) -> str:
@@ -90,6 +112,8 @@ def stage_note(data: dict, replayed: bool) -> str:
     r = data["recording"]
     if not r["has_frames"]:
         return "recorded with --no-frames: no stages (they are replayed from the frames)"
+    if data.get("stage_error"):
+        return f"the stages could not be replayed ({data['stage_error']})"
     if data.get("stage_mismatch") is not None:
         return (f"replay differs from the recording from frame {data['stage_mismatch']}: "
                 f"stages after it are not those of the recorded run")
