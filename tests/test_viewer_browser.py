@@ -131,6 +131,15 @@ def test_page_in_chromium(browser, event):
         wait_frame(page, FRAMES - 1)
         check_frame(page, f, FRAMES - 1)
         assert len(page.query_selector_all("#stages canvas")) >= 5
+        sk = int(f.attrs["stage_frame"])                # stage images decoded by the page
+        page.evaluate(f"window.uvisiView.go({sk})")
+        wait_frame(page, sk)
+        for name in [n for n in f["arrays"] if n.startswith("stage_")]:
+            img = f["arrays"][name][0]
+            for r, c in ((0, 0), (31, 30), (40, 17), (63, 63)):
+                got = page.evaluate(f"window.uvisiView.stagePixel('{name[6:]}', {r}, {c})")
+                assert got == int(img[r, c]), (name, r, c)
+        assert int(f["arrays/stage_detrend_highpass"][0].min()) < 0      # signed values seen
         art = Path(os.environ.get("UVISI_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
         art.mkdir(parents=True, exist_ok=True)
         page.keyboard.press("Home")

@@ -24,13 +24,16 @@ import numpy as np
 from flightsw.budget import DEFAULT_PROCESSORS, FRAME_PERIOD_S
 from flightsw.messages import (CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES, CandidateMessage,
                                TrackCommand)
+from hil_harness.event.loop import SKIP_REASONS
 
 #: the TP's decision rules (``tables/tp`` ``decision_rule``), as the page explains them
-RULES = {1: "rule 1: star gate empty n frames while the object gate is populated -> object",
-         2: "rule 2: object gate empty n frames -> star",
-         3: "rule 3: star-gate residual exceeds the object gate's -> object",
-         4: "rule 4: object-gate residual exceeds the star gate's -> star"}
-SKIPS = {0: "", 1: "frame dropped", 2: "IP busy (overrun)"}
+#: (flightsw.tp.TPConfig: n_empty, n_empty_object, residual_threshold_px2, ..._star_px2)
+RULES = {1: "rule 1: star gate empty n successive frames, object gate populated -> object",
+         2: "rule 2: object gate empty n successive frames -> star",
+         3: "rule 3: star-gate accumulated residual exceeds the object gate's by the threshold "
+            "-> object",
+         4: "rule 4: object-gate accumulated residual exceeds the star gate's by the threshold "
+            "-> star"}
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
 _FRAME_COLUMNS = ("k", "t", "skip", "n_candidates", "n_blobs", "alpha", "pred_row", "pred_col",
                   "track_row", "track_col", "error_urad", "overrun", "att_valid", "locked",
@@ -356,7 +359,7 @@ def extract(rec) -> dict:
     frames = {c: _col(fr[c]) for c in _FRAME_COLUMNS if c in fr.dtype.names}
     imager_ids = [_IMAGER_BY_CODE.get(int(c), str(int(c))) for c in fr["imager"]]
     frames["imager"] = imager_ids
-    frames["skip_reason"] = [SKIPS.get(int(s), str(int(s))) for s in fr["skip"]]
+    frames["skip_reason"] = [SKIP_REASONS.get(int(s), str(int(s))) for s in fr["skip"]]
     frames.update(_truth_columns(rec, n))
     window, cmds = _messages(rec, fr, n)
     frames["window"] = window

@@ -7,6 +7,7 @@ const F = D.frames, N = D.recording.frames_held, S = 2;          // S: display p
 const $ = (id) => document.getElementById(id);
 const fmt = (v, d) => (v === null || v === undefined) ? "-" :
   (typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toPrecision(d || 5)) : String(v));
+const esc = (t) => String(t).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/"/g, "&quot;");
 const state = { k: 0, playing: null, lo: null, hi: null, cache: new Map(), stageCache: new Map() };
 
 // ---------------------------------------------------------------- image decoding
@@ -188,6 +189,10 @@ function autoContrast(img) {
   state.hi = Math.max(state.lo + 1, Math.round(percentile(img.pixels, 99.9)));
   $("lo").value = state.lo; $("hi").value = state.hi;
 }
+function stagePixel(name, r, c) {          // the value of pixel (r, c) of a stage image shown
+  const s = (state.stages || []).find((x) => x.name === name);
+  return s ? s.pixels[r * s.shape[1] + c] : null;
+}
 function pixelAt(r, c) {                    // the 12-bit value of pixel (r, c) of the frame shown
   const img = state.img;
   if (!img || r < 0 || c < 0 || r >= img.shape[0] || c >= img.shape[1]) return null;
@@ -195,50 +200,60 @@ function pixelAt(r, c) {                    // the 12-bit value of pixel (r, c) 
 }
 
 // ---------------------------------------------------------------- panels
-function field(name, label, value, title) {
-  const v = (value === null || value === undefined) ? "" : (Array.isArray(value) ? value.join(" ") : value);
-  return `<dt>${label}</dt><dd data-field="${name}" data-value="${String(v).replace(/"/g, "&quot;")}"` +
-         `${title ? ` title="${title}"` : ""}>${Array.isArray(value) ? (value.join(", ") || "-") : fmt(value)}</dd>`;
+function field(name, label, value) {
+  const list = Array.isArray(value);
+  const v = (value === null || value === undefined) ? "" : (list ? value.join(" ") : value);
+  const shown = list ? (value.join(", ") || "-") : fmt(value);
+  return `<dt>${label}</dt><dd data-field="${name}" data-value="${esc(v)}">${esc(shown)}</dd>`;
 }
 function why(k) {
   const tp = D.tp[k], oi = F.object_index[k];
-  if (!F.has_command[k]) return F.skip[k] ? `no TP step: ${F.skip_reason[k]}` : "no track command this frame";
-  if (oi < 0) return F.status_names[k].includes("coasting") ? "no candidate chosen: coasting on the prediction"
-    : "no candidate chosen";
-  if (tp && tp.mode === "opportunity") return "opportunity mode: highest-ranked candidate inside the angular gate";
-  const rule = tp && tp.decision_rule ? D.rules[String(tp.decision_rule)] : "no rule yet";
-  return `candidate ${oi + 1} is in the object gate of pair ${tp ? tp.object_pair : "?"}, decided at frame ` +
-         `${F.decided_frame[k]} by ${rule}`;
+  if (!F.has_command[k]) return F.skip[k] ? `no TP step: ${F.skip_reason[k]}` : "no track command";
+  if (oi < 0) {
+    return F.status_names[k].includes("coasting") ? "no candidate chosen: coasting on the prediction"
+      : "no candidate chosen";
+  }
+  if (tp && tp.mode === "opportunity") {
+    return "opportunity mode: the highest-ranked candidate inside the angular gate";
+  }
+  if (F.decided_frame[k] < 0) return `candidate ${oi + 1}: no star/object decision yet`;
+  const rule = tp && tp.decision_rule ? D.rules[String(tp.decision_rule)] : "an unrecorded rule";
+  return `candidate ${oi + 1} is in the object gate of pair ${tp ? tp.object_pair : "?"}, decided ` +
+         `at frame ${F.decided_frame[k]} by ${rule}`;
 }
-function tpPanel(k) {
-  const tp = D.tp[k] || {};
+function hypotheses(tp) {                   // one line per gate pair: what the TP holds it to be
   const pairs = {};
   for (const [, pair, kind, , , missed, obs] of tp.gates || []) {
     pairs[pair] = pairs[pair] || { s: null, o: null };
     pairs[pair][kind ? "o" : "s"] = { missed, obs };
   }
-  const hyp = Object.entries(pairs).map(([p, v]) => `pair ${p}: ` +
-    (v.s && v.o ? "star or object? (undecided)" : v.o ? (Number(p) === tp.object_pair ? "object (decided)" :
-     "object gate only") : "star gate only") +
-    ` [star ${v.s ? `obs ${v.s.obs} missed ${v.s.missed}` : "-"}, object ${v.o ? `obs ${v.o.obs} missed ${v.o.missed}` : "-"}]`);
-  let html = field("frame", "frame", F.k[k]) + field("t", "t (s)", F.t[k]) +
-    field("imager", "imager", F.imager[k]) + field("skip", "skipped", F.skip_reason[k] || "no") +
-    field("locked", "locked", F.locked[k]) + field("status", "status word", F.status[k]) +
-    field("status_names", "status", F.status_names[k]) + field("mode", "mode", F.mode[k]) +
-    field("object_index", "chosen candidate (rank)", F.object_index[k] >= 0 ? F.object_index[k] + 1 : "none") +
-    field("why", "why", why(k)) +
-    field("decision_rule", "decision rule", tp.decision_rule || 0) +
-    field("object_pair", "object pair", tp.object_pair) + field("decided_frame", "decided at frame", F.decided_frame[k]) +
-    field("n_star_gates", "live star gates", F.n_star_gates[k]) + field("n_object_gates", "live object gates", F.n_object_gates[k]) +
-    field("hypotheses", "hypotheses", hyp.length ? hyp : ["none"]) +
-    field("pred_row", "prediction row (this frame)", F.pred_row[k]) + field("pred_col", "prediction col", F.pred_col[k]) +
-    field("next_row", "prediction row (next)", F.next_row[k]) + field("next_col", "prediction col (next)", F.next_col[k]) +
-    field("ekf_running", "EKF running", tp.ekf_running) +
-    field("sigma_pos", "EKF sigma pos (m)", F.sigma_pos[k]) +
-    field("error_urad", "track error (urad, truth)", F.error_urad[k]) +
-    field("alpha", "alpha", F.alpha[k]) + field("n_candidates", "candidates", F.n_candidates[k]) +
-    field("n_blobs", "blobs", F.n_blobs[k]);
-  $("tp-state").innerHTML = html;
+  const gate = (g) => (g ? `obs ${g.obs} missed ${g.missed}` : "-");
+  const lines = Object.entries(pairs).map(([p, v]) => {
+    const what = v.s && v.o ? "star or object? (undecided)" :
+      v.o ? (Number(p) === tp.object_pair ? "object (decided)" : "object gate only") : "star gate only";
+    return `pair ${p}: ${what} [star ${gate(v.s)}, object ${gate(v.o)}]`;
+  });
+  return lines.length ? lines : ["none"];
+}
+function tpPanel(k) {
+  const tp = D.tp[k] || {};
+  const rows = [
+    ["frame", "frame", F.k[k]], ["t", "t (s)", F.t[k]], ["imager", "imager", F.imager[k]],
+    ["skip", "skipped", F.skip_reason[k] || "no"], ["locked", "locked", F.locked[k]],
+    ["status", "status word", F.status[k]], ["status_names", "status", F.status_names[k]],
+    ["mode", "mode", F.mode[k]],
+    ["object_index", "chosen candidate (rank)", F.object_index[k] >= 0 ? F.object_index[k] + 1 : "none"],
+    ["why", "why", why(k)], ["decision_rule", "decision rule", tp.decision_rule || 0],
+    ["object_pair", "object pair", tp.object_pair], ["decided_frame", "decided at frame", F.decided_frame[k]],
+    ["n_star_gates", "live star gates", F.n_star_gates[k]],
+    ["n_object_gates", "live object gates", F.n_object_gates[k]],
+    ["hypotheses", "hypotheses", hypotheses(tp)],
+    ["pred_row", "prediction row (this frame)", F.pred_row[k]], ["pred_col", "prediction col", F.pred_col[k]],
+    ["next_row", "prediction row (next)", F.next_row[k]], ["next_col", "prediction col (next)", F.next_col[k]],
+    ["ekf_running", "EKF running", tp.ekf_running], ["sigma_pos", "EKF sigma pos (m)", F.sigma_pos[k]],
+    ["error_urad", "track error (urad, truth)", F.error_urad[k]], ["alpha", "alpha", F.alpha[k]],
+    ["n_candidates", "candidates", F.n_candidates[k]], ["n_blobs", "blobs", F.n_blobs[k]]];
+  $("tp-state").innerHTML = rows.map(([name, label, v]) => field(name, label, v)).join("");
 }
 function candTable(k) {
   const cols = D.candidate_columns;
@@ -267,11 +282,13 @@ function budgetPanel(k) {
     ctx.fillText(`${ms.toFixed(2)} ms`, x0 + w - 4, y + 12); ctx.textAlign = "left";
   });
   $("budget-table").tBodies[0].innerHTML = rows.map(([i, ms]) =>
-    `<tr><td style="text-align:left">${D.budget.stages[i]}</td><td data-stage="${D.budget.stages[i]}">${fmt(ms, 4)}</td></tr>`).join("");
+    `<tr><td style="text-align:left">${esc(D.budget.stages[i])}</td>` +
+    `<td data-stage="${esc(D.budget.stages[i])}">${fmt(ms, 4)}</td></tr>`).join("");
 }
 async function stagesPanel(k) {
   const list = await stageImages(k);
   if (k !== state.k) return;
+  state.stages = list;
   const box = $("stages");
   box.innerHTML = "";
   $("stage-note").textContent = list.length ? `(frame ${k}, ${list[0].shape[0]} x ${list[0].shape[1]} processed px)` :
@@ -341,10 +358,13 @@ function drawStrips() {
   F.skip.forEach((s, k) => { if (s) { ctx.fillStyle = "#999"; ctx.fillRect(xs(k), 38, 2, 6); } });
   cursor(ctx, xs(state.k));
 }
-function cursor(ctx, x) { ctx.strokeStyle = "#e00"; ctx.beginPath(); ctx.moveTo(x, 0); ctx.lineTo(x, 44); ctx.stroke(); }
+function cursor(ctx, x) {
+  ctx.strokeStyle = "#e00"; ctx.beginPath(); ctx.moveTo(x, 0); ctx.lineTo(x, 44); ctx.stroke();
+}
 function eventList() {
   $("events").innerHTML = D.events.length ? "<ul>" + D.events.map((e) =>
-    `<li data-frame="${e.frame}">frame ${e.frame} (t = ${fmt(e.t, 4)} s): ${e.kind} ${e.verdict} ${e.text}</li>`)
+    `<li data-frame="${e.frame}">frame ${e.frame} (t = ${fmt(e.t, 4)} s): ` +
+    `${esc(e.kind)} ${esc(e.verdict)} ${esc(e.text)}</li>`)
     .join("") + "</ul>" : "<p>no faults, uplinks or switches in this event</p>";
   for (const li of $("events").querySelectorAll("li")) li.addEventListener("click", () => go(Number(li.dataset.frame)));
 }
@@ -425,7 +445,7 @@ function init() {
 }
 // for tests and the console: the frame shown, a pixel's stored value, a promise of the current draw
 // (firstFrameMs: performance.now() when the first frame was drawn, the load time bench/ measures)
-window.uvisiView = { go, get frame() { return state.k; }, pixel: pixelAt, shown: () => shown, data: D,
+window.uvisiView = { go, get frame() { return state.k; }, pixel: pixelAt, stagePixel, shown: () => shown, data: D,
                      firstFrameMs: null };
 init();
 })();
