@@ -144,6 +144,17 @@ def test_page_in_chromium(browser, event):
         art.mkdir(parents=True, exist_ok=True)
         page.keyboard.press("Home")
         wait_frame(page, 0)
+        strip = page.query_selector("#strips canvas")    # a click on a strip jumps to its frame
+        box = strip.bounding_box()
+        scale = box["width"] / 900                        # the strip's canvas is 900 px wide
+        x = (110 + 780 * 20 / (FRAMES - 1)) * scale       # frame 20 on its time axis
+        strip.click(position={"x": x, "y": box["height"] / 2})
+        wait_frame(page, 20)
+        page.select_option("#rate", "25")                 # play, then pause: frames advance
+        page.click("#play")
+        page.wait_for_function("window.uvisiView.frame >= 24")
+        page.click("#play")
+        assert page.inner_text("#play") == "play"
         page2, errors2 = open_page(browser, f"{url}#frame={K}")   # a link opens that frame
         wait_frame(page2, K)
         check_frame(page2, f, K)

@@ -312,6 +312,7 @@ function chosenGof() {
     return r ? r[gi] : null;
   });
 }
+const STRIP_X0 = 110, STRIP_W = 780;        // frame 0 .. N-1 drawn at x = STRIP_X0 .. + STRIP_W
 const STRIPS = [["track error (urad, truth)", () => F.error_urad], ["candidates", () => F.n_candidates],
                 ["alpha", () => F.alpha], ["GOF of the chosen", chosenGof],
                 ["locked", () => F.locked.map((v) => (v < 0 ? null : v))]];
@@ -321,14 +322,14 @@ function drawStrips() {
     for (const [name] of STRIPS.concat([["faults / uplinks / switches"]])) {
       const cv = document.createElement("canvas");
       cv.className = "strip"; cv.width = 900; cv.height = 44; cv.dataset.strip = name;
-      cv.addEventListener("click", (ev) => {
-        const r = cv.getBoundingClientRect();
-        go(Math.round((ev.clientX - r.left) / r.width * Math.max(1, N - 1)));
+      cv.addEventListener("click", (ev) => {          // the inverse of STRIP_X below
+        const r = cv.getBoundingClientRect(), x = (ev.clientX - r.left) * cv.width / r.width;
+        go((x - STRIP_X0) / STRIP_W * Math.max(1, N - 1));
       });
       box.appendChild(cv);
     }
   }
-  const cvs = box.children, xs = (k) => 110 + (k / Math.max(1, N - 1)) * (900 - 120);
+  const cvs = box.children, xs = (k) => STRIP_X0 + (k / Math.max(1, N - 1)) * STRIP_W;
   STRIPS.forEach(([name, get], j) => {
     const ctx = cvs[j].getContext("2d"), v = get(), ok = v.filter((x) => x !== null && isFinite(x));
     const lo = Math.min(0, ...ok), hi = Math.max(lo + 1e-9, ...ok);
