@@ -51,8 +51,10 @@ def chromium():
     return sync_playwright, exe
 
 
-def first_frame_ms(browser, url: str, requests: list | None = None) -> float:
-    """Open ``url`` in a fresh page; ms from navigation start to the first frame drawn."""
+def first_frame_ms(browser, url: str, requests: list | None = None,
+                   complete: list | None = None) -> float:
+    """Open ``url`` in a fresh page; ms from navigation start to the first frame drawn (and, into
+    ``complete``, to everything of that frame shown, stages included, as polled)."""
     page = browser.new_page(viewport={"width": 1400, "height": 1000})
     if requests is not None:
         page.on("request", lambda r: requests.append(r.url))
@@ -60,6 +62,10 @@ def first_frame_ms(browser, url: str, requests: list | None = None) -> float:
     page.wait_for_function("window.uvisiView && window.uvisiView.firstFrameMs !== null",
                            timeout=60000)
     ms = float(page.evaluate("window.uvisiView.firstFrameMs"))
+    if complete is not None:
+        page.wait_for_function("document.body.dataset.frame !== undefined", polling=10,
+                               timeout=120000)
+        complete.append(float(page.evaluate("performance.now()")))
     page.close()
     return ms
 
@@ -114,11 +120,13 @@ def serve_long(browser, tmp: Path) -> None:
     threading.Thread(target=srv.serve_forever, daemon=True).start()
     try:
         reqs: list = []
-        ms = first_frame_ms(browser, srv.url + "#frame=1500", reqs)
-        frames = [u for u in reqs if "/frames/" in u]
+        done: list = []
+        ms = first_frame_ms(browser, srv.url + "#frame=1500", reqs, done)
+        frames = [u.rsplit("/", 2)[-2] + "/" + u.rsplit("/", 1)[-1] for u in reqs
+                  if "/frames/" in u]
         print(f"--serve of {srv.data['recording']['frames_held']} frames: server ready in "
-              f"{start_s:.2f} s, page {len(srv.page) / 1e6:.2f} MB, first frame (#frame=1500) in "
-              f"{ms:.0f} ms, {len(frames)} frame image(s) fetched: {frames}")
+              f"{start_s:.2f} s, page {len(srv.page) / 1e6:.2f} MB; #frame=1500: image in "
+              f"{ms:.0f} ms, stages too in {done[0]:.0f} ms; frame images fetched: {frames}")
     finally:
         srv.shutdown()
         srv.server_close()

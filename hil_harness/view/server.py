@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import re
 import threading
+import time
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
@@ -49,6 +50,8 @@ class ViewServer(ThreadingHTTPServer):
             self.data_json = script_json(self.data).encode("utf-8")
             self.lock = threading.Lock()
             self._closing = threading.Event()
+            self._waiting = 0                         # requests waiting for the lock
+            self._count_lock = threading.Lock()
             super().__init__((HOST, int(port)), ViewHandler)
         except BaseException:
             self.rec.close()
@@ -58,8 +61,12 @@ class ViewServer(ThreadingHTTPServer):
 
     def _replay_ahead(self) -> None:
         """Replay the stages of every frame in the background, one frame per lock, so that a jump
-        far into the event finds its stages ready (a request for a later frame replays up to it)."""
+        far into the event finds its stages ready (a request for a later frame replays up to it).
+        A request waiting for the lock goes first (Python's lock is not fair)."""
         while not self._closing.is_set():
+            if self._waiting:
+                time.sleep(0.002)
+                continue
             with self.lock:
                 if self._closing.is_set() or not self.stage_replay.advance():
                     return
@@ -69,14 +76,20 @@ class ViewServer(ThreadingHTTPServer):
         return f"http://{HOST}:{self.server_address[1]}/"
 
     def frame(self, k: int) -> bytes:
-        with self.lock:
-            return frame_bytes(self.rec, k)
+        return frame_bytes(self.rec, k)             # h5py serialises its own calls
 
     def stages(self, k: int) -> bytes:
-        with self.lock:
+        with self._count_lock:
+            self._waiting += 1
+        self.lock.acquire()
+        with self._count_lock:
+            self._waiting -= 1
+        try:
             st = self.stage_replay.get(k)
             return script_json({"stages": st, "mismatch": self.stage_replay.mismatch,
                                 "error": self.stage_replay.error}).encode("utf-8")
+        finally:
+            self.lock.release()
 
     def server_close(self) -> None:
         self._closing.set()
