@@ -139,6 +139,17 @@ def test_page_of_a_recording_replay_cannot_run(event, tmp_path):
     assert data["candidates"] and len(images["frames"]) == FRAMES
 
 
+def test_replay_that_differs_is_said(event, tmp_path):
+    path = tmp_path / "recording.h5"
+    shutil.copy(event / "recording.h5", path)
+    with h5py.File(path, "r+") as f:               # one recorded command word changed
+        w = f["arrays/command_words"][7]
+        w[3] ^= 1
+        f["arrays/command_words"][7] = w
+    data, _ = page_parts(write_page(path).read_text())
+    assert data["stage_mismatch"] == 7 and "from frame 7" in data["stage_note"]
+
+
 def test_covariance_ellipse_closed_form():
     from groundsim.imagers import get_imager
     im = get_imager("wfov_vis")

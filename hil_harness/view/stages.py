@@ -88,7 +88,8 @@ class StageReplay:
 
 def stages_by_frame(rec, data: dict, progress: bool = False) -> dict:
     """Every frame's packed stage images by frame number (empty dict when the recording holds no
-    frames); sets ``data["stage_mismatch"]`` to the first frame the replay did not reproduce."""
+    frames, or the replay failed); sets ``data["stage_mismatch"]`` (the first frame the replay did
+    not reproduce, or None) and ``data["stage_error"]`` (why the replay failed, or None)."""
     sr = StageReplay(rec)
     bar = None
     if progress and sr.n:
