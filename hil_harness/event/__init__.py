@@ -5,6 +5,7 @@
                     only moves bus words), its :class:`EventConfig` and :class:`FrameOutcome`
 :mod:`.io`          :func:`run_event` (the run folder: recording, ``summary.json``, figures),
                     :func:`replay` (re-run the flight code on a recording and compare)
+:mod:`.replay`      the flight code re-run on a recording's frames (:func:`replay` and the viewer)
 :mod:`.recording`   the HDF5 recording, written in checksummed blocks, read and verified
 :mod:`.checksum`    Adler-32 of every stored row (the recording's integrity check)
 :mod:`.run_folder`  an output folder locked against a second writer

@@ -39,9 +39,13 @@ from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome)
 from .recording import Recorder, Recording
+from .replay import ReplayEvent, replay_config
 from .run_folder import RunFolder
 
 MAX_COMMAND_WORDS = 128
+#: tables/stars: the catalogued stars in the field of each frame (truth, for the viewer)
+STARS_DTYPE = np.dtype([("k", np.int32), ("hip", np.int32), ("row", np.float32),
+                        ("col", np.float32), ("mag", np.float32)])
 #: tables/ledger: one row per (frame, processor, stage)
 LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
@@ -179,8 +183,16 @@ class EventWriter:
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
+        stars = (o.truth or {}).get("stars")
+        if stars is not None and len(stars):
+            st = np.empty(len(stars), STARS_DTYPE)
+            st["k"] = o.k
+            for name in ("hip", "row", "col", "mag"):
+                st[name] = stars[name]
+            r.append_rows("stars", st)
         snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
         if snap:
+            snap["ekf_p_pos"] = _ekf_position_cov(self.ev.tp)
             r.append("tp", snap)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
@@ -192,6 +204,17 @@ class EventWriter:
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
                                        for k in ("render", "ip", "tp", "world", "total")}})
+
+
+def _ekf_position_cov(tp) -> np.ndarray:
+    """The TP's EKF position covariance (3, 3), m^2, decoded from its 1750A words (NaN when the
+    EKF does not run): the snapshot keeps its diagonal only, the viewer draws the ellipse."""
+    from flightsw.arith.m1750 import decode48_array
+    from flightsw.tp.ekf import E_P, E_RUN, UT
+    e = getattr(tp, "E", None)
+    if e is None or not e[E_RUN]:
+        return np.full((3, 3), np.nan)
+    return decode48_array(e[E_P + UT[:3, :3]])
 
 
 def _snapshot_row(tp, k, kinds: dict) -> dict:
@@ -558,11 +581,20 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
     path = rec.close()
     s["recording"] = str(path)
     if figures:
-        s["figures"] = [str(p) for p in event_figures(ev, out)]
+        s["figures"] = [str(p) for p in event_figures(ev, out)] + [str(_view_page(path, progress))]
     tmp = out / "summary.json.tmp"
     tmp.write_text(json.dumps(s, indent=2, default=_json_default))
     tmp.replace(out / "summary.json")
     return s
+
+
+def _view_page(recording: Path, progress: bool) -> Path:
+    """``view.html`` beside the recording: the event viewer's page (:mod:`hil_harness.view`)."""
+    from hil_harness.console import note
+    from hil_harness.view import write_page
+    out = recording.parent / "view.html"
+    note(f"uvisi event: writing the event viewer page {out} ...")
+    return write_page(recording, out, progress=progress)
 
 
 def _json_default(o):
@@ -577,56 +609,6 @@ def _json_default(o):
 
 def _jsonable(d):
     return json.loads(json.dumps(d, default=_json_default))
-
-
-class _ReplayEvent(Event):
-    """An Event fed from a recording's frames and attitude data instead of the ground simulator."""
-
-    def __init__(self, config, recording: Recording):
-        self._rec = recording
-        self._frames_ds = recording.array("frames")
-        self._att = recording.table("attitude")
-        self._fr = recording.table("frames")
-        self._truth = recording.table("truth")
-        super().__init__(config, keep_frames=False)
-
-    def _uplink_words(self, index, uplink):
-        """The uplink's words as recorded (the scenario's files are not needed to replay)."""
-        return np.asarray(self._rec.attrs["uplink_words"][index], np.uint16)
-
-    def _acquire(self, k, imager):
-        from flightsw.messages import AttitudeData
-        a = self._att[k]
-        att = AttitudeData(float(a["t"]), np.array(a["q"]), np.array(a["rate"]), np.array(a["r"]),
-                           np.array(a["v"]), bool(a["valid"]))
-        tr = self._truth[k]
-        truth = {"target": {"row": float(tr["row"]), "col": float(tr["col"]),
-                            "in_field": bool(tr["in_field"])}}
-        return att, np.asarray(self._frames_ds[k]), truth, int(self._fr[k]["skip"]) == SKIP_DROPPED
-
-
-def _replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
-    """The :class:`EventConfig` a recording was made with (scenario, sequence, record, selection,
-    TP overrides, processor models), for its first ``n`` frames."""
-    from flightsw.budget import Processor
-    from flightsw.ip import ProcessingSequence
-    from flightsw.records import Record
-    from groundsim.scenario import Scenario
-    from .selection import SelectionParams
-    at = rec.attrs
-    cfgd = at["config"] if isinstance(at["config"], dict) else json.loads(at["config"])
-    raw = at["scenario_raw"] if isinstance(at["scenario_raw"], dict) else json.loads(at["scenario_raw"])
-    scn = Scenario.from_dict(raw, path=f"{path}:scenario", seed=int(at["seed"]))
-    record = cfgd["record"]
-    if "record_words" in at:                      # the record as uplinked, not a file that may change
-        record = Record.from_words(np.asarray(at["record_words"], np.int64), name=str(cfgd["record"]))
-    procs = cfgd.get("processors")
-    if procs:
-        procs = {k: Processor(v["name"], float(v["clock_hz"]), dict(v["costs"])) for k, v in procs.items()}
-    return EventConfig(scenario=scn, frames=n, sequence=ProcessingSequence.from_dict(cfgd["sequence"]),
-                       record=record, selection=SelectionParams(**cfgd["selection"]),
-                       tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
-                       processors=procs or None, hypothesis=cfgd.get("hypothesis"))
 
 
 def replay(path) -> dict:
@@ -659,7 +641,7 @@ def replay(path) -> dict:
                              f"replay needs them")
         if n == 0:
             return out
-        ev = _ReplayEvent(_replay_config(path, rec, n), rec)
+        ev = ReplayEvent(replay_config(path, rec, n), rec)
         fr = rec.table("frames")
         mw, cw = rec.array("message_words"), rec.array("command_words")
         mism = []

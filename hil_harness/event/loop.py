@@ -217,6 +217,8 @@ class Event:
         self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
         self.keep_frames = keep_frames
         self.stage_frame = cfg.stage_frame
+        #: keep the stage images of every processed frame (the viewer's replay), not one frame's
+        self.all_stages = False
         self.reset()
 
     # ------------------------------------------------------------------------------------------
@@ -329,7 +331,8 @@ class Event:
     def _flight_step(self, out, frame, att, override, ledger, host, t1) -> None:
         """The IP, the candidate-message bus, the TP and the command bus of one processed frame."""
         k, imager = out.k, out.imager
-        want = (self.stage_frame == k) if self.stage_frame is not None else (self._processed == 11)
+        want = self.all_stages or ((self.stage_frame == k) if self.stage_frame is not None
+                                   else (self._processed == 11))
         ip_out = self.ip.step(frame, frame_count=k, time_tag=out.t, imager=imager,
                               command_words=None if override is not None else self._command_words,
                               feedback=override, ledger=ledger, want_stages=want)

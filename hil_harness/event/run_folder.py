@@ -16,7 +16,7 @@ LOCK_NAME = ".uvisi.lock"
 #: the files ``uvisi event`` writes into its folder (and so removes when replacing a run)
 RUN_PRODUCTS = ("recording.h5", "recording.partial.h5", "recording.h5.tmp", "summary.json",
                 "summary.json.tmp", "stages.png", "centroid_track.png", "track_error.png",
-                "gates.png", "budget.png", "event.gif")
+                "gates.png", "budget.png", "event.gif", "view.html", "view.html.tmp")
 
 
 class RunFolder:

@@ -1,0 +1,76 @@
+"""``uvisi view RECORDING.h5 [-o PAGE.html] [--serve [--port N]]``: look at a recorded event frame by
+frame.
+
+Writes one self-contained HTML page (default: ``view.html`` beside the recording; no network needed
+to open it): the frame with a contrast control on its 12-bit counts, the processing window,
+candidates numbered by rank, the truth, the TP's prediction, gates and EKF ellipse; the window's
+processing stages; the candidate table with the TP's choice and why; the emulated budget; strips of
+the whole event. Navigate with the slider, play/pause, the arrow keys, or ``#frame=N`` in the URL.
+The stages of every frame are recomputed by replaying the flight code on the recorded frames.
+
+``--serve`` serves the recording from 127.0.0.1 instead (for recordings too large to inline: the
+page fetches each frame when it is shown) until Ctrl-C. An interrupted event's
+``recording.partial.h5`` opens too (the page says it is incomplete), and so does a recording made
+with ``--no-frames`` (no images, everything else).
+"""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+
+def register(sub) -> None:
+    p = sub.add_parser("view", help="look at a recorded event frame by frame (an HTML page)",
+                       description=__doc__)
+    p.add_argument("recording", help="recording.h5 (or recording.partial.h5) written by uvisi event")
+    p.add_argument("-o", "--out", default=None, metavar="PAGE.html",
+                   help="the page to write (default: view.html beside the recording)")
+    p.add_argument("--serve", action="store_true",
+                   help="serve the recording on 127.0.0.1 instead of writing a page")
+    p.add_argument("--port", type=int, default=None,
+                   help="port of --serve (default 8765; 0 picks a free one)")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    from hil_harness.console import progress_enabled
+    if args.port is not None and not args.serve:
+        raise ValueError("--port is for --serve")
+    if args.serve and args.out is not None:
+        raise ValueError("--serve writes no page: -o/--out is not used with it")
+    if args.serve:
+        return _serve(args)
+    from hil_harness.view import write_page
+    from hil_harness.view.page import LARGE_PAGE_BYTES
+    out = Path(args.out) if args.out else Path(args.recording).parent / "view.html"
+    if out.is_dir():
+        raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
+    if not out.parent.is_dir():
+        raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
+    path = write_page(args.recording, out, progress=progress_enabled())
+    size = path.stat().st_size
+    print(f"page: {path} ({size / 1e6:.1f} MB)")
+    if size > LARGE_PAGE_BYTES:
+        print(f"uvisi view: the page is {size / 1e6:.0f} MB; uvisi view --serve "
+              f"{args.recording} loads frames on demand instead", file=sys.stderr)
+    return 0
+
+
+def _serve(args) -> int:
+    from hil_harness.view import make_server
+    port = 8765 if args.port is None else args.port
+    try:
+        srv = make_server(args.recording, port)
+    except OSError as exc:
+        if isinstance(exc, FileNotFoundError):
+            raise
+        raise ValueError(f"--port {port}: cannot listen on 127.0.0.1 ({exc.strerror or exc})") \
+            from None
+    print(f"serving {args.recording} at {srv.url} (Ctrl-C to stop)", flush=True)
+    try:
+        srv.serve_forever()
+    except KeyboardInterrupt:
+        pass
+    finally:
+        srv.server_close()
+    return 0

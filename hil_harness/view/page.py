@@ -1,0 +1,104 @@
+"""The viewer page: the template (``page.html``, ``page.css``, ``page.js``, package data) filled with
+a recording's data (:func:`.data.extract`) and, for a self-contained page, every frame packed by
+:mod:`.codec` (base64 in a JSON script tag; the page inflates each frame when it is shown)."""
+from __future__ import annotations
+
+import base64
+import json
+import math
+import os
+from importlib.resources import files
+from pathlib import Path
+
+import numpy as np
+
+from .codec import pack
+from .data import extract
+from .stages import recorded_stages, stage_entries, stage_note, stages_by_frame
+
+#: bytes above which ``uvisi view`` suggests ``--serve`` (a browser holds the whole page in memory)
+LARGE_PAGE_BYTES = 100_000_000
+
+
+def _clean(o):
+    """``o`` with every non-finite float replaced by None (strict JSON)."""
+    if isinstance(o, float):
+        return o if math.isfinite(o) else None
+    if isinstance(o, dict):
+        return {k: _clean(v) for k, v in o.items()}
+    if isinstance(o, (list, tuple)):
+        return [_clean(v) for v in o]
+    if isinstance(o, np.generic):
+        return _clean(o.item())
+    return o
+
+
+def script_json(o) -> str:
+    """Strict JSON safe inside a ``<script>`` element (``</`` escaped)."""
+    return json.dumps(_clean(o), allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
+
+
+def _resource(name: str) -> str:
+    return files("hil_harness.view").joinpath(name).read_text(encoding="utf-8")
+
+
+def page_html(data: dict, images: dict) -> str:
+    """The page of ``data`` (:func:`.data.extract`) with ``images``: ``{"mode": "inline", "frames":
+    [packed or None] * n, "stages": {frame: [packed + "name"]}}`` or ``{"mode": "serve"}`` (the
+    page fetches ``frames/<k>`` and ``stages/<k>`` from its server)."""
+    html = _resource("page.html")
+    title = f"{data['recording']['scenario']} ({data['recording']['name']})"
+    for key, value in (("__CSS__", _resource("page.css")), ("__JS__", _resource("page.js")),
+                       ("__TITLE__", title.replace("<", "&lt;").replace("&", "&amp;")),
+                       ("__DATA__", script_json(data)), ("__IMAGES__", script_json(images))):
+        html = html.replace(key, value, 1)
+    return html
+
+
+def frame_bytes(rec, k: int) -> bytes:
+    """Frame ``k`` of a recording, packed (:func:`.codec.pack`)."""
+    return pack(np.asarray(rec.array("frames")[k]))
+
+
+def inline_images(rec, data: dict, stages: dict, progress: bool = False) -> dict:
+    """Every frame held, packed and base64-encoded, and the stage images by frame."""
+    n = data["recording"]["frames_held"]
+    frames = [None] * n
+    if data["recording"]["has_frames"]:
+        ds = rec.array("frames")
+        it = range(n)
+        if progress:
+            from tqdm import tqdm
+            it = tqdm(it, desc="uvisi view: packing frames", unit="frame", leave=False)
+        for k in it:
+            frames[k] = base64.b64encode(pack(np.asarray(ds[k]))).decode("ascii")
+    shape, code = data["image_shape"], "u2"
+    return {"mode": "inline",
+            "frames": [None if f is None else {"shape": shape, "dtype": code, "data": f}
+                       for f in frames],
+            "stages": {str(k): v for k, v in stages.items()}}
+
+
+def write_atomic(path: Path, text: str) -> Path:
+    """Write ``text`` to ``path`` through a temporary file (nothing half-written on failure)."""
+    path = Path(path)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+    return path
+
+
+def build(rec, progress: bool = False, replay_stages: bool = True) -> str:
+    """The self-contained page of an open recording."""
+    data = extract(rec)
+    stages = stages_by_frame(rec, data, progress=progress) if replay_stages else {}
+    replayed = bool(stages)
+    if not replayed:
+        k, st = recorded_stages(rec)
+        if st:
+            stages = {k: stage_entries(st)}
+    data["stage_note"] = stage_note(data, replayed)
+    return page_html(data, inline_images(rec, data, stages, progress))

@@ -1,0 +1,147 @@
+"""``uvisi view --serve``: the page of a recording too large to inline, served from 127.0.0.1.
+
+The page carries the per-frame data (tables, candidates, TP state: ~2 kB a frame) and fetches each
+frame's image, stages and stars when it is shown, never all of them up front. Routes (GET)::
+
+    /                the page (no images inside)
+    /data.json       the page's data (:func:`.data.extract`)
+    /frames/<k>      frame k packed (:func:`.codec.pack`: deflated byte planes of uint16[244, 256])
+    /stars/<k>       frame k's catalogued stars, JSON ``[[row, col, mag]...]`` (null: not recorded)
+    /stages/<k>      frame k's stage images, JSON ``{"stages": [{"name", "shape", "dtype", "data"}],
+                     "mismatch": first frame the replay did not reproduce or null, "error": why
+                     the replay could not run or null}``, replayed in frame order on demand
+                     (:class:`.stages.StageReplay`) and ahead of the requests in a thread
+
+Anything else is 404; a frame number outside the recording is 404 with a one-line reason.
+"""
+from __future__ import annotations
+
+import re
+import threading
+import time
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
+
+from hil_harness.console import debug
+
+from .data import extract, open_recording
+from .page import frame_bytes, page_html, script_json
+from .stages import StageReplay, stage_note
+
+HOST = "127.0.0.1"
+_ROUTE = re.compile(r"^/(frames|stages|stars)/(\d+)$")
+
+
+class ViewServer(ThreadingHTTPServer):
+    """A threading HTTP server holding one open recording (``url``, ``close()``)."""
+
+    daemon_threads = True
+
+    def __init__(self, recording, port: int):
+        self.rec = open_recording(recording)
+        try:
+            self.data = extract(self.rec)
+            self.stars = self.data["stars"]
+            self.data["stars"] = [] if self.stars is not None else None    # fetched per frame
+            self.stage_replay = StageReplay(self.rec)
+            self.data["stage_mismatch"] = None
+            self.data["stage_note"] = stage_note(self.data, replayed=True)
+            self.page = page_html(self.data, {"mode": "serve"}).encode("utf-8")
+            self.data_json = script_json(self.data).encode("utf-8")
+            self.lock = threading.Lock()
+            self._closing = threading.Event()
+            self._waiting = 0                         # requests waiting for the lock
+            self._count_lock = threading.Lock()
+            super().__init__((HOST, int(port)), ViewHandler)
+        except BaseException:
+            self.rec.close()
+            raise
+        self._ahead = threading.Thread(target=self._replay_ahead, daemon=True)
+        self._ahead.start()
+
+    def _replay_ahead(self) -> None:
+        """Replay the stages of every frame in the background, one frame per lock, so that a jump
+        far into the event finds its stages ready (a request for a later frame replays up to it).
+        A request waiting for the lock goes first (Python's lock is not fair)."""
+        while not self._closing.is_set():
+            if self._waiting:
+                time.sleep(0.002)
+                continue
+            with self.lock:
+                if self._closing.is_set() or not self.stage_replay.advance():
+                    return
+
+    @property
+    def url(self) -> str:
+        return f"http://{HOST}:{self.server_address[1]}/"
+
+    def frame(self, k: int) -> bytes:
+        return frame_bytes(self.rec, k)             # h5py serialises its own calls
+
+    def stages(self, k: int) -> bytes:
+        with self._count_lock:
+            self._waiting += 1
+        self.lock.acquire()
+        with self._count_lock:
+            self._waiting -= 1
+        try:
+            st = self.stage_replay.get(k)
+            return script_json({"stages": st, "mismatch": self.stage_replay.mismatch,
+                                "error": self.stage_replay.error}).encode("utf-8")
+        finally:
+            self.lock.release()
+
+    def server_close(self) -> None:
+        self._closing.set()
+        super().server_close()
+        with self.lock:
+            self.rec.close()
+
+
+class ViewHandler(BaseHTTPRequestHandler):
+    server: ViewServer
+
+    def _send(self, code: int, body: bytes, ctype: str) -> None:
+        self.send_response(code)
+        self.send_header("Content-Type", ctype)
+        self.send_header("Content-Length", str(len(body)))
+        self.send_header("Cache-Control", "no-store")
+        self.end_headers()
+        try:
+            self.wfile.write(body)
+        except (BrokenPipeError, ConnectionResetError):
+            debug(f"uvisi view: {self.path}: the browser went away before the answer")
+
+    def do_GET(self) -> None:                                   # noqa: N802 (http.server's name)
+        srv, path = self.server, self.path.split("?", 1)[0]
+        if path in ("/", "/index.html"):
+            return self._send(200, srv.page, "text/html; charset=utf-8")
+        if path == "/data.json":
+            return self._send(200, srv.data_json, "application/json")
+        m = _ROUTE.match(path)
+        if m is None:
+            return self._send(404, f"{path}: not found\n".encode(), "text/plain")
+        kind, k = m.group(1), int(m.group(2))
+        n = srv.data["recording"]["frames_held"]
+        if k >= n:
+            return self._send(404, f"frame {k}: the recording holds frames 0-{n - 1}\n".encode(),
+                              "text/plain")
+        if kind == "frames":
+            if not srv.data["recording"]["has_frames"]:
+                return self._send(404, b"recorded with --no-frames: no images\n", "text/plain")
+            return self._send(200, srv.frame(k), "application/octet-stream")
+        if kind == "stars":
+            st = srv.stars[k] if srv.stars is not None else None
+            return self._send(200, script_json(st).encode("utf-8"), "application/json")
+        return self._send(200, srv.stages(k), "application/json")
+
+    def log_message(self, fmt, *args) -> None:
+        debug("uvisi view: " + fmt % args)
+
+
+def make_server(recording, port: int = 8765) -> ViewServer:
+    """A :class:`ViewServer` of ``recording`` bound to 127.0.0.1:``port`` (0: a free port);
+    call ``serve_forever()`` and, when done, ``server_close()``."""
+    if not 0 <= int(port) <= 65535:
+        raise ValueError(f"--port {port}: must be 0..65535")
+    return ViewServer(Path(recording), port)

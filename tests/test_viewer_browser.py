@@ -1,0 +1,186 @@
+"""The event viewer in a real browser: Debian's chromium driven by Playwright (nothing downloaded).
+
+A 30-frame event is made once; its page is opened headless: no console error; stepping to frames
+0, k and the last (arrow keys, End, Home) shows the candidate table and the TP's state that
+``recording.h5`` holds for those frames (read back from the DOM, compared with h5py); pixels read
+back through the page's decoder equal the stored 12-bit counts; ``#frame=k`` opens frame k; the
+``--serve`` page fetches its frames; a ``--no-frames`` page says so. A screenshot is saved in
+``$UVISI_TEST_ARTIFACTS`` (default ``build/test-artifacts``).
+
+Skipped with one line when Playwright or the browser is missing, except under ``CI=true``, where it
+fails instead (``.ci/run`` installs both).
+"""
+from __future__ import annotations
+
+import os
+import threading
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from bench.bench_viewer import chromium_path
+from hil_harness.event.io import run_event
+from hil_harness.view import make_server, write_page
+
+FRAMES = 30
+K = 17                                   # a frame after the lock (frame 14 in this scenario)
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _playwright():
+    on_ci = os.environ.get("CI", "").lower() == "true"
+    try:
+        from playwright.sync_api import sync_playwright
+    except ImportError:
+        if on_ci:
+            pytest.fail("CI=true but playwright is not installed (.ci/run installs it)")
+        pytest.skip("playwright not installed (pip install -e '.[view]')")
+    exe = chromium_path()
+    if exe is None or not os.path.exists(exe):
+        if on_ci:
+            pytest.fail("CI=true but no chromium browser (apt-get install -y chromium)")
+        pytest.skip("no chromium browser (apt-get install chromium)")
+    return sync_playwright, exe
+
+
+@pytest.fixture(scope="module")
+def browser():
+    sync_playwright, exe = _playwright()
+    with sync_playwright() as p:
+        b = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
+        yield b
+        b.close()
+
+
+@pytest.fixture(scope="module")
+def event(tmp_path_factory):
+    out = tmp_path_factory.mktemp("viewb") / "ev"
+    run_event("satellite_over_stars", frames=FRAMES, out=out, figures=False)
+    write_page(out / "recording.h5")
+    return out
+
+
+def open_page(browser, url):
+    page = browser.new_page(viewport={"width": 1400, "height": 1000})
+    errors = []
+    page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}")
+            if m.type == "error" else None)
+    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
+    page.goto(url)
+    return page, errors
+
+
+def wait_frame(page, k):
+    page.wait_for_function(f"document.body.dataset.frame === '{k}'", timeout=15000)
+
+
+def dom_state(page) -> dict:
+    """The TP fields and the candidate table as the page shows them."""
+    return page.evaluate("""() => {
+      const f = {};
+      for (const dd of document.querySelectorAll('#tp-state dd')) f[dd.dataset.field] = dd.dataset.value;
+      const rows = [...document.querySelectorAll('#cand-table tbody tr')].map((tr) => {
+        const r = {chosen: tr.classList.contains('chosen')};
+        for (const td of tr.querySelectorAll('td[data-value]')) r[td.dataset.col] = td.dataset.value;
+        return r;
+      });
+      return {fields: f, rows: rows, frame: document.getElementById('frame-number').textContent};
+    }""")
+
+
+def check_frame(page, f, k):
+    """The DOM of frame k against recording.h5 (h5py handle ``f``)."""
+    s = dom_state(page)
+    assert s["frame"] == str(k)
+    fr = f["tables/frames"][k]
+    for name in ("locked", "status", "n_star_gates", "n_object_gates", "n_candidates"):
+        assert int(s["fields"][name]) == int(fr[name]), (k, name)
+    for name in ("pred_row", "pred_col"):
+        want = float(fr[name])
+        got = s["fields"][name]
+        assert (got == "" and not np.isfinite(want)) or float(got) == pytest.approx(want, rel=1e-6)
+    cw = f["arrays/command_words"][k]
+    chosen = int(cw[12]) + 1 if cw[8] & 0x40 else None     # object index word, flag 0x40
+    cand = f["tables/candidates"][()]
+    cand = cand[cand["k"] == k]
+    assert [int(r["rank"]) for r in s["rows"]] == list(cand["rank"])
+    for r, c in zip(s["rows"], cand):
+        for name in ("gof", "distance", "row", "col", "size", "total_brightness"):
+            assert float(r[name]) == pytest.approx(float(c[name]), rel=1e-6, abs=1e-12), (k, name)
+        assert r["chosen"] == (int(c["rank"]) == chosen)
+    assert s["fields"]["object_index"] == (str(chosen) if chosen else "none")
+    frame = f["arrays/frames"][k]
+    for r, c in ((0, 0), (100, 37), (243, 255), (122, 128)):
+        assert page.evaluate(f"window.uvisiView.pixel({r}, {c})") == int(frame[r, c])
+
+
+def test_page_in_chromium(browser, event):
+    url = (event / "view.html").as_uri()
+    page, errors = open_page(browser, url)
+    with h5py.File(event / "recording.h5", "r") as f:
+        wait_frame(page, 0)
+        check_frame(page, f, 0)
+        for k in range(1, K + 1):
+            page.keyboard.press("ArrowRight")
+        wait_frame(page, K)
+        check_frame(page, f, K)
+        assert page.evaluate("location.hash") == f"#frame={K}"
+        page.keyboard.press("End")
+        wait_frame(page, FRAMES - 1)
+        check_frame(page, f, FRAMES - 1)
+        assert len(page.query_selector_all("#stages canvas")) >= 5
+        sk = int(f.attrs["stage_frame"])                # stage images decoded by the page
+        page.evaluate(f"window.uvisiView.go({sk})")
+        wait_frame(page, sk)
+        for name in [n for n in f["arrays"] if n.startswith("stage_")]:
+            img = f["arrays"][name][0]
+            for r, c in ((0, 0), (31, 30), (40, 17), (63, 63)):
+                got = page.evaluate(f"window.uvisiView.stagePixel('{name[6:]}', {r}, {c})")
+                assert got == int(img[r, c]), (name, r, c)
+        assert int(f["arrays/stage_detrend_highpass"][0].min()) < 0      # signed values seen
+        art = Path(os.environ.get("UVISI_TEST_ARTIFACTS", ROOT / "build" / "test-artifacts"))
+        art.mkdir(parents=True, exist_ok=True)
+        page.keyboard.press("Home")
+        wait_frame(page, 0)
+        strip = page.query_selector("#strips canvas")    # a click on a strip jumps to its frame
+        box = strip.bounding_box()
+        scale = box["width"] / 900                        # the strip's canvas is 900 px wide
+        x = (110 + 780 * 20 / (FRAMES - 1)) * scale       # frame 20 on its time axis
+        strip.click(position={"x": x, "y": box["height"] / 2})
+        wait_frame(page, 20)
+        page.select_option("#rate", "25")                 # play, then pause: frames advance
+        page.click("#play")
+        page.wait_for_function("window.uvisiView.frame >= 24")
+        page.click("#play")
+        assert page.inner_text("#play") == "play"
+        page2, errors2 = open_page(browser, f"{url}#frame={K}")   # a link opens that frame
+        wait_frame(page2, K)
+        check_frame(page2, f, K)
+        page2.screenshot(path=str(art / "viewer.png"), full_page=True)
+    assert errors == [] and errors2 == []
+
+
+def test_served_and_no_frames_pages(browser, event, tmp_path):
+    srv = make_server(event / "recording.h5", port=0)
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+    try:
+        page, errors = open_page(browser, srv.url + "#frame=5")
+        wait_frame(page, 5)
+        page.check("#show-stars")                        # stars fetched for the frame shown
+        page.wait_for_timeout(300)
+        with h5py.File(event / "recording.h5", "r") as f:
+            want = f["arrays/frames"][5]
+        assert page.evaluate("window.uvisiView.pixel(61, 200)") == int(want[61, 200])
+        assert errors == []
+    finally:
+        srv.shutdown()
+        srv.server_close()
+    run_event("satellite_over_stars", frames=4, out=tmp_path / "nf", figures=False,
+              record_frames=False)
+    path = write_page(tmp_path / "nf" / "recording.h5")
+    page, errors = open_page(browser, path.as_uri() + "#frame=3")
+    wait_frame(page, 3)
+    assert "--no-frames" in page.inner_text("#warnings")
+    assert errors == []
