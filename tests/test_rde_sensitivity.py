@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from groundsim.assess.rde_models import ErrorModel
-from groundsim.assess.rde_sensitivity import PARAMETERS, run_sensitivity, scaled_error_model
+from groundsim.assess.rde_sensitivity import (PARAMETERS, needed_standard_error, run_sensitivity,
+                                              scaled_error_model)
 from groundsim.assess.rde_study import StudyConfig, epsilon90_grid
 
 # a coarse time grid and a tiny study grid keep every test here to a few seconds
@@ -31,7 +32,8 @@ def test_tiny_grid_has_the_promised_rows_columns_and_files(tiny):
     for ns in (18, 12):
         for d in (2, 8):
             assert {f"eps90_{ns}s_d{d}", f"eps90_{ns}s_d{d}_se"} <= set(rows[0])
-    assert {"needed_18s_L2", "needed_18s_L4", "ordering_holds", "max_rel_12_vs_18"} <= set(rows[0])
+    assert {"needed_18s_L2", "needed_18s_L4", "needed_18s_L4_se", "ordering_holds",
+            "max_rel_12_vs_18"} <= set(rows[0])
     # the unscaled model is run once and shared: identical rows apart from the parameter's name
     base = [r for r in rows if r["scale"] == 1.0]
     assert all(base[0][k] == base[1][k] for k in base[0] if k not in ("parameter", "field", "value"))
@@ -74,6 +76,18 @@ def test_a_larger_random_walk_or_measurement_error_never_lowers_eps90(tiny):
         e = run["figure2"]["eps90_mean"]                       # (D, S, E)
         assert np.all(e[:, 1, :] > e[:, 0, :])                 # 6.7 m error worse than 3 m
         assert run["ordering"]["rises_with_sigma"]
+
+
+def test_needed_density_standard_error_of_a_power_law():
+    """eps90 = A d^-b with relative standard error c: the density needed is (A / r)^(1/b) and, to
+    first order, its standard error is that times c / b."""
+    A, b, c, r = 20.0, 0.8, 0.03, 4.9
+    d = np.array([1, 2, 4, 8, 16, 32], dtype=float)
+    e = A * d ** -b
+    se = needed_standard_error(d, e, c * e, r)
+    assert se == pytest.approx((A / r) ** (1 / b) * c / b, rel=1e-12)
+    assert np.isnan(needed_standard_error(d, e, c * e, 100.0))     # met at the first density
+    assert np.isnan(needed_standard_error(d, e, c * e, 0.1))       # never met
 
 
 def test_scaling_the_whole_model_and_the_measurement_error_scales_eps90_exactly():

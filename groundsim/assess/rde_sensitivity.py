@@ -35,7 +35,7 @@ from .rde_models import ErrorModel
 from .rde_study import StudyConfig, run_figure2, run_figure3
 
 __all__ = ["PARAMETERS", "SCALES", "FIG2_DENSITIES", "FIG2_SIGMAS", "LENGTHS", "DENSITIES",
-           "scaled_error_model", "run_sensitivity", "sensitivity_rows", "write_sensitivity",
+           "scaled_error_model", "run_sensitivity", "sensitivity_rows", "needed_standard_error", "write_sensitivity",
            "plot_sensitivity", "markdown_table"]
 
 #: public parameter name -> (ErrorModel field, power of the scale applied to the field)
@@ -80,7 +80,7 @@ def _ordering(f2: dict) -> dict:
 
 def run_sensitivity(out_dir: str | os.PathLike | None = None, *,
                     parameters: Sequence[str] = tuple(PARAMETERS),
-                    scales: Sequence[float] = SCALES, realisations: int = 40,
+                    scales: Sequence[float] = SCALES, realisations: int = 60,
                     config: StudyConfig | None = None,
                     fig2_densities: Sequence[float] = FIG2_DENSITIES,
                     fig2_sigmas: Sequence[float] = FIG2_SIGMAS,
@@ -134,19 +134,39 @@ def run_sensitivity(out_dir: str | os.PathLike | None = None, *,
                 "requirement_m": config.requirement_m,
                 "requirement_sigma_m": config.requirement_sigma_m,
                 "base_error_model": dataclasses.asdict(config.error_model)}
-    result = {"runs": runs, "rows": sensitivity_rows(runs, config.requirement_sigma_m),
+    result = {"runs": runs, "rows": sensitivity_rows(runs, config.requirement_sigma_m, config.requirement_m),
               "settings": settings}
     if out_dir is not None:
         write_sensitivity(result, out_dir)
     return result
 
 
-def sensitivity_rows(runs: list, requirement_sigma_m: float = 6.7) -> list:
+def needed_standard_error(densities: Sequence[float], eps90: Sequence[float],
+                          eps90_se: Sequence[float], requirement: float) -> float:
+    """Standard error [CP/scene] of :func:`~groundsim.assess.rde_study.density_needed`, first order
+    (delta method): the relative error of epsilon_90 where it crosses the requirement divided by
+    the local log-log slope of epsilon_90 vs density, times the density needed. NaN when the
+    requirement is not crossed inside the grid (met at its first density, or never)."""
+    d = np.log(np.asarray(densities, dtype=float))
+    e = np.asarray(eps90, dtype=float)
+    ok = e <= requirement
+    if not ok.any() or ok[0]:
+        return float("nan")
+    j = int(np.argmax(ok))
+    slope = (np.log(e[j]) - np.log(e[j - 1])) / (d[j] - d[j - 1])
+    rel = 0.5 * (eps90_se[j - 1] / e[j - 1] + eps90_se[j] / e[j])
+    needed = np.exp(d[j - 1] + (np.log(requirement) - np.log(e[j - 1])) / slope)
+    return float(needed * rel / abs(slope)) if slope != 0 else float("nan")
+
+
+def sensitivity_rows(runs: list, requirement_sigma_m: float = 6.7,
+                     requirement_m: float = 4.9) -> list:
     """One flat dict per (parameter, scale): the table's columns.
 
     Columns: parameter, field, scale, value; ``eps90_<ns>s_d<density>`` and
     ``eps90_<ns>s_d<density>_se`` [m] (6.7 m, 5 scenes); ``needed_<ns>s_L<length>`` [CP/scene]
-    (NaN when not met within the density grid); ``ordering_holds`` (bool) and
+    (NaN when not met within the density grid) and its ``_se`` (:func:`needed_standard_error`);
+    ``ordering_holds`` (bool) and
     ``max_rel_12_vs_18``.
     """
     rows = []
@@ -162,6 +182,9 @@ def sensitivity_rows(runs: list, requirement_sigma_m: float = 6.7) -> list:
         for ei, ns in enumerate(f3["n_states"]):
             for li, L in enumerate(f3["n_scenes"]):
                 row[f"needed_{ns}s_L{L:g}"] = float(f3["density_needed"][li, ei])
+                row[f"needed_{ns}s_L{L:g}_se"] = needed_standard_error(
+                    f3["densities"], f3["eps90_mean"][li, :, ei], f3["eps90_sem"][li, :, ei],
+                    requirement_m)
         o = r["ordering"]
         row["ordering_holds"] = o["falls_with_density"] and o["rises_with_sigma"]
         row["max_rel_12_vs_18"] = o["max_rel_12_vs_18"]
@@ -179,6 +202,10 @@ def _display_value(parameter: str, value: float) -> str:
     factor, unit = _DISPLAY[parameter]
     v = np.sqrt(value) * 1e6 if factor is None else value * factor     # sigma1 = sqrt(q_att_angle)
     return f"{v:.3g} {unit}"
+
+
+def _pm(v: float, se: float) -> str:
+    return _fmt(v) if np.isnan(v) or np.isnan(se) else f"{v:.2f} +- {se:.2f}"
 
 
 def _fmt(v) -> str:
@@ -201,16 +228,18 @@ def markdown_table(result: dict) -> str:
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in result["rows"]:
         cells = ([row["parameter"], f"x{row['scale']:g}", _display_value(row["parameter"], row["value"])]
-                 + [_fmt(row[c]) for c in d_cols] + [_fmt(row[c]) for c in n_cols]
+                 + [_fmt(row[c]) for c in d_cols] + [_pm(row[c], row[c + "_se"]) for c in n_cols]
                  + [_fmt(row["ordering_holds"]), f"{100 * row['max_rel_12_vs_18']:.2f} %"])
         lines.append("| " + " | ".join(cells) + " |")
-    se = [v for row in result["rows"] for k, v in row.items() if k.endswith("_se")]
+    se = [v for row in result["rows"] for k, v in row.items()
+          if k.startswith("eps90_18s") and k.endswith("_se")]
     lines.append("")
     lines.append(f"epsilon_90 at 6.7 m measurement error over 5 scenes, 18 states, mean of "
                  f"{st['realisations']} realisations (standard error {min(se):.2f}-{max(se):.2f} m; "
                  f"rows share their random numbers, so differences between rows are more precise); "
                  f"CP/scene needed for epsilon_90 < {st['requirement_m']:g} m, log-log interpolated "
-                 f"on the density grid (\"not met\": above {max(st['densities']):g}).")
+                 f"on the density grid (\"not met\": above {max(st['densities']):g}), +- its "
+                 f"first-order standard error.")
     return "\n".join(lines) + "\n"
 
 
@@ -289,6 +318,8 @@ def plot_sensitivity(result: dict, path: str, density: float | None = None,
     axes[0].yaxis.set_major_locator(FixedLocator([2, 3, 4, 5, 6, 8, 10, 15, 20]))
     axes[0].yaxis.set_major_formatter(ScalarFormatter())
     axes[0].axhline(st["requirement_m"], color="k", lw=0.7, ls=":")
+    axes[0].annotate(f"requirement {st['requirement_m']:g} m", (st["scales"][0], st["requirement_m"]),
+                     textcoords="offset points", xytext=(2, -10), fontsize=7)
     axes[0].set_ylabel(r"$\epsilon_{90}$ (m)")
     axes[0].set_title(rf"$\epsilon_{{90}}$ at 6.7 m error, 5 scenes, {density:g} CP/scene",
                       fontsize=9)

@@ -8,7 +8,7 @@
 ``uvisi rde study --sensitivity [--out DIR] [--realisations N] [--quick] [--workers W]``
     the same study with one input of the a priori error model scaled at a time (the calibrated
     random walks sigma1 and sigma_align_rate0, the a priori sigmas sigma_att0, sigma_align0,
-    sigma_pos0; x0.25, 0.5, 1, 2, 4; 40 realisations by default): writes
+    sigma_pos0; x0.25, 0.5, 1, 2, 4; 60 realisations by default): writes
     ``rde_sensitivity.csv``/``.md``/``.json`` and ``rde_sensitivity.png`` to DIR, prints the table
     (``groundsim.assess.rde_sensitivity``).
 
@@ -42,7 +42,7 @@ def register(sub) -> None:
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
     ps.add_argument("--out", default="rde_study", help="output directory (default: ./rde_study)")
     ps.add_argument("--realisations", type=int, default=None,
-                    help="Monte Carlo realisations per point (default 100; 40 with --sensitivity)")
+                    help="Monte Carlo realisations per point (default 100; 60 with --sensitivity)")
     ps.add_argument("--quick", action="store_true", help="reduced grid (smoke runs, tests)")
     ps.add_argument("--sensitivity", action="store_true",
                     help="rerun the study with each error-model input scaled x0.25..x4, one at a time")
@@ -83,7 +83,7 @@ def _with_progress(base_map):
 
 def _check_study_args(args) -> None:
     if args.realisations is None:
-        args.realisations = 40 if args.sensitivity else 100
+        args.realisations = 60 if args.sensitivity else 100
     if args.realisations < 2:
         raise ValueError(f"--realisations {args.realisations}: must be at least 2")
     if args.workers < 1:
