@@ -94,7 +94,8 @@ def run_sensitivity(out_dir: str | os.PathLike | None = None, *,
     ``realisations`` Monte Carlo realisations through ``map``/``executor`` (as in
     :mod:`~groundsim.assess.rde_study`). The unscaled model (scale 1) is run once and shared by
     every parameter. ``fig2_sigmas`` must contain the requirement's measurement error (6.7 m).
-    ``progress(done, total)`` is called after each distinct configuration.
+    ``progress(done, total)`` is called before the first distinct configuration (done = 0) and
+    after each one.
 
     Returns {"runs": [{"parameter", "field", "scale", "value", "figure2", "figure3", "ordering"},
     ...], "rows": :func:`sensitivity_rows`, "settings": {...}}; with ``out_dir``, writes the files
@@ -109,6 +110,8 @@ def run_sensitivity(out_dir: str | os.PathLike | None = None, *,
             for p in parameters for s in scales]
     distinct = list(dict.fromkeys(em for _, _, em in plan))
     cache: dict = {}
+    if progress is not None:
+        progress(0, len(distinct))
     for i, em in enumerate(distinct):
         cfg = dataclasses.replace(config, error_model=em)
         f2 = run_figure2(densities=fig2_densities, sigmas=fig2_sigmas, n_scenes=5,
@@ -260,10 +263,11 @@ def _jsonable(obj):
 def write_sensitivity(result: dict, out_dir: str | os.PathLike) -> list:
     """Write ``rde_sensitivity.csv`` (all columns), ``rde_sensitivity.md`` (18-state summary),
     ``rde_sensitivity.json`` (every number and setting; NaN as null) and ``rde_sensitivity.png``
-    into ``out_dir``; each file is written to a temporary name and renamed, so a failure leaves
-    nothing half-written. Returns the paths."""
+    into ``out_dir``. All four are written to temporary names first and renamed only when every
+    one succeeded, so a failure leaves no half-written or mismatched set. Returns the paths."""
     os.makedirs(out_dir, exist_ok=True)
     paths = [os.path.join(out_dir, f"rde_sensitivity.{ext}") for ext in ("csv", "md", "json", "png")]
+    tmps = [f"{p}.tmp.{p.rsplit('.', 1)[1]}" for p in paths]
     rows = result["rows"]
 
     def write_csv(fh):
@@ -273,14 +277,18 @@ def write_sensitivity(result: dict, out_dir: str | os.PathLike) -> list:
 
     writers = [write_csv, lambda fh: fh.write(markdown_table(result)),
                lambda fh: json.dump(_jsonable(result), fh, indent=1)]
-    for path, writer in zip(paths[:3], writers):
-        tmp = path + ".tmp"
-        with open(tmp, "w", newline="") as fh:
-            writer(fh)
+    try:
+        for tmp, writer in zip(tmps[:3], writers):
+            with open(tmp, "w", newline="") as fh:
+                writer(fh)
+        plot_sensitivity(result, tmps[3])
+    except BaseException:
+        for tmp in tmps:
+            if os.path.exists(tmp):
+                os.remove(tmp)
+        raise
+    for tmp, path in zip(tmps, paths):
         os.replace(tmp, path)
-    tmp = paths[3] + ".tmp.png"
-    plot_sensitivity(result, tmp)
-    os.replace(tmp, paths[3])
     return paths
 
 

@@ -108,7 +108,7 @@ def _sensitivity(args) -> int:
         if "bar" not in bar:
             from tqdm import tqdm
             bar["bar"] = tqdm(total=total, desc="rde sensitivity", unit="model", leave=False)
-        bar["bar"].update(1)
+        bar["bar"].update(done - bar["bar"].n)
 
     try:
         if args.workers > 1:
