@@ -154,3 +154,21 @@ def test_cli_sensitivity_bad_options_are_one_line_errors(tmp_path, capsys, argv,
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and err[0].startswith("uvisi rde: error:") and needle in err[0]
     assert str(f) in err[0] or not names_file
+
+
+def test_study_report_says_figure3_level_is_calibrated(tmp_path, capsys, monkeypatch):
+    from hil_harness.cli import main
+    import groundsim.assess.rde_study as st
+    orig = st.run_study
+
+    def small(out, **kw):
+        return orig(out, config=CFG, figure2_kw=dict(densities=(2, 8), sigmas=(3.0, 6.7)),
+                    figure3_kw=dict(n_scenes_list=(2,), densities=(2, 8, 32)), **kw)
+
+    monkeypatch.setattr(st, "run_study", small)
+    assert main(["rde", "study", "--quick", "--realisations", "2", "--workers", "1",
+                 "--out", str(tmp_path)]) == 0
+    assert "rde study --sensitivity" in capsys.readouterr().out
+    doc = json.loads((tmp_path / "rde_study.json").read_text())
+    assert set(doc["config"]["calibrated"]["inputs"]) == {
+        f"error_model.{PARAMETERS[p][0]}" for p in ("sigma1", "sigma_align_rate0")}

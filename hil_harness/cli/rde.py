@@ -130,7 +130,7 @@ def _sensitivity(args) -> int:
 
 
 def _study(args) -> int:
-    from groundsim.assess.rde_study import run_study
+    from groundsim.assess.rde_study import CALIBRATION_NOTE, run_study
     _check_study_args(args)
     if args.sensitivity:
         return _sensitivity(args)
@@ -153,6 +153,7 @@ def _study(args) -> int:
     for li, L in enumerate(f3["n_scenes"]):
         vals = "  ".join(f"{ns}s {f3['density_needed'][li, ei]:6.2f}" for ei, ns in enumerate(f3["n_states"]))
         print(f"  {L:5g} scenes  {vals}")
+    print("  note: " + CALIBRATION_NOTE.replace("\n", " "))
     print(f"wrote {os.path.join(args.out, 'rde_figure2.png')}, rde_figure3.png, rde_study.json")
     return 0
 
