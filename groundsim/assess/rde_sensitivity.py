@@ -35,8 +35,8 @@ from .rde_models import ErrorModel
 from .rde_study import StudyConfig, run_figure2, run_figure3
 
 __all__ = ["PARAMETERS", "SCALES", "FIG2_DENSITIES", "FIG2_SIGMAS", "LENGTHS", "DENSITIES",
-           "scaled_error_model", "run_sensitivity", "sensitivity_rows", "needed_standard_error", "write_sensitivity",
-           "plot_sensitivity", "markdown_table"]
+           "scaled_error_model", "run_sensitivity", "sensitivity_rows", "needed_standard_error",
+           "write_sensitivity", "plot_sensitivity", "markdown_table"]
 
 #: public parameter name -> (ErrorModel field, power of the scale applied to the field)
 PARAMETERS = {
@@ -137,8 +137,8 @@ def run_sensitivity(out_dir: str | os.PathLike | None = None, *,
                 "requirement_m": config.requirement_m,
                 "requirement_sigma_m": config.requirement_sigma_m,
                 "base_error_model": dataclasses.asdict(config.error_model)}
-    result = {"runs": runs, "rows": sensitivity_rows(runs, config.requirement_sigma_m, config.requirement_m),
-              "settings": settings}
+    rows = sensitivity_rows(runs, config.requirement_sigma_m, config.requirement_m)
+    result = {"runs": runs, "rows": rows, "settings": settings}
     if out_dir is not None:
         write_sensitivity(result, out_dir)
     return result
@@ -169,8 +169,8 @@ def sensitivity_rows(runs: list, requirement_sigma_m: float = 6.7,
     Columns: parameter, field, scale, value; ``eps90_<ns>s_d<density>`` and
     ``eps90_<ns>s_d<density>_se`` [m] (6.7 m, 5 scenes); ``needed_<ns>s_L<length>`` [CP/scene]
     (NaN when not met within the density grid) and its ``_se`` (:func:`needed_standard_error`);
-    ``ordering_holds`` (bool) and
-    ``max_rel_12_vs_18``.
+    ``ordering_holds`` (bool: Figure 2's ordering, see the module doc) and ``max_rel_12_vs_18``
+    (largest relative 12- vs 18-state difference of epsilon_90 over the Figure 2 grid).
     """
     rows = []
     for r in runs:
@@ -230,7 +230,8 @@ def markdown_table(result: dict) -> str:
             + ["Fig. 2 ordering", "12 vs 18 states"])
     lines = ["| " + " | ".join(head) + " |", "|" + " --- |" * len(head)]
     for row in result["rows"]:
-        cells = ([row["parameter"], f"x{row['scale']:g}", _display_value(row["parameter"], row["value"])]
+        value = _display_value(row["parameter"], row["value"])
+        cells = ([row["parameter"], f"x{row['scale']:g}", value]
                  + [_fmt(row[c]) for c in d_cols] + [_pm(row[c], row[c + "_se"]) for c in n_cols]
                  + [_fmt(row["ordering_holds"]), f"{100 * row['max_rel_12_vs_18']:.2f} %"])
         lines.append("| " + " | ".join(cells) + " |")

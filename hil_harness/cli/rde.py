@@ -40,7 +40,8 @@ def register(sub) -> None:
                        description=__doc__)
     rsub = p.add_subparsers(dest="rde_command", metavar="RDE_COMMAND")
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
-    ps.add_argument("--out", default="rde_study", help="output directory (default: ./rde_study)")
+    ps.add_argument("--out", default=None,
+                    help="output directory (default: ./rde_study; ./rde_sensitivity with --sensitivity)")
     ps.add_argument("--realisations", type=int, default=None,
                     help="Monte Carlo realisations per point (default 100; 60 with --sensitivity)")
     ps.add_argument("--quick", action="store_true", help="reduced grid (smoke runs, tests)")
@@ -82,6 +83,8 @@ def _with_progress(base_map):
 
 
 def _check_study_args(args) -> None:
+    if args.out is None:
+        args.out = "rde_sensitivity" if args.sensitivity else "rde_study"
     if args.realisations is None:
         args.realisations = 60 if args.sensitivity else 100
     if args.realisations < 2:
