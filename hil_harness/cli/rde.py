@@ -5,6 +5,13 @@
     five-scene interval), ``rde_figure3.png`` (control-point density needed for epsilon_90 < 4.9 m at
     6.7 m vs interval length) and ``rde_study.json`` to DIR, prints the numbers.
 
+``uvisi rde study --sensitivity [--out DIR] [--realisations N] [--quick] [--workers W]``
+    the same study with one input of the a priori error model scaled at a time (the calibrated
+    random walks sigma1 and sigma_align_rate0, the a priori sigmas sigma_att0, sigma_align0,
+    sigma_pos0; x0.25, 0.5, 1, 2, 4; 60 realisations by default): writes
+    ``rde_sensitivity.csv``/``.md``/``.json`` and ``rde_sensitivity.png`` to DIR, prints the table
+    (``groundsim.assess.rde_sensitivity``).
+
 ``uvisi rde reconstruct CONTROL_POINTS.npz|RECORDING.h5 [--out DIR] [--iterations K]
 [--min-significance S] [--flight-centroids] [--keep-blends]``
     imager alignment + attitude-knowledge reconstruction from matched star control points (schema
@@ -33,9 +40,13 @@ def register(sub) -> None:
                        description=__doc__)
     rsub = p.add_subparsers(dest="rde_command", metavar="RDE_COMMAND")
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
-    ps.add_argument("--out", default="rde_study", help="output directory (default: ./rde_study)")
-    ps.add_argument("--realisations", type=int, default=100, help="Monte Carlo realisations per point")
+    ps.add_argument("--out", default=None,
+                    help="output directory (default: ./rde_study; ./rde_sensitivity with --sensitivity)")
+    ps.add_argument("--realisations", type=int, default=None,
+                    help="Monte Carlo realisations per point (default 100; 60 with --sensitivity)")
     ps.add_argument("--quick", action="store_true", help="reduced grid (smoke runs, tests)")
+    ps.add_argument("--sensitivity", action="store_true",
+                    help="rerun the study with each error-model input scaled x0.25..x4, one at a time")
     ps.add_argument("--workers", type=int, default=2, help="worker processes (1 = serial)")
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
@@ -71,12 +82,61 @@ def _with_progress(base_map):
     return mapped
 
 
-def _study(args) -> int:
-    from groundsim.assess.rde_study import run_study
+def _check_study_args(args) -> None:
+    if args.out is None:
+        args.out = "rde_sensitivity" if args.sensitivity else "rde_study"
+    if args.realisations is None:
+        args.realisations = 60 if args.sensitivity else 100
     if args.realisations < 2:
-        raise ValueError("--realisations must be at least 2")
+        raise ValueError(f"--realisations {args.realisations}: must be at least 2")
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: must be >= 1")
+    if os.path.exists(args.out) and not os.path.isdir(args.out):
+        raise NotADirectoryError(f"{args.out}: --out exists and is not a directory")
+
+
+def _sensitivity(args) -> int:
+    """``rde study --sensitivity``: the error-model sensitivity table, figure and files."""
+    from groundsim.assess.rde_sensitivity import markdown_table, run_sensitivity
+    from hil_harness.console import progress_enabled
+    kw = {}
+    if args.quick:
+        kw = dict(scales=(0.5, 1.0, 2.0), lengths=(5, 10),
+                  densities=(1, 1.5, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64))
+    bar = {}
+
+    def progress(done, total):
+        if not progress_enabled():
+            return
+        if "bar" not in bar:
+            from tqdm import tqdm
+            bar["bar"] = tqdm(total=total, desc="rde sensitivity", unit="model", leave=False)
+        bar["bar"].update(done - bar["bar"].n)
+
+    try:
+        if args.workers > 1:
+            from concurrent.futures import ProcessPoolExecutor
+            with ProcessPoolExecutor(args.workers) as ex:
+                res = run_sensitivity(args.out, realisations=args.realisations, map=ex.map,
+                                      progress=progress, **kw)
+        else:
+            res = run_sensitivity(args.out, realisations=args.realisations, progress=progress, **kw)
+    finally:
+        if "bar" in bar:
+            bar["bar"].close()
+    print("RDE study vs its a priori error model (one input scaled at a time; sigma1 and "
+          "sigma_align_rate0 are the calibrated random walks)")
+    print(markdown_table(res), end="")
+    print(f"wrote {os.path.join(args.out, 'rde_sensitivity.md')}, rde_sensitivity.csv, "
+          "rde_sensitivity.json, rde_sensitivity.png")
+    return 0
+
+
+def _study(args) -> int:
+    from groundsim.assess.rde_study import CALIBRATION_NOTE, run_study
+    _check_study_args(args)
+    if args.sensitivity:
+        return _sensitivity(args)
     if args.workers > 1:
         from concurrent.futures import ProcessPoolExecutor
         with ProcessPoolExecutor(args.workers) as ex:
@@ -96,6 +156,7 @@ def _study(args) -> int:
     for li, L in enumerate(f3["n_scenes"]):
         vals = "  ".join(f"{ns}s {f3['density_needed'][li, ei]:6.2f}" for ei, ns in enumerate(f3["n_states"]))
         print(f"  {L:5g} scenes  {vals}")
+    print("  note: " + CALIBRATION_NOTE.replace("\n", " "))
     print(f"wrote {os.path.join(args.out, 'rde_figure2.png')}, rde_figure3.png, rde_study.json")
     return 0
 
