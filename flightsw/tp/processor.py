@@ -268,17 +268,17 @@ class TrackProcessor:
                 att[1] = 0.0
 
     def _command(self, status: int) -> TrackCommand:
-        o = self.out
-        v = o.tolist()
+        v = self.out.tolist()
+        a = self.out[F.O_QP:F.O_SV].copy()       # one copy; the command's arrays are views of it
         cmd = TrackCommand(
-            frame_count=int(v[F.O_FRAME]), time_tag=v[F.O_T], q_point=o[F.O_QP:F.O_QP + 4].copy(),
+            frame_count=int(v[F.O_FRAME]), time_tag=v[F.O_T], q_point=a[0:4],
             predicted_row=v[F.O_PROW], predicted_col=v[F.O_PCOL],
             imager=self._img_names[int(v[F.O_IMG])], object_type=self._object_type,
             locked=v[F.O_LOCKED] != 0.0, status=status, n_star_gates=int(v[F.O_NSTAR]),
             n_object_gates=int(v[F.O_NOBJ]), decided_frame=int(v[F.O_DECF]),
-            object_index=int(v[F.O_OBJIDX]), mode=self._mode, los_eci=o[F.O_LOS:F.O_LOS + 3].copy(),
-            r_est=o[F.O_R:F.O_R + 3].copy(), v_est=o[F.O_V:F.O_V + 3].copy(), sigma_pos=v[F.O_SP],
-            sigma_vel=v[F.O_SV])
+            object_index=int(v[F.O_OBJIDX]), mode=self._mode,
+            los_eci=a[F.O_LOS - F.O_QP:F.O_R - F.O_QP], r_est=a[F.O_R - F.O_QP:F.O_V - F.O_QP],
+            v_est=a[F.O_V - F.O_QP:F.O_SP - F.O_QP], sigma_pos=v[F.O_SP], sigma_vel=v[F.O_SV])
         self._last_cmd = cmd
         return cmd
 
