@@ -530,7 +530,7 @@ def test_in_gate_pairs_equals_every_pair_tested():
     OBS[4, L.OBS_OK] = 0
     OC = observation_columns(OBS)
     assert OC.tolist() == OBS[:, [L.OBS_IA, L.OBS_IB, L.OBS_OK]].T.tolist()
-    assert gate_mask(OC, 5, 0, 0, 10) == 0b00011        # edges in, beyond out, unusable, row 5 unused
+    assert gate_mask(OC, 5, 0, 0, 10) == 0b00011        # edges in, beyond out, unusable, row 5
     assert gate_mask(OC, 6, 0, 0, 10) == 0b100011
 
 
