@@ -1,9 +1,9 @@
 """Track processor (issue 7): host speed of the emulated 1750A flight code. ``TrackProcessor.step`` on
 a frame of 23 candidates (22 stars + the object) with all 45 gates live and populated and the EKF
-running (target <= 30 us median, one core); the 6-state EKF step -- RK4 predict + two sequential
-scalar updates, 1750A 48/32-bit -- beside ``filterpy.kalman.ExtendedKalmanFilter`` and Stone Soup's
-``ExtendedKalmanPredictor`` + ``ExtendedKalmanUpdater`` with the same model in float64 (target >= 5x
-filterpy); and the alpha-beta step beside Stone Soup's Kalman predictor +
+running (target <= 15 us median, one core: issue 23); the 6-state EKF step -- RK4 predict + two
+sequential scalar updates, 1750A 48/32-bit -- beside ``filterpy.kalman.ExtendedKalmanFilter`` and
+Stone Soup's ``ExtendedKalmanPredictor`` + ``ExtendedKalmanUpdater`` with the same model in
+float64 (target >= 5x filterpy); and the alpha-beta step beside Stone Soup's Kalman predictor +
 updater on a 1-D constant-velocity model at its steady-state gain (the alpha-beta filter is that
 filter with the gains frozen). Each pair is checked to produce the same estimates before it is
 timed. Run: ``.venv/bin/python -m pytest bench/bench_tp.py --benchmark-enable -q``.

@@ -13,7 +13,8 @@ from flightsw.arith.m1750 import decode32, encode32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
 from flightsw.tp import layout as L
-from flightsw.tp.association import associate, in_gate_pairs, sort_pairs
+from flightsw.tp.association import (CYC_PAIR_DIST, CYC_PAIR_TEST, associate, gate_mask,
+                                     in_gate_pairs, observation_columns, sort_pairs)
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
                                any_gate_alive, drop_all_gates, gate_half_width, gate_params,
                                kill_pair, propagate_gates, smooth_gates)
@@ -479,6 +480,78 @@ def test_in_gate_pairs_square_gate_on_integer_coordinates():
     n = in_gate_pairs(G, OBS, 6, 1, 10, PW, cyc)          # object class: row 1 only
     assert sorted(map(tuple, PW[:n].tolist())) == [(125, 1, 0), (200, 1, 1)]
     assert in_gate_pairs(G, OBS, 0, 0, 10, PW, cyc) == 0
+
+
+def _brute_pairs(G, OBS, nuse, kind, half):
+    """The in-gate triples by the definition: every live gate of the class against every usable
+    observation, by gate row then observation index (plain Python)."""
+    out = []
+    for row in range(kind, L.NG, 2):
+        if not G[row, L.G_ALIVE]:
+            continue
+        for j in range(nuse):
+            da = int(OBS[j, L.OBS_IA] - G[row, L.G_IA])
+            db = int(OBS[j, L.OBS_IB] - G[row, L.G_IB])
+            if OBS[j, L.OBS_OK] and abs(da) <= half and abs(db) <= half:
+                out.append([da * da + db * db, row, j])
+    return out
+
+
+def _crowded(rng):
+    """Live gates and observations crowded into a few gate widths (ties in ``OBS_IA`` included),
+    some gates dead, some observations unusable."""
+    G = _int_gates({r: (int(rng.integers(-40, 40)), int(rng.integers(-40, 40)))
+                    for r in range(L.NG)})
+    G[rng.random(L.NG) < 0.2, L.G_ALIVE] = 0
+    OBS = _int_obs([(int(rng.integers(-45, 45)) // 3 * 3, int(rng.integers(-45, 45)))
+                    for _ in range(L.MAX_OBS)])
+    OBS[rng.random(L.MAX_OBS) < 0.15, L.OBS_OK] = 0
+    return G, OBS
+
+
+@pytest.mark.cases("flightsw.tp.association.gate_mask", "inside", "outside", "unusable",
+                   "beyond-nuse")
+@pytest.mark.cases("flightsw.tp.association.observation_columns", "typical")
+def test_in_gate_pairs_equals_every_pair_tested():
+    """The mask test finds exactly the pairs (and order, and clocks) of the definition: every
+    gate against every observation, written out in Python."""
+    rng = np.random.default_rng(23)
+    for _ in range(40):
+        G, OBS = _crowded(rng)
+        nuse, half = int(rng.integers(0, L.MAX_OBS + 1)), int(rng.integers(0, 12))
+        for kind in range(2):
+            PW, TAKEN, cyc = _scratch()
+            n = in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc)
+            want = _brute_pairs(G, OBS, nuse, kind, half)
+            assert PW[:n].tolist() == want
+            live = int(G[kind::2, L.G_ALIVE].sum())
+            assert cyc[L.ST_GATES] == live * nuse * CYC_PAIR_TEST + len(want) * CYC_PAIR_DIST
+    OBS = _int_obs([(0, 0), (10, -10), (11, 0), (0, 11), (3, 3), (1, 1)])
+    OBS[4, L.OBS_OK] = 0
+    OC = observation_columns(OBS)
+    assert OC.tolist() == OBS[:, [L.OBS_IA, L.OBS_IB, L.OBS_OK]].T.tolist()
+    assert gate_mask(OC, 5, 0, 0, 10) == 0b00011        # edges in, beyond out, unusable, row 5
+    assert gate_mask(OC, 6, 0, 0, 10) == 0b100011
+
+
+def test_associate_is_greedy_nearest_first():
+    """associate against the greedy global nearest neighbour written out in Python: per class,
+    pairs by distance (stable), each gate and each observation used once."""
+    rng = np.random.default_rng(7)
+    for _ in range(40):
+        G, OBS = _crowded(rng)
+        nuse, half = int(rng.integers(0, L.MAX_OBS + 1)), int(rng.integers(0, 12))
+        want = {}
+        for kind in range(2):
+            taken = set()
+            for d2, row, j in sorted(_brute_pairs(G, OBS, nuse, kind, half), key=lambda t: t[0]):
+                if row not in want and j not in taken:
+                    want[row] = j
+                    taken.add(j)
+        PW, TAKEN, cyc = _scratch()
+        associate(G, OBS, nuse, half, PW, TAKEN, cyc)
+        got = {r: int(G[r, L.G_OBS]) for r in range(L.NG) if G[r, L.G_OBS] >= 0}
+        assert got == want
 
 
 @pytest.mark.cases("flightsw.tp.association.sort_pairs", "sorted", "ties-stable", "short")

@@ -10,11 +10,13 @@ star for ever and the pair is never decided (0.5-1 % of the synthetic events).
 """
 from __future__ import annotations
 
+import numpy as np
 from numba import njit
+from numba.cpython.unsafe.numbers import trailing_zeros
 
 from flightsw.tp.f1750 import cycles
-from flightsw.tp.geometry import i16abs
-from flightsw.tp.layout import G_ALIVE, G_IA, G_IB, G_OBS, NG, OBS_IA, OBS_IB, OBS_OK, ST_GATES
+from flightsw.tp.layout import (G_ALIVE, G_IA, G_IB, G_OBS, MAX_OBS, NG, OBS_IA, OBS_IB, OBS_OK,
+                                ST_GATES)
 
 PAIR_TEST_MIX = {"SR": 2, "CR": 4, "JC": 4}
 PAIR_DIST_MIX = {"MR": 2, "AR": 1, "CR": 1, "JC": 1}
@@ -25,13 +27,56 @@ CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 
 
 @njit(cache=True, inline="always")
+def observation_columns(OBS):
+    """The observations' integer coordinates and usable flags as contiguous rows -> int64
+    [3, MAX_OBS] (``OBS_IA``, ``OBS_IB``, ``OBS_OK``), so that :func:`gate_mask` runs as vector
+    compares. ``OBS`` int64 [MAX_OBS, OBS_C].
+
+    Cases
+    -----
+    typical : row 0 is ``OBS[:, OBS_IA]``, row 1 ``OBS[:, OBS_IB]``, row 2 ``OBS[:, OBS_OK]``.
+    """
+    OC = np.empty((3, MAX_OBS), np.int64)
+    for j in range(MAX_OBS):
+        OC[0, j] = OBS[j, OBS_IA]
+        OC[1, j] = OBS[j, OBS_IB]
+        OC[2, j] = OBS[j, OBS_OK]
+    return OC
+
+
+@njit(cache=True, inline="always")
+def gate_mask(OC, nuse, ia, ib, half):
+    """Which of the first ``nuse`` observations lie inside the gate centred at ``(ia, ib)`` (16-bit
+    integers, half-width ``half``) -> int64 bit mask (bit j: observation j usable and inside).
+    ``OC`` int64 [3, MAX_OBS] from :func:`observation_columns` (columns from ``nuse`` on are
+    ignored). Branch-free over all MAX_OBS columns, so the host compiles it to vector compares;
+    the flight code's clocks are charged by the caller.
+
+    Cases
+    -----
+    inside : ``|da| <= half`` and ``|db| <= half`` (edges included) -> bit j set.
+    outside : either axis beyond ``half`` -> bit j clear.
+    unusable : ``OBS_OK == 0`` -> bit j clear.
+    beyond-nuse : columns ``j >= nuse`` -> bit j clear, whatever they hold.
+    """
+    mask = 0
+    for j in range(MAX_OBS):              # a constant trip count: unrolled, vector compares
+        da = OC[0, j] - ia
+        db = OC[1, j] - ib
+        inside = (da <= half) & (-half <= da) & (db <= half) & (-half <= db) & (OC[2, j] != 0)
+        mask |= np.int64(inside) << j
+    return mask & ((np.int64(1) << nuse) - 1)
+
+
+@njit(cache=True, inline="always")
 def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
-    ``PW`` (int64 [NG * MAX_OBS, 3]) -> their number.
+    ``PW`` (int64 [NG * MAX_OBS, 3]), by gate row then observation index -> their number.
 
     ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]); coordinates are
-    the 16-bit integers (LSB 2**-16 rad), distances their integer squares.
+    the 16-bit integers (LSB 2**-16 rad), distances their integer squares. Every live gate tests
+    every observation (:func:`gate_mask`), as the flight code does and is charged for.
 
     Cases
     -----
@@ -43,22 +88,23 @@ def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     unusable-skipped : observations with ``OBS_OK == 0`` give no triple.
     no-observations : ``nuse == 0`` -> 0.
     """
+    OC = observation_columns(OBS)
     npairs = 0
     for row in range(kind, NG, 2):
         if G[row, G_ALIVE] == 0:
             continue
         ia = G[row, G_IA]
         ib = G[row, G_IB]
-        for j in range(nuse):
-            if OBS[j, OBS_OK] == 0:
-                continue
-            da = OBS[j, OBS_IA] - ia
-            db = OBS[j, OBS_IB] - ib
-            if i16abs(da) <= half and i16abs(db) <= half:
-                PW[npairs, 0] = da * da + db * db
-                PW[npairs, 1] = row
-                PW[npairs, 2] = j
-                npairs += 1
+        mask = gate_mask(OC, nuse, ia, ib, half)
+        while mask != 0:                          # the observations inside, by index
+            j = np.int64(trailing_zeros(mask))
+            mask &= mask - 1
+            da = OC[0, j] - ia
+            db = OC[1, j] - ib
+            PW[npairs, 0] = da * da + db * db
+            PW[npairs, 1] = row
+            PW[npairs, 2] = j
+            npairs += 1
         cyc[ST_GATES] += nuse * CYC_PAIR_TEST
     cyc[ST_GATES] += npairs * CYC_PAIR_DIST
     return npairs
@@ -75,14 +121,16 @@ def sort_pairs(PW, npairs, cyc):
     ties-stable : equal distances keep their input order.
     short : ``npairs`` 0 or 1 -> nothing moves.
     """
+    moves = 0
     for i in range(1, npairs):
         d0_, r0_, j0_ = PW[i, 0], PW[i, 1], PW[i, 2]
         m = i - 1
         while m >= 0 and PW[m, 0] > d0_:
             PW[m + 1, 0], PW[m + 1, 1], PW[m + 1, 2] = PW[m, 0], PW[m, 1], PW[m, 2]
             m -= 1
-            cyc[ST_GATES] += CYC_SORT_MOVE
+            moves += 1
         PW[m + 1, 0], PW[m + 1, 1], PW[m + 1, 2] = d0_, r0_, j0_
+    cyc[ST_GATES] += moves * CYC_SORT_MOVE
 
 
 @njit(cache=True)

@@ -110,6 +110,10 @@ class TrackProcessor:
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
+        # the kernel's arguments, gathered once: every array is updated in place from here on
+        self._kernel_args = (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
+                             self.OBS, self.PW, self.W, self.V, self.hdr, self.att, self.rows,
+                             self.cols, self.out, self.cyc)
         self.reset()
 
     @staticmethod
@@ -182,7 +186,8 @@ class TrackProcessor:
             cmd = self.step(message.message_words, message.attitude, message.ledger)
             return TPOutputs(cmd.to_words(), cmd, int(cmd.status))
         if self._pending is not None:             # an uplink accepted last frame takes effect
-            self.config, self.C = self._pending
+            self.config, C = self._pending
+            self.C[:] = C
             self._pending = None
         try:
             return self._step(message, attitude, ledger)
@@ -217,25 +222,38 @@ class TrackProcessor:
                 msg = CandidateMessage.from_words(message)
             except (ValueError, TypeError):
                 msg = None
-        ok = msg is not None
-        img_idx = 0
-        n = 0
-        t_msg = 0.0
-        fc = 0
-        if ok:
-            idx = self._img_index.get(msg.imager)
-            cand = msg.candidates
-            if idx is None or not isinstance(cand, np.ndarray) or cand.dtype.names is None \
-                    or "row" not in cand.dtype.names or "col" not in cand.dtype.names \
-                    or not isinstance(msg.frame_count, (int, np.integer)):
-                ok = False
-            else:
-                img_idx = idx
-                n = min(len(cand), F.MAX_OBS)
-                self.rows[:n] = cand["row"][:n]
-                self.cols[:n] = cand["col"][:n]
-                t_msg = float(msg.time_tag)
-                fc = int(msg.frame_count) & 0xFFFF
+        if msg is None or not self._read_message(msg):
+            self.hdr.fill(0.0)                    # unusable: the kernel coasts
+        self._read_attitude(attitude)
+        status = tp_frame(*self._kernel_args)
+        if ledger is not None:
+            for name, c in zip(F.STAGES, self.cyc):
+                if c:
+                    ledger.charge(TP1750, name, int(c))
+        return self._command(int(status))
+
+    def _read_message(self, msg) -> bool:
+        """The message's header into ``hdr`` and its centroids into ``rows``/``cols`` -> True; a
+        message the TP cannot use (unconfigured imager, no centroids) -> False, nothing written."""
+        idx = self._img_index.get(msg.imager)
+        cand = msg.candidates
+        if idx is None or not isinstance(cand, np.ndarray) or cand.dtype.names is None \
+                or "row" not in cand.dtype.names or "col" not in cand.dtype.names \
+                or not isinstance(msg.frame_count, (int, np.integer)):
+            return False
+        n = len(cand)
+        if n > F.MAX_OBS:
+            n = F.MAX_OBS
+            cand = cand[:n]
+        self.rows[:n] = cand["row"]
+        self.cols[:n] = cand["col"]
+        h = self.hdr
+        h[F.H_T] = float(msg.time_tag)
+        h[F.H_OK], h[F.H_IMG], h[F.H_FC], h[F.H_N] = 1.0, idx, int(msg.frame_count) & 0xFFFF, n
+        return True
+
+    def _read_attitude(self, attitude) -> None:
+        """The attitude data into ``att`` (``att[1] = 0``: none, or not usable)."""
         att = self.att
         att[1] = 0.0
         if attitude is not None:
@@ -248,29 +266,19 @@ class TrackProcessor:
                 att[1] = 1.0 if attitude.valid else 0.0
             except (AttributeError, TypeError, ValueError):
                 att[1] = 0.0
-        h = self.hdr
-        h[F.H_OK] = 1.0 if ok else 0.0
-        h[F.H_IMG], h[F.H_T], h[F.H_FC], h[F.H_N] = img_idx, t_msg, fc, n
-        status = tp_frame(self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
-                          self.OBS, self.PW, self.W, self.V, h, att, self.rows, self.cols, self.out,
-                          self.cyc)
-        if ledger is not None:
-            for name, c in zip(F.STAGES, self.cyc):
-                if c:
-                    ledger.charge(TP1750, name, int(c))
-        return self._command(int(status))
 
     def _command(self, status: int) -> TrackCommand:
-        o = self.out
+        v = self.out.tolist()
+        a = self.out[F.O_QP:F.O_SV].copy()       # one copy; the command's arrays are views of it
         cmd = TrackCommand(
-            frame_count=int(o[F.O_FRAME]), time_tag=float(o[F.O_T]),
-            q_point=o[F.O_QP:F.O_QP + 4].copy(), predicted_row=float(o[F.O_PROW]),
-            predicted_col=float(o[F.O_PCOL]), imager=self._img_names[int(o[F.O_IMG])],
-            object_type=self._object_type, locked=bool(o[F.O_LOCKED]), status=status,
-            n_star_gates=int(o[F.O_NSTAR]), n_object_gates=int(o[F.O_NOBJ]),
-            decided_frame=int(o[F.O_DECF]), object_index=int(o[F.O_OBJIDX]), mode=self._mode,
-            los_eci=o[F.O_LOS:F.O_LOS + 3].copy(), r_est=o[F.O_R:F.O_R + 3].copy(),
-            v_est=o[F.O_V:F.O_V + 3].copy(), sigma_pos=float(o[F.O_SP]), sigma_vel=float(o[F.O_SV]))
+            frame_count=int(v[F.O_FRAME]), time_tag=v[F.O_T], q_point=a[0:4],
+            predicted_row=v[F.O_PROW], predicted_col=v[F.O_PCOL],
+            imager=self._img_names[int(v[F.O_IMG])], object_type=self._object_type,
+            locked=v[F.O_LOCKED] != 0.0, status=status, n_star_gates=int(v[F.O_NSTAR]),
+            n_object_gates=int(v[F.O_NOBJ]), decided_frame=int(v[F.O_DECF]),
+            object_index=int(v[F.O_OBJIDX]), mode=self._mode,
+            los_eci=a[F.O_LOS - F.O_QP:F.O_R - F.O_QP], r_est=a[F.O_R - F.O_QP:F.O_V - F.O_QP],
+            v_est=a[F.O_V - F.O_QP:F.O_SP - F.O_QP], sigma_pos=v[F.O_SP], sigma_vel=v[F.O_SV])
         self._last_cmd = cmd
         return cmd
 
