@@ -20,6 +20,20 @@ def test_unknown_subcommand_exits_2():
     assert exc.value.code == 2
 
 
+def test_demo_runs_the_event_command_with_all_its_defaults(monkeypatch, tmp_path):
+    """`uvisi demo` (what `make demo` runs) hands the event command the arguments its own parser
+    gives `uvisi event satellite_over_stars`; a hand-built set once missed a newer option."""
+    import hil_harness.cli.event as ev
+    seen = []
+    monkeypatch.setattr(ev, "run", lambda a: seen.append(a) or 0)
+    assert main(["demo", "--out", str(tmp_path / "d"), "--force"]) == 0
+    from hil_harness.cli import build_parser
+    want = build_parser().parse_args(["event", "satellite_over_stars", "--out",
+                                      str(tmp_path / "d"), "--force"])
+    (got,) = seen
+    assert vars(got) == vars(want) and got.hypothesis is None
+
+
 def test_demo_arith_every_check_agrees(capsys):
     assert main(["demo", "--arith"]) == 0
     out = capsys.readouterr().out

@@ -56,14 +56,22 @@ def _m1750_report() -> list[tuple[str, str, bool]]:
     return rows
 
 
+def event_args(args):
+    """The arguments of ``uvisi event satellite_over_stars [--out OUT] [--force]``, parsed by the
+    event command's own parser (so every option it has takes its default)."""
+    from hil_harness.cli import build_parser
+    argv = ["event", "satellite_over_stars"]
+    if args.out is not None:
+        argv += ["--out", str(args.out)]
+    if getattr(args, "force", False):
+        argv.append("--force")
+    return build_parser().parse_args(argv)
+
+
 def run(args) -> int:
     if not getattr(args, "arith", False):
-        import argparse
         from hil_harness.cli.event import run as run_event
-        return run_event(argparse.Namespace(
-            scenario="satellite_over_stars", seed=None, frames=None, out=args.out,
-            force=getattr(args, "force", False), no_frames=False, no_figures=False, sequence=None,
-            record=None, handover=False, json=False))
+        return run_event(event_args(args))
     return _arith_report()
 
 
