@@ -75,8 +75,9 @@ GROUP_DOCS = {
         deblending with a 300,000-pixel stack (~860 us): the ratios below are against the tuned
         peers. Targets (issues 4, 5, set against those earlier peers): ours <= 60 us, >= 4x
         faster than sep.extract, >= 10x faster than SciPy label + moments; against the tuned
-        peers (2026-11-24, 16:50 UTC) ours led SciPy 3.0x, OpenCV 2.3x and SEP 7.6x. Profile of ours (2026-11-23, 18:15 UTC; the parts timed in a
-        jitted loop, the Python with the kernel stubbed): ~15.3 us is the one jitted call (front
+        peers (2026-11-24, 16:50 UTC) ours led SciPy 3.0x, OpenCV 2.3x and SEP 7.6x. Profile
+        of ours (2026-11-23, 18:15 UTC; the parts timed in a jitted loop, the Python with
+        the kernel stubbed): ~15.3 us is the one jitted call (front
         end 1.2 us, colouring 4.6 us, features 4.7 us, normalisation 0.6 us, ranking 2.6 us, the
         message table 0.5 us, the call with its 18 arguments and the boxing of its result ~1 us),
         ~3.3 us the Python around it (what does not change frame to frame is built once per

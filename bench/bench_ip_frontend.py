@@ -44,9 +44,10 @@ GROUP_DOCS = {
         and on hand-made tie and full-scale blocks; `sepFilter2D` with our taps; `filter2D`;
         `meanStdDev`); each is checked to give our binary mask pixel for pixel before it is
         timed. Until 2026-11-24 both peers compacted with `reshape().sum()` (~85 us of the
-        OpenCV chain's ~110 us) and OpenCV ran a 7x7 `GaussianBlur`. Targets (issue 3, set against the earlier peers): ours <= 25 us median and >= 5x
-        faster than the scipy.ndimage chain. Ours also runs the back end, so the tuned OpenCV
-        front end alone can beat it (2026-11-24, 16:55 UTC: OpenCV 17.6 us, ours 23.4 us, SciPy
+        OpenCV chain's ~110 us) and OpenCV ran a 7x7 `GaussianBlur`. Targets (issue 3, set
+        against the earlier peers): ours <= 25 us median and >= 5x faster than the
+        scipy.ndimage chain. Ours also runs the back end, so the tuned OpenCV
+        front end alone can beat it (2026-11-24, 16:45 UTC: OpenCV 17.6 us, ours 23.4 us, SciPy
         72.4 us).""",
     GROUP_STEPS: """Host time of each front-end kernel on the same 64x64 window (the emulated
         ADSP-2100 cycles of each step are in the budget tables below), including the

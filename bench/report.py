@@ -103,7 +103,7 @@ def _fmt(seconds: float) -> str:
 
 
 def _fmt_ratio(x: float) -> str:
-    """Two decimals, or two significant digits below 0.1 (a floor 200x faster is 0.005, not 0.00)."""
+    """Two decimals, or two significant digits below 0.1 (a floor 200x faster: 0.005, not 0.00)."""
     return f"{x:.2g}" if x < 0.1 else f"{x:.2f}"
 
 
