@@ -1,6 +1,11 @@
 """RDE speed: Kalman filter + RTS smoother over 10,000 epochs of the paper's 18-state model, ours
 (groundsim.assess.rde, numba) against filterpy's batch_filter + rts_smoother and Stone Soup's
-KalmanPredictor/KalmanUpdater + KalmanSmoother, in the same run.
+KalmanPredictor/KalmanUpdater + KalmanSmoother, in the same run. filterpy is driven as its docs
+show for a batch (``batch_filter`` with per-epoch Fs/Qs/Hs/Rs, then ``rts_smoother``); Stone Soup
+with one transition model and, since H changes every epoch, a LinearGaussian measurement model
+per epoch. Each peer's smoothed states, the very output that was timed, are checked to agree with
+ours to 1e-6 of the smoothed sigma at all 10,000 epochs (filterpy's smoothed covariances too, to
+1e-6 relative).
 
 Run: ``.venv/bin/python -m pytest bench/bench_rde.py --benchmark-enable -q``.
 Each epoch carries one control point (a 2-vector cross/along-track dislocation) at a random
@@ -54,7 +59,7 @@ def ours(p):
 def theirs(p):
     kf = KalmanFilter(dim_x=18, dim_z=2)
     kf.x, kf.P = p["x0"].copy(), p["P0"].copy()
-    Fs, Qs = list(p["Phi"]), list(p["Q"])
+    Fs, Qs = p["Phi"], p["Q"]                 # (n, 18, 18) arrays: batch_filter indexes them
     xf, Pf, xp, Pp = kf.batch_filter(p["zs"], Fs=Fs, Qs=Qs, Hs=p["Hs"], Rs=p["Rs"])
     xs, Ps, _, _ = kf.rts_smoother(xf, Pf, Fs=Fs, Qs=Qs)
     return xs, Ps
@@ -68,8 +73,8 @@ def test_rde_filter_smoother_ours(benchmark, problem):
 
 @pytest.mark.benchmark(group=GROUP)
 def test_rde_filter_smoother_filterpy(benchmark, problem):
-    xs, _ = benchmark.pedantic(theirs, args=(problem,), rounds=3, iterations=1)
-    assert xs.shape == (N_EPOCHS, 18)
+    xs, Ps = benchmark.pedantic(theirs, args=(problem,), rounds=3, iterations=1)
+    _same_smoothed(ours(problem)[1], xs, Ps)
 
 
 def stonesoup(p):
@@ -131,19 +136,15 @@ def stonesoup(p):
 @pytest.mark.benchmark(group=GROUP)
 def test_rde_filter_smoother_stonesoup(benchmark, problem):
     xs = benchmark.pedantic(stonesoup, args=(problem,), rounds=1, iterations=1)
-    assert xs.shape == (N_EPOCHS, 18)
+    _same_smoothed(ours(problem)[1], xs)
 
 
-def test_rde_same_answer_as_stonesoup():
-    p = make_problem(300)
-    r, s = ours(p)
-    xs = stonesoup(p)
+def _same_smoothed(s, xs, Ps=None):
+    """Nobody is timed doing less work: the peer's smoothed states (the very output that was timed)
+    agree with ours to 1e-6 of the smoothed sigma at every epoch, and its smoothed covariances (if
+    it returns them) to 1e-6 relative."""
+    assert xs.shape == s.xs.shape == (N_EPOCHS, 18)
     scale = np.sqrt(np.diagonal(s.Ps, axis1=1, axis2=2))
     assert np.max(np.abs(s.xs - xs) / scale) < 1e-6
-
-
-def test_rde_same_answer_as_filterpy(problem):
-    """Nobody is timed doing less work: both smoothers agree to 1e-6 of the smoothed sigma."""
-    (r, s), (xs, Ps) = ours(problem), theirs(problem)
-    scale = np.sqrt(np.diagonal(Ps, axis1=1, axis2=2))
-    assert np.max(np.abs(s.xs - xs) / scale) < 1e-6
+    if Ps is not None:
+        np.testing.assert_allclose(Ps, s.Ps, rtol=1e-6, atol=1e-9 * np.abs(s.Ps).max())

@@ -256,17 +256,21 @@ def _filterpy_filter(x0):
     return f
 
 
+def _filterpy_hx(x, M, r_sc, c):
+    return np.array([[_los(x.ravel(), M, r_sc, c)]])
+
+
+def _filterpy_hj(x, M, r_sc, c):
+    return _los_jac(x.ravel(), M, r_sc, c)
+
+
 def _filterpy_step(f, m):
     t, z, M, r_sc = m
     f.F = _jac_f(f.x.ravel())
     f.predict()
-    for comp in (1, 2):
-        def hx(xx, c=comp):
-            return np.array([[_los(xx.ravel(), M, r_sc, c)]])
-
-        def hj(xx, c=comp):
-            return _los_jac(xx.ravel(), M, r_sc, c)
-        f.update(np.array([z[comp - 1]]), hj, hx)
+    for comp in (1, 2):                      # the frame's geometry through filterpy's args
+        geo = (M, r_sc, comp)
+        f.update(np.array([z[comp - 1]]), _filterpy_hj, _filterpy_hx, args=geo, hx_args=geo)
 
 
 def _stonesoup_ekf(x0):
@@ -322,13 +326,17 @@ def _stonesoup_ekf(x0):
     t0 = datetime.datetime(2026, 1, 1)
     state = [GaussianState(StateVector(x0), CovarianceMatrix(P0), timestamp=t0)]
 
+    # the two measurement models are built once; each frame sets their geometry (Stone Soup's
+    # Properties are plain attributes), rather than constructing two models per frame
+    models = [LosComponent(ndim_state=6, mapping=(0, 1, 2), noise_covar=np.array([[SIG ** 2]]),
+                           M=np.eye(3), r_sc=np.zeros(3), comp=comp) for comp in (1, 2)]
+
     def step(m):
         t, z, M, r_sc = m
         ts = t0 + datetime.timedelta(seconds=float(t))
         s = pred.predict(state[0], timestamp=ts)
-        for comp in (1, 2):
-            mm = LosComponent(ndim_state=6, mapping=(0, 1, 2), noise_covar=np.array([[SIG ** 2]]),
-                              M=M, r_sc=r_sc, comp=comp)
+        for comp, mm in zip((1, 2), models):
+            mm.M, mm.r_sc = M, r_sc
             s = upd.update(SingleHypothesis(s, Detection(StateVector([z[comp - 1]]),
                                                          timestamp=ts, measurement_model=mm)))
         state[0] = s
@@ -362,6 +370,7 @@ def test_ours_ekf_predict_two_scalar_updates(benchmark):
 
 @pytest.mark.benchmark(group=G_EKF)
 def test_filterpy_ekf_predict_two_scalar_updates(benchmark):
+    _check_ekf_agree()                       # checked equal in the same run, even under -k
     x0, meas = _pass()
     f = _filterpy_filter(_ours_filter(x0).x)
     it = iter(meas[1:])
@@ -372,6 +381,7 @@ def test_filterpy_ekf_predict_two_scalar_updates(benchmark):
 @pytest.mark.benchmark(group=G_EKF)
 def test_stonesoup_ekf_predict_two_scalar_updates(benchmark):
     pytest.importorskip("stonesoup")
+    _check_ekf_agree()
     x0, meas = _pass()
     step, _ = _stonesoup_ekf(_ours_filter(x0).x)
     it = iter(meas[1:])
@@ -451,6 +461,26 @@ def test_ours_alpha_beta_step(benchmark):
 
 @pytest.mark.benchmark(group=G_AB)
 def test_stonesoup_kalman_steady_state_step(benchmark):
+    _check_ab_agree()
     step, _ = _stonesoup()
     zs = iter([(k, float(z)) for k, z in enumerate(_ab_series(400), start=1)])
     benchmark.pedantic(step, setup=lambda: (next(zs), {}), rounds=300, iterations=1)
+
+
+# the peers' groups described on their own (bench/report.py reads GROUP_DOCS; the step group keeps
+# the module docstring)
+GROUP_DOCS = {
+    G_EKF: """The 6-state EKF step -- RK4 two-body predict + two sequential scalar line-of-sight
+        updates -- ours in emulated 1750A 48/32-bit float, beside the same filter in float64:
+        `filterpy.kalman.ExtendedKalmanFilter` (subclassed only for the RK4 `predict_x`, the
+        Jacobian set per frame, the frame's geometry passed through `update`'s `args`/`hx_args`
+        as its docs show) and Stone Soup's `ExtendedKalmanPredictor` + `ExtendedKalmanUpdater`
+        (one transition model and the two measurement models built once, their geometry set per
+        frame; the Detection/Hypothesis/Update objects per update are Stone Soup's API). Checked
+        before each is timed, over 60 frames: ours within 1e-2 sigma of filterpy, Stone Soup
+        within 1e-6 sigma of filterpy. Target (issue 7): ours >= 5x faster than filterpy.""",
+    G_AB: """The alpha-beta step (ours, 1750A) beside Stone Soup's `KalmanPredictor` +
+        `KalmanUpdater` on a 1-D constant-velocity model started at its steady-state covariance
+        (the alpha-beta filter is that filter with the gains frozen); checked to give the same
+        position and velocity over 100 steps before it is timed.""",
+}
