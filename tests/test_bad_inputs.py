@@ -23,6 +23,7 @@ COMMANDS = [
     ("detect {f} --json {out}/o.json", "image"),
     ("track {f} --record aurora --json {out}/o.json", "image"),
     ("replay {f}", "h5"),
+    ("view {f} -o {out}/v.html", "h5"),
     ("inr event {f} --out {out}/inr", "h5"),
     ("rde reconstruct {f}", "h5"),
     ("rde reconstruct {f}", "npz"),
