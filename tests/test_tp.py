@@ -13,6 +13,7 @@ object's drawn from [0.5, 1], the others from [0, 1]) and cut at 23.
 import math
 
 import numpy as np
+from quat_oracle import dcm, qmul
 import pytest
 from scipy.integrate import solve_ivp
 
@@ -99,13 +100,6 @@ def _qrot(axis, ang):
     return np.concatenate([[math.cos(ang / 2)], math.sin(ang / 2) * axis])
 
 
-def _dcm(q):
-    w, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 @pytest.mark.cases("flightsw.tp.geometry.pix_to_tan", "typical")
 @pytest.mark.cases("flightsw.tp.geometry._p2t_many", "typical")
 @pytest.mark.cases("flightsw.tp.geometry.vec_to_pix", "typical")
@@ -119,7 +113,7 @@ def test_pixel_to_body_tangent_and_back_match_float64_closed_form():
     rng = np.random.default_rng(1)
     rows, cols = rng.uniform(0, 244, 500), rng.uniform(0, 256, 500)
     ab = pixel_to_tangent(g, rows, cols)
-    v = _dcm(q) @ np.stack([np.ones(500), (cols - 128.0) * sc, (rows - 122.0) * sr])
+    v = dcm(q) @ np.stack([np.ones(500), (cols - 128.0) * sc, (rows - 122.0) * sr])
     assert np.max(np.abs(ab[:, 0] - v[1] / v[0])) < 3e-8 and np.max(np.abs(ab[:, 1] - v[2] / v[0])) < 3e-8
     rc = tangent_to_pixel(g, ab[:, 0], ab[:, 1])
     # 32-bit float round trip: a few 1e-4 pixel
@@ -223,13 +217,6 @@ def _dcm_to_q(R):
     return q / np.linalg.norm(q)
 
 
-def _qmul(a, b):
-    w1, x1, y1, z1 = a
-    w2, x2, y2, z2 = b
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
 def _two_body(t, y):
     return np.concatenate([y[3:], -MU * y[:3] / np.linalg.norm(y[:3]) ** 3])
 
@@ -288,7 +275,7 @@ class Stream:
             R = _pointing((self.r_t[0] - self.r_sc[0])[None], self.r_sc[0][None])[0] @ Roff
             self.R = np.repeat(R[None], n_frames, axis=0)
             self.w = np.zeros((n_frames, 3))
-        self.q = np.array([_qmul(_dcm_to_q(R), np.concatenate([[1.0], rng.normal(0, att_noise / 2, 3)]))
+        self.q = np.array([qmul(_dcm_to_q(R), np.concatenate([[1.0], rng.normal(0, att_noise / 2, 3)]))
                            for R in self.R])
         self.q /= np.linalg.norm(self.q, axis=1, keepdims=True)
         # stars: fixed ECI directions, ~n_stars per field
@@ -603,10 +590,10 @@ def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation(
     cmd = tp.step(msg, att)
     q = np.asarray(cmd.q_point)
     assert abs(np.linalg.norm(q) - 1.0) < 1e-6
-    assert np.linalg.norm(_dcm(q)[:, 0] - cmd.los_eci) < 2e-6
+    assert np.linalg.norm(dcm(q)[:, 0] - cmd.los_eci) < 2e-6
     # minimal: the rotation from the current attitude has no component about the boresight
     qc = att.q_body_to_eci / np.linalg.norm(att.q_body_to_eci)
-    d = _qmul(np.array([qc[0], -qc[1], -qc[2], -qc[3]]), q)
+    d = qmul(np.array([qc[0], -qc[1], -qc[2], -qc[3]]), q)
     assert abs(d[1]) < 1e-6
     # predicted LOS: the estimate extrapolated to the next frame (float64 check)
     T = 0.5

@@ -7,6 +7,7 @@ direction cosine matrices).
 import math
 
 import numpy as np
+from quat_oracle import dcm, qmul
 import pytest
 
 from flightsw.arith.m1750 import decode32, decode48, encode32, encode48
@@ -116,20 +117,6 @@ def test_attitude_checks_each_bound(kw, ok):
     assert [decode48(int(x)) for x in V[L.V_RS:L.V_RS + 3]] == pytest.approx(att[9:12], abs=1e-3)
 
 
-def _qmul(a, b):
-    a0, a1, a2, a3 = a
-    b0, b1, b2, b3 = b
-    return np.array([a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
-                     a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0])
-
-
-def _dcm(q):
-    w_, x, y, z = q
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w_ * z), 2 * (x * z + w_ * y)],
-                     [2 * (x * y + w_ * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w_ * x)],
-                     [2 * (x * z - w_ * y), 2 * (y * z + w_ * x), 1 - 2 * (x * x + y * y)]])
-
-
 def _prev_state(q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0), v=(0.0, 7.5e3, 10.0)):
     S = _fresh()
     S[L.S_HAVE_PREV], S[L.S_HAVE_ATT], S[L.S_T], S[L.S_FRAME] = 1, 1, w48(T0 - 0.5), 3
@@ -151,7 +138,7 @@ def test_coasting_propagates_the_last_attitude_with_its_rate():
     V = np.zeros(L.V_WORDS, np.int64)
     V[L.V_DT], V[L.V_DT48] = w(dt), w48(dt)
     coast_attitude(S, V)
-    q = _qmul(Q, np.concatenate([[1.0], rate * dt / 2]))
+    q = qmul(Q, np.concatenate([[1.0], rate * dt / 2]))
     assert _dec(V[L.V_Q:L.V_Q + 4]) == pytest.approx(q / np.linalg.norm(q), abs=1e-6)
     r = np.array([7.0e6, 1.0e5, 0.0]) + dt * np.array([0.0, 7.5e3, 10.0])
     assert [decode48(int(x)) for x in V[L.V_RS:L.V_RS + 3]] == pytest.approx(r, abs=1e-3)
@@ -188,8 +175,8 @@ Q_PREV = np.array([0.91, 0.09, -0.19, 0.31]) / np.linalg.norm([0.91, 0.09, -0.19
 def test_frame_attitude_rotation_since_the_last_frame():
     ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att())
     assert ok and V[L.V_EVIDENCE] == 1 and V[L.V_HAD_ATT] == 1 and V[L.V_ATT_OK] == 1
-    assert RM == pytest.approx(_dcm(Q), abs=1e-6)
-    assert dR == pytest.approx(_dcm(Q).T @ _dcm(Q_PREV), abs=1e-6)      # R_t^T R_prev
+    assert RM == pytest.approx(dcm(Q), abs=1e-6)
+    assert dR == pytest.approx(dcm(Q).T @ dcm(Q_PREV), abs=1e-6)      # R_t^T R_prev
     S = _prev_state(q=Q_PREV)
     S[L.S_HAVE_ATT] = 0                                   # frames before had no attitude
     ok, V, RM, dR = _frame(S, _att(rate=(0.02, -0.01, 0.03)), msg_ok=0)
@@ -199,8 +186,8 @@ def test_frame_attitude_rotation_since_the_last_frame():
     assert dR == pytest.approx(np.eye(3) - K + K @ K / 2, abs=1e-6)
     ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att(valid=0.0))
     assert ok and V[L.V_STATUS] == TC_ATTITUDE_INVALID and V[L.V_EVIDENCE] == 0
-    qc = _qmul(Q_PREV, [1.0, 0.5e-3 * 0.5, -1e-3 * 0.5, 1.5e-3 * 0.5])      # coasted: w dt / 2
-    assert V[L.V_ATT_OK] == 0 and RM == pytest.approx(_dcm(qc / np.linalg.norm(qc)), abs=1e-6)
+    qc = qmul(Q_PREV, [1.0, 0.5e-3 * 0.5, -1e-3 * 0.5, 1.5e-3 * 0.5])      # coasted: w dt / 2
+    assert V[L.V_ATT_OK] == 0 and RM == pytest.approx(dcm(qc / np.linalg.norm(qc)), abs=1e-6)
     S = _fresh()
     ok, V, RM, dR = _frame(S, _att(valid=0.0))
     assert not ok and V[L.V_STATUS] == TC_ATTITUDE_INVALID
