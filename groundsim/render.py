@@ -74,6 +74,50 @@ def project_kernel(uvec, m, scale_col, scale_row, rows, cols):
 
 
 @njit(cache=True)
+def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_col, scale_row,
+                      idx, rows, cols):
+    """Select and project the candidate stars ``cand`` (int64 catalogue indices) in one pass.
+
+    A star is kept when ``keep[i]`` (bool, per catalogue star) and, if ``cos_limit > -2``, it is not
+    behind the Earth: ``uvec[i] @ observer > -cos_limit`` (``observer`` (3,) ECI position, m;
+    ``cos_limit = |observer| * cos(Earth's angular radius)``). Kept stars go to ``idx`` (int64) and
+    their (row, col) through the ECI -> imager matrices ``m0``, ``m``, ``m1`` (start, middle, end of the
+    integration) to ``rows``/``cols`` (3, len(cand)) float64, as :func:`project_kernel` (NaN behind the
+    imager). Returns the number kept (the first n entries are filled).
+
+    Cases
+    -----
+    catalogue-cut : stars with ``keep`` False are left out.
+    earth-occulted : stars behind the Earth are left out when an observer is given.
+    behind-imager : a star behind the imager plane gets NaN row and column.
+    """
+    n = 0
+    for j in range(cand.shape[0]):
+        i = cand[j]
+        if not keep[i]:
+            continue
+        x = uvec[i, 0]
+        y = uvec[i, 1]
+        z = uvec[i, 2]
+        if cos_limit > -2.0 and x * observer[0] + y * observer[1] + z * observer[2] <= -cos_limit:
+            continue
+        idx[n] = i
+        for k in range(3):
+            mk = m0 if k == 0 else (m if k == 1 else m1)
+            a = mk[0, 0] * x + mk[0, 1] * y + mk[0, 2] * z
+            b = mk[1, 0] * x + mk[1, 1] * y + mk[1, 2] * z
+            c = mk[2, 0] * x + mk[2, 1] * y + mk[2, 2] * z
+            if a > 1e-9:
+                cols[k, n] = b / a / scale_col + COL0
+                rows[k, n] = c / a / scale_row + ROW0
+            else:
+                cols[k, n] = np.nan
+                rows[k, n] = np.nan
+        n += 1
+    return n
+
+
+@njit(cache=True)
 def add_points_kernel(img, colmax, r0, c0, r1, c1, flux, sigma, table):
     """Add point sources (electrons ``flux``) moving from (r0, c0) to (r1, c1) during the integration.
 
@@ -245,6 +289,35 @@ def _normal(s0, s1, s2, s3, gtab):
     if k == 0 or k == 65535:
         z, s0, s1, s2, s3 = _tail(k, s0, s1, s2, s3)
     return z, s0, s1, s2, s3
+
+
+@njit(cache=True)
+def standard_normals_kernel(state, out):
+    """Fill ``out`` (n,) float64 with independent N(0, 1) deviates: Box-Muller on pairs of xoshiro256**
+    uniforms (53-bit, in (0, 1)) from the uint64[4] ``state`` (:func:`frame_rng_state`), which is
+    advanced in place.
+
+    Cases
+    -----
+    pairs : an even ``n``: n / 2 Box-Muller pairs (cosine, then sine branch).
+    odd : an odd ``n``: the last deviate is the cosine branch of one more pair.
+    """
+    s0 = state[0]
+    s1 = state[1]
+    s2 = state[2]
+    s3 = state[3]
+    n = out.shape[0]
+    for i in range(0, n, 2):
+        u1, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        u2, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        rad = math.sqrt(-2.0 * math.log(u1))
+        out[i] = rad * math.cos(2.0 * math.pi * u2)
+        if i + 1 < n:
+            out[i + 1] = rad * math.sin(2.0 * math.pi * u2)
+    state[0] = s0
+    state[1] = s1
+    state[2] = s2
+    state[3] = s3
 
 
 @njit(cache=True, inline="always")
@@ -490,24 +563,20 @@ class Renderer:
         im = self.imager
         bore = m[0]  # ECI direction of imager +X (row 0 of ECI->imager)
         radius = im.half_diagonal + (margin_px + 5.0 * im.psf_sigma_px + 2.0) * max(im.scale_col, im.scale_row)
-        idx = self.sky.cone(bore, radius, self.hp_cut)
-        idx = idx[self._keep[idx]]
-        u = self.sky.uvec[idx]
+        cand = self.sky.cone(bore, radius, self.hp_cut)
+        cos_limit = -3.0                     # no Earth test
         if observer_pos is not None:
-            rn = math.sqrt(float(observer_pos @ observer_pos))
-            cos_rho = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2))
-            vis = (u @ observer_pos) > -cos_rho * rn
-            if not vis.all():
-                idx, u = idx[vis], u[vis]
-        rows = np.empty((3, len(idx)))
-        cols = np.empty((3, len(idx)))
-        sc, sr = self._sc, self._sr
-        project_kernel(u, m, sc, sr, rows[1], cols[1])
-        for j, mj in ((0, m0), (2, m1)):
-            if mj is m:
-                rows[j], cols[j] = rows[1], cols[1]
-            else:
-                project_kernel(u, mj, sc, sr, rows[j], cols[j])
+            obs = np.asarray(observer_pos, np.float64)
+            rn = math.sqrt(float(obs @ obs))
+            cos_limit = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2)) * rn
+        else:
+            obs = np.zeros(3)
+        idx = np.empty(len(cand), np.int64)
+        rows = np.empty((3, len(cand)))
+        cols = np.empty((3, len(cand)))
+        n = star_field_kernel(cand, self._keep, self.sky.uvec, obs, cos_limit, m0, m, m1,
+                              float(self._sc), float(self._sr), idx, rows, cols)
+        idx, rows, cols = idx[:n], rows[:, :n], cols[:, :n]
         return idx, rows, cols
 
     def project(self, m, los):

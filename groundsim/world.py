@@ -31,13 +31,14 @@ from .aurora import AuroraParams, AuroraScene
 from .frames import R_EARTH_M, geodetic_to_ecef, jd_utc, julian_year_tt, rot_z
 from .quat import (q_conj, q_from_rotvec, q_mul, q_normalize, q_pointing, q_to_dcm, q_to_rotvec,
                    radec_to_vec)
-from .render import PointSource, Renderer
+from .render import PointSource, Renderer, frame_rng_state, standard_normals_kernel
 from .sky import StarCatalog
 from .spacecraft import AttitudeController, ControllerParams, KnowledgeError, Orbit, pass_over_elements
 from .targets import LaunchTarget, SatelliteTarget
 
 DEG = math.pi / 180.0
 FRAME_DT = 0.5
+ATTITUDE_STREAM = 1        # frame_rng_state stream of the attitude knowledge noise
 
 
 def _orbit_from(spec, epoch, satnum, sc_orbit=None):
@@ -264,8 +265,10 @@ class World:
                 and ac[4] is self.scn.faults):
             return _copy_attitude(self._att_cache[1])
         r, v = self.orbit.state(self._t)
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([self.scn.seed, self._k, 1])))
-        a = self.knowledge.apply(self._t, c.q, c.w, r, v, rng,
+        # the frame's knowledge noise: its own xoshiro stream (1) of the frame's seed (render uses 0)
+        z = np.empty(9)
+        standard_normals_kernel(frame_rng_state(self.scn.seed, self._k, ATTITUDE_STREAM), z)
+        a = self.knowledge.apply(self._t, c.q, c.w, r, v, draws=z,
                                  valid=self.scn.faults.attitude_valid(self._t))
         self._att_cache = (key, _copy_attitude(a), kn, self.orbit, self.scn.faults)
         return a
@@ -286,9 +289,7 @@ class World:
         r_sc, v_sc = self.orbit.state(t)
         a = im.align_dcm
         q_mid = self.ctrl.q
-        m = (q_to_dcm(q_mid) @ a).T
-        m0 = (q_to_dcm(self.ctrl.attitude_at(-h)) @ a).T
-        m1 = (q_to_dcm(self.ctrl.attitude_at(h)) @ a).T
+        m0, m, m1 = self.ctrl.exposure_matrices(h, a)
         sources = []
         tinfo = dict(type=self.scn.target_type, row=math.nan, col=math.nan, in_field=False,
                      los_eci=np.full(3, math.nan), range_m=math.nan, r_eci=np.full(3, math.nan),
