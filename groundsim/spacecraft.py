@@ -195,6 +195,30 @@ def exposure_matrices_kernel(q, w, h, align, out):
             out[j, i, 2] = r20 * b0 + r21 * b1 + r22 * b2
 
 
+@njit(cache=True)
+def knowledge_kernel(q, w, r, bias, noise, rate_noise, position_noise, z, q_out, w_out, r_out):
+    """The attitude processor's knowledge of the true state (body -> ECI quaternion ``q`` (4,), body
+    rate ``w`` (3,) rad/s, position ``r`` (3,) m): ``q_out = normalise(q * q_from_rotvec(bias +
+    noise * z[0:3]))`` (scalar part >= 0), ``w_out = w + rate_noise * z[3:6]``, ``r_out = r +
+    position_noise * z[6:9]``; ``z`` (9,) standard normals, ``bias`` (3,) rad, noises 1 sigma.
+
+    Cases
+    -----
+    exact : zero noises and bias give back the true state (normalised quaternion).
+    perturbed : the quaternion is rotated by the bias + noise rotation vector in body axes.
+    """
+    b0, b1, b2, b3 = _rotvec_q4(bias[0] + noise * z[0], bias[1] + noise * z[1], bias[2] + noise * z[2])
+    a0, a1, a2, a3 = _qmul4(q[0], q[1], q[2], q[3], b0, b1, b2, b3)
+    a0, a1, a2, a3 = _qnorm4(a0, a1, a2, a3)
+    q_out[0] = a0
+    q_out[1] = a1
+    q_out[2] = a2
+    q_out[3] = a3
+    for i in range(3):
+        w_out[i] = w[i] + rate_noise * z[3 + i]
+        r_out[i] = r[i] + position_noise * z[6 + i]
+
+
 @dataclass
 class ControllerParams:
     rate_limit: float = math.radians(1.0)      # rad/s, per slew
@@ -256,11 +280,13 @@ class KnowledgeError:
               draws=None) -> AttitudeData:
         """The attitude data for the true state: ``draws`` (9,) standard normals (attitude, rate,
         position, 3 each), or drawn from ``rng`` when None."""
-        z = np.asarray(draws, float) if draws is not None else rng.standard_normal(9)
+        z = np.asarray(draws, np.float64) if draws is not None else rng.standard_normal(9)
         if z.shape != (9,):
             raise ValueError(f"draws must have shape (9,), got {z.shape}")
-        dq = q_from_rotvec(np.asarray(self.bias, float) + self.noise * z[0:3])
-        return AttitudeData(t=float(t), q_body_to_eci=q_normalize(q_mul(q_true, dq)),
-                            rate_body=np.asarray(w_true, float) + self.rate_noise * z[3:6],
-                            r_eci=np.asarray(r, float) + self.position_noise * z[6:9],
-                            v_eci=np.asarray(v, float).copy(), valid=bool(valid))
+        q, w, rr = np.empty(4), np.empty(3), np.empty(3)
+        knowledge_kernel(np.asarray(q_true, np.float64), np.asarray(w_true, np.float64),
+                         np.asarray(r, np.float64), np.asarray(self.bias, np.float64),
+                         float(self.noise), float(self.rate_noise), float(self.position_noise), z,
+                         q, w, rr)
+        return AttitudeData(t=float(t), q_body_to_eci=q, rate_body=w, r_eci=rr,
+                            v_eci=np.array(v, np.float64), valid=bool(valid))

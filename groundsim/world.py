@@ -334,7 +334,9 @@ class World:
         return frame, truth
 
     def _earth_near_field(self, r_sc, bore, im):
-        rn = float(np.linalg.norm(r_sc))
+        x, y, z = r_sc.tolist()
+        b0, b1, b2 = bore.tolist()
+        rn = math.sqrt(x * x + y * y + z * z)
         rho = math.asin(min(1.0, (R_EARTH_M + 300e3) / rn))        # Earth + glow layer angular radius
-        off = math.acos(min(1.0, max(-1.0, float(-(r_sc / rn) @ bore))))
+        off = math.acos(min(1.0, max(-1.0, -(x * b0 + y * b1 + z * b2) / rn)))
         return off < rho + im.half_diagonal

@@ -103,3 +103,24 @@ def test_standard_normals_moments_and_ks(n):
     standard_normals_kernel(frame_rng_state(11, 4, 1), z2)
     np.testing.assert_array_equal(z2, z[:4])
     assert not np.array_equal(st, frame_rng_state(11, 4, 1))
+
+
+@pytest.mark.cases("groundsim.spacecraft.knowledge_kernel", "exact", "perturbed")
+def test_knowledge_kernel_matches_scipy():
+    from groundsim.spacecraft import knowledge_kernel
+    rng = np.random.default_rng(5)
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    w, r = rng.normal(size=3) * 1e-2, rng.normal(size=3) * 7e6
+    bias, z = np.array([15e-6, -10e-6, 8e-6]), rng.normal(size=9)
+    qo, wo, ro = np.empty(4), np.empty(3), np.empty(3)
+    knowledge_kernel(q, w, r, np.zeros(3), 0.0, 0.0, 0.0, z, qo, wo, ro)
+    np.testing.assert_allclose(qo, q * np.sign(q[0]), atol=1e-15)
+    np.testing.assert_array_equal(wo, w)
+    np.testing.assert_array_equal(ro, r)
+    knowledge_kernel(q, w, r, bias, 5e-6, 1e-6, 30.0, z, qo, wo, ro)
+    want = _scipy_q(q) * Rotation.from_rotvec(bias + 5e-6 * z[:3])
+    got = _scipy_q(qo)
+    assert (want.inv() * got).magnitude() < 1e-14 and qo[0] >= 0
+    np.testing.assert_allclose(wo, w + 1e-6 * z[3:6], rtol=0, atol=1e-18)
+    np.testing.assert_allclose(ro, r + 30.0 * z[6:9], rtol=1e-15)

@@ -31,6 +31,7 @@ frame count of the next message. Attitude-data gaps reach the TP as ``AttitudeDa
 """
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -377,7 +378,8 @@ class Event:
             self._fault_reaction(out, "command", False)
         out.command = cmd
         q = np.asarray(cmd.q_point, float)
-        if np.all(np.isfinite(q)) and np.linalg.norm(q) > 0.5:
+        qs = q.tolist()
+        if all(map(math.isfinite, qs)) and math.sqrt(sum(x * x for x in qs)) > 0.5:
             if ledger.seconds(TP1750) > ledger.period_s:
                 self._late_command = q
                 self._tp_busy = True
