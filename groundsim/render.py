@@ -590,10 +590,12 @@ class Renderer:
 
     def project(self, m, los):
         """(row, col) of an ECI direction through ECI->imager ``m`` (NaN behind the imager)."""
-        v = m @ los
-        if v[0] <= 1e-9:
+        x, y, z = los.tolist() if isinstance(los, np.ndarray) else los
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = m.tolist()
+        a = a0 * x + a1 * y + a2 * z
+        if a <= 1e-9:
             return math.nan, math.nan
-        return v[2] / v[0] / self._sr + ROW0, v[1] / v[0] / self._sc + COL0
+        return (c0 * x + c1 * y + c2 * z) / a / self._sr + ROW0, (b0 * x + b1 * y + b2 * z) / a / self._sc + COL0
 
     def render(self, m0, m, m1, sources=(), seed=0, frame_index=0, extended=None, out=None,
                observer_pos=None):

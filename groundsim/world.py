@@ -74,6 +74,19 @@ def _copy_attitude(a: AttitudeData) -> AttitudeData:
                         r_eci=a.r_eci.copy(), v_eci=a.v_eci.copy(), valid=a.valid)
 
 
+def _lines_of_sight(d, dd):
+    """Unit lines of sight ``(d - dd)``, ``d``, ``(d + dd)`` (float64 (3,) each) and ``|d|``: the
+    target seen from the spacecraft at the start, middle and end of the integration (``d`` (3,) m the
+    relative position at mid-integration, ``dd`` (3,) m its change over half the integration)."""
+    x, y, z = d.tolist()
+    a, b, c = dd.tolist()
+    out = []
+    for sx, sy, sz in ((x - a, y - b, z - c), (x, y, z), (x + a, y + b, z + c)):
+        n = math.sqrt(sx * sx + sy * sy + sz * sz)
+        out.append(np.array([sx / n, sy / n, sz / n]))
+    return out[0], out[1], out[2], math.sqrt(x * x + y * y + z * z)
+
+
 class World:
     def __init__(self, scenario):
         self.scn = sc = scenario
@@ -292,16 +305,13 @@ class World:
         m0, m, m1 = self.ctrl.exposure_matrices(h, a)
         sources = []
         tinfo = dict(type=self.scn.target_type, row=math.nan, col=math.nan, in_field=False,
-                     los_eci=np.full(3, math.nan), range_m=math.nan, r_eci=np.full(3, math.nan),
-                     v_eci=np.full(3, math.nan), electrons=0.0, plume_electrons=0.0)
+                     los_eci=None, range_m=math.nan, r_eci=None, v_eci=None, electrons=0.0,
+                     plume_electrons=0.0)
         st = self.true_target_state(t)
         if st is not None:
             rt, vt = st
             d = rt - r_sc
-            rng_m = float(np.linalg.norm(d))
-            los = d / rng_m
-            los0 = (d - h * (vt - v_sc)) / np.linalg.norm(d - h * (vt - v_sc))
-            los1 = (d + h * (vt - v_sc)) / np.linalg.norm(d + h * (vt - v_sc))
+            los0, los, los1, rng_m = _lines_of_sight(d, h * (vt - v_sc))
             tinfo.update(los_eci=los, range_m=rng_m, r_eci=rt, v_eci=vt)
             if self.target is not None:
                 body, plume, plen, pwid = self.target.appearance(t, rng_m, im.band)
@@ -313,6 +323,9 @@ class World:
                     tail = (d - plen * vu) / np.linalg.norm(d - plen * vu)
                 sources.append(PointSource(los0, los, los1, el, pel, tail, pwid / rng_m))
                 tinfo.update(electrons=el, plume_electrons=pel)
+        else:
+            tinfo.update(los_eci=np.full(3, math.nan), r_eci=np.full(3, math.nan),
+                         v_eci=np.full(3, math.nan))
         extended = None
         scene = self.aurora or self._glow
         if scene is not None and (self.aurora is not None or self.scn.earth_glow is True
