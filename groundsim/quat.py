@@ -103,6 +103,26 @@ def q_to_rotvec(q):
     return np.array([x * g, y * g, z * g])
 
 
+def q_rate(q_new, q_old, dt: float):
+    """Angular velocity (rad/s, float64 (3,), in the frame the quaternions rotate into, e.g. ECI)
+    that takes ``q_old`` to ``q_new`` in ``dt`` s: ``q_to_rotvec(q_new * conj(q_old)) / dt``, on
+    Python floats (it is on the per-frame path)."""
+    aw, ax, ay, az = np.asarray(q_new, float).tolist()
+    bw, bx, by, bz = np.asarray(q_old, float).tolist()
+    bx, by, bz = -bx, -by, -bz
+    w = aw * bw - ax * bx - ay * by - az * bz
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if not n > 0.0 or n == math.inf:
+        raise ValueError("zero or non-finite quaternion")
+    w, x, y, z = (w / n, x / n, y / n, z / n) if w / n >= 0.0 else (-(w / n), -(x / n), -(y / n), -(z / n))
+    s = math.sqrt(x * x + y * y + z * z)
+    g = 2.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
+    return np.array([x * g / dt, y * g / dt, z * g / dt])
+
+
 def q_pointing(boresight_eci, up_eci=(0.0, 0.0, 1.0), roll=0.0):
     """Body->ECI quaternion putting body +X on ``boresight_eci``.
 

@@ -648,10 +648,10 @@ class Renderer:
         # angle between the start and end boresights, in pixels (an upper bound of the star trail)
         if m0 is m1:
             return 0.0
-        d = float(m0[0] @ m1[0])
-        ang = math.acos(min(1.0, max(-1.0, d)))
-        e = float(m0[1] @ m1[1])
-        ang = max(ang, math.acos(min(1.0, max(-1.0, e))))
+        (a0, a1, a2), (b0, b1, b2) = m0[0].tolist(), m1[0].tolist()
+        ang = math.acos(min(1.0, max(-1.0, a0 * b0 + a1 * b1 + a2 * b2)))
+        (a0, a1, a2), (b0, b1, b2) = m0[1].tolist(), m1[1].tolist()
+        ang = max(ang, math.acos(min(1.0, max(-1.0, a0 * b0 + a1 * b1 + a2 * b2))))
         return ang / min(self.imager.scale_col, self.imager.scale_row)
 
 

@@ -29,8 +29,8 @@ from flightsw.messages import AttitudeData
 
 from .aurora import AuroraParams, AuroraScene
 from .frames import R_EARTH_M, geodetic_to_ecef, jd_utc, julian_year_tt, rot_z
-from .quat import (q_conj, q_from_rotvec, q_mul, q_normalize, q_pointing, q_to_dcm, q_to_rotvec,
-                   radec_to_vec)
+from .quat import (q_conj, q_from_rotvec, q_mul, q_normalize, q_pointing, q_rate, q_to_dcm,
+                   q_to_rotvec, radec_to_vec)
 from .render import PointSource, Renderer, frame_rng_state, standard_normals_kernel
 from .sky import StarCatalog
 from .spacecraft import AttitudeController, ControllerParams, KnowledgeError, Orbit, pass_over_elements
@@ -206,7 +206,7 @@ class World:
         if self._last_cmd is not None:
             t0, q0 = self._last_cmd
             if 0.0 < self._t - t0 <= 2.0:
-                w = q_to_rotvec(q_mul(q, q_conj(q0))) / (self._t - t0)
+                w = q_rate(q, q0, self._t - t0)
         self._last_cmd = (self._t, q)
         self._external = True
         self.ctrl.command(q, w if self.ctrl_params.feedforward else None)

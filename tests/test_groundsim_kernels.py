@@ -124,3 +124,14 @@ def test_knowledge_kernel_matches_scipy():
     assert (want.inv() * got).magnitude() < 1e-14 and qo[0] >= 0
     np.testing.assert_allclose(wo, w + 1e-6 * z[3:6], rtol=0, atol=1e-18)
     np.testing.assert_allclose(ro, r + 30.0 * z[6:9], rtol=1e-15)
+
+
+def test_q_rate_matches_scipy():
+    from groundsim.quat import q_rate
+    a = Rotation.from_rotvec([0.3, -0.2, 0.1])
+    dw = np.array([1e-3, -4e-3, 2.5e-3])                  # rad/s in the outer (ECI) frame
+    b = Rotation.from_rotvec(dw * 0.5) * a
+    to_q = lambda r: np.roll(r.as_quat(), 1)             # noqa: E731  (scalar first)
+    np.testing.assert_allclose(q_rate(to_q(b), to_q(a), 0.5), dw, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(q_rate(-to_q(b), to_q(a), 0.5), dw, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(q_rate(to_q(a), to_q(a), 0.5), np.zeros(3), atol=1e-15)
