@@ -117,7 +117,10 @@ def q_rate(q_new, q_old, dt: float):
     n = math.sqrt(w * w + x * x + y * y + z * z)
     if not n > 0.0 or n == math.inf:
         raise ValueError("zero or non-finite quaternion")
-    w, x, y, z = (w / n, x / n, y / n, z / n) if w / n >= 0.0 else (-(w / n), -(x / n), -(y / n), -(z / n))
+    if w / n >= 0.0:
+        w, x, y, z = w / n, x / n, y / n, z / n
+    else:
+        w, x, y, z = -(w / n), -(x / n), -(y / n), -(z / n)
     s = math.sqrt(x * x + y * y + z * z)
     g = 2.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
     return np.array([x * g / dt, y * g / dt, z * g / dt])

@@ -595,7 +595,8 @@ class Renderer:
         a = a0 * x + a1 * y + a2 * z
         if a <= 1e-9:
             return math.nan, math.nan
-        return (c0 * x + c1 * y + c2 * z) / a / self._sr + ROW0, (b0 * x + b1 * y + b2 * z) / a / self._sc + COL0
+        return ((c0 * x + c1 * y + c2 * z) / a / self._sr + ROW0,
+                (b0 * x + b1 * y + b2 * z) / a / self._sc + COL0)
 
     def render(self, m0, m, m1, sources=(), seed=0, frame_index=0, extended=None, out=None,
                observer_pos=None):

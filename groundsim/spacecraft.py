@@ -20,7 +20,7 @@ from sgp4.exporter import export_tle
 from flightsw.messages import AttitudeData
 
 from .frames import R_EARTH_M, gmst82, jd_utc, teme_to_gcrs
-from .quat import q_conj, q_from_rotvec, q_mul, q_normalize, q_to_dcm, q_to_rotvec
+from .quat import q_from_rotvec, q_mul, q_normalize
 
 MU_WGS72 = 3.986008e14
 
