@@ -1,6 +1,9 @@
 """The ground simulator's per-frame kernels against independent oracles: exposure matrices (SciPy
 rotations), the attitude controller's substeps (a slew's closed-form limits), the one-pass star field
-(brute-force NumPy), the knowledge-noise normals (closed-form moments, KS test)."""
+(brute-force NumPy), the knowledge-noise normals (closed-form moments, KS test).
+
+Each kernel's ``Cases`` are named in a ``# cases:`` comment above the test that reaches them (the
+``cases`` marker is checked for flightsw and hil_harness kernels only, tests/test_kernel_cases.py)."""
 import math
 
 import numpy as np
@@ -18,7 +21,7 @@ def _scipy_q(q):
     return Rotation.from_quat([q[1], q[2], q[3], q[0]])
 
 
-@pytest.mark.cases("groundsim.spacecraft.exposure_matrices_kernel", "mid-exact", "smear")
+# cases: groundsim.spacecraft.exposure_matrices_kernel mid-exact, smear
 def test_exposure_matrices_match_scipy_rotations():
     rng = np.random.default_rng(3)
     q = rng.normal(size=4)
@@ -52,8 +55,7 @@ def test_controller_slew_respects_rate_and_accel_limits():
     assert err < 1e-6
 
 
-@pytest.mark.cases("groundsim.render.star_field_kernel", "catalogue-cut", "earth-occulted",
-                   "behind-imager")
+# cases: groundsim.render.star_field_kernel catalogue-cut, earth-occulted, behind-imager
 def test_star_field_kernel_matches_brute_force():
     rng = np.random.default_rng(8)
     u = rng.normal(size=(500, 3))
@@ -83,10 +85,8 @@ def test_star_field_kernel_matches_brute_force():
     assert n2 == int(keep[cand].sum())
 
 
-@pytest.mark.parametrize("n", [
-    pytest.param(200_000, marks=pytest.mark.cases("groundsim.render.standard_normals_kernel", "pairs")),
-    pytest.param(99_999, marks=pytest.mark.cases("groundsim.render.standard_normals_kernel", "odd")),
-])
+# cases: groundsim.render.standard_normals_kernel pairs (even n), odd (odd n)
+@pytest.mark.parametrize("n", [200_000, 99_999])
 def test_standard_normals_moments_and_ks(n):
     z = np.full(n, np.nan)
     st = frame_rng_state(11, 4, 1)
@@ -105,7 +105,7 @@ def test_standard_normals_moments_and_ks(n):
     assert not np.array_equal(st, frame_rng_state(11, 4, 1))
 
 
-@pytest.mark.cases("groundsim.spacecraft.knowledge_kernel", "exact", "perturbed")
+# cases: groundsim.spacecraft.knowledge_kernel exact, perturbed
 def test_knowledge_kernel_matches_scipy():
     from groundsim.spacecraft import knowledge_kernel
     rng = np.random.default_rng(5)
