@@ -56,24 +56,6 @@ def _cdf(u, table):
 
 
 @njit(cache=True)
-def project_kernel(uvec, m, scale_col, scale_row, rows, cols):
-    """rows/cols (n,) of ECI unit vectors ``uvec`` (n,3) through ECI->imager matrix ``m``; NaN behind."""
-    for i in range(uvec.shape[0]):
-        x = uvec[i, 0]
-        y = uvec[i, 1]
-        z = uvec[i, 2]
-        a = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z
-        b = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z
-        c = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z
-        if a > 1e-9:
-            cols[i] = b / a / scale_col + COL0
-            rows[i] = c / a / scale_row + ROW0
-        else:
-            cols[i] = np.nan
-            rows[i] = np.nan
-
-
-@njit(cache=True)
 def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_col, scale_row,
                       idx, rows, cols):
     """Select and project the candidate stars ``cand`` (int64 catalogue indices) in one pass.
@@ -82,8 +64,9 @@ def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_co
     behind the Earth: ``uvec[i] @ observer > -cos_limit`` (``observer`` (3,) ECI position, m;
     ``cos_limit = |observer| * cos(Earth's angular radius)``). Kept stars go to ``idx`` (int64) and
     their (row, col) through the ECI -> imager matrices ``m0``, ``m``, ``m1`` (start, middle, end of the
-    integration) to ``rows``/``cols`` (3, len(cand)) float64, as :func:`project_kernel` (NaN behind the
-    imager). Returns the number kept (the first n entries are filled).
+    integration) to ``rows``/``cols`` (3, len(cand)) float64: for (a, b, c) = m_k @ u, col = b / a /
+    scale_col + COL0, row = c / a / scale_row + ROW0 (NaN when a <= 1e-9, behind the imager).
+    Returns the number kept (the first n entries are filled).
 
     Cases
     -----
@@ -385,12 +368,10 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
     krow = np.empty(nc, np.uint16)        # their table indices
     for r in range(nr):
         if nflag == 0 and rowmin[r] >= POISSON_GAUSS_SWITCH and nc % 4 == 0:
-            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel
-            # (extreme table bins are only noted here and redrawn from the exact tail below: keeping
-            # the rare tail sampler out of this loop halves its cost). Two passes so the pixel
-            # arithmetic vectorises: the row's deviates, then its pixels.
-            # (the extreme bins are found after the row by a branch-free scan of its table indices:
-            # a branch per deviate in the drawing loop costs ~7 us a frame)
+            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel.
+            # Passes: the row's deviates (no branch), its pixels (vectorised), then a branch-free
+            # scan of its table indices for the extreme bins, which are noted and redrawn from the
+            # exact tail after all rows (a test per deviate in the drawing loop cost ~10 us a frame)
             for c4 in range(0, nc, 4):
                 xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
                 for j in range(4):
