@@ -1,6 +1,7 @@
 """Closed-loop speed: one frame of the satellite-over-stars event (render + IP + TP + spacecraft, no
 frame recording), i.e. one :meth:`hil_harness.event.Event.step`, and its main parts at a mid-event
-state. Target (issue 8): >= 1000x real time on one core, i.e. <= 500 us per 0.5 s frame (median).
+state. Target (issue 23): >= 2000x real time on one core, i.e. <= 250 us per 0.5 s frame (median;
+issue 8's was <= 500 us).
 Run: ``.venv/bin/python -m pytest bench/bench_loop.py --benchmark-enable -q``.
 """
 import pytest

@@ -38,12 +38,21 @@ def q_conj(q):
 
 
 def q_normalize(q):
+    """Unit quaternion (float64 (4,)) with scalar part >= 0; ValueError for a zero or non-finite one."""
     q = np.asarray(q, dtype=float)
-    n = math.sqrt(float(q @ q))
-    if not n > 0.0:
+    if q.shape != (4,):
+        n = math.sqrt(float(q @ q))
+        if not n > 0.0:
+            raise ValueError("zero or non-finite quaternion")
+        q = q / n
+        return q if q[0] >= 0.0 else -q
+    w, x, y, z = q.tolist()              # Python floats: the same IEEE double arithmetic, faster
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if not n > 0.0 or n == math.inf:
         raise ValueError("zero or non-finite quaternion")
-    q = q / n
-    return q if q[0] >= 0.0 else -q
+    if w / n >= 0.0:
+        return np.array([w / n, x / n, y / n, z / n])
+    return np.array([-(w / n), -(x / n), -(y / n), -(z / n)])
 
 
 def q_to_dcm(q):
@@ -87,12 +96,34 @@ def q_from_rotvec(phi):
 
 
 def q_to_rotvec(q):
-    q = q_normalize(q)
-    v = q[1:]
-    s = math.sqrt(float(v @ v))
-    if s < 1e-12:
-        return 2.0 * v
-    return v * (2.0 * math.atan2(s, q[0]) / s)
+    """Rotation vector (axis * angle, rad, float64 (3,)) of a quaternion (normalised first)."""
+    w, x, y, z = q_normalize(q).tolist()
+    s = math.sqrt(x * x + y * y + z * z)
+    g = 2.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
+    return np.array([x * g, y * g, z * g])
+
+
+def q_rate(q_new, q_old, dt: float):
+    """Angular velocity (rad/s, float64 (3,), in the frame the quaternions rotate into, e.g. ECI)
+    that takes ``q_old`` to ``q_new`` in ``dt`` s: ``q_to_rotvec(q_new * conj(q_old)) / dt``, on
+    Python floats (it is on the per-frame path)."""
+    aw, ax, ay, az = np.asarray(q_new, float).tolist()
+    bw, bx, by, bz = np.asarray(q_old, float).tolist()
+    bx, by, bz = -bx, -by, -bz
+    w = aw * bw - ax * bx - ay * by - az * bz
+    x = aw * bx + ax * bw + ay * bz - az * by
+    y = aw * by - ax * bz + ay * bw + az * bx
+    z = aw * bz + ax * by - ay * bx + az * bw
+    n = math.sqrt(w * w + x * x + y * y + z * z)
+    if not n > 0.0 or n == math.inf:
+        raise ValueError("zero or non-finite quaternion")
+    if w / n >= 0.0:
+        w, x, y, z = w / n, x / n, y / n, z / n
+    else:
+        w, x, y, z = -(w / n), -(x / n), -(y / n), -(z / n)
+    s = math.sqrt(x * x + y * y + z * z)
+    g = 2.0 if s < 1e-12 else 2.0 * math.atan2(s, w) / s
+    return np.array([x * g / dt, y * g / dt, z * g / dt])
 
 
 def q_pointing(boresight_eci, up_eci=(0.0, 0.0, 1.0), roll=0.0):

@@ -56,21 +56,48 @@ def _cdf(u, table):
 
 
 @njit(cache=True)
-def project_kernel(uvec, m, scale_col, scale_row, rows, cols):
-    """rows/cols (n,) of ECI unit vectors ``uvec`` (n,3) through ECI->imager matrix ``m``; NaN behind."""
-    for i in range(uvec.shape[0]):
+def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_col, scale_row,
+                      idx, rows, cols):
+    """Select and project the candidate stars ``cand`` (int64 catalogue indices) in one pass.
+
+    A star is kept when ``keep[i]`` (bool, per catalogue star) and, if ``cos_limit > -2``, it is not
+    behind the Earth: ``uvec[i] @ observer > -cos_limit`` (``observer`` (3,) ECI position, m;
+    ``cos_limit = |observer| * cos(Earth's angular radius)``). Kept stars go to ``idx`` (int64) and
+    their (row, col) through the ECI -> imager matrices ``m0``, ``m``, ``m1`` (start, middle, end of the
+    integration) to ``rows``/``cols`` (3, len(cand)) float64: for (a, b, c) = m_k @ u, col = b / a /
+    scale_col + COL0, row = c / a / scale_row + ROW0 (NaN when a <= 1e-9, behind the imager).
+    Returns the number kept (the first n entries are filled).
+
+    Cases
+    -----
+    catalogue-cut : stars with ``keep`` False are left out.
+    earth-occulted : stars behind the Earth are left out when an observer is given.
+    behind-imager : a star behind the imager plane gets NaN row and column.
+    """
+    n = 0
+    for j in range(cand.shape[0]):
+        i = cand[j]
+        if not keep[i]:
+            continue
         x = uvec[i, 0]
         y = uvec[i, 1]
         z = uvec[i, 2]
-        a = m[0, 0] * x + m[0, 1] * y + m[0, 2] * z
-        b = m[1, 0] * x + m[1, 1] * y + m[1, 2] * z
-        c = m[2, 0] * x + m[2, 1] * y + m[2, 2] * z
-        if a > 1e-9:
-            cols[i] = b / a / scale_col + COL0
-            rows[i] = c / a / scale_row + ROW0
-        else:
-            cols[i] = np.nan
-            rows[i] = np.nan
+        if cos_limit > -2.0 and x * observer[0] + y * observer[1] + z * observer[2] <= -cos_limit:
+            continue
+        idx[n] = i
+        for k in range(3):
+            mk = m0 if k == 0 else (m if k == 1 else m1)
+            a = mk[0, 0] * x + mk[0, 1] * y + mk[0, 2] * z
+            b = mk[1, 0] * x + mk[1, 1] * y + mk[1, 2] * z
+            c = mk[2, 0] * x + mk[2, 1] * y + mk[2, 2] * z
+            if a > 1e-9:
+                cols[k, n] = b / a / scale_col + COL0
+                rows[k, n] = c / a / scale_row + ROW0
+            else:
+                cols[k, n] = np.nan
+                rows[k, n] = np.nan
+        n += 1
+    return n
 
 
 @njit(cache=True)
@@ -247,6 +274,35 @@ def _normal(s0, s1, s2, s3, gtab):
     return z, s0, s1, s2, s3
 
 
+@njit(cache=True)
+def standard_normals_kernel(state, out):
+    """Fill ``out`` (n,) float64 with independent N(0, 1) deviates: Box-Muller on pairs of xoshiro256**
+    uniforms (53-bit, in (0, 1)) from the uint64[4] ``state`` (:func:`frame_rng_state`), which is
+    advanced in place.
+
+    Cases
+    -----
+    pairs : an even ``n``: n / 2 Box-Muller pairs (cosine, then sine branch).
+    odd : an odd ``n``: the last deviate is the cosine branch of one more pair.
+    """
+    s0 = state[0]
+    s1 = state[1]
+    s2 = state[2]
+    s3 = state[3]
+    n = out.shape[0]
+    for i in range(0, n, 2):
+        u1, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        u2, s0, s1, s2, s3 = _uniform(s0, s1, s2, s3)
+        rad = math.sqrt(-2.0 * math.log(u1))
+        out[i] = rad * math.cos(2.0 * math.pi * u2)
+        if i + 1 < n:
+            out[i + 1] = rad * math.sin(2.0 * math.pi * u2)
+    state[0] = s0
+    state[1] = s1
+    state[2] = s2
+    state[3] = s3
+
+
 @njit(cache=True, inline="always")
 def _digitise(e, inv_gain, bias, hi):
     v = bias + e * inv_gain + 0.5
@@ -309,20 +365,18 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
     zero32 = np.float32(0.0)
     hi32 = np.float32(hi + 0.5)
     zrow = np.empty(nc, np.float32)       # one row's normal deviates (fast path)
+    krow = np.empty(nc, np.uint16)        # their table indices
     for r in range(nr):
         if nflag == 0 and rowmin[r] >= POISSON_GAUSS_SWITCH and nc % 4 == 0:
-            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel
-            # (extreme table bins are only noted here and redrawn from the exact tail below: keeping
-            # the rare tail sampler out of this loop halves its cost). Two passes so the pixel
-            # arithmetic vectorises: the row's deviates, then its pixels.
+            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel.
+            # Passes: the row's deviates (no branch), its pixels (vectorised), then a branch-free
+            # scan of its table indices for the extreme bins, which are noted and redrawn from the
+            # exact tail after all rows (a test per deviate in the drawing loop cost ~10 us a frame)
             for c4 in range(0, nc, 4):
                 xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
                 for j in range(4):
                     k = int((xx >> np.uint64(16 * j)) & m16)
-                    if k == 0 or k == 65535:
-                        if ntail < tails.shape[0]:
-                            tails[ntail] = (r * nc + c4 + j) * 2 + (1 if k == 65535 else 0)
-                            ntail += 1
+                    krow[c4 + j] = k
                     zrow[c4 + j] = gtab[k]
             mrow = mean[r]
             orow = out[r]
@@ -331,6 +385,15 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
                 v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
                 v32 = min(max(v32, zero32), hi32)
                 orow[c] = np.uint16(int(v32))
+            hit = False
+            for c in range(nc):
+                hit |= (krow[c] == 0) | (krow[c] == 65535)
+            if hit:
+                for c in range(nc):
+                    k = krow[c]
+                    if (k == 0 or k == 65535) and ntail < tails.shape[0]:
+                        tails[ntail] = (r * nc + c) * 2 + (1 if k == 65535 else 0)
+                        ntail += 1
             continue
         for c4 in range(0, nc, 4):
             # one 64-bit draw feeds four pixels (16 bits each)
@@ -490,32 +553,31 @@ class Renderer:
         im = self.imager
         bore = m[0]  # ECI direction of imager +X (row 0 of ECI->imager)
         radius = im.half_diagonal + (margin_px + 5.0 * im.psf_sigma_px + 2.0) * max(im.scale_col, im.scale_row)
-        idx = self.sky.cone(bore, radius, self.hp_cut)
-        idx = idx[self._keep[idx]]
-        u = self.sky.uvec[idx]
+        cand = self.sky.cone(bore, radius, self.hp_cut)
+        cos_limit = -3.0                     # no Earth test
         if observer_pos is not None:
-            rn = math.sqrt(float(observer_pos @ observer_pos))
-            cos_rho = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2))
-            vis = (u @ observer_pos) > -cos_rho * rn
-            if not vis.all():
-                idx, u = idx[vis], u[vis]
-        rows = np.empty((3, len(idx)))
-        cols = np.empty((3, len(idx)))
-        sc, sr = self._sc, self._sr
-        project_kernel(u, m, sc, sr, rows[1], cols[1])
-        for j, mj in ((0, m0), (2, m1)):
-            if mj is m:
-                rows[j], cols[j] = rows[1], cols[1]
-            else:
-                project_kernel(u, mj, sc, sr, rows[j], cols[j])
+            obs = np.asarray(observer_pos, np.float64)
+            rn = math.sqrt(float(obs @ obs))
+            cos_limit = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2)) * rn
+        else:
+            obs = np.zeros(3)
+        idx = np.empty(len(cand), np.int64)
+        rows = np.empty((3, len(cand)))
+        cols = np.empty((3, len(cand)))
+        n = star_field_kernel(cand, self._keep, self.sky.uvec, obs, cos_limit, m0, m, m1,
+                              float(self._sc), float(self._sr), idx, rows, cols)
+        idx, rows, cols = idx[:n], rows[:, :n], cols[:, :n]
         return idx, rows, cols
 
     def project(self, m, los):
         """(row, col) of an ECI direction through ECI->imager ``m`` (NaN behind the imager)."""
-        v = m @ los
-        if v[0] <= 1e-9:
+        x, y, z = los.tolist() if isinstance(los, np.ndarray) else los
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2) = m.tolist()
+        a = a0 * x + a1 * y + a2 * z
+        if a <= 1e-9:
             return math.nan, math.nan
-        return v[2] / v[0] / self._sr + ROW0, v[1] / v[0] / self._sc + COL0
+        return ((c0 * x + c1 * y + c2 * z) / a / self._sr + ROW0,
+                (b0 * x + b1 * y + b2 * z) / a / self._sc + COL0)
 
     def render(self, m0, m, m1, sources=(), seed=0, frame_index=0, extended=None, out=None,
                observer_pos=None):
@@ -568,10 +630,10 @@ class Renderer:
         # angle between the start and end boresights, in pixels (an upper bound of the star trail)
         if m0 is m1:
             return 0.0
-        d = float(m0[0] @ m1[0])
-        ang = math.acos(min(1.0, max(-1.0, d)))
-        e = float(m0[1] @ m1[1])
-        ang = max(ang, math.acos(min(1.0, max(-1.0, e))))
+        (a0, a1, a2), (b0, b1, b2) = m0[0].tolist(), m1[0].tolist()
+        ang = math.acos(min(1.0, max(-1.0, a0 * b0 + a1 * b1 + a2 * b2)))
+        (a0, a1, a2), (b0, b1, b2) = m0[1].tolist(), m1[1].tolist()
+        ang = max(ang, math.acos(min(1.0, max(-1.0, a0 * b0 + a1 * b1 + a2 * b2))))
         return ang / min(self.imager.scale_col, self.imager.scale_row)
 
 

@@ -29,15 +29,16 @@ from flightsw.messages import AttitudeData
 
 from .aurora import AuroraParams, AuroraScene
 from .frames import R_EARTH_M, geodetic_to_ecef, jd_utc, julian_year_tt, rot_z
-from .quat import (q_conj, q_from_rotvec, q_mul, q_normalize, q_pointing, q_to_dcm, q_to_rotvec,
-                   radec_to_vec)
-from .render import PointSource, Renderer
+from .quat import (q_conj, q_from_rotvec, q_mul, q_normalize, q_pointing, q_rate, q_to_dcm,
+                   q_to_rotvec, radec_to_vec)
+from .render import PointSource, Renderer, frame_rng_state, standard_normals_kernel
 from .sky import StarCatalog
 from .spacecraft import AttitudeController, ControllerParams, KnowledgeError, Orbit, pass_over_elements
 from .targets import LaunchTarget, SatelliteTarget
 
 DEG = math.pi / 180.0
 FRAME_DT = 0.5
+ATTITUDE_STREAM = 1        # frame_rng_state stream of the attitude knowledge noise
 
 
 def _orbit_from(spec, epoch, satnum, sc_orbit=None):
@@ -71,6 +72,19 @@ def _epoch_shift(sat, epoch):
 def _copy_attitude(a: AttitudeData) -> AttitudeData:
     return AttitudeData(t=a.t, q_body_to_eci=a.q_body_to_eci.copy(), rate_body=a.rate_body.copy(),
                         r_eci=a.r_eci.copy(), v_eci=a.v_eci.copy(), valid=a.valid)
+
+
+def _lines_of_sight(d, dd):
+    """Unit lines of sight ``(d - dd)``, ``d``, ``(d + dd)`` (float64 (3,) each) and ``|d|``: the
+    target seen from the spacecraft at the start, middle and end of the integration (``d`` (3,) m the
+    relative position at mid-integration, ``dd`` (3,) m its change over half the integration)."""
+    x, y, z = d.tolist()
+    a, b, c = dd.tolist()
+    out = []
+    for sx, sy, sz in ((x - a, y - b, z - c), (x, y, z), (x + a, y + b, z + c)):
+        n = math.sqrt(sx * sx + sy * sy + sz * sz)
+        out.append(np.array([sx / n, sy / n, sz / n]))
+    return out[0], out[1], out[2], math.sqrt(x * x + y * y + z * z)
 
 
 class World:
@@ -192,7 +206,7 @@ class World:
         if self._last_cmd is not None:
             t0, q0 = self._last_cmd
             if 0.0 < self._t - t0 <= 2.0:
-                w = q_to_rotvec(q_mul(q, q_conj(q0))) / (self._t - t0)
+                w = q_rate(q, q0, self._t - t0)
         self._last_cmd = (self._t, q)
         self._external = True
         self.ctrl.command(q, w if self.ctrl_params.feedforward else None)
@@ -264,8 +278,10 @@ class World:
                 and ac[4] is self.scn.faults):
             return _copy_attitude(self._att_cache[1])
         r, v = self.orbit.state(self._t)
-        rng = np.random.Generator(np.random.PCG64(np.random.SeedSequence([self.scn.seed, self._k, 1])))
-        a = self.knowledge.apply(self._t, c.q, c.w, r, v, rng,
+        # the frame's knowledge noise: its own xoshiro stream (1) of the frame's seed (render uses 0)
+        z = np.empty(9)
+        standard_normals_kernel(frame_rng_state(self.scn.seed, self._k, ATTITUDE_STREAM), z)
+        a = self.knowledge.apply(self._t, c.q, c.w, r, v, draws=z,
                                  valid=self.scn.faults.attitude_valid(self._t))
         self._att_cache = (key, _copy_attitude(a), kn, self.orbit, self.scn.faults)
         return a
@@ -286,21 +302,16 @@ class World:
         r_sc, v_sc = self.orbit.state(t)
         a = im.align_dcm
         q_mid = self.ctrl.q
-        m = (q_to_dcm(q_mid) @ a).T
-        m0 = (q_to_dcm(self.ctrl.attitude_at(-h)) @ a).T
-        m1 = (q_to_dcm(self.ctrl.attitude_at(h)) @ a).T
+        m0, m, m1 = self.ctrl.exposure_matrices(h, a)
         sources = []
         tinfo = dict(type=self.scn.target_type, row=math.nan, col=math.nan, in_field=False,
-                     los_eci=np.full(3, math.nan), range_m=math.nan, r_eci=np.full(3, math.nan),
-                     v_eci=np.full(3, math.nan), electrons=0.0, plume_electrons=0.0)
+                     los_eci=None, range_m=math.nan, r_eci=None, v_eci=None, electrons=0.0,
+                     plume_electrons=0.0)
         st = self.true_target_state(t)
         if st is not None:
             rt, vt = st
             d = rt - r_sc
-            rng_m = float(np.linalg.norm(d))
-            los = d / rng_m
-            los0 = (d - h * (vt - v_sc)) / np.linalg.norm(d - h * (vt - v_sc))
-            los1 = (d + h * (vt - v_sc)) / np.linalg.norm(d + h * (vt - v_sc))
+            los0, los, los1, rng_m = _lines_of_sight(d, h * (vt - v_sc))
             tinfo.update(los_eci=los, range_m=rng_m, r_eci=rt, v_eci=vt)
             if self.target is not None:
                 body, plume, plen, pwid = self.target.appearance(t, rng_m, im.band)
@@ -312,6 +323,9 @@ class World:
                     tail = (d - plen * vu) / np.linalg.norm(d - plen * vu)
                 sources.append(PointSource(los0, los, los1, el, pel, tail, pwid / rng_m))
                 tinfo.update(electrons=el, plume_electrons=pel)
+        else:
+            tinfo.update(los_eci=np.full(3, math.nan), r_eci=np.full(3, math.nan),
+                         v_eci=np.full(3, math.nan))
         extended = None
         scene = self.aurora or self._glow
         if scene is not None and (self.aurora is not None or self.scn.earth_glow is True
@@ -333,7 +347,9 @@ class World:
         return frame, truth
 
     def _earth_near_field(self, r_sc, bore, im):
-        rn = float(np.linalg.norm(r_sc))
+        x, y, z = r_sc.tolist()
+        b0, b1, b2 = bore.tolist()
+        rn = math.sqrt(x * x + y * y + z * z)
         rho = math.asin(min(1.0, (R_EARTH_M + 300e3) / rn))        # Earth + glow layer angular radius
-        off = math.acos(min(1.0, max(-1.0, float(-(r_sc / rn) @ bore))))
+        off = math.acos(min(1.0, max(-1.0, -(x * b0 + y * b1 + z * b2) / rn)))
         return off < rho + im.half_diagonal
