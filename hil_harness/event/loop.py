@@ -40,7 +40,7 @@ import numpy as np
 
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
 from flightsw.ip import ImageProcessor, ProcessingSequence
-from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, IMAGER_CODES, TrackCommand
+from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
 from groundsim.scenario import Scenario

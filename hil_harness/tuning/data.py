@@ -58,7 +58,7 @@ from pathlib import Path
 import numpy as np
 
 from flightsw.arith.m1750 import decode32_array
-from flightsw.messages import FEATURE_NAMES, N_FEATURES
+from flightsw.messages import N_FEATURES
 from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
