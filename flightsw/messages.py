@@ -958,12 +958,10 @@ class TrackCommand:
                                "prediction + los_eci; the estimate) must be all finite or all NaN")
         return out
 
-    @classmethod
-    def from_words(cls, words) -> "TrackCommand":
-        """Decode :meth:`to_words` output. Anything the encoder would not have written (a wrong id,
-        length or checksum; unknown codes; undefined status or flag bits; non-zero reserved or
-        absent words; a float that is not a normalised 1750A value) -> :class:`MessageError`
-        naming the word and field; ``from_words(w).to_words()`` equals ``w`` when accepted."""
+    @staticmethod
+    def _checked(words):
+        """The words as an array and the check kernel's values and time tag, or MessageError
+        naming the word and field (the one decoding of the track command, for both readers)."""
         o = "track command"
         w = _word_array(o, words)
         if w.shape[0] != TRACK_WORDS:
@@ -977,6 +975,25 @@ class TrackCommand:
             elif verdict == _BAD_CODE2:
                 reason = "unknown object type code (low byte)"
             raise MessageError(o, i, _track_field(i), reason)
+        return w, v, t
+
+    @classmethod
+    def feedback_from_words(cls, words) -> Feedback:
+        """The IP's feedback (:meth:`feedback`) read straight from the words, with every check of
+        :meth:`from_words` and without building the whole command (the IP's per-frame read)."""
+        w, v, _ = cls._checked(words)
+        ot = _OBJECT_TYPE_BY_CODE[int(w[6]) & 0xFF]
+        return Feedback(predicted_row=float(v[4]), predicted_col=float(v[5]),
+                        object_type="" if ot == "none" else ot,
+                        locked=bool(int(w[8]) & _TCF_LOCKED))
+
+    @classmethod
+    def from_words(cls, words) -> "TrackCommand":
+        """Decode :meth:`to_words` output. Anything the encoder would not have written (a wrong id,
+        length or checksum; unknown codes; undefined status or flag bits; non-zero reserved or
+        absent words; a float that is not a normalised 1750A value) -> :class:`MessageError`
+        naming the word and field; ``from_words(w).to_words()`` equals ``w`` when accepted."""
+        w, v, t = cls._checked(words)
         h = w[:13].tolist()
         flags = h[8]
         return cls(frame_count=h[2], time_tag=t, q_point=v[0:4].copy(),
@@ -988,6 +1005,7 @@ class TrackCommand:
                    mode="opportunity" if flags & _TCF_OPP else "dedicated",
                    los_eci=v[6:9].copy(), r_est=v[9:12].copy(), v_est=v[12:15].copy(),
                    sigma_pos=float(v[15]), sigma_vel=float(v[16]))
+
     def __eq__(self, other):
         if not isinstance(other, TrackCommand):
             return NotImplemented

@@ -49,3 +49,31 @@ def test_ip_entry_points_take_only_a_feedback():
     out = ip.step(frame, frame_count=1, time_tag=0.5, imager="wfov_vis",
                   feedback=Feedback(100.0, 120.0))
     assert out.result.message.window_row0 == 68 and out.result.message.window_col0 == 88
+
+
+def test_feedback_read_from_the_words_is_the_commands_feedback():
+    """The IP's per-frame read gives what decoding the whole command gives, and refuses what it
+    refuses, word and field named the same way."""
+    rng = np.random.default_rng(4)
+    base = dict(los_eci=np.array([0.6, 0.8, 0.0]))
+    cmds = [TrackCommand(), TrackCommand(predicted_row=12.5, predicted_col=40.0, locked=True,
+                                         object_type="satellite", **base),
+            TrackCommand(predicted_row=200.25, predicted_col=3.0, object_type="none", **base),
+            TrackCommand(predicted_row=1.0, predicted_col=2.0, object_type="aurora", **base)]
+    for cmd in cmds:
+        w = cmd.to_words()
+        a, b = TrackCommand.feedback_from_words(w), TrackCommand.from_words(w).feedback()
+        assert np.array_equal([a.predicted_row, a.predicted_col], [b.predicted_row, b.predicted_col],
+                              equal_nan=True)
+        assert (a.object_type, a.locked) == (b.object_type, b.locked)
+        for _ in range(40):
+            bad = w.copy()
+            bad[rng.integers(0, len(w))] ^= np.uint16(1 << int(rng.integers(0, 16)))
+            errs = []
+            for read in (TrackCommand.feedback_from_words, TrackCommand.from_words):
+                try:
+                    read(bad)
+                    errs.append(None)
+                except MessageError as exc:
+                    errs.append(str(exc))
+            assert errs[0] == errs[1] and errs[0] is not None      # a flipped bit never passes

@@ -85,8 +85,8 @@ def check_frame(frame):
     if frame.ndim != 2 or not np.issubdtype(frame.dtype, np.integer):
         raise ValueError(f"frame must be a 2-D integer array (uint16 [244, 256]), got "
                          f"{frame.dtype} {frame.shape}")
-    if frame.size and (frame.min() < 0 or frame.max() > 4095):
-        raise ValueError("frame pixels must be 12-bit counts 0..4095")
+    if frame.size and ((frame.dtype.kind == "i" and frame.min() < 0) or frame.max() > 4095):
+        raise ValueError("frame pixels must be 12-bit counts 0..4095")   # (unsigned: one pass)
     return frame
 
 

@@ -118,11 +118,10 @@ class ImageProcessor:
         """Read the TP's feedback from track-command words; True if accepted. A command that fails
         its CRC or its checks is counted (``rejected_commands``) and the last good feedback stays."""
         try:
-            cmd = TrackCommand.from_words(np.asarray(words))
+            self.feedback = TrackCommand.feedback_from_words(np.asarray(words))
         except ValueError:
             self.rejected_commands += 1
             return False
-        self.feedback = cmd.feedback()
         return True
 
     def step(self, frame, *, frame_count: int, time_tag: float, imager: str,
