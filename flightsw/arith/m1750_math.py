@@ -23,8 +23,8 @@ to the format, stored as packed words):
   ``f < 1``); ``s = (f-1)/(f+1)``; ``ln f = s (2 + s**2 P(s**2))``; ``+ E*ln2_hi + E*ln2_lo``.
 * ``sin``/``cos``: ``n = round(x * 2/pi)``, ``r = x - n*pi/2`` in 48-bit with a 3-part ``pi/2``
   (23, 23, 40 bits; ``n * C1`` exact), quadrant ``n mod 4``; ``sin r = r + r z P(z)``,
-  ``cos r = 1 + z (-1/2 + z Q(z))``, ``z = r*r``. Domain ``|x| < 2**15`` (the exponent <= 0F that
-  FIX needs); beyond: ``(0, FLAG_DOMAIN)``.
+  ``cos r = 1 + z (-1/2 + z Q(z))``, ``z = r*r``. Domain: exponent <= 15, the range FIX needs
+  (``|x| < 2**15``, and ``-2**15 = -1.0 * 2**15`` itself); beyond: ``(0, FLAG_DOMAIN)``.
 * ``atan2``: ``t = min/max`` of ``|y|, |x|``; ``k = round(8t)``, ``u = (t - k/8)/(1 + t k/8)``,
   ``atan t = atan(k/8) + u + u z P(z)``; octant/quadrant fix-ups with ``pi/2 - a``, ``pi - a``, FNEG.
   ``atan2(0, 0) = 0``.
@@ -39,8 +39,8 @@ routine            domain sampled                  max error (measured -> stated
 sqrt32 / sqrt48    (0, 2**127)                     1.0 / 1.0 ulp        -> 1.5 ulp
 exp32              [-88.7, 88]                     2.5 ulp              -> 3 ulp
 ln32               (0, 2**127), dense near 1       3.5 ulp              -> 4 ulp
-sin32 / cos32      |x| < 2**15                     2.86 * 2**-23 abs    -> 3.5 * 2**-23 (4.2e-7)
-sin48 / cos48      |x| < 2**15                     3.43 * 2**-39 abs    -> 4 * 2**-39 (7.3e-12)
+sin32 / cos32      |x| < 2**15 (and -2**15)        2.86 * 2**-23 abs    -> 3.5 * 2**-23 (4.2e-7)
+sin48 / cos48      |x| < 2**15 (and -2**15)        3.43 * 2**-39 abs    -> 4 * 2**-39 (7.3e-12)
 atan2_32           all quadrants, |r| 2**-20..2**20  6.4 ulp            -> 8 ulp
 atan2_48           all quadrants, |r| 2**-20..2**20  4.7 ulp            -> 6 ulp
 =================  ==============================  =========================================
