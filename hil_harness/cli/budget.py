@@ -83,7 +83,10 @@ def _write_json(path, d) -> None:
     print(f"json: {path}")
 
 
-def _check_hypothesis(name) -> None:
+def check_hypothesis(name) -> None:
+    """``--hypothesis NAME`` (uvisi budget and uvisi event): ValueError listing the known names
+    unless NAME is one (checked when the command runs, so building the parser loads no flight
+    code)."""
     from hil_harness.budget.hypotheses import HYPOTHESES
     names = [h.name for h in HYPOTHESES]
     if name not in names:
@@ -91,7 +94,7 @@ def _check_hypothesis(name) -> None:
 
 
 def run(args) -> int:
-    _check_hypothesis(args.hypothesis)
+    check_hypothesis(args.hypothesis)
     if args.recording:
         return _run_recording(args)
     from flightsw.budget import PACE1750A

@@ -71,10 +71,8 @@ def run(args) -> int:
     if args.seed is not None and args.seed < 0:
         raise ValueError(f"--seed {args.seed}: must be >= 0")
     if args.hypothesis is not None:
-        from hil_harness.budget.hypotheses import HYPOTHESES
-        names = [h.name for h in HYPOTHESES]
-        if args.hypothesis not in names:
-            raise ValueError(f"--hypothesis {args.hypothesis!r}: not one of {', '.join(names)}")
+        from hil_harness.cli.budget import check_hypothesis
+        check_hypothesis(args.hypothesis)
     out = Path(args.out) if args.out else Path("events") / Path(name).stem
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
