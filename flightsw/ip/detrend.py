@@ -295,7 +295,7 @@ def detrend_none(img, ledger=None, stage="detrend_none"):
 def polynomial_basis(h, w):
     """Ground-precomputed constants for an h x w window.
 
-    Returns ``(tables int16 [6, h, w], j int64[6], N list[int], R list[int], P list[int])``:
+    Returns ``(tables int16 [6, h, w], j int64[6], N list[int], R int64[6], P int64[6])``:
     the scaled orthogonal basis tables ``B'_k = B_k << j_k``, the exact norms ``N_k = sum B_k^2``,
     and the 32-bit normalised reciprocals ``R_k = round(2**P_k / N_k)``."""
     U = 2 * np.arange(w, dtype=np.int64) - (w - 1)
@@ -327,7 +327,7 @@ def polynomial_basis(h, w):
         Ns.append(N)
         Rs.append(R)
         Ps.append(P)
-    return tables, np.array(js, np.int64), Ns, Rs, Ps
+    return tables, np.array(js, np.int64), Ns, np.array(Rs, np.int64), np.array(Ps, np.int64)
 
 
 @njit(cache=True)
@@ -496,7 +496,7 @@ def detrend_polynomial(img, ledger=None, stage="detrend_polynomial", return_surf
     if h < 3 or w < 3:
         raise ValueError(f"window {h}x{w} too small for a second-order surface (need >= 3x3)")
     tables, js, _, rs, ps = polynomial_basis(h, w)
-    out, cw, s = polynomial_k(img, tables, js, np.array(rs, np.int64), np.array(ps, np.int64))
+    out, cw, s = polynomial_k(img, tables, js, rs, ps)
     if ledger is not None:
         ledger.charge("dsp", stage, polynomial_cycles(h, w))
     if return_surface:

@@ -275,7 +275,7 @@ def poly_tables(h: int, w: int, used: bool = True) -> PolyTables | None:
     if not used:
         return None
     tables, js, _, rs, ps = dt.polynomial_basis(h, w)
-    return PolyTables(tables, js, np.array(rs, np.int64), np.array(ps, np.int64))
+    return PolyTables(tables, js, rs, ps)
 
 
 def _front(sequence: ProcessingSequence):
