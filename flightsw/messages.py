@@ -603,6 +603,13 @@ class Feedback:
         return not math.isnan(self.predicted_row)
 
 
+def _feedback(row, col, object_type, locked) -> Feedback:
+    """The Feedback a track command carries (the command's "none" object type is the feedback's
+    "": no object)."""
+    return Feedback(predicted_row=float(row), predicted_col=float(col),
+                    object_type="" if object_type == "none" else object_type, locked=bool(locked))
+
+
 @dataclass
 class CandidateMessage:
     """The IP -> TP candidate message of one frame.
@@ -895,9 +902,7 @@ class TrackCommand:
 
     def feedback(self) -> Feedback:
         """The IP's feedback for its next frame (prediction in :attr:`imager`'s pixels)."""
-        ot = "" if self.object_type == "none" else self.object_type
-        return Feedback(predicted_row=float(self.predicted_row), predicted_col=float(self.predicted_col),
-                        object_type=ot, locked=bool(self.locked))
+        return _feedback(self.predicted_row, self.predicted_col, self.object_type, self.locked)
 
     # -- codec ----------------------------------------------------------------------------------
     def _values(self) -> np.ndarray:
@@ -982,10 +987,8 @@ class TrackCommand:
         """The IP's feedback (:meth:`feedback`) read straight from the words, with every check of
         :meth:`from_words` and without building the whole command (the IP's per-frame read)."""
         w, v, _ = cls._checked(words)
-        ot = _OBJECT_TYPE_BY_CODE[int(w[6]) & 0xFF]
-        return Feedback(predicted_row=float(v[4]), predicted_col=float(v[5]),
-                        object_type="" if ot == "none" else ot,
-                        locked=bool(int(w[8]) & _TCF_LOCKED))
+        return _feedback(v[4], v[5], _OBJECT_TYPE_BY_CODE[int(w[6]) & 0xFF],
+                         int(w[8]) & _TCF_LOCKED)
 
     @classmethod
     def from_words(cls, words) -> "TrackCommand":
