@@ -304,6 +304,32 @@ def standard_normals_kernel(state, out):
 
 
 @njit(cache=True, inline="always")
+def _note_tails(krow, r, tails, ntail):
+    """Note the pixels of row ``r`` whose normal-table index ``krow`` (uint16 [nc]) is an extreme
+    bin (0 or 65535), as ``(r * nc + c) * 2 + upper``, into ``tails`` from ``ntail`` on (while it has
+    room); returns the new count. A branch-free scan first: most rows have none.
+
+    Cases
+    -----
+    none : no extreme bin in the row -> nothing noted, the count unchanged.
+    extreme : each index 0 (lower tail, even code) or 65535 (upper tail, odd code) is noted in
+        column order.
+    full : ``tails`` full -> the rest of the row is not noted.
+    """
+    nc = krow.size
+    hit = False
+    for c in range(nc):
+        hit |= (krow[c] == 0) | (krow[c] == 65535)
+    if hit:
+        for c in range(nc):
+            k = krow[c]
+            if (k == 0 or k == 65535) and ntail < tails.shape[0]:
+                tails[ntail] = (r * nc + c) * 2 + (1 if k == 65535 else 0)
+                ntail += 1
+    return ntail
+
+
+@njit(cache=True, inline="always")
 def _digitise(e, inv_gain, bias, hi):
     v = bias + e * inv_gain + 0.5
     if v < 0.0:
@@ -385,15 +411,7 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
                 v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
                 v32 = min(max(v32, zero32), hi32)
                 orow[c] = np.uint16(int(v32))
-            hit = False
-            for c in range(nc):
-                hit |= (krow[c] == 0) | (krow[c] == 65535)
-            if hit:
-                for c in range(nc):
-                    k = krow[c]
-                    if (k == 0 or k == 65535) and ntail < tails.shape[0]:
-                        tails[ntail] = (r * nc + c) * 2 + (1 if k == 65535 else 0)
-                        ntail += 1
+            ntail = _note_tails(krow, r, tails, ntail)
             continue
         for c4 in range(0, nc, 4):
             # one 64-bit draw feeds four pixels (16 bits each)

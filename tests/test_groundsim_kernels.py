@@ -135,3 +135,13 @@ def test_q_rate_matches_scipy():
     np.testing.assert_allclose(q_rate(to_q(b), to_q(a), 0.5), dw, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(q_rate(-to_q(b), to_q(a), 0.5), dw, rtol=1e-9, atol=1e-15)
     np.testing.assert_allclose(q_rate(to_q(a), to_q(a), 0.5), np.zeros(3), atol=1e-15)
+
+
+# cases: groundsim.render._note_tails none, extreme, full
+def test_note_tails_codes_the_extreme_bins_of_a_row():
+    from groundsim.render import _note_tails
+    tails = np.full(3, -1, np.int64)
+    krow = np.array([5, 0, 7, 65535, 1, 65535, 0], np.uint16)
+    assert _note_tails(np.full(7, 9, np.uint16), 2, tails, 0) == 0 and (tails == -1).all()
+    assert _note_tails(krow, 2, tails, 1) == 3           # room for two: (2*7+1)*2, (2*7+3)*2+1
+    assert tails.tolist() == [-1, 30, 35]
