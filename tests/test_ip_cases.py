@@ -387,6 +387,8 @@ def test_row_pass_is_the_dft_within_its_l2_bound():
 
 
 @pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "tie-even", "dc-removal")
+@pytest.mark.cases("flightsw.ip.fftfilter._store_tile", "tie-even")
+@pytest.mark.cases("flightsw.ip.fftfilter._dc_mean", "dc-removal")
 def test_fft_output_ties_round_to_even():
     k = np.zeros((9, 9), np.int16)
     k[4, 4] = 16384                               # x / 2: a constant c -> c / 2 exactly
@@ -396,6 +398,7 @@ def test_fft_output_ties_round_to_even():
 
 
 @pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "fine-exponent")
+@pytest.mark.cases("flightsw.ip.fftfilter._store_tile", "fine-exponent")
 def test_fft_with_tiny_taps_takes_the_fine_exponent_branch():
     import scipy.ndimage as ndi
     from ip_reference import bound_map

@@ -256,6 +256,8 @@ def test_fft_filter_against_scipy_within_the_block_floating_point_bound(ci):
 
 @pytest.mark.cases("flightsw.ip.fftfilter.fft_correlate_k", "saturate", "dc-does-not-fit",
                    "dc-removal", "no-dc")
+@pytest.mark.cases("flightsw.ip.fftfilter._store_tile", "saturate")
+@pytest.mark.cases("flightsw.ip.fftfilter._dc_mean", "dc-does-not-fit", "dc-removal", "no-dc")
 def test_fft_filter_saturation_constant_and_no_dc_removal():
     rng = np.random.default_rng(11)
     # near full scale with a kernel of gain 2: both directions saturate, still within the bound

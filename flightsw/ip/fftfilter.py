@@ -435,6 +435,62 @@ def _transpose(a, T):
     return out
 
 
+@njit(cache=True, inline="always")
+def _dc_mean(img, use_mean):
+    """The DC level the frequency path removes from an int16 [h, w] window: ``m = round_half_up(
+    mean)`` when ``use_mean``, else 0; 0 too when some ``x - m`` would not fit 16 bits.
+
+    Cases
+    -----
+    dc-removal : ``use_mean`` and every ``x - m`` fits -> the mean rounded half up.
+    no-dc : ``use_mean`` false -> 0.
+    dc-does-not-fit : some ``x - m`` outside -32768..32767 -> 0.
+    """
+    h, w = img.shape
+    s = np.int64(0)
+    mx = np.int64(-32768)
+    mn = np.int64(32767)
+    for r in range(h):
+        for c in range(w):
+            v = np.int64(img[r, c])
+            s += v
+            mx = max(mx, v)
+            mn = min(mn, v)
+    n = np.int64(h * w)
+    m = (2 * s + n) // (2 * n) if use_mean else np.int64(0)
+    if mx - m > 32767 or mn - m < -32768:
+        m = np.int64(0)
+    return m
+
+
+@njit(cache=True, inline="always")
+def _store_tile(re, vr, vc, D, mk, out, r0, c0):
+    """One tile's output: ``out[r0 + u, c0 + v]`` = one RND/SAT of ``(Y 2**(D+15) + m sum k) /
+    2**15`` for the valid ``vr x vc`` corner of the inverse transform ``re`` (int64 [T, T]);
+    ``mk = m sum(k)``.
+
+    Cases
+    -----
+    saturate : results beyond 16 bits -> 32767 / -32768.
+    tie-even : a result exactly halfway rounds to even.
+    fine-exponent : ``D + 15 < 0`` -> ``mk`` is shifted left to the sum's scale instead.
+    """
+    up = D + 15
+    cext = 0 if up >= 0 else -up
+    sh_up = up + cext
+    q = 15 + cext
+    half = np.int64(1) << (q - 1)
+    lowmask = (np.int64(1) << q) - 1
+    for u in range(vr):
+        for v in range(vc):
+            num = (re[u, v] << sh_up) + (mk << cext)
+            o = (num + half) >> q
+            if (num & lowmask) == half:
+                o &= ~np.int64(1)
+            o = min(max(o, -32768), 32767)
+            out[r0 + u, c0 + v] = np.int16(o)
+
+
 @njit(cache=True)
 def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, tws, dw,
                      use_mean):
@@ -468,20 +524,7 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
     ntj = (w + V - 1) // V
     M_r = h + 2 * p
     M_c = w + 2 * p
-    # ---- DC removal ----
-    s = np.int64(0)
-    mx = np.int64(-32768)
-    mn = np.int64(32767)
-    for r in range(h):
-        for c in range(w):
-            v = np.int64(img[r, c])
-            s += v
-            mx = max(mx, v)
-            mn = min(mn, v)
-    n = np.int64(h * w)
-    m = (2 * s + n) // (2 * n) if use_mean else np.int64(0)
-    if mx - m > 32767 or mn - m < -32768:
-        m = np.int64(0)
+    m = _dc_mean(img, use_mean)
     logT = 0
     while (1 << logT) < T:
         logT += 1
@@ -547,22 +590,8 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
             re = _transpose(re, T)
             im = _transpose(im, T)
             bl, E, Vv, si2 = _row_pass(re, im, vr, T, brev, twc, tws, True, bl, E, Vv, dw, log)
-            # ---- output: one RND/SAT of (Y 2**(D+15) + m sum k) / 2**15 ----
             D = sf1 + sf2 + shm + ek + si1 + si2 - 2 * logT
-            up = D + 15
-            cext = 0 if up >= 0 else -up
-            sh_up = up + cext
-            q = 15 + cext
-            half = np.int64(1) << (q - 1)
-            lowmask = (np.int64(1) << q) - 1
-            for u in range(vr):
-                for v in range(vc):
-                    num = (re[u, v] << sh_up) + (mk << cext)
-                    o = (num + half) >> q
-                    if (num & lowmask) == half:
-                        o &= ~np.int64(1)
-                    o = min(max(o, -32768), 32767)
-                    out[ti * V + u, tj * V + v] = np.int16(o)
+            _store_tile(re, vr, vc, D, mk, out, ti * V, tj * V)
             bounds[ti, tj] = E * 2.0 ** D + 0.5
             rmsp[ti, tj] = math.sqrt(Vv * 4.0 ** D / (2.0 * T * T) + 1.0 / 12.0)
             info[ti, tj, 0] = sf1 + sf2
