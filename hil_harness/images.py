@@ -256,6 +256,25 @@ def _common_shift(a: np.ndarray) -> int:
     return (v & -v).bit_length() - 1
 
 
+def _shifted_reading(a: np.ndarray) -> tuple[int, int]:
+    """``(k, n_full)`` for a non-negative integer image that is a 12-bit reading stored ``<< k``:
+    every pixel's low ``k`` bits are zero, except ``n_full`` pixels at the dtype's full scale (a
+    saturated reading written as all ones, e.g. 0xFFFF from a 12-bit sensor stored << 4), and
+    the dtype holds exactly 12 + k bits. ``(0, 0)`` when the image is not one."""
+    k = _common_shift(a)
+    if k > 0 and (int(a.max()) >> k) <= _MAX12:
+        return k, 0
+    full = np.iinfo(a.dtype).max
+    at_full = a == full
+    n_full = int(np.count_nonzero(at_full))
+    if n_full == 0 or n_full == a.size:
+        return 0, 0
+    k = _common_shift(a[~at_full])
+    if k > 0 and (int(full) >> k) == _MAX12:
+        return k, n_full
+    return 0, 0
+
+
 def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tuple[float, float]:
     """Background (median) and noise (1.4826 MAD) of the finite values, kappa-sigma clipped.
 
@@ -324,7 +343,10 @@ def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple
        data): unchanged, ``{"method": "none"}``;
     2. integers wider than 12 bits, all >= 0, whose low ``k`` bits are zero in every pixel and whose
        maximum fits 12 bits after ``>> k`` (a 12-bit reading stored ``<< 4``, like the star-tracker
-       TIFF): exact right shift, ``{"method": "shift", "shift": k}``;
+       TIFF): exact right shift, ``{"method": "shift", "shift": k}``. Pixels at the dtype's full
+       scale (0xFFFF in uint16) are a saturated reading written as all ones: they are allowed when
+       the dtype holds exactly 12 + k bits, map to 4095, and are counted in
+       ``"full_scale_pixels"``;
     3. anything else: a robust linear map ``counts = offset + gain * value`` with
        ``{"method": "robust", "background", "noise", "offset", "gain", "sky_counts",
        "noise_counts", "clipped_low", "clipped_high"}`` (background and noise in input units,
@@ -366,10 +388,12 @@ def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple
         raise ImageError(f"pixels are not 12-bit counts ({_describe(a)}); drop --no-scale to map "
                          f"them to counts")
     if np.issubdtype(a.dtype, np.integer) and int(a.min()) >= 0:
-        k = _common_shift(a)
-        if k > 0 and (int(a.max()) >> k) <= _MAX12:
-            return (a.astype(np.uint64) >> np.uint64(k)).astype(np.uint16), \
-                {"method": "shift", "shift": k}
+        k, n_full = _shifted_reading(a)
+        if k > 0:
+            m = {"method": "shift", "shift": k}
+            if n_full:
+                m["full_scale_pixels"] = n_full
+            return (a.astype(np.uint64) >> np.uint64(k)).astype(np.uint16), m
     return _robust_map(a)
 
 

@@ -110,6 +110,28 @@ def test_counts_pass_unchanged_and_shift_is_exact():
         to_counts(c + 0.5, no_scale=True)
 
 
+def test_shift_allows_saturated_full_scale_pixels():
+    """A 12-bit reading stored << 4 whose saturated pixels were written as 0xFFFF (as 5 of the 8
+    frames of the star-tracker camera are): still the exact shift, full scale -> 4095."""
+    rng = np.random.default_rng(5)
+    c = rng.integers(0, 4000, (40, 50)).astype(np.uint16)
+    raw = c << 4
+    raw[3, 4] = raw[20, 30] = 0xFFFF
+    out, m = to_counts(raw)
+    assert m == {"method": "shift", "shift": 4, "full_scale_pixels": 2}
+    want = c.copy()
+    want[3, 4] = want[20, 30] = 4095
+    assert np.array_equal(out, want)
+    # a 32-bit dtype's full scale is not a 12-bit reading << 4: the robust map
+    wide = (c.astype(np.uint32) << 4)
+    wide[3, 4] = 0xFFFFFFFF
+    assert to_counts(wide)[1]["method"] == "robust"
+    # an image with one odd pixel that is not full scale is not a shifted reading either
+    odd = raw.copy()
+    odd[5, 5] = 17
+    assert to_counts(odd)[1]["method"] == "robust"
+
+
 @pytest.mark.skipif(not TIFF.exists(), reason="real data not present")
 def test_star_tracker_tiff_is_shifted_by_4():
     import tifffile

@@ -197,7 +197,8 @@ def _plot(path, img, cands, title):
 
 def _scale_text(m: dict) -> str:
     if m["method"] == "shift":
-        return f"shift >> {m['shift']}"
+        full = m.get("full_scale_pixels")
+        return f"shift >> {m['shift']}" + (f", {full} full-scale pixels -> 4095" if full else "")
     if m["method"] == "robust" and m.get("noise") is not None:
         return f"robust: gain {m['gain']:.4g}, noise {m['noise_counts']:.1f} counts"
     return m["method"]
