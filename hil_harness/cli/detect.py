@@ -54,11 +54,12 @@ Jobs (--record; the job's sequence follows unless --sequence is given):
            detrend, clipped threshold at 1.5 sigma.
 
 Modes: --window full (default) processes the whole compacted image as one window when it fits in
-one tile, else as overlapping flight windows (tiles of 64 x 64 compacted pixels every 16 for point
+one tile, else through overlapping flight windows (64 x 64 compacted pixels every 16 for point
 sources, so that a bright star does not raise the threshold over faint ones beside it; 128 x 128
-every 32 for the streak and aurora sequences, so that one trail or arc stays in one window), each
-through the flight code unchanged, with duplicates merged across windows; --window 64 is the
-flight window about the image centre (no track prediction).
+every 32 for the streak and aurora sequences, so that one trail or arc stays in one window): the
+flight front end runs once on the whole frame, a pixel is kept where the flight threshold of any
+window covering it passes it, and the flight back end labels and ranks the blobs once;
+--window 64 is the flight window about the image centre (no track prediction).
 """
 
 
