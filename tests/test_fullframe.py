@@ -150,7 +150,7 @@ def _run_frame(plan, frame, f, tile=32, step=8):
     ch, cw = frame.shape[0] // f, frame.shape[1] // f
     rows, cols = _windows((ch, cw), tile, step)
     prm = backend_params(plan.rank_record, *plan.flags, False, f, plan.imager, 1000)
-    pack, out = fullframe_k(frame, f, plan.front, plan.ffts, None, plan.aq, plan.mode, rows, cols,
+    pack, out = fullframe_k(frame, f, plan.front, None, None, plan.aq, plan.mode, rows, cols,
                             tile, tile, cover_ranges(rows, tile, ch), cover_ranges(cols, tile, cw),
                             plan.recw, prm, enc32(0.0), enc32(0.0), enc32(50.0), enc32(60.0))
     return result_from_pack(np.zeros((0, 0), np.int32), pack), out, rows, cols
@@ -196,3 +196,22 @@ def test_frame_kernel_without_a_threshold_step():
     be, out, _, _ = _run_frame(_plan([{"op": "detrend", "method": "none"}]), frame, 1)
     np.testing.assert_array_equal(out, frame.astype(np.int16))
     assert be.count == 1 and be.features["size"][0] == frame.size
+
+
+@pytest.mark.parametrize("step", [{"op": "detrend", "method": "polynomial"},
+                                  {"op": "filter_fft", "kernel": "gaussian", "size": 9,
+                                   "sigma": 1.5}])
+def test_window_dependent_steps_run_window_by_window(step):
+    """The polynomial detrender fits each window and the FFT filter's tables are sized for the
+    flight window: such sequences keep the window-by-window path (duplicates merged)."""
+    from flightsw.ip.sequence import Preprocess, ProcessingSequence
+    from flightsw.records import load_record
+    from hil_harness.detect.fullframe import detect_frame
+    seq = ProcessingSequence([step, {"op": "threshold", "alpha": 4.0, "mode": "clip"}],
+                             Preprocess(1, 64), "t", "")
+    frame = _frame12((100, 120))
+    out = detect_frame(frame, seq, load_record("star"), 1, "full", 23, 64)
+    assert out["mode"].startswith("full frame tiled:") and out["windows"] == 4 * 5
+    rc = np.c_[out["feats"]["row"], out["feats"]["col"]]
+    for r, c in ((55.1, 95.8), (88.4, 60.2)):                  # two isolated stars
+        assert np.hypot(rc[:, 0] - r, rc[:, 1] - c).min() < 0.5

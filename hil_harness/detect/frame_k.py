@@ -27,8 +27,9 @@ def fullframe_k(src, f, front, ffts, poly, aq, mode, rows, cols, th, tw, rcover,
     ----------
     src : integer [H, W], 12-bit counts
     f : int, compaction factor (1, 2 or 4); the compacted frame is ``H // f`` x ``W // f``
-    front, ffts, poly : the sequence's front end (:class:`flightsw.ip.pipeline.FrontOps`,
-        ``FFTTables`` or None, ``PolyTables`` or None) as a ``FramePlan`` holds them
+    front, ffts, poly : the sequence's front end (:class:`flightsw.ip.pipeline.FrontOps`, then
+        None and None: the full-frame mode runs no FFT filter or polynomial detrender, whose
+        tables are sized for the flight window; numba then does not compile those branches)
     aq, mode : the threshold step's alpha (Q4.12 word) and mode (0 binarise, 1 clip)
     rows, cols : int64 [nr], [nc], the overlapping windows' starts (compacted pixels), each
         ``th`` x ``tw``

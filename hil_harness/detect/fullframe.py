@@ -14,7 +14,7 @@ tile; :mod:`hil_harness.detect.frame_k`):
 
 1. the flight compaction of the whole frame (``compact_k``);
 2. each front-end step of the sequence before the threshold (``flightsw.ip.pipeline.front_step_k``:
-   filters, the high-pass detrender, FFT filters) once on the whole compacted frame;
+   the spatial filters and the high-pass detrender) once on the whole compacted frame;
 3. for every window, the flight threshold words ``T4`` of that window of the step-2 image (the same
    integer formula, block shift and rounding as ``flightsw.ip.threshold``; from running sums,
    :func:`hil_harness.detect.union.window_t4_k`), and each pixel kept (clip) or set to 1
@@ -29,8 +29,10 @@ neighbouring pixels, and the high-pass detrender's block headroom is that of the
 threshold words of a window are those of the flight on the step-2 image's window. A blob cut by a
 window edge is one blob here (labelled once on the whole frame), so no duplicate merge is needed.
 The flight algorithm per window stays bit for bit in :mod:`flightsw.ip`; this is a ground tool.
-A sequence with the polynomial detrender (a fit per window, not translation invariant) still runs
-window by window through ``process_window`` with duplicates merged (:func:`merge_duplicates`).
+A sequence with the polynomial detrender (a fit per window, not translation invariant) or a
+frequency-domain filter (its FFT tiles and kernel tables are sized for the flight window) still
+runs window by window through ``process_window`` with duplicates merged
+(:func:`merge_duplicates`).
 
 On a 244x256 star field at compaction 1 (169 windows) the compiled call takes ~0.22 ms; the same
 169 windows through ``process_window`` one by one took ~7.8 ms (``bench/bench_fullframe.py``).
@@ -157,7 +159,8 @@ def detect_frame(img12, seq, record, compaction, window_mode="full", max_candida
         return _single(img12, seq, record, f, max(ch, cw), max_candidates,
                        lambda sub: f"full frame: one {ch}x{cw} window (compaction {f})")
     step = max(tile // 4, 1)
-    if _frame_plan(seq, record, f).uses_poly:        # not translation invariant: window by window
+    plan = _frame_plan(seq, record, f)
+    if plan.uses_poly or plan.ffts is not None:       # per-window fits and FFT tiles: one by one
         return _tiled(img12, seq, record, f, max_candidates, tile, step)
     return _compiled(img12, seq, record, f, max_candidates, tile, step)
 
@@ -200,7 +203,7 @@ def _compiled(img12, seq, record, f, max_candidates, tile, step):
     rows, cols, rcover, ccover = _geometry(ch, cw, th, tw, step)
     prm = backend_params(plan.rank_record, *plan.flags, False, f, plan.imager,
                          max(1, min(max_candidates, 1000)))
-    pack, _ = fullframe_k(np.ascontiguousarray(img12), f, plan.front, plan.ffts, None, plan.aq,
+    pack, _ = fullframe_k(np.ascontiguousarray(img12), f, plan.front, None, None, plan.aq,
                           plan.mode, rows, cols, th, tw, rcover, ccover, plan.recw, prm,
                           enc32(0.0), enc32(0.0), enc32(H / 2.0), enc32(W / 2.0))
     be = result_from_pack(_NO_LABELS, pack)
