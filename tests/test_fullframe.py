@@ -215,3 +215,43 @@ def test_window_dependent_steps_run_window_by_window(step):
     rc = np.c_[out["feats"]["row"], out["feats"]["col"]]
     for r, c in ((55.1, 95.8), (88.4, 60.2)):                  # two isolated stars
         assert np.hypot(rc[:, 0] - r, rc[:, 1] - c).min() < 0.5
+
+
+# ------------------------------------------------------------------------------------------------
+# batches over processes
+# ------------------------------------------------------------------------------------------------
+def _square_or_fail(x):
+    if x == 13:
+        raise ValueError("frame 13 is bad")
+    return x * x, __import__("os").getpid()
+
+
+def test_map_ordered_keeps_the_order_and_raises_at_the_bad_item():
+    import os
+    from hil_harness.detect.batch import map_ordered, workers_for
+    items = list(range(12))
+    out = list(map_ordered(_square_or_fail, items, 2))
+    assert [v for v, _ in out] == [x * x for x in items]
+    assert {p for _, p in out} - {os.getpid()}                 # the work ran in the workers
+    assert [v for v, _ in map_ordered(_square_or_fail, items, 1)] == [x * x for x in items]
+    with pytest.raises(ValueError, match="frame 13 is bad"):
+        list(map_ordered(_square_or_fail, list(range(20)), 2))
+    assert workers_for(100, 3) == 3 and workers_for(5, 0) == 1 and workers_for(100, 0) >= 1
+    with pytest.raises(ValueError, match="--workers"):
+        workers_for(10, -1)
+
+
+def test_detect_with_workers_writes_what_one_process_writes(tmp_path):
+    import json
+
+    from hil_harness.cli import main
+    stack = np.stack([_frame12((80, 90), seed=s) for s in range(6)])
+    stack[3] = 0                                                # a blank frame: flagged
+    np.save(tmp_path / "s.npy", stack)
+    outs = []
+    for w in ("1", "2"):
+        o = tmp_path / f"o{w}.json"
+        assert main(["detect", str(tmp_path / "s.npy"), "--workers", w, "--json", str(o)]) == 0
+        outs.append(json.loads(o.read_text()))
+    assert outs[0] == outs[1] and len(outs[0]["images"]) == 6
+    assert "blank" in outs[0]["images"][3]["flags"]
