@@ -255,3 +255,22 @@ def test_detect_with_workers_writes_what_one_process_writes(tmp_path):
         outs.append(json.loads(o.read_text()))
     assert outs[0] == outs[1] and len(outs[0]["images"]) == 6
     assert "blank" in outs[0]["images"][3]["flags"]
+
+
+def test_each_call_ranks_against_its_own_record():
+    """The compiled call's plan is kept per sequence; the record (a new one per frame with the
+    star job's gate) is the caller's on every call."""
+    from flightsw.records import load_record
+    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.detect.jobs import peak_gate_record
+    from hil_harness.sequences import resolve_sequence
+    seq, frame = resolve_sequence("star"), _frame12()
+    peaks = {}
+    for cut in (5.0, 60.0, 5.0):
+        rec = peak_gate_record(load_record("star"), cut / 4.5)      # gate at `cut` counts
+        out = detect_frame(frame, seq, rec, 1, "full", 1000, 64)
+        assert out["mode"].startswith("full frame: ") and len(out["feats"]) >= 1
+        assert np.all(out["feats"]["max_brightness"] >= cut)
+        assert np.all(np.diff(out["feats"]["max_brightness"]) <= 0)     # brightest first
+        peaks.setdefault(cut, []).append(len(out["feats"]))
+    assert peaks[5.0][0] == peaks[5.0][1] > peaks[60.0][0]

@@ -169,18 +169,25 @@ _PLANS: dict = {}
 
 
 def _frame_plan(seq, record, f):
-    """The flight ``FramePlan`` of (sequence, record) at compaction ``f`` (kept: building one
-    costs more than a frame; a kept entry holds its sequence and record, so its key always names
-    the same objects)."""
+    """The flight ``FramePlan`` of a sequence at compaction ``f`` (its front end; kept: the star
+    job's gate makes a new record every frame, and the plan's front end does not depend on it; a
+    kept entry holds its sequence, so its key always names the same object). The ranking record
+    is chosen per call (:func:`_ranking_record`)."""
     from flightsw.ip.pipeline import FramePlan
-    key = (id(seq), id(record), f)
+    key = (id(seq), f)
     hit = _PLANS.get(key)
-    if hit is None or hit[1] is not seq or hit[2] is not record:
+    if hit is None or hit[1] is not seq:
         if len(_PLANS) >= 32:
             _PLANS.clear()
         win = _with_window(seq, f, DEFAULT_TILE, (DEFAULT_TILE * f, DEFAULT_TILE * f))
-        hit = _PLANS[key] = (FramePlan(win, record), seq, record)
+        hit = _PLANS[key] = (FramePlan(win, record), seq)
     return hit[0]
+
+
+def _ranking_record(plan, record):
+    """The record the back end ranks against: the one the sequence's rank step names, else
+    ``record`` (as :class:`flightsw.ip.pipeline.FramePlan` chooses)."""
+    return record if plan.rank_record is plan.record else plan.rank_record
 
 
 @lru_cache(maxsize=32)
@@ -195,16 +202,18 @@ def _geometry(ch, cw, th, tw, step):
 def _compiled(img12, seq, record, f, max_candidates, tile, step):
     from flightsw.ip.backend import backend_params, enc32, result_from_pack
     from flightsw.ip.features import words_to_struct
+    from flightsw.ip.rank import record_words
     from hil_harness.detect.frame_k import fullframe_k
     plan = _frame_plan(seq, record, f)
+    rec = _ranking_record(plan, record)
     H, W = img12.shape
     ch, cw = H // f, W // f
     th, tw = min(tile, ch), min(tile, cw)
     rows, cols, rcover, ccover = _geometry(ch, cw, th, tw, step)
-    prm = backend_params(plan.rank_record, *plan.flags, False, f, plan.imager,
+    prm = backend_params(rec, *plan.flags, False, f, plan.imager,
                          max(1, min(max_candidates, 1000)))
     pack, _ = fullframe_k(np.ascontiguousarray(img12), f, plan.front, None, None, plan.aq,
-                          plan.mode, rows, cols, th, tw, rcover, ccover, plan.recw, prm,
+                          plan.mode, rows, cols, th, tw, rcover, ccover, record_words(rec), prm,
                           enc32(0.0), enc32(0.0), enc32(H / 2.0), enc32(W / 2.0))
     be = result_from_pack(_NO_LABELS, pack)
     cand = be.candidates()

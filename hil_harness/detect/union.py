@@ -12,8 +12,8 @@ pixels, block shift ``s``, ``S1 = sum(x >> s)``, ``S2 = sum((x >> s)**2)``, alph
 (``rhu``: round half up). A pixel passes window ``w`` when ``16 x > T4(w)``; it passes *some*
 window that covers it exactly when ``16 x > min T4`` over those windows. :func:`window_t4_k` gives
 every window's words from running column sums of the image (one pass over the frame instead of
-one per window); :func:`union_threshold_k` keeps (clip) or sets to 1 (binarise) the pixels above their
-covering windows' smallest threshold.
+one per window); :func:`union_threshold_k` keeps (clip) or sets to 1 (binarise) the pixels above
+their covering windows' smallest threshold.
 
 Public: :func:`window_t4_k`, :func:`union_threshold_k`, :func:`cover_ranges`.
 """
@@ -134,7 +134,7 @@ def window_t4_k(img, rows, cols, th, tw, aq):
     Cases
     -----
     no-shift : the frame fits 12 bits signed (block shift 0 everywhere) -> every window from the
-        integral sums.
+        running column sums (:func:`_sums_12bit`).
     block-shift : a wider frame -> each window's own shift ``s`` (its EXPADJ pass) and sums of
         ``x >> s`` over the window.
     constant : a constant window -> ``T4 = 16 c``.
@@ -171,7 +171,7 @@ def cover_ranges(starts, tile, n):
     p = np.arange(n)
     lo = np.searchsorted(s + tile, p, side="right")         # first window with start + tile > p
     hi = np.searchsorted(s, p, side="right") - 1             # last window with start <= p
-    if n and (np.any(lo > hi) or lo.min() < 0):
+    if np.any(lo > hi):
         raise ValueError("windows do not cover the axis")
     return np.stack([lo, hi], axis=1).astype(np.int64)
 
