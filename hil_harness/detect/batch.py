@@ -4,8 +4,8 @@ processes, results back in input order.
 
 Each frame is independent, so processes scale with the cores (the flight kernels are
 single-threaded; numba ``prange`` inside a frame would not help the NumPy parts, which take most of
-a frame's time: on a 244x256 frame the flags ~5.6 ms, the noise estimate ~3 ms, the detection
-~0.25 ms). Forked workers inherit the compiled kernels and the frames already read, so a frame
+a frame's time: on a 244x256 frame the flags 3.6-5.6 ms, the noise estimate 2.2-3 ms, the
+detection ~0.25 ms). Forked workers inherit the compiled kernels and the frames already read, so a frame
 costs its own work plus the return of its result. Below :data:`MIN_FRAMES` frames the pool's
 start-up is not won back and the frames run in this process.
 

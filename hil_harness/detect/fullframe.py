@@ -34,8 +34,8 @@ frequency-domain filter (its FFT tiles and kernel tables are sized for the fligh
 runs window by window through ``process_window`` with duplicates merged
 (:func:`merge_duplicates`).
 
-On a 244x256 star field at compaction 1 (169 windows) the compiled call takes ~0.22 ms; the same
-169 windows through ``process_window`` one by one took ~7.8 ms (``bench/bench_fullframe.py``).
+On a 244x256 star field at compaction 1 (169 windows) the compiled call takes ~0.20-0.23 ms; the
+same 169 windows through ``process_window`` one by one took ~7.8 ms (``bench/bench_fullframe.py``).
 
 Public: :func:`detect_frame`, :func:`tile_starts`, :func:`merge_duplicates`, :data:`MAX_TILE`,
 :data:`DEFAULT_TILE`, :data:`MERGE_RADIUS`.
