@@ -51,7 +51,8 @@ def test_star_tracker_frame_matches_sep(tmp_path):
     (entry,) = res["images"]
     _check_schema(entry)
     assert entry["scale"] == {"method": "shift", "shift": 4} and entry["flags"] == []
-    assert entry["record"] == "star" and entry["sequence"] == "star" and "tiled" in entry["mode"]
+    assert entry["record"] == "star" and entry["sequence"] == "star" \
+        and "overlapping windows of 64x64" in entry["mode"]
     assert png.exists() and png.stat().st_size > 10000
     # the peer, exactly as the issue states it (counts = value / 16)
     d = (np.asarray(tifffile.imread(TIFF)) >> 4).astype(np.float64)

@@ -1,7 +1,7 @@
 """``uvisi detect``: the flight image processor on real image files.
 
 ``uvisi detect IMAGE... [--record NAME|FILE] [--sequence NAME|FILE] [--compaction N]
-[--window full|64] [--no-scale] [--max-candidates K] [--json OUT] [--plot PNG]``
+[--window full|64] [--no-scale] [--max-candidates K] [--workers N] [--json OUT] [--plot PNG]``
 
 Reads FITS, TIFF, PNG/JPEG, NPY/NPZ (every plane of a cube, in order: :mod:`hil_harness.images`),
 turns each frame into the flight's 12-bit counts (:func:`hil_harness.images.to_counts`: counts pass
@@ -54,11 +54,12 @@ Jobs (--record; the job's sequence follows unless --sequence is given):
            detrend, clipped threshold at 1.5 sigma.
 
 Modes: --window full (default) processes the whole compacted image as one window when it fits in
-one tile, else as overlapping flight windows (tiles of 64 x 64 compacted pixels every 16 for point
+one tile, else through overlapping flight windows (64 x 64 compacted pixels every 16 for point
 sources, so that a bright star does not raise the threshold over faint ones beside it; 128 x 128
-every 32 for the streak and aurora sequences, so that one trail or arc stays in one window), each
-through the flight code unchanged, with duplicates merged across windows; --window 64 is the
-flight window about the image centre (no track prediction).
+every 32 for the streak and aurora sequences, so that one trail or arc stays in one window): the
+flight front end runs once on the whole frame, a pixel is kept where the flight threshold of any
+window covering it passes it, and the flight back end labels and ranks the blobs once;
+--window 64 is the flight window about the image centre (no track prediction).
 """
 
 
@@ -87,6 +88,9 @@ def register(sub) -> None:
                    help="insist that the pixels already are 12-bit counts (integers 0..4095)")
     p.add_argument("--max-candidates", type=int, default=23,
                    help="candidates reported per image, 1..1000 (default 23, the flight limit)")
+    p.add_argument("--workers", type=int, default=1,
+                   help="processes for the frames (default 1; 0: one per core when there are 16 "
+                        "frames or more)")
     p.add_argument("--json", default=None, help="output JSON file (default: a table on stdout)")
     p.add_argument("--plot", default=None,
                    help="PNG with candidates marked and numbered by rank (one per image: "
@@ -266,34 +270,51 @@ def _setup(args):
     return record, seq, f, gate
 
 
-def run(args) -> int:
-    from tqdm import tqdm
-    record, seq, f, gate = _setup(args)
-    frames = read_images(args.images)
-    entries, plots = [], []
-    bar = tqdm(frames, desc="detect", unit="frame", file=sys.stderr,
-               disable=len(frames) < 4 or None)
-    for fr in bar:
+def _frame_job(args, record, seq, f, gate):
+    """The work of one frame, as a function of the frame alone (run here or in a worker):
+    ``InputFrame -> (entry, counts or None (no --plot), messages for stderr)``."""
+
+    def one(fr):
         flags = frame_flags(fr.data)
         try:
             img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits)
         except ImageError as exc:
             raise ImageError(f"{fr.name}: {exc}") from None
         note = scale_note(fr.name, scale)
-        if note:
-            tqdm.write(f"uvisi detect: note: {note}", file=sys.stderr)
+        msgs = [f"uvisi detect: note: {note}"] if note else []
         if flags:
-            tqdm.write(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
-                       f"answer is still given)", file=sys.stderr)
+            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
+                        f"answer is still given)")
         out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate)
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
                  "flags": flags, "scale": scale, "compaction": f, "mode": out["mode"],
                  "windows": out["windows"], "record": record.name, "sequence": seq.name,
                  "gate": out["gate"], "candidates": out["candidates"]}
+        return entry, (img if args.plot else None), msgs
+
+    return one
+
+
+def run(args) -> int:
+    from tqdm import tqdm
+
+    from hil_harness.detect.batch import map_ordered, workers_for
+    record, seq, f, gate = _setup(args)
+    frames = read_images(args.images)
+    workers = workers_for(len(frames), args.workers)
+    entries, plots = [], []
+    bar = tqdm(total=len(frames), desc="detect", unit="frame", file=sys.stderr,
+               disable=len(frames) < 4 or None)
+    for entry, img, msgs in map_ordered(_frame_job(args, record, seq, f, gate), frames, workers):
+        bar.update()
+        for m in msgs:
+            tqdm.write(m, file=sys.stderr)
         entries.append(entry)
-        plots.append((img, entry["candidates"], f"{Path(fr.name).name}: "
+        flags = entry["flags"]
+        plots.append((img, entry["candidates"], f"{Path(entry['path']).name}: "
                       f"{len(entry['candidates'])} candidates, record {record.name}"
                       + (f" [{', '.join(flags)}]" if flags else "")))
+    bar.close()
     if args.json:
         _write_json(args.json, entries)
         for e in entries:

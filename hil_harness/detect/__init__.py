@@ -1,9 +1,10 @@
-"""Detection on image files, the ground side of ``uvisi detect``: the flight IP run unchanged over
-large frames.
+"""Detection on image files, the ground side of ``uvisi detect``: the flight IP's stage kernels run
+over large frames.
 
 =================  =================================================================================
-:mod:`.fullframe`  a large image cut into overlapping flight windows, duplicates merged, every blob
-                   ranked together by the flight ranking routine
+:mod:`.fullframe`  a large image seen through overlapping flight windows: the flight front end once
+                   on the frame, a pixel kept where any window's threshold passes it, the flight
+                   back end once (:mod:`.frame_k`, :mod:`.union`: its compiled kernels)
 :mod:`.jobs`       the jobs ``uvisi detect`` offers (star, streak, aurora): sequence, record, tile
                    size and the star job's significance gate
 =================  =================================================================================

@@ -1,0 +1,61 @@
+"""One compiled call for a whole frame in full-frame mode: compaction, the sequence's front-end
+steps on the whole compacted frame, the union threshold of every overlapping window
+(:mod:`hil_harness.detect.union`), then the flight back end (colouring, the 1750A features and
+their normalisation, ranking) once over the frame.
+
+Public: :func:`fullframe_k`.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from flightsw.ip.backend import backend_k
+from flightsw.ip.pipeline import OP_THRESHOLD, front_step_k
+from flightsw.ip.preprocess import compact_k
+from hil_harness.detect.union import union_threshold_k, window_t4_k
+
+__all__ = ["fullframe_k"]
+
+
+@njit(cache=True)
+def fullframe_k(src, f, front, ffts, poly, aq, mode, rows, cols, th, tw, rcover, ccover, rec, prm,
+                r0w, c0w, mean_row, mean_col):
+    """A frame through the full-frame mode.
+
+    Parameters
+    ----------
+    src : integer [H, W], 12-bit counts
+    f : int, compaction factor (1, 2 or 4); the compacted frame is ``H // f`` x ``W // f``
+    front, ffts, poly : the sequence's front end (:class:`flightsw.ip.pipeline.FrontOps`, then
+        None and None: the full-frame mode runs no FFT filter or polynomial detrender, whose
+        tables are sized for the flight window; numba then does not compile those branches)
+    aq, mode : the threshold step's alpha (Q4.12 word) and mode (0 binarise, 1 clip)
+    rows, cols : int64 [nr], [nc], the overlapping windows' starts (compacted pixels), each
+        ``th`` x ``tw``
+    rcover, ccover : int64 [H // f, 2], [W // f, 2], the windows covering each row and column
+        (:func:`hil_harness.detect.union.cover_ranges`)
+    rec, prm, r0w, c0w, mean_row, mean_col : the back end's words (:func:`flightsw.ip.backend.
+        backend_k`; origin 0 and the centroid means)
+
+    Returns
+    -------
+    (pack int64 (``backend_k``'s), the thresholded image int16 [H // f, W // f])
+
+    Cases
+    -----
+    typical : compaction, each front-end step on the whole compacted frame in order, the threshold
+        step as :func:`union_threshold_k` over :func:`window_t4_k`, the back end on the result.
+    no-threshold : a sequence without a threshold step -> the front end's output goes to the back
+        end as it is.
+    """
+    H, W = src.shape
+    img = compact_k(src, f, 0, 0, H // f, W // f)
+    for i in range(front.ops.size):
+        if front.ops[i] == OP_THRESHOLD:
+            t4 = window_t4_k(img, rows, cols, th, tw, aq)
+            img = union_threshold_k(img, t4, rcover, ccover, mode)
+        else:
+            img = front_step_k(img, i, front, ffts, poly, aq, mode)[0]
+    labels, pack = backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, np.int64(1))
+    return pack, img
