@@ -4,7 +4,6 @@ position."""
 import math
 
 import numpy as np
-import pytest
 from scipy import ndimage
 from scipy.special import erf
 
@@ -14,6 +13,7 @@ from flightsw.messages import Feedback
 from flightsw.records import load_record
 from hil_harness.event import EventConfig
 from hil_harness.event.loop import DEFAULT_EVENT_SEQUENCE
+from hil_harness.sequences import resolve_sequence
 
 WFOV_PSF_SIGMA = 0.70          # imager px (groundsim.imagers: wfov_vis)
 SKY_NOISE_DN = 2.1             # WFOV visible: sqrt(read 6^2 + (120 + 20) e-/s * 0.25 s) / 4 e-/DN
@@ -126,7 +126,5 @@ def test_faint_point_source_is_found_where_the_unity_sum_chain_rounds_it_away():
     assert old <= hits - 6
 
 
-@pytest.mark.parametrize("name", ["satellite_track"])
-def test_shipped_and_resolvable(name):
-    from hil_harness.sequences import resolve_sequence
-    assert resolve_sequence(name).name == name
+def test_shipped_and_resolvable_by_name():
+    assert resolve_sequence("satellite_track").name == "satellite_track"
