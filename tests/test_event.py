@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from flightsw.budget import ADSP2100, DSP, IP1750, PACE1750A, TP1750, Processor
+from flightsw.ip import ProcessingSequence, load_default_sequence
 from hil_harness.cli import main
 from hil_harness.event import SKIP_DROPPED, SKIP_OVERRUN, Event, EventConfig, run_event
 from hil_harness.event.io import replay
@@ -184,7 +185,12 @@ def test_launch_locks_on_the_plume():
 def test_overrun_skips_the_next_frame():
     slow = {DSP: Processor("ADSP-2100 @ 0.4 MHz", 0.4e6, ADSP2100.costs), IP1750: PACE1750A,
             TP1750: PACE1750A}
-    ev = Event(EventConfig("satellite_over_stars", frames=12, processors=slow))
+    # the `satellite` chain at the scenario's compaction 2 pinned (the event's default,
+    # `satellite_track`, is lighter)
+    d = load_default_sequence("satellite").to_dict()
+    d["preprocess"]["compaction"] = 2
+    ev = Event(EventConfig("satellite_over_stars", frames=12, processors=slow,
+                           sequence=ProcessingSequence.from_dict(d)))
     ev.run()
     skips = [o.skip for o in ev.outcomes]
     # 244,405 DSP cycles at 0.4 MHz = 611 ms > 500 ms: every processed frame overruns, the next is

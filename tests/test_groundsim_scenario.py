@@ -10,13 +10,14 @@ from groundsim import RealSequence, Scenario, ScenarioError
 from groundsim.quat import q_conj, q_from_rotvec, q_mul, q_to_rotvec
 
 SHIPPED = ["satellite_over_stars", "launch_nfov", "aurora_surge_wfov_uv", "star_rich_slew"]
-#: the evaluation / training event families (campaigns/aurora_*_events.toml, satellite_eval_events.toml)
+#: the evaluation / training event families (campaigns/aurora_*_events.toml, satellite_*_events.toml)
 FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_train_faint_slow",
             "aurora_train_bright_arcs_fast", "aurora_eval_tromso_equinox_dusk",
             "aurora_eval_alaska_fast_surge", "aurora_eval_siberia_dawn_faint",
             "aurora_eval_antarctic_winter", "aurora_eval_iceland_spring_sunlit",
             "aurora_eval_labrador_drift", "satellite_eval_bright_crossing", "satellite_eval_faint_high",
-            "satellite_eval_offset_field"]
+            "satellite_eval_offset_field", "satellite_train_faint_far", "satellite_train_faint_near",
+            "satellite_train_mid_offset", "satellite_train_bright_low"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)

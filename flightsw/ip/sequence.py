@@ -80,6 +80,7 @@ PHASE_FRONT, PHASE_THRESHOLD, PHASE_LABEL, PHASE_FEATURES, PHASE_RANK = 0, 10, 2
 SEQUENCE_DIR = Path(__file__).resolve().parents[1] / "data"
 DEFAULT_SEQUENCES = {"satellite": "sequence_satellite.toml", "aurora": "sequence_aurora.toml",
                      "satellite_c2": "sequence_satellite_c2.toml",
+                     "satellite_track": "sequence_satellite_track.toml",
                      "aurora_track": "sequence_aurora_track.toml", "star": "sequence_star.toml",
                      "streak": "sequence_streak.toml"}
 

@@ -51,6 +51,10 @@ from .bus import fault_rng, flip_bits, uplink_words
 from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
 
 FRAME_DT = 0.5
+#: the sequence an event runs by target type when none is given (others: "satellite"): "aurora_track"
+#: (README, alpha chosen on the aurora training family) and "satellite_track" (a PSF-sized matched
+#: filter, chosen on the satellite training family, campaigns/satellite_train_events.toml)
+DEFAULT_EVENT_SEQUENCE = {"aurora": "aurora_track", "satellite": "satellite_track"}
 #: longest candidate message (23 candidates): recorded padded to this many words
 MAX_MESSAGE_WORDS = 15 + 29 * 23 + 1
 
@@ -71,9 +75,9 @@ class EventConfig:
     frames : int, optional
         Stop after this many frames (default: the scenario's duration).
     sequence : str or Path, optional
-        Processing sequence: a shipped name ("satellite", "satellite_c2", "aurora", "aurora_track") or
-        a TOML file; default by the target type ("aurora_track" for aurora, else "satellite"), at the
-        scenario's compaction.
+        Processing sequence: a shipped name ("satellite", "satellite_c2", "satellite_track", "aurora",
+        "aurora_track") or a TOML file; default by the target type (:data:`DEFAULT_EVENT_SEQUENCE`,
+        else "satellite"), at the scenario's compaction.
     record : str, Path or flightsw.records.Record, optional
         A priori record (shipped name, TOML file or the record itself); default by the object type
         (:data:`hil_harness.event.selection.RECORD_FOR_TYPE`).
@@ -189,7 +193,7 @@ class Event:
         self.n_frames = n
         ttype = scn.target_type
         self.object_type = ttype or "none"
-        seq = cfg.sequence or ("aurora_track" if ttype == "aurora" else "satellite")
+        seq = cfg.sequence or DEFAULT_EVENT_SEQUENCE.get(ttype, "satellite")
         self.sequence = _with_compaction(resolve_sequence(seq), scn.compaction) \
             if cfg.sequence is None else resolve_sequence(seq)
         rec = cfg.record if cfg.record is not None else record_name_for(ttype)
