@@ -564,28 +564,46 @@ class Renderer:
         self._el = imager.zp_e_per_s * np.power(10.0, -0.4 * mag) * imager.t_int
         self._keep = mag <= imager.mag_limit
         self.bloomed_columns = 0
+        # the star cone's radius: the half diagonal + (smear margin + PSF) pixels
+        self._scale_max = max(imager.scale_col, imager.scale_row)
+        self._half_diagonal, self._psf_sigma = imager.half_diagonal, float(imager.psf_sigma_px)
+        self._no_observer = np.zeros(3)
+        # per-frame buffers: stars then sources (grown as needed)
+        self._idx = np.empty(0, np.int64)
+        self._rows = np.empty((3, 0))
+        self._cols = np.empty((3, 0))
+        self._flux = np.empty(0)
 
     def star_field(self, m0, m, m1, margin_px=0.0, observer_pos=None):
         """Project the stars around the boresight: (idx, rows(3, n), cols(3, n)) for start/mid/end.
         With ``observer_pos`` (ECI, m) stars behind the Earth (sphere of radius R_EARTH_M) are left out."""
-        im = self.imager
+        n, idx, rows, cols = self._project_stars(m0, m, m1, margin_px, observer_pos, 0)
+        return idx[:n].copy(), rows[:, :n].copy(), cols[:, :n].copy()
+
+    def _project_stars(self, m0, m, m1, margin_px, observer_pos, extra):
+        """:meth:`star_field` into the renderer's buffers, with ``extra`` columns of room after the
+        stars: (n, idx int64 (cap,), rows (3, cap), cols (3, cap)), the first n entries the stars'.
+        The buffers are reused by the next frame."""
         bore = m[0]  # ECI direction of imager +X (row 0 of ECI->imager)
-        radius = im.half_diagonal + (margin_px + 5.0 * im.psf_sigma_px + 2.0) * max(im.scale_col, im.scale_row)
+        radius = self._half_diagonal + (margin_px + 5.0 * self._psf_sigma + 2.0) * self._scale_max
         cand = self.sky.cone(bore, radius, self.hp_cut)
         cos_limit = -3.0                     # no Earth test
+        obs = self._no_observer
         if observer_pos is not None:
             obs = np.asarray(observer_pos, np.float64)
-            rn = math.sqrt(float(obs @ obs))
+            x, y, z = obs.tolist()
+            rn = math.sqrt(x * x + y * y + z * z)
             cos_limit = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2)) * rn
-        else:
-            obs = np.zeros(3)
-        idx = np.empty(len(cand), np.int64)
-        rows = np.empty((3, len(cand)))
-        cols = np.empty((3, len(cand)))
+        need = len(cand) + extra
+        if self._idx.shape[0] < need:
+            cap = max(2 * need, 256)
+            self._idx = np.empty(cap, np.int64)
+            self._rows = np.empty((3, cap))
+            self._cols = np.empty((3, cap))
+            self._flux = np.empty(cap)
         n = star_field_kernel(cand, self._keep, self.sky.uvec, obs, cos_limit, m0, m, m1,
-                              float(self._sc), float(self._sr), idx, rows, cols)
-        idx, rows, cols = idx[:n], rows[:, :n], cols[:, :n]
-        return idx, rows, cols
+                              float(self._sc), float(self._sr), self._idx, self._rows, self._cols)
+        return n, self._idx, self._rows, self._cols
 
     def project(self, m, los):
         """(row, col) of an ECI direction through ECI->imager ``m`` (NaN behind the imager)."""
@@ -609,40 +627,48 @@ class Renderer:
             mean.fill(self._bg)
             colmax.fill(self._bg)
             rowmin.fill(self._bg)
-        idx, rows, cols = self.star_field(m0, m, m1, margin_px=self._smear_px(m0, m1), observer_pos=observer_pos)
-        el = self._el[idx]
-        add_points_kernel(mean, colmax, rows[0], cols[0], rows[2], cols[2], el, im.psf_sigma_px, CDF_TABLE)
+        ns = len(sources)
+        n, idx, rows, cols = self._project_stars(m0, m, m1, self._smear_px(m0, m1), observer_pos, ns)
+        flux = self._flux
+        np.take(self._el, idx[:n], out=flux[:n])
+        # the sources' hard bodies go after the stars, into the same call (the kernel skips a zero
+        # flux and a NaN start or end, as behind the imager); their plumes are added after all points
         src_rc = []
-        for s in sources:
-            r0, c0 = self.project(m0, s.los0)
+        for j, s in enumerate(sources):
+            rows[0, n + j], cols[0, n + j] = self.project(m0, s.los0)
             r, c = self.project(m, s.los)
-            r1, c1 = self.project(m1, s.los1)
+            rows[2, n + j], cols[2, n + j] = self.project(m1, s.los1)
+            flux[n + j] = s.electrons
             src_rc.append((r, c))
-            if s.electrons > 0 and r0 == r0 and r1 == r1:
-                v = np.array([r0, c0, r1, c1, s.electrons])
-                add_points_kernel(mean, colmax, v[0:1], v[1:2], v[2:3], v[3:4], v[4:5], im.psf_sigma_px, CDF_TABLE)
+        add_points_kernel(mean, colmax, rows[0, :n + ns], cols[0, :n + ns], rows[2, :n + ns],
+                          cols[2, :n + ns], flux[:n + ns], im.psf_sigma_px, CDF_TABLE)
+        for s, (r, c) in zip(sources, src_rc):
             if s.plume_electrons > 0 and s.plume_tail_los is not None and r == r:
-                rt, ct = self.project(m, s.plume_tail_los)
-                if rt == rt:
-                    dr, dc = rt - r, ct - c
-                    length = math.hypot(dr, dc)
-                    width_px = s.plume_width_rad / im.scale_col
-                    sig_across = math.hypot(im.psf_sigma_px, width_px)
-                    sig_along = math.hypot(sig_across, 0.5 * length)
-                    add_elongated_kernel(mean, r + 0.5 * dr, c + 0.5 * dc, s.plume_electrons,
-                                         sig_along, sig_across, math.atan2(dr, dc))
-                    extrema_kernel(mean, colmax, rowmin)
+                self._add_plume(mean, s, m, r, c)
         frame = out if out is not None else np.empty((im.n_rows, im.n_cols), np.uint16)
         state = frame_rng_state(seed, frame_index)
         self.bloomed_columns = expose_kernel(mean, frame, self._work, state, GAUSS_TABLE, colmax, rowmin,
                                              im.read_noise_e,
                                              im.gain_e_per_dn, im.bias_dn, im.full_well_e, im.adc_max)
-        r, c = rows[1], cols[1]
-        stars = np.empty(len(idx), STAR_DTYPE)
-        n = truth_kernel(stars, idx, rows[1], cols[1], el, self.catalog.hip, self._mag, im.gain_e_per_dn,
-                         im.n_rows, im.n_cols)
-        stars = stars[:n]
-        return frame, stars, src_rc
+        stars = np.empty(n, STAR_DTYPE)
+        k = truth_kernel(stars, idx[:n], rows[1, :n], cols[1, :n], flux[:n], self.catalog.hip, self._mag,
+                         im.gain_e_per_dn, im.n_rows, im.n_cols)
+        return frame, stars[:k], src_rc
+
+    def _add_plume(self, mean, s, m, r, c):
+        """Add the plume of source ``s`` (mid-integration position (r, c) through ``m``) to ``mean``
+        and bring the column maxima / row minima up to date."""
+        im = self.imager
+        rt, ct = self.project(m, s.plume_tail_los)
+        if rt == rt:
+            dr, dc = rt - r, ct - c
+            length = math.hypot(dr, dc)
+            width_px = s.plume_width_rad / im.scale_col
+            sig_across = math.hypot(im.psf_sigma_px, width_px)
+            sig_along = math.hypot(sig_across, 0.5 * length)
+            add_elongated_kernel(mean, r + 0.5 * dr, c + 0.5 * dc, s.plume_electrons,
+                                 sig_along, sig_across, math.atan2(dr, dc))
+            extrema_kernel(mean, self._colmax, self._rowmin)
 
     def _smear_px(self, m0, m1):
         # angle between the start and end boresights, in pixels (an upper bound of the star trail)
