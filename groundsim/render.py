@@ -354,14 +354,47 @@ def extrema_kernel(mean, colmax, rowmin):
         rowmin[r] = rm
 
 
+@njit(cache=True, inline="always")
+def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igain32, hi32):
+    """One common row of :func:`expose_kernel` (every mean >= POISSON_GAUSS_SWITCH, no column that
+    can bloom, ``nc % 4 == 0``): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal per pixel.
+    Two passes: the row's deviates (``krow`` uint16 table indices, ``zrow`` float32 values; no
+    branch), then its pixels ``orow`` (uint16) from the means ``mrow`` (float32, vectorised; IEEE
+    single, no FMA contraction: deterministic). Returns the advanced xoshiro256** state."""
+    m16 = np.uint64(0xFFFF)
+    nc = mrow.shape[0]
+    for c4 in range(0, nc, 4):
+        xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+        for j in range(4):
+            k = int((xx >> np.uint64(16 * j)) & m16)
+            krow[c4 + j] = k
+            zrow[c4 + j] = gtab[k]
+    zero32 = np.float32(0.0)
+    for c in range(nc):
+        m32 = mrow[c]
+        v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
+        v32 = min(max(v32, zero32), hi32)
+        orow[c] = np.uint16(int(v32))
+    return s0, s1, s2, s3
+
+
 @njit(cache=True)
-def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max):
+def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max,
+                  reset):
     """Noise, blooming and digitisation of ``mean`` (electrons, float32 [nr, nc]) into ``out`` (uint16).
 
     ``work`` float64 [nr, nc] scratch; ``state`` uint64[4] xoshiro256** seed; ``gtab`` float32[65536]
     inverse normal CDF at bin centres; ``colmax`` (nc,) / ``rowmin`` (nr,) upper / lower bounds of each
     column's maximum and row's minimum of ``mean`` (:func:`extrema_kernel`, or tracked while rendering).
+    ``reset`` (float, electrons): NaN leaves ``mean`` as it was; otherwise every row of ``mean`` is
+    set to ``float32(reset)`` once read (the renderer's next background, without a separate fill).
     Returns the number of columns that could bloom.
+
+    Cases
+    -----
+    keep : ``reset`` NaN -> ``mean`` unchanged.
+    reset : ``reset`` a number -> ``mean`` all ``float32(reset)`` after, the frame the same as with
+        keep (the redrawn tail pixels use the means noted before the reset).
     """
     nr, nc = mean.shape
     s0 = state[0]
@@ -388,30 +421,25 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
     bias32 = np.float32(bias + 0.5)
     rn2_32 = np.float32(rn2)
     igain32 = np.float32(inv_gain)
-    zero32 = np.float32(0.0)
     hi32 = np.float32(hi + 0.5)
     zrow = np.empty(nc, np.float32)       # one row's normal deviates (fast path)
     krow = np.empty(nc, np.uint16)        # their table indices
+    tail_m = np.empty(tails.shape[0], np.float32)    # the means of the noted tail pixels
+    do_reset = reset == reset
+    reset32 = np.float32(reset) if do_reset else np.float32(0.0)
     for r in range(nr):
         if nflag == 0 and rowmin[r] >= POISSON_GAUSS_SWITCH and nc % 4 == 0:
-            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel.
-            # Passes: the row's deviates (no branch), its pixels (vectorised), then a branch-free
-            # scan of its table indices for the extreme bins, which are noted and redrawn from the
-            # exact tail after all rows (a test per deviate in the drawing loop cost ~10 us a frame)
-            for c4 in range(0, nc, 4):
-                xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
-                for j in range(4):
-                    k = int((xx >> np.uint64(16 * j)) & m16)
-                    krow[c4 + j] = k
-                    zrow[c4 + j] = gtab[k]
-            mrow = mean[r]
-            orow = out[r]
-            for c in range(nc):
-                m32 = mrow[c]
-                v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
-                v32 = min(max(v32, zero32), hi32)
-                orow[c] = np.uint16(int(v32))
+            # fast path (the common row); then a branch-free scan of its table indices for the
+            # extreme bins, which are noted and redrawn from the exact tail after all rows (a test
+            # per deviate in the drawing loop cost ~10 us a frame)
+            s0, s1, s2, s3 = _fast_row(mean[r], out[r], zrow, krow, gtab, s0, s1, s2, s3, bias32,
+                                       rn2_32, igain32, hi32)
+            n0 = ntail
             ntail = _note_tails(krow, r, tails, ntail)
+            for t in range(n0, ntail):
+                tail_m[t] = mean[r, (tails[t] >> 1) - r * nc]
+            if do_reset:
+                mean[r, :] = reset32
             continue
         for c4 in range(0, nc, 4):
             # one 64-bit draw feeds four pixels (16 bits each)
@@ -443,12 +471,14 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
                         work[r, c] = sig
                     else:
                         out[r, c] = _digitise(sig + read_noise * z, inv_gain, bias, hi)
+        if do_reset:
+            mean[r, :] = reset32
     for t in range(ntail):
         p = tails[t] >> 1
         z, s0, s1, s2, s3 = _tail(65535 if tails[t] & 1 else 0, s0, s1, s2, s3)
         r = p // nc
         c = p - r * nc
-        m = float(mean[r, c])
+        m = float(tail_m[t])
         out[r, c] = _digitise(m + math.sqrt(m + rn2) * z, inv_gain, bias, hi)
     if nflag > 0:
         for c in range(nc):
@@ -554,6 +584,7 @@ class Renderer:
         self.hp_cut = cat.hp_cut_for(imager.band, imager.mag_limit)
         self._bg = (imager.dark_e_per_s + imager.sky_e_per_s) * imager.t_int
         self._mean = np.empty((imager.n_rows, imager.n_cols), np.float32)
+        self._mean_is_bg = False          # True when every pixel of _mean holds float32(_bg)
         self._work = np.empty((imager.n_rows, imager.n_cols), np.float64)
         self._sc, self._sr = imager.scale_col, imager.scale_row
         self._colmax = np.empty(imager.n_cols, np.float32)
@@ -624,9 +655,11 @@ class Renderer:
             np.add(extended, self._bg, out=mean, casting="unsafe")
             extrema_kernel(mean, colmax, rowmin)
         else:
-            mean.fill(self._bg)
+            if not self._mean_is_bg:
+                mean.fill(self._bg)
             colmax.fill(self._bg)
             rowmin.fill(self._bg)
+        self._mean_is_bg = False          # until the kernel below has reset it
         ns = len(sources)
         n, idx, rows, cols = self._project_stars(m0, m, m1, self._smear_px(m0, m1), observer_pos, ns)
         flux = self._flux
@@ -647,9 +680,11 @@ class Renderer:
                 self._add_plume(mean, s, m, r, c)
         frame = out if out is not None else np.empty((im.n_rows, im.n_cols), np.uint16)
         state = frame_rng_state(seed, frame_index)
+        # the kernel leaves ``mean`` at the background again: the next frame needs no fill
         self.bloomed_columns = expose_kernel(mean, frame, self._work, state, GAUSS_TABLE, colmax, rowmin,
-                                             im.read_noise_e,
-                                             im.gain_e_per_dn, im.bias_dn, im.full_well_e, im.adc_max)
+                                             im.read_noise_e, im.gain_e_per_dn, im.bias_dn,
+                                             im.full_well_e, im.adc_max, self._bg)
+        self._mean_is_bg = True
         stars = np.empty(n, STAR_DTYPE)
         k = truth_kernel(stars, idx[:n], rows[1, :n], cols[1, :n], flux[:n], self.catalog.hip, self._mag,
                          im.gain_e_per_dn, im.n_rows, im.n_cols)
@@ -693,7 +728,7 @@ def expose(imager: Imager, mean_e, seed=0, frame_index=0) -> np.ndarray:
     extrema_kernel(mean, colmax, rowmin)
     expose_kernel(mean, out, work, frame_rng_state(seed, frame_index), GAUSS_TABLE, colmax, rowmin,
                   imager.read_noise_e, imager.gain_e_per_dn, imager.bias_dn, imager.full_well_e,
-                  imager.adc_max)
+                  imager.adc_max, math.nan)
     return out
 
 
