@@ -552,8 +552,9 @@ def frame_rng_state(seed: int, frame_index: int, stream: int = 0) -> np.ndarray:
 
 
 class PointSource:
-    """A source for :meth:`Renderer.render`: ECI lines of sight (unit vectors from the imager) at the
-    start, middle and end of the integration, electrons, and an optional plume (electrons, tail LOS)."""
+    """A source for :meth:`Renderer.render`: ECI lines of sight (unit vectors from the imager; (3,)
+    arrays or (x, y, z) tuples) at the start, middle and end of the integration, electrons, and an
+    optional plume (electrons, tail LOS)."""
 
     __slots__ = ("los0", "los", "los1", "electrons", "plume_electrons", "plume_tail_los", "plume_width_rad")
 

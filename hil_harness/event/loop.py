@@ -301,7 +301,7 @@ class Event:
             self._processed += 1
             self._flight_step(out, frame, att, override, ledger, host, t1)
         tg = truth.get("target") if truth else None
-        if tg is not None and tg.get("in_field") and np.isfinite(out.pred_row):
+        if tg is not None and tg.get("in_field") and math.isfinite(out.pred_row):
             sc, sr, _ = self.geometry[imager]
             out.error_urad = 1e6 * float(np.hypot((out.pred_col - tg["col"]) * sc,
                                                   (out.pred_row - tg["row"]) * sr))
@@ -331,7 +331,7 @@ class Event:
         new imager's pixels (1750A arithmetic)."""
         pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
         override = None
-        if self._feedback_imager != imager and np.isfinite(pr) and np.isfinite(pc):
+        if self._feedback_imager != imager and math.isfinite(pr) and math.isfinite(pc):
             pr, pc = self.tp.predicted_pixel(imager)
             override = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
         out.pred_row, out.pred_col = pr, pc
