@@ -22,18 +22,18 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.special import ndtr, ndtri
-
 from .frames import R_EARTH_M
 from .imagers import COL0, ROW0, Imager
+from .tables import normal_tables
 
 # ---------------------------------------------------------------------------------------------------
 # tables
 CDF_STEP = 1.0 / 512.0                 # sigma units
 CDF_HALF = 8.0                         # table spans [-8, 8] sigma
-CDF_TABLE = ndtr(np.arange(-CDF_HALF, CDF_HALF + CDF_STEP / 2, CDF_STEP))
-GAUSS_TABLE = ndtri((np.arange(65536) + 0.5) / 65536.0).astype(np.float32)
-TAIL_START = float(-ndtri(1.0 / 65536.0))   # |z| beyond the table's extreme bins
+N_GAUSS = 65536                        # equal-probability bins of the noise table (16 bits a draw)
+# ndtr on the CDF grid, ndtri at the bin centres, and |z| beyond the table's extreme bins
+# (groundsim.tables: SciPy's values, cached so an import need not load scipy.special)
+CDF_TABLE, GAUSS_TABLE, TAIL_START = normal_tables(CDF_STEP, CDF_HALF, N_GAUSS)
 POISSON_GAUSS_SWITCH = 12.0            # e-: below, exact Poisson (inversion)
 
 STAR_DTYPE = np.dtype([("hip", np.int32), ("row", np.float64), ("col", np.float64),

@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
 
 HIP_EPOCH_JYEAR = 1991.25
 MAS_TO_RAD = math.pi / (180.0 * 3600.0 * 1000.0)
@@ -246,6 +245,7 @@ class SkyView:
         key = round(float(hp_limit), 3)
         t = self._trees.get(key)
         if t is None:
+            from scipy.spatial import cKDTree     # the peer only: SciPy's spatial stays unloaded
             idx = self._subset(key)
             t = (cKDTree(self.uvec[idx]), idx)
             self._trees[key] = t
