@@ -74,14 +74,15 @@ def _copy_attitude(a: AttitudeData) -> AttitudeData:
                         r_eci=a.r_eci.copy(), v_eci=a.v_eci.copy(), valid=a.valid)
 
 
-def _lines_of_sight(d, dd):
-    """Unit lines of sight ``(d - dd)``, ``d``, ``(d + dd)`` and ``|d|``: the target seen from the
-    spacecraft at the start, middle and end of the integration (``d`` (3,) m the relative position
-    at mid-integration, ``dd`` (3,) m its change over half the integration). The middle one is a
-    float64 (3,) array (the truth's ``los_eci``), the start and end ones (x, y, z) tuples (only
-    projected)."""
-    x, y, z = d.tolist()
-    a, b, c = dd.tolist()
+def _lines_of_sight(r_sc, v_sc, r_t, v_t, h):
+    """The target seen from the spacecraft at the start, middle and end of the integration: unit
+    lines of sight ``d - dd``, ``d``, ``d + dd`` and ``|d|`` (m), for ``d = r_t - r_sc`` (m) and
+    ``dd = h * (v_t - v_sc)`` (its change over half the integration, ``h`` s); positions and
+    velocities float64 (3,) ECI. The middle one is a float64 (3,) array (the truth's ``los_eci``),
+    the start and end ones (x, y, z) tuples (only projected). Python floats: the arithmetic of the
+    same NumPy expressions."""
+    x, y, z = (p - q for p, q in zip(r_t.tolist(), r_sc.tolist()))
+    a, b, c = (h * (p - q) for p, q in zip(v_t.tolist(), v_sc.tolist()))
     out = []
     for sx, sy, sz in ((x - a, y - b, z - c), (x, y, z), (x + a, y + b, z + c)):
         n = math.sqrt(sx * sx + sy * sy + sz * sz)
@@ -322,8 +323,7 @@ class World:
         st = self.true_target_state(t)
         if st is not None:
             rt, vt = st
-            d = rt - r_sc
-            los0, los, los1, rng_m = _lines_of_sight(d, h * (vt - v_sc))
+            los0, los, los1, rng_m = _lines_of_sight(r_sc, v_sc, rt, vt, h)
             tinfo.update(los_eci=los, range_m=rng_m, r_eci=rt, v_eci=vt)
             if self.target is not None:
                 body, plume, plen, pwid = self.target.appearance(t, rng_m, im.band)
@@ -331,6 +331,7 @@ class World:
                 pel = im.zp_e_per_s * 10 ** (-0.4 * plume) * im.t_int if plume is not None else 0.0
                 tail = None
                 if pel > 0:
+                    d = rt - r_sc
                     vu = vt / np.linalg.norm(vt)
                     tail = (d - plen * vu) / np.linalg.norm(d - plen * vu)
                 sources.append(PointSource(los0, los, los1, el, pel, tail, pwid / rng_m))
