@@ -234,11 +234,11 @@ class SkyView:
         """
         if not (0.0 < radius < math.pi):
             raise ValueError(f"cone radius must be in (0, pi) rad, got {radius!r}")
-        d = np.asarray(direction, dtype=float)
-        n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        x, y, z = np.asarray(direction, dtype=float).tolist()[:3]   # Python floats: same arithmetic
+        n = math.sqrt(x * x + y * y + z * z)
         if not n > 0.0:
             raise ValueError("cone direction must be a non-zero finite vector")
-        return self.zone_index(hp_limit).query((d[0] / n, d[1] / n, d[2] / n), float(radius))
+        return self.zone_index(hp_limit).query((x / n, y / n, z / n), float(radius))
 
     def cone_kdtree(self, direction, radius: float, hp_limit: float = 99.0) -> np.ndarray:
         """Same as :meth:`cone` with ``scipy.spatial.cKDTree`` (peer implementation)."""
