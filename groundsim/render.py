@@ -22,6 +22,7 @@ import math
 
 import numpy as np
 from numba import njit
+
 from .frames import R_EARTH_M
 from .imagers import COL0, ROW0, Imager
 from .tables import normal_tables
@@ -623,8 +624,7 @@ class Renderer:
         obs = self._no_observer
         if observer_pos is not None:
             obs = np.asarray(observer_pos, np.float64)
-            x, y, z = obs.tolist()
-            rn = math.sqrt(x * x + y * y + z * z)
+            rn = math.sqrt(float(obs @ obs))
             cos_limit = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2)) * rn
         need = len(cand) + extra
         if self._idx.shape[0] < need:
