@@ -361,7 +361,13 @@ def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igai
     can bloom, ``nc % 4 == 0``): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal per pixel.
     Two passes: the row's deviates (``krow`` uint16 table indices, ``zrow`` float32 values; no
     branch), then its pixels ``orow`` (uint16) from the means ``mrow`` (float32, vectorised; IEEE
-    single, no FMA contraction: deterministic). Returns the advanced xoshiro256** state."""
+    single, no FMA contraction: deterministic). Returns the advanced xoshiro256** state.
+
+    Cases
+    -----
+    common : every pixel from one table deviate; the extreme bins stay in ``krow`` for the caller
+        to redraw from the exact tail.
+    """
     m16 = np.uint64(0xFFFF)
     nc = mrow.shape[0]
     for c4 in range(0, nc, 4):

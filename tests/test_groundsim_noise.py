@@ -72,7 +72,7 @@ def test_blooming_above_full_well():
     assert abs(len(sat_rows) - (len(above) + excess / im.full_well_e)) < 0.2 * len(sat_rows) + 3
 
 
-# cases: groundsim.render.expose_kernel keep, reset
+# cases: groundsim.render.expose_kernel keep, reset; groundsim.render._fast_row common
 @pytest.mark.parametrize("bloom", [False, True])
 def test_expose_reset_gives_the_same_frame_and_leaves_the_background(bloom):
     """``reset`` only changes what is left in ``mean``: the frame is the one ``keep`` gives (common
