@@ -26,7 +26,7 @@ from numba import njit
 
 from .frames import gmst82, jd_utc, rot_z
 from .imagers import COL0, ROW0
-from .target_params import AuroraParams
+from .target_params import Arc, AuroraParams  # noqa: F401 - Arc: re-exported (its home before)
 
 R_SPHERE = 6371e3
 E_PER_KR = {"vis": 60.0, "uv": 25.0}   # electrons per WFOV pixel per 0.25 s per kR; scaled by pixel solid angle and t_int
