@@ -20,52 +20,16 @@ Features (each arc runs east-west, i.e. along the oval):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
 from numba import njit
 
 from .frames import gmst82, jd_utc, rot_z
 from .imagers import COL0, ROW0
+from .target_params import Arc, AuroraParams  # noqa: F401 - Arc: re-exported (its home before)
 
 R_SPHERE = 6371e3
 E_PER_KR = {"vis": 60.0, "uv": 25.0}   # electrons per WFOV pixel per 0.25 s per kR; scaled by pixel solid angle and t_int
-
-
-@dataclass
-class Arc:
-    y0_km: float = 0.0
-    amp_km: float = 8.0
-    wavelength_km: float = 300.0
-    phase: float = 0.0
-    omega: float = 0.02            # rad/s: the waves travel
-    drift_north_km_s: float = 0.0
-    width_km: float = 8.0
-    half_length_km: float = 600.0
-    b0_kR: float = 5.0
-    var: float = 0.2
-    period_s: float = 20.0
-
-
-@dataclass
-class AuroraParams:
-    lat0_deg: float = 66.0
-    lon0_deg: float = -100.0
-    shell_alt_km: float = 110.0
-    arcs: list = field(default_factory=lambda: [Arc(), Arc(y0_km=60.0, amp_km=5.0, b0_kR=2.0, width_km=12.0,
-                                                        phase=1.0, omega=-0.015)])
-    surge_grow_km_s: float = 1.0
-    surge_max_km: float = 60.0
-    surge_width_km: float = 70.0
-    surge_west_km_s: float = 1.0
-    surge_x0_km: float = 40.0
-    surge_kR: float = 8.0
-    spot_radius_km: float = 12.0
-    spot_kR: float = 40.0
-    limb_kR: float = 20.0
-    airglow_kR: float = 0.3
-    dayglow_kR: float = 200.0
-    sun_eci: tuple = (1.0, 0.0, 0.0)   # set by the scene from the epoch
 
 
 def sun_direction_eci(jd, fr) -> np.ndarray:

@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field, replace
+from functools import cached_property
 
 import numpy as np
 
@@ -79,22 +80,26 @@ class Imager:
         object.__setattr__(self, "align_onboard", tuple(float(x) for x in q_normalize(self.align_onboard)))
 
     # -- geometry ---------------------------------------------------------------------------------
-    @property
+    # derived geometry, computed once per (frozen) imager: the renderer reads it every frame
+    @cached_property
     def scale_col(self) -> float:
         return 2.0 * math.tan(math.radians(self.fov_col_deg) / 2.0) / self.n_cols
 
-    @property
+    @cached_property
     def scale_row(self) -> float:
         return 2.0 * math.tan(math.radians(self.fov_row_deg) / 2.0) / self.n_rows
 
-    @property
+    @cached_property
     def half_diagonal(self) -> float:
         """Angle (rad) from the boresight to a frame corner."""
         return math.atan(math.hypot(COL0 * self.scale_col, ROW0 * self.scale_row))
 
-    @property
+    @cached_property
     def align_dcm(self) -> np.ndarray:
-        return q_to_dcm(self.align)
+        """(3, 3) float64 imager -> body matrix of the truth alignment (read-only)."""
+        m = q_to_dcm(self.align)
+        m.flags.writeable = False
+        return m
 
     def pixel_to_vec(self, row, col) -> np.ndarray:
         """Imager-frame unit vector(s) of pixel coordinates (arrays broadcast); shape (..., 3)."""

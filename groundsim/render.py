@@ -22,18 +22,19 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.special import ndtr, ndtri
 
 from .frames import R_EARTH_M
 from .imagers import COL0, ROW0, Imager
+from .tables import normal_tables
 
 # ---------------------------------------------------------------------------------------------------
 # tables
 CDF_STEP = 1.0 / 512.0                 # sigma units
 CDF_HALF = 8.0                         # table spans [-8, 8] sigma
-CDF_TABLE = ndtr(np.arange(-CDF_HALF, CDF_HALF + CDF_STEP / 2, CDF_STEP))
-GAUSS_TABLE = ndtri((np.arange(65536) + 0.5) / 65536.0).astype(np.float32)
-TAIL_START = float(-ndtri(1.0 / 65536.0))   # |z| beyond the table's extreme bins
+N_GAUSS = 65536                        # equal-probability bins of the noise table (16 bits a draw)
+# ndtr on the CDF grid, ndtri at the bin centres, and |z| beyond the table's extreme bins
+# (groundsim.tables: SciPy's values, cached so an import need not load scipy.special)
+CDF_TABLE, GAUSS_TABLE, TAIL_START = normal_tables(CDF_STEP, CDF_HALF, N_GAUSS)
 POISSON_GAUSS_SWITCH = 12.0            # e-: below, exact Poisson (inversion)
 
 STAR_DTYPE = np.dtype([("hip", np.int32), ("row", np.float64), ("col", np.float64),
@@ -354,14 +355,53 @@ def extrema_kernel(mean, colmax, rowmin):
         rowmin[r] = rm
 
 
+@njit(cache=True, inline="always")
+def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igain32, hi32):
+    """One common row of :func:`expose_kernel` (every mean >= POISSON_GAUSS_SWITCH, no column that
+    can bloom, ``nc % 4 == 0``): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal per pixel.
+    Two passes: the row's deviates (``krow`` uint16 table indices, ``zrow`` float32 values; no
+    branch), then its pixels ``orow`` (uint16) from the means ``mrow`` (float32, vectorised; IEEE
+    single, no FMA contraction: deterministic). Returns the advanced xoshiro256** state.
+
+    Cases
+    -----
+    common : every pixel from one table deviate; the extreme bins stay in ``krow`` for the caller
+        to redraw from the exact tail.
+    """
+    m16 = np.uint64(0xFFFF)
+    nc = mrow.shape[0]
+    for c4 in range(0, nc, 4):
+        xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
+        for j in range(4):
+            k = int((xx >> np.uint64(16 * j)) & m16)
+            krow[c4 + j] = k
+            zrow[c4 + j] = gtab[k]
+    zero32 = np.float32(0.0)
+    for c in range(nc):
+        m32 = mrow[c]
+        v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
+        v32 = min(max(v32, zero32), hi32)
+        orow[c] = np.uint16(int(v32))
+    return s0, s1, s2, s3
+
+
 @njit(cache=True)
-def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max):
+def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max,
+                  reset):
     """Noise, blooming and digitisation of ``mean`` (electrons, float32 [nr, nc]) into ``out`` (uint16).
 
     ``work`` float64 [nr, nc] scratch; ``state`` uint64[4] xoshiro256** seed; ``gtab`` float32[65536]
     inverse normal CDF at bin centres; ``colmax`` (nc,) / ``rowmin`` (nr,) upper / lower bounds of each
     column's maximum and row's minimum of ``mean`` (:func:`extrema_kernel`, or tracked while rendering).
+    ``reset`` (float, electrons): NaN leaves ``mean`` as it was; otherwise every row of ``mean`` is
+    set to ``float32(reset)`` once read (the renderer's next background, without a separate fill).
     Returns the number of columns that could bloom.
+
+    Cases
+    -----
+    keep : ``reset`` NaN -> ``mean`` unchanged.
+    reset : ``reset`` a number -> ``mean`` all ``float32(reset)`` after, the frame the same as with
+        keep (the redrawn tail pixels use the means noted before the reset).
     """
     nr, nc = mean.shape
     s0 = state[0]
@@ -388,30 +428,25 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
     bias32 = np.float32(bias + 0.5)
     rn2_32 = np.float32(rn2)
     igain32 = np.float32(inv_gain)
-    zero32 = np.float32(0.0)
     hi32 = np.float32(hi + 0.5)
     zrow = np.empty(nc, np.float32)       # one row's normal deviates (fast path)
     krow = np.empty(nc, np.uint16)        # their table indices
+    tail_m = np.empty(tails.shape[0], np.float32)    # the means of the noted tail pixels
+    do_reset = reset == reset
+    reset32 = np.float32(reset) if do_reset else np.float32(0.0)
     for r in range(nr):
         if nflag == 0 and rowmin[r] >= POISSON_GAUSS_SWITCH and nc % 4 == 0:
-            # fast path (the common row): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal/pixel.
-            # Passes: the row's deviates (no branch), its pixels (vectorised), then a branch-free
-            # scan of its table indices for the extreme bins, which are noted and redrawn from the
-            # exact tail after all rows (a test per deviate in the drawing loop cost ~10 us a frame)
-            for c4 in range(0, nc, 4):
-                xx, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
-                for j in range(4):
-                    k = int((xx >> np.uint64(16 * j)) & m16)
-                    krow[c4 + j] = k
-                    zrow[c4 + j] = gtab[k]
-            mrow = mean[r]
-            orow = out[r]
-            for c in range(nc):
-                m32 = mrow[c]
-                v32 = bias32 + (m32 + math.sqrt(m32 + rn2_32) * zrow[c]) * igain32
-                v32 = min(max(v32, zero32), hi32)
-                orow[c] = np.uint16(int(v32))
+            # fast path (the common row); then a branch-free scan of its table indices for the
+            # extreme bins, which are noted and redrawn from the exact tail after all rows (a test
+            # per deviate in the drawing loop cost ~10 us a frame)
+            s0, s1, s2, s3 = _fast_row(mean[r], out[r], zrow, krow, gtab, s0, s1, s2, s3, bias32,
+                                       rn2_32, igain32, hi32)
+            n0 = ntail
             ntail = _note_tails(krow, r, tails, ntail)
+            for t in range(n0, ntail):
+                tail_m[t] = mean[r, (tails[t] >> 1) - r * nc]
+            if do_reset:
+                mean[r, :] = reset32
             continue
         for c4 in range(0, nc, 4):
             # one 64-bit draw feeds four pixels (16 bits each)
@@ -443,12 +478,14 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
                         work[r, c] = sig
                     else:
                         out[r, c] = _digitise(sig + read_noise * z, inv_gain, bias, hi)
+        if do_reset:
+            mean[r, :] = reset32
     for t in range(ntail):
         p = tails[t] >> 1
         z, s0, s1, s2, s3 = _tail(65535 if tails[t] & 1 else 0, s0, s1, s2, s3)
         r = p // nc
         c = p - r * nc
-        m = float(mean[r, c])
+        m = float(tail_m[t])
         out[r, c] = _digitise(m + math.sqrt(m + rn2) * z, inv_gain, bias, hi)
     if nflag > 0:
         for c in range(nc):
@@ -522,8 +559,9 @@ def frame_rng_state(seed: int, frame_index: int, stream: int = 0) -> np.ndarray:
 
 
 class PointSource:
-    """A source for :meth:`Renderer.render`: ECI lines of sight (unit vectors from the imager) at the
-    start, middle and end of the integration, electrons, and an optional plume (electrons, tail LOS)."""
+    """A source for :meth:`Renderer.render`: ECI lines of sight (unit vectors from the imager; (3,)
+    arrays or (x, y, z) tuples) at the start, middle and end of the integration, electrons, and an
+    optional plume (electrons, tail LOS)."""
 
     __slots__ = ("los0", "los", "los1", "electrons", "plume_electrons", "plume_tail_los", "plume_width_rad")
 
@@ -554,6 +592,7 @@ class Renderer:
         self.hp_cut = cat.hp_cut_for(imager.band, imager.mag_limit)
         self._bg = (imager.dark_e_per_s + imager.sky_e_per_s) * imager.t_int
         self._mean = np.empty((imager.n_rows, imager.n_cols), np.float32)
+        self._mean_is_bg = False          # True when every pixel of _mean holds float32(_bg)
         self._work = np.empty((imager.n_rows, imager.n_cols), np.float64)
         self._sc, self._sr = imager.scale_col, imager.scale_row
         self._colmax = np.empty(imager.n_cols, np.float32)
@@ -564,28 +603,45 @@ class Renderer:
         self._el = imager.zp_e_per_s * np.power(10.0, -0.4 * mag) * imager.t_int
         self._keep = mag <= imager.mag_limit
         self.bloomed_columns = 0
+        # the star cone's radius: the half diagonal + (smear margin + PSF) pixels
+        self._scale_max = max(imager.scale_col, imager.scale_row)
+        self._half_diagonal, self._psf_sigma = imager.half_diagonal, float(imager.psf_sigma_px)
+        self._no_observer = np.zeros(3)
+        # per-frame buffers: stars then sources (grown as needed)
+        self._idx = np.empty(0, np.int64)
+        self._rows = np.empty((3, 0))
+        self._cols = np.empty((3, 0))
+        self._flux = np.empty(0)
 
     def star_field(self, m0, m, m1, margin_px=0.0, observer_pos=None):
         """Project the stars around the boresight: (idx, rows(3, n), cols(3, n)) for start/mid/end.
         With ``observer_pos`` (ECI, m) stars behind the Earth (sphere of radius R_EARTH_M) are left out."""
-        im = self.imager
+        n, idx, rows, cols = self._project_stars(m0, m, m1, margin_px, observer_pos, 0)
+        return idx[:n].copy(), rows[:, :n].copy(), cols[:, :n].copy()
+
+    def _project_stars(self, m0, m, m1, margin_px, observer_pos, extra):
+        """:meth:`star_field` into the renderer's buffers, with ``extra`` columns of room after the
+        stars: (n, idx int64 (cap,), rows (3, cap), cols (3, cap)), the first n entries the stars'.
+        The buffers are reused by the next frame."""
         bore = m[0]  # ECI direction of imager +X (row 0 of ECI->imager)
-        radius = im.half_diagonal + (margin_px + 5.0 * im.psf_sigma_px + 2.0) * max(im.scale_col, im.scale_row)
+        radius = self._half_diagonal + (margin_px + 5.0 * self._psf_sigma + 2.0) * self._scale_max
         cand = self.sky.cone(bore, radius, self.hp_cut)
         cos_limit = -3.0                     # no Earth test
+        obs = self._no_observer
         if observer_pos is not None:
             obs = np.asarray(observer_pos, np.float64)
             rn = math.sqrt(float(obs @ obs))
             cos_limit = math.sqrt(max(0.0, 1.0 - (R_EARTH_M / rn) ** 2)) * rn
-        else:
-            obs = np.zeros(3)
-        idx = np.empty(len(cand), np.int64)
-        rows = np.empty((3, len(cand)))
-        cols = np.empty((3, len(cand)))
+        need = len(cand) + extra
+        if self._idx.shape[0] < need:
+            cap = max(2 * need, 256)
+            self._idx = np.empty(cap, np.int64)
+            self._rows = np.empty((3, cap))
+            self._cols = np.empty((3, cap))
+            self._flux = np.empty(cap)
         n = star_field_kernel(cand, self._keep, self.sky.uvec, obs, cos_limit, m0, m, m1,
-                              float(self._sc), float(self._sr), idx, rows, cols)
-        idx, rows, cols = idx[:n], rows[:, :n], cols[:, :n]
-        return idx, rows, cols
+                              float(self._sc), float(self._sr), self._idx, self._rows, self._cols)
+        return n, self._idx, self._rows, self._cols
 
     def project(self, m, los):
         """(row, col) of an ECI direction through ECI->imager ``m`` (NaN behind the imager)."""
@@ -606,43 +662,55 @@ class Renderer:
             np.add(extended, self._bg, out=mean, casting="unsafe")
             extrema_kernel(mean, colmax, rowmin)
         else:
-            mean.fill(self._bg)
+            if not self._mean_is_bg:
+                mean.fill(self._bg)
             colmax.fill(self._bg)
             rowmin.fill(self._bg)
-        idx, rows, cols = self.star_field(m0, m, m1, margin_px=self._smear_px(m0, m1), observer_pos=observer_pos)
-        el = self._el[idx]
-        add_points_kernel(mean, colmax, rows[0], cols[0], rows[2], cols[2], el, im.psf_sigma_px, CDF_TABLE)
+        self._mean_is_bg = False          # until the kernel below has reset it
+        ns = len(sources)
+        n, idx, rows, cols = self._project_stars(m0, m, m1, self._smear_px(m0, m1), observer_pos, ns)
+        flux = self._flux
+        np.take(self._el, idx[:n], out=flux[:n])
+        # the sources' hard bodies go after the stars, into the same call (the kernel skips a zero
+        # flux and a NaN start or end, as behind the imager); their plumes are added after all points
         src_rc = []
-        for s in sources:
-            r0, c0 = self.project(m0, s.los0)
+        for j, s in enumerate(sources):
+            rows[0, n + j], cols[0, n + j] = self.project(m0, s.los0)
             r, c = self.project(m, s.los)
-            r1, c1 = self.project(m1, s.los1)
+            rows[2, n + j], cols[2, n + j] = self.project(m1, s.los1)
+            flux[n + j] = s.electrons
             src_rc.append((r, c))
-            if s.electrons > 0 and r0 == r0 and r1 == r1:
-                v = np.array([r0, c0, r1, c1, s.electrons])
-                add_points_kernel(mean, colmax, v[0:1], v[1:2], v[2:3], v[3:4], v[4:5], im.psf_sigma_px, CDF_TABLE)
+        add_points_kernel(mean, colmax, rows[0, :n + ns], cols[0, :n + ns], rows[2, :n + ns],
+                          cols[2, :n + ns], flux[:n + ns], im.psf_sigma_px, CDF_TABLE)
+        for s, (r, c) in zip(sources, src_rc):
             if s.plume_electrons > 0 and s.plume_tail_los is not None and r == r:
-                rt, ct = self.project(m, s.plume_tail_los)
-                if rt == rt:
-                    dr, dc = rt - r, ct - c
-                    length = math.hypot(dr, dc)
-                    width_px = s.plume_width_rad / im.scale_col
-                    sig_across = math.hypot(im.psf_sigma_px, width_px)
-                    sig_along = math.hypot(sig_across, 0.5 * length)
-                    add_elongated_kernel(mean, r + 0.5 * dr, c + 0.5 * dc, s.plume_electrons,
-                                         sig_along, sig_across, math.atan2(dr, dc))
-                    extrema_kernel(mean, colmax, rowmin)
+                self._add_plume(mean, s, m, r, c)
         frame = out if out is not None else np.empty((im.n_rows, im.n_cols), np.uint16)
         state = frame_rng_state(seed, frame_index)
+        # the kernel leaves ``mean`` at the background again: the next frame needs no fill
         self.bloomed_columns = expose_kernel(mean, frame, self._work, state, GAUSS_TABLE, colmax, rowmin,
-                                             im.read_noise_e,
-                                             im.gain_e_per_dn, im.bias_dn, im.full_well_e, im.adc_max)
-        r, c = rows[1], cols[1]
-        stars = np.empty(len(idx), STAR_DTYPE)
-        n = truth_kernel(stars, idx, rows[1], cols[1], el, self.catalog.hip, self._mag, im.gain_e_per_dn,
-                         im.n_rows, im.n_cols)
-        stars = stars[:n]
-        return frame, stars, src_rc
+                                             im.read_noise_e, im.gain_e_per_dn, im.bias_dn,
+                                             im.full_well_e, im.adc_max, self._bg)
+        self._mean_is_bg = True
+        stars = np.empty(n, STAR_DTYPE)
+        k = truth_kernel(stars, idx[:n], rows[1, :n], cols[1, :n], flux[:n], self.catalog.hip, self._mag,
+                         im.gain_e_per_dn, im.n_rows, im.n_cols)
+        return frame, stars[:k], src_rc
+
+    def _add_plume(self, mean, s, m, r, c):
+        """Add the plume of source ``s`` (mid-integration position (r, c) through ``m``) to ``mean``
+        and bring the column maxima / row minima up to date."""
+        im = self.imager
+        rt, ct = self.project(m, s.plume_tail_los)
+        if rt == rt:
+            dr, dc = rt - r, ct - c
+            length = math.hypot(dr, dc)
+            width_px = s.plume_width_rad / im.scale_col
+            sig_across = math.hypot(im.psf_sigma_px, width_px)
+            sig_along = math.hypot(sig_across, 0.5 * length)
+            add_elongated_kernel(mean, r + 0.5 * dr, c + 0.5 * dc, s.plume_electrons,
+                                 sig_along, sig_across, math.atan2(dr, dc))
+            extrema_kernel(mean, self._colmax, self._rowmin)
 
     def _smear_px(self, m0, m1):
         # angle between the start and end boresights, in pixels (an upper bound of the star trail)
@@ -667,7 +735,7 @@ def expose(imager: Imager, mean_e, seed=0, frame_index=0) -> np.ndarray:
     extrema_kernel(mean, colmax, rowmin)
     expose_kernel(mean, out, work, frame_rng_state(seed, frame_index), GAUSS_TABLE, colmax, rowmin,
                   imager.read_noise_e, imager.gain_e_per_dn, imager.bias_dn, imager.full_well_e,
-                  imager.adc_max)
+                  imager.adc_max, math.nan)
     return out
 
 

@@ -36,6 +36,7 @@ import numpy as np
 from .frames import parse_epoch
 from .imagers import IMAGER_IDS, Imager, get_imager
 from .quat import q_from_rotvec, q_mul, q_normalize
+from .target_params import Arc, AuroraParams, LaunchParams
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 FRAME_DT = 0.5
@@ -374,8 +375,6 @@ def _parse_pointing(t: _Table) -> dict:
 
 
 def _parse_target(t: _Table) -> dict:
-    from .aurora import Arc, AuroraParams
-    from .targets import LaunchParams
     typ = t.str_("type", default="none", choices=("satellite", "launch", "aurora", "none"))
     out = {"type": typ}
     if typ == "satellite":

@@ -36,7 +36,6 @@ from pathlib import Path
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
 
 HIP_EPOCH_JYEAR = 1991.25
 MAS_TO_RAD = math.pi / (180.0 * 3600.0 * 1000.0)
@@ -235,17 +234,18 @@ class SkyView:
         """
         if not (0.0 < radius < math.pi):
             raise ValueError(f"cone radius must be in (0, pi) rad, got {radius!r}")
-        d = np.asarray(direction, dtype=float)
-        n = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
+        x, y, z = np.asarray(direction, dtype=float).tolist()[:3]   # Python floats: same arithmetic
+        n = math.sqrt(x * x + y * y + z * z)
         if not n > 0.0:
             raise ValueError("cone direction must be a non-zero finite vector")
-        return self.zone_index(hp_limit).query((d[0] / n, d[1] / n, d[2] / n), float(radius))
+        return self.zone_index(hp_limit).query((x / n, y / n, z / n), float(radius))
 
     def cone_kdtree(self, direction, radius: float, hp_limit: float = 99.0) -> np.ndarray:
         """Same as :meth:`cone` with ``scipy.spatial.cKDTree`` (peer implementation)."""
         key = round(float(hp_limit), 3)
         t = self._trees.get(key)
         if t is None:
+            from scipy.spatial import cKDTree     # the peer only: SciPy's spatial stays unloaded
             idx = self._subset(key)
             t = (cKDTree(self.uvec[idx]), idx)
             self._trees[key] = t

@@ -11,12 +11,12 @@ Brightness model (stated constants):
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 
 from .frames import MU_EARTH, OMEGA_EARTH, geodetic_to_ecef, gmst82, jd_utc, rot_z
 from .spacecraft import Orbit
+from .target_params import LaunchParams
 
 
 def band_mag_correction(band: str, uv_offset: float) -> float:
@@ -45,27 +45,6 @@ class SatelliteTarget:
         """(hard-body band magnitude, plume band magnitude or None, plume length m, plume width m)."""
         m = self.mag_at_1000km + 5.0 * math.log10(max(range_m, 1.0) / 1e6) + band_mag_correction(band, self.uv_offset)
         return m, None, 0.0, 0.0
-
-
-@dataclass
-class LaunchParams:
-    lat_deg: float = 34.6
-    lon_deg: float = -120.6
-    t_launch: float = -60.0          # s from the event epoch
-    azimuth_deg: float = 180.0       # launch azimuth, from north toward east
-    vertical_s: float = 8.0          # vertical rise before the pitch kick
-    kick_deg: float = 3.0            # pitch-over from the vertical at the kick
-    burn_s: float = 170.0            # burn time
-    accel0: float = 16.0             # m/s^2 thrust acceleration at lift-off
-    mass_ratio: float = 5.0          # m0 / m_burnout: accel grows as 1 / (1 - (1 - 1/mr) t / burn)
-    body_mag_at_1000km: float = 8.0
-    plume_mag_at_1000km: float = 0.5
-    uv_plume_gain_mag: float = -1.0
-    uv_offset: float = 2.0
-    plume_length_m: float = 400.0
-    plume_width_frac: float = 0.2
-    nominal_dt: float = 0.0
-    nominal_bias_m: tuple = (0.0, 0.0, 0.0)
 
 
 class LaunchTarget:

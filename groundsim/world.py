@@ -74,17 +74,20 @@ def _copy_attitude(a: AttitudeData) -> AttitudeData:
                         r_eci=a.r_eci.copy(), v_eci=a.v_eci.copy(), valid=a.valid)
 
 
-def _lines_of_sight(d, dd):
-    """Unit lines of sight ``(d - dd)``, ``d``, ``(d + dd)`` (float64 (3,) each) and ``|d|``: the
-    target seen from the spacecraft at the start, middle and end of the integration (``d`` (3,) m the
-    relative position at mid-integration, ``dd`` (3,) m its change over half the integration)."""
-    x, y, z = d.tolist()
-    a, b, c = dd.tolist()
+def _lines_of_sight(r_sc, v_sc, r_t, v_t, h):
+    """The target seen from the spacecraft at the start, middle and end of the integration: unit
+    lines of sight ``d - dd``, ``d``, ``d + dd`` and ``|d|`` (m), for ``d = r_t - r_sc`` (m) and
+    ``dd = h * (v_t - v_sc)`` (its change over half the integration, ``h`` s); positions and
+    velocities float64 (3,) ECI. The middle one is a float64 (3,) array (the truth's ``los_eci``),
+    the start and end ones (x, y, z) tuples (only projected). Python floats: the arithmetic of the
+    same NumPy expressions."""
+    x, y, z = (p - q for p, q in zip(r_t.tolist(), r_sc.tolist()))
+    a, b, c = (h * (p - q) for p, q in zip(v_t.tolist(), v_sc.tolist()))
     out = []
     for sx, sy, sz in ((x - a, y - b, z - c), (x, y, z), (x + a, y + b, z + c)):
         n = math.sqrt(sx * sx + sy * sy + sz * sz)
-        out.append(np.array([sx / n, sy / n, sz / n]))
-    return out[0], out[1], out[2], math.sqrt(x * x + y * y + z * z)
+        out.append((sx / n, sy / n, sz / n))
+    return out[0], np.array(out[1]), out[2], math.sqrt(x * x + y * y + z * z)
 
 
 class World:
@@ -267,24 +270,34 @@ class World:
     # -- outputs --------------------------------------------------------------------------------------
     def attitude_data(self) -> AttitudeData:
         # a pure function of (t, frame index, true attitude and rate): the closed loop asks twice per
-        # frame (the harness, then render() for the truth); the second gets a copy of the first
+        # frame (the harness, then render() for the truth); the second gets the copy kept from the first
+        kept = self._kept_attitude()
+        if kept is not None:
+            return _copy_attitude(kept)
         c = self.ctrl
-        q, w = np.asarray(c.q), np.asarray(c.w)
-        kn = self.knowledge
-        key = (self._t, self._k, q.dtype.str, q.tobytes(), w.dtype.str, w.tobytes(), self.scn.seed,
-               np.asarray(kn.bias, float).tobytes(), kn.noise, kn.rate_noise, kn.position_noise)
-        ac = self._att_cache
-        if (ac is not None and ac[0] == key and ac[2] is kn and ac[3] is self.orbit
-                and ac[4] is self.scn.faults):
-            return _copy_attitude(self._att_cache[1])
         r, v = self.orbit.state(self._t)
         # the frame's knowledge noise: its own xoshiro stream (1) of the frame's seed (render uses 0)
         z = np.empty(9)
         standard_normals_kernel(frame_rng_state(self.scn.seed, self._k, ATTITUDE_STREAM), z)
         a = self.knowledge.apply(self._t, c.q, c.w, r, v, draws=z,
                                  valid=self.scn.faults.attitude_valid(self._t))
-        self._att_cache = (key, _copy_attitude(a), kn, self.orbit, self.scn.faults)
+        self._att_cache = (self._attitude_key(), _copy_attitude(a), self.knowledge, self.orbit,
+                           self.scn.faults)
         return a
+
+    def _attitude_key(self):
+        c, kn = self.ctrl, self.knowledge
+        q, w = np.asarray(c.q), np.asarray(c.w)
+        return (self._t, self._k, q.dtype.str, q.tobytes(), w.dtype.str, w.tobytes(), self.scn.seed,
+                np.asarray(kn.bias, float).tobytes(), kn.noise, kn.rate_noise, kn.position_noise)
+
+    def _kept_attitude(self):
+        """The untouched copy of this state's attitude data kept by :meth:`attitude_data`, or None."""
+        ac = self._att_cache
+        if (ac is not None and ac[2] is self.knowledge and ac[3] is self.orbit
+                and ac[4] is self.scn.faults and ac[0] == self._attitude_key()):
+            return ac[1]
+        return None
 
     def _renderer(self, iid):
         r = self._renderers.get(iid)
@@ -310,8 +323,7 @@ class World:
         st = self.true_target_state(t)
         if st is not None:
             rt, vt = st
-            d = rt - r_sc
-            los0, los, los1, rng_m = _lines_of_sight(d, h * (vt - v_sc))
+            los0, los, los1, rng_m = _lines_of_sight(r_sc, v_sc, rt, vt, h)
             tinfo.update(los_eci=los, range_m=rng_m, r_eci=rt, v_eci=vt)
             if self.target is not None:
                 body, plume, plen, pwid = self.target.appearance(t, rng_m, im.band)
@@ -319,6 +331,7 @@ class World:
                 pel = im.zp_e_per_s * 10 ** (-0.4 * plume) * im.t_int if plume is not None else 0.0
                 tail = None
                 if pel > 0:
+                    d = rt - r_sc
                     vu = vt / np.linalg.norm(vt)
                     tail = (d - plen * vu) / np.linalg.norm(d - plen * vu)
                 sources.append(PointSource(los0, los, los1, el, pel, tail, pwid / rng_m))
@@ -342,9 +355,18 @@ class World:
             tinfo.update(row=row if inside else math.nan, col=col if inside else math.nan, in_field=bool(inside))
         truth = dict(t=t, frame_index=self._k, imager=im.id, stars=stars, target=tinfo,
                      spacecraft=dict(r_eci=r_sc, v_eci=v_sc, q_body_to_eci=q_mid.copy(), rate_body=self.ctrl.w.copy()),
-                     q_imager_to_eci=q_normalize(q_mul(q_mid, np.asarray(im.align))),
-                     attitude=self.attitude_data(), bloomed_columns=ren.bloomed_columns, real=False)
+                     q_imager_to_eci=q_normalize(q_mul(q_mid.tolist(), im.align)),
+                     attitude=self._truth_attitude(), bloomed_columns=ren.bloomed_columns, real=False)
         return frame, truth
+
+    def _truth_attitude(self) -> AttitudeData:
+        """The frame's attitude data for the truth: the copy :meth:`attitude_data` kept when the
+        harness asked first this frame (handed over, not copied again), else computed."""
+        kept = self._kept_attitude()
+        if kept is None:
+            return self.attitude_data()
+        self._att_cache = None
+        return kept
 
     def _earth_near_field(self, r_sc, bore, im):
         x, y, z = r_sc.tolist()

@@ -269,3 +269,18 @@ def test_aurora_scenarios_render_the_limb_where_the_closed_form_puts_it(name):
     got = day > 0
     assert np.array_equal(got[hit & (np.abs(cos_sun) > 1e-6)], expect[hit & (np.abs(cos_sun) > 1e-6)])
     assert (expect.mean() > 0.1) == sunlit
+
+
+def test_uvisi_scenarios_loads_no_kernels():
+    """`uvisi scenarios` only reads scenario files: it lists every shipped one without importing
+    numba, SGP4 or SciPy (their imports were most of its start-up time)."""
+    import subprocess
+    import sys
+    code = ("import sys\nfrom hil_harness.cli import main\nrc = main(['scenarios'])\n"
+            "print('LOADED', *sorted(m for m in ('numba', 'sgp4', 'scipy') if m in sys.modules))\n"
+            "sys.exit(rc)")
+    p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert p.returncode == 0, p.stderr
+    lines = p.stdout.splitlines()
+    assert lines[-1] == "LOADED"
+    assert [ln.split()[0] for ln in lines[:-1]] == Scenario.shipped()

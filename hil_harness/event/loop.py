@@ -305,7 +305,7 @@ class Event:
             self._processed += 1
             self._flight_step(out, frame, att, override, ledger, host, t1)
         tg = truth.get("target") if truth else None
-        if tg is not None and tg.get("in_field") and np.isfinite(out.pred_row):
+        if tg is not None and tg.get("in_field") and math.isfinite(out.pred_row):
             sc, sr, _ = self.geometry[imager]
             out.error_urad = 1e6 * float(np.hypot((out.pred_col - tg["col"]) * sc,
                                                   (out.pred_row - tg["row"]) * sr))
@@ -335,7 +335,7 @@ class Event:
         new imager's pixels (1750A arithmetic)."""
         pr, pc = self.feedback.predicted_row, self.feedback.predicted_col
         override = None
-        if self._feedback_imager != imager and np.isfinite(pr) and np.isfinite(pc):
+        if self._feedback_imager != imager and math.isfinite(pr) and math.isfinite(pc):
             pr, pc = self.tp.predicted_pixel(imager)
             override = Feedback(pr, pc, self.feedback.object_type, self.feedback.locked)
         out.pred_row, out.pred_col = pr, pc
@@ -371,16 +371,20 @@ class Event:
             if words is not ip_out.words:
                 self._fault_reaction(out, "candidate", bool(cmd.status & TC_BAD_MESSAGE))
         out.ledger = ledger = self._hypothesis(ledger, res)
+        # each processor's emulated seconds, summed once (as Ledger.seconds; overrun as Ledger.overrun)
+        period = ledger.period_s
+        secs = {p: ledger.seconds(p) for p in ledger.processors}
         if cmd_words is not None:
             out.command_words = cmd_words
-            self._command_bus(out, cmd_words, ledger, res.message)
-        if ledger.seconds(DSP) > ledger.period_s or ledger.seconds(IP1750) > ledger.period_s:
+            self._command_bus(out, cmd_words, secs[TP1750] > period, res.message)
+        if secs[DSP] > period or secs[IP1750] > period:
             self._ip_busy = True
-        out.overrun = ledger.overrun()
+        out.overrun = any(s / period > 1.0 for s in secs.values())
 
-    def _command_bus(self, out, cmd_words, ledger, message) -> None:
+    def _command_bus(self, out, cmd_words, tp_late: bool, message) -> None:
         """The track command crosses to the attitude processor and the IP: a command that fails its
-        CRC or checks is refused by both (the IP counts it) and the last good one stays in force."""
+        CRC or checks is refused by both (the IP counts it) and the last good one stays in force;
+        ``tp_late``: the TP's 1750A overran, so the command reaches the attitude processor late."""
         words = self._corrupt(out, "command", cmd_words)
         self._command_words = words                   # the IP reads them at its next frame
         try:
@@ -395,7 +399,7 @@ class Event:
         q = np.asarray(cmd.q_point, float)
         qs = q.tolist()
         if all(map(math.isfinite, qs)) and math.sqrt(sum(x * x for x in qs)) > 0.5:
-            if ledger.seconds(TP1750) > ledger.period_s:
+            if tp_late:
                 self._late_command = q
                 self._tp_busy = True
             else:
