@@ -48,6 +48,9 @@ STARS_DTYPE = np.dtype([("k", np.int32), ("hip", np.int32), ("row", np.float32),
                         ("col", np.float32), ("mag", np.float32)])
 #: tables/ledger: one row per (frame, processor, stage)
 LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
+#: tables/candidates: one row per reported candidate, the message's fields after the frame and rank
+CANDIDATE_ROW_DTYPE = np.dtype([("k", np.int32), ("rank", np.int16)] + CANDIDATE_DTYPE.descr)
+_CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -114,6 +117,7 @@ class EventWriter:
         self.record_frames = record_frames
         self.kill_at = kill_at
         self._snap_kinds: dict = {}
+        self._ledger_names: dict = {}
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
@@ -131,6 +135,26 @@ class EventWriter:
         self.frames += 1
         if self.kill_at is not None and o.k == self.kill_at:
             os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
+
+    def _ledger_rows(self, k: int, L) -> np.ndarray | None:
+        """The frame's ledger as ``LEDGER_DTYPE`` rows (processor, stage in charge order)."""
+        keys, cycles = [], []
+        for p in L.processors:
+            st = L.stages(p)
+            keys += [(p, s) for s in st]
+            cycles += st.values()
+        if not keys:
+            return None
+        names = self._ledger_names.get(tuple(keys))
+        if names is None:       # the (processor, stage) columns, encoded once per distinct list
+            names = np.zeros(len(keys), LEDGER_DTYPE)
+            names["processor"] = [p.encode() for p, _ in keys]
+            names["stage"] = [s.encode() for _, s in keys]
+            self._ledger_names[tuple(keys)] = names
+        out = names.copy()
+        out["k"] = k
+        out["cycles"] = cycles
+        return out
 
     def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
@@ -168,18 +192,15 @@ class EventWriter:
                  per_frame=True)
         if o.message is not None and o.message.count:
             c = o.message.candidates
-            rows = np.zeros(len(c), np.dtype([("k", np.int32), ("rank", np.int16)] +
-                                             CANDIDATE_DTYPE.descr))
+            rows = np.empty(len(c), CANDIDATE_ROW_DTYPE)
             rows["k"] = o.k
             rows["rank"] = np.arange(1, len(c) + 1)
-            for n in CANDIDATE_DTYPE.names:
-                rows[n] = c[n]
+            rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
             r.append_rows("candidates", rows)
         if L is not None:
-            led = [(o.k, p.encode(), s.encode(), cy) for p in L.processors
-                   for s, cy in L.stages(p).items()]
-            if led:
-                r.append_rows("ledger", np.array(led, LEDGER_DTYPE))
+            led = self._ledger_rows(o.k, L)
+            if led is not None:
+                r.append_rows("ledger", led)
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
@@ -193,7 +214,7 @@ class EventWriter:
         snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
         if snap:
             snap["ekf_p_pos"] = _ekf_position_cov(self.ev.tp)
-            r.append("tp", snap)
+            r.append("tp", snap, per_frame=True)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
         if self.record_frames:
