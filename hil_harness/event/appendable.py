@@ -6,14 +6,16 @@ and are avoided here:
 - h5py builds the HDF5 memory type from the numpy dtype on every write (~190 us for the TP table's
   compound of 30 fields): built once per dataset and passed on every write;
 - HDF5 compares the memory and file compound types and runs its conversion path on every write
-  (~50-100 us for a compound of 30 fields, whatever the row count): a block that starts a chunk
-  is written with ``H5Dwrite_chunk`` (h5py ``write_direct_chunk``), raw bytes straight into the
-  file, one call per chunk, no conversion. The bytes are the rows as numpy stores them, which is
-  the file type's layout (h5py creates the file type from the same dtype); the last chunk of a
-  short block is padded with zeros, as HDF5's fill value would, and lies beyond the extent.
+  (~50-100 us for a compound of 30 fields, whatever the row count): blocks are written with
+  ``H5Dwrite_chunk`` (h5py ``write_direct_chunk``), raw bytes straight into the file, one call per
+  chunk, no conversion. The bytes are the rows as numpy stores them, which is the file type's
+  layout (the file type is made from the same dtype). A chunk a block fills only in part is
+  written whole, its rows past the block zero (as HDF5's fill value would be, beyond the extent);
+  its rows are kept in memory and the next block writes the chunk again whole, the earlier rows
+  with the same bytes: what ``H5Dwrite`` itself does to a partly written chunk (read, modify,
+  write the whole chunk).
 
-A block that does not start a chunk (rows of variable count per frame) goes through ``H5Dwrite``.
-Filtered (compressed) datasets always do: their chunks are not raw rows.
+Filtered (compressed) datasets go through ``H5Dwrite``: their chunks are not raw rows.
 """
 from __future__ import annotations
 
@@ -52,13 +54,17 @@ class AppendableDataset:
         self.dtype = np.dtype(dtype)
         self.row_shape = tuple(int(x) for x in row_shape)
         self.chunk_rows = max(1, int(chunk_rows))
-        self.ds = group.create_dataset(name, shape=(0,) + self.row_shape,
-                                       maxshape=(None,) + self.row_shape, dtype=self.dtype,
-                                       chunks=(self.chunk_rows,) + self.row_shape,
-                                       compression=compression)
-        self._direct = compression is None and _same_layout(self.ds.id.get_type(), self.dtype)
-        self._mtype = h5py.h5t.py_create(self.dtype)
+        shape, chunks = (0,) + self.row_shape, (self.chunk_rows,) + self.row_shape
+        if compression is None:
+            self.ds = h5py.Dataset(_create(group, name, self.dtype, shape, chunks))
+        else:
+            self.ds = group.create_dataset(name, shape=shape, maxshape=(None,) + self.row_shape,
+                                           dtype=self.dtype, chunks=chunks,
+                                           compression=compression)
+        self._mtype = self.ds.id.get_type()     # the file type: rows stored as numpy holds them
+        self._direct = compression is None and _same_layout(self._mtype, self.dtype)
         self._zeros = (0,) * len(self.row_shape)
+        self._tail = np.zeros(chunks, self.dtype)    # rows of the last, partly filled chunk
         self.rows = 0
 
     def append(self, data: np.ndarray) -> None:
@@ -73,7 +79,7 @@ class AppendableDataset:
         data = np.ascontiguousarray(data)
         n = self.rows
         self.ds.id.set_extent((n + m,) + self.row_shape)
-        if self._direct and n % self.chunk_rows == 0:
+        if self._direct:
             self._write_chunks(n, data)
         else:
             fs = self.ds.id.get_space()
@@ -82,15 +88,36 @@ class AppendableDataset:
         self.rows = n + m
 
     def _write_chunks(self, n: int, data: np.ndarray) -> None:
-        """Rows ``[n, n + len(data))``, ``n`` at a chunk boundary, as whole raw chunks."""
-        cr = self.chunk_rows
-        for j in range(0, len(data), cr):
-            piece = data[j:j + cr]
-            if len(piece) < cr:
-                full = np.zeros((cr,) + self.row_shape, self.dtype)
-                full[:len(piece)] = piece
-                piece = full
-            self.ds.id.write_direct_chunk((n + j,) + self._zeros, piece)
+        """Rows ``[n, n + len(data))`` as whole raw chunks: the partly filled chunk they start in
+        is written again whole (its earlier rows, kept in :attr:`_tail`, with the same bytes);
+        whole chunks of ``data`` go as they are; the last partial chunk is kept for next time,
+        its rows past the data zero."""
+        cr, tail = self.chunk_rows, self._tail
+        j, fill = 0, n % cr
+        while j < len(data):
+            start = n + j - fill
+            k = min(cr - fill, len(data) - j)
+            if fill == 0 and k == cr:
+                self.ds.id.write_direct_chunk((start,) + self._zeros, data[j:j + cr])
+            else:
+                tail[fill:fill + k] = data[j:j + k]
+                self.ds.id.write_direct_chunk((start,) + self._zeros, tail)
+                if fill + k == cr:
+                    tail[:] = 0
+            j += k
+            fill = (fill + k) % cr
+
+
+def _create(group, name: str, dtype: np.dtype, shape: tuple, chunks: tuple):
+    """An uncompressed chunked dataset of unlimited rows through HDF5's own calls (h5py's
+    ``create_dataset`` costs ~0.25 ms a dataset more in Python); intermediate groups created."""
+    tid = h5py.h5t.py_create(dtype, logical=True)
+    space = h5py.h5s.create_simple(shape, (h5py.h5s.UNLIMITED,) + shape[1:])
+    dcpl = h5py.h5p.create(h5py.h5p.DATASET_CREATE)
+    dcpl.set_chunk(chunks)
+    lcpl = h5py.h5p.create(h5py.h5p.LINK_CREATE)
+    lcpl.set_create_intermediate_group(True)
+    return h5py.h5d.create(group.id, name.encode(), tid, space, dcpl=dcpl, lcpl=lcpl)
 
 
 def _same_layout(ftype, dtype: np.dtype) -> bool:

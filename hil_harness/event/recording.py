@@ -46,6 +46,8 @@ VERIFY_BLOCK_ROWS = 64
 TABLE_CHUNK_ROWS = 256
 #: arrays whose rows are at least this many bytes get one row per chunk (frames, stage images)
 ROW_CHUNK_BYTES = 16384
+#: the most bytes a chunk of one block of small per-frame rows holds
+CHUNK_MAX_BYTES = 1 << 20
 #: /checksums: one record per stored row of every dataset (``dataset`` is its ``checksum_id``)
 CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32", np.uint32)])
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
@@ -259,20 +261,23 @@ class Recorder:
 
     # ---------------------------------------------------------------- writing (one block)
     def _dataset(self, key: str, data: np.ndarray, per_frame: bool) -> list:
-        """``[AppendableDataset, checksum id]`` for ``key``, created on first use: one row per
-        chunk for rows of ``ROW_CHUNK_BYTES`` or more (frames), ``flush_every`` rows (one block)
-        for the other per-frame datasets, up to ``TABLE_CHUNK_ROWS`` for the rest."""
+        """``[AppendableDataset, checksum id]`` for ``key``, created on first use. Chunks: one row
+        for rows of ``ROW_CHUNK_BYTES`` or more (frames, stage images: 2.5 MB chunks of 20
+        frames measured no cheaper to write, and padded the last block); one block
+        (``flush_every`` rows, at most ``CHUNK_MAX_BYTES``) for the other uncompressed per-frame
+        datasets, so a block is one raw chunk write; up to ``TABLE_CHUNK_ROWS`` rows for the
+        rest."""
         entry = self._ds.get(key)
         if entry is not None:
             return entry
         row_bytes = data.dtype.itemsize * int(np.prod(data.shape[1:], dtype=np.int64))
-        if row_bytes >= ROW_CHUNK_BYTES:
-            rows = 1
-        elif per_frame:
-            rows = self.flush_every
-        else:
-            rows = max(1, min(TABLE_CHUNK_ROWS, ROW_CHUNK_BYTES * 4 // row_bytes))
         comp = self.compression if data.ndim >= 3 else None
+        if per_frame and comp is None and row_bytes < ROW_CHUNK_BYTES:
+            rows = max(1, min(self.flush_every, CHUNK_MAX_BYTES // max(row_bytes, 1)))
+        elif row_bytes >= ROW_CHUNK_BYTES:
+            rows = 1
+        else:
+            rows = max(1, min(TABLE_CHUNK_ROWS, ROW_CHUNK_BYTES * 4 // max(row_bytes, 1)))
         out = AppendableDataset(self._f, key, data.dtype, data.shape[1:], rows, comp)
         out.ds.attrs["per_frame"] = bool(per_frame)
         out.ds.attrs["checksum_id"] = cid = len(self._ds)
