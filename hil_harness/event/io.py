@@ -33,8 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
 from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
+from flightsw.tp.ekf import E_P, E_RUN, UT
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome)
@@ -51,6 +53,8 @@ LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64")
 #: tables/candidates: one row per reported candidate, the message's fields after the frame and rank
 CANDIDATE_ROW_DTYPE = np.dtype([("k", np.int32), ("rank", np.int16)] + CANDIDATE_DTYPE.descr)
 _CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
+#: host/timing: the loop's stages whose wall time (us) is recorded per frame
+_HOST_STAGES = ("render", "ip", "tp", "world", "total")
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -223,15 +227,13 @@ class EventWriter:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
-        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
-                                       for k in ("render", "ip", "tp", "world", "total")}})
+        h = o.host_us
+        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(h.get(k, np.nan)) for k in _HOST_STAGES}})
 
 
 def _ekf_position_cov(tp) -> np.ndarray:
     """The TP's EKF position covariance (3, 3), m^2, decoded from its 1750A words (NaN when the
     EKF does not run): the snapshot keeps its diagonal only, the viewer draws the ellipse."""
-    from flightsw.arith.m1750 import decode48_array
-    from flightsw.tp.ekf import E_P, E_RUN, UT
     e = getattr(tp, "E", None)
     if e is None or not e[E_RUN]:
         return np.full((3, 3), np.nan)
