@@ -90,3 +90,16 @@ def test_a_recording_written_in_blocks_equals_its_rows(tmp_path):
         assert got.table("extra").tobytes() == extra[:j].tobytes()
         np.testing.assert_array_equal(got.array("img")[()][:, 0, 0], np.arange(10))
         assert got.array("img").chunks == (4, 3, 5)
+
+
+def test_rows_as_value_tuples_equal_the_structured_rows(tmp_path):
+    rows = _rows(9, seed=4)
+    path = tmp_path / "v.h5"
+    with Recorder(path, flush_every=4) as rec:
+        for r in rows:
+            rec.append_values("t", tuple(r[n] for n in ROW.names), ROW, per_frame=True)
+            rec.end_frame()
+        with pytest.raises(ValueError, match="layout changed"):
+            rec.append_values("t", (1,), np.dtype([("k", np.int32)]))
+    with Recording(path) as got:
+        assert got.table("t").tobytes() == rows.tobytes() and got.verify()["frames"] == 9

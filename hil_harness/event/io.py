@@ -50,6 +50,26 @@ STARS_DTYPE = np.dtype([("k", np.int32), ("hip", np.int32), ("row", np.float32),
                         ("col", np.float32), ("mag", np.float32)])
 #: tables/ledger: one row per (frame, processor, stage)
 LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
+#: tables/frames: one row per frame (the track command's fields: NaN / -1 without a command)
+FRAMES_DTYPE = np.dtype([
+    ("k", np.int32), ("t", np.float64), ("imager", np.int8), ("skip", np.int8),
+    ("n_candidates", np.int16), ("n_blobs", np.int32), ("alpha", np.float64),
+    ("msg_len", np.int16), ("cmd_len", np.int16), ("pred_row", np.float64),
+    ("pred_col", np.float64), ("track_row", np.float64), ("track_col", np.float64),
+    ("error_urad", np.float64), ("overrun", np.int8), ("att_valid", np.int8),
+    ("dsp_cycles", np.int64), ("ip1750_cycles", np.int64), ("tp1750_cycles", np.int64),
+    ("locked", np.int8), ("status", np.int32), ("n_star_gates", np.int16),
+    ("n_object_gates", np.int16), ("q_point", np.float64, (4,))])
+#: tables/attitude: the AttitudeData handed to the TP
+ATTITUDE_DTYPE = np.dtype([("k", np.int32), ("t", np.float64), ("q", np.float64, (4,)),
+                           ("rate", np.float64, (3,)), ("r", np.float64, (3,)),
+                           ("v", np.float64, (3,)), ("valid", np.int8)])
+#: tables/truth: the target's truth and the imager attitude
+TRUTH_DTYPE = np.dtype([("k", np.int32), ("t", np.float64), ("row", np.float64),
+                        ("col", np.float64), ("in_field", np.int8), ("los_eci", np.float64, (3,)),
+                        ("range_m", np.float64), ("q_imager_to_eci", np.float64, (4,)),
+                        ("n_stars", np.int32)])
+_NAN3, _NAN4 = np.full(3, np.nan), np.full(4, np.nan)
 #: tables/candidates: one row per reported candidate, the message's fields after the frame and rank
 CANDIDATE_ROW_DTYPE = np.dtype([("k", np.int32), ("rank", np.int16)] + CANDIDATE_DTYPE.descr)
 _CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
@@ -99,17 +119,6 @@ def _f(x) -> float:
         return float("nan")
 
 
-def _cmd_fields(cmd) -> dict:
-    """The track command's scalars for the frames table (NaN / -1 when there is no command)."""
-    if cmd is None:
-        return {"locked": np.int8(-1), "status": np.int32(-1), "n_star_gates": np.int16(-1),
-                "n_object_gates": np.int16(-1), "q_point": np.full(4, np.nan)}
-    q = np.asarray(getattr(cmd, "q_point", np.full(4, np.nan)), float)
-    return {"locked": np.int8(bool(cmd.locked)), "status": np.int32(int(getattr(cmd, "status", 0))),
-            "n_star_gates": np.int16(int(getattr(cmd, "n_star_gates", 0))),
-            "n_object_gates": np.int16(int(getattr(cmd, "n_object_gates", 0))), "q_point": q}
-
-
 class EventWriter:
     """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
     ``on_frame`` hook)."""
@@ -125,6 +134,11 @@ class EventWriter:
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
+        # the TP snapshot's decoding kernels load from numba's cache now, with the recording's
+        # opening (a one-time start-up cost, ~5 ms), not inside the event's first frame
+        snap = getattr(getattr(event, "tp", None), "snapshot", None)
+        if snap is not None:
+            snap()
 
     @property
     def mean_record_us(self) -> float | None:
@@ -162,38 +176,28 @@ class EventWriter:
 
     def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
-        cyc = {p: (L.cycles(p) if L is not None else 0) for p in (DSP, IP1750, TP1750)}
-        row = {"k": np.int32(o.k), "t": np.float64(o.t), "imager": np.int8(IMAGER_CODES[o.imager]),
-               "skip": np.int8(o.skip),
-               "n_candidates": np.int16(o.message.count if o.message is not None else -1),
-               "n_blobs": np.int32(o.n_blobs), "alpha": np.float64(o.alpha),
-               "msg_len": np.int16(0 if o.message_words is None else len(o.message_words)),
-               "cmd_len": np.int16(0 if o.command_words is None else len(o.command_words)),
-               "pred_row": np.float64(o.pred_row), "pred_col": np.float64(o.pred_col),
-               "track_row": np.float64(o.track_row), "track_col": np.float64(o.track_col),
-               "error_urad": np.float64(o.error_urad), "overrun": np.int8(o.overrun),
-               "att_valid": np.int8(bool(getattr(o.attitude, "valid", True))),
-               "dsp_cycles": np.int64(cyc[DSP]), "ip1750_cycles": np.int64(cyc[IP1750]),
-               "tp1750_cycles": np.int64(cyc[TP1750])}
-        row.update(_cmd_fields(o.command))
-        r.append("frames", row, per_frame=True)
-        a = o.attitude
-        r.append("attitude", {"k": np.int32(o.k), "t": np.float64(a.t),
-                              "q": np.asarray(a.q_body_to_eci, np.float64),
-                              "rate": np.asarray(a.rate_body, np.float64),
-                              "r": np.asarray(a.r_eci, np.float64), "v": np.asarray(a.v_eci, np.float64),
-                              "valid": np.int8(bool(a.valid))}, per_frame=True)
-        tg = (o.truth or {}).get("target") or {}
-        r.append("truth", {"k": np.int32(o.k), "t": np.float64(o.t),
-                           "row": np.float64(_f(tg.get("row"))), "col": np.float64(_f(tg.get("col"))),
-                           "in_field": np.int8(bool(tg.get("in_field", False))),
-                           "los_eci": np.asarray(tg.get("los_eci", np.full(3, np.nan)), np.float64),
-                           "range_m": np.float64(_f(tg.get("range_m"))),
-                           "q_imager_to_eci": np.asarray((o.truth or {}).get("q_imager_to_eci",
-                                                                             np.full(4, np.nan)),
-                                                         np.float64),
-                           "n_stars": np.int32(len((o.truth or {}).get("stars", ())))},
-                 per_frame=True)
+        cyc = [L.cycles(p) if L is not None else 0 for p in (DSP, IP1750, TP1750)]
+        msg, cmd, a = o.message, o.command, o.attitude
+        if cmd is None:
+            c = (-1, -1, -1, -1, _NAN4)
+        else:
+            c = (bool(cmd.locked), int(getattr(cmd, "status", 0)),
+                 int(getattr(cmd, "n_star_gates", 0)), int(getattr(cmd, "n_object_gates", 0)),
+                 np.asarray(getattr(cmd, "q_point", _NAN4), float))
+        r.append_values("frames", (
+            o.k, o.t, IMAGER_CODES[o.imager], o.skip, msg.count if msg is not None else -1,
+            o.n_blobs, o.alpha, 0 if o.message_words is None else len(o.message_words),
+            0 if o.command_words is None else len(o.command_words), o.pred_row, o.pred_col,
+            o.track_row, o.track_col, o.error_urad, o.overrun,
+            bool(getattr(a, "valid", True)), *cyc, *c), FRAMES_DTYPE, per_frame=True)
+        r.append_values("attitude", (o.k, a.t, a.q_body_to_eci, a.rate_body, a.r_eci, a.v_eci,
+                                     bool(a.valid)), ATTITUDE_DTYPE, per_frame=True)
+        truth = o.truth or {}
+        tg = truth.get("target") or {}
+        r.append_values("truth", (o.k, o.t, _f(tg.get("row")), _f(tg.get("col")),
+                                  bool(tg.get("in_field", False)), tg.get("los_eci", _NAN3),
+                                  _f(tg.get("range_m")), truth.get("q_imager_to_eci", _NAN4),
+                                  len(truth.get("stars", ()))), TRUTH_DTYPE, per_frame=True)
         if o.message is not None and o.message.count:
             c = o.message.candidates
             rows = np.empty(len(c), CANDIDATE_ROW_DTYPE)

@@ -136,6 +136,12 @@ class _Buffer:
         self.block[self.n] = vals
         self.n += 1
 
+    def add_values(self, values: tuple) -> None:
+        """Store a row given as a tuple in :attr:`block`'s field order."""
+        self._room(1)
+        self.block[self.n] = values
+        self.n += 1
+
     def add_rows(self, rows: np.ndarray) -> None:
         """Store a block of rows of :attr:`block`'s dtype and row shape."""
         self._room(len(rows))
@@ -220,6 +226,19 @@ class Recorder:
         ``/tables/<table>``; every row of a table has the same fields. The row is copied into the
         block buffer at once."""
         self._dict_row(f"tables/{table}", row, per_frame, f"table {table!r}")
+
+    def append_values(self, table: str, values: tuple, dtype: np.dtype,
+                      per_frame: bool = False) -> None:
+        """Append one row given as a tuple of values in the fields' order of ``dtype`` (the same
+        dtype every call; strings as bytes): what :meth:`append` stores, without the dict and
+        the numpy scalars (~2 us a row against ~10 us for a table of 25 fields)."""
+        b = self._buf(f"tables/{table}", per_frame)
+        if b.block is None:
+            b.start(dtype, (), self.flush_every)
+            b.keys = dtype.names
+        elif dtype is not b.block.dtype and dtype != b.block.dtype:
+            raise ValueError(f"table {table!r}: row layout changed from {b.block.dtype} to {dtype}")
+        b.add_values(values)
 
     def append_rows(self, table: str, rows: np.ndarray, per_frame: bool = False) -> None:
         """Append a structured array of rows to ``/tables/<table>`` (same dtype every call);
