@@ -154,11 +154,11 @@ class EventWriter:
         if self.kill_at is not None and o.k == self.kill_at:
             os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
 
-    def _ledger_rows(self, k: int, L) -> np.ndarray | None:
-        """The frame's ledger as ``LEDGER_DTYPE`` rows (processor, stage in charge order)."""
+    def _ledger_rows(self, k: int, stages: dict) -> np.ndarray | None:
+        """The frame's ledger (``{processor: {stage: cycles}}``) as ``LEDGER_DTYPE`` rows
+        (processor, stage in charge order)."""
         keys, cycles = [], []
-        for p in L.processors:
-            st = L.stages(p)
+        for p, st in stages.items():
             keys += [(p, s) for s in st]
             cycles += st.values()
         if not keys:
@@ -176,7 +176,8 @@ class EventWriter:
 
     def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
-        cyc = [L.cycles(p) if L is not None else 0 for p in (DSP, IP1750, TP1750)]
+        stages = {p: L.stages(p) for p in L.processors} if L is not None else {}
+        cyc = [sum(stages[p].values()) if p in stages else 0 for p in (DSP, IP1750, TP1750)]
         msg, cmd, a = o.message, o.command, o.attitude
         if cmd is None:
             c = (-1, -1, -1, -1, _NAN4)
@@ -206,7 +207,7 @@ class EventWriter:
             rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
             r.append_rows("candidates", rows)
         if L is not None:
-            led = self._ledger_rows(o.k, L)
+            led = self._ledger_rows(o.k, stages)
             if led is not None:
                 r.append_rows("ledger", led)
         for sw in o.switches:
