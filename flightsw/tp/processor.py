@@ -341,44 +341,44 @@ class TrackProcessor:
         G, S = self.G, self.S
         alive = G[:, F.G_ALIVE] != 0
         dead = ~alive
-        # one decode for the five 1750A columns (a, b, va, vb, residual), NaN where no gate lives
-        g = decode32_array(G[:, [F.G_A, F.G_B, F.G_VA, F.G_VB, F.G_RES]])
+        # one decode for the gate columns a, b, va, vb, (dva, dvb,) residual; NaN where no gate lives
+        g = decode32_array(G[:, F.G_A:F.G_RES + 1])
         g[dead] = np.nan
         pix = np.full((F.NG, 2), np.nan)
-        if alive.any():
-            v = np.ones((int(alive.sum()), 3))
-            v[:, 1:] = g[alive, :2]
-            live = np.empty((len(v), 2))
-            directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, live)
-            pix[alive] = live
+        live = np.flatnonzero(alive)
+        if len(live):
+            v = np.ones((len(live), 3))
+            v[:, 1:] = g[live, :2]
+            out = np.empty((len(live), 2))
+            directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, out)
+            pix[live] = out
         run = bool(self.E[E_RUN])
-        if run:              # x (6), the diagonal of P (6), t: one decode
-            e = decode48_array(self.E[np.concatenate((np.arange(E_X, E_X + 6), E_P + np.diag(UT),
-                                                      [E_T]))])
-        else:
-            e = np.full(13, np.nan)
+        # x (6 words), P (packed), t: one decode of the words up to t
+        e = decode48_array(self.E[:E_T + 1]) if run else np.full(E_T + 1, np.nan)
         oa = bool(S[F.S_OPP_ALIVE])
         opp = decode32_array(S[[F.S_OPP_X, F.S_OPP_X + 1, F.S_OPP_V, F.S_OPP_V + 1]]) if oa else \
             np.full(4, np.nan)
-        gi = G[:, [F.G_MISS, F.G_OBS, F.G_SEED]].astype(np.int16)
-        gi[dead] = (0, -1, -1)
+        gi = G[:, F.G_MISS:F.G_SEED + 1].astype(np.int16)      # missed, obs, hits, seed
+        gi[dead] = (0, -1, 0, -1)
+        sc = S[[F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS, F.S_NLOST,
+                F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS]]
         return {
             "gate_alive": alive.astype(np.int8),
             "gate_kind": (np.arange(F.NG) & 1).astype(np.int8),
-            "gate_pos": g[:, :2].copy(), "gate_vel": g[:, 2:4].copy(), "gate_resid": g[:, 4].copy(),
-            "gate_missed": gi[:, 0].copy(), "gate_obs": gi[:, 1].copy(), "gate_seed": gi[:, 2].copy(),
+            "gate_pos": g[:, 0:2].copy(), "gate_vel": g[:, 2:4].copy(), "gate_resid": g[:, 6].copy(),
+            "gate_missed": gi[:, 0].copy(), "gate_obs": gi[:, 1].copy(), "gate_seed": gi[:, 3].copy(),
             "gate_pixel": pix,
-            "object_pair": np.int16(S[F.S_DEC]),
-            "decided_frame": np.int32(S[F.S_DEC_FRAME] if S[F.S_DEC] >= 0 else -1),
-            "decision_rule": np.int8(S[F.S_RULE]),
-            "n_decisions": np.int32(S[F.S_NDEC]), "n_reinit": np.int32(S[F.S_NREINIT]),
-            "n_spurious": np.int32(S[F.S_NSPURIOUS]), "n_lost": np.int32(S[F.S_NLOST]),
+            "object_pair": np.int16(sc[0]),
+            "decided_frame": np.int32(sc[1] if sc[0] >= 0 else -1),
+            "decision_rule": np.int8(sc[2]),
+            "n_decisions": np.int32(sc[3]), "n_reinit": np.int32(sc[4]),
+            "n_spurious": np.int32(sc[5]), "n_lost": np.int32(sc[6]),
             "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
-            "n_undecided_deleted": np.int32(S[F.S_NSTALE]),
-            "ekf_running": np.int8(run), "ekf_x": e[:6], "ekf_p_diag": e[6:12],
-            "ekf_t": float(e[12]),
+            "n_undecided_deleted": np.int32(sc[7]),
+            "ekf_running": np.int8(run), "ekf_x": e[E_X:E_X + 6], "ekf_p_diag": e[E_P + np.diag(UT)],
+            "ekf_t": float(e[E_T]),
             "opp_alive": np.int8(oa), "opp_pos": opp[:2], "opp_vel": opp[2:],
-            "opp_missed": np.int16(S[F.S_OPP_MISS]),
-            "status": np.int32(S[F.S_STATUS]), "mode": self._mode,
+            "opp_missed": np.int16(sc[8]),
+            "status": np.int32(sc[9]), "mode": self._mode,
             "imager": self._img_names[int(S[F.S_IMG])],
         }
