@@ -40,7 +40,7 @@ from flightsw.tp.ekf import E_P, E_RUN, UT
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome)
-from .recording import Recorder, Recording
+from .recording import Recorder, Recording, row_dtype
 from .replay import ReplayEvent, replay_config
 from .run_folder import RunFolder
 
@@ -129,7 +129,7 @@ class EventWriter:
         self.ev = event
         self.record_frames = record_frames
         self.kill_at = kill_at
-        self._snap_kinds: dict = {}
+        self._tp = _TPRows()
         self._ledger_names: dict = {}
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
@@ -220,10 +220,9 @@ class EventWriter:
             for name in ("hip", "row", "col", "mag"):
                 st[name] = stars[name]
             r.append_rows("stars", st)
-        snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
-        if snap:
-            snap["ekf_p_pos"] = _ekf_position_cov(self.ev.tp)
-            r.append("tp", snap, per_frame=True)
+        tp_row = self._tp.row(self.ev.tp, o.k)
+        if tp_row is not None:
+            r.append_values("tp", tp_row, self._tp.dtype, per_frame=True)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
         if self.record_frames:
@@ -245,24 +244,42 @@ def _ekf_position_cov(tp) -> np.ndarray:
     return decode48_array(e[E_P + UT[:3, :3]])
 
 
-def _snapshot_row(tp, k, kinds: dict) -> dict:
-    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays); ``kinds`` caches
-    how each key is stored ("s" string, "v" value, "x" left out) across frames."""
-    snap = getattr(tp, "snapshot", None)
-    if snap is None:
-        return {}
-    row = {"k": np.int32(k)}
-    for key, v in snap().items():
-        kind = kinds.get(key)
-        if kind is None:
+class _TPRows:
+    """Rows of ``tables/tp``: ``k``, the TP's snapshot flattened to fixed-size fields (scalars and
+    small arrays; strings cut to 64 characters; structured values left out) and ``ekf_p_pos``.
+    The fields and the dtype are fixed by the first snapshot."""
+
+    def __init__(self):
+        self.fields = None            # [(key, is_string)] of the snapshot's stored keys
+        self.n_keys = 0
+        self.dtype = None
+
+    def _layout(self, snap: dict, k: int, ekf: np.ndarray) -> None:
+        row, self.fields = {"k": np.int32(k)}, []
+        for key, v in snap.items():
             a = np.asarray(v)
-            kind = kinds[key] = "s" if a.dtype.kind in "US" or a.dtype == object else \
-                "x" if a.dtype.names is not None else "v"
-        if kind == "v":
-            row[key] = v
-        elif kind == "s":
-            row[key] = str(v)[:64]
-    return row
+            if a.dtype.names is not None:
+                continue
+            string = a.dtype.kind in "US" or a.dtype == object
+            self.fields.append((key, string))
+            row[key] = str(v)[:64] if string else v
+        row["ekf_p_pos"] = ekf
+        self.n_keys, self.dtype = len(snap), row_dtype(row)
+
+    def row(self, tp, k: int) -> tuple | None:
+        """The frame's row as a tuple in :attr:`dtype`'s order (None: a TP without snapshots)."""
+        snap = getattr(tp, "snapshot", None)
+        if snap is None:
+            return None
+        snap = snap()
+        ekf = _ekf_position_cov(tp)
+        if self.fields is None:
+            self._layout(snap, k, ekf)
+        elif len(snap) != self.n_keys:
+            raise ValueError(f"table 'tp': the TP snapshot's fields changed ({len(snap)} keys, "
+                             f"{self.n_keys} before)")
+        return (k, *[str(snap[key])[:64].encode() if string else snap[key]
+                     for key, string in self.fields], ekf)
 
 
 # ================================================================================================

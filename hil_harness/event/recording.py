@@ -75,7 +75,7 @@ def _attr_value(v):
     return json.dumps(v, default=_json_default) if isinstance(v, (dict, list, tuple)) else v
 
 
-def _row_dtype(row: dict) -> np.dtype:
+def row_dtype(row: dict) -> np.dtype:
     """The compound dtype of one row (strings fixed at 64 bytes, so the layout stays put)."""
     fields = []
     for k, v in row.items():
@@ -212,7 +212,7 @@ class Recorder:
     def _dict_row(self, key: str, row: dict, per_frame: bool, what: str) -> None:
         b = self._buf(key, per_frame)
         if b.keys is None:
-            dtype = _row_dtype(row)
+            dtype = row_dtype(row)
             b.start(dtype, (), self.flush_every)
             b.keys = tuple(row)
             b.strings = tuple(i for i, name in enumerate(dtype.names) if dtype[name].kind == "S")
