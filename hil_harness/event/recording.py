@@ -196,7 +196,7 @@ class Recorder:
         # not in the middle of the event's first block
         adler32_rows(np.zeros((1, 1), np.uint8))
         self._bufs: dict[str, _Buffer] = {}
-        self._ds: dict[str, list] = {}        # key -> [dataset, checksum id, rows written]
+        self._ds: dict[str, list] = {}        # key -> [AppendableDataset, checksum id]
         self._sums = None                     # the /checksums dataset
         self.frames = 0               # end_frame() calls
         self.frames_written = 0       # frames on disk
