@@ -345,13 +345,12 @@ class TrackProcessor:
         g = decode32_array(G[:, F.G_A:F.G_RES + 1])
         g[dead] = np.nan
         pix = np.full((F.NG, 2), np.nan)
-        live = np.flatnonzero(alive)
-        if len(live):
-            v = np.ones((len(live), 3))
-            v[:, 1:] = g[live, :2]
-            out = np.empty((len(live), 2))
-            directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, out)
-            pix[live] = out
+        live = np.flatnonzero(alive)       # (none: the kernel still runs, on no rows, so that
+        v = np.ones((len(live), 3))        # a first snapshot loads it before any gate exists)
+        v[:, 1:] = g[live, :2]
+        out = np.empty((len(live), 2))
+        directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, out)
+        pix[live] = out
         run = bool(self.E[E_RUN])
         # x (6 words), P (packed), t: one decode of the words up to t
         e = decode48_array(self.E[:E_T + 1]) if run else np.full(E_T + 1, np.nan)
