@@ -89,7 +89,8 @@ def collect(json_file: Path) -> dict:
         entry = groups.setdefault(g, {"doc": _group_doc(b["fullname"], g), "rows": [],
                                       "module": b["fullname"].split("::")[0]})
         entry["rows"].append({"name": b["name"], "median_s": b["stats"]["median"],
-                              "rounds": b["stats"]["rounds"]})
+                              "mean_s": b["stats"]["mean"], "rounds": b["stats"]["rounds"],
+                              "extra": b.get("extra_info") or {}})
     return groups
 
 
@@ -115,6 +116,8 @@ def render(groups: dict, machine: str, when: str) -> str:
            "Ratio = peer median / our median (> 1: we are faster).", "",
            f"Machine: {machine}. Taken {when}.", ""]
     for g in sorted(groups):
+        if g.startswith(EVENT_PREFIX):
+            continue                          # rendered by event_markdown, below
         entry = groups[g]
         rows = sorted(entry["rows"], key=lambda r: r["median_s"])
         ours = [r for r in rows if "ours" in r["name"]]
@@ -131,6 +134,7 @@ def render(groups: dict, machine: str, when: str) -> str:
             ratio = _fmt_ratio(r["median_s"] / base) if base else "n/a"
             out.append(f"| {name} | {_fmt(r['median_s'])} | {ratio} |")
         out.append("")
+    out += event_markdown(groups)
     budget = []
     for module, func in BUDGET_PROVIDERS:
         try:
@@ -142,6 +146,70 @@ def render(groups: dict, machine: str, when: str) -> str:
                 "Cycles from the flight code's documented cost models, not host timings.", ""]
         out += [b.rstrip() + "\n" for b in budget]
     return "\n".join(out).rstrip() + "\n"
+
+
+#: groups of bench/bench_event.py, rendered as the event section (mean per frame, phases)
+EVENT_PREFIX = "event: "
+#: (phase key of bench.event_phases, row label) of the event wall-time table
+EVENT_PHASES = (("python_start", "Python start-up"), ("imports", "imports"),
+                ("cache_load", "numba cache load"), ("simulate", "simulate (the closed loop)"),
+                ("record", "record (open, every frame, close)"),
+                ("figures", "figures, viewer page, summary.json"),
+                ("other", "other (scenario and catalogue set-up, run folder, summary)"))
+
+
+def _row(entry: dict, name: str) -> dict | None:
+    return next((r for r in entry["rows"] if r["name"].startswith(name)), None)
+
+
+def event_markdown(groups: dict) -> list[str]:
+    """The event section: the recorded frame's mean beside the loop's median, and the wall-time
+    table of a warm ``uvisi event`` (rows' ``extra`` from bench/bench_event.py)."""
+    frame = groups.get(EVENT_PREFIX + "recorded closed-loop frame")
+    wall = groups.get(EVENT_PREFIX + "wall time of a warm uvisi event")
+    if not frame and not wall:
+        return []
+    out = ["## Event: a recorded frame, and the wall time of a warm `uvisi event`", ""]
+    doc = (frame or wall)["doc"]
+    if doc:
+        out += [doc, ""]
+    out += ["Command: `.venv/bin/python -m pytest bench/bench_event.py --benchmark-enable`", ""]
+    ours = _row(frame, "test_ours_recorded_frame") if frame else None
+    loop = _row(frame, "test_loop_frame_unrecorded") if frame else None
+    if ours:
+        x = ours["extra"]
+        out += ["| satellite_over_stars, one core | mean | median | real time (mean) |",
+                "| --- | ---: | ---: | ---: |",
+                f"| **recorded frame (loop + recorder)** | {_fmt(ours['mean_s'])} | "
+                f"{_fmt(ours['median_s'])} | {0.5 / ours['mean_s']:.0f}x |"]
+        if "loop_mean_us" in x:
+            out.append(f"| of which the loop | {_fmt(x['loop_mean_us'] * 1e-6)} | | |")
+            out.append(f"| of which the recorder | {_fmt(x['record_mean_us'] * 1e-6)} | | |")
+        if loop:
+            out.append(f"| loop alone, nothing recorded | {_fmt(loop['mean_s'])} | "
+                       f"{_fmt(loop['median_s'])} | {0.5 / loop['median_s']:.0f}x (median) |")
+        out.append("")
+    runs = {}
+    for r in (wall or {"rows": []})["rows"]:
+        runs["--no-figures" if "no_figures" in r["name"] else "with figures"] = r["extra"]
+    if runs:
+        cols = [c for c in ("with figures", "--no-figures") if c in runs]
+        out += ["Warm `uvisi event satellite_over_stars` in a fresh process, median of the timed "
+                "runs, seconds of wall time per phase (each moment counted once: cache loads inside "
+                "the other phases go to the cache-load row):", "",
+                "| phase | " + " | ".join(cols) + " |", "| --- |" + " ---: |" * len(cols)]
+        for key, label in EVENT_PHASES:
+            out.append(f"| {label} | " + " | ".join(f"{runs[c].get(key, 0.0):.3f}" for c in cols)
+                       + " |")
+        out.append("| **total wall** | " + " | ".join(f"**{runs[c].get('wall', 0.0):.3f}**"
+                                                     for c in cols) + " |")
+        x = runs[cols[0]]
+        if "loop_median_frame_us" in x:
+            out += ["", f"The timed runs' own `summary.json` (`host`, {cols[0]}): loop median "
+                        f"{x['loop_median_frame_us']:.0f} us a frame, recorder mean "
+                        f"{x['mean_record_us']:.0f} us a frame."]
+        out.append("")
+    return out
 
 
 def main(argv=None) -> int:

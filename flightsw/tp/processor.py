@@ -338,43 +338,46 @@ class TrackProcessor:
         """
         from flightsw.arith.m1750 import decode32_array, decode48_array
         from flightsw.tp.geometry import directions_to_pixels
-        G = self.G
+        G, S = self.G, self.S
         alive = G[:, F.G_ALIVE] != 0
-        pos = np.where(alive[:, None], decode32_array(G[:, [F.G_A, F.G_B]]), np.nan)
-        vel = np.where(alive[:, None], decode32_array(G[:, [F.G_VA, F.G_VB]]), np.nan)
-        res = np.where(alive, decode32_array(G[:, F.G_RES]), np.nan)
-        img = self.IMG[int(self.S[F.S_IMG])]
+        dead = ~alive
+        # one decode for the gate columns a, b, va, vb, (dva, dvb,) residual; NaN where no gate lives
+        g = decode32_array(G[:, F.G_A:F.G_RES + 1])
+        g[dead] = np.nan
         pix = np.full((F.NG, 2), np.nan)
-        if alive.any():
-            v = np.column_stack([np.ones(F.NG), np.nan_to_num(pos)])
-            directions_to_pixels(img, v, pix)
-            pix[~alive] = np.nan
+        live = np.flatnonzero(alive)       # (none: the kernel still runs, on no rows, so that
+        v = np.ones((len(live), 3))        # a first snapshot loads it before any gate exists)
+        v[:, 1:] = g[live, :2]
+        out = np.empty((len(live), 2))
+        directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, out)
+        pix[live] = out
         run = bool(self.E[E_RUN])
-        ex = decode48_array(self.E[E_X:E_X + 6]) if run else np.full(6, np.nan)
-        ep = decode48_array(self.E[E_P + np.diag(UT)]) if run else np.full(6, np.nan)
-        S = self.S
+        # x (6 words), P (packed), t: one decode of the words up to t
+        e = decode48_array(self.E[:E_T + 1]) if run else np.full(E_T + 1, np.nan)
         oa = bool(S[F.S_OPP_ALIVE])
+        opp = decode32_array(S[[F.S_OPP_X, F.S_OPP_X + 1, F.S_OPP_V, F.S_OPP_V + 1]]) if oa else \
+            np.full(4, np.nan)
+        gi = G[:, F.G_MISS:F.G_SEED + 1].astype(np.int16)      # missed, obs, hits, seed
+        gi[dead] = (0, -1, 0, -1)
+        sc = S[[F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS, F.S_NLOST,
+                F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS]]
         return {
             "gate_alive": alive.astype(np.int8),
             "gate_kind": (np.arange(F.NG) & 1).astype(np.int8),
-            "gate_pos": pos, "gate_vel": vel, "gate_resid": res,
-            "gate_missed": np.where(alive, G[:, F.G_MISS], 0).astype(np.int16),
-            "gate_obs": np.where(alive, G[:, F.G_OBS], -1).astype(np.int16),
-            "gate_seed": np.where(alive, G[:, F.G_SEED], -1).astype(np.int16),
+            "gate_pos": g[:, 0:2].copy(), "gate_vel": g[:, 2:4].copy(), "gate_resid": g[:, 6].copy(),
+            "gate_missed": gi[:, 0].copy(), "gate_obs": gi[:, 1].copy(), "gate_seed": gi[:, 3].copy(),
             "gate_pixel": pix,
-            "object_pair": np.int16(S[F.S_DEC]),
-            "decided_frame": np.int32(S[F.S_DEC_FRAME] if S[F.S_DEC] >= 0 else -1),
-            "decision_rule": np.int8(S[F.S_RULE]),
-            "n_decisions": np.int32(S[F.S_NDEC]), "n_reinit": np.int32(S[F.S_NREINIT]),
-            "n_spurious": np.int32(S[F.S_NSPURIOUS]), "n_lost": np.int32(S[F.S_NLOST]),
+            "object_pair": np.int16(sc[0]),
+            "decided_frame": np.int32(sc[1] if sc[0] >= 0 else -1),
+            "decision_rule": np.int8(sc[2]),
+            "n_decisions": np.int32(sc[3]), "n_reinit": np.int32(sc[4]),
+            "n_spurious": np.int32(sc[5]), "n_lost": np.int32(sc[6]),
             "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
-            "n_undecided_deleted": np.int32(S[F.S_NSTALE]),
-            "ekf_running": np.int8(run), "ekf_x": ex, "ekf_p_diag": ep,
-            "ekf_t": float(decode48_array(self.E[E_T:E_T + 1])[0]) if run else math.nan,
-            "opp_alive": np.int8(oa),
-            "opp_pos": decode32_array(S[F.S_OPP_X:F.S_OPP_X + 2]) if oa else np.full(2, np.nan),
-            "opp_vel": decode32_array(S[F.S_OPP_V:F.S_OPP_V + 2]) if oa else np.full(2, np.nan),
-            "opp_missed": np.int16(S[F.S_OPP_MISS]),
-            "status": np.int32(S[F.S_STATUS]), "mode": self._mode,
+            "n_undecided_deleted": np.int32(sc[7]),
+            "ekf_running": np.int8(run), "ekf_x": e[E_X:E_X + 6], "ekf_p_diag": e[E_P + np.diag(UT)],
+            "ekf_t": float(e[E_T]),
+            "opp_alive": np.int8(oa), "opp_pos": opp[:2], "opp_vel": opp[2:],
+            "opp_missed": np.int16(sc[8]),
+            "status": np.int32(sc[9]), "mode": self._mode,
             "imager": self._img_names[int(S[F.S_IMG])],
         }

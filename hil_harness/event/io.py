@@ -33,12 +33,14 @@ from pathlib import Path
 
 import numpy as np
 
+from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
 from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
+from flightsw.tp.ekf import E_P, E_RUN, UT
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome)
-from .recording import Recorder, Recording
+from .recording import Recorder, Recording, row_dtype
 from .replay import ReplayEvent, replay_config
 from .run_folder import RunFolder
 
@@ -48,6 +50,31 @@ STARS_DTYPE = np.dtype([("k", np.int32), ("hip", np.int32), ("row", np.float32),
                         ("col", np.float32), ("mag", np.float32)])
 #: tables/ledger: one row per (frame, processor, stage)
 LEDGER_DTYPE = np.dtype([("k", np.int32), ("processor", "S64"), ("stage", "S64"), ("cycles", np.int64)])
+#: tables/frames: one row per frame (the track command's fields: NaN / -1 without a command)
+FRAMES_DTYPE = np.dtype([
+    ("k", np.int32), ("t", np.float64), ("imager", np.int8), ("skip", np.int8),
+    ("n_candidates", np.int16), ("n_blobs", np.int32), ("alpha", np.float64),
+    ("msg_len", np.int16), ("cmd_len", np.int16), ("pred_row", np.float64),
+    ("pred_col", np.float64), ("track_row", np.float64), ("track_col", np.float64),
+    ("error_urad", np.float64), ("overrun", np.int8), ("att_valid", np.int8),
+    ("dsp_cycles", np.int64), ("ip1750_cycles", np.int64), ("tp1750_cycles", np.int64),
+    ("locked", np.int8), ("status", np.int32), ("n_star_gates", np.int16),
+    ("n_object_gates", np.int16), ("q_point", np.float64, (4,))])
+#: tables/attitude: the AttitudeData handed to the TP
+ATTITUDE_DTYPE = np.dtype([("k", np.int32), ("t", np.float64), ("q", np.float64, (4,)),
+                           ("rate", np.float64, (3,)), ("r", np.float64, (3,)),
+                           ("v", np.float64, (3,)), ("valid", np.int8)])
+#: tables/truth: the target's truth and the imager attitude
+TRUTH_DTYPE = np.dtype([("k", np.int32), ("t", np.float64), ("row", np.float64),
+                        ("col", np.float64), ("in_field", np.int8), ("los_eci", np.float64, (3,)),
+                        ("range_m", np.float64), ("q_imager_to_eci", np.float64, (4,)),
+                        ("n_stars", np.int32)])
+_NAN3, _NAN4 = np.full(3, np.nan), np.full(4, np.nan)
+#: tables/candidates: one row per reported candidate, the message's fields after the frame and rank
+CANDIDATE_ROW_DTYPE = np.dtype([("k", np.int32), ("rank", np.int16)] + CANDIDATE_DTYPE.descr)
+_CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
+#: host/timing: the loop's stages whose wall time (us) is recorded per frame
+_HOST_STAGES = ("render", "ip", "tp", "world", "total")
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -92,17 +119,6 @@ def _f(x) -> float:
         return float("nan")
 
 
-def _cmd_fields(cmd) -> dict:
-    """The track command's scalars for the frames table (NaN / -1 when there is no command)."""
-    if cmd is None:
-        return {"locked": np.int8(-1), "status": np.int32(-1), "n_star_gates": np.int16(-1),
-                "n_object_gates": np.int16(-1), "q_point": np.full(4, np.nan)}
-    q = np.asarray(getattr(cmd, "q_point", np.full(4, np.nan)), float)
-    return {"locked": np.int8(bool(cmd.locked)), "status": np.int32(int(getattr(cmd, "status", 0))),
-            "n_star_gates": np.int16(int(getattr(cmd, "n_star_gates", 0))),
-            "n_object_gates": np.int16(int(getattr(cmd, "n_object_gates", 0))), "q_point": q}
-
-
 class EventWriter:
     """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
     ``on_frame`` hook)."""
@@ -113,10 +129,16 @@ class EventWriter:
         self.ev = event
         self.record_frames = record_frames
         self.kill_at = kill_at
-        self._snap_kinds: dict = {}
+        self._tp = _TPRows()
+        self._ledger_names: dict = {}
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
+        # the TP snapshot's decoding kernels load from numba's cache now, with the recording's
+        # opening (a one-time start-up cost, ~5 ms), not inside the event's first frame
+        snap = getattr(getattr(event, "tp", None), "snapshot", None)
+        if snap is not None:
+            snap()
 
     @property
     def mean_record_us(self) -> float | None:
@@ -132,54 +154,62 @@ class EventWriter:
         if self.kill_at is not None and o.k == self.kill_at:
             os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
 
+    def _ledger_rows(self, k: int, stages: dict) -> np.ndarray | None:
+        """The frame's ledger (``{processor: {stage: cycles}}``) as ``LEDGER_DTYPE`` rows
+        (processor, stage in charge order)."""
+        keys, cycles = [], []
+        for p, st in stages.items():
+            keys += [(p, s) for s in st]
+            cycles += st.values()
+        if not keys:
+            return None
+        names = self._ledger_names.get(tuple(keys))
+        if names is None:       # the (processor, stage) columns, encoded once per distinct list
+            names = np.zeros(len(keys), LEDGER_DTYPE)
+            names["processor"] = [p.encode() for p, _ in keys]
+            names["stage"] = [s.encode() for _, s in keys]
+            self._ledger_names[tuple(keys)] = names
+        out = names.copy()
+        out["k"] = k
+        out["cycles"] = cycles
+        return out
+
     def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
-        cyc = {p: (L.cycles(p) if L is not None else 0) for p in (DSP, IP1750, TP1750)}
-        row = {"k": np.int32(o.k), "t": np.float64(o.t), "imager": np.int8(IMAGER_CODES[o.imager]),
-               "skip": np.int8(o.skip),
-               "n_candidates": np.int16(o.message.count if o.message is not None else -1),
-               "n_blobs": np.int32(o.n_blobs), "alpha": np.float64(o.alpha),
-               "msg_len": np.int16(0 if o.message_words is None else len(o.message_words)),
-               "cmd_len": np.int16(0 if o.command_words is None else len(o.command_words)),
-               "pred_row": np.float64(o.pred_row), "pred_col": np.float64(o.pred_col),
-               "track_row": np.float64(o.track_row), "track_col": np.float64(o.track_col),
-               "error_urad": np.float64(o.error_urad), "overrun": np.int8(o.overrun),
-               "att_valid": np.int8(bool(getattr(o.attitude, "valid", True))),
-               "dsp_cycles": np.int64(cyc[DSP]), "ip1750_cycles": np.int64(cyc[IP1750]),
-               "tp1750_cycles": np.int64(cyc[TP1750])}
-        row.update(_cmd_fields(o.command))
-        r.append("frames", row, per_frame=True)
-        a = o.attitude
-        r.append("attitude", {"k": np.int32(o.k), "t": np.float64(a.t),
-                              "q": np.asarray(a.q_body_to_eci, np.float64),
-                              "rate": np.asarray(a.rate_body, np.float64),
-                              "r": np.asarray(a.r_eci, np.float64), "v": np.asarray(a.v_eci, np.float64),
-                              "valid": np.int8(bool(a.valid))}, per_frame=True)
-        tg = (o.truth or {}).get("target") or {}
-        r.append("truth", {"k": np.int32(o.k), "t": np.float64(o.t),
-                           "row": np.float64(_f(tg.get("row"))), "col": np.float64(_f(tg.get("col"))),
-                           "in_field": np.int8(bool(tg.get("in_field", False))),
-                           "los_eci": np.asarray(tg.get("los_eci", np.full(3, np.nan)), np.float64),
-                           "range_m": np.float64(_f(tg.get("range_m"))),
-                           "q_imager_to_eci": np.asarray((o.truth or {}).get("q_imager_to_eci",
-                                                                             np.full(4, np.nan)),
-                                                         np.float64),
-                           "n_stars": np.int32(len((o.truth or {}).get("stars", ())))},
-                 per_frame=True)
+        stages = {p: L.stages(p) for p in L.processors} if L is not None else {}
+        cyc = [sum(stages[p].values()) if p in stages else 0 for p in (DSP, IP1750, TP1750)]
+        msg, cmd, a = o.message, o.command, o.attitude
+        if cmd is None:
+            c = (-1, -1, -1, -1, _NAN4)
+        else:
+            c = (bool(cmd.locked), int(getattr(cmd, "status", 0)),
+                 int(getattr(cmd, "n_star_gates", 0)), int(getattr(cmd, "n_object_gates", 0)),
+                 np.asarray(getattr(cmd, "q_point", _NAN4), float))
+        r.append_values("frames", (
+            o.k, o.t, IMAGER_CODES[o.imager], o.skip, msg.count if msg is not None else -1,
+            o.n_blobs, o.alpha, 0 if o.message_words is None else len(o.message_words),
+            0 if o.command_words is None else len(o.command_words), o.pred_row, o.pred_col,
+            o.track_row, o.track_col, o.error_urad, o.overrun,
+            bool(getattr(a, "valid", True)), *cyc, *c), FRAMES_DTYPE, per_frame=True)
+        r.append_values("attitude", (o.k, a.t, a.q_body_to_eci, a.rate_body, a.r_eci, a.v_eci,
+                                     bool(a.valid)), ATTITUDE_DTYPE, per_frame=True)
+        truth = o.truth or {}
+        tg = truth.get("target") or {}
+        r.append_values("truth", (o.k, o.t, _f(tg.get("row")), _f(tg.get("col")),
+                                  bool(tg.get("in_field", False)), tg.get("los_eci", _NAN3),
+                                  _f(tg.get("range_m")), truth.get("q_imager_to_eci", _NAN4),
+                                  len(truth.get("stars", ()))), TRUTH_DTYPE, per_frame=True)
         if o.message is not None and o.message.count:
             c = o.message.candidates
-            rows = np.zeros(len(c), np.dtype([("k", np.int32), ("rank", np.int16)] +
-                                             CANDIDATE_DTYPE.descr))
+            rows = np.empty(len(c), CANDIDATE_ROW_DTYPE)
             rows["k"] = o.k
             rows["rank"] = np.arange(1, len(c) + 1)
-            for n in CANDIDATE_DTYPE.names:
-                rows[n] = c[n]
+            rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
             r.append_rows("candidates", rows)
         if L is not None:
-            led = [(o.k, p.encode(), s.encode(), cy) for p in L.processors
-                   for s, cy in L.stages(p).items()]
-            if led:
-                r.append_rows("ledger", np.array(led, LEDGER_DTYPE))
+            led = self._ledger_rows(o.k, stages)
+            if led is not None:
+                r.append_rows("ledger", led)
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
@@ -190,10 +220,9 @@ class EventWriter:
             for name in ("hip", "row", "col", "mag"):
                 st[name] = stars[name]
             r.append_rows("stars", st)
-        snap = _snapshot_row(self.ev.tp, o.k, self._snap_kinds)
-        if snap:
-            snap["ekf_p_pos"] = _ekf_position_cov(self.ev.tp)
-            r.append("tp", snap)
+        tp_row = self._tp.row(self.ev.tp, o.k)
+        if tp_row is not None:
+            r.append_values("tp", tp_row, self._tp.dtype, per_frame=True)
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
         if self.record_frames:
@@ -202,39 +231,55 @@ class EventWriter:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
-        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(o.host_us.get(k, np.nan))
-                                       for k in ("render", "ip", "tp", "world", "total")}})
+        h = o.host_us
+        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(h.get(k, np.nan)) for k in _HOST_STAGES}})
 
 
 def _ekf_position_cov(tp) -> np.ndarray:
     """The TP's EKF position covariance (3, 3), m^2, decoded from its 1750A words (NaN when the
     EKF does not run): the snapshot keeps its diagonal only, the viewer draws the ellipse."""
-    from flightsw.arith.m1750 import decode48_array
-    from flightsw.tp.ekf import E_P, E_RUN, UT
     e = getattr(tp, "E", None)
     if e is None or not e[E_RUN]:
         return np.full((3, 3), np.nan)
     return decode48_array(e[E_P + UT[:3, :3]])
 
 
-def _snapshot_row(tp, k, kinds: dict) -> dict:
-    """The TP's snapshot flattened to fixed-size fields (scalars and small arrays); ``kinds`` caches
-    how each key is stored ("s" string, "v" value, "x" left out) across frames."""
-    snap = getattr(tp, "snapshot", None)
-    if snap is None:
-        return {}
-    row = {"k": np.int32(k)}
-    for key, v in snap().items():
-        kind = kinds.get(key)
-        if kind is None:
+class _TPRows:
+    """Rows of ``tables/tp``: ``k``, the TP's snapshot flattened to fixed-size fields (scalars and
+    small arrays; strings cut to 64 characters; structured values left out) and ``ekf_p_pos``.
+    The fields and the dtype are fixed by the first snapshot."""
+
+    def __init__(self):
+        self.fields = None            # [(key, is_string)] of the snapshot's stored keys
+        self.n_keys = 0
+        self.dtype = None
+
+    def _layout(self, snap: dict, k: int, ekf: np.ndarray) -> None:
+        row, self.fields = {"k": np.int32(k)}, []
+        for key, v in snap.items():
             a = np.asarray(v)
-            kind = kinds[key] = "s" if a.dtype.kind in "US" or a.dtype == object else \
-                "x" if a.dtype.names is not None else "v"
-        if kind == "v":
-            row[key] = v
-        elif kind == "s":
-            row[key] = str(v)[:64]
-    return row
+            if a.dtype.names is not None:
+                continue
+            string = a.dtype.kind in "US" or a.dtype == object
+            self.fields.append((key, string))
+            row[key] = str(v)[:64] if string else v
+        row["ekf_p_pos"] = ekf
+        self.n_keys, self.dtype = len(snap), row_dtype(row)
+
+    def row(self, tp, k: int) -> tuple | None:
+        """The frame's row as a tuple in :attr:`dtype`'s order (None: a TP without snapshots)."""
+        snap = getattr(tp, "snapshot", None)
+        if snap is None:
+            return None
+        snap = snap()
+        ekf = _ekf_position_cov(tp)
+        if self.fields is None:
+            self._layout(snap, k, ekf)
+        elif len(snap) != self.n_keys:
+            raise ValueError(f"table 'tp': the TP snapshot's fields changed ({len(snap)} keys, "
+                             f"{self.n_keys} before)")
+        return (k, *[str(snap[key])[:64].encode() if string else snap[key]
+                     for key, string in self.fields], ekf)
 
 
 # ================================================================================================

@@ -1,0 +1,105 @@
+"""The recorder's block writes: rows written straight into their chunks read back as h5py writes
+them (the oracle: numpy's own rows, and an h5py dataset written the ordinary way)."""
+import h5py
+import numpy as np
+import pytest
+
+from hil_harness.event.appendable import AppendableDataset
+from hil_harness.event.recording import Recorder, Recording
+
+ROW = np.dtype([("k", np.int32), ("name", "S64"), ("q", np.float64, (4,)), ("flag", np.int8),
+                ("grid", np.int16, (3, 2))])
+
+
+def _rows(n, seed=0):
+    rng = np.random.default_rng(seed)
+    out = np.zeros(n, ROW)
+    out["k"] = np.arange(n)
+    out["name"] = [f"row {i}".encode() * (i % 9) for i in range(n)]
+    out["q"] = rng.normal(size=(n, 4))
+    out["flag"] = rng.integers(-128, 128, n)
+    out["grid"] = rng.integers(-2 ** 15, 2 ** 15, (n, 3, 2))
+    return out
+
+
+@pytest.mark.parametrize("blocks", [[5, 5, 5], [5, 3, 2, 7, 5, 1], [12, 1], [2, 2, 2, 2, 2, 2, 2]])
+def test_blocks_read_back_as_written_whatever_their_alignment(tmp_path, blocks):
+    rows = _rows(sum(blocks))
+    with h5py.File(tmp_path / "b.h5", "w", libver="latest", rdcc_nbytes=0) as f:
+        ours = AppendableDataset(f, "t", ROW, (), chunk_rows=5)
+        plain = f.create_dataset("plain", data=rows)          # h5py's own write: the oracle
+        n = 0
+        for m in blocks:
+            ours.append(rows[n:n + m])
+            n += m
+        assert ours.rows == n and ours.ds.shape == (n,)
+        got = ours.ds[()]
+        assert got.dtype == plain.dtype
+        assert got.tobytes() == rows.tobytes() == plain[()].tobytes()
+
+
+def test_arrays_and_a_compressed_dataset_read_back(tmp_path):
+    frames = np.random.default_rng(1).integers(0, 4096, (7, 24, 16)).astype(np.uint16)
+    with h5py.File(tmp_path / "a.h5", "w", libver="latest") as f:
+        raw = AppendableDataset(f, "raw", np.uint16, (24, 16), chunk_rows=1)
+        gz = AppendableDataset(f, "gz", np.uint16, (24, 16), chunk_rows=2, compression="gzip")
+        for i0, i1 in ((0, 3), (3, 4), (4, 7)):
+            raw.append(frames[i0:i1])
+            gz.append(frames[i0:i1])
+        np.testing.assert_array_equal(raw.ds[()], frames)
+        np.testing.assert_array_equal(gz.ds[()], frames)
+        assert gz.ds.compression == "gzip"
+        with pytest.raises(ValueError, match="layout changed"):
+            raw.append(frames[:1, :12])
+
+
+def test_a_padded_layout_reads_back(tmp_path):
+    """An aligned dtype (padding bytes between fields) written as raw chunks reads back field by
+    field: the file type keeps numpy's offsets."""
+    dt = np.dtype([("a", np.int8), ("b", np.float64)], align=True)
+    rows = np.zeros(6, dt)
+    rows["a"], rows["b"] = np.arange(6), np.arange(6) / 3
+    with h5py.File(tmp_path / "p.h5", "w", libver="latest") as f:
+        ours = AppendableDataset(f, "t", dt, (), chunk_rows=3)
+        ours.append(rows[:3])
+        ours.append(rows[3:])
+        got = ours.ds[()]
+        np.testing.assert_array_equal(got["a"], rows["a"])
+        np.testing.assert_array_equal(got["b"], rows["b"])
+
+
+def test_a_recording_written_in_blocks_equals_its_rows(tmp_path):
+    """Dict rows, structured rows and arrays through the Recorder, blocks of 4 frames, 10 frames:
+    what Recording reads equals what went in, and verifies."""
+    rows = _rows(10, seed=2)
+    extra = _rows(23, seed=3)
+    path = tmp_path / "r.h5"
+    with Recorder(path, flush_every=4) as rec:
+        j = 0
+        for k in range(10):
+            r = rows[k]
+            rec.append("frames", {"k": r["k"], "name": r["name"].decode(), "q": r["q"],
+                                  "flag": r["flag"], "grid": r["grid"]}, per_frame=True)
+            rec.append_rows("extra", extra[j:j + k % 4])
+            j += k % 4
+            rec.append_array("img", np.full((3, 5), k, np.uint16), per_frame=True)
+            rec.end_frame()
+    with Recording(path) as got:
+        assert got.n_frames == 10 and got.verify()["frames"] == 10
+        assert got.table("frames").tobytes() == rows.tobytes()
+        assert got.table("extra").tobytes() == extra[:j].tobytes()
+        np.testing.assert_array_equal(got.array("img")[()][:, 0, 0], np.arange(10))
+        assert got.array("img").chunks == (4, 3, 5)
+
+
+def test_rows_as_value_tuples_equal_the_structured_rows(tmp_path):
+    rows = _rows(9, seed=4)
+    path = tmp_path / "v.h5"
+    with Recorder(path, flush_every=4) as rec:
+        for r in rows:
+            rec.append_values("t", tuple(r[n] for n in ROW.names), ROW, per_frame=True)
+            rec.end_frame()
+        with pytest.raises(ValueError, match="layout changed"):
+            rec.append_values("t", (1,), np.dtype([("k", np.int32)]))
+    with Recording(path) as got:
+        assert got.table("t").tobytes() == rows.tobytes() and got.verify()["frames"] == 9
