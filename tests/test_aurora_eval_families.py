@@ -30,7 +30,7 @@ FAMILIES = ["campaigns/aurora_train_events.toml", "campaigns/aurora_eval_events.
 def test_fresh_family_loads_and_is_disjoint(fresh):
     spec = _toml(FAMILIES[fresh])
     names = spec["axes"]["scenario"]
-    assert len(names) == (4 if fresh == 5 else 6) and spec["campaign"]["job"].endswith(":event")
+    assert len(names) == (5 if fresh == 5 else 6) and spec["campaign"]["job"].endswith(":event")
     for n in names:
         s = Scenario.load(n)
         assert s.target["type"] == "aurora" and s.imager == "wfov_uv"
