@@ -46,7 +46,7 @@ def test_fresh_family_loads_and_is_disjoint(fresh):
     assert not set(spec["campaign"]["seeds"]) & used
 
 
-@pytest.mark.parametrize("fresh", [2, 3])
+@pytest.mark.parametrize("fresh", [2, 3, 4])
 def test_fresh_tuneset_is_the_campaign(fresh):
     ev = _toml(FAMILIES[fresh])
     ts = _toml(f"campaigns/tuneset_aurora_eval{fresh}.toml")
