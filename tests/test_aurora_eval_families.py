@@ -1,7 +1,7 @@
-"""The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml and
-aurora_eval3_events.toml) and their tuning-set twins: the scenarios load, and they share no site,
-seed or scenario file with the training family or any other evaluation family; the tuned records'
-uplink words; the default aurora record."""
+"""The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml, aurora_eval3_events.toml,
+aurora_eval4_events.toml), the second training family (aurora_train2_events.toml) and the tuning-set
+twins: the scenarios load, and they share no site, seed or scenario file with the training family or
+any other family; the tuned records' uplink words; the default aurora record."""
 import tomllib
 from pathlib import Path
 
@@ -22,14 +22,15 @@ def _site(name):
 
 
 FAMILIES = ["campaigns/aurora_train_events.toml", "campaigns/aurora_eval_events.toml",
-            "campaigns/aurora_eval2_events.toml", "campaigns/aurora_eval3_events.toml"]
+            "campaigns/aurora_eval2_events.toml", "campaigns/aurora_eval3_events.toml",
+            "campaigns/aurora_eval4_events.toml", "campaigns/aurora_train2_events.toml"]
 
 
-@pytest.mark.parametrize("fresh", [2, 3])
+@pytest.mark.parametrize("fresh", [2, 3, 4, 5])
 def test_fresh_family_loads_and_is_disjoint(fresh):
     spec = _toml(FAMILIES[fresh])
     names = spec["axes"]["scenario"]
-    assert len(names) == 6 and spec["campaign"]["job"].endswith(":event")
+    assert len(names) == (5 if fresh == 5 else 6) and spec["campaign"]["job"].endswith(":event")
     for n in names:
         s = Scenario.load(n)
         assert s.target["type"] == "aurora" and s.imager == "wfov_uv"
@@ -45,7 +46,7 @@ def test_fresh_family_loads_and_is_disjoint(fresh):
     assert not set(spec["campaign"]["seeds"]) & used
 
 
-@pytest.mark.parametrize("fresh", [2, 3])
+@pytest.mark.parametrize("fresh", [2, 3, 4])
 def test_fresh_tuneset_is_the_campaign(fresh):
     ev = _toml(FAMILIES[fresh])
     ts = _toml(f"campaigns/tuneset_aurora_eval{fresh}.toml")
