@@ -36,6 +36,7 @@ from flightsw.tp.command import command, end_frame, filter_outputs
 from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, propagate_gates,
                                smooth_gates)
 from flightsw.tp.geometry import observations
+from flightsw.tp.memory import float_views, int_views
 from flightsw.tp.layout import (STAGES, begin_frame, evidence, has_nominal, long_gap,
                                 message_header, n_used, opportunity_mode, work_views)
 from flightsw.tp.opportunity import track_opportunity
@@ -44,7 +45,7 @@ from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, repor
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
 
-__all__ = ["tp_frame", "STAGES"]
+__all__ = ["tp_frame", "run_frame", "STAGES"]
 
 
 @njit(cache=True)
@@ -101,3 +102,18 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
     command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc)
     filter_outputs(E, V, out, cyc)
     return end_frame(S, G, V, out, opportunity)
+
+
+@njit(cache=True)
+def run_frame(MEM, FIO):
+    """:func:`tp_frame` over the TP's two buffers (:mod:`flightsw.tp.memory`: int64 words ``MEM``,
+    float64 inputs and outputs ``FIO``) -> status bits: the processor's one call a frame.
+
+    Cases
+    -----
+    typical : the arrays are the buffers' views; the frame's status, words and outputs are
+        :func:`tp_frame`'s on those arrays.
+    """
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(MEM)
+    hdr, att, rows, cols, out = float_views(FIO)
+    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)

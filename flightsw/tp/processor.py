@@ -1,7 +1,8 @@
 """The MSX track processor (TP) as a flight module: ``reset()`` and ``step(message, attitude)``.
 
-The object owns the TP's memory (packed 1750A words in small int64 arrays), turns its inputs into
-the kernel's arguments, runs :func:`flightsw.tp.frame.tp_frame` once per frame, charges the emulated
+The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
+buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
+arguments, runs :func:`flightsw.tp.frame.run_frame` once per frame, charges the emulated
 cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
 :data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
@@ -32,9 +33,10 @@ from flightsw.tp.layout import (
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
-from flightsw.tp.frame import tp_frame
+from flightsw.tp.frame import run_frame
+from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
 __all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
@@ -98,38 +100,27 @@ class TrackProcessor:
         self.config = cfg = config
         self._img_names = [k for k in _IMAGER_ORDER if k in cfg.imagers]
         self._img_index = {k: i for i, k in enumerate(self._img_names)}
-        self.IMG = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
+        self.MEM, self.FIO = new_memory(len(self._img_names))
+        views = host_views(self.MEM, self.FIO)
+        (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS, self.PW,
+         self.W, self.V, self.cyc) = (views[k] for k in ("C", "D", "K", "IMG", "S", "G", "N", "E",
+                                                         "OBS", "PW", "W", "V", "cyc"))
+        self.hdr, self.att, self.rows, self.cols, self.out = (
+            views[k] for k in ("hdr", "att", "rows", "cols", "out"))   # rows/cols: centroids
+        self.IMG[:] = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
         nom = cfg.nominal if cfg.mode == "dedicated" else None
         self._nominal = nom
-        self.D = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
-                           0.0 if nom is None else nom.t0)
-        self.K = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma, cfg.ekf_sigma_pos0,
-                            cfg.ekf_sigma_vel0)
-        self.C = self._constants(cfg, nom)
-        self.S = np.zeros(F.S_WORDS, np.int64)
-        self.G = np.zeros((F.NG, F.GC), np.int64)
-        self.N = np.zeros(F.N_WORDS, np.int64)
-        self.E = np.zeros(E_WORDS, np.int64)
-        self.OBS = np.zeros((F.MAX_OBS, F.OBS_C), np.int64)
-        self.PW = np.zeros((F.NG * F.MAX_OBS, 3), np.int64)
-        self.W = np.zeros(F.W_WORDS, np.int64)
-        self.V = np.zeros(F.V_WORDS, np.int64)
-        self.hdr = np.zeros(F.H_WORDS)
-        self.out = np.zeros(F.O_WORDS)
-        self.cyc = np.zeros(len(F.STAGES), np.int64)
-        self.att = np.zeros(16)
-        self.rows = np.zeros(F.MAX_OBS)           # the message's centroids (one kernel signature)
-        self.cols = np.zeros(F.MAX_OBS)
+        self.D[:] = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
+                              0.0 if nom is None else nom.t0)
+        self.K[:] = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma,
+                               cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
+        self.C[:] = self._constants(cfg, nom)
         self.last_error = ""
         self._cand_dtype = None                   # the last candidate dtype found to have row, col
         self.last_cycles: dict = {}
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
-        # the kernel's arguments, gathered once: every array is updated in place from here on
-        self._kernel_args = (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
-                             self.OBS, self.PW, self.W, self.V, self.hdr, self.att, self.rows,
-                             self.cols, self.out, self.cyc)
         self.reset()
 
     @staticmethod
@@ -241,7 +232,7 @@ class TrackProcessor:
         if msg is None or not self._read_message(msg):
             self.hdr.fill(0.0)                    # unusable: the kernel coasts
         self._read_attitude(attitude)
-        status = tp_frame(*self._kernel_args)
+        status = run_frame(self.MEM, self.FIO)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
