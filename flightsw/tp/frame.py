@@ -21,10 +21,11 @@ clocks to its counter in ``cyc`` (:data:`STAGES`); the processor charges them to
 ledger on ``"tp1750"``.
 
 Editing a stage: numba's cache keys each compiled function on its own source file only, so after
-changing a stage module (or the 1750A arithmetic) the cached :func:`tp_frame` still runs the old
-code until ``frame.py`` changes too (its content: numba keys the cache on a hash of the source,
-so touching the file does not help). Clear the cache (``find flightsw -name '*.nb[ic]' -delete``,
-or an empty ``NUMBA_CACHE_DIR``) before trusting the behaviour fixture after such an edit.
+changing a stage module (or the 1750A arithmetic) the cached :func:`run_frame` and
+:func:`tp_frame` still run the old code until ``frame.py`` changes too (its content: numba keys
+the cache on a hash of the source, so touching the file does not help). Clear the cache
+(``find flightsw -name '*.nb[ic]' -delete``, or an empty ``NUMBA_CACHE_DIR``) before trusting the
+behaviour fixture after such an edit.
 """
 from __future__ import annotations
 
