@@ -37,9 +37,9 @@ from flightsw.tp.command import command, end_frame, filter_outputs
 from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, propagate_gates,
                                smooth_gates)
 from flightsw.tp.geometry import observations
-from flightsw.tp.memory import float_views, int_views
 from flightsw.tp.layout import (STAGES, begin_frame, evidence, has_nominal, long_gap,
                                 message_header, n_used, opportunity_mode, work_views)
+from flightsw.tp.memory import float_views, int_views
 from flightsw.tp.opportunity import track_opportunity
 from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, report_object,
                                verify_object)
