@@ -411,8 +411,40 @@ def test_to48_to32():
 # ------------------------------------------------------------------------------------------------
 # encoders and decoders
 # ------------------------------------------------------------------------------------------------
+def _enc_oracle(x, W, nearest):
+    """enc_mantissa from exact rationals: frexp's exponent, the scaled value floored or rounded
+    half to even (Python's round of a Fraction), then the carry and minus-half rules."""
+    _, e = math.frexp(x)
+    v = Fraction(x) * P2 ** (W - e)
+    mi = round(v) if nearest else math.floor(v)
+    if mi >= 1 << W:
+        mi, e = mi >> 1, e + 1
+    if mi == -(1 << (W - 1)):
+        mi, e = -(1 << W), e - 1
+    return mi, e
+
+
 @pytest.mark.cases("flightsw.arith.m1750_float.enc_mantissa", "exact", "floor", "nearest",
-                   "nearest-tie-even", "round-up-carry", "minus-half")
+                   "nearest-tie-even", "round-up-carry", "minus-half", "subnormal")
+def test_enc_mantissa_against_exact_rationals():
+    """Random doubles of every magnitude and sign, the half-unit ties and their neighbours of
+    both widths, powers of two and subnormals, against :func:`_enc_oracle`."""
+    rng = np.random.default_rng(7)
+    xs = list(rng.standard_normal(1500) * 10.0 ** rng.integers(-300, 300, 1500))
+    xs += [math.ldexp(float(k), int(s)) for k, s in zip(rng.integers(1, 2 ** 53, 300),
+                                                       rng.integers(-1100, 900, 300))]
+    for W in (23, 39):
+        for k in range(1, 64):                       # ties: half a unit of 24 / 40 bits
+            t = math.ldexp(float((1 << W) + 2 * k + 1), -W - 1) * (1 + (k % 3))
+            xs += [t, math.nextafter(t, 0.0), math.nextafter(t, math.inf)]
+    xs += [2.0 ** k for k in range(-1070, 1020, 37)] + [5e-324, 2.2e-308, 1e-310, 2.0 ** -1074]
+    xs += [-x for x in xs]
+    for W in (23, 39):
+        for nearest in (False, True):
+            for x in xs:
+                assert mf.enc_mantissa(x, W, nearest) == _enc_oracle(x, W, nearest), (x, W)
+
+
 def test_enc_mantissa():
     for W in (23, 39):
         def v(mi, e):

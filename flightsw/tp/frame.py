@@ -21,10 +21,11 @@ clocks to its counter in ``cyc`` (:data:`STAGES`); the processor charges them to
 ledger on ``"tp1750"``.
 
 Editing a stage: numba's cache keys each compiled function on its own source file only, so after
-changing a stage module (or the 1750A arithmetic) the cached :func:`tp_frame` still runs the old
-code until ``frame.py`` changes too (its content: numba keys the cache on a hash of the source,
-so touching the file does not help). Clear the cache (``find flightsw -name '*.nb[ic]' -delete``,
-or an empty ``NUMBA_CACHE_DIR``) before trusting the behaviour fixture after such an edit.
+changing a stage module (or the 1750A arithmetic) the cached :func:`run_frame` and
+:func:`tp_frame` still run the old code until ``frame.py`` changes too (its content: numba keys
+the cache on a hash of the source, so touching the file does not help). Clear the cache
+(``find flightsw -name '*.nb[ic]' -delete``, or an empty ``NUMBA_CACHE_DIR``) before trusting the
+behaviour fixture after such an edit.
 """
 from __future__ import annotations
 
@@ -38,13 +39,14 @@ from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, pro
 from flightsw.tp.geometry import observations
 from flightsw.tp.layout import (STAGES, begin_frame, evidence, has_nominal, long_gap,
                                 message_header, n_used, opportunity_mode, work_views)
+from flightsw.tp.memory import float_views, int_views
 from flightsw.tp.opportunity import track_opportunity
 from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, report_object,
                                verify_object)
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
 
-__all__ = ["tp_frame", "STAGES"]
+__all__ = ["tp_frame", "run_frame", "STAGES"]
 
 
 @njit(cache=True)
@@ -101,3 +103,18 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
     command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc)
     filter_outputs(E, V, out, cyc)
     return end_frame(S, G, V, out, opportunity)
+
+
+@njit(cache=True)
+def run_frame(MEM, FIO):
+    """:func:`tp_frame` over the TP's two buffers (:mod:`flightsw.tp.memory`: int64 words ``MEM``,
+    float64 inputs and outputs ``FIO``) -> status bits: the processor's one call a frame.
+
+    Cases
+    -----
+    typical : the arrays are the buffers' views; the frame's status, words and outputs are
+        :func:`tp_frame`'s on those arrays.
+    """
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(MEM)
+    hdr, att, rows, cols, out = float_views(FIO)
+    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)

@@ -1,7 +1,8 @@
 """The MSX track processor (TP) as a flight module: ``reset()`` and ``step(message, attitude)``.
 
-The object owns the TP's memory (packed 1750A words in small int64 arrays), turns its inputs into
-the kernel's arguments, runs :func:`flightsw.tp.frame.tp_frame` once per frame, charges the emulated
+The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
+buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
+arguments, runs :func:`flightsw.tp.frame.run_frame` once per frame, charges the emulated
 cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
 :data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
@@ -25,12 +26,17 @@ from flightsw.messages import (
     IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
+from flightsw.tp.layout import (
+    H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR,
+    O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V,
+)
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_WORDS, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
-from flightsw.tp.frame import tp_frame
+from flightsw.tp.frame import run_frame
+from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
 __all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
@@ -57,6 +63,17 @@ class TPOutputs:
     status: int
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
+_INTS = (int, np.integer)
+# TrackCommand is built positionally (keywords cost ~0.8 us a frame): its field order, checked here
+_TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_col", "imager",
+              "object_type", "locked", "status", "n_star_gates", "n_object_gates", "decided_frame",
+              "object_index", "mode", "los_eci", "r_est", "v_est", "sigma_pos", "sigma_vel")
+if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
+    raise ImportError("flightsw.tp.processor: TrackCommand's fields changed; update _TC_FIELDS and "
+                      "TrackProcessor._command")
+# the command's arrays as slices of its copy of out[O_QP:O_SV]
+_A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
+_A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
 
 
 class TrackProcessor:
@@ -83,37 +100,27 @@ class TrackProcessor:
         self.config = cfg = config
         self._img_names = [k for k in _IMAGER_ORDER if k in cfg.imagers]
         self._img_index = {k: i for i, k in enumerate(self._img_names)}
-        self.IMG = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
+        self.MEM, self.FIO = new_memory(len(self._img_names))
+        views = host_views(self.MEM, self.FIO)
+        (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS, self.PW,
+         self.W, self.V, self.cyc) = (views[k] for k in ("C", "D", "K", "IMG", "S", "G", "N", "E",
+                                                         "OBS", "PW", "W", "V", "cyc"))
+        self.hdr, self.att, self.rows, self.cols, self.out = (
+            views[k] for k in ("hdr", "att", "rows", "cols", "out"))   # rows/cols: centroids
+        self.IMG[:] = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
         nom = cfg.nominal if cfg.mode == "dedicated" else None
         self._nominal = nom
-        self.D = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
-                           0.0 if nom is None else nom.t0)
-        self.K = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma, cfg.ekf_sigma_pos0,
-                            cfg.ekf_sigma_vel0)
-        self.C = self._constants(cfg, nom)
-        self.S = np.zeros(F.S_WORDS, np.int64)
-        self.G = np.zeros((F.NG, F.GC), np.int64)
-        self.N = np.zeros(F.N_WORDS, np.int64)
-        self.E = np.zeros(E_WORDS, np.int64)
-        self.OBS = np.zeros((F.MAX_OBS, F.OBS_C), np.int64)
-        self.PW = np.zeros((F.NG * F.MAX_OBS, 3), np.int64)
-        self.W = np.zeros(F.W_WORDS, np.int64)
-        self.V = np.zeros(F.V_WORDS, np.int64)
-        self.hdr = np.zeros(F.H_WORDS)
-        self.out = np.zeros(F.O_WORDS)
-        self.cyc = np.zeros(len(F.STAGES), np.int64)
-        self.att = np.zeros(16)
-        self.rows = np.zeros(F.MAX_OBS)           # the message's centroids (one kernel signature)
-        self.cols = np.zeros(F.MAX_OBS)
+        self.D[:] = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
+                              0.0 if nom is None else nom.t0)
+        self.K[:] = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma,
+                               cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
+        self.C[:] = self._constants(cfg, nom)
         self.last_error = ""
+        self._cand_dtype = None                   # the last candidate dtype found to have row, col
         self.last_cycles: dict = {}
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
-        # the kernel's arguments, gathered once: every array is updated in place from here on
-        self._kernel_args = (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E,
-                             self.OBS, self.PW, self.W, self.V, self.hdr, self.att, self.rows,
-                             self.cols, self.out, self.cyc)
         self.reset()
 
     @staticmethod
@@ -225,7 +232,7 @@ class TrackProcessor:
         if msg is None or not self._read_message(msg):
             self.hdr.fill(0.0)                    # unusable: the kernel coasts
         self._read_attitude(attitude)
-        status = tp_frame(*self._kernel_args)
+        status = run_frame(self.MEM, self.FIO)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
@@ -237,19 +244,26 @@ class TrackProcessor:
         message the TP cannot use (unconfigured imager, no centroids) -> False, nothing written."""
         idx = self._img_index.get(msg.imager)
         cand = msg.candidates
-        if idx is None or not isinstance(cand, np.ndarray) or cand.dtype.names is None \
-                or "row" not in cand.dtype.names or "col" not in cand.dtype.names \
-                or not isinstance(msg.frame_count, (int, np.integer)):
+        fc = msg.frame_count
+        if idx is None or not isinstance(cand, np.ndarray) or not isinstance(fc, _INTS):
             return False
+        dt = cand.dtype
+        if dt is not self._cand_dtype:            # checked once per dtype object (immutable)
+            if dt.names is None or "row" not in dt.names or "col" not in dt.names:
+                return False
+            self._cand_dtype = dt
         n = len(cand)
-        if n > F.MAX_OBS:
-            n = F.MAX_OBS
+        if n > MAX_OBS:
+            n = MAX_OBS
             cand = cand[:n]
         self.rows[:n] = cand["row"]
         self.cols[:n] = cand["col"]
         h = self.hdr
-        h[F.H_T] = float(msg.time_tag)
-        h[F.H_OK], h[F.H_IMG], h[F.H_FC], h[F.H_N] = 1.0, idx, int(msg.frame_count) & 0xFFFF, n
+        h[H_T] = float(msg.time_tag)
+        h[H_OK] = 1.0
+        h[H_IMG] = idx
+        h[H_FC] = int(fc) & 0xFFFF
+        h[H_N] = n
         return True
 
     def _read_attitude(self, attitude) -> None:
@@ -269,16 +283,12 @@ class TrackProcessor:
 
     def _command(self, status: int) -> TrackCommand:
         v = self.out.tolist()
-        a = self.out[F.O_QP:F.O_SV].copy()       # one copy; the command's arrays are views of it
+        a = self.out[O_QP:O_SV].copy()           # one copy; the command's arrays are views of it
         cmd = TrackCommand(
-            frame_count=int(v[F.O_FRAME]), time_tag=v[F.O_T], q_point=a[0:4],
-            predicted_row=v[F.O_PROW], predicted_col=v[F.O_PCOL],
-            imager=self._img_names[int(v[F.O_IMG])], object_type=self._object_type,
-            locked=v[F.O_LOCKED] != 0.0, status=status, n_star_gates=int(v[F.O_NSTAR]),
-            n_object_gates=int(v[F.O_NOBJ]), decided_frame=int(v[F.O_DECF]),
-            object_index=int(v[F.O_OBJIDX]), mode=self._mode,
-            los_eci=a[F.O_LOS - F.O_QP:F.O_R - F.O_QP], r_est=a[F.O_R - F.O_QP:F.O_V - F.O_QP],
-            v_est=a[F.O_V - F.O_QP:F.O_SP - F.O_QP], sigma_pos=v[F.O_SP], sigma_vel=v[F.O_SV])
+            int(v[O_FRAME]), v[O_T], a[_A_QP], v[O_PROW], v[O_PCOL], self._img_names[int(v[O_IMG])],
+            self._object_type, v[O_LOCKED] != 0.0, status, int(v[O_NSTAR]), int(v[O_NOBJ]),
+            int(v[O_DECF]), int(v[O_OBJIDX]), self._mode, a[_A_LOS], a[_A_R], a[_A_V], v[O_SP],
+            v[O_SV])
         self._last_cmd = cmd
         return cmd
 

@@ -1,0 +1,97 @@
+"""The track processor's two flat buffers (flightsw.tp.memory): the views tile the buffers in the
+documented order, compiled and host views agree, and one frame through ``run_frame`` equals
+``tp_frame`` on separate arrays holding the same words."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from numba import literal_unroll, njit
+from test_tp import Stream
+
+from flightsw.tp import layout as L
+from flightsw.tp.dynamics import D_WORDS
+from flightsw.tp.ekf import E_WORDS, K_WORDS
+from flightsw.tp.frame import run_frame, tp_frame
+from flightsw.tp.geometry import IMG_WORDS
+from flightsw.tp.memory import float_views, host_views, int_views, new_memory
+
+INT_ORDER = ("C", "D", "K", "IMG", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc")
+FLOAT_ORDER = ("hdr", "att", "rows", "cols", "out")
+# the documented order and sizes in the buffers (IMG last in MEM)
+INT_SHAPES = {"C": (L.C_WORDS,), "D": (D_WORDS,), "K": (K_WORDS,), "S": (L.S_WORDS,),
+              "G": (L.NG, L.GC), "N": (L.N_WORDS,), "E": (E_WORDS,), "OBS": (L.MAX_OBS, L.OBS_C),
+              "PW": (L.NG * L.MAX_OBS, 3), "W": (L.W_WORDS,), "V": (L.V_WORDS,),
+              "cyc": (len(L.STAGES),)}
+MEM_ORDER = ("C", "D", "K", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc", "IMG")
+FLOAT_SHAPES = {"hdr": (L.H_WORDS,), "att": (16,), "rows": (L.MAX_OBS,), "cols": (L.MAX_OBS,),
+                "out": (L.O_WORDS,)}
+
+
+@njit
+def _stamp(MEM, FIO):
+    """Write (segment number + 1) * 1000 + index into every element of every compiled view."""
+    s = 0
+    for v in literal_unroll(int_views(MEM)):
+        a = v.reshape(v.size)
+        for i in range(a.size):
+            a[i] = (s + 1) * 1000 + i
+        s += 1
+    s = 0
+    for v in literal_unroll(float_views(FIO)):
+        for i in range(v.size):
+            v[i] = (s + 1) * 1000 + i
+        s += 1
+
+
+def _expected(n_img):
+    """The stamps :func:`_stamp` must leave, from the documented order alone."""
+    shapes = dict(INT_SHAPES, IMG=(n_img, IMG_WORDS))
+    mem = np.concatenate([(INT_ORDER.index(k) + 1) * 1000 + np.arange(int(np.prod(shapes[k])))
+                          for k in MEM_ORDER])
+    fio = np.concatenate([(FLOAT_ORDER.index(k) + 1) * 1000
+                          + np.arange(int(np.prod(FLOAT_SHAPES[k]))) for k in FLOAT_ORDER])
+    return shapes, mem, fio
+
+
+@pytest.mark.cases("flightsw.tp.memory.int_views", "typical")
+@pytest.mark.cases("flightsw.tp.memory.float_views", "typical")
+@pytest.mark.parametrize("n_img", [1, 3])
+def test_views_tile_the_buffers_in_the_documented_order(n_img):
+    MEM, FIO = new_memory(n_img)
+    shapes, mem, fio = _expected(n_img)
+    assert MEM.shape == mem.shape and FIO.shape == fio.shape
+    _stamp(MEM, FIO)
+    np.testing.assert_array_equal(MEM, mem)
+    np.testing.assert_array_equal(FIO, fio.astype(float))
+    views = host_views(MEM, FIO)
+    for k in INT_ORDER:
+        assert views[k].shape == shapes[k] and np.shares_memory(views[k], MEM), k
+        np.testing.assert_array_equal(views[k].ravel(),
+                                      (INT_ORDER.index(k) + 1) * 1000 + np.arange(views[k].size))
+    for k in FLOAT_ORDER:
+        assert views[k].shape == FLOAT_SHAPES[k] and np.shares_memory(views[k], FIO), k
+    with pytest.raises(ValueError, match="at least one imager"):
+        new_memory(0)
+
+
+@pytest.mark.cases("flightsw.tp.frame.run_frame", "typical")
+def test_run_frame_is_tp_frame_on_the_buffers_views():
+    s = Stream(77, "track", n_frames=30, p_miss=0.0, n_clutter=0.0)
+    tp = s.processor()
+    for k in range(25):                       # gates live, object decided, EKF running
+        tp.step(*s.frame(k)[:2])
+    msg, att, _ = s.frame(25)
+    tp.step(msg, att)                         # fills hdr/att/rows/cols for frame 25 ...
+    views = host_views(tp.MEM, tp.FIO)
+    before = {k: v.copy() for k, v in views.items()}
+    # ... then the same frame's inputs once more, from the same words, both ways
+    args = [before[k].copy() for k in INT_ORDER[:12]] + [before[k].copy() for k in FLOAT_ORDER] \
+        + [before["cyc"].copy()]
+    st_direct = tp_frame(*args)
+    MEM, FIO = tp.MEM.copy(), tp.FIO.copy()
+    st_run = run_frame(MEM, FIO)
+    assert st_run == st_direct
+    got = host_views(MEM, FIO)
+    for k, a in zip(INT_ORDER[:12] + FLOAT_ORDER + ("cyc",), args):
+        np.testing.assert_array_equal(got[k], a, err_msg=k)
+    assert any((got[k] != before[k]).any() for k in ("S", "V", "out"))   # the frame did work
