@@ -455,6 +455,7 @@ def test_threshold_full_scale_block_shift():
         th.threshold(img, 8.5)
 
 
+@pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "too-many", "no-lock", "locked")
 def test_alpha_controller():
     a = th.AlphaController(alpha=3.0, alpha_min=1.0, alpha_max=4.0, step_up=0.5, step_down=0.25,
                            near_count=90)
