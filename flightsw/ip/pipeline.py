@@ -381,6 +381,11 @@ class FramePlan:
         #: what :func:`flightsw.ip.step.ip_step_k` needs of the plan besides the pipeline's arrays
         self.geo = np.array([H, W, h, w, self.f, (IMAGER_CODES[self.msg_imager] << 8) | self.f,
                              self.record_id, self.threshold_stage is not None], np.int64)
+        fr = self.front
+        #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
+        #: fewer attribute reads on the per-frame path)
+        self.step_args = (self.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, self.ffts,
+                          self.poly, self.mode, self.recw)
 
     def cycles_for(self, h: int, w: int) -> tuple:
         """The front end's DSP cycles on an h x w window: compaction (0), then each step."""
@@ -455,9 +460,10 @@ class FramePlan:
             alpha = aq / 4096.0
         ledger = Ledger() if ledger is None else ledger
         cycles = (c, fe, rk)
-        keys, charged = self.keys, front_cycles + cycles
-        if alpha_cycles is not None:
-            keys, charged = self.step_keys, charged + (alpha_cycles,)
+        if alpha_cycles is None:
+            keys, charged = self.keys, front_cycles + cycles
+        else:
+            keys, charged = self.step_keys, front_cycles + (c, fe, rk, alpha_cycles)
         if "dsp" in ledger.processors and "ip1750" in ledger.processors:
             ledger.charge_block(keys, charged)
         else:                          # the ledger raises its own error for the missing processor

@@ -220,11 +220,9 @@ class ImageProcessor:
             frame, check = self.sequence.checked_frame(frame, check), False
         fc = int(frame_count) & 0xFFFF
         want = bool(want_stages)
-        front = plan.front
         verdict, words, win, pack, fst, bst, info = ip_step_k(
-            frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, plan.geo, front.ops,
-            front.kern, front.size, front.taps, front.fft, plan.ffts, plan.poly, plan.mode,
-            plan.recw, plan.prm[want], want)
+            frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, *plan.step_args,
+            plan.prm[want], want)
         r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict = info.tolist()
         self._fb = fb
         if cmd_verdict:
