@@ -158,6 +158,7 @@ def test_filter_against_ideal_gaussian_kernel():
 @pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int64-path")
 @pytest.mark.cases("flightsw.ip.filters._correlate_k64", "typical", "saturate")
 @pytest.mark.cases("flightsw.ip.filters._finish", "round-nearest", "sat-high", "sat-low")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "three")      # random 3x3 kernels below
 def test_filter_saturates_and_int64_path_matches_mr_emulation():
     rng = np.random.default_rng(3)
     img = rng.integers(30000, 32768, (20, 24)).astype(np.int16)     # near full scale
