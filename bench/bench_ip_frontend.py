@@ -52,7 +52,9 @@ GROUP_DOCS = {
         against the earlier peers): ours <= 25 us median and >= 5x faster than the
         scipy.ndimage chain. Ours also runs the back end, so the tuned OpenCV
         front end alone can beat it (2026-11-24, 16:45 UTC: OpenCV 17.6 us, ours 23.4 us, SciPy
-        72.4 us).""",
+        72.4 us; 19:10 UTC on a loaded host, after the one-call step and the register-held
+        high-pass and 3x3 sums: OpenCV 17.3 us, ours 20.5 us, the loop's step 21.3 us, SciPy
+        72.4 us, medians).""",
     GROUP_STEPS: """Host time of each front-end kernel on the same 64x64 window (the emulated
         ADSP-2100 cycles of each step are in the budget tables below), including the
         frequency-domain 15x15 filter in 32x32 tiles (the paper's slow path).""",

@@ -15,10 +15,11 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750_float import encode_k
+from flightsw.ip.backend import PACK_HEAD
 from flightsw.ip.pipeline import FrontOps, ip_frame_k
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import alpha_next_k
-from flightsw.messages import candidate_words_k, feedback_words_k
+from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
 
 __all__ = ["ip_step_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE", "STEP_MESSAGE",
            "STEP_INFO"]
@@ -41,12 +42,12 @@ def _message_words(pack, t, alpha, head):
     Cases
     -----
     typical : :func:`candidate_words_k` on the pack's candidate table, m candidates.
-    too-many : more than 23 candidates -> empty.
+    too-many : more than :data:`flightsw.messages.MAX_CANDIDATES` (23) candidates -> empty.
     """
     count, m = pack[0], pack[1]
-    if m > 23:
+    if m > MAX_CANDIDATES:
         return np.zeros(0, np.uint16)
-    o = 22 + 3 * m + 13 * count                                  # the candidate table (PACK_HEAD)
+    o = PACK_HEAD + 3 * m + 13 * count                           # the candidate table
     cand = np.ascontiguousarray(pack[o:o + 15 * m])
     head[1] = 15 + 29 * m + 1
     head[14] = m
@@ -96,7 +97,7 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     message : more than 23 candidates -> ``STEP_MESSAGE``.
     """
     bad = frame_over_12bit_k(frame) if check else False
-    info = np.zeros(10, np.int64)
+    info = np.zeros(STEP_INFO, np.int64)
     info[9] = feedback_words_k(cmd, fb) if cmd.shape[0] else 0
     use = ovr if ovr.shape[0] == 4 else fb
     H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
