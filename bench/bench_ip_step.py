@@ -3,9 +3,13 @@ frame with its frame count and time tag, the TP's last track-command words read 
 meaning checked, the feedback's prediction centres the window), the frame checked (shape, dtype,
 12-bit range), then the whole IP (compaction 1 -> 64x64 window, 3x3 smooth, high-pass detrend, 3x3
 matched, threshold, colouring, features, ranking, the alpha logic) and the candidate-message words
-out. The frame is a 12-bit 256x244 field (Poisson background ~100 counts, 30 point sources) and the
-shipped ``satellite`` sequence and record. There is no peer: this is the figure the IP's own
-reorganisations are held to (issue 21: within 10 % of the loop call it replaced).
+out, with the frame's result (message object, back end, ledger) the loop reads. The frame is a
+12-bit 256x244 field (Poisson background ~100 counts, 30 point sources) and the shipped
+``satellite`` sequence and record. There is no peer here: this is the figure the IP's own
+reorganisations are held to (issue 21: within 10 % of the loop call it replaced; issue 23: <= 20 us
+median). Since issue 23 all of it runs in one compiled call (:func:`flightsw.ip.step.ip_step_k`).
+The ratio to the tuned OpenCV front end is in ``bench/bench_ip_frontend.py`` (the same call,
+``test_ours_imageprocessor_step``, on that bench's frame and window).
 
 Run: ``.venv/bin/python -m pytest bench/bench_ip_step.py --benchmark-enable -q``.
 """
@@ -49,6 +53,8 @@ def test_ours_imageprocessor_step_words(benchmark):
                        command_words=COMMAND).words
 
     words = benchmark(step)
+    res = ip.step(FRAME, frame_count=1, time_tag=0.5, imager="wfov_vis", command_words=COMMAND)
+    assert CandidateMessage.from_words(res.words) == res.result.message   # what the loop reads
     msg = CandidateMessage.from_words(words)
     assert ip.rejected_commands == 0 and msg.window_rows == 64 and msg.window_cols == 64
     assert msg.window_row0 <= 118 < msg.window_row0 + 64    # the command's prediction centres it

@@ -370,6 +370,21 @@ def _cand_fill_k(w, iv, fv):
             fv[i, 1 + j] = decode32_k(_f32_at(w, b + 1 + 2 * j))
 
 
+@njit(cache=True)
+def candidate_words_k(head, t, alpha, iv, fv, out):
+    """The candidate message's one encoder for compiled callers (:meth:`CandidateMessage.to_words`
+    runs the same kernel): :func:`_cand_encode_k` with the CRC table. ``head`` int64 [15], ``t``
+    and ``alpha`` finite float64, ``iv``/``fv`` int64/float64 views [k, 15] of the candidates,
+    ``out`` uint16 [15 + 29 k + 1]. Returns -1 when written, else the failing candidate's code.
+
+    Cases
+    -----
+    typical : the words :meth:`CandidateMessage.to_words` writes for the same fields.
+    bad-label : a label outside 0..0xFFFF -> its index, as :func:`_cand_encode_k`.
+    """
+    return _cand_encode_k(head, t, alpha, iv, fv, out, _CRC_TABLE)
+
+
 _CAND_HEAD_FIELDS = ("id", "length", "frame_count", "time_tag", "time_tag", "time_tag",
                      "imager/compaction", "window_row0", "window_col0", "window_rows",
                      "window_cols", "alpha", "alpha", "record_id", "count")
@@ -551,6 +566,40 @@ def _track_field(i: int) -> str:
     return _TC_VALUE_NAMES[j]
 
 
+#: the feedback's values as :func:`feedback_words_k` writes them: float64 [4] predicted row, col
+#: (NaN: none), object type code (:data:`OBJECT_TYPE_CODES`, "none" read as 0: no object), locked
+FEEDBACK_VALUES = 4
+
+
+@njit(cache=True)
+def feedback_words_k(words, fb):
+    """The IP's per-frame read of the track command: every check of :meth:`TrackCommand.from_words`
+    (:func:`_track_check_k`) on ``words`` (uint16 [n]); when they pass, the feedback's values into
+    ``fb`` (float64 [4], :data:`FEEDBACK_VALUES`), else ``fb`` unchanged. Returns the verdict (0
+    accepted; the word and field are named by :meth:`TrackCommand.feedback_from_words`).
+
+    Cases
+    -----
+    accepted : a well-formed command -> 0, ``fb`` = (row, col, type code, locked).
+    object-none : object type "none" (code 1) -> type code 0, as the Feedback reads it.
+    refused : any check failing (CRC, codes, flags, floats) -> its verdict, ``fb`` unchanged.
+    wrong-length : not 55 words -> ``_BAD_LENGTH``, ``fb`` unchanged.
+    """
+    if words.shape[0] != 55:
+        return _BAD_LENGTH
+    w = np.empty(55, np.int64)
+    for i in range(55):
+        w[i] = words[i]
+    v = np.empty(17)
+    verdict, _, _ = _track_check_k(w, v, _CRC_TABLE, _IMAGER_OK, _TYPE_OK, _TC_STATUS_MASK)
+    if verdict == 0:
+        code = w[6] & 0xFF
+        fb[0], fb[1] = v[4], v[5]
+        fb[2] = 0.0 if code == 1 else float(code)
+        fb[3] = float(w[8] & _TCF_LOCKED)
+    return verdict
+
+
 @dataclass
 class Feedback:
     """What the track processor feeds back to the IP each frame (MSX paper, Figure 1): the
@@ -601,6 +650,17 @@ class Feedback:
     @property
     def has_prediction(self) -> bool:
         return not math.isnan(self.predicted_row)
+
+    def values(self) -> np.ndarray:
+        """float64 [4] as :func:`feedback_words_k` writes them (row, col, type code, locked)."""
+        return np.array([self.predicted_row, self.predicted_col,
+                         OBJECT_TYPE_CODES[self.object_type], self.locked], np.float64)
+
+    @classmethod
+    def from_values(cls, v) -> "Feedback":
+        """The Feedback of :meth:`values` / :func:`feedback_words_k` values ``v``."""
+        row, col, code, locked = v.tolist() if isinstance(v, np.ndarray) else v
+        return cls(row, col, _OBJECT_TYPE_BY_CODE[int(code)], bool(locked))
 
 
 def _feedback(row, col, object_type, locked) -> Feedback:
@@ -699,9 +759,10 @@ class CandidateMessage:
                          0, 0, _int_field(o, "record_id", self.record_id, 0, 0xFFFF), k], np.int64)
         c = np.ascontiguousarray(c)
         out = np.empty(n, np.uint16)
-        bad = _cand_encode_k(head, _real_field(o, "time_tag", self.time_tag),
-                             _real_field(o, "alpha", self.alpha), c.view(np.int64).reshape(k, 15),
-                             c.view(np.float64).reshape(k, 15), out, _CRC_TABLE)
+        bad = candidate_words_k(head, _real_field(o, "time_tag", self.time_tag),
+                                _real_field(o, "alpha", self.alpha),
+                                c.view(np.int64).reshape(k, 15), c.view(np.float64).reshape(k, 15),
+                                out)
         if bad >= 0:
             raise MessageError(o, None, f"candidates[{bad % k}]", "label must be 0..65535"
                                if bad < k else "holds a non-finite value")

@@ -158,6 +158,7 @@ def test_filter_against_ideal_gaussian_kernel():
 @pytest.mark.cases("flightsw.ip.filters.correlate_q15_k", "int64-path")
 @pytest.mark.cases("flightsw.ip.filters._correlate_k64", "typical", "saturate")
 @pytest.mark.cases("flightsw.ip.filters._finish", "round-nearest", "sat-high", "sat-low")
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "three")      # random 3x3 kernels below
 def test_filter_saturates_and_int64_path_matches_mr_emulation():
     rng = np.random.default_rng(3)
     img = rng.integers(30000, 32768, (20, 24)).astype(np.int16)     # near full scale
@@ -455,6 +456,7 @@ def test_threshold_full_scale_block_shift():
         th.threshold(img, 8.5)
 
 
+@pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "too-many", "no-lock", "locked")
 def test_alpha_controller():
     a = th.AlphaController(alpha=3.0, alpha_min=1.0, alpha_max=4.0, step_up=0.5, step_down=0.25,
                            near_count=90)

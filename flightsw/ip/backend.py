@@ -187,7 +187,8 @@ class BackendResult:
     def candidates(self) -> np.ndarray:
         """The reported candidates, CANDIDATE_DTYPE [m] (decoded exactly), best first."""
         o = PACK_HEAD + 3 * self.m + 13 * self.count
-        return self.pack[o:o + 15 * self.m].view(CANDIDATE_DTYPE)
+        # a view of the pack's table (``np.ndarray`` on the buffer: 0.2 us, a sliced .view 0.65)
+        return np.ndarray((self.m,), CANDIDATE_DTYPE, self.pack, 8 * o)
 
     def decoded_distances(self) -> np.ndarray:
         """Every blob's distance, float64 [count] (decoded exactly)."""

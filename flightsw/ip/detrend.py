@@ -112,8 +112,11 @@ def _headroom(img, gmax):
 def _lowpass_k(img, taps, g):
     """Separable low-pass: row pass to Q(16-g).g, column pass to Q16.0 (see module docstring).
 
-    Host speed-up: with symmetric taps the two pixels sharing a tap are added before the multiply
-    (exact: integer addition is associative and no partial sum exceeds the proven bound).
+    Host speed-up: with 7 mirror-equal taps (every Gaussian the sequences make) the two pixels
+    sharing a tap are added before the multiply and each output word is one expression of the
+    seven (the sum held in a register, not in the output array tap by tap): exact, as integer
+    addition is associative and no partial sum exceeds the proven bound. A row at a time goes
+    through a replicate-padded buffer of its own.
 
     ``img``: int16 [h, w] (Q16.0); ``taps``: int16 [n] Q1.15, >= 0, sum 32768; ``g``: the block
     headroom (0 .. 8). Returns ``(lp int32 [h, w], shift)``: the background is ``lp >> shift``
@@ -121,7 +124,7 @@ def _lowpass_k(img, taps, g):
 
     Cases
     -----
-    symmetric : mirror-equal taps -> the paired-add path; ``|lp - exact| <= 1/2 + 2**-(g+1)``.
+    symmetric : 7 mirror-equal taps -> the paired-add path; ``|lp - exact| <= 1/2 + 2**-(g+1)``.
     asymmetric : other taps -> one MAC per tap, the same bound.
     edges : border pixels use replicated edge words (rows and columns, SciPy ``"nearest"``).
     """
@@ -129,49 +132,40 @@ def _lowpass_k(img, taps, g):
     n = taps.shape[0]
     p = n // 2
     t = np.empty(n, np.int32)
-    sym = True
+    sym = n == 7
     for j in range(n):
         t[j] = np.int32(taps[j])
     for j in range(p):
         if t[j] != t[n - 1 - j]:
             sym = False
-    # replicate p border columns
-    xp = np.empty((h, w + 2 * p), np.int32)
-    for r in range(h):
-        src = img[r]
-        dst = xp[r]
-        for c in range(p):
-            dst[c] = src[0]
-            dst[w + p + c] = src[w - 1]
-        for c in range(w):
-            dst[p + c] = src[c]
+    z = np.int32(0)
+    t0, t1, t2, t3 = (t[0], t[1], t[2], t[3]) if sym else (z, z, z, z)
     # row pass: y = (sum x*t + 2**(14-g)) >> (15-g)     Q(16-g).g
     y = np.empty((h + 2 * p, w), np.int32)
+    x = np.empty(w + 2 * p, np.int32)                  # the row, p border columns replicated
     rb = np.int32(1 << (14 - g))
     sh = np.int32(15 - g)
     for r in range(h):
-        dst = y[r + p]
+        src = img[r]
+        for c in range(p):
+            x[c] = src[0]
+            x[w + p + c] = src[w - 1]
         for c in range(w):
-            dst[c] = rb
+            x[p + c] = src[c]
+        dst = y[r + p]
         if sym:
-            for j in range(p):
-                tj = t[j]
-                a = xp[r, j:j + w]
-                b = xp[r, n - 1 - j:n - 1 - j + w]
-                for c in range(w):
-                    dst[c] += (a[c] + b[c]) * tj
-            a = xp[r, p:p + w]
-            tp = t[p]
             for c in range(w):
-                dst[c] += a[c] * tp
+                dst[c] = (rb + (x[c] + x[c + 6]) * t0 + (x[c + 1] + x[c + 5]) * t1
+                          + (x[c + 2] + x[c + 4]) * t2 + x[c + 3] * t3) >> sh
         else:
+            for c in range(w):
+                dst[c] = rb
             for j in range(n):
                 tj = t[j]
-                a = xp[r, j:j + w]
                 for c in range(w):
-                    dst[c] += a[c] * tj
-        for c in range(w):
-            dst[c] = dst[c] >> sh          # SR0: |y| < 2**15 by the convexity bound, no wrap
+                    dst[c] += x[c + j] * tj
+            for c in range(w):
+                dst[c] = dst[c] >> sh          # SR0: |y| < 2**15 by the convexity bound, no wrap
     for r in range(p):                     # replicate the border rows of the intermediate
         y[r, :] = y[p]
         y[h + p + r, :] = y[h + p - 1]
@@ -180,20 +174,15 @@ def _lowpass_k(img, taps, g):
     cb = np.int32(1 << (14 + g))
     for r in range(h):
         dst = lp[r]
-        for c in range(w):
-            dst[c] = cb
         if sym:
-            for i in range(p):
-                ti = t[i]
-                a = y[r + i]
-                b = y[r + n - 1 - i]
-                for c in range(w):
-                    dst[c] += (a[c] + b[c]) * ti
-            a = y[r + p]
-            tp = t[p]
+            a0, a1, a2, a3 = y[r], y[r + 1], y[r + 2], y[r + 3]
+            a4, a5, a6 = y[r + 4], y[r + 5], y[r + 6]
             for c in range(w):
-                dst[c] += a[c] * tp
+                dst[c] = (cb + (a0[c] + a6[c]) * t0 + (a1[c] + a5[c]) * t1
+                          + (a2[c] + a4[c]) * t2 + a3[c] * t3)
         else:
+            for c in range(w):
+                dst[c] = cb
             for i in range(n):
                 ti = t[i]
                 a = y[r + i]

@@ -235,14 +235,34 @@ def _correlate_k32(pad, kern, h, w):
     """Correlation with int32 sums (the caller proved ``max|x| sum|k| < 2**31 - 2**14``).
 
     ``pad``: int16 [h + 2p, w + 2p] replicate-padded image; ``kern``: int16 [k, k] Q1.15. Returns
-    int16 [h, w] (Q16.0).
+    int16 [h, w] (Q16.0). Host speed-up for 3x3 kernels: each output word's nine products summed
+    in a register and finished at once (the same integer sum: addition is associative and no
+    partial sum leaves the bound); other sizes add one tap at a time into an int32 image.
 
     Cases
     -----
     typical : the exact sum rounded as :func:`_finish32` (``scipy.ndimage.correlate`` within 1/2).
-    zero-taps : taps equal to 0 are skipped (no effect on the sum).
+    zero-taps : taps equal to 0 add nothing (skipped on the tap-at-a-time path).
+    three : a 3x3 kernel -> the register path, the same words.
     """
     kh, kw = kern.shape
+    out = np.empty((h, w), np.int16)
+    if kh == 3 and kw == 3:
+        k00, k01, k02 = np.int32(kern[0, 0]), np.int32(kern[0, 1]), np.int32(kern[0, 2])
+        k10, k11, k12 = np.int32(kern[1, 0]), np.int32(kern[1, 1]), np.int32(kern[1, 2])
+        k20, k21, k22 = np.int32(kern[2, 0]), np.int32(kern[2, 1]), np.int32(kern[2, 2])
+        for r in range(h):
+            a, b, d = pad[r], pad[r + 1], pad[r + 2]
+            o = out[r]
+            for c in range(w):
+                s = (np.int32(a[c]) * k00 + np.int32(a[c + 1]) * k01 + np.int32(a[c + 2]) * k02
+                     + np.int32(b[c]) * k10 + np.int32(b[c + 1]) * k11
+                     + np.int32(b[c + 2]) * k12 + np.int32(d[c]) * k20
+                     + np.int32(d[c + 1]) * k21 + np.int32(d[c + 2]) * k22)
+                q = (s + np.int32(0x4000)) >> np.int32(15)          # as _finish32
+                q = q & ~np.int32((s & np.int32(0x7FFF)) == np.int32(0x4000))
+                o[c] = np.int16(max(min(q, np.int32(32767)), np.int32(-32768)))
+        return out
     acc = np.zeros((h, w), np.int32)
     for i in range(kh):
         for j in range(kw):
@@ -254,7 +274,6 @@ def _correlate_k32(pad, kern, h, w):
                 dst = acc[r]
                 for c in range(w):
                     dst[c] += np.int32(src[c]) * kij
-    out = np.empty((h, w), np.int16)
     _finish32(acc, out)
     return out
 

@@ -22,7 +22,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from flightsw.budget import Ledger
+from flightsw.budget import IP1750, Ledger
 from flightsw.ip import detrend as dt
 from flightsw.ip import fftfilter as fft
 from flightsw.ip import filters as flt
@@ -374,6 +374,18 @@ class FramePlan:
         self.default = (h, w, r0, c0) + _geometry_words(self.f, r0, c0, h, w, None)
         self.msg_imager = imager if imager in IMAGER_CODES else "real"
         self.record_id = rec.record_id
+        self.step_keys = self.keys + ((IP1750, "alpha_logic"),)
+        self.window_hw = (h, w)
+        self.frame_shape = pre.frame_shape
+        H, W = pre.compacted_shape
+        #: what :func:`flightsw.ip.step.ip_step_k` needs of the plan besides the pipeline's arrays
+        self.geo = np.array([H, W, h, w, self.f, (IMAGER_CODES[self.msg_imager] << 8) | self.f,
+                             self.record_id, self.threshold_stage is not None], np.int64)
+        fr = self.front
+        #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
+        #: fewer attribute reads on the per-frame path)
+        self.step_args = (self.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, self.ffts,
+                          self.poly, self.mode, self.recw)
 
     def cycles_for(self, h: int, w: int) -> tuple:
         """The front end's DSP cycles on an h x w window: compaction (0), then each step."""
@@ -425,22 +437,37 @@ class FramePlan:
                             self.cycles_for(h, w), ledger, frame_count, time_tag)
 
     def _result(self, out, sub, origin, aq, front_cycles, ledger, frame_count, time_tag):
-        (_, pack, fst, bst, count, m, flags, c, fe, rk, bad, t4, m4, d4, s) = out
+        (_, pack, fst, bst, _, _, _, _, _, _, bad, t4, m4, d4, s) = out
         if bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
+        return self.result(pack, fst, bst, sub, origin, aq, (t4, m4, d4, s), front_cycles, ledger,
+                           frame_count, time_tag)
+
+    def result(self, pack, fst, bst, sub, origin, aq, thr, front_cycles, ledger, frame_count,
+               time_tag, alpha_cycles=None) -> FrameResult:
+        """The :class:`FrameResult` of one pass of :func:`ip_frame_k` (its ``pack``, stage arrays,
+        the window ``sub``, the window origin ``origin`` in full-resolution pixels, alpha ``aq``
+        and the threshold words ``thr`` (t4, mean4, std4, shift)), the stages' cycles charged to
+        ``ledger`` (a new one if None) and, with ``alpha_cycles``, the alpha logic's after them."""
+        count, m, flags, c, fe, rk = pack[:6].tolist()
         ctx = {"imager": self.imager, "record": self.record, "subimage": sub,
                "preprocess": self.pre}
         alpha = 0.0
         if self.threshold_stage is not None:
+            t4, m4, d4, s = thr
             ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
                                 "mode": self.mode_name}
             alpha = aq / 4096.0
         ledger = Ledger() if ledger is None else ledger
         cycles = (c, fe, rk)
+        if alpha_cycles is None:
+            keys, charged = self.keys, front_cycles + cycles
+        else:
+            keys, charged = self.step_keys, front_cycles + (c, fe, rk, alpha_cycles)
         if "dsp" in ledger.processors and "ip1750" in ledger.processors:
-            ledger.charge_block(self.keys, front_cycles + cycles)
+            ledger.charge_block(keys, charged)
         else:                          # the ledger raises its own error for the missing processor
-            ledger.charge_many(k + (n,) for k, n in zip(self.keys, front_cycles + cycles))
+            ledger.charge_many(k + (n,) for k, n in zip(keys, charged))
         labels = bst[0] if bst.shape[0] else _NO_LABELS
         be = BackendResult(labels, pack, count, m, flags, cycles)
         h, w = sub.size
@@ -449,7 +476,7 @@ class FramePlan:
                                window_row0=origin[0], window_col0=origin[1], window_rows=h,
                                window_cols=w, alpha=alpha, record_id=self.record_id,
                                candidates=be.candidates())
-        stages = self._stages(fst, bst, be, t4) if fst.shape[0] else []
+        stages = self._stages(fst, bst, be, thr[0]) if fst.shape[0] else []
         return FrameResult(msg, stages, ledger, be, sub, ctx)
 
     def _stages(self, fst, bst, be, t4):

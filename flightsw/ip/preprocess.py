@@ -32,7 +32,7 @@ import numpy as np
 from numba import njit
 
 __all__ = ["FRAME_SHAPE", "COMPACTION_FACTORS", "Subimage", "compact", "compact_k", "check_frame",
-           "window", "window_origin",
+           "window", "window_origin", "window_origin_k", "frame_over_12bit_k",
            "window_shape", "preprocess"]
 
 FRAME_SHAPE = (244, 256)          # rows x cols of a UVISI frame (256 x 244 in the paper's cols x rows)
@@ -80,13 +80,35 @@ def _check_factor(factor):
     return int(factor)
 
 
+@njit(cache=True)
+def frame_over_12bit_k(frame):
+    """True when a pixel of ``frame`` (uint16 [H, W], C order) is above 4095: one pass OR-ing
+    every pixel (an indexed loop the compiler vectorises; ~0.7 us for a 244x256 frame).
+
+    Cases
+    -----
+    in-range : every pixel 0..4095 -> False.
+    over : any pixel 4096..65535 -> True (wherever it is, first or last).
+    """
+    flat = frame.reshape(frame.size)
+    acc = np.uint16(0)
+    for i in range(flat.size):
+        acc = np.uint16(acc | flat[i])
+    return acc > 4095
+
+
 def check_frame(frame):
+    """The frame as a 2-D integer array of 12-bit counts (ValueError otherwise)."""
     frame = np.asarray(frame)
     if frame.ndim != 2 or not np.issubdtype(frame.dtype, np.integer):
         raise ValueError(f"frame must be a 2-D integer array (uint16 [244, 256]), got "
                          f"{frame.dtype} {frame.shape}")
-    if frame.size and ((frame.dtype.kind == "i" and frame.min() < 0) or frame.max() > 4095):
-        raise ValueError("frame pixels must be 12-bit counts 0..4095")   # (unsigned: one pass)
+    if frame.dtype == np.uint16 and frame.flags.c_contiguous and frame.size:
+        bad = frame_over_12bit_k(frame)
+    else:
+        bad = frame.size and ((frame.dtype.kind == "i" and frame.min() < 0) or frame.max() > 4095)
+    if bad:
+        raise ValueError("frame pixels must be 12-bit counts 0..4095")
     return frame
 
 
@@ -166,21 +188,40 @@ def window_shape(compacted_shape, size=FLIGHT_WINDOW):
     return min(int(size), H), min(int(size), W)
 
 
+@njit(cache=True)
+def window_origin_k(H, W, h, w, f, pr, pc):
+    """Origin (row0, col0) of the h x w window in an H x W compacted image (compaction ``f``)
+    centred on the predicted full-resolution pixel (``pr``, ``pc``; NaN: none), in compacted
+    pixels: ``floor(p / f - size / 2 + 0.5)`` clamped inside the image.
+
+    Cases
+    -----
+    no-prediction : ``pr`` NaN -> the image centre ``((H - h) // 2, (W - w) // 2)``.
+    centred : a prediction inside -> ``floor(p / f - size / 2 + 0.5)`` (halves up).
+    clamped : a prediction near or beyond an edge (any finite value) -> clamped to 0 .. H - h,
+        0 .. W - w.
+    """
+    if math.isnan(pr):
+        return (H - h) // 2, (W - w) // 2
+    r0 = np.floor(pr / f - h / 2 + 0.5)
+    c0 = np.floor(pc / f - w / 2 + 0.5)
+    return int(min(max(r0, 0.0), float(H - h))), int(min(max(c0, 0.0), float(W - w)))
+
+
 def window_origin(compacted_shape, factor, predicted_rowcol_fullres=None, size=FLIGHT_WINDOW):
-    """Origin ``(row0, col0)`` of the window in compacted pixels (clamped inside the image).
+    """Origin ``(row0, col0)`` of the window in compacted pixels (clamped inside the image;
+    :func:`window_origin_k`).
 
     ``predicted_rowcol_fullres``: the TP's predicted object location ``(row, col)`` in imager
     full-resolution pixel coordinates (centres at +0.5), or None for the image centre."""
     H, W = int(compacted_shape[0]), int(compacted_shape[1])
     h, w = window_shape((H, W), size)
-    if predicted_rowcol_fullres is None:
-        return (H - h) // 2, (W - w) // 2
-    pr, pc = predicted_rowcol_fullres
-    if not (math.isfinite(pr) and math.isfinite(pc)):
-        raise ValueError(f"predicted location {predicted_rowcol_fullres!r} is not finite")
-    r0 = math.floor(pr / factor - h / 2 + 0.5)
-    c0 = math.floor(pc / factor - w / 2 + 0.5)
-    return min(max(r0, 0), H - h), min(max(c0, 0), W - w)
+    pr = pc = math.nan
+    if predicted_rowcol_fullres is not None:
+        pr, pc = predicted_rowcol_fullres
+        if not (math.isfinite(pr) and math.isfinite(pc)):
+            raise ValueError(f"predicted location {predicted_rowcol_fullres!r} is not finite")
+    return window_origin_k(H, W, h, w, int(factor), float(pr), float(pc))
 
 
 def window(compacted, factor, predicted_rowcol_fullres=None, size=FLIGHT_WINDOW):

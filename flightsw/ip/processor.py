@@ -14,20 +14,27 @@ frame being processed when it arrives finishes with the old one).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from flightsw.budget import Ledger
 from flightsw.ip.frame import check_inputs
 from flightsw.ip.pipeline import FramePlan, FrameResult
+from flightsw.ip.preprocess import Subimage
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
-from flightsw.ip.threshold import AlphaController
-from flightsw.messages import Feedback, TrackCommand
+from flightsw.ip.step import STEP_FRAME_RANGE, STEP_OK, STEP_TIME_TAG, ip_step_k
+from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
+from flightsw.messages import MAX_CANDIDATES, TRACK_WORDS, Feedback, MessageError, TrackCommand
 from flightsw.records import RECORD_FORMAT_ID, Record
 
 __all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha"]
+
+_U16 = np.dtype(np.uint16)
+_COMMAND_SHAPE = (TRACK_WORDS,)
+_NO_WORDS = np.zeros(0, np.uint16)            # no command this frame
+_NO_VALUES = np.zeros(0, np.float64)          # no feedback override
 
 
 @dataclass(frozen=True)
@@ -51,15 +58,32 @@ class UplinkVerdict:
     effective_frame: int | None = None
 
 
-@dataclass
 class IPOutput:
     """One step's output: the candidate-message words (what crosses the bus to the TP) and, for the
-    ground, the frame's result (message object, stage images when asked for, ledger, back end)."""
+    ground, the frame's result (message object, stage images when asked for, ledger, back end),
+    the alpha used and the feedback in force for the frame.
 
-    words: np.ndarray
-    result: FrameResult
-    alpha_q12: int
-    feedback: Feedback = field(default_factory=Feedback)
+    ``feedback`` may be given as a :class:`Feedback` or as its values
+    (:meth:`Feedback.values`, not modified afterwards); the object is made when first read.
+    """
+
+    __slots__ = ("words", "result", "alpha_q12", "_feedback")
+
+    def __init__(self, words: np.ndarray, result: FrameResult, alpha_q12: int,
+                 feedback: Feedback | np.ndarray | None = None):
+        self.words, self.result, self.alpha_q12 = words, result, alpha_q12
+        self._feedback = feedback
+
+    @property
+    def feedback(self) -> Feedback:
+        fb = self._feedback
+        if not isinstance(fb, Feedback):
+            fb = self._feedback = Feedback() if fb is None else Feedback.from_values(fb)
+        return fb
+
+    def __repr__(self):
+        return (f"IPOutput(words=<{len(self.words)} words>, alpha_q12={self.alpha_q12}, "
+                f"feedback={self.feedback!r})")
 
 
 def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
@@ -105,13 +129,29 @@ class ImageProcessor:
         self.sequence, self.record = self._power_on
         self._plans: dict[str, FramePlan] = {}       # per imager, for the sequence and record in force
         self._pending: list = []
-        self.alpha = AlphaController(alpha=sequence_alpha(self.sequence), **self._alpha_settings)
+        self._set_alpha(AlphaController(alpha=sequence_alpha(self.sequence), **self._alpha_settings))
         self.feedback = Feedback()
         self.frames = 0
         self.rejected_commands = 0
         self.uplinks_accepted = 0
         self.uplinks_refused = 0
         self._last_frame_count = -1
+
+    def _set_alpha(self, controller: AlphaController) -> None:
+        self.alpha = controller
+        self._alpha_words = controller.words()
+
+    @property
+    def feedback(self) -> Feedback:
+        """The last good feedback from the TP (kept as its values: :meth:`Feedback.values`)."""
+        return Feedback.from_values(self._fb)
+
+    @feedback.setter
+    def feedback(self, fb: Feedback) -> None:
+        if not isinstance(fb, Feedback):
+            raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
+                             f"{type(fb).__name__}")
+        self._fb = fb.values()
 
     # ------------------------------------------------------------------------------------------
     def receive_command(self, words) -> bool:
@@ -144,30 +184,68 @@ class ImageProcessor:
             Charged by every stage and the alpha logic (a new one if None).
         want_stages : bool
             Keep the stage images (the panels of the paper's Figure 3).
+
+        The frame runs in one compiled call (:func:`flightsw.ip.step.ip_step_k`): the command read,
+        the checks, the pipeline, the message and the alpha logic. Inputs it does not take as they
+        are (command words that are not a uint16 [55] array, a frame that is not a C-ordered uint16
+        array of the frame shape) are read or converted here first, with the same checks.
         """
-        self._apply_pending()
-        if command_words is not None:
-            self.receive_command(command_words)
-        fb = self.feedback if feedback is None else feedback
-        if not isinstance(fb, Feedback):
-            raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
-                             f"{type(fb).__name__}")
-        ledger = Ledger() if ledger is None else ledger
-        aq = self.alpha.q12
-        time_tag = float(time_tag)
-        check_inputs(aq, time_tag)
-        img = self.sequence.checked_frame(frame, self.check)
+        if self._pending:
+            self._apply_pending()
         plan = self._plans.get(imager)
         if plan is None:
             plan = self._plans[imager] = FramePlan(self.sequence, self.record, str(imager))
-        pred = (float(fb.predicted_row), float(fb.predicted_col)) if fb.has_prediction else None
-        res = plan.run(img, pred, alpha_q12=aq, ledger=ledger,
-                       frame_count=int(frame_count) & 0xFFFF, time_tag=time_tag,
-                       want_stages=want_stages)
-        self.alpha.update(int(res.backend.count), bool(fb.locked), ledger)
+        cmd, fb = _NO_WORDS, self._fb
+        if command_words is not None:
+            if (type(command_words) is np.ndarray and command_words.dtype == _U16
+                    and command_words.shape == _COMMAND_SHAPE and command_words.flags.c_contiguous):
+                cmd, fb = command_words, fb.copy()     # the kernel writes an accepted feedback
+            else:
+                self.receive_command(command_words)
+                fb = self._fb
+        ovr = _NO_VALUES
+        if feedback is not None:
+            if not isinstance(feedback, Feedback):
+                if cmd is not _NO_WORDS:
+                    self.receive_command(cmd)
+                raise ValueError(f"feedback must be a flightsw.messages.Feedback, got "
+                                 f"{type(feedback).__name__}")
+            ovr = feedback.values()
+        aq = self.alpha.q12
+        time_tag = float(time_tag)
+        check = self.check
+        if not (type(frame) is np.ndarray and frame.dtype == _U16 and frame.shape == plan.frame_shape
+                and frame.flags.c_contiguous):
+            check_inputs(aq, time_tag)
+            frame, check = self.sequence.checked_frame(frame, check), False
+        fc = int(frame_count) & 0xFFFF
+        want = bool(want_stages)
+        verdict, words, win, pack, fst, bst, info = ip_step_k(
+            frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, *plan.step_args,
+            plan.prm[want], want)
+        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict = info.tolist()
+        self._fb = fb
+        if cmd_verdict:
+            self.rejected_commands += 1
+        if verdict != STEP_OK:
+            self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
+        res = plan.result(pack, fst, bst, Subimage(win, (r0, c0), plan.f, plan.window_hw),
+                          (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, ledger, fc, time_tag,
+                          ALPHA_LOGIC_CYCLES)
+        self.alpha.set_q12(aq_next)
         self.frames += 1
         self._last_frame_count = int(frame_count)
-        return IPOutput(res.message.to_words(), res, aq, fb)
+        return IPOutput(words, res, aq, fb if feedback is None else feedback)
+
+    def _refuse(self, verdict: int, frame, aq: int, time_tag: float, m: int) -> None:
+        """Raise the error of a frame :func:`ip_step_k` refused (``m`` candidates), as the Python
+        checks and the message's encoder word it."""
+        if verdict == STEP_TIME_TAG:
+            check_inputs(aq, time_tag)
+        if verdict == STEP_FRAME_RANGE:
+            self.sequence.checked_frame(frame, True)
+        raise MessageError("CandidateMessage", None, "candidates",
+                           f"{m} entries, at most {MAX_CANDIDATES}")
 
     # ------------------------------------------------------------------------------------------
     def uplink(self, words) -> UplinkVerdict:
@@ -199,5 +277,5 @@ class ImageProcessor:
                 self.record = new
             else:
                 self.sequence = new
-                self.alpha = AlphaController(alpha=sequence_alpha(new), **self._alpha_settings)
+                self._set_alpha(AlphaController(alpha=sequence_alpha(new), **self._alpha_settings))
         self._pending = []

@@ -45,7 +45,7 @@ from flightsw.budget import m1750_cycles
 
 __all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
-           "ISQRT_CYCLES"]
+           "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k"]
 
 ALPHA_MIN = 0.0
 ALPHA_MAX = 32767 / 4096          # Q4.12 word range (7.99975)
@@ -246,6 +246,31 @@ def threshold_cycles(h, w):
     return int(h * w * (5 + 4) + 2 * 3 * h + 250)
 
 
+#: 1750A clocks of one alpha-logic update: 2 compares, 2 branches, one add and one store
+ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 2, "JC": 2, "A": 1, "ST": 1})
+
+
+@njit(cache=True)
+def alpha_next_k(q12, count, locked, ctl):
+    """The alpha logic's next Q4.12 word (1750A integer code).
+
+    ``q12``: alpha in force (Q4.12 word); ``count``: candidates detected this frame; ``locked``:
+    the TP's lock; ``ctl``: int64 [5] (:meth:`AlphaController.words`): near count, step up, step
+    down, alpha min, alpha max (Q4.12 words). Returns int.
+
+    Cases
+    -----
+    too-many : ``count >= near`` -> ``min(q12 + up, max)`` (wins over no lock).
+    no-lock : fewer and not locked -> ``max(q12 - down, min)``.
+    locked : fewer and locked -> ``q12`` unchanged.
+    """
+    if count >= ctl[0]:
+        return min(q12 + ctl[1], ctl[4])
+    if not locked:
+        return max(q12 - ctl[2], ctl[3])
+    return q12
+
+
 @dataclass
 class AlphaController:
     """The onboard alpha logic (1750A integer code), alpha held as a Q4.12 word.
@@ -288,14 +313,22 @@ class AlphaController:
         """Current alpha (host float view of the Q4.12 word)."""
         return self.q12 / 4096
 
-    def update(self, candidate_count: int, tp_locked: bool, ledger=None) -> int:
-        """Apply the logic after a frame; returns the new Q4.12 alpha word."""
-        if candidate_count >= self.near_count:
-            self.q12 = min(self.q12 + self._up, self._max)
-        elif not tp_locked:
-            self.q12 = max(self.q12 - self._down, self._min)
-        if ledger is not None:
-            ledger.charge("ip1750", "alpha_logic",
-                          m1750_cycles({"C": 2, "JC": 2, "A": 1, "ST": 1}))
-        self.alpha = self.value
+    def words(self) -> np.ndarray:
+        """The logic's constants as :func:`alpha_next_k` takes them: int64 [5] near count, step
+        up, step down, alpha min, alpha max (Q4.12 words)."""
+        return np.array([self.near_count, self._up, self._down, self._min, self._max], np.int64)
+
+    def set_q12(self, q12: int) -> int:
+        """Put the Q4.12 word ``q12`` in force (the compiled step's update); returns it."""
+        self.q12 = int(q12)
+        self.alpha = self.q12 / 4096
         return self.q12
+
+    def update(self, candidate_count: int, tp_locked: bool, ledger=None) -> int:
+        """Apply the logic after a frame (:func:`alpha_next_k`); returns the new Q4.12 alpha
+        word."""
+        q = alpha_next_k(np.int64(self.q12), np.int64(candidate_count), bool(tp_locked),
+                         self.words())
+        if ledger is not None:
+            ledger.charge("ip1750", "alpha_logic", ALPHA_LOGIC_CYCLES)
+        return self.set_q12(q)

@@ -1,0 +1,128 @@
+"""One frame of the flight image processor as one compiled call: :func:`ip_step_k` reads the TP's
+track-command words (every check and the CRC: :func:`flightsw.messages.feedback_words_k`), checks
+the frame's 12-bit range, places the window about the prediction, runs the pipeline
+(:func:`flightsw.ip.pipeline.ip_frame_k`), encodes the candidate message
+(:func:`flightsw.messages.candidate_words_k`) and applies the alpha logic
+(:func:`flightsw.ip.threshold.alpha_next_k`). :class:`flightsw.ip.ImageProcessor` calls it each
+frame; Python is left the error path (a failed check raises the same error as the Python checks
+would) and what an uplink changes (the plan).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from flightsw.arith.m1750_float import encode_k
+from flightsw.ip.backend import PACK_HEAD
+from flightsw.ip.pipeline import FrontOps, ip_frame_k
+from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
+from flightsw.ip.threshold import alpha_next_k
+from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
+
+__all__ = ["ip_step_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE", "STEP_MESSAGE",
+           "STEP_INFO"]
+
+#: :func:`ip_step_k` verdicts: done; the time tag is not finite; a pixel above 4095; the candidate
+#: message cannot carry the result (the back end's 16-bit range flag cannot be raised here: the
+#: front end hands it int16 words)
+STEP_OK, STEP_TIME_TAG, STEP_FRAME_RANGE, STEP_MESSAGE = 0, 1, 2, 3
+#: words of :func:`ip_step_k`'s ``info``: window origin (compacted), origin (full resolution),
+#: the next alpha (Q4.12), the threshold's t4, mean4, std4, shift, the command's verdict
+STEP_INFO = 10
+
+
+@njit(cache=True)
+def _message_words(pack, t, alpha, head):
+    """The candidate-message words (uint16) of the pipeline's ``pack`` (its candidate table,
+    :func:`flightsw.ip.backend.backend_k`) with the header ``head`` (int64 [15]; length and count
+    filled here), or an empty array when the message cannot carry it.
+
+    Cases
+    -----
+    typical : :func:`candidate_words_k` on the pack's candidate table, m candidates.
+    too-many : more than :data:`flightsw.messages.MAX_CANDIDATES` (23) candidates -> empty.
+    """
+    count, m = pack[0], pack[1]
+    if m > MAX_CANDIDATES:
+        return np.zeros(0, np.uint16)
+    o = PACK_HEAD + 3 * m + 13 * count                           # the candidate table
+    cand = np.ascontiguousarray(pack[o:o + 15 * m])
+    head[1] = 15 + 29 * m + 1
+    head[14] = m
+    out = np.empty(15 + 29 * m + 1, np.uint16)
+    bad = candidate_words_k(head, t, alpha, cand.reshape((m, 15)),
+                            cand.view(np.float64).reshape((m, 15)), out)
+    return out if bad < 0 else np.zeros(0, np.uint16)
+
+
+@njit(cache=True)
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, taps, fslot, ffts,
+              poly, mode, rec, prm, want_stages):
+    """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
+
+    Parameters
+    ----------
+    frame : uint16 [H0, W0], C order (12-bit counts); ``check``: test its range
+    cmd : uint16 [55] track-command words, or [0] (none this frame)
+    fb : float64 [4], the feedback in force (:data:`flightsw.messages.FEEDBACK_VALUES`); an
+        accepted command replaces it in place
+    ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
+    t, fc : time tag (s, float64) and frame count (0..65535)
+    aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words (:func:`alpha_next_k`)
+    geo : int64 [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`): compacted H, W, window h, w,
+        compaction f, message word 6 (imager << 8 | f), record id, has a threshold step
+    ops, kern, size, taps, fslot : the fields of the pipeline's :class:`FrontOps` (passed as
+        arrays: a tuple argument costs ~0.5 us more to type at each call)
+    ffts, poly, mode, rec, prm, want_stages : the pipeline's (:func:`ip_frame_k`)
+
+    Returns
+    -------
+    (verdict (``STEP_*``), message words uint16 [n] (empty unless ``STEP_OK``), window int16
+    [h, w], pack, front stages, back stages (:func:`ip_frame_k`), info int64 [STEP_INFO])
+
+    Cases
+    -----
+    typical : the words :class:`flightsw.messages.CandidateMessage` encodes from
+        :func:`ip_frame_k`'s result on the window about the command's prediction, and the
+        alpha logic's next word.
+    command-refused : a command failing a check -> its verdict in info[9], ``fb`` kept.
+    no-command : ``cmd`` empty -> ``fb`` as it is.
+    override : ``ovr`` given -> its prediction and lock instead of ``fb``'s.
+    no-prediction : a NaN prediction -> the window at the image centre, the centroid means its
+        centre.
+    bad-time-tag : ``t`` not finite -> ``STEP_TIME_TAG``, nothing run.
+    frame-range : ``check`` and a pixel above 4095 -> ``STEP_FRAME_RANGE``, nothing run.
+    message : more than 23 candidates -> ``STEP_MESSAGE``.
+    """
+    bad = frame_over_12bit_k(frame) if check else False
+    info = np.zeros(STEP_INFO, np.int64)
+    info[9] = feedback_words_k(cmd, fb) if cmd.shape[0] else 0
+    use = ovr if ovr.shape[0] == 4 else fb
+    H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
+    none = np.zeros(0, np.uint16)
+    if bad or not math.isfinite(t):
+        return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none, np.zeros((0, 0), np.int16),
+                np.zeros(0, np.int64), np.zeros((0, h, w), np.int16), np.zeros((0, h, w), np.int32),
+                info)
+    pr, pc = use[0], use[1]
+    r0, c0 = window_origin_k(H, W, h, w, f, pr, pc)
+    o0, o1 = r0 * f, c0 * f
+    if math.isnan(pr):
+        pr, pc = o0 + h * f / 2.0, o1 + w * f / 2.0
+    front = FrontOps(ops, kern, size, taps, fslot)
+    out = ip_frame_k(frame, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm,
+                     encode_k(float(o0), np.int64(23), True), encode_k(float(o1), np.int64(23), True),
+                     encode_k(pr, np.int64(23), True), encode_k(pc, np.int64(23), True), want_stages)
+    win, pack, fst, bst = out[0], out[1], out[2], out[3]
+    info[0], info[1], info[2], info[3] = r0, c0, o0, o1
+    info[5], info[6], info[7], info[8] = out[11], out[12], out[13], out[14]
+    head = np.zeros(15, np.int64)
+    head[0], head[2], head[6] = 0x4950, fc, geo[5]
+    head[7], head[8], head[9], head[10], head[13] = o0 & 0xFFFF, o1 & 0xFFFF, h, w, geo[6]
+    words = _message_words(pack, t, aq / 4096.0 if geo[7] else 0.0, head)
+    if words.shape[0] == 0:
+        return STEP_MESSAGE, words, win, pack, fst, bst, info
+    info[4] = alpha_next_k(aq, pack[0], use[3] != 0.0, ctl)
+    return STEP_OK, words, win, pack, fst, bst, info

@@ -1,0 +1,234 @@
+"""The image processor's one compiled step (:func:`flightsw.ip.step.ip_step_k`) and the kernels it
+calls that are new with it: the command read, the frame's range scan, the window origin, the
+candidate-message encoder for compiled callers.
+
+Oracles: hand-made words and frames whose answer is known, the standard library's CRC-CCITT
+(``binascii.crc_hqx``), the Fraction-exact 1750A encoder (``encode32``), the track command's
+Python-side decode (``TrackCommand.from_words``), and the committed flight-output hashes (through
+``tests/test_ip_processor.py``, which replays the fixtures through ``ImageProcessor.step``).
+"""
+from __future__ import annotations
+
+import binascii
+import math
+
+import numpy as np
+import pytest
+
+from flightsw.arith.m1750_float import encode32
+from flightsw.ip import ImageProcessor, load_default_sequence, process_frame
+from flightsw.ip.backend import backend_params
+from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
+from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG, ip_step_k)
+from flightsw.messages import (CANDIDATE_DTYPE, CandidateMessage, Feedback, MessageError,
+                               TrackCommand, candidate_words_k, feedback_words_k)
+from flightsw.records import load_record
+
+
+def _crc(words) -> int:
+    return binascii.crc_hqx(np.asarray(words, ">u2").tobytes(), 0xFFFF)
+
+
+def _frame(seed=0, blobs=((120, 128, 900), (100, 140, 600), (140, 110, 500))):
+    rng = np.random.default_rng(seed)
+    f = rng.normal(300, 12, (244, 256))
+    for r, c, a in blobs:
+        f[r - 2:r + 3, c - 2:c + 3] += a
+    return np.clip(np.rint(f), 0, 4095).astype(np.uint16)
+
+
+# ------------------------------------------------------------------------------------------------
+# the small kernels
+# ------------------------------------------------------------------------------------------------
+@pytest.mark.cases("flightsw.ip.preprocess.frame_over_12bit_k", "in-range", "over")
+def test_frame_range_scan_finds_one_pixel_anywhere():
+    f = np.full((244, 256), 4095, np.uint16)
+    assert not frame_over_12bit_k(f)
+    assert not frame_over_12bit_k(np.zeros((3, 5), np.uint16))
+    for r, c, v in ((0, 0, 4096), (243, 255, 65535), (100, 3, 0x8000), (7, 200, 0x1000)):
+        g = f.copy()
+        g[r, c] = v
+        assert frame_over_12bit_k(g), (r, c, v)
+
+
+@pytest.mark.cases("flightsw.ip.preprocess.window_origin_k", "no-prediction", "centred",
+                   "clamped")
+def test_window_origin_by_hand():
+    nan = math.nan
+    assert window_origin_k(244, 256, 64, 64, 1, nan, nan) == (90, 96)        # (244-64)//2, (256-64)//2
+    assert window_origin_k(122, 128, 64, 64, 2, nan, nan) == (29, 32)
+    # floor(118 / 1 - 32 + 0.5) = 86; floor(131 - 32 + 0.5) = 99
+    assert window_origin_k(244, 256, 64, 64, 1, 118.0, 131.0) == (86, 99)
+    # half up: 118.5 - 32 + 0.5 = 87.0 -> 87; compaction 2: 101 / 2 - 32 + 0.5 = 19.0 -> 19
+    assert window_origin_k(244, 256, 64, 64, 1, 118.5, 131.0) == (87, 99)
+    assert window_origin_k(122, 128, 64, 64, 2, 101.0, 101.0) == (19, 19)
+    assert window_origin_k(244, 256, 64, 64, 1, 3.0, 250.0) == (0, 192)       # edges
+    assert window_origin_k(244, 256, 64, 64, 1, -1e300, 1e300) == (0, 192)    # far outside
+    assert window_origin_k(61, 64, 61, 64, 4, 10.0, 10.0) == (0, 0)           # window = image
+
+
+@pytest.mark.cases("flightsw.messages.feedback_words_k", "accepted", "object-none", "refused",
+                   "wrong-length")
+def test_feedback_read_in_compiled_code():
+    base = dict(los_eci=np.array([0.6, 0.8, 0.0]))
+    for cmd, code in ((TrackCommand(predicted_row=12.5, predicted_col=40.0, locked=True,
+                                    object_type="satellite", **base), 2),
+                      (TrackCommand(predicted_row=200.25, predicted_col=3.0, object_type="none",
+                                    **base), 0),
+                      (TrackCommand(object_type="aurora"), 5)):
+        w = cmd.to_words()
+        fb = np.full(4, -7.0)
+        assert feedback_words_k(w, fb) == 0
+        dec = TrackCommand.from_words(w)
+        assert np.array_equal(fb[:2], [dec.predicted_row, dec.predicted_col], equal_nan=True)
+        assert fb[2] == code and fb[3] == float(dec.locked)
+        got, exp = Feedback.from_values(fb), dec.feedback()
+        assert (got.object_type, got.locked) == (exp.object_type, exp.locked)
+        bad = w.copy()
+        bad[22] ^= 0x0100                           # CRC refuses it
+        keep = fb.copy()
+        assert feedback_words_k(bad, fb) != 0 and np.array_equal(fb, keep, equal_nan=True)
+        assert feedback_words_k(w[:54].copy(), fb) != 0 and np.array_equal(fb, keep, equal_nan=True)
+
+
+@pytest.mark.cases("flightsw.messages.candidate_words_k", "typical", "bad-label")
+def test_candidate_words_by_hand():
+    head = np.array([0x4950, 15 + 29 + 1, 7, 0, 0, 0, (1 << 8) | 2, 10, 20, 64, 64, 0, 0, 3, 1],
+                    np.int64)
+    cand = np.zeros(1, CANDIDATE_DTYPE)
+    vals = [0.5 + 0.125 * i for i in range(14)]
+    cand["label"] = 4
+    for name, v in zip(CANDIDATE_DTYPE.names[1:], vals):
+        cand[name] = v
+    out = np.empty(45, np.uint16)
+    iv, fv = cand.view(np.int64).reshape(1, 15), cand.view(np.float64).reshape(1, 15)
+    assert candidate_words_k(head.copy(), 2.5, 1.5, iv, fv, out) == -1
+    want = list(head)
+    want[3:6] = [0x5000, 0x0002, 0x0000]            # 2.5 = 0.625 * 2**2 (48-bit: mantissa, exp, ext)
+    want[11:13] = [0x6000, 0x0001]                  # 1.5 = 0.75 * 2**1
+    want.append(4)
+    for v in vals:
+        p = encode32(v, rounding="nearest")
+        want += [p >> 16, p & 0xFFFF]
+    want.append(_crc(want))
+    assert out.tolist() == want
+    cand["label"] = 70000
+    iv = cand.view(np.int64).reshape(1, 15)
+    assert candidate_words_k(head.copy(), 2.5, 1.5, iv, fv, out) == 0
+
+
+# ------------------------------------------------------------------------------------------------
+# the step kernel
+# ------------------------------------------------------------------------------------------------
+def _plan(seq="satellite", rec="satellite"):
+    ip = ImageProcessor(load_default_sequence(seq), load_record(rec))
+    ip.step(_frame(), frame_count=0, time_tag=0.0, imager="wfov_vis")
+    return ip, ip._plans["wfov_vis"]
+
+
+def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check=True, prm=None,
+          ctl=(90, 2048, 1024, 4096, 28672)):
+    fr = plan.front
+    fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
+    return ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
+                     np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
+                     plan.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, plan.ffts, plan.poly,
+                     plan.mode, plan.recw, plan.prm[False] if prm is None else prm, False)
+
+
+@pytest.mark.cases("flightsw.ip.step.ip_step_k", "typical", "no-command", "no-prediction",
+                   "override", "command-refused")
+@pytest.mark.cases("flightsw.ip.step._message_words", "typical")
+def test_step_kernel_words_are_the_pipelines_message():
+    """The words equal the message the one-frame convenience builds from the same pipeline and
+    the command's prediction; the window sits where the hand-computed origin says."""
+    ip, plan = _plan()
+    seq, rec = load_default_sequence("satellite"), load_record("satellite")
+    frame = _frame(1)
+    cmd = TrackCommand(predicted_row=118.0, predicted_col=131.0, locked=False,
+                       los_eci=np.array([0.6, 0.8, 0.0])).to_words()
+    fb = np.array([math.nan, math.nan, 0.0, 1.0])
+    v, words, win, pack, fst, bst, info = _call(plan, frame, cmd=cmd, fb=fb, aq=16384)
+    assert v == STEP_OK and info[9] == 0 and fb[0] == 118.0 and fb[3] == 0.0
+    assert info[:4].tolist() == [86, 99, 86, 99]
+    want = process_frame(frame, seq, rec, Feedback(118.0, 131.0), frame_count=3, time_tag=0.5,
+                         alpha_q12=16384, want_stages=False).message
+    assert np.array_equal(words, want.to_words())
+    assert CandidateMessage.from_words(words) == want
+    assert np.array_equal(win, frame[86:150, 99:163])
+    assert info[4] == 16384 - 1024                  # not locked: alpha down one step
+    # no command, no prediction: the image centre, the feedback untouched
+    fb0 = np.array([math.nan, math.nan, 0.0, 1.0])
+    v, words, *_, info = _call(plan, frame, fb=fb0)
+    assert v == STEP_OK and info[:2].tolist() == [90, 96] and info[4] == 16384
+    assert np.isnan(fb0[0]) and fb0[3] == 1.0
+    want = process_frame(frame, seq, rec, None, frame_count=3, time_tag=0.5, alpha_q12=16384,
+                         want_stages=False).message
+    assert np.array_equal(words, want.to_words())
+    # an override replaces the feedback in force for this frame only
+    v, words, *_, info = _call(plan, frame, fb=fb0, ovr=Feedback(40.0, 200.0, locked=True).values())
+    assert info[:2].tolist() == [8, 168] and np.isnan(fb0[0])
+    # a refused command: counted, the feedback in force unchanged
+    bad = cmd.copy()
+    bad[21] ^= 1
+    keep = fb.copy()
+    v, *_, info = _call(plan, frame, cmd=bad, fb=fb)
+    assert v == STEP_OK and info[9] != 0 and np.array_equal(fb, keep)
+
+
+@pytest.mark.cases("flightsw.ip.step.ip_step_k", "bad-time-tag", "frame-range")
+def test_step_kernel_refuses_before_running():
+    _, plan = _plan()
+    frame = _frame(2)
+    v, words, win, pack, *_ = _call(plan, frame, t=math.nan)
+    assert v == STEP_TIME_TAG and words.size == 0 and pack.size == 0
+    hot = frame.copy()
+    hot[243, 255] = 4096
+    assert _call(plan, hot)[0] == STEP_FRAME_RANGE
+    assert _call(plan, hot, check=False)[0] == STEP_OK          # the caller vouched for it
+    both = _call(plan, hot, t=math.inf)[0]
+    assert both == STEP_TIME_TAG                    # the time tag is checked first, as before
+
+
+@pytest.mark.cases("flightsw.ip.step.ip_step_k", "message")
+@pytest.mark.cases("flightsw.ip.step._message_words", "too-many")
+def test_step_kernel_refuses_a_message_it_cannot_carry():
+    """More than 23 candidates (a back end allowed 30, which no sequence can ask for) -> refused."""
+    _, plan = _plan("satellite", "satellite")
+    frame = _frame(3, ())
+    for i in range(30):                             # 30 point sources inside the window
+        frame[92 + 9 * (i // 6), 102 + 9 * (i % 6)] = 4000
+    prm = backend_params(plan.rank_record, *plan.flags, False, plan.f, plan.imager, 30)
+    prm[7] = 0                                      # GOF threshold 0: every blob reported
+    out = _call(plan, frame, fb=np.array([118.0, 130.0, 0.0, 1.0]), prm=prm)
+    assert out[3][1] > 23 and out[0] == STEP_MESSAGE and out[1].size == 0
+
+
+# ------------------------------------------------------------------------------------------------
+# ImageProcessor.step around it
+# ------------------------------------------------------------------------------------------------
+def test_step_errors_name_the_input_as_before():
+    ip = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    frame = _frame(4)
+    with pytest.raises(ValueError, match="time_tag"):
+        ip.step(frame, frame_count=1, time_tag=math.nan, imager="wfov_vis")
+    hot = frame.copy()
+    hot[0, 0] = 5000
+    with pytest.raises(ValueError, match="12-bit"):
+        ip.step(hot, frame_count=1, time_tag=0.5, imager="wfov_vis")
+    with pytest.raises(ValueError, match=r"\(244, 256\)"):
+        ip.step(frame.T, frame_count=1, time_tag=0.5, imager="wfov_vis")
+    assert ip.frames == 0 and ip.alpha.value == 4.0
+    # inputs the kernel does not take as they are: converted or read first, same outputs
+    cmd = TrackCommand(predicted_row=100.0, predicted_col=90.0, locked=True,
+                       los_eci=np.array([1.0, 0.0, 0.0])).to_words()
+    a = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    b = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    wa = a.step(frame, frame_count=1, time_tag=0.5, imager="wfov_vis", command_words=cmd)
+    wb = b.step(np.asfortranarray(frame.astype(np.int32)), frame_count=1, time_tag=0.5,
+                imager="wfov_vis", command_words=cmd.astype(np.int64).tolist())
+    assert np.array_equal(wa.words, wb.words) and wa.feedback == wb.feedback
+    assert wa.feedback.predicted_row == 100.0 and wa.feedback.locked
+    assert a.feedback == b.feedback and a.alpha.q12 == b.alpha.q12
+    with pytest.raises(MessageError):
+        TrackCommand.feedback_from_words(cmd[:54])
