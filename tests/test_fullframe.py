@@ -36,8 +36,6 @@ def _windows(shape, tile, step):
 @pytest.mark.cases("hil_harness.detect.union.window_t4_k", "no-shift")
 @pytest.mark.cases("hil_harness.detect.union._sums_12bit", "typical")
 @pytest.mark.cases("hil_harness.detect.union._column_snapshots", "typical", "zero-mark")
-@pytest.mark.cases("hil_harness.detect.union._t4", "typical")
-@pytest.mark.cases("hil_harness.detect.union._rhu", "tie-up", "nearest")
 @pytest.mark.parametrize("tile, step", [(32, 8), (40, 10), (64, 16)])
 def test_window_words_are_the_flight_threshold_of_each_window(tile, step):
     img = _field()
@@ -68,7 +66,6 @@ def test_window_words_with_a_block_shift():
 
 
 @pytest.mark.cases("hil_harness.detect.union.window_t4_k", "constant")
-@pytest.mark.cases("hil_harness.detect.union._t4", "alpha-zero")
 def test_constant_windows_and_alpha_zero():
     img = np.full((48, 48), 37, np.int16)
     rows, cols = _windows(img.shape, 32, 16)

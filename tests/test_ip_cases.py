@@ -18,6 +18,7 @@ def test_rhu_div_rounds_half_towards_plus_infinity():
 
 
 @pytest.mark.cases("flightsw.ip.threshold._threshold_value", "constant")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_words", "constant")
 @pytest.mark.cases("flightsw.ip.threshold._apply_k", "equal-fails")
 @pytest.mark.cases("flightsw.ip.threshold.threshold_k", "constant")
 def test_threshold_of_a_constant_window_passes_nothing():
@@ -29,6 +30,7 @@ def test_threshold_of_a_constant_window_passes_nothing():
 
 
 @pytest.mark.cases("flightsw.ip.threshold._threshold_value", "max-spread")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_words", "max-spread")
 def test_threshold_widest_12_bit_spread_is_below_the_variance_clamp():
     img = np.full((8, 8), 4095, np.int16)
     img[:4] = -4096

@@ -426,6 +426,7 @@ def test_isqrt_is_floor_sqrt():
 
 @pytest.mark.cases("flightsw.ip.threshold._stats_k", "no-shift")
 @pytest.mark.cases("flightsw.ip.threshold._threshold_value", "typical", "alpha-zero")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_words", "typical", "alpha-zero")
 @pytest.mark.cases("flightsw.ip.threshold._apply_k", "binarize", "clip")
 @pytest.mark.cases("flightsw.ip.threshold.threshold_k", "binarize", "clip")
 @pytest.mark.parametrize("alpha", [0.0, 1.0, 2.5, 4.0, 7.9])
@@ -445,6 +446,7 @@ def test_threshold_value_against_numpy(alpha):
 
 @pytest.mark.cases("flightsw.ip.threshold._stats_k", "block-shift", "negative")
 @pytest.mark.cases("flightsw.ip.threshold._threshold_value", "block-shift")
+@pytest.mark.cases("flightsw.ip.threshold.threshold_words", "block-shift")
 def test_threshold_full_scale_block_shift():
     rng = np.random.default_rng(9)
     img = rng.integers(-32768, 32768, (64, 64)).astype(np.int16)

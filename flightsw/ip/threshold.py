@@ -43,7 +43,7 @@ from numba import njit
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.budget import m1750_cycles
 
-__all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32",
+__all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32", "threshold_words",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
            "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k"]
 
@@ -135,8 +135,39 @@ def _rhu_div(a, b):
 
 
 @njit(cache=True)
+def threshold_words(s1, s2, n, s, alpha_q12):
+    """Threshold words from a window's sums (steps 3 and 4 of the module docstring).
+
+    ``s1 = sum(x >> s)``, ``s2 = sum((x >> s)**2)`` (int64, exact), ``n``: the window's pixel count
+    (int64, 1 .. 16384), ``s``: its block shift (int64 >= 0), ``alpha_q12``: int, Q4.12 (0 ..
+    32767). Returns int64 ``(T4, m4, d4)``: threshold Q.4 (in unshifted counts), mean Q.4 and std
+    Q.4 of ``x >> s``. Public so that a ground tool that gets the sums another way (the full-frame
+    union of windows, :mod:`hil_harness.detect.union`) applies the flight's own formula.
+
+    Cases
+    -----
+    typical : ``m4 = rhu(16 S1 / n)``, ``d4 = isqrt(rhu(256 (n S2 - S1**2) / n**2))``,
+        ``T4 = (m4 + rhu(alpha d4 / 4096)) << s``.
+    alpha-zero : ``alpha_q12 == 0`` -> ``T4 = m4 << s`` (the mean).
+    constant : ``n S2 == S1**2`` (a constant window) -> ``d4 = 0`` and ``T4 = 16 c << s``.
+    max-spread : half the words -4096, half 4095 (the widest 12-bit spread) -> ``v8 = 4293918784``,
+        below the clamp at ``2**32 - 1`` (the clamp never binds for int16 input).
+    block-shift : ``s > 0`` -> ``T4`` is the shifted threshold ``<< s``.
+    """
+    m4 = _rhu_div(16 * s1, n)                                  # Q.4
+    num = n * s2 - s1 * s1                                      # >= 0, exact (< 2**53)
+    v8 = _rhu_div(256 * num, n * n)                             # Q.8
+    if v8 > 0xFFFFFFFF:
+        v8 = np.int64(0xFFFFFFFF)
+    d4 = isqrt32(v8)                                            # Q.4
+    t4 = (m4 + _rhu_div(np.int64(alpha_q12) * d4, np.int64(4096))) << s  # Q.4
+    return t4, m4, d4
+
+
+@njit(cache=True)
 def _threshold_value(img, alpha_q12):
-    """Threshold words of a window (step 3 and 4 of the module docstring).
+    """Threshold words of a window: its block shift and sums (:func:`_stats_k`), then
+    :func:`threshold_words`.
 
     ``img``: int16 [h, w], h*w <= 16384; ``alpha_q12``: int, Q4.12 (0 .. 32767). Returns int64
     ``(T4, m4, d4, s)``: threshold Q.4 (in unshifted counts), mean Q.4 and std Q.4 of ``x >> s``,
@@ -144,8 +175,7 @@ def _threshold_value(img, alpha_q12):
 
     Cases
     -----
-    typical : ``m4 = rhu(16 S1 / n)``, ``d4 = isqrt(rhu(256 (n S2 - S1**2) / n**2))``,
-        ``T4 = (m4 + rhu(alpha d4 / 4096)) << s``.
+    typical : the words of :func:`threshold_words` on the window's sums.
     alpha-zero : ``alpha_q12 == 0`` -> ``T4 = m4 << s`` (the mean).
     constant : a constant window -> ``d4 = 0`` and ``T4 = 16 c``.
     max-spread : half the words -4096, half 4095 (the widest 12-bit spread) -> ``v8 = 4293918784``,
@@ -154,13 +184,7 @@ def _threshold_value(img, alpha_q12):
     """
     s, s1, s2 = _stats_k(img)
     n = np.int64(img.shape[0] * img.shape[1])
-    m4 = _rhu_div(16 * s1, n)                                  # Q.4
-    num = n * s2 - s1 * s1                                      # >= 0, exact (< 2**53)
-    v8 = _rhu_div(256 * num, n * n)                             # Q.8
-    if v8 > 0xFFFFFFFF:
-        v8 = np.int64(0xFFFFFFFF)
-    d4 = isqrt32(v8)                                            # Q.4
-    t4 = (m4 + _rhu_div(np.int64(alpha_q12) * d4, np.int64(4096))) << s  # Q.4
+    t4, m4, d4 = threshold_words(s1, s2, n, np.int64(s), alpha_q12)
     return t4, m4, d4, s
 
 

@@ -12,7 +12,8 @@ pixels, block shift ``s``, ``S1 = sum(x >> s)``, ``S2 = sum((x >> s)**2)``, alph
 (``rhu``: round half up). A pixel passes window ``w`` when ``16 x > T4(w)``; it passes *some*
 window that covers it exactly when ``16 x > min T4`` over those windows. :func:`window_t4_k` gives
 every window's words from running column sums of the image (one pass over the frame instead of
-one per window); :func:`union_threshold_k` keeps (clip) or sets to 1 (binarise) the pixels above
+one per window), the words themselves by the flight's own
+:func:`flightsw.ip.threshold.threshold_words`; :func:`union_threshold_k` keeps (clip) or sets to 1 (binarise) the pixels above
 their covering windows' smallest threshold.
 
 Public: :func:`window_t4_k`, :func:`union_threshold_k`, :func:`cover_ranges`.
@@ -23,39 +24,9 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.adsp2100 import block_bitlen
-from flightsw.ip.threshold import isqrt32
+from flightsw.ip.threshold import threshold_words
 
 __all__ = ["window_t4_k", "union_threshold_k", "cover_ranges"]
-
-
-@njit(cache=True, inline="always")
-def _rhu(a, b):
-    """round_half_up(a / b) for int64 ``a`` and ``b > 0``: ``floor((2a + b) / 2b)``.
-
-    Cases
-    -----
-    tie-up : a quotient exactly halfway rounds towards +inf (5/2 -> 3, -5/2 -> -2).
-    nearest : otherwise the nearest integer (7/3 -> 2).
-    """
-    return (2 * a + b) // (2 * b)
-
-
-@njit(cache=True, inline="always")
-def _t4(s1, s2, n, s, aq):
-    """The threshold word ``T4`` (Q.4 of counts, int64) of a window of ``n`` pixels from its sums
-    ``s1 = sum(x >> s)``, ``s2 = sum((x >> s)**2)``, block shift ``s`` and alpha ``aq`` (Q4.12).
-
-    Cases
-    -----
-    typical : the words of :func:`flightsw.ip.threshold.threshold_k` on the same window.
-    alpha-zero : ``aq == 0`` -> the mean word shifted by ``s``.
-    """
-    m4 = _rhu(16 * s1, n)                                          # Q.4
-    v8 = _rhu(256 * (n * s2 - s1 * s1), n * n)                     # Q.8
-    if v8 > 0xFFFFFFFF:
-        v8 = np.int64(0xFFFFFFFF)
-    d4 = isqrt32(v8)                                               # Q.4
-    return (m4 + _rhu(np.int64(aq) * d4, np.int64(4096))) << s     # Q.4, unshifted counts
 
 
 @njit(cache=True)
@@ -146,7 +117,7 @@ def window_t4_k(img, rows, cols, th, tw, aq):
         sums = _sums_12bit(img, rows, cols, th, tw)
         for i in range(nr):
             for j in range(nc):
-                out[i, j] = _t4(sums[0, i, j], sums[1, i, j], n, np.int64(0), aq)
+                out[i, j] = threshold_words(sums[0, i, j], sums[1, i, j], n, np.int64(0), aq)[0]
         return out
     for i in range(nr):                       # wide words: each window's own block shift
         for j in range(nc):
@@ -159,7 +130,7 @@ def window_t4_k(img, rows, cols, th, tw, aq):
                     x = np.int64(win[r, c]) >> s
                     s1 += x
                     s2 += x * x
-            out[i, j] = _t4(s1, s2, n, s, aq)
+            out[i, j] = threshold_words(s1, s2, n, s, aq)[0]
     return out
 
 
