@@ -90,3 +90,32 @@ def test_the_loop_hands_over_a_new_frame_array_every_frame():
 
     ev.run(on_frame=on_frame)
     assert len(seen) == 6 and all(np.array_equal(a, b) for a, b in zip(seen, copies))
+
+
+def test_a_failed_block_leaves_no_stale_checksums(tmp_path, monkeypatch):
+    """A block whose write fails (a full disk) takes its rows' checksums with it: the rows
+    borrowed after it are stored with their own."""
+    from hil_harness.event.appendable import AppendableDataset
+    real, fail = AppendableDataset.append_each, [True]
+
+    def fails_once(self, rows):
+        if fail:
+            fail.pop()
+            raise OSError(28, "No space left on device")
+        return real(self, rows)
+
+    monkeypatch.setattr(AppendableDataset, "append_each", fails_once)
+    frames = _frames(4, seed=1)
+    rec = Recorder(tmp_path / "r.h5", flush_every=2)
+    rec.append_array("frames", frames[0], per_frame=True, borrow=True)
+    rec.end_frame()
+    rec.append_array("frames", frames[1], per_frame=True, borrow=True)
+    with pytest.raises(OSError, match="No space"):
+        rec.end_frame()
+    for f in frames[2:]:
+        rec.append_array("frames", f, per_frame=True, borrow=True)
+        rec.end_frame()
+    rec.close()
+    with Recording(tmp_path / "r.h5") as r:
+        assert r.verify()["rows"]["arrays/frames"] == 2
+        np.testing.assert_array_equal(r.array("frames")[()], np.stack(frames[2:]))

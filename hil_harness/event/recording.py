@@ -15,7 +15,8 @@ frame; the frames a recording holds are the rows every one of them has with its 
 Life cycle. The file is created as ``<stem>.partial<suffix>`` (``recording.partial.h5``) with
 ``complete = False`` and switched at once to HDF5's single-writer/multiple-reader mode (SWMR), whose
 writes keep the file consistent on disk at every instant. Rows are buffered in memory and written as
-one block every ``flush_every`` frames (:meth:`Recorder.end_frame`): no HDF5 call per frame. A kill
+one block every ``flush_every`` frames (:meth:`Recorder.end_frame`): no HDF5 call per frame (rows
+handed over with ``borrow=True``, the frames, are kept by reference instead of copied). A kill
 at any moment therefore leaves a readable ``recording.partial.h5`` holding every frame up to the last
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
@@ -345,6 +346,8 @@ class Recorder:
         if data is None:
             return None
         borrowed = b.held is not None
+        if borrowed:                  # the checksums leave with their rows, written or not
+            held_sums, b.sums = b.sums[:len(data)], []
         dtype, shape = b.row_layout if borrowed else (data.dtype, data.shape[1:])
         out, cid = self._dataset(key, dtype, shape, b.per_frame)
         n = out.rows
@@ -356,7 +359,7 @@ class Recorder:
         cs["dataset"] = cid
         cs["row"] = np.arange(n, n + len(data))
         if borrowed:
-            cs["adler32"], b.sums = b.sums[:len(data)], []
+            cs["adler32"] = held_sums
         else:
             cs["adler32"] = adler32_rows(data)
         return cs
