@@ -76,6 +76,9 @@ _A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
 _A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
 #: the snapshot's gate_kind: 0 star gate (even rows), 1 object gate (odd rows)
 _GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
+#: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
+_SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS,
+                          F.S_NLOST, F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS])
 
 
 class TrackProcessor:
@@ -354,8 +357,8 @@ class TrackProcessor:
         fv, iv = np.empty(P.F_SIZE), np.empty(P.I_SIZE, np.int16)
         P.snapshot_kernel(G, S, self.E, self.IMG[int(S[F.S_IMG])], run, oa, fv, iv)
         ng = F.NG
-        sc = S[[F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS, F.S_NLOST,
-                F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS]]
+        sc = S[_SNAP_SCALARS]
+        s32 = sc.astype(np.int32)             # the counters as the snapshot types them
         return {
             "gate_alive": iv[P.I_ALIVE:].astype(np.int8), "gate_kind": _GATE_KIND.copy(),
             "gate_pos": fv[P.F_POS:P.F_VEL].reshape(ng, 2), "gate_vel": fv[P.F_VEL:P.F_RES].reshape(ng, 2),
@@ -366,15 +369,14 @@ class TrackProcessor:
             "object_pair": np.int16(sc[0]),
             "decided_frame": np.int32(sc[1] if sc[0] >= 0 else -1),
             "decision_rule": np.int8(sc[2]),
-            "n_decisions": np.int32(sc[3]), "n_reinit": np.int32(sc[4]),
-            "n_spurious": np.int32(sc[5]), "n_lost": np.int32(sc[6]),
+            "n_decisions": s32[3], "n_reinit": s32[4], "n_spurious": s32[5], "n_lost": s32[6],
             "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
-            "n_undecided_deleted": np.int32(sc[7]),
+            "n_undecided_deleted": s32[7],
             "ekf_running": np.int8(run), "ekf_x": fv[P.F_EKF_X:P.F_EKF_P],
             "ekf_p_diag": fv[P.F_EKF_P:P.F_EKF_T], "ekf_t": float(fv[P.F_EKF_T]),
             "opp_alive": np.int8(oa), "opp_pos": fv[P.F_OPP:P.F_OPP + 2],
             "opp_vel": fv[P.F_OPP + 2:P.F_SIZE],
             "opp_missed": np.int16(sc[8]),
-            "status": np.int32(sc[9]), "mode": self._mode,
+            "status": s32[9], "mode": self._mode,
             "imager": self._img_names[int(S[F.S_IMG])],
         }
