@@ -36,8 +36,9 @@ def test_a_borrowed_row_changed_before_its_block_shows_as_damaged(tmp_path):
             rec.append_array("frames", f, per_frame=True, borrow=True)
             rec.end_frame()
         frames[1][0, 0] ^= 1
-    with Recording(tmp_path / "r.h5") as r, pytest.raises(RecordingDamaged, match=r"row 1 \(frame 1\)"):
-        r.verify()
+    with Recording(tmp_path / "r.h5") as r:
+        with pytest.raises(RecordingDamaged, match=r"row 1 \(frame 1\)"):
+            r.verify()
 
 
 def test_borrowing_is_all_or_nothing_and_layout_fixed(tmp_path):

@@ -18,7 +18,8 @@ DATA = Path(__file__).resolve().parent / "data" / "tp_snapshot_rows.npy"
 FRAMES = (0, 3, 20, 90, 180)
 
 
-@pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "live-gate", "dead-gate", "ekf-off", "ekf-on", "opp-off")
+@pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "live-gate", "dead-gate", "ekf-off",
+                   "ekf-on", "opp-off")
 def test_recorded_rows_unchanged():
     """Frames 0 and 3 (EKF off, two live gates), 20, 90, 180 (EKF on, one live gate): the rows of
     ``tables/tp`` equal, byte for byte, those recorded before the snapshot was compiled."""

@@ -33,7 +33,7 @@ from flightsw.tp.layout import (
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import run_frame
 from flightsw.tp.memory import host_views, new_memory
@@ -361,7 +361,8 @@ class TrackProcessor:
         s32 = sc.astype(np.int32)             # the counters as the snapshot types them
         return {
             "gate_alive": iv[P.I_ALIVE:].astype(np.int8), "gate_kind": _GATE_KIND.copy(),
-            "gate_pos": fv[P.F_POS:P.F_VEL].reshape(ng, 2), "gate_vel": fv[P.F_VEL:P.F_RES].reshape(ng, 2),
+            "gate_pos": fv[P.F_POS:P.F_VEL].reshape(ng, 2),
+            "gate_vel": fv[P.F_VEL:P.F_RES].reshape(ng, 2),
             "gate_resid": fv[P.F_RES:P.F_PIX],
             "gate_missed": iv[P.I_MISS:P.I_OBS], "gate_obs": iv[P.I_OBS:P.I_SEED],
             "gate_seed": iv[P.I_SEED:P.I_ALIVE],
