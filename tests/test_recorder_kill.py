@@ -131,11 +131,11 @@ def test_a_failing_disk_is_one_line_and_keeps_the_blocks_written(tmp_path, monke
     real = Recorder._write
     calls = []
 
-    def full_on_the_second_block(self, key, data, per_frame):
+    def full_on_the_second_block(self, key, buf):
         calls.append(self.frames)
         if self.frames > FLUSH:
             raise OSError(28, "No space left on device")
-        return real(self, key, data, per_frame)
+        return real(self, key, buf)
 
     monkeypatch.setattr(Recorder, "_write", full_on_the_second_block)
     assert main(["event", "--frames", "45", "--no-figures", "--out", str(tmp_path / "a")]) == 2

@@ -33,7 +33,7 @@ from flightsw.tp.layout import (
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import run_frame
 from flightsw.tp.memory import host_views, new_memory
@@ -74,6 +74,11 @@ if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
 # the command's arrays as slices of its copy of out[O_QP:O_SV]
 _A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
 _A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
+#: the snapshot's gate_kind: 0 star gate (even rows), 1 object gate (odd rows)
+_GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
+#: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
+_SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS,
+                          F.S_NLOST, F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS])
 
 
 class TrackProcessor:
@@ -346,48 +351,33 @@ class TrackProcessor:
         ``ekf_p_diag`` (6,), ``ekf_t``; ``opp_alive``, ``opp_pos`` (2,), ``opp_vel`` (2,),
         ``opp_missed``; ``status``, ``mode``, ``imager``.
         """
-        from flightsw.arith.m1750 import decode32_array, decode48_array
-        from flightsw.tp.geometry import directions_to_pixels
+        from flightsw.tp import snapshot as P
         G, S = self.G, self.S
-        alive = G[:, F.G_ALIVE] != 0
-        dead = ~alive
-        # one decode for the gate columns a, b, va, vb, (dva, dvb,) residual; NaN where no gate lives
-        g = decode32_array(G[:, F.G_A:F.G_RES + 1])
-        g[dead] = np.nan
-        pix = np.full((F.NG, 2), np.nan)
-        live = np.flatnonzero(alive)       # (none: the kernel still runs, on no rows, so that
-        v = np.ones((len(live), 3))        # a first snapshot loads it before any gate exists)
-        v[:, 1:] = g[live, :2]
-        out = np.empty((len(live), 2))
-        directions_to_pixels(self.IMG[int(S[F.S_IMG])], v, out)
-        pix[live] = out
-        run = bool(self.E[E_RUN])
-        # x (6 words), P (packed), t: one decode of the words up to t
-        e = decode48_array(self.E[:E_T + 1]) if run else np.full(E_T + 1, np.nan)
-        oa = bool(S[F.S_OPP_ALIVE])
-        opp = decode32_array(S[[F.S_OPP_X, F.S_OPP_X + 1, F.S_OPP_V, F.S_OPP_V + 1]]) if oa else \
-            np.full(4, np.nan)
-        gi = G[:, F.G_MISS:F.G_SEED + 1].astype(np.int16)      # missed, obs, hits, seed
-        gi[dead] = (0, -1, 0, -1)
-        sc = S[[F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS, F.S_NLOST,
-                F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS]]
+        run, oa = bool(self.E[E_RUN]), bool(S[F.S_OPP_ALIVE])
+        fv, iv = np.empty(P.F_SIZE), np.empty(P.I_SIZE, np.int16)
+        P.snapshot_kernel(G, S, self.E, self.IMG[int(S[F.S_IMG])], run, oa, fv, iv)
+        ng = F.NG
+        sc = S[_SNAP_SCALARS]
+        s32 = sc.astype(np.int32)             # the counters as the snapshot types them
         return {
-            "gate_alive": alive.astype(np.int8),
-            "gate_kind": (np.arange(F.NG) & 1).astype(np.int8),
-            "gate_pos": g[:, 0:2].copy(), "gate_vel": g[:, 2:4].copy(), "gate_resid": g[:, 6].copy(),
-            "gate_missed": gi[:, 0].copy(), "gate_obs": gi[:, 1].copy(), "gate_seed": gi[:, 3].copy(),
-            "gate_pixel": pix,
+            "gate_alive": iv[P.I_ALIVE:].astype(np.int8), "gate_kind": _GATE_KIND.copy(),
+            "gate_pos": fv[P.F_POS:P.F_VEL].reshape(ng, 2),
+            "gate_vel": fv[P.F_VEL:P.F_RES].reshape(ng, 2),
+            "gate_resid": fv[P.F_RES:P.F_PIX],
+            "gate_missed": iv[P.I_MISS:P.I_OBS], "gate_obs": iv[P.I_OBS:P.I_SEED],
+            "gate_seed": iv[P.I_SEED:P.I_ALIVE],
+            "gate_pixel": fv[P.F_PIX:P.F_EKF_X].reshape(ng, 2),
             "object_pair": np.int16(sc[0]),
             "decided_frame": np.int32(sc[1] if sc[0] >= 0 else -1),
             "decision_rule": np.int8(sc[2]),
-            "n_decisions": np.int32(sc[3]), "n_reinit": np.int32(sc[4]),
-            "n_spurious": np.int32(sc[5]), "n_lost": np.int32(sc[6]),
+            "n_decisions": s32[3], "n_reinit": s32[4], "n_spurious": s32[5], "n_lost": s32[6],
             "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
-            "n_undecided_deleted": np.int32(sc[7]),
-            "ekf_running": np.int8(run), "ekf_x": e[E_X:E_X + 6], "ekf_p_diag": e[E_P + np.diag(UT)],
-            "ekf_t": float(e[E_T]),
-            "opp_alive": np.int8(oa), "opp_pos": opp[:2], "opp_vel": opp[2:],
+            "n_undecided_deleted": s32[7],
+            "ekf_running": np.int8(run), "ekf_x": fv[P.F_EKF_X:P.F_EKF_P],
+            "ekf_p_diag": fv[P.F_EKF_P:P.F_EKF_T], "ekf_t": float(fv[P.F_EKF_T]),
+            "opp_alive": np.int8(oa), "opp_pos": fv[P.F_OPP:P.F_OPP + 2],
+            "opp_vel": fv[P.F_OPP + 2:P.F_SIZE],
             "opp_missed": np.int16(sc[8]),
-            "status": np.int32(sc[9]), "mode": self._mode,
+            "status": s32[9], "mode": self._mode,
             "imager": self._img_names[int(S[F.S_IMG])],
         }

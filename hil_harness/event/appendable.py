@@ -87,6 +87,25 @@ class AppendableDataset:
             self.ds.id.write(h5py.h5s.create_simple(data.shape), fs, data, mtype=self._mtype)
         self.rows = n + m
 
+    def append_each(self, rows: list) -> None:
+        """Write the arrays ``rows`` (each C-contiguous, ``row_shape``, this dataset's dtype) as
+        the next rows. With one row per chunk and no filter each goes straight into its chunk,
+        no stacked copy; otherwise they are stacked and written by :meth:`append`."""
+        if not rows:
+            return
+        if not (self._direct and self.chunk_rows == 1):
+            self.append(np.stack(rows))
+            return
+        for r in rows:
+            if r.dtype != self.dtype or r.shape != self.row_shape or not r.flags.c_contiguous:
+                raise ValueError(f"{self.ds.name}: layout changed from {self.dtype}"
+                                 f"{self.row_shape} to {r.dtype}{r.shape}")
+        n = self.rows
+        self.ds.id.set_extent((n + len(rows),) + self.row_shape)
+        for i, r in enumerate(rows):
+            self.ds.id.write_direct_chunk((n + i,) + self._zeros, r)
+        self.rows = n + len(rows)
+
     def _write_chunks(self, n: int, data: np.ndarray) -> None:
         """Rows ``[n, n + len(data))`` as whole raw chunks: the partly filled chunk they start in
         is written again whole (its earlier rows, kept in :attr:`_tail`, with the same bytes);

@@ -226,7 +226,7 @@ class EventWriter:
         r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
         r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
         if self.record_frames:
-            r.append_array("frames", o.frame, per_frame=True)
+            r.append_array("frames", o.frame, per_frame=True, borrow=True)
         if o.stages:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))

@@ -15,7 +15,8 @@ frame; the frames a recording holds are the rows every one of them has with its 
 Life cycle. The file is created as ``<stem>.partial<suffix>`` (``recording.partial.h5``) with
 ``complete = False`` and switched at once to HDF5's single-writer/multiple-reader mode (SWMR), whose
 writes keep the file consistent on disk at every instant. Rows are buffered in memory and written as
-one block every ``flush_every`` frames (:meth:`Recorder.end_frame`): no HDF5 call per frame. A kill
+one block every ``flush_every`` frames (:meth:`Recorder.end_frame`): no HDF5 call per frame (rows
+handed over with ``borrow=True``, the frames, are kept by reference instead of copied). A kill
 at any moment therefore leaves a readable ``recording.partial.h5`` holding every frame up to the last
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
@@ -105,6 +106,9 @@ class _Buffer:
         Dict rows: their field names, in order (a row with other names is refused).
     strings : tuple of int
         Dict rows: positions of the string (S64) fields, encoded to UTF-8 before they are stored.
+    held : list of ndarray or None
+        Borrowed rows (:meth:`Recorder.append_array` with ``borrow=True``): the caller's arrays,
+        kept by reference; ``sums`` their Adler-32, taken when they were appended.
     """
 
     def __init__(self, per_frame: bool):
@@ -113,6 +117,9 @@ class _Buffer:
         self.keys = None
         self.strings: tuple = ()
         self.n = 0
+        self.held = None
+        self.sums: list = []
+        self.row_layout = None        # (dtype, shape) of a borrowed row
 
     def _room(self, rows: int) -> None:
         need = self.n + rows
@@ -148,10 +155,14 @@ class _Buffer:
         self.block[self.n:self.n + len(rows)] = rows
         self.n += len(rows)
 
-    def take(self) -> np.ndarray | None:
-        """The rows buffered (a view, valid until the next append), and the buffer emptied."""
+    def take(self) -> np.ndarray | list | None:
+        """The rows buffered (a view, valid until the next append; borrowed rows: the list of
+        arrays), and the buffer emptied."""
         if not self.n:
             return None
+        if self.held is not None:
+            out, self.held, self.n = self.held[:self.n], [], 0
+            return out
         out, self.n = self.block[:self.n], 0
         return out
 
@@ -256,17 +267,40 @@ class Recorder:
         b.add_rows(rows.reshape(-1))
 
     def append_array(self, name: str, arr: np.ndarray, host: bool = False,
-                     per_frame: bool = False) -> None:
+                     per_frame: bool = False, borrow: bool = False) -> None:
         """Append one row (e.g. a frame) to the stacked dataset ``/arrays/<name>`` (or ``/host``);
-        the array is copied into the block buffer."""
+        the array is copied into the block buffer.
+
+        ``borrow=True`` (every call for that dataset): the caller hands a C-contiguous array over
+        and never changes it again; it is kept by reference until its block is written, not
+        copied (a frame is 125 kB). Its checksum is taken now, so a change made after all the
+        same shows in :meth:`Recording.verify` as a damaged row."""
         arr = np.asarray(arr)
-        b = self._buf(f"{'host' if host else 'arrays'}/{name}", per_frame)
+        key = f"{'host' if host else 'arrays'}/{name}"
+        b = self._buf(key, per_frame)
+        if borrow or b.held is not None:
+            self._borrow(b, key, arr, borrow)
+            return
         if b.block is None:
             b.start(arr.dtype, arr.shape, self.flush_every)
         elif b.block.shape[1:] != arr.shape:
             raise ValueError(f"array {name!r}: shape changed from {b.block.shape[1:]} to "
                              f"{arr.shape}")
         b.add_rows(arr[None])
+
+    def _borrow(self, b: _Buffer, key: str, arr: np.ndarray, borrow: bool) -> None:
+        if not borrow or (b.block is not None and b.held is None):
+            raise ValueError(f"{key}: borrow={borrow} differs from the dataset's earlier rows")
+        if b.row_layout is None:
+            b.row_layout, b.held = (arr.dtype, arr.shape), []
+        elif (arr.dtype, arr.shape) != b.row_layout:
+            raise ValueError(f"array {key!r}: layout changed from {b.row_layout[0]}"
+                             f"{b.row_layout[1]} to {arr.dtype}{arr.shape}")
+        if not arr.flags.c_contiguous:
+            arr = np.ascontiguousarray(arr)
+        b.held.append(arr)
+        b.sums.append(adler32_rows(arr[None])[0])
+        b.n += 1
 
     def host(self, row: dict) -> None:
         """Append a row of host timings to ``/host/timing`` (excluded from determinism checks)."""
@@ -282,7 +316,7 @@ class Recorder:
             self.flush()
 
     # ---------------------------------------------------------------- writing (one block)
-    def _dataset(self, key: str, data: np.ndarray, per_frame: bool) -> list:
+    def _dataset(self, key: str, dtype: np.dtype, row_shape: tuple, per_frame: bool) -> list:
         """``[AppendableDataset, checksum id]`` for ``key``, created on first use. Chunks: one row
         for rows of ``ROW_CHUNK_BYTES`` or more (frames, stage images: 2.5 MB chunks of 20
         frames measured no cheaper to write, and padded the last block); one block
@@ -292,32 +326,42 @@ class Recorder:
         entry = self._ds.get(key)
         if entry is not None:
             return entry
-        row_bytes = data.dtype.itemsize * int(np.prod(data.shape[1:], dtype=np.int64))
-        comp = self.compression if data.ndim >= 3 else None
+        row_bytes = dtype.itemsize * int(np.prod(row_shape, dtype=np.int64))
+        comp = self.compression if len(row_shape) >= 2 else None
         if per_frame and comp is None and row_bytes < ROW_CHUNK_BYTES:
             rows = max(1, min(self.flush_every, CHUNK_MAX_BYTES // max(row_bytes, 1)))
         elif row_bytes >= ROW_CHUNK_BYTES:
             rows = 1
         else:
             rows = max(1, min(TABLE_CHUNK_ROWS, ROW_CHUNK_BYTES * 4 // max(row_bytes, 1)))
-        out = AppendableDataset(self._f, key, data.dtype, data.shape[1:], rows, comp)
+        out = AppendableDataset(self._f, key, dtype, row_shape, rows, comp)
         out.ds.attrs["per_frame"] = bool(per_frame)
         out.ds.attrs["checksum_id"] = cid = len(self._ds)
         entry = self._ds[key] = [out, cid]
         return entry
 
-    def _write(self, key: str, data: np.ndarray, per_frame: bool) -> np.ndarray:
-        """Write one block of a dataset; returns its rows' checksum records."""
-        out, cid = self._dataset(key, data, per_frame)
+    def _write(self, key: str, b: _Buffer) -> np.ndarray | None:
+        """Write one block of a dataset; returns its rows' checksum records (None: no rows)."""
+        data = b.take()
+        if data is None:
+            return None
+        borrowed = b.held is not None
+        if borrowed:                  # the checksums leave with their rows, written or not
+            held_sums, b.sums = b.sums[:len(data)], []
+        dtype, shape = b.row_layout if borrowed else (data.dtype, data.shape[1:])
+        out, cid = self._dataset(key, dtype, shape, b.per_frame)
         n = out.rows
         try:
-            out.append(data)
+            out.append_each(data) if borrowed else out.append(data)
         except ValueError as exc:
             raise ValueError(f"{key}: {exc}") from None
         cs = np.empty(len(data), CHECKSUM_DTYPE)
         cs["dataset"] = cid
         cs["row"] = np.arange(n, n + len(data))
-        cs["adler32"] = adler32_rows(data)
+        if borrowed:
+            cs["adler32"] = held_sums
+        else:
+            cs["adler32"] = adler32_rows(data)
         return cs
 
     def flush(self) -> None:
@@ -329,9 +373,9 @@ class Recorder:
         try:
             sums = []
             for key, b in self._bufs.items():
-                data = b.take()
-                if data is not None:
-                    sums.append(self._write(key, data, b.per_frame))
+                cs = self._write(key, b)
+                if cs is not None:
+                    sums.append(cs)
             if sums:
                 self._f.flush()
                 if self._sums is None:
@@ -375,6 +419,8 @@ class Recorder:
             if not b.per_frame:
                 continue
             b.n = min(b.n, pending)
+            if b.held is not None:
+                del b.held[b.n:], b.sums[b.n:]
 
     def abort(self) -> None:
         """Discard the recording: the file is deleted (nothing left under either name)."""
