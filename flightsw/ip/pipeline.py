@@ -229,7 +229,8 @@ class FrameResult:
 
     def __init__(self, plan: "FramePlan", raw: tuple, ledger: Ledger | None):
         #: raw: (pack, fst, bst, (window image, origin, factor, size), full-res origin, aq,
-        #: threshold words, front cycles, frame count, time tag, alpha cycles or None)
+        #: threshold words, front cycles, frame count, time tag, alpha cycles or None, the pack's
+        #: words 0-5 as ints)
         self._plan, self._raw = plan, raw
         self._message = self._stages = self._backend = self._subimage = self._context = None
         self._ledger = ledger
@@ -251,7 +252,7 @@ class FrameResult:
         be = self._backend
         if be is None:
             pack, bst = self._raw[0], self._raw[2]
-            count, m, flags, c, fe, rk = pack[:6].tolist()
+            count, m, flags, c, fe, rk = self._raw[11]
             labels = bst[0] if bst.shape[0] else _NO_LABELS
             be = self._backend = BackendResult(labels, pack, count, m, flags, (c, fe, rk))
         return be
@@ -488,28 +489,31 @@ class FramePlan:
                             self.cycles_for(h, w), ledger, frame_count, time_tag)
 
     def _result(self, out, sub, origin, aq, front_cycles, ledger, frame_count, time_tag):
-        (_, pack, fst, bst, _, _, _, _, _, _, bad, t4, m4, d4, s) = out
+        (_, pack, fst, bst, count, m, flags, c, fe, rk, bad, t4, m4, d4, s) = out
         if bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
         return self.result(pack, fst, bst, sub, origin, aq, (t4, m4, d4, s), front_cycles, ledger,
-                           frame_count, time_tag)
+                           frame_count, time_tag, None, (count, m, flags, c, fe, rk))
 
     def result(self, pack, fst, bst, sub, origin, aq, thr, front_cycles, ledger, frame_count,
-               time_tag, alpha_cycles=None) -> FrameResult:
+               time_tag, alpha_cycles=None, head=None) -> FrameResult:
         """The :class:`FrameResult` of one pass of :func:`ip_frame_k` (its ``pack``, stage arrays,
         the window ``sub`` (a Subimage or its fields (image, compacted origin, factor, size)), the
         window origin ``origin`` in full-resolution pixels, alpha ``aq`` and the threshold words
         ``thr`` (t4, mean4, std4, shift)), the stages' cycles charged to ``ledger`` (a new one if
-        None) and, with ``alpha_cycles``, the alpha logic's after them."""
+        None) and, with ``alpha_cycles``, the alpha logic's after them. ``head``: the pack's words
+        0-5 as ints when the caller has them (read from ``pack`` if None)."""
+        if head is None:
+            head = pack[:6].tolist()
         if isinstance(sub, Subimage):
             sub = (sub.image, sub.origin, sub.factor, sub.size)
         return FrameResult(self, (pack, fst, bst, sub, origin, aq, thr, front_cycles, frame_count,
-                                  time_tag, alpha_cycles), ledger)
+                                  time_tag, alpha_cycles, head), ledger)
 
     def _charge(self, ledger: Ledger, raw: tuple) -> None:
         """Charge a :class:`FrameResult`'s cycles (``raw``: its fields) to ``ledger``."""
-        pack, front_cycles, alpha_cycles = raw[0], raw[7], raw[10]
-        c, fe, rk = pack[3:6].tolist()
+        front_cycles, alpha_cycles = raw[7], raw[10]
+        c, fe, rk = raw[11][3:6]
         if alpha_cycles is None:
             keys, charged = self.keys, front_cycles + (c, fe, rk)
         else:
@@ -521,7 +525,7 @@ class FramePlan:
 
     def _message(self, raw: tuple, be: BackendResult) -> CandidateMessage:
         """The candidate message of a :class:`FrameResult` (``raw``: its fields)."""
-        (_, _, _, sub, origin, _, _, _, frame_count, time_tag, _) = raw
+        (_, _, _, sub, origin, _, _, _, frame_count, time_tag, _, _) = raw
         h, w = sub[3]
         alpha = raw[5] / 4096.0 if self.threshold_stage is not None else 0.0
         return CandidateMessage(frame_count=frame_count, time_tag=time_tag,

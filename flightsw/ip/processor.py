@@ -222,7 +222,7 @@ class ImageProcessor:
         verdict, words, win, pack, fst, bst, info = ip_step_k(
             frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, *plan.step_args,
             plan.prm[want], want)
-        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict = info.tolist()
+        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict, *head = info.tolist()
         self._fb = fb
         if cmd_verdict:
             self.rejected_commands += 1
@@ -230,7 +230,7 @@ class ImageProcessor:
             self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
         res = plan.result(pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),
                           (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, ledger, fc, time_tag,
-                          ALPHA_LOGIC_CYCLES)
+                          ALPHA_LOGIC_CYCLES, head)
         self.alpha.set_q12(aq_next)
         self.frames += 1
         self._last_frame_count = int(frame_count)
