@@ -219,9 +219,10 @@ class FrameResult:
         ``threshold`` (its words t4, mean4, std4 (Q.4), shift, alpha_q12 and mode).
 
     Made by :meth:`FramePlan.result` from the compiled call's outputs; each attribute is built when
-    first read (the closed loop reads the message and the back end's count, not the rest: ~1.5 us a
-    frame). A caller's ledger is charged at once; the ledger made when none was given is made and
-    charged when first read.
+    first read (a caller of :meth:`flightsw.ip.ImageProcessor.step` reading only the words saves
+    ~2.5 us a frame; the closed loop reads the message and the back end's count, and saves the
+    context, subimage and stages only). A caller's ledger is charged at once; the ledger made when
+    none was given is made and charged when first read.
     """
 
     __slots__ = ("_plan", "_raw", "_ledger", "_message", "_stages", "_backend", "_subimage",
