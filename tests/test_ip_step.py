@@ -232,3 +232,30 @@ def test_step_errors_name_the_input_as_before():
     assert a.feedback == b.feedback and a.alpha.q12 == b.alpha.q12
     with pytest.raises(MessageError):
         TrackCommand.feedback_from_words(cmd[:54])
+
+
+def test_step_result_read_later_is_its_own_frame():
+    """The result's objects are built when first read: read after later frames they still describe
+    their own frame (the words decoded, the window cut by hand); a caller's ledger is charged
+    before anything is read, a result without one charges the ledger it makes when read."""
+    from flightsw.budget import IP1750, Ledger
+    from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES
+    ip = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    cmd = TrackCommand(predicted_row=118.0, predicted_col=131.0,
+                       los_eci=np.array([0.6, 0.8, 0.0])).to_words()
+    frames = [_frame(1)] + [_frame(s, ((60 + s, 70, 800),)) for s in (2, 3)]
+    ledger = Ledger()
+    outs = [ip.step(frames[0], frame_count=1, time_tag=0.5, imager="wfov_vis",
+                    command_words=cmd, ledger=ledger)]
+    assert ledger.cycles(IP1750, "alpha_logic") == ALPHA_LOGIC_CYCLES and ledger.cycles("dsp") > 0
+    outs += [ip.step(f, frame_count=2 + s, time_tag=0.5 * s, imager="wfov_vis")
+             for s, f in enumerate(frames[1:])]
+    for frame, out in zip(frames, outs):
+        res = out.result
+        assert res.message == CandidateMessage.from_words(out.words)
+        assert res.backend.count >= res.message.count
+        r0, c0 = res.subimage.origin
+        assert np.array_equal(res.subimage.image, frame[r0:r0 + 64, c0:c0 + 64])
+        assert res.context["subimage"] is res.subimage and res.context["threshold"]["alpha_q12"]
+    assert outs[1].result.ledger.cycles(IP1750, "alpha_logic") == ALPHA_LOGIC_CYCLES
+    assert outs[1].result.ledger is outs[1].result.ledger

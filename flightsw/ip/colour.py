@@ -352,6 +352,16 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
     S = np.uint64(0)
     raw[0, 0] = 0
     for r in range(H):
+        # most rows of a thresholded window are all off: an OR over the row (vectorised, no row
+        # views: their reference counts cost more than the test) finds them, mask 0, no run
+        anyon = np.int64(0)
+        for c in range(W):
+            anyon |= np.int64(img[r, c])
+        raw[r + 1, 0] = 0
+        if anyon == 0:
+            U = np.uint64(0)
+            S = np.uint64(0)
+            continue
         src = img[r]
         M = np.uint64(0)
         for c in range(W):
@@ -361,7 +371,6 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
         Mrow = M
         up_row = raw[r]
         row = raw[r + 1]
-        row[0] = 0
         while M != 0:
             s = np.int64(trailing_zeros(M))
             rest = ~(M >> np.uint64(s))

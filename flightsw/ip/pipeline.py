@@ -16,7 +16,6 @@ the one-frame conveniences (:func:`flightsw.ip.process_frame`).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
@@ -203,7 +202,6 @@ def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w,
 # ================================================================================================
 # the plan
 # ================================================================================================
-@dataclass
 class FrameResult:
     """What one frame through the IP produced.
 
@@ -219,17 +217,72 @@ class FrameResult:
     context : dict
         ``imager``, ``record``, ``subimage``, ``preprocess`` and, with a threshold step,
         ``threshold`` (its words t4, mean4, std4 (Q.4), shift, alpha_q12 and mode).
+
+    Made by :meth:`FramePlan.result` from the compiled call's outputs; each attribute is built when
+    first read (a caller of :meth:`flightsw.ip.ImageProcessor.step` reading only the words saves
+    ~2.5 us a frame; the closed loop reads the message and the back end's count, and saves the
+    context, subimage and stages only). A caller's ledger is charged at once; the ledger made when
+    none was given is made and charged when first read.
     """
 
-    message: CandidateMessage
-    stages: list
-    ledger: Ledger
-    backend: BackendResult
-    subimage: object = None
-    context: dict = field(default_factory=dict)
+    __slots__ = ("_plan", "_raw", "_ledger", "_message", "_stages", "_backend", "_subimage",
+                 "_context")
+
+    def __init__(self, plan: "FramePlan", raw: tuple, ledger: Ledger | None):
+        #: raw: (pack, fst, bst, (window image, origin, factor, size), full-res origin, aq,
+        #: threshold words, front cycles, frame count, time tag, alpha cycles or None, the pack's
+        #: words 0-5 as ints)
+        self._plan, self._raw = plan, raw
+        self._message = self._stages = self._backend = self._subimage = self._context = None
+        self._ledger = ledger
+        if ledger is not None:
+            plan._charge(ledger, raw)
 
     def __iter__(self):                         # message, stages, ledger = process_frame(...)
         return iter((self.message, self.stages, self.ledger))
+
+    @property
+    def ledger(self) -> Ledger:
+        if self._ledger is None:
+            self._ledger = Ledger()
+            self._plan._charge(self._ledger, self._raw)
+        return self._ledger
+
+    @property
+    def backend(self) -> BackendResult:
+        be = self._backend
+        if be is None:
+            pack, bst = self._raw[0], self._raw[2]
+            count, m, flags, c, fe, rk = self._raw[11]
+            labels = bst[0] if bst.shape[0] else _NO_LABELS
+            be = self._backend = BackendResult(labels, pack, count, m, flags, (c, fe, rk))
+        return be
+
+    @property
+    def subimage(self) -> Subimage:
+        if self._subimage is None:
+            self._subimage = Subimage(*self._raw[3])
+        return self._subimage
+
+    @property
+    def message(self) -> CandidateMessage:
+        if self._message is None:
+            self._message = self._plan._message(self._raw, self.backend)
+        return self._message
+
+    @property
+    def stages(self) -> list:
+        if self._stages is None:
+            fst, bst, thr = self._raw[1], self._raw[2], self._raw[6]
+            self._stages = self._plan._stages(fst, bst, self.backend, thr[0]) if fst.shape[0] \
+                else []
+        return self._stages
+
+    @property
+    def context(self) -> dict:
+        if self._context is None:
+            self._context = self._plan._context(self._raw, self.subimage)
+        return self._context
 
 
 def backend_steps(sequence: ProcessingSequence):
@@ -408,7 +461,7 @@ class FramePlan:
         out = ip_frame_k(frame, self.f, r0, c0, h, w, self.front, self.ffts, self.poly, aq,
                          self.mode, self.recw, self.prm[bool(want_stages)], r0w, c0w, mr, mc,
                          bool(want_stages))
-        return self._result(out, Subimage(out[0], (r0, c0), self.f, (h, w)), (o0, o1), aq,
+        return self._result(out, (out[0], (r0, c0), self.f, (h, w)), (o0, o1), aq,
                             self.front_cycles, ledger, frame_count, time_tag)
 
     def run_window(self, sub: Subimage, centroid_mean=None, *, alpha_q12: int | None = None,
@@ -433,51 +486,64 @@ class FramePlan:
         aq = self.aq if alpha_q12 is None else int(alpha_q12)
         out = ip_frame_k(img, 1, 0, 0, h, w, self.front, self.ffts, poly, aq, self.mode,
                          self.recw, prm, r0w, c0w, mr, mc, bool(want_stages))
-        return self._result(out, Subimage(img, tuple(sub.origin), f, (h, w)), (o0, o1), aq,
+        return self._result(out, (img, tuple(sub.origin), f, (h, w)), (o0, o1), aq,
                             self.cycles_for(h, w), ledger, frame_count, time_tag)
 
     def _result(self, out, sub, origin, aq, front_cycles, ledger, frame_count, time_tag):
-        (_, pack, fst, bst, _, _, _, _, _, _, bad, t4, m4, d4, s) = out
+        (_, pack, fst, bst, count, m, flags, c, fe, rk, bad, t4, m4, d4, s) = out
         if bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
         return self.result(pack, fst, bst, sub, origin, aq, (t4, m4, d4, s), front_cycles, ledger,
-                           frame_count, time_tag)
+                           frame_count, time_tag, None, (count, m, flags, c, fe, rk))
 
     def result(self, pack, fst, bst, sub, origin, aq, thr, front_cycles, ledger, frame_count,
-               time_tag, alpha_cycles=None) -> FrameResult:
+               time_tag, alpha_cycles=None, head=None) -> FrameResult:
         """The :class:`FrameResult` of one pass of :func:`ip_frame_k` (its ``pack``, stage arrays,
-        the window ``sub``, the window origin ``origin`` in full-resolution pixels, alpha ``aq``
-        and the threshold words ``thr`` (t4, mean4, std4, shift)), the stages' cycles charged to
-        ``ledger`` (a new one if None) and, with ``alpha_cycles``, the alpha logic's after them."""
-        count, m, flags, c, fe, rk = pack[:6].tolist()
-        ctx = {"imager": self.imager, "record": self.record, "subimage": sub,
-               "preprocess": self.pre}
-        alpha = 0.0
-        if self.threshold_stage is not None:
-            t4, m4, d4, s = thr
-            ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": aq,
-                                "mode": self.mode_name}
-            alpha = aq / 4096.0
-        ledger = Ledger() if ledger is None else ledger
-        cycles = (c, fe, rk)
+        the window ``sub`` (a Subimage or its fields (image, compacted origin, factor, size)), the
+        window origin ``origin`` in full-resolution pixels, alpha ``aq`` and the threshold words
+        ``thr`` (t4, mean4, std4, shift)), the stages' cycles charged to ``ledger`` (a new one if
+        None) and, with ``alpha_cycles``, the alpha logic's after them. ``head``: the pack's words
+        0-5 as ints when the caller has them (read from ``pack`` if None)."""
+        if head is None:
+            head = pack[:6].tolist()
+        if isinstance(sub, Subimage):
+            sub = (sub.image, sub.origin, sub.factor, sub.size)
+        return FrameResult(self, (pack, fst, bst, sub, origin, aq, thr, front_cycles, frame_count,
+                                  time_tag, alpha_cycles, head), ledger)
+
+    def _charge(self, ledger: Ledger, raw: tuple) -> None:
+        """Charge a :class:`FrameResult`'s cycles (``raw``: its fields) to ``ledger``."""
+        front_cycles, alpha_cycles = raw[7], raw[10]
+        c, fe, rk = raw[11][3:6]
         if alpha_cycles is None:
-            keys, charged = self.keys, front_cycles + cycles
+            keys, charged = self.keys, front_cycles + (c, fe, rk)
         else:
             keys, charged = self.step_keys, front_cycles + (c, fe, rk, alpha_cycles)
         if "dsp" in ledger.processors and "ip1750" in ledger.processors:
             ledger.charge_block(keys, charged)
         else:                          # the ledger raises its own error for the missing processor
             ledger.charge_many(k + (n,) for k, n in zip(keys, charged))
-        labels = bst[0] if bst.shape[0] else _NO_LABELS
-        be = BackendResult(labels, pack, count, m, flags, cycles)
-        h, w = sub.size
-        msg = CandidateMessage(frame_count=frame_count, time_tag=time_tag,
-                               imager=self.msg_imager, compaction=sub.factor,
-                               window_row0=origin[0], window_col0=origin[1], window_rows=h,
-                               window_cols=w, alpha=alpha, record_id=self.record_id,
-                               candidates=be.candidates())
-        stages = self._stages(fst, bst, be, thr[0]) if fst.shape[0] else []
-        return FrameResult(msg, stages, ledger, be, sub, ctx)
+
+    def _message(self, raw: tuple, be: BackendResult) -> CandidateMessage:
+        """The candidate message of a :class:`FrameResult` (``raw``: its fields)."""
+        (_, _, _, sub, origin, _, _, _, frame_count, time_tag, _, _) = raw
+        h, w = sub[3]
+        alpha = raw[5] / 4096.0 if self.threshold_stage is not None else 0.0
+        return CandidateMessage(frame_count=frame_count, time_tag=time_tag,
+                                imager=self.msg_imager, compaction=sub[2],
+                                window_row0=origin[0], window_col0=origin[1], window_rows=h,
+                                window_cols=w, alpha=alpha, record_id=self.record_id,
+                                candidates=be.candidates())
+
+    def _context(self, raw: tuple, sub: Subimage) -> dict:
+        """The context dict of a :class:`FrameResult` (``raw``: its fields)."""
+        ctx = {"imager": self.imager, "record": self.record, "subimage": sub,
+               "preprocess": self.pre}
+        if self.threshold_stage is not None:
+            t4, m4, d4, s = raw[6]
+            ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": raw[5],
+                                "mode": self.mode_name}
+        return ctx
 
     def _stages(self, fst, bst, be, t4):
         out = [Stage("window", fst[0])]

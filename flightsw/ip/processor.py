@@ -21,7 +21,6 @@ import numpy as np
 from flightsw.budget import Ledger
 from flightsw.ip.frame import check_inputs
 from flightsw.ip.pipeline import FramePlan, FrameResult
-from flightsw.ip.preprocess import Subimage
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
 from flightsw.ip.step import STEP_FRAME_RANGE, STEP_OK, STEP_TIME_TAG, ip_step_k
@@ -223,15 +222,15 @@ class ImageProcessor:
         verdict, words, win, pack, fst, bst, info = ip_step_k(
             frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, *plan.step_args,
             plan.prm[want], want)
-        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict = info.tolist()
+        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict, *head = info.tolist()
         self._fb = fb
         if cmd_verdict:
             self.rejected_commands += 1
         if verdict != STEP_OK:
             self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
-        res = plan.result(pack, fst, bst, Subimage(win, (r0, c0), plan.f, plan.window_hw),
+        res = plan.result(pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),
                           (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, ledger, fc, time_tag,
-                          ALPHA_LOGIC_CYCLES)
+                          ALPHA_LOGIC_CYCLES, head)
         self.alpha.set_q12(aq_next)
         self.frames += 1
         self._last_frame_count = int(frame_count)

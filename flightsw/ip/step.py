@@ -29,8 +29,10 @@ __all__ = ["ip_step_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE", "STEP_ME
 #: front end hands it int16 words)
 STEP_OK, STEP_TIME_TAG, STEP_FRAME_RANGE, STEP_MESSAGE = 0, 1, 2, 3
 #: words of :func:`ip_step_k`'s ``info``: window origin (compacted), origin (full resolution),
-#: the next alpha (Q4.12), the threshold's t4, mean4, std4, shift, the command's verdict
-STEP_INFO = 10
+#: the next alpha (Q4.12), the threshold's t4, mean4, std4, shift, the command's verdict, then the
+#: pack's header words 0-5 (blob count, candidates, flags, colour, features and rank cycles: one
+#: ``tolist`` in Python instead of a second one on the pack)
+STEP_INFO = 16
 
 
 @njit(cache=True)
@@ -118,6 +120,7 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     win, pack, fst, bst = out[0], out[1], out[2], out[3]
     info[0], info[1], info[2], info[3] = r0, c0, o0, o1
     info[5], info[6], info[7], info[8] = out[11], out[12], out[13], out[14]
+    info[10:16] = pack[:6]
     head = np.zeros(15, np.int64)
     head[0], head[2], head[6] = 0x4950, fc, geo[5]
     head[7], head[8], head[9], head[10], head[13] = o0 & 0xFFFF, o1 & 0xFFFF, h, w, geo[6]
