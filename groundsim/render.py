@@ -385,6 +385,31 @@ def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igai
     return s0, s1, s2, s3
 
 
+@njit(cache=True, inline="always")
+def _spill(work, c, j, step, charge, full_well):
+    """Blooming: put ``charge`` (electrons) into column ``c`` of ``work`` (float64 [nr, nc]) from
+    row ``j`` on, moving by ``step`` (-1 up, +1 down), filling each pixel to ``full_well``; charge
+    left at the frame edge is lost.
+
+    Cases
+    -----
+    fits : the first pixel with room takes the rest of the charge.
+    fills : pixels without room for all of it are filled to the full well, the rest goes on.
+    edge : charge still left past the first or last row is dropped.
+    """
+    nr = work.shape[0]
+    while charge > 0.0 and 0 <= j < nr:
+        room = full_well - work[j, c]
+        if room > 0.0:
+            if room >= charge:
+                work[j, c] += charge
+                charge = 0.0
+            else:
+                work[j, c] = full_well
+                charge -= room
+        j += step
+
+
 @njit(cache=True)
 def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max,
                   reset):
@@ -498,30 +523,8 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
                 if e > full_well:
                     ex = e - full_well
                     work[r, c] = full_well
-                    up = 0.5 * ex
-                    down = 0.5 * ex
-                    j = r - 1
-                    while up > 0.0 and j >= 0:
-                        room = full_well - work[j, c]
-                        if room > 0.0:
-                            if room >= up:
-                                work[j, c] += up
-                                up = 0.0
-                            else:
-                                work[j, c] = full_well
-                                up -= room
-                        j -= 1
-                    j = r + 1
-                    while down > 0.0 and j < nr:
-                        room = full_well - work[j, c]
-                        if room > 0.0:
-                            if room >= down:
-                                work[j, c] += down
-                                down = 0.0
-                            else:
-                                work[j, c] = full_well
-                                down -= room
-                        j += 1
+                    _spill(work, c, r - 1, -1, 0.5 * ex, full_well)
+                    _spill(work, c, r + 1, 1, 0.5 * ex, full_well)
             for r in range(nr):
                 z, s0, s1, s2, s3 = _normal(s0, s1, s2, s3, gtab)
                 out[r, c] = _digitise(work[r, c] + read_noise * z, inv_gain, bias, hi)

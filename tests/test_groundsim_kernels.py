@@ -145,3 +145,17 @@ def test_note_tails_codes_the_extreme_bins_of_a_row():
     assert _note_tails(np.full(7, 9, np.uint16), 2, tails, 0) == 0 and (tails == -1).all()
     assert _note_tails(krow, 2, tails, 1) == 3           # room for two: (2*7+1)*2, (2*7+3)*2+1
     assert tails.tolist() == [-1, 30, 35]
+
+
+# cases: groundsim.render._spill fits, fills, edge
+def test_spill_fills_pixels_to_the_full_well_in_one_direction():
+    from groundsim.render import _spill
+    w = np.array([[90.0], [100.0], [40.0], [0.0]])
+    _spill(w, 0, 2, -1, 30.0, 100.0)                   # up from row 2: 60 room there, fits
+    assert w[:, 0].tolist() == [90.0, 100.0, 70.0, 0.0]
+    _spill(w, 0, 2, -1, 45.0, 100.0)                   # fills row 2 (30), row 1 full, row 0 takes 15
+    assert w[:, 0].tolist() == [100.0, 100.0, 100.0, 0.0]
+    _spill(w, 0, 3, 1, 150.0, 100.0)                   # down from the last row: 100, then the edge
+    assert w[:, 0].tolist() == [100.0, 100.0, 100.0, 100.0]
+    _spill(w, 0, 1, -1, 5.0, 100.0)                    # no room anywhere up: all lost at the edge
+    assert w[:, 0].tolist() == [100.0] * 4
