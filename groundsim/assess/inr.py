@@ -359,25 +359,18 @@ def _jsonable(x):
     return x
 
 
-def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAssessment:
-    """Run the whole section 3-5 assessment on ``table`` (see the module doc for the steps)."""
-    cfg = config or InrConfig()
+def _validity(table: MeasurementTable, cfg: InrConfig, imagers: list) -> dict:
+    """Steps 1-3: quality metric (float [n]), and the bool [n] masks QM-valid, gold, vetoed, valid."""
     n = len(table)
-    if n == 0:
-        raise ValueError("assess: the measurement table is empty")
-    imagers = sorted(set(table.imager.tolist()))
-    # 1-2. QM, validity, gold
     qm = quality_metric(table.qm_factors, cfg.gamma) if table.qm_factors else np.full(n, np.nan)
     if table.qm is not None:
         qm = np.where(np.isfinite(table.qm), table.qm, qm)
     qv = np.array([_per(cfg.qm_valid, im) for im in table.imager], dtype=np.float64)
     qg = np.array([_per(cfg.qm_gold, im) for im in table.imager], dtype=np.float64)
-    rmin = np.array([_per(cfg.rho_min, im) for im in table.imager], dtype=np.float64)
     has_abs = np.all(np.isfinite(table.abs_err), axis=1)
     clean = table.contamination < cfg.max_contamination
     qm_valid = has_abs & clean & np.nan_to_num(qm >= qv)
     gold = qm_valid & np.nan_to_num(qm >= qg)
-    # 3. Kalman veto
     vetoed = np.zeros(n, dtype=bool)
     for im in imagers:
         rows = np.flatnonzero((table.imager == im) & qm_valid)
@@ -390,16 +383,26 @@ def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAsses
         v, _ = kalman_veto(table.time[rows], table.abs_err[rows], gold[rows], float(ns),
                            cfg.kf_meas_sigma_urad, cfg.kf_process_urad_per_sqrt_s, cfg.kf_init_sigma_urad)
         vetoed[rows] = v
-    valid = qm_valid & ~vetoed
-    # relative validity (Table 3-2) and eq. 4-2
-    groups = _group_index(table)
+    return dict(qm=qm, has_abs=has_abs, clean=clean, qm_valid=qm_valid, gold=gold, vetoed=vetoed,
+                valid=qm_valid & ~vetoed)
+
+
+def _relative(table: MeasurementTable, cfg: InrConfig, qm_valid, clean) -> dict:
+    """Relative validity (Table 3-2) and the inconsistencies (eq. 4-2) of the relative-valid pairs."""
+    rmin = np.array([_per(cfg.rho_min, im) for im in table.imager], dtype=np.float64)
     has_rel = np.all(np.isfinite(table.rel_err), axis=1)
     rel_base = has_rel & np.nan_to_num(table.rho >= rmin) & clean
-    prev, rel_dt, pairs, inc = inconsistency_pairs(table, qm_valid, rel_base, groups)
+    prev, rel_dt, pairs, inc = inconsistency_pairs(table, qm_valid, rel_base, _group_index(table))
     rel_valid = rel_base & np.nan_to_num(rel_dt <= cfg.max_rel_dt_s)
     keep = rel_valid[pairs]
-    pairs, inc = pairs[keep], inc[keep]
-    # 4. platinum
+    return dict(has_rel=has_rel, prev=prev, rel_dt=rel_dt, rel_valid=rel_valid, pairs=pairs[keep],
+                inc=inc[keep])
+
+
+def _platinum(table: MeasurementTable, cfg: InrConfig, imagers: list, qm_valid, prev, pairs, inc) -> dict:
+    """Step 4: per imager the inconsistency moment M, the consistent pairs (bool [n_pairs]) and the
+    relative and absolute platinum masks (bool [n])."""
+    n = len(table)
     consistent = np.zeros(pairs.size, dtype=bool)
     moments = {}
     pair_im = table.imager[pairs]
@@ -428,7 +431,14 @@ def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAsses
         platinum = qm_valid & (n_all > 0) & (n_in == n_all)
     else:
         raise ValueError(f"platinum_rule must be 'any' or 'all', got {cfg.platinum_rule!r}")
-    # 5. coregistration, tarnished, realignment
+    return dict(consistent=consistent, moments=moments, pair_im=pair_im, platinum_rel=platinum_rel,
+                platinum=platinum)
+
+
+def _coregister(table: MeasurementTable, cfg: InrConfig, imagers: list, qm_valid, platinum) -> dict:
+    """Step 5: the reference imager, each other imager's coregistration fit, the tarnished mask
+    (bool [n]) and the realigned absolute errors ``nav`` (float [n, 2], urad)."""
+    n = len(table)
     counts = {im: int(np.sum(qm_valid & (table.imager == im))) for im in imagers}
     ref = cfg.reference_imager or max(imagers, key=lambda im: (counts[im], im))
     if ref not in imagers:
@@ -463,13 +473,15 @@ def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAsses
         rows_im = np.flatnonzero(table.imager == im)
         nav[rows_im] = table.abs_err[rows_im] - fit["predict"](table.time[rows_im])
         coreg[im] = dict(fit, rows=px, ref_rows=pr)
-    platinum = platinum & ~tarnished
-    # 6. compliance
+    return dict(reference=ref, tarnished=tarnished, nav=nav, coreg=coreg)
+
+
+def _compliance_tables(table: MeasurementTable, cfg: InrConfig, imagers: list, sets_abs: dict,
+                       sets_rel: dict, nav, rel_dt, rel_valid) -> tuple[list, dict]:
+    """Step 6: the frame-spacing bins and the NAV / FFR compliance of each set, for all imagers
+    together and each imager."""
     spacings = _spacing_bins(rel_dt[rel_valid], cfg.ffr_spacing_tol, cfg.ffr_spacings_s)
-    gold_rel = rel_valid & (prev >= 0) & gold & gold[np.where(prev >= 0, prev, 0)]
-    sets_abs = {"valid": valid, "gold": gold, "platinum": platinum}
-    sets_rel = {"valid": rel_valid, "gold": gold_rel, "platinum": platinum_rel}
-    scopes = {"all": np.ones(n, dtype=bool)}
+    scopes = {"all": np.ones(len(table), dtype=bool)}
     if len(imagers) > 1:
         scopes.update({im: table.imager == im for im in imagers})
     comp = {"nav": {}, "ffr": {}}
@@ -478,44 +490,70 @@ def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAsses
                                              cfg.confidence) for sc, m in scopes.items()}
     for sp in spacings:
         in_bin = np.nan_to_num(np.abs(rel_dt - sp) <= cfg.ffr_spacing_tol * sp)
-        key = f"{sp:g}s"
         th = cfg.theta_ffr(sp)
-        comp["ffr"][key] = {sname: {sc: compliance(table.rel_err[smask & in_bin & m], th,
-                                                   cfg.required_fraction, cfg.confidence)
-                                    for sc, m in scopes.items()}
-                            for sname, smask in sets_rel.items()}
-    frac_inside = {im: float(np.mean(consistent[pair_im == im])) for im in moments}
-    summary = {
+        comp["ffr"][f"{sp:g}s"] = {sname: {sc: compliance(table.rel_err[smask & in_bin & m], th,
+                                                          cfg.required_fraction, cfg.confidence)
+                                           for sc, m in scopes.items()}
+                                   for sname, smask in sets_rel.items()}
+    return spacings, comp
+
+
+def _summary(cfg: InrConfig, imagers: list, n: int, v: dict, r: dict, p: dict, c: dict, platinum,
+             spacings: list, comp: dict) -> dict:
+    """The JSON summary of one assessment (schema ``uvisi-inr-summary/1``)."""
+    moments, pair_im = p["moments"], p["pair_im"]
+    return {
         "schema": "uvisi-inr-summary/1",
         "paper": "Carr & Madani, platinum quality landmarks (seeds/000_97a93f08dd259acd)",
-        "config": {k: v for k, v in asdict(cfg).items()},
-        "imagers": imagers, "reference_imager": ref,
+        "config": {k: val for k, val in asdict(cfg).items()},
+        "imagers": imagers, "reference_imager": c["reference"],
         "counts": {
-            "rows": n, "absolute": int(has_abs.sum()), "qm_valid": int(qm_valid.sum()),
-            "gold": int(gold.sum()), "vetoed": int(vetoed.sum()), "valid": int(valid.sum()),
-            "relative": int(has_rel.sum()), "relative_valid": int(rel_valid.sum()),
-            "inconsistency_pairs": int(pairs.size), "platinum_relative": int(platinum_rel.sum()),
-            "tarnished": int(tarnished.sum()), "platinum": int(platinum.sum()),
+            "rows": n, "absolute": int(v["has_abs"].sum()), "qm_valid": int(v["qm_valid"].sum()),
+            "gold": int(v["gold"].sum()), "vetoed": int(v["vetoed"].sum()), "valid": int(v["valid"].sum()),
+            "relative": int(r["has_rel"].sum()), "relative_valid": int(r["rel_valid"].sum()),
+            "inconsistency_pairs": int(r["pairs"].size), "platinum_relative": int(p["platinum_rel"].sum()),
+            "tarnished": int(c["tarnished"].sum()), "platinum": int(platinum.sum()),
         },
         "inconsistency": {im: {"M_urad2": moments[im], "n": int(np.sum(pair_im == im)),
-                               "fraction_inside": frac_inside[im],
+                               "fraction_inside": float(np.mean(p["consistent"][pair_im == im])),
                                "expected_fraction_inside": 1 - math.exp(-cfg.platinum_n ** 2 / 2)}
                           for im in moments},
-        "coregistration": {f"{im}-{ref}": {"coef_ew": f["coef_ew"], "coef_ns": f["coef_ns"],
-                                           "sigma_urad": f["sigma"], "n_pairs": int(f["rows"].size),
-                                           "n_outside": int(f["outside"].sum()),
-                                           "harmonic_ew": f["harmonic"], "period_s": f["period_s"]}
-                           for im, f in coreg.items()},
+        "coregistration": {f"{im}-{c['reference']}": {
+            "coef_ew": f["coef_ew"], "coef_ns": f["coef_ns"], "sigma_urad": f["sigma"],
+            "n_pairs": int(f["rows"].size), "n_outside": int(f["outside"].sum()),
+            "harmonic_ew": f["harmonic"], "period_s": f["period_s"]} for im, f in c["coreg"].items()},
         "ffr_spacings_s": spacings,
         "compliance": comp,
         "type2_threshold_at_0p7": type2_threshold(0.7),
     }
+
+
+def assess(table: MeasurementTable, config: InrConfig | None = None) -> InrAssessment:
+    """Run the whole section 3-5 assessment on ``table`` (see the module doc for the steps)."""
+    cfg = config or InrConfig()
+    n = len(table)
+    if n == 0:
+        raise ValueError("assess: the measurement table is empty")
+    imagers = sorted(set(table.imager.tolist()))
+    v = _validity(table, cfg, imagers)
+    qm_valid, gold = v["qm_valid"], v["gold"]
+    r = _relative(table, cfg, qm_valid, v["clean"])
+    prev, rel_dt, rel_valid, pairs = r["prev"], r["rel_dt"], r["rel_valid"], r["pairs"]
+    p = _platinum(table, cfg, imagers, qm_valid, prev, pairs, r["inc"])
+    c = _coregister(table, cfg, imagers, qm_valid, p["platinum"])
+    platinum = p["platinum"] & ~c["tarnished"]
+    gold_rel = rel_valid & (prev >= 0) & gold & gold[np.where(prev >= 0, prev, 0)]
+    spacings, comp = _compliance_tables(
+        table, cfg, imagers, {"valid": v["valid"], "gold": gold, "platinum": platinum},
+        {"valid": rel_valid, "gold": gold_rel, "platinum": p["platinum_rel"]}, c["nav"], rel_dt, rel_valid)
+    summary = _summary(cfg, imagers, n, v, r, p, c, platinum, spacings, comp)
     return InrAssessment(
-        table=table, config=cfg, qm=qm, qm_valid=qm_valid, gold=gold, vetoed=vetoed, valid=valid,
-        rel_valid=rel_valid, prev=prev, rel_dt=rel_dt, pairs=pairs, inconsistency=inc,
-        consistent=consistent, moments=moments, platinum_rel=platinum_rel, platinum=platinum,
-        tarnished=tarnished, nav=nav, coreg=coreg, reference_imager=ref, spacings=spacings,
-        compliance=comp, summary=_jsonable(summary))
+        table=table, config=cfg, qm=v["qm"], qm_valid=qm_valid, gold=gold, vetoed=v["vetoed"],
+        valid=v["valid"], rel_valid=rel_valid, prev=prev, rel_dt=rel_dt, pairs=pairs,
+        inconsistency=r["inc"], consistent=p["consistent"], moments=p["moments"],
+        platinum_rel=p["platinum_rel"], platinum=platinum, tarnished=c["tarnished"], nav=c["nav"],
+        coreg=c["coreg"], reference_imager=c["reference"], spacings=spacings, compliance=comp,
+        summary=_jsonable(summary))
 
 
 # --------------------------------------------------------------------------------------------------
