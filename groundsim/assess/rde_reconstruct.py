@@ -262,6 +262,80 @@ def _pack(ep, K, H, sig, model):
     return zoff, roff, Rf
 
 
+def _control_points(t, pix, star_eci, C_bi, C_ib, sigma_px, sigma_px_frame):
+    """Checked float arrays: t (M,), pix (M, 2), unit star vectors (M, 3), C_bi (M, 3, 3),
+    C_ib (3, 3), sigmas (M,) [px] and the optional single-measurement sigmas (M,) or None."""
+    t = np.asarray(t, dtype=float)
+    pix = np.asarray(pix, dtype=float).reshape(-1, 2)
+    s = np.asarray(star_eci, dtype=float).reshape(-1, 3)
+    s = s / np.linalg.norm(s, axis=1, keepdims=True)
+    C_bi = np.asarray(C_bi, dtype=float).reshape(-1, 3, 3)
+    C_ib = np.asarray(C_ib, dtype=float).reshape(3, 3)
+    M = t.size
+    if not (pix.shape[0] == s.shape[0] == C_bi.shape[0] == M):
+        raise ValueError("t, pix, star_eci and attitude data must have one row per control point")
+    if M == 0:
+        raise ValueError("no control points")
+    sig = np.array(np.broadcast_to(np.asarray(sigma_px, dtype=float), (M,)))
+    sig1 = None if sigma_px_frame is None else np.array(
+        np.broadcast_to(np.asarray(sigma_px_frame, dtype=float), (M,)))
+    if not np.all(np.isfinite(sig) & (sig > 0)) or (sig1 is not None and not np.all(sig1 > 0)):
+        raise ValueError("sigma_px (and sigma_px_frame) must be finite and > 0")
+    return t, pix, s, C_bi, C_ib, sig, sig1
+
+
+def _linearised_passes(ep, pix, s, C_cp, sig, C_ib, imager, model, Phi, Q, P0, K, n_iter, gate_chi2):
+    """The iterated filter + smoother over the control points (sorted by epoch index ``ep``, (M,)).
+
+    Each pass linearises about the last smoothed state, filters and smooths; between passes the
+    control points beyond ``gate_chi2`` are gated out. Returns the smoothed states (K, 12) and
+    covariances (K, 12, 12), the last pass's predictions (K, 12), (K, 12, 12), its packed
+    measurements (H (2m, 12), z (2m,), R, offsets) and the used mask (M,) bool."""
+    M = ep.size
+    x_bar = np.zeros((K, 12))
+    used = np.ones(M, dtype=bool)
+    n_pass = max(1, int(n_iter))
+    for it in range(n_pass):
+        xb = x_bar[ep]                                           # (M, 12)
+        Ea = _exp(xb[:, 0:3])
+        C_pred = Ea @ C_ib @ _exp(xb[:, 6:9]) @ C_cp
+        u0 = np.einsum("pij,pj->pi", C_pred, s)
+        h = imager.project(u0)
+        G = -imager.jacobian(u0) @ _skew(u0)                     # d pix / d theta (M, 2, 3)
+        H = np.zeros((M, 2, 12))
+        H[:, :, 0:3] = G
+        H[:, :, 6:9] = G @ (Ea @ C_ib)
+        z = (pix - h) + np.einsum("pij,pj->pi", H, xb)
+        zoff, roff, Rf = _pack(ep[used], K, H[used], sig[used], model)
+        Hu = np.ascontiguousarray(H[used].reshape(-1, 12))
+        zu = np.ascontiguousarray(z[used].ravel())
+        xf, Pf, xp, Pp = kalman_filter_packed(np.zeros(12), P0, Phi, Q, Hu, zu, Rf, zoff, roff)
+        x_bar, P_s = rts_smooth(xf, Pf, xp, Pp, Phi)
+        if gate_chi2 and it < n_pass - 1:
+            u1 = np.einsum("pij,pj->pi", _corrected(x_bar[ep], C_ib, C_cp), s)
+            r = pix - imager.project(u1)
+            keep = np.sum(r ** 2, axis=1) / sig ** 2 <= gate_chi2
+            if keep.sum() >= 3:
+                used = keep
+    return x_bar, P_s, xp, Pp, (Hu, zu, Rf, zoff, roff), used
+
+
+def _nis(packed, xp, Pp, dR):
+    """Sum over epochs of the normalised innovation squared nu^T S^-1 nu (nu = z - H x-,
+    S = H P- H^T + R) of the last pass, and the same with ``diag(dR)`` added to S (0 if dR is None)."""
+    Hu, zu, Rf, zoff, roff = packed
+    nis, nis1 = 0.0, 0.0
+    for k in np.flatnonzero(np.diff(zoff)):
+        Hk = Hu[zoff[k]:zoff[k + 1]]
+        m = Hk.shape[0]
+        Sk = Hk @ Pp[k] @ Hk.T + Rf[roff[k]:roff[k + 1]].reshape(m, m)
+        nu = zu[zoff[k]:zoff[k + 1]] - Hk @ xp[k]
+        nis += float(nu @ np.linalg.solve(Sk, nu))
+        if dR is not None:
+            nis1 += float(nu @ np.linalg.solve(Sk + np.diag(dR[zoff[k]:zoff[k + 1]]), nu))
+    return nis, nis1
+
+
 def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_px=0.1,
                          model: PointingErrorModel | None = None, frame_t=None, frame_C_bi=None,
                          n_iter: int = 3, gate_chi2: float | None = 16.0,
@@ -296,22 +370,9 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
     centroid sigmas are conservative), ``nis_per_star_frame`` (the same with ``sigma_px_frame`` in
     place of ``sigma_px`` in the innovation covariance, when given), ``n_rejected``.
     """
-    t = np.asarray(t, dtype=float)
-    pix = np.asarray(pix, dtype=float).reshape(-1, 2)
-    s = np.asarray(star_eci, dtype=float).reshape(-1, 3)
-    s = s / np.linalg.norm(s, axis=1, keepdims=True)
-    C_bi = np.asarray(C_bi, dtype=float).reshape(-1, 3, 3)
-    C_ib = np.asarray(C_ib, dtype=float).reshape(3, 3)
+    t, pix, s, C_bi, C_ib, sig, sig1 = _control_points(t, pix, star_eci, C_bi, C_ib, sigma_px,
+                                                       sigma_px_frame)
     M = t.size
-    if not (pix.shape[0] == s.shape[0] == C_bi.shape[0] == M):
-        raise ValueError("t, pix, star_eci and attitude data must have one row per control point")
-    if M == 0:
-        raise ValueError("no control points")
-    sig = np.array(np.broadcast_to(np.asarray(sigma_px, dtype=float), (M,)))
-    sig1 = None if sigma_px_frame is None else np.array(
-        np.broadcast_to(np.asarray(sigma_px_frame, dtype=float), (M,)))
-    if not np.all(np.isfinite(sig) & (sig > 0)) or (sig1 is not None and not np.all(sig1 > 0)):
-        raise ValueError("sigma_px (and sigma_px_frame) must be finite and > 0")
     model = model or PointingErrorModel()
     A, Qc, P0 = model.matrices()
 
@@ -340,44 +401,10 @@ def reconstruct_pointing(t, pix, star_eci, C_bi, *, imager: Imager, C_ib, sigma_
 
     u_nom = np.einsum("ij,pjk,pk->pi", C_ib, C_cp, s)
     rms_before = float(np.sqrt(np.mean(np.sum((pix - imager.project(u_nom)) ** 2, axis=1))))
-    x_bar = np.zeros((K, 12))
-    used = np.ones(M, dtype=bool)
-    n_pass = max(1, int(n_iter))
-    for it in range(n_pass):
-        xb = x_bar[ep]                                           # (M, 12)
-        Ea = _exp(xb[:, 0:3])
-        C_pred = Ea @ C_ib @ _exp(xb[:, 6:9]) @ C_cp
-        u0 = np.einsum("pij,pj->pi", C_pred, s)
-        h = imager.project(u0)
-        G = -imager.jacobian(u0) @ _skew(u0)                     # d pix / d theta (M, 2, 3)
-        H = np.zeros((M, 2, 12))
-        H[:, :, 0:3] = G
-        H[:, :, 6:9] = G @ (Ea @ C_ib)
-        z = (pix - h) + np.einsum("pij,pj->pi", H, xb)
-        zoff, roff, Rf = _pack(ep[used], K, H[used], sig[used], model)
-        Hu = np.ascontiguousarray(H[used].reshape(-1, 12))
-        zu = np.ascontiguousarray(z[used].ravel())
-        xf, Pf, xp, Pp = kalman_filter_packed(np.zeros(12), P0, Phi, Q, Hu, zu, Rf, zoff, roff)
-        x_s, P_s = rts_smooth(xf, Pf, xp, Pp, Phi)
-        x_bar = x_s
-        if gate_chi2 and it < n_pass - 1:
-            u1 = np.einsum("pij,pj->pi", _corrected(x_bar[ep], C_ib, C_cp), s)
-            r = pix - imager.project(u1)
-            chi2 = np.sum(r ** 2, axis=1) / sig ** 2
-            keep = chi2 <= gate_chi2
-            if keep.sum() >= 3:
-                used = keep
-    # consistency of the final pass: NIS = nu^T S^-1 nu per epoch, nu = z - H x-, S = H P- H^T + R
-    nis, nis1 = 0.0, 0.0
+    x_bar, P_s, xp, Pp, packed, used = _linearised_passes(ep, pix, s, C_cp, sig, C_ib, imager, model,
+                                                          Phi, Q, P0, K, n_iter, gate_chi2)
     dR = None if sig1 is None else np.repeat(sig1[used] ** 2 - sig[used] ** 2, 2)
-    for k in np.flatnonzero(np.diff(zoff)):
-        Hk = Hu[zoff[k]:zoff[k + 1]]
-        m = Hk.shape[0]
-        Sk = Hk @ Pp[k] @ Hk.T + Rf[roff[k]:roff[k + 1]].reshape(m, m)
-        nu = zu[zoff[k]:zoff[k + 1]] - Hk @ xp[k]
-        nis += float(nu @ np.linalg.solve(Sk, nu))
-        if dR is not None:
-            nis1 += float(nu @ np.linalg.solve(Sk + np.diag(dR[zoff[k]:zoff[k + 1]]), nu))
+    nis, nis1 = _nis(packed, xp, Pp, dR)
     # the total correction theta (imager axes, C_est = Exp(theta) C_nom) and its sigma
     C_nom = np.einsum("ij,kjl->kil", C_ib, C_epoch)
     C_full = _corrected(x_bar, C_ib, C_epoch)
