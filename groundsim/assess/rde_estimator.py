@@ -110,6 +110,148 @@ def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
                 out[i, j] = s if t == 0 else out[i, j] + s
 
 
+@njit(cache=True, inline="always")
+def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uWr, uN):
+    """Step k's prediction (eqs. 5-6): x- = Phi x into ``xp[k]``, P- = Phi P Phi^T + Q into ``Pn``
+    (padded scratch) and ``Pp[k]``. Phi's sparsity pattern (``idx``, ``val``, ``cnt``) is rebuilt only
+    when Phi differs from ``Phi0``, the Phi it was built for. Arrays as in :func:`_filter_into`."""
+    # sparsity pattern of Phi_k (rebuilt only when Phi changes)
+    nd = 0
+    for i in range(n):
+        for j in range(n):
+            nd += Phi[k, i, j] != Phi0[i, j]
+    if nd:
+        for i in range(n):
+            for j in range(n):
+                Phi0[i, j] = Phi[k, i, j]
+        _row_patterns(Phi0, n, n, idx, val, cnt)
+    # eq. 5: x- = Phi x
+    for i in range(n):
+        s = 0.0
+        for t in range(cnt[i]):
+            s += val[i, t] * x[idx[i, t]]
+        xp[k, i] = s
+    # eq. 6: T = Phi P, P- = Phi T^T + Q (rows in chunks of 4 terms of the pattern, zero padded)
+    _sparse_rows_mm(n, cnt, idx, val, P, T, uWr)
+    for i in range(n):
+        for j in range(n):
+            TT[j, i] = T[i, j]
+    _sparse_rows_mm(n, cnt, idx, val, TT, Pn, uWr)
+    for i in range(n):                      # + Q, symmetric: upper triangle mirrored
+        for j in range(i, n):
+            v = Pn[i, j] + 0.5 * (Q[k, i, j] + Q[k, j, i])
+            Pn[i, j] = v
+            Pn[j, i] = v
+    for i in range(n):
+        for j in range(uN):
+            Pp[k, i, j] = Pn[i, j]
+
+
+@njit(cache=True, inline="always")
+def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
+    """The gain of an update with the m measurement rows ``Hm`` (m, n) and the packed R (``Rf``
+    from ``r0_``): B = H P- into ``B``, B H^T into ``BH``, the Cholesky factor of S = H P- H^T + R
+    in ``S`` (1/diagonal in ``dS``) and K^T = S^-1 B (eq. 11) into ``Kt``."""
+    # sparsity pattern of H_k
+    _row_patterns(Hm, m, n, hidx, hval, hcnt)
+    # B = H P-
+    _sparse_rows_mm(m, hcnt, hidx, hval, Pn, B, uWr)
+    # S = H P- H^T + R = B H^T + R (symmetrised)
+    for a in range(m):
+        for b in range(m):
+            s = 0.0
+            for t in range(hcnt[b]):
+                s += B[a, hidx[b, t]] * hval[b, t]
+            BH[a, b] = s
+    for a in range(m):
+        for b in range(a, m):
+            v = 0.5 * (BH[a, b] + BH[b, a]) + 0.5 * (Rf[r0_ + a * m + b] + Rf[r0_ + b * m + a])
+            S[a, b] = v
+            S[b, a] = v
+    # Cholesky S = L L^T (lower, in place), then K^T = S^-1 B (eq. 11)
+    for j in range(m):
+        d = S[j, j]
+        for p in range(j):
+            d -= S[j, p] * S[j, p]
+        if not d > 0.0:
+            raise ValueError("innovation covariance H P H^T + R is not positive definite")
+        d = np.sqrt(d)
+        S[j, j] = d
+        dS[j] = 1.0 / d
+        for i in range(j + 1, m):
+            s = S[i, j]
+            for p in range(j):
+                s -= S[i, p] * S[j, p]
+            S[i, j] = s / d
+    for a in range(m):
+        for j in range(uWr):
+            Kt[a, j] = B[a, j]
+    for a in range(m):                  # forward: L Y = B
+        for p in range(a):
+            c0 = -S[a, p]
+            for j in range(uWr):
+                Kt[a, j] += c0 * Kt[p, j]
+        c0 = dS[a]
+        for j in range(uWr):
+            Kt[a, j] *= c0
+    for a in range(m - 1, -1, -1):      # backward: L^T X = Y
+        for p in range(a + 1, m):
+            c0 = -S[p, a]
+            for j in range(uWr):
+                Kt[a, j] += c0 * Kt[p, j]
+        c0 = dS[a]
+        for j in range(uWr):
+            Kt[a, j] *= c0
+
+
+@njit(cache=True, inline="always")
+def _joseph_into(k, kt, m, n, Phi, Q, Rf, r0_, Kt, B, BH, Pn, g, cv, acc, P, Pf, Pp, uWr, uN):
+    """P+ of step k (eq. 13, Joseph form) from K^T, B and B H^T (:func:`_gain_into`) into ``P``
+    (padded scratch) and ``Pf[k]``; touches one element per cache line of step ``kt``'s inputs so
+    they are loaded while this step computes. Returns the sum of the touched values."""
+    touch = 0.0
+    # Joseph form (I - K H) P- (I - K H)^T + K R K^T, expanded with B = H P- (P- symmetric):
+    # P+ = P- - K B - B^T K^T + K (B H^T + R) K^T, i.e. row i: P-_i + sum_a (G_ia K^T_a - K_ia B_a)
+    # with G = K (B H^T + R) - B^T (first order insensitive to errors in K, as the product form)
+    for a in range(m):
+        for b in range(m):
+            BH[a, b] += Rf[r0_ + a * m + b]
+    m2 = (m + 1) // 2 * 2
+    for i in range(n):
+        for j in range(0, n, 8):        # one load per cache line of row i of step kt
+            touch += Phi[kt, i, j] + Q[kt, i, j] + Pf[kt, i, j] + Pp[kt, i, j]
+        for a in range(m):
+            s = -B[a, i]
+            for b in range(m):
+                s += Kt[b, i] * BH[b, a]
+            g[a] = s
+            cv[a] = -Kt[a, i]
+        for a in range(m, m2):
+            g[a] = 0.0
+            cv[a] = 0.0
+        for a in range(0, m2, 2):
+            c0 = cv[a]
+            c1 = cv[a + 1]
+            g0 = g[a]
+            g1 = g[a + 1]
+            if a == 0:
+                for j in range(uWr):
+                    acc[0, j] = Pn[i, j] + ((g0 * Kt[0, j] + c0 * B[0, j])
+                                            + (g1 * Kt[1, j] + c1 * B[1, j]))
+            else:
+                for j in range(uWr):
+                    acc[0, j] += (g0 * Kt[a, j] + c0 * B[a, j]) \
+                        + (g1 * Kt[a + 1, j] + c1 * B[a + 1, j])
+        for j in range(uN):
+            P[i, j] = acc[0, j]
+    for i in range(n):                  # symmetric: upper triangle mirrored
+        for j in range(i + 1, n):
+            P[j, i] = P[i, j]
+        for j in range(uN):
+            Pf[k, i, j] = P[i, j]
+    return touch
+
+
 @njit(cache=True)
 def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr):
     """Kalman filter (eqs. 5-6, 10-13) over packed measurements, writing into preallocated xf, Pf,
@@ -155,36 +297,7 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
     touch = 0.0
     for k in range(N):
         kt = min(k + 2, N - 1)              # a later step: its data are loaded during this one
-        # sparsity pattern of Phi_k (rebuilt only when Phi changes)
-        nd = 0
-        for i in range(n):
-            for j in range(n):
-                nd += Phi[k, i, j] != Phi0[i, j]
-        if nd:
-            for i in range(n):
-                for j in range(n):
-                    Phi0[i, j] = Phi[k, i, j]
-            _row_patterns(Phi0, n, n, idx, val, cnt)
-        # eq. 5: x- = Phi x
-        for i in range(n):
-            s = 0.0
-            for t in range(cnt[i]):
-                s += val[i, t] * x[idx[i, t]]
-            xp[k, i] = s
-        # eq. 6: T = Phi P, P- = Phi T^T + Q (rows in chunks of 4 terms of the pattern, zero padded)
-        _sparse_rows_mm(n, cnt, idx, val, P, T, uWr)
-        for i in range(n):
-            for j in range(n):
-                TT[j, i] = T[i, j]
-        _sparse_rows_mm(n, cnt, idx, val, TT, Pn, uWr)
-        for i in range(n):                  # + Q, symmetric: upper triangle mirrored
-            for j in range(i, n):
-                v = Pn[i, j] + 0.5 * (Q[k, i, j] + Q[k, j, i])
-                Pn[i, j] = v
-                Pn[j, i] = v
-        for i in range(n):
-            for j in range(uN):
-                Pp[k, i, j] = Pn[i, j]
+        _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uWr, uN)
         a0 = zoff[k]
         m = zoff[k + 1] - a0
         if m == 0:
@@ -197,56 +310,7 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
                     P[i, j] = Pn[i, j]
             continue
         r0_ = roff[k]
-        # sparsity pattern of H_k
-        _row_patterns(Hf[a0:a0 + m], m, n, hidx, hval, hcnt)
-        # B = H P-
-        _sparse_rows_mm(m, hcnt, hidx, hval, Pn, B, uWr)
-        # S = H P- H^T + R = B H^T + R (symmetrised)
-        for a in range(m):
-            for b in range(m):
-                s = 0.0
-                for t in range(hcnt[b]):
-                    s += B[a, hidx[b, t]] * hval[b, t]
-                BH[a, b] = s
-        for a in range(m):
-            for b in range(a, m):
-                v = 0.5 * (BH[a, b] + BH[b, a]) + 0.5 * (Rf[r0_ + a * m + b] + Rf[r0_ + b * m + a])
-                S[a, b] = v
-                S[b, a] = v
-        # Cholesky S = L L^T (lower, in place), then K^T = S^-1 B (eq. 11)
-        for j in range(m):
-            d = S[j, j]
-            for p in range(j):
-                d -= S[j, p] * S[j, p]
-            if not d > 0.0:
-                raise ValueError("innovation covariance H P H^T + R is not positive definite")
-            d = np.sqrt(d)
-            S[j, j] = d
-            dS[j] = 1.0 / d
-            for i in range(j + 1, m):
-                s = S[i, j]
-                for p in range(j):
-                    s -= S[i, p] * S[j, p]
-                S[i, j] = s / d
-        for a in range(m):
-            for j in range(uWr):
-                Kt[a, j] = B[a, j]
-        for a in range(m):                  # forward: L Y = B
-            for p in range(a):
-                c0 = -S[a, p]
-                for j in range(uWr):
-                    Kt[a, j] += c0 * Kt[p, j]
-            c0 = dS[a]
-            for j in range(uWr):
-                Kt[a, j] *= c0
-        for a in range(m - 1, -1, -1):      # backward: L^T X = Y
-            for p in range(a + 1, m):
-                c0 = -S[p, a]
-                for j in range(uWr):
-                    Kt[a, j] += c0 * Kt[p, j]
-            c0 = dS[a]
-            for j in range(uWr):
-                Kt[a, j] *= c0
+        _gain_into(m, n, Hf[a0:a0 + m], Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr)
         # eq. 10 residual, eq. 12 x+ = x- + K y
         for a in range(m):
             s = zf[a0 + a]
@@ -259,46 +323,142 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
                 s += Kt[a, j] * y[a]
             xf[k, j] = s
             x[j] = s
-        # Joseph form (I - K H) P- (I - K H)^T + K R K^T, expanded with B = H P- (P- symmetric):
-        # P+ = P- - K B - B^T K^T + K (B H^T + R) K^T, i.e. row i: P-_i + sum_a (G_ia K^T_a - K_ia B_a)
-        # with G = K (B H^T + R) - B^T (first order insensitive to errors in K, as the product form)
-        for a in range(m):
-            for b in range(m):
-                BH[a, b] += Rf[r0_ + a * m + b]
-        m2 = (m + 1) // 2 * 2
-        for i in range(n):
-            for j in range(0, n, 8):        # one load per cache line of row i of step kt
-                touch += Phi[kt, i, j] + Q[kt, i, j] + Pf[kt, i, j] + Pp[kt, i, j]
-            for a in range(m):
-                s = -B[a, i]
-                for b in range(m):
-                    s += Kt[b, i] * BH[b, a]
-                g[a] = s
-                cv[a] = -Kt[a, i]
-            for a in range(m, m2):
-                g[a] = 0.0
-                cv[a] = 0.0
-            for a in range(0, m2, 2):
-                c0 = cv[a]
-                c1 = cv[a + 1]
-                g0 = g[a]
-                g1 = g[a + 1]
-                if a == 0:
-                    for j in range(uWr):
-                        acc[0, j] = Pn[i, j] + ((g0 * Kt[0, j] + c0 * B[0, j])
-                                                + (g1 * Kt[1, j] + c1 * B[1, j]))
-                else:
-                    for j in range(uWr):
-                        acc[0, j] += (g0 * Kt[a, j] + c0 * B[a, j]) \
-                            + (g1 * Kt[a + 1, j] + c1 * B[a + 1, j])
-            for j in range(uN):
-                P[i, j] = acc[0, j]
-        for i in range(n):                  # symmetric: upper triangle mirrored
-            for j in range(i + 1, n):
-                P[j, i] = P[i, j]
-            for j in range(uN):
-                Pf[k, i, j] = P[i, j]
+        touch += _joseph_into(k, kt, m, n, Phi, Q, Rf, r0_, Kt, B, BH, Pn, g, cv, acc, P, Pf, Pp, uWr, uN)
     y[0] = touch                            # keeps those loads
+
+
+@njit(cache=True, inline="always")
+def _lane_load(l, kk, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN):
+    """Lane ``l`` of the smoother takes step kk: P+_kk into ``Pfp[l]``, P-_kk+1 into the left half
+    of ``G[l]`` and Phi_kk+1 P+_kk (Phi sparse; its pattern rebuilt only when Phi changes) into the
+    right half. Arrays as in :func:`_rts_into`."""
+    for i in range(n):
+        for j in range(uN):
+            Pfp[l, i, j] = Pf[kk, i, j]
+        for j in range(uN):
+            G[l, i, j] = Pp[kk + 1, i, j]
+    # sparsity pattern of Phi_{kk+1} (rebuilt only when Phi changes)
+    nd = 0
+    for i in range(n):
+        for j in range(n):
+            nd += Phi[kk + 1, i, j] != Phi0[l, i, j]
+    if nd:
+        for i in range(n):
+            q = 0
+            for j in range(n):
+                v = Phi[kk + 1, i, j]
+                Phi0[l, i, j] = v
+                idx[l, i, q] = j
+                val[l, i, q] = v
+                q += v != 0.0
+            for t in range(q, n + 3):
+                idx[l, i, t] = 0
+                val[l, i, t] = 0.0
+            cnt[l, i] = (q + 3) // 4 * 4
+    # Phi_{kk+1} P+_kk (sparse Phi), into the right half of G
+    for i in range(n):
+        for t in range(0, max(cnt[l, i], 4), 4):
+            c0 = val[l, i, t]
+            c1 = val[l, i, t + 1]
+            c2 = val[l, i, t + 2]
+            c3 = val[l, i, t + 3]
+            r0 = idx[l, i, t]
+            r1 = idx[l, i, t + 1]
+            r2 = idx[l, i, t + 2]
+            r3 = idx[l, i, t + 3]
+            for j in range(uWr):
+                s = (c0 * Pfp[l, r0, j] + c1 * Pfp[l, r1, j]) \
+                    + (c2 * Pfp[l, r2, j] + c3 * Pfp[l, r3, j])
+                G[l, i, W + j] = s if t == 0 else G[l, i, W + j] + s
+
+
+@njit(cache=True, inline="always")
+def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
+    """The smoother gains of ``nl`` lanes: in each ``G[l]`` = [P-_kk+1 | Phi P+_kk], C^T =
+    (P-)^-1 Phi P+ (eq. 14) into the right half, through P- = U^T U (``dinv`` 1/diag U)."""
+    # Cholesky P-_{kk+1} = U^T U (U upper triangular; only its strict upper part and 1/diag are
+    # used) and forward solve U^T Y = Phi P+ together, row by row on [P- | Phi P+] (the same
+    # coefficients), the lanes interleaved; the row sums run in chunks of 6 terms (zero padded)
+    for i in range(n):
+        L = max((i + 5) // 6 * 6, 6)
+        jb = uint64(i // 4 * 4)         # columns left of the diagonal block are not needed
+        for l in range(nl):
+            for p in range(i):
+                cv[l, p] = -G[l, p, i]
+            for p in range(i, L):
+                cv[l, p] = 0.0
+            for a in range(0, L, 6):
+                for j in range(jb, uW2):
+                    s = G[l, i, j] if a == 0 else acc[l, j]
+                    for r in range(6):
+                        s += cv[l, a + r] * G[l, a + r, j]
+                    acc[l, j] = s
+            d = acc[l, i]
+            if not d > 0.0:
+                raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
+            inv = 1.0 / np.sqrt(d)
+            dinv[l, i] = inv
+            for j in range(jb, uW2):
+                G[l, i, j] = acc[l, j] * inv
+    # backward solve U X = Y: X = C^T = (P-)^-1 Phi P+ (eq. 14), in place in the right half of G
+    for i in range(n - 1, -1, -1):
+        a0 = i + 1
+        m = n - a0
+        L = max((m + 5) // 6 * 6, 6)
+        for l in range(nl):
+            for t in range(m):
+                cv[l, t] = -G[l, i, a0 + t]
+            for t in range(m, L):
+                cv[l, t] = 0.0
+            for a in range(0, L, 6):
+                for j in range(uW):
+                    s = G[l, i, W + j] if a == 0 else acc[l, j]
+                    for r in range(6):
+                        s += cv[l, a + r] * G[l, a0 + a + r, W + j]
+                    acc[l, j] = s
+            inv = dinv[l, i]
+            for j in range(uW):
+                G[l, i, W + j] = acc[l, j] * inv
+
+
+@njit(cache=True, inline="always")
+def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, uW, uWr, uN):
+    """Smoothed state and covariance of step kk (eqs. 15-16) from lane ``l``'s gain C^T (right
+    half of ``G[l]``) into ``xs[kk]``, ``Ps[kk]`` and the next step's ``Psn``."""
+    # eq. 15: xs = xf + C (xs_{kk+1} - x-_{kk+1}) = xf + X^T dx, X = C^T
+    for i in range(n):
+        cv[l, i] = xs[kk + 1, i] - xp[kk + 1, i]
+    for j in range(n):
+        s = xf[kk, j]
+        for a in range(n):
+            s += cv[l, a] * G[l, a, W + j]
+        xs[kk, j] = s
+    # eq. 16: Ps = Pf + C (Ps_{kk+1} - P-_{kk+1}) C^T = Pf + (X^T D) X
+    for i in range(n):
+        for j in range(uN):
+            D[i, j] = Psn[i, j] - Pp[kk + 1, i, j]
+    for i in range(n):
+        for a in range(n):
+            cv[l, a] = G[l, a, W + i]
+        for j in range(uW):
+            s = 0.0
+            for a in range(n):
+                s += cv[l, a] * D[a, j]
+            CD[i, j] = s
+    for i in range(n):
+        for j in range(uW):
+            s = Pfp[l, i, j]
+            for a in range(n):
+                s += CD[i, a] * G[l, a, W + j]
+            Psk[i, j] = s
+    for i in range(n):              # symmetric: upper triangle mirrored
+        for j in range(i + 1, n):
+            Psk[j, i] = Psk[i, j]
+        for j in range(uN):
+            Ps[kk, i, j] = Psk[i, j]
+    for i in range(n):
+        for j in range(uWr):
+            Psn[i, j] = Psk[i, j]
 
 
 @njit(cache=True)
@@ -343,124 +503,10 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
                 for j in range(0, n, 8):
                     touch += Pf[kk, i, j] + Pp[kk + 1, i, j] + Phi[kk + 1, i, j] + Ps[kk, i, j]
         for l in range(nl):
-            kk = k - l
-            for i in range(n):
-                for j in range(uN):
-                    Pfp[l, i, j] = Pf[kk, i, j]
-                for j in range(uN):
-                    G[l, i, j] = Pp[kk + 1, i, j]
-            # sparsity pattern of Phi_{kk+1} (rebuilt only when Phi changes)
-            nd = 0
-            for i in range(n):
-                for j in range(n):
-                    nd += Phi[kk + 1, i, j] != Phi0[l, i, j]
-            if nd:
-                for i in range(n):
-                    q = 0
-                    for j in range(n):
-                        v = Phi[kk + 1, i, j]
-                        Phi0[l, i, j] = v
-                        idx[l, i, q] = j
-                        val[l, i, q] = v
-                        q += v != 0.0
-                    for t in range(q, n + 3):
-                        idx[l, i, t] = 0
-                        val[l, i, t] = 0.0
-                    cnt[l, i] = (q + 3) // 4 * 4
-            # Phi_{kk+1} P+_kk (sparse Phi), into the right half of G
-            for i in range(n):
-                for t in range(0, max(cnt[l, i], 4), 4):
-                    c0 = val[l, i, t]
-                    c1 = val[l, i, t + 1]
-                    c2 = val[l, i, t + 2]
-                    c3 = val[l, i, t + 3]
-                    r0 = idx[l, i, t]
-                    r1 = idx[l, i, t + 1]
-                    r2 = idx[l, i, t + 2]
-                    r3 = idx[l, i, t + 3]
-                    for j in range(uWr):
-                        s = (c0 * Pfp[l, r0, j] + c1 * Pfp[l, r1, j]) \
-                            + (c2 * Pfp[l, r2, j] + c3 * Pfp[l, r3, j])
-                        G[l, i, W + j] = s if t == 0 else G[l, i, W + j] + s
-        # Cholesky P-_{kk+1} = U^T U (U upper triangular; only its strict upper part and 1/diag are
-        # used) and forward solve U^T Y = Phi P+ together, row by row on [P- | Phi P+] (the same
-        # coefficients), the lanes interleaved; the row sums run in chunks of 6 terms (zero padded)
-        for i in range(n):
-            L = max((i + 5) // 6 * 6, 6)
-            jb = uint64(i // 4 * 4)         # columns left of the diagonal block are not needed
-            for l in range(nl):
-                for p in range(i):
-                    cv[l, p] = -G[l, p, i]
-                for p in range(i, L):
-                    cv[l, p] = 0.0
-                for a in range(0, L, 6):
-                    for j in range(jb, uW2):
-                        s = G[l, i, j] if a == 0 else acc[l, j]
-                        for r in range(6):
-                            s += cv[l, a + r] * G[l, a + r, j]
-                        acc[l, j] = s
-                d = acc[l, i]
-                if not d > 0.0:
-                    raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
-                inv = 1.0 / np.sqrt(d)
-                dinv[l, i] = inv
-                for j in range(jb, uW2):
-                    G[l, i, j] = acc[l, j] * inv
-        # backward solve U X = Y: X = C^T = (P-)^-1 Phi P+ (eq. 14), in place in the right half of G
-        for i in range(n - 1, -1, -1):
-            a0 = i + 1
-            m = n - a0
-            L = max((m + 5) // 6 * 6, 6)
-            for l in range(nl):
-                for t in range(m):
-                    cv[l, t] = -G[l, i, a0 + t]
-                for t in range(m, L):
-                    cv[l, t] = 0.0
-                for a in range(0, L, 6):
-                    for j in range(uW):
-                        s = G[l, i, W + j] if a == 0 else acc[l, j]
-                        for r in range(6):
-                            s += cv[l, a + r] * G[l, a0 + a + r, W + j]
-                        acc[l, j] = s
-                inv = dinv[l, i]
-                for j in range(uW):
-                    G[l, i, W + j] = acc[l, j] * inv
+            _lane_load(l, k - l, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN)
+        _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2)
         for l in range(nl):
-            kk = k - l
-            # eq. 15: xs = xf + C (xs_{kk+1} - x-_{kk+1}) = xf + X^T dx, X = C^T
-            for i in range(n):
-                cv[l, i] = xs[kk + 1, i] - xp[kk + 1, i]
-            for j in range(n):
-                s = xf[kk, j]
-                for a in range(n):
-                    s += cv[l, a] * G[l, a, W + j]
-                xs[kk, j] = s
-            # eq. 16: Ps = Pf + C (Ps_{kk+1} - P-_{kk+1}) C^T = Pf + (X^T D) X
-            for i in range(n):
-                for j in range(uN):
-                    D[i, j] = Psn[i, j] - Pp[kk + 1, i, j]
-            for i in range(n):
-                for a in range(n):
-                    cv[l, a] = G[l, a, W + i]
-                for j in range(uW):
-                    s = 0.0
-                    for a in range(n):
-                        s += cv[l, a] * D[a, j]
-                    CD[i, j] = s
-            for i in range(n):
-                for j in range(uW):
-                    s = Pfp[l, i, j]
-                    for a in range(n):
-                        s += CD[i, a] * G[l, a, W + j]
-                    Psk[i, j] = s
-            for i in range(n):              # symmetric: upper triangle mirrored
-                for j in range(i + 1, n):
-                    Psk[j, i] = Psk[i, j]
-                for j in range(uN):
-                    Ps[kk, i, j] = Psk[i, j]
-            for i in range(n):
-                for j in range(uWr):
-                    Psn[i, j] = Psk[i, j]
+            _smooth_lane(l, k - l, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, uW, uWr, uN)
         k -= nl
     dinv[0, 0] = touch                      # keeps the prefetching loads
 
