@@ -132,7 +132,8 @@ def _line(name: str, d: dict) -> str:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m bench.satellite_misses", description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(prog="python -m bench.satellite_misses",
+                                 description=__doc__.split("\n")[0])
     ap.add_argument("scenarios", nargs="+")
     ap.add_argument("--seeds", default="211,212,213", help="comma-separated seeds")
     ap.add_argument("--sequence", default=None, help="shipped name or TOML file (default: the event's)")

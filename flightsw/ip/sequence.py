@@ -23,7 +23,7 @@ loadable from TOML::
     [[steps]]
     op = "threshold"
     alpha = 3.0             # 0 .. 7.99975 (Q4.12), where the onboard alpha logic starts
-    alpha_min = 1.0         # optional, 0 .. alpha: the alpha logic's floor (processor.alpha_controller_for)
+    alpha_min = 1.0         # optional, 0 .. alpha: the alpha logic's floor
     mode = "binarize"       # | "clip"
 
 The frequency-domain filter (the paper's slow path, :mod:`flightsw.ip.fftfilter`) is its own op, so
