@@ -17,7 +17,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "aurora_eval_antarctic_winter", "aurora_eval_iceland_spring_sunlit",
             "aurora_eval_labrador_drift", "satellite_eval_bright_crossing", "satellite_eval_faint_high",
             "satellite_eval_offset_field", "satellite_train_faint_far", "satellite_train_faint_near",
-            "satellite_train_mid_offset", "satellite_train_bright_low"]
+            "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid",
+            "satellite_eval2_faint_dim",
+            "satellite_eval2_faint_offset", "satellite_eval2_mid_far", "satellite_eval2_bright_steep"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)

@@ -18,6 +18,17 @@ DATA = Path(__file__).resolve().parent / "data" / "tp_snapshot_rows.npy"
 FRAMES = (0, 3, 20, 90, 180)
 
 
+def _track_sequence_floor_1():
+    """``satellite_track`` as it was when the rows were recorded: the alpha logic's default floor
+    (1.0), not the sequence's ``alpha_min`` (0.75) that came later and changes the event."""
+    from flightsw.ip import ProcessingSequence
+    from flightsw.ip.sequence import load_default_sequence
+    d = load_default_sequence("satellite_track").to_dict()
+    for st in d["steps"]:
+        st.pop("alpha_min", None)
+    return ProcessingSequence.from_dict(d)
+
+
 @pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "live-gate", "dead-gate", "ekf-off",
                    "ekf-on", "opp-off")
 def test_recorded_rows_unchanged():
@@ -25,7 +36,8 @@ def test_recorded_rows_unchanged():
     ``tables/tp`` equal, byte for byte, those recorded before the snapshot was compiled."""
     want = np.load(DATA)
     from hil_harness.event.io import EventWriter  # the recorder's own row builder
-    ev = Event(EventConfig("satellite_over_stars", frames=max(FRAMES) + 1), keep_frames=False)
+    ev = Event(EventConfig("satellite_over_stars", frames=max(FRAMES) + 1,
+                           sequence=_track_sequence_floor_1()), keep_frames=False)
     rows = {}
 
     class _Rec:          # stands in for the Recorder: keeps the tp rows of FRAMES

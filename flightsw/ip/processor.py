@@ -28,7 +28,7 @@ from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
 from flightsw.messages import MAX_CANDIDATES, TRACK_WORDS, Feedback, MessageError, TrackCommand
 from flightsw.records import RECORD_FORMAT_ID, Record
 
-__all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha"]
+__all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha", "alpha_controller_for"]
 
 _U16 = np.dtype(np.uint16)
 _COMMAND_SHAPE = (TRACK_WORDS,)
@@ -93,6 +93,19 @@ def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
     return default
 
 
+def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaController:
+    """The alpha logic a sequence runs with: it starts from the threshold step's ``alpha`` and
+    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default);
+    ``settings`` (other :class:`AlphaController` fields) win over the sequence's floor."""
+    kw = {"alpha": sequence_alpha(sequence)}
+    for st in sequence.steps:
+        if st.op == "threshold" and st.raw.get("alpha_min") is not None:
+            kw["alpha_min"] = float(st.raw["alpha_min"])
+            break
+    kw.update({k: v for k, v in settings.items() if k != "alpha"})
+    return AlphaController(**kw)
+
+
 class ImageProcessor:
     """The flight image processor (DSP + 1750A) with its on-board state.
 
@@ -104,7 +117,8 @@ class ImageProcessor:
         The a priori record in force at power-on.
     alpha : dict, optional
         :class:`AlphaController` settings other than the starting alpha (which comes from the
-        sequence's threshold step).
+        sequence's threshold step, as its floor does when the step sets ``alpha_min``:
+        :func:`alpha_controller_for`).
     check : bool
         Check each frame's shape, dtype and 12-bit range (the fused path's frame check).
     """
@@ -128,7 +142,7 @@ class ImageProcessor:
         self.sequence, self.record = self._power_on
         self._plans: dict[str, FramePlan] = {}       # per imager, for the sequence and record in force
         self._pending: list = []
-        self._set_alpha(AlphaController(alpha=sequence_alpha(self.sequence), **self._alpha_settings))
+        self._set_alpha(alpha_controller_for(self.sequence, **self._alpha_settings))
         self.feedback = Feedback()
         self.frames = 0
         self.rejected_commands = 0
@@ -276,5 +290,5 @@ class ImageProcessor:
                 self.record = new
             else:
                 self.sequence = new
-                self._set_alpha(AlphaController(alpha=sequence_alpha(new), **self._alpha_settings))
+                self._set_alpha(alpha_controller_for(new, **self._alpha_settings))
         self._pending = []

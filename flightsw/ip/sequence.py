@@ -22,7 +22,8 @@ loadable from TOML::
     size = 3
     [[steps]]
     op = "threshold"
-    alpha = 3.0             # 0 .. 7.99975 (Q4.12)
+    alpha = 3.0             # 0 .. 7.99975 (Q4.12), where the onboard alpha logic starts
+    alpha_min = 1.0         # optional, 0 .. alpha: the alpha logic's floor
     mode = "binarize"       # | "clip"
 
 The frequency-domain filter (the paper's slow path, :mod:`flightsw.ip.fftfilter`) is its own op, so
@@ -343,10 +344,12 @@ class ThresholdParams:
 
 
 def _validate_threshold(params, pre):
-    _fields(params, {"alpha", "mode"})
+    _fields(params, {"alpha", "mode", "alpha_min"})
     if "alpha" not in params:
         raise FieldError("alpha", "missing (0 .. 7.99975)")
     alpha = _float_field(params, "alpha", None, _th.ALPHA_MIN, _th.ALPHA_MAX)
+    if "alpha_min" in params:        # the alpha logic's floor for this sequence (AlphaController)
+        _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
     mode = _choice(params, "mode", "binarize", ("binarize", "clip"))
     h, w = pre.window_shape
     if h * w > 16384:

@@ -303,7 +303,9 @@ class AlphaController:
     ``near_count`` (approaching the 100 the paper names) alpha rises by ``step_up``; otherwise, when
     the track processor reports no lock, it falls by ``step_down`` (dim objects); always within
     ``alpha_min .. alpha_max``. Too many candidates wins over no lock (the message cannot carry them
-    anyway). Parameters are host floats quantised to Q4.12 once at construction.
+    anyway). Parameters are host floats quantised to Q4.12 once at construction. ``alpha_min`` 1.0
+    is assumed (the paper gives no floor); a sequence may set its own (threshold step
+    ``alpha_min``, :func:`flightsw.ip.processor.alpha_controller_for`).
 
     Each update charges the 1750A ``ip1750`` for 2 compares, 2 branches, one add and one store.
     """

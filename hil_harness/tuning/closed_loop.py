@@ -30,8 +30,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from flightsw.ip import AlphaController, process_frame
-from flightsw.ip.processor import sequence_alpha
+from flightsw.ip import process_frame
+from flightsw.ip.processor import alpha_controller_for
 from flightsw.messages import AttitudeData, CandidateMessage, Feedback, TrackCommand
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 
@@ -217,7 +217,7 @@ def replay(event: ReplayEvent, sequence, record, prior: str = "tp", *, tp_overri
     tp = _tp_for(event, _nominal_dt(times), tp_overrides) if prior == "tp" else None
     if tp is not None:
         tp.reset()
-    alpha = AlphaController(alpha=sequence_alpha(sequence))
+    alpha = alpha_controller_for(sequence)
     fb = Feedback(object_type=record.object_type)
     out = []
     for k in range(n):
