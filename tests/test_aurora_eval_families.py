@@ -1,7 +1,8 @@
 """The fresh aurora evaluation families (campaigns/aurora_eval2_events.toml, aurora_eval3_events.toml,
-aurora_eval4_events.toml), the second training family (aurora_train2_events.toml) and the tuning-set
-twins: the scenarios load, and they share no site, seed or scenario file with the training family or
-any other family; the tuned records' uplink words; the default aurora record."""
+aurora_eval4_events.toml, aurora_eval5_events.toml), the second training family
+(aurora_train2_events.toml) and the tuning-set twins: the scenarios load, and they share no site,
+seed or scenario file with the training family or any other family; the tuned records' uplink
+words; the default aurora record."""
 import tomllib
 from pathlib import Path
 
@@ -23,10 +24,12 @@ def _site(name):
 
 FAMILIES = ["campaigns/aurora_train_events.toml", "campaigns/aurora_eval_events.toml",
             "campaigns/aurora_eval2_events.toml", "campaigns/aurora_eval3_events.toml",
-            "campaigns/aurora_eval4_events.toml", "campaigns/aurora_train2_events.toml"]
+            "campaigns/aurora_eval4_events.toml", "campaigns/aurora_train2_events.toml",
+            "campaigns/aurora_eval5_events.toml"]
+EVAL_NO = {2: 2, 3: 3, 4: 4, 6: 5}                    # FAMILIES index -> evaluation family number
 
 
-@pytest.mark.parametrize("fresh", [2, 3, 4, 5])
+@pytest.mark.parametrize("fresh", [2, 3, 4, 5, 6])
 def test_fresh_family_loads_and_is_disjoint(fresh):
     spec = _toml(FAMILIES[fresh])
     names = spec["axes"]["scenario"]
@@ -40,16 +43,16 @@ def test_fresh_family_loads_and_is_disjoint(fresh):
     assert not {_site(n) for n in names} & {_site(n) for n in other_names}
     used = {s for o in others for s in o["campaign"]["seeds"]}
     for f in ROOT.glob("campaigns/tuneset_aurora_*.toml"):
-        if f.name != f"tuneset_aurora_eval{fresh}.toml":
+        if f.name != f"tuneset_aurora_eval{EVAL_NO.get(fresh)}.toml":
             entries = tomllib.loads(f.read_text()).get("scenario", [])
             used |= {s for e in entries for s in e["seeds"]}
     assert not set(spec["campaign"]["seeds"]) & used
 
 
-@pytest.mark.parametrize("fresh", [2, 3, 4])
+@pytest.mark.parametrize("fresh", [2, 3, 4, 6])
 def test_fresh_tuneset_is_the_campaign(fresh):
     ev = _toml(FAMILIES[fresh])
-    ts = _toml(f"campaigns/tuneset_aurora_eval{fresh}.toml")
+    ts = _toml(f"campaigns/tuneset_aurora_eval{EVAL_NO[fresh]}.toml")
     assert [e["name"] for e in ts["scenario"]] == ev["axes"]["scenario"]
     assert all(e["seeds"] == ev["campaign"]["seeds"] for e in ts["scenario"])
     assert ts["set"]["sequence"] == "aurora_track"        # what `uvisi event` runs for aurora

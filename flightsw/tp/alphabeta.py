@@ -19,6 +19,19 @@ beta > 0 a ramp is followed without lag, and a constant acceleration ``c`` leave
 ``(1 - alpha) c dt**2 / beta`` (residual ``c dt**2 / beta``).
 
 Arithmetic: 1750A 32-bit float (FM, FA, FS), the gain ``beta / dt`` formed once with FD.
+
+Start-up (growing-memory) gains, for a track acquired with no velocity (Kalata 1984, "The tracking
+index", IEEE Trans. AES-20; Brookner, "Tracking and Kalman Filtering Made Easy", 1998, sec. 1.2.6,
+``g_n = 2(2n+1)/((n+2)(n+1))``, ``h_n = 6/((n+2)(n+1))`` with ``n = k - 1``): after the k-th
+observation ::
+
+    alpha_k = 2 (2k - 1) / (k (k + 1))          beta_k = 6 / (k (k + 1))
+
+(k = 2: alpha = beta = 1, the two-point position and velocity). With these gains the filter's
+``(x, v)`` after k equally spaced observations is the least-squares straight line through them
+(evaluated at the last one), so a noiseless constant-velocity track is predicted exactly from the
+third observation on. Each gain is used while it exceeds its steady value
+(:func:`growing_memory_gains`; :func:`growing_memory_last_k` gives the last k where one does).
 """
 from __future__ import annotations
 
@@ -27,13 +40,19 @@ import math
 import numpy as np
 from numba import njit
 
-from flightsw.arith.m1750 import fa32, fd32, fm32, fs32
+from flightsw.arith.m1750 import fa32, fc32, fd32, flt32, fm32, fs32
 from flightsw.tp.f1750 import dec32, enc32
 
-__all__ = ["alpha_beta_step", "ab_predict", "ab_update", "AB_PREDICT_MIX", "AB_UPDATE_MIX"]
+__all__ = ["alpha_beta_step", "ab_predict", "ab_update", "growing_memory_gains",
+           "growing_memory_last_k", "AB_PREDICT_MIX", "AB_UPDATE_MIX", "GM_GAINS_MIX", "GM_MAX_K"]
 
 AB_PREDICT_MIX = {"FM": 1, "FA": 1, "L": 2, "ST": 1}
 AB_UPDATE_MIX = {"FS": 1, "FM": 2, "FA": 2, "L": 4, "ST": 2}
+#: k (k + 1) and 4k - 2 in 16-bit integers, two FLT, two FD, two FC against the steady gains
+GM_GAINS_MIX = {"L": 4, "MR": 1, "SHIFT": 1, "SR": 1, "FLT": 2, "FD": 2, "FC": 2, "JC": 2, "ST": 2}
+#: largest k whose k (k + 1) fits a 16-bit FLT operand (180 * 181 = 32580)
+GM_MAX_K = 180
+SIX32 = 0x60000003                    # 6.0 = 0.75 * 2**3, packed 1750A 32-bit
 
 
 @njit(cache=True)
@@ -70,6 +89,50 @@ def ab_update(xp, v, z, alpha, gain_v):
         p, g = fm32(gain_v, r); f |= g
         v, g = fa32(v, p); f |= g
     return x, v, r, f
+
+
+@njit(cache=True)
+def growing_memory_gains(k, alpha, beta):
+    """The start-up gains after the k-th observation, none below the steady ones ->
+    ``(max(alpha_k, alpha), max(beta_k, beta), flags)``.
+
+    ``k`` int (2 <= k <= :data:`GM_MAX_K`); ``alpha``, ``beta`` the steady gains, packed 32-bit
+    1750A floats; ``alpha_k = FLT(4k - 2) / FLT(k (k + 1))``, ``beta_k = 6 / FLT(k (k + 1))`` (FD).
+
+    Cases
+    -----
+    two-point : k = 2 -> (1, 1) (exactly: 6/6, 6/6).
+    growing : alpha_k and beta_k above the steady gains -> both returned.
+    floor : a start-up gain at or below its steady gain -> the steady gain (same word).
+    """
+    den, f = flt32(k * (k + 1))
+    num, g = flt32(4 * k - 2); f |= g
+    ak, g = fd32(num, den); f |= g
+    bk, g = fd32(SIX32, den); f |= g
+    if fc32(ak, alpha) > 0:
+        alpha = ak
+    if fc32(bk, beta) > 0:
+        beta = bk
+    return alpha, beta, f
+
+
+def growing_memory_last_k(alpha: float, beta: float) -> int:
+    """The last observation count k whose start-up gain exceeds a steady gain (exact rationals):
+    ``max k with 2(2k-1)/(k(k+1)) > alpha or (beta > 0 and 6/(k(k+1)) > beta)``, at most
+    :data:`GM_MAX_K`; 1 (none) if even k = 2 does not. ``alpha`` in (0, 1], ``beta`` in [0, 2).
+
+    alpha 0.25, beta 0.0357 (Benedict-Bordner): 14 (alpha_14 = 0.257, beta_14 = 0.0286 is floored).
+    """
+    from fractions import Fraction
+    a, b = Fraction(alpha), Fraction(beta)
+    last = 1
+    for k in range(2, GM_MAX_K + 1):
+        d = k * (k + 1)
+        if Fraction(2 * (2 * k - 1), d) > a or (b > 0 and Fraction(6, d) > b):
+            last = k
+        else:
+            break                                   # both gains decrease with k
+    return last
 
 
 @njit(cache=True)

@@ -56,6 +56,7 @@ C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, C_FRAME_DT, C_MAX_COAST, C_SIG_PX = 7, 8, 9,
 C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_MAX_RATE2, C_QTOL = 13, 14, 15, 16, 17, 18
 C_MAX_SKEW, C_EKF_MAX_REJ, C_RMIN2, C_RMAX2, C_VMAX2, C_GAP = 19, 20, 21, 22, 23, 24
 C_CYC_RK4, C_CYC_EKF_STEP = 25, 26          # clocks of one nominal RK4 step / one EKF predict step
+C_OPP_STARTUP = 27          # last observation count with growing-memory opportunity gains (0: off)
 C_WORDS = 32
 
 # ---- V: this frame's working values --------------------------------------------------------------

@@ -6,6 +6,13 @@ track state is ``(a, b)`` (body tangent coordinates, packed 32-bit) and its own 
 velocity (rad/s); the prediction is the star prediction plus ``v dt``; acquisition on the
 highest-ranked candidate of the first usable frame (and after a loss); ``opp_n_lost`` empty frames
 -> lost. Locked once the track has been fed twice and is fed this frame.
+
+Start-up: a track acquired with zero velocity and fed with the steady gains lags a moving spot by
+about ``v dt / alpha`` and settles over tens of frames. With ``opp_startup`` (config word
+``C_OPP_STARTUP`` = the last observation count k that uses them, 0: off) the k-th observation is
+weighed with the growing-memory gains (:func:`flightsw.tp.alphabeta.growing_memory_gains`: k = 2
+takes the two-point velocity, and up to k the state is the least-squares line through the k
+observations), each gain floored at its steady value.
 """
 from __future__ import annotations
 
@@ -13,18 +20,20 @@ from numba import njit
 
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32
 from flightsw.messages import TC_COASTING, TC_OBJECT_DECIDED, TC_OBJECT_LOST, TC_REINITIALISED
-from flightsw.tp.alphabeta import AB_PREDICT_MIX, ab_update
+from flightsw.tp.alphabeta import AB_PREDICT_MIX, GM_GAINS_MIX, ab_update, growing_memory_gains
 from flightsw.tp.association import CYC_PAIR_TEST
 from flightsw.tp.f1750 import cycles, mix
 from flightsw.tp.gates import CYC_GATE_HIT, GATE_INT_MIX, GATE_PRED_MIX
 from flightsw.tp.geometry import IMG_SC, IMG_SR, i16abs, rot_tan, tan_int
 from flightsw.tp.layout import (
-    C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK,
-    S_NLOST, S_NREINIT, S_OPP_ALIVE, S_OPP_HITS, S_OPP_MISS, S_OPP_OBS, S_OPP_V, S_OPP_X, ST_OPP,
+    C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_OPP_STARTUP, OBS_A, OBS_B, OBS_IA,
+    OBS_IB, OBS_OK, S_NLOST, S_NREINIT, S_OPP_ALIVE, S_OPP_HITS, S_OPP_MISS, S_OPP_OBS, S_OPP_V,
+    S_OPP_X, ST_OPP,
     V_DT, V_EVIDENCE, V_FLAGS, V_IMG, V_LOCKED, V_LONG_GAP, V_NUSE, V_OBJ, V_STATUS,
 )
 
 CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, {"FD": 1}))
+CYC_OPP_STARTUP = cycles(GM_GAINS_MIX)
 
 
 @njit(cache=True, inline="always")
@@ -75,6 +84,9 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     fed : an observation in the gate -> alpha-beta update (velocity by ``opp_beta / dt`` times the
         residual), ``S_OPP_MISS = 0``, ``S_OPP_HITS`` + 1, ``V_OBJ`` = the observation.
     fed-beta-zero : ``opp_beta == 0`` -> the velocity is kept.
+    startup : the k-th observation (``S_OPP_HITS`` + 1) with k <= ``C_OPP_STARTUP`` -> gains
+        ``max(alpha_k, opp_alpha)``, ``max(beta_k, opp_beta)`` (k = 2: position and velocity of
+        the two observations); beyond it, or ``C_OPP_STARTUP == 0``, the steady gains.
     empty : evidence but nothing in the gate -> ``S_OPP_MISS`` + 1, position the prediction.
     lost : ``S_OPP_MISS`` reaches ``opp_n_lost`` -> ``S_OPP_ALIVE = 0``, ``S_NLOST`` counted,
         ``TC_OBJECT_LOST``.
@@ -91,12 +103,18 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     if V[V_EVIDENCE] != 0:
         hit, g = first_in_gate(IMG, C, OBS, V, a, b, cyc); fl |= g
         if hit >= 0:
+            alpha = C[C_OPP_ALPHA]
+            beta = C[C_OPP_BETA]
+            k = S[S_OPP_HITS] + 1
+            if k <= C[C_OPP_STARTUP]:
+                alpha, beta, g = growing_memory_gains(k, alpha, beta); fl |= g
+                cyc[ST_OPP] += CYC_OPP_STARTUP
             gain_v = 0
-            if dt != 0 and C[C_OPP_BETA] != 0:
-                gain_v, g = fd32(C[C_OPP_BETA], dt); fl |= g
-            a, va, ra, g = ab_update(a, S[S_OPP_V], OBS[hit, OBS_A], C[C_OPP_ALPHA], gain_v)
+            if dt != 0 and beta != 0:
+                gain_v, g = fd32(beta, dt); fl |= g
+            a, va, ra, g = ab_update(a, S[S_OPP_V], OBS[hit, OBS_A], alpha, gain_v)
             fl |= g
-            b, vb, rb, g = ab_update(b, S[S_OPP_V + 1], OBS[hit, OBS_B], C[C_OPP_ALPHA], gain_v)
+            b, vb, rb, g = ab_update(b, S[S_OPP_V + 1], OBS[hit, OBS_B], alpha, gain_v)
             fl |= g
             S[S_OPP_V] = va
             S[S_OPP_V + 1] = vb

@@ -26,6 +26,7 @@ from flightsw.messages import (
     IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
+from flightsw.tp.alphabeta import growing_memory_last_k
 from flightsw.tp.layout import (
     H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR,
     O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V,
@@ -152,6 +153,8 @@ class TrackProcessor:
         C[F.C_OPP_BETA] = e32(cfg.opp_beta)
         C[F.C_OPP_GATE_PX] = e32(cfg.opp_gate_px)
         C[F.C_OPP_N_LOST] = cfg.opp_n_lost
+        C[F.C_OPP_STARTUP] = growing_memory_last_k(cfg.opp_alpha, cfg.opp_beta) \
+            if cfg.opp_startup and cfg.opp_beta > 0 else 0
         C[F.C_MAX_RATE2] = e32(cfg.max_rate ** 2)
         C[F.C_QTOL] = e32(cfg.quat_norm_tol)
         C[F.C_MAX_SKEW] = e48(cfg.max_time_skew)
