@@ -4,7 +4,7 @@ import h5py
 import numpy as np
 import pytest
 
-from hil_harness.event.appendable import AppendableDataset
+from hil_harness.event.appendable import AppendableDataset, h5_type, write_attr
 from hil_harness.event.recording import Recorder, Recording
 
 ROW = np.dtype([("k", np.int32), ("name", "S64"), ("q", np.float64, (4,)), ("flag", np.int8),
@@ -103,3 +103,27 @@ def test_rows_as_value_tuples_equal_the_structured_rows(tmp_path):
             rec.append_values("t", (1,), np.dtype([("k", np.int32)]))
     with Recording(path) as got:
         assert got.table("t").tobytes() == rows.tobytes() and got.verify()["frames"] == 9
+
+
+@pytest.mark.parametrize("dtype", [ROW, np.dtype([("a", np.int8), ("b", np.float64)], align=True),
+                                   np.dtype([("s", "S7"), ("ok", bool, (3,)), ("n", ">u4"),
+                                             ("in", [("x", np.float32), ("y", np.int16, (2,))])]),
+                                   np.dtype(bool), np.dtype("S64"), np.dtype((np.uint16, (4, 3)))])
+def test_hdf5_types_equal_h5pys_own(dtype):
+    """The member-by-member type is the one h5py makes (H5Tequal), and encodes to the same bytes."""
+    ours, theirs = h5_type(dtype), h5py.h5t.py_create(dtype, logical=True)
+    assert ours == theirs and ours.encode() == theirs.encode()
+
+
+def test_attributes_equal_h5pys_own(tmp_path):
+    with h5py.File(tmp_path / "a.h5", "w", libver="latest") as f:
+        ours, theirs = (f.create_dataset(n, (1,), np.int8) for n in ("ours", "theirs"))
+        for name, value in (("flag", True), ("id", 7), ("x", np.float32(0.5))):
+            write_attr(ours, name, value)
+            theirs.attrs[name] = value
+            a, b = (h5py.h5a.open(d.id, name.encode()) for d in (ours, theirs))
+            assert a.get_type().encode() == b.get_type().encode()
+            assert ours.attrs[name] == theirs.attrs[name]
+            assert type(ours.attrs[name]) is type(theirs.attrs[name])
+        with pytest.raises(ValueError, match="scalar"):
+            write_attr(ours, "s", "text")

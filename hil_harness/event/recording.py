@@ -35,7 +35,7 @@ import numpy as np
 
 from groundsim.assess.h5open import open_h5
 
-from .appendable import AppendableDataset
+from .appendable import AppendableDataset, write_attr
 from .checksum import adler32_rows
 
 FORMAT = "uvisi-recording/2"
@@ -335,8 +335,9 @@ class Recorder:
         else:
             rows = max(1, min(TABLE_CHUNK_ROWS, ROW_CHUNK_BYTES * 4 // max(row_bytes, 1)))
         out = AppendableDataset(self._f, key, dtype, row_shape, rows, comp)
-        out.ds.attrs["per_frame"] = bool(per_frame)
-        out.ds.attrs["checksum_id"] = cid = len(self._ds)
+        cid = len(self._ds)
+        write_attr(out.ds, "per_frame", bool(per_frame))
+        write_attr(out.ds, "checksum_id", cid)
         entry = self._ds[key] = [out, cid]
         return entry
 
