@@ -127,3 +127,19 @@ def test_attributes_equal_h5pys_own(tmp_path):
             assert type(ours.attrs[name]) is type(theirs.attrs[name])
         with pytest.raises(ValueError, match="scalar"):
             write_attr(ours, "s", "text")
+
+
+def test_host_rows_as_tuples_equal_dict_rows(tmp_path):
+    dt = np.dtype([("k", np.int32), ("a_us", np.float64), ("b_us", np.float64)])
+    for form in ("dict", "tuple"):
+        with Recorder(tmp_path / f"{form}.h5", flush_every=2) as rec:
+            for k in range(5):
+                if form == "dict":
+                    rec.host({"k": np.int32(k), "a_us": np.float64(k / 3), "b_us": np.float64(-k)})
+                else:
+                    rec.host((k, k / 3, -k), dt)
+                rec.end_frame()
+    with Recording(tmp_path / "dict.h5") as a, Recording(tmp_path / "tuple.h5") as b:
+        assert a.host_timing().dtype == b.host_timing().dtype == dt
+        assert a.host_timing().tobytes() == b.host_timing().tobytes()
+        assert b.verify()["rows"]["host/timing"] == 5

@@ -115,6 +115,9 @@ class AppendableDataset:
         whole chunks of ``data`` go as they are; the last partial chunk is kept for next time,
         its rows past the data zero."""
         cr, tail = self.chunk_rows, self._tail
+        # copied as bytes: numpy copies a structured array field by field (several us a block)
+        tail_bytes = tail.view(np.uint8).reshape(cr, -1)
+        data_bytes = data.view(np.uint8).reshape(len(data), -1)
         j, fill = 0, n % cr
         while j < len(data):
             start = n + j - fill
@@ -122,10 +125,10 @@ class AppendableDataset:
             if fill == 0 and k == cr:
                 self.ds.id.write_direct_chunk((start,) + self._zeros, data[j:j + cr])
             else:
-                tail[fill:fill + k] = data[j:j + k]
+                tail_bytes[fill:fill + k] = data_bytes[j:j + k]
                 self.ds.id.write_direct_chunk((start,) + self._zeros, tail)
                 if fill + k == cr:
-                    tail[:] = 0
+                    tail_bytes[:] = 0
             j += k
             fill = (fill + k) % cr
 

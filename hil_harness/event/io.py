@@ -73,8 +73,16 @@ _NAN3, _NAN4 = np.full(3, np.nan), np.full(4, np.nan)
 #: tables/candidates: one row per reported candidate, the message's fields after the frame and rank
 CANDIDATE_ROW_DTYPE = np.dtype([("k", np.int32), ("rank", np.int16)] + CANDIDATE_DTYPE.descr)
 _CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
+#: byte offset of the message's candidate fields in a CANDIDATE_ROW_DTYPE row: they follow k and
+#: rank in the message's own layout, so a message's candidates are copied in as bytes
+_CANDIDATE_AT = CANDIDATE_ROW_DTYPE.itemsize - CANDIDATE_DTYPE.itemsize
+_CANDIDATES_AS_BYTES = all(CANDIDATE_ROW_DTYPE.fields[n][1] == _CANDIDATE_AT + CANDIDATE_DTYPE.fields[n][1]
+                           for n in _CANDIDATE_FIELDS)
+_RANKS = np.arange(1, 2 ** 15, dtype=np.int16)
 #: host/timing: the loop's stages whose wall time (us) is recorded per frame
 _HOST_STAGES = ("render", "ip", "tp", "world", "total")
+#: host/timing: k and the wall time of each of _HOST_STAGES (us)
+HOST_DTYPE = np.dtype([("k", np.int32)] + [(f"{k}_us", np.float64) for k in _HOST_STAGES])
 #: the event GIF shows at most this many frames (every n-th), at one display pixel per imager pixel
 GIF_MAX_FRAMES = 60
 _IMAGER_BY_CODE = {v: k for k, v in IMAGER_CODES.items()}
@@ -131,6 +139,7 @@ class EventWriter:
         self.kill_at = kill_at
         self._tp = _TPRows()
         self._ledger_names: dict = {}
+        self._cands = np.empty(0, CANDIDATE_ROW_DTYPE)     # rows of the frame's candidates
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (appends and block writes)
         self.frames = 0
@@ -156,7 +165,7 @@ class EventWriter:
 
     def _ledger_rows(self, k: int, stages: dict) -> np.ndarray | None:
         """The frame's ledger (``{processor: {stage: cycles}}``) as ``LEDGER_DTYPE`` rows
-        (processor, stage in charge order)."""
+        (processor, stage in charge order); valid until the next call."""
         keys, cycles = [], []
         for p, st in stages.items():
             keys += [(p, s) for s in st]
@@ -169,10 +178,24 @@ class EventWriter:
             names["processor"] = [p.encode() for p, _ in keys]
             names["stage"] = [s.encode() for _, s in keys]
             self._ledger_names[tuple(keys)] = names
-        out = names.copy()
-        out["k"] = k
-        out["cycles"] = cycles
-        return out
+        names["k"] = k                # the caller copies the rows into its block at once
+        names["cycles"] = cycles
+        return names
+
+    def _candidate_rows(self, k: int, c: np.ndarray) -> np.ndarray:
+        """The message's candidates ``c`` (``CANDIDATE_DTYPE[n]``) as ``CANDIDATE_ROW_DTYPE`` rows
+        of frame ``k``, ranked 1..n; valid until the next call."""
+        n = len(c)
+        if len(self._cands) < n:
+            self._cands = np.empty(n, CANDIDATE_ROW_DTYPE)
+        rows = self._cands[:n]
+        rows["k"] = k
+        rows["rank"] = _RANKS[:n]
+        if _CANDIDATES_AS_BYTES and c.dtype == CANDIDATE_DTYPE and c.flags.c_contiguous:
+            rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = c.view(np.uint8).reshape(n, -1)
+        else:
+            rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
+        return rows
 
     def _append(self, o: FrameOutcome) -> None:
         r, L = self.rec, o.ledger
@@ -200,12 +223,7 @@ class EventWriter:
                                   _f(tg.get("range_m")), truth.get("q_imager_to_eci", _NAN4),
                                   len(truth.get("stars", ()))), TRUTH_DTYPE, per_frame=True)
         if o.message is not None and o.message.count:
-            c = o.message.candidates
-            rows = np.empty(len(c), CANDIDATE_ROW_DTYPE)
-            rows["k"] = o.k
-            rows["rank"] = np.arange(1, len(c) + 1)
-            rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
-            r.append_rows("candidates", rows)
+            r.append_rows("candidates", self._candidate_rows(o.k, o.message.candidates))
         if L is not None:
             led = self._ledger_rows(o.k, stages)
             if led is not None:
@@ -232,7 +250,11 @@ class EventWriter:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         h = o.host_us
-        r.host({"k": np.int32(o.k), **{f"{k}_us": np.float64(h.get(k, np.nan)) for k in _HOST_STAGES}})
+        r.host((o.k, *[h.get(k, np.nan) for k in _HOST_STAGES]), HOST_DTYPE)
+
+
+#: packed-word index into the EKF state of each element of the position covariance (3, 3)
+_EKF_P_POS = E_P + UT[:3, :3]
 
 
 def _ekf_position_cov(tp) -> np.ndarray:
@@ -241,7 +263,7 @@ def _ekf_position_cov(tp) -> np.ndarray:
     e = getattr(tp, "E", None)
     if e is None or not e[E_RUN]:
         return np.full((3, 3), np.nan)
-    return decode48_array(e[E_P + UT[:3, :3]])
+    return decode48_array(e[_EKF_P_POS])
 
 
 class _TPRows:
