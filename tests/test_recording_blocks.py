@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from hil_harness.event.appendable import AppendableDataset, h5_type, write_attr
-from hil_harness.event.recording import Recorder, Recording
+from hil_harness.event.recording import CHECKSUM_DTYPE, Recorder, Recording, checksum_records
 
 ROW = np.dtype([("k", np.int32), ("name", "S64"), ("q", np.float64, (4,)), ("flag", np.int8),
                 ("grid", np.int16, (3, 2))])
@@ -143,3 +143,13 @@ def test_host_rows_as_tuples_equal_dict_rows(tmp_path):
         assert a.host_timing().dtype == b.host_timing().dtype == dt
         assert a.host_timing().tobytes() == b.host_timing().tobytes()
         assert b.verify()["rows"]["host/timing"] == 5
+
+
+def test_checksum_records_of_a_block():
+    """Hand-made block: datasets in the order written, each's rows from its first row on."""
+    written = [(3, 10, [np.uint32(7), np.uint32(8)]), (0, 0, np.array([2 ** 32 - 1], np.uint32)),
+               (7, 5, np.array([1, 2, 3], np.uint32))]
+    got = checksum_records(written)
+    assert got.dtype == CHECKSUM_DTYPE
+    assert got.tolist() == [(3, 10, 7), (3, 11, 8), (0, 0, 2 ** 32 - 1), (7, 5, 1), (7, 6, 2),
+                            (7, 7, 3)]

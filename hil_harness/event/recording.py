@@ -54,6 +54,21 @@ CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32"
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
 
 
+def checksum_records(written: list) -> np.ndarray:
+    """The ``/checksums`` records of one block: ``written`` lists ``(checksum id, first row,
+    checksums)`` per dataset (checksums: uint32 or ints, one per row); returns CHECKSUM_DTYPE[sum
+    of the rows], dataset by dataset in order, rows ascending (built column by column: per-dataset
+    structured arrays and their concatenation cost ~10 us a dataset)."""
+    counts = [len(c) for _, _, c in written]
+    total = sum(counts)
+    out = np.empty(total, CHECKSUM_DTYPE)
+    out["dataset"] = np.repeat([cid for cid, _, _ in written], counts)
+    starts = np.cumsum(counts) - counts                     # each dataset's first record
+    out["row"] = np.arange(total) + np.repeat([n0 for _, n0, _ in written] - starts, counts)
+    out["adler32"] = np.concatenate([np.asarray(c, np.uint32) for _, _, c in written])
+    return out
+
+
 class RecordingDamaged(ValueError):
     """A recording whose stored data does not match its checksums, or cannot be read."""
 
@@ -365,14 +380,15 @@ class Recorder:
         entry = self._ds[key] = [out, cid]
         return entry
 
-    def _write(self, key: str, b: _Buffer) -> np.ndarray | None:
-        """Write one block of a dataset; returns its rows' checksum records (None: no rows)."""
+    def _write(self, key: str, b: _Buffer) -> tuple | None:
+        """Write one block of a dataset; returns ``(checksum id, first row, Adler-32 of each row
+        written)`` (None: no rows)."""
         data = b.take()
         if data is None:
             return None
         borrowed = b.held is not None
         if borrowed:                  # the checksums leave with their rows, written or not
-            held_sums, b.sums = b.sums[:len(data)], []
+            sums, b.sums = b.sums[:len(data)], []
         dtype, shape = b.row_layout if borrowed else (data.dtype, data.shape[1:])
         out, cid = self._dataset(key, dtype, shape, b.per_frame)
         n = out.rows
@@ -380,14 +396,7 @@ class Recorder:
             out.append_each(data) if borrowed else out.append(data)
         except ValueError as exc:
             raise ValueError(f"{key}: {exc}") from None
-        cs = np.empty(len(data), CHECKSUM_DTYPE)
-        cs["dataset"] = cid
-        cs["row"] = np.arange(n, n + len(data))
-        if borrowed:
-            cs["adler32"] = held_sums
-        else:
-            cs["adler32"] = adler32_rows(data)
-        return cs
+        return cid, n, sums if borrowed else adler32_rows(data)
 
     def flush(self) -> None:
         """Write every buffered row as one block: the data of every dataset, pushed to the file
@@ -396,17 +405,17 @@ class Recorder:
         the block is written."""
         old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
         try:
-            sums = []
+            written = []
             for key, b in self._bufs.items():
-                cs = self._write(key, b)
-                if cs is not None:
-                    sums.append(cs)
-            if sums:
+                w = self._write(key, b)
+                if w is not None:
+                    written.append(w)
+            if written:
                 self._f.flush()
                 if self._sums is None:
                     self._sums = AppendableDataset(self._f, "checksums", CHECKSUM_DTYPE, (),
                                                    TABLE_CHUNK_ROWS * 4)
-                self._sums.append(np.concatenate(sums))
+                self._sums.append(checksum_records(written))
             self._f.flush()
             self.frames_written = self.frames
         finally:
