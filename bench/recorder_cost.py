@@ -4,9 +4,9 @@ Runs the 181 frames of ``satellite_over_stars`` once, keeping every frame's outc
 writes them REPEATS times (default 4) through :class:`hil_harness.event.io.EventWriter` into a fresh
 recording (open, every frame, close) and prints the mean wall and CPU time per frame, the median
 per-frame call (appends only; every 20th call also writes a block) and the file size; then the same
-without the frames (``--no-frames``: the tables' Python and HDF5 work alone, without the frames'
-125 kB page-cache writes, the part of the cost that varies most with the machine's load). CPU time is
-given beside wall time because on a shared machine the wall time mostly measures the neighbours;
+without the frames (as ``uvisi event --no-frames`` records: the tables' Python and HDF5 work alone,
+without the frames' 125 kB page-cache writes, the part of the cost that varies most with the
+machine's load). CPU time is given beside wall time because on a shared machine the wall time mostly measures the neighbours;
 the last line gives each pass's least CPU time per frame.
 """
 from __future__ import annotations
@@ -47,8 +47,8 @@ def main(argv=None) -> int:
                 wall, cpu = time.perf_counter() - t0, time.process_time() - c0
                 what = "frames" if frames else "no frames"
                 best[what] = min(best.get(what, cpu), cpu)
-                print(f"  {what} run {rep}: {1e6 * wall / n:.0f} us wall, {1e6 * cpu / n:.0f} us CPU "
-                      f"a frame (open to close); median call {1e6 * np.median(per):.0f} us; "
+                print(f"  {what} run {rep}: {1e6 * wall / n:.0f} us wall, "
+                      f"{1e6 * cpu / n:.0f} us CPU a frame (open to close); median call {1e6 * np.median(per):.0f} us; "
                       f"{path.stat().st_size / 1e6:.1f} MB")
                 path.unlink()
     print("  least CPU a frame: " + ", ".join(f"{k} {1e6 * v / n:.0f} us" for k, v in best.items()))

@@ -35,7 +35,7 @@ import numpy as np
 
 from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
-from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES
+from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES
 from flightsw.tp.ekf import E_P, E_RUN, UT
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
@@ -76,9 +76,10 @@ _CANDIDATE_FIELDS = list(CANDIDATE_DTYPE.names)
 #: byte offset of the message's candidate fields in a CANDIDATE_ROW_DTYPE row: they follow k and
 #: rank in the message's own layout, so a message's candidates are copied in as bytes
 _CANDIDATE_AT = CANDIDATE_ROW_DTYPE.itemsize - CANDIDATE_DTYPE.itemsize
-_CANDIDATES_AS_BYTES = all(CANDIDATE_ROW_DTYPE.fields[n][1] == _CANDIDATE_AT + CANDIDATE_DTYPE.fields[n][1]
-                           for n in _CANDIDATE_FIELDS)
-_RANKS = np.arange(1, 2 ** 15, dtype=np.int16)
+_CANDIDATES_AS_BYTES = all(
+    CANDIDATE_ROW_DTYPE.fields[n][1] == _CANDIDATE_AT + CANDIDATE_DTYPE.fields[n][1]
+    for n in _CANDIDATE_FIELDS)
+_RANKS = np.arange(1, MAX_CANDIDATES + 1, dtype=np.int16)       # ranks of a message's candidates
 #: host/timing: the loop's stages whose wall time (us) is recorded per frame
 _HOST_STAGES = ("render", "ip", "tp", "world", "total")
 #: host/timing: k and the wall time of each of _HOST_STAGES (us)
@@ -190,7 +191,7 @@ class EventWriter:
             self._cands = np.empty(n, CANDIDATE_ROW_DTYPE)
         rows = self._cands[:n]
         rows["k"] = k
-        rows["rank"] = _RANKS[:n]
+        rows["rank"] = _RANKS[:n] if n <= len(_RANKS) else np.arange(1, n + 1)
         if _CANDIDATES_AS_BYTES and c.dtype == CANDIDATE_DTYPE and c.flags.c_contiguous:
             rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = c.view(np.uint8).reshape(n, -1)
         else:
