@@ -6,8 +6,8 @@ recording (open, every frame, close) and prints the mean wall and CPU time per f
 per-frame call (appends only; every 20th call also writes a block) and the file size; then the same
 without the frames (as ``uvisi event --no-frames`` records: the tables' Python and HDF5 work alone,
 without the frames' 125 kB page-cache writes, the part of the cost that varies most with the
-machine's load). CPU time is given beside wall time because on a shared machine the wall time mostly measures the neighbours;
-the last line gives each pass's least CPU time per frame.
+machine's load). CPU time is given beside wall time because on a shared machine the wall time
+mostly measures the neighbours; the last line gives each pass's least CPU time per frame.
 """
 from __future__ import annotations
 
