@@ -28,6 +28,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -52,6 +53,17 @@ CHUNK_MAX_BYTES = 1 << 20
 #: /checksums: one record per stored row of every dataset (``dataset`` is its ``checksum_id``)
 CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32", np.uint32)])
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def signals_deferred():
+    """SIGINT and SIGTERM wait (are blocked) until the block exits: what runs inside is not cut
+    short by an interrupt (its handler runs, and raises, on exit)."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
 
 def checksum_records(written: list) -> np.ndarray:
@@ -240,6 +252,7 @@ class Recorder:
         self._bufs: dict[str, _Buffer] = {}
         self._ds: dict[str, list] = {}        # key -> [AppendableDataset, checksum id]
         self._sums = None                     # the /checksums dataset
+        self._before_close: list = []        # callables run first by close() and keep()
         self.frames = 0               # end_frame() calls
         self.frames_written = 0       # frames on disk
         self._closed = False
@@ -345,6 +358,15 @@ class Recorder:
         else:
             self._values("host/timing", row, dtype, True, "host timing")
 
+    def before_close(self, fn) -> None:
+        """Have :meth:`close` and :meth:`keep` call ``fn()`` first: a writer that holds frames back
+        (:class:`hil_harness.event.io.EventWriter`) appends them and ends them then."""
+        self._before_close.append(fn)
+
+    def _run_before_close(self) -> None:
+        for fn in self._before_close:
+            fn()
+
     def set_attr(self, key: str, value) -> None:
         self._f.attrs[key] = _attr_value(value)
 
@@ -403,8 +425,7 @@ class Recorder:
         (``H5Fflush``), then the block's checksum records, pushed too. A row counts as recorded once
         its checksum is on disk, and by then every row of its block is. SIGINT and SIGTERM wait until
         the block is written."""
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
-        try:
+        with signals_deferred():
             written = []
             for key, b in self._bufs.items():
                 w = self._write(key, b)
@@ -418,14 +439,13 @@ class Recorder:
                 self._sums.append(checksum_records(written))
             self._f.flush()
             self.frames_written = self.frames
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     # ---------------------------------------------------------------- life cycle
     def close(self) -> Path:
         """Write what is buffered, mark the recording complete and move it to its final name."""
         if self._closed:
             return self.path
+        self._run_before_close()
         self.flush()
         self._f.attrs["complete"] = True
         self._f.close()
@@ -439,6 +459,7 @@ class Recorder:
         if self._closed:
             return self.partial
         try:
+            self._run_before_close()
             self._drop_unfinished_frame()
             self.flush()
         finally:
