@@ -20,7 +20,8 @@ handed over with ``borrow=True``, the frames, are kept by reference instead of c
 at any moment therefore leaves a readable ``recording.partial.h5`` holding every frame up to the last
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
-leaves the file partial. A partial file is still flagged open-for-writing: h5py opens it with
+leaves the file partial. Both first let a writer that holds frames back append them
+(:meth:`Recorder.before_close`). A partial file is still flagged open-for-writing: h5py opens it with
 ``swmr=True`` (:func:`open_h5` does).
 """
 from __future__ import annotations
