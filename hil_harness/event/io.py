@@ -154,7 +154,7 @@ class EventWriter:
         self._held: deque = deque()       # (outcome, frame, TP row) of frames not yet appended
         recorder.before_close(self.drain)
         self.stage_frame = None
-        self.record_s = 0.0           # host time spent here (appends and block writes)
+        self.record_s = 0.0           # host time spent here (rows and block writes)
         self.frames = 0
         # the TP snapshot's decoding kernels load from numba's cache now, with the recording's
         # opening (a one-time start-up cost, ~5 ms), not inside the event's first frame
@@ -171,9 +171,9 @@ class EventWriter:
         t0 = time.perf_counter()
         frame = o.frame if self.record_frames else None
         self._held.append((o, frame, self._tp.row(self.ev.tp, o.k)))
+        self.record_s += time.perf_counter() - t0
         if self.rec.frames + len(self._held) - self.rec.frames_written >= self.rec.flush_every:
             self.drain()
-        self.record_s += time.perf_counter() - t0
         self.frames += 1
         if self.kill_at is not None and o.k == self.kill_at:
             os.kill(os.getpid(), signal.SIGKILL)      # test hook: die as kill -9 would
@@ -182,15 +182,19 @@ class EventWriter:
         """Append the rows of the frames held, in order, ending each (the recorder writes a block
         when one is due). SIGINT and SIGTERM wait until every frame held is in; after a frame
         whose rows fail, the later ones are dropped (the recording ends before it)."""
-        with signals_deferred():
-            while self._held:
-                o, frame, tp_row = self._held.popleft()
-                try:
-                    self._append(o, frame, tp_row)
-                except BaseException:
-                    self._held.clear()
-                    raise
-                self.rec.end_frame()
+        t0 = time.perf_counter()
+        try:
+            with signals_deferred():
+                while self._held:
+                    o, frame, tp_row = self._held.popleft()
+                    try:
+                        self._append(o, frame, tp_row)
+                    except BaseException:
+                        self._held.clear()
+                        raise
+                    self.rec.end_frame()
+        finally:
+            self.record_s += time.perf_counter() - t0     # the closing drain counts too
 
     def _ledger_rows(self, k: int, stages: dict) -> np.ndarray | None:
         """The frame's ledger (``{processor: {stage: cycles}}``) as ``LEDGER_DTYPE`` rows
@@ -656,6 +660,7 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
     writer = EventWriter(rec, ev, record_frames, kill_at=kill_at)
     try:
         ev.run(progress=progress, on_frame=writer)
+        writer.drain()             # the last frames' rows, counted in mean_record_us
     except KeyboardInterrupt:
         path = rec.keep()
         raise EventInterrupted(path, rec.frames_written) from None
