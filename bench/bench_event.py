@@ -58,6 +58,8 @@ class _RecordedLoop:
         o = self.ev.step()
         t1 = time.perf_counter()
         self.writer(o)
+        if self.ev.done:                      # the last frames' rows, as run_event does
+            self.writer.drain()
         o.frame = None                        # keep_frames=False, as Event.run does
         self.loop_s += t1 - t0
         self.record_s += time.perf_counter() - t1
