@@ -153,3 +153,34 @@ def test_checksum_records_of_a_block():
     assert got.dtype == CHECKSUM_DTYPE
     assert got.tolist() == [(3, 10, 7), (3, 11, 8), (0, 0, 2 ** 32 - 1), (7, 5, 1), (7, 6, 2),
                             (7, 7, 3)]
+
+
+def test_close_and_keep_run_the_writers_hooks_first(tmp_path):
+    """A hook registered with before_close appends its held frames before close writes; keep
+    writes the whole frames buffered even when the hook fails, then raises its error."""
+    held = [1, 2]
+
+    def drain(rec):
+        while held:
+            rec.append("t", {"k": np.int32(held.pop(0))}, per_frame=True)
+            rec.end_frame()
+
+    with Recorder(tmp_path / "c.h5", flush_every=10) as rec:
+        rec.before_close(lambda: drain(rec))
+        rec.append("t", {"k": np.int32(0)}, per_frame=True)
+        rec.end_frame()
+    with Recording(tmp_path / "c.h5") as r:
+        assert r.complete and list(r.table("t")["k"]) == [0, 1, 2]
+
+    def fail():
+        raise RuntimeError("writer failed")
+
+    rec = Recorder(tmp_path / "k.h5", flush_every=10)
+    rec.before_close(fail)
+    for k in range(3):
+        rec.append("t", {"k": np.int32(k)}, per_frame=True)
+        rec.end_frame()
+    with pytest.raises(RuntimeError, match="writer failed"):
+        rec.keep()
+    with Recording(tmp_path / "k.partial.h5") as r:
+        assert not r.complete and r.n_frames == 3 and list(r.table("t")["k"]) == [0, 1, 2]

@@ -136,10 +136,11 @@ class EventWriter:
     A frame's outcome is held until its block is due and its rows are built then, the block's
     frames one after the other (:meth:`drain`): the recorder's Python runs in one burst a block
     instead of between every two frames, so neither evicts the other's working set from the caches
-    every frame (a recorded frame ~30-45 us less CPU on the 2-core host). An outcome does not change
-    after its frame; what does is taken at once: the TP's state (its snapshot row) and the frame
-    array (the loop drops its reference). :meth:`Recorder.close` and :meth:`Recorder.keep` drain
-    the frames held first, so an interrupted event keeps every frame handed over.
+    every frame (a recorded frame took 30-45 us less CPU, measured on the shared 2-core host). An
+    outcome does not change after its frame; what does is taken at once: the TP's state (its
+    snapshot row) and the frame array (the loop drops its reference). :meth:`Recorder.close` and
+    :meth:`Recorder.keep` drain the frames held first, so an interrupted event keeps every frame
+    handed over.
     """
 
     def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True,

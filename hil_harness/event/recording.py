@@ -460,9 +460,11 @@ class Recorder:
         if self._closed:
             return self.partial
         try:
-            self._run_before_close()
-            self._drop_unfinished_frame()
-            self.flush()
+            try:
+                self._run_before_close()
+            finally:                  # the whole frames are written even if a writer fails
+                self._drop_unfinished_frame()
+                self.flush()
         finally:
             self._f.close()
             self._closed = True
