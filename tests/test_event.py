@@ -58,6 +58,25 @@ def test_recording_figures_and_summary_written(sat):
         assert msg.count == fr["n_candidates"][k]
 
 
+def test_candidate_table_equals_the_recorded_messages(sat):
+    """tables/candidates holds, frame by frame, the candidates the recorded bus words decode to
+    (ranked 1..n, every field), and nothing else."""
+    from flightsw.messages import CandidateMessage
+    out, _ = sat
+    with h5py.File(out / "recording.h5") as f:
+        fr, cand = f["tables/frames"][()], f["tables/candidates"][()]
+        words = f["arrays/message_words"][()]
+    want_rows = 0
+    for k in np.flatnonzero(fr["n_candidates"] > 0):
+        msg = CandidateMessage.from_words(words[k][:fr["msg_len"][k]])
+        got = cand[cand["k"] == k]
+        assert list(got["rank"]) == list(range(1, msg.count + 1))
+        for name in msg.candidates.dtype.names:
+            np.testing.assert_array_equal(got[name], msg.candidates[name], err_msg=name)
+        want_rows += msg.count
+    assert len(cand) == want_rows > 0
+
+
 def test_replay_is_bit_identical(sat):
     out, _ = sat
     r = replay(out / "recording.h5")

@@ -149,3 +149,45 @@ def test_a_failing_disk_is_one_line_and_keeps_the_blocks_written(tmp_path, monke
     assert main(["event", "--frames", "3", "--no-figures", "--out", str(blocked)]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot write to the output folder" in err
+
+
+def test_frames_held_by_the_writer_are_in_on_close(tmp_path, clean):
+    """The writer holds a block's frames until the block is due: a recorder closed in the middle
+    of a block (23 frames, blocks of 20) still holds all 23, equal to the clean run's."""
+    from hil_harness.event import Event, EventConfig
+    from hil_harness.event.recording import Recorder
+    ev = Event(EventConfig("satellite_over_stars", frames=23), keep_frames=False)
+    rec = Recorder(tmp_path / "r.h5", flush_every=FLUSH)
+    w = EventWriter(rec, ev, True)
+    ev.run(on_frame=w)
+    assert rec.frames_written == FLUSH            # the 3 last frames are still held
+    rec.close()
+    with Recording(tmp_path / "r.h5") as r:
+        assert r.complete and r.n_frames == 23 and r.verify()["frames"] == 23
+        for name in ("frames", "truth", "candidates"):
+            want = clean.table(name)
+            assert r.table(name).tobytes() == want[want["k"] < 23].tobytes(), name
+        np.testing.assert_array_equal(r.array("frames")[()], clean.array("frames")[:23])
+
+
+def test_a_frame_whose_rows_fail_ends_the_recording_there(tmp_path, monkeypatch, clean):
+    """Rows are built when their block is due: a frame whose rows fail half-way (its frames row
+    in, its truth row refused) leaves a partial recording of the frames before it, every table
+    cut at the same frame, and the error raised."""
+    from hil_harness.event.recording import Recorder
+    real = Recorder.append_values
+
+    def refuse_23(self, table, values, dtype, per_frame=False):
+        if table == "truth" and values[0] == 23:
+            raise ValueError("refused")
+        real(self, table, values, dtype, per_frame)
+
+    monkeypatch.setattr(Recorder, "append_values", refuse_23)
+    with pytest.raises(ValueError, match="refused"):
+        run_event("satellite_over_stars", frames=30, out=tmp_path, figures=False, flush_every=10)
+    with Recording(tmp_path / "recording.partial.h5") as r:
+        assert not r.complete and r.n_frames == 23 and r.verify()["frames"] == 23
+        for name in ("frames", "attitude", "truth", "tp"):
+            assert list(r.table(name)["k"]) == list(range(23)), name
+        want = clean.table("candidates")
+        assert r.table("candidates").tobytes() == want[want["k"] < 23].tobytes()

@@ -4,8 +4,8 @@ import h5py
 import numpy as np
 import pytest
 
-from hil_harness.event.appendable import AppendableDataset
-from hil_harness.event.recording import Recorder, Recording
+from hil_harness.event.appendable import AppendableDataset, h5_type, write_attr
+from hil_harness.event.recording import CHECKSUM_DTYPE, Recorder, Recording, checksum_records
 
 ROW = np.dtype([("k", np.int32), ("name", "S64"), ("q", np.float64, (4,)), ("flag", np.int8),
                 ("grid", np.int16, (3, 2))])
@@ -103,3 +103,84 @@ def test_rows_as_value_tuples_equal_the_structured_rows(tmp_path):
             rec.append_values("t", (1,), np.dtype([("k", np.int32)]))
     with Recording(path) as got:
         assert got.table("t").tobytes() == rows.tobytes() and got.verify()["frames"] == 9
+
+
+@pytest.mark.parametrize("dtype", [ROW, np.dtype([("a", np.int8), ("b", np.float64)], align=True),
+                                   np.dtype([("s", "S7"), ("ok", bool, (3,)), ("n", ">u4"),
+                                             ("in", [("x", np.float32), ("y", np.int16, (2,))])]),
+                                   np.dtype(bool), np.dtype("S64"), np.dtype((np.uint16, (4, 3)))])
+def test_hdf5_types_equal_h5pys_own(dtype):
+    """The member-by-member type is the one h5py makes (H5Tequal), and encodes to the same bytes."""
+    ours, theirs = h5_type(dtype), h5py.h5t.py_create(dtype, logical=True)
+    assert ours == theirs and ours.encode() == theirs.encode()
+
+
+def test_attributes_equal_h5pys_own(tmp_path):
+    with h5py.File(tmp_path / "a.h5", "w", libver="latest") as f:
+        ours, theirs = (f.create_dataset(n, (1,), np.int8) for n in ("ours", "theirs"))
+        for name, value in (("flag", True), ("id", 7), ("x", np.float32(0.5))):
+            write_attr(ours, name, value)
+            theirs.attrs[name] = value
+            a, b = (h5py.h5a.open(d.id, name.encode()) for d in (ours, theirs))
+            assert a.get_type().encode() == b.get_type().encode()
+            assert ours.attrs[name] == theirs.attrs[name]
+            assert type(ours.attrs[name]) is type(theirs.attrs[name])
+        with pytest.raises(ValueError, match="scalar"):
+            write_attr(ours, "s", "text")
+
+
+def test_host_rows_as_tuples_equal_dict_rows(tmp_path):
+    dt = np.dtype([("k", np.int32), ("a_us", np.float64), ("b_us", np.float64)])
+    for form in ("dict", "tuple"):
+        with Recorder(tmp_path / f"{form}.h5", flush_every=2) as rec:
+            for k in range(5):
+                if form == "dict":
+                    rec.host({"k": np.int32(k), "a_us": np.float64(k / 3), "b_us": np.float64(-k)})
+                else:
+                    rec.host((k, k / 3, -k), dt)
+                rec.end_frame()
+    with Recording(tmp_path / "dict.h5") as a, Recording(tmp_path / "tuple.h5") as b:
+        assert a.host_timing().dtype == b.host_timing().dtype == dt
+        assert a.host_timing().tobytes() == b.host_timing().tobytes()
+        assert b.verify()["rows"]["host/timing"] == 5
+
+
+def test_checksum_records_of_a_block():
+    """Hand-made block: datasets in the order written, each's rows from its first row on."""
+    written = [(3, 10, [np.uint32(7), np.uint32(8)]), (0, 0, np.array([2 ** 32 - 1], np.uint32)),
+               (7, 5, np.array([1, 2, 3], np.uint32))]
+    got = checksum_records(written)
+    assert got.dtype == CHECKSUM_DTYPE
+    assert got.tolist() == [(3, 10, 7), (3, 11, 8), (0, 0, 2 ** 32 - 1), (7, 5, 1), (7, 6, 2),
+                            (7, 7, 3)]
+
+
+def test_close_and_keep_run_the_writers_hooks_first(tmp_path):
+    """A hook registered with before_close appends its held frames before close writes; keep
+    writes the whole frames buffered even when the hook fails, then raises its error."""
+    held = [1, 2]
+
+    def drain(rec):
+        while held:
+            rec.append("t", {"k": np.int32(held.pop(0))}, per_frame=True)
+            rec.end_frame()
+
+    with Recorder(tmp_path / "c.h5", flush_every=10) as rec:
+        rec.before_close(lambda: drain(rec))
+        rec.append("t", {"k": np.int32(0)}, per_frame=True)
+        rec.end_frame()
+    with Recording(tmp_path / "c.h5") as r:
+        assert r.complete and list(r.table("t")["k"]) == [0, 1, 2]
+
+    def fail():
+        raise RuntimeError("writer failed")
+
+    rec = Recorder(tmp_path / "k.h5", flush_every=10)
+    rec.before_close(fail)
+    for k in range(3):
+        rec.append("t", {"k": np.int32(k)}, per_frame=True)
+        rec.end_frame()
+    with pytest.raises(RuntimeError, match="writer failed"):
+        rec.keep()
+    with Recording(tmp_path / "k.partial.h5") as r:
+        assert not r.complete and r.n_frames == 3 and list(r.table("t")["k"]) == [0, 1, 2]

@@ -20,7 +20,8 @@ handed over with ``borrow=True``, the frames, are kept by reference instead of c
 at any moment therefore leaves a readable ``recording.partial.h5`` holding every frame up to the last
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
-leaves the file partial. A partial file is still flagged open-for-writing: h5py opens it with
+leaves the file partial. Both first let a writer that holds frames back append them
+(:meth:`Recorder.before_close`). A partial file is still flagged open-for-writing: h5py opens it with
 ``swmr=True`` (:func:`open_h5` does).
 """
 from __future__ import annotations
@@ -28,6 +29,7 @@ from __future__ import annotations
 import json
 import os
 import signal
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -35,7 +37,7 @@ import numpy as np
 
 from groundsim.assess.h5open import open_h5
 
-from .appendable import AppendableDataset
+from .appendable import AppendableDataset, write_attr
 from .checksum import adler32_rows
 
 FORMAT = "uvisi-recording/2"
@@ -52,6 +54,32 @@ CHUNK_MAX_BYTES = 1 << 20
 #: /checksums: one record per stored row of every dataset (``dataset`` is its ``checksum_id``)
 CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32", np.uint32)])
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+
+
+@contextmanager
+def signals_deferred():
+    """SIGINT and SIGTERM wait (are blocked) until the block exits: what runs inside is not cut
+    short by an interrupt (its handler runs, and raises, on exit)."""
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def checksum_records(written: list) -> np.ndarray:
+    """The ``/checksums`` records of one block: ``written`` lists ``(checksum id, first row,
+    checksums)`` per dataset (checksums: uint32 or ints, one per row); returns CHECKSUM_DTYPE[sum
+    of the rows], dataset by dataset in order, rows ascending (built column by column: per-dataset
+    structured arrays and their concatenation cost ~10 us a dataset)."""
+    counts = [len(c) for _, _, c in written]
+    total = sum(counts)
+    out = np.empty(total, CHECKSUM_DTYPE)
+    out["dataset"] = np.repeat([cid for cid, _, _ in written], counts)
+    starts = np.cumsum(counts) - counts                     # each dataset's first record
+    out["row"] = np.arange(total) + np.repeat([n0 for _, n0, _ in written] - starts, counts)
+    out["adler32"] = np.concatenate([np.asarray(c, np.uint32) for _, _, c in written])
+    return out
 
 
 class RecordingDamaged(ValueError):
@@ -95,6 +123,12 @@ def _encoded(v):
     return v.encode() if isinstance(v, str) else v
 
 
+def _row_bytes(rows: np.ndarray) -> np.ndarray:
+    """The bytes of each row of ``rows`` (at least one row; a view, a copy if ``rows`` is not
+    C-contiguous): uint8[len(rows), row size]."""
+    return np.ascontiguousarray(rows).view(np.uint8).reshape(len(rows), -1)
+
+
 class _Buffer:
     """One dataset's rows waiting for the next block: a preallocated array (a structured one for
     tables) whose rows ``[0, n)`` are used, grown by doubling, filled in place.
@@ -102,6 +136,8 @@ class _Buffer:
     Attributes
     ----------
     block : ndarray, shape (capacity, ...) or None before the first row
+    bytes : uint8[capacity, row size]
+        :attr:`block` seen as bytes (rows of the same dtype are copied in through it).
     keys : tuple of str or None
         Dict rows: their field names, in order (a row with other names is refused).
     strings : tuple of int
@@ -113,7 +149,7 @@ class _Buffer:
 
     def __init__(self, per_frame: bool):
         self.per_frame = per_frame
-        self.block = None
+        self.block = self.bytes = None
         self.keys = None
         self.strings: tuple = ()
         self.n = 0
@@ -124,12 +160,13 @@ class _Buffer:
     def _room(self, rows: int) -> None:
         need = self.n + rows
         if need > len(self.block):
-            grown = np.empty((max(need, 2 * len(self.block)),) + self.block.shape[1:], self.block.dtype)
-            grown[:self.n] = self.block[:self.n]
-            self.block = grown
+            old = self.bytes
+            self.start(self.block.dtype, self.block.shape[1:], max(need, 2 * len(self.block)))
+            self.bytes[:self.n] = old[:self.n]
 
     def start(self, dtype: np.dtype, row_shape: tuple, rows_hint: int) -> None:
         self.block = np.empty((max(rows_hint, 1),) + tuple(row_shape), dtype)
+        self.bytes = _row_bytes(self.block)
 
     def add_row(self, row: dict) -> None:
         """Store a dict row (its keys already checked against :attr:`keys`)."""
@@ -150,10 +187,17 @@ class _Buffer:
         self.n += 1
 
     def add_rows(self, rows: np.ndarray) -> None:
-        """Store a block of rows of :attr:`block`'s dtype and row shape."""
-        self._room(len(rows))
-        self.block[self.n:self.n + len(rows)] = rows
-        self.n += len(rows)
+        """Store a block of rows of :attr:`block`'s row shape (and dtype, else cast)."""
+        m = len(rows)
+        if not m:
+            return
+        self._room(m)
+        if rows.dtype is self.block.dtype or rows.dtype == self.block.dtype:
+            # as bytes: numpy copies a structured array field by field (~3 us for 23 rows)
+            self.bytes[self.n:self.n + m] = _row_bytes(rows)
+        else:
+            self.block[self.n:self.n + m] = rows
+        self.n += m
 
     def take(self) -> np.ndarray | list | None:
         """The rows buffered (a view, valid until the next append; borrowed rows: the list of
@@ -209,6 +253,7 @@ class Recorder:
         self._bufs: dict[str, _Buffer] = {}
         self._ds: dict[str, list] = {}        # key -> [AppendableDataset, checksum id]
         self._sums = None                     # the /checksums dataset
+        self._before_close: list = []        # callables run first by close() and keep()
         self.frames = 0               # end_frame() calls
         self.frames_written = 0       # frames on disk
         self._closed = False
@@ -243,12 +288,15 @@ class Recorder:
         """Append one row given as a tuple of values in the fields' order of ``dtype`` (the same
         dtype every call; strings as bytes): what :meth:`append` stores, without the dict and
         the numpy scalars (~2 us a row against ~10 us for a table of 25 fields)."""
-        b = self._buf(f"tables/{table}", per_frame)
+        self._values(f"tables/{table}", values, dtype, per_frame, f"table {table!r}")
+
+    def _values(self, key: str, values: tuple, dtype: np.dtype, per_frame: bool, what: str) -> None:
+        b = self._buf(key, per_frame)
         if b.block is None:
             b.start(dtype, (), self.flush_every)
             b.keys = dtype.names
         elif dtype is not b.block.dtype and dtype != b.block.dtype:
-            raise ValueError(f"table {table!r}: row layout changed from {b.block.dtype} to {dtype}")
+            raise ValueError(f"{what}: row layout changed from {b.block.dtype} to {dtype}")
         b.add_values(values)
 
     def append_rows(self, table: str, rows: np.ndarray, per_frame: bool = False) -> None:
@@ -302,9 +350,23 @@ class Recorder:
         b.sums.append(adler32_rows(arr[None])[0])
         b.n += 1
 
-    def host(self, row: dict) -> None:
-        """Append a row of host timings to ``/host/timing`` (excluded from determinism checks)."""
-        self._dict_row("host/timing", row, True, "host timing")
+    def host(self, row: dict | tuple, dtype: np.dtype | None = None) -> None:
+        """Append a row of host timings to ``/host/timing`` (excluded from determinism checks):
+        a dict as :meth:`append` takes, or a tuple of values in the fields' order of ``dtype`` as
+        :meth:`append_values` takes."""
+        if dtype is None:
+            self._dict_row("host/timing", row, True, "host timing")
+        else:
+            self._values("host/timing", row, dtype, True, "host timing")
+
+    def before_close(self, fn) -> None:
+        """Have :meth:`close` and :meth:`keep` call ``fn()`` first: a writer that holds frames back
+        (:class:`hil_harness.event.io.EventWriter`) appends them and ends them then."""
+        self._before_close.append(fn)
+
+    def _run_before_close(self) -> None:
+        for fn in self._before_close:
+            fn()
 
     def set_attr(self, key: str, value) -> None:
         self._f.attrs[key] = _attr_value(value)
@@ -335,19 +397,21 @@ class Recorder:
         else:
             rows = max(1, min(TABLE_CHUNK_ROWS, ROW_CHUNK_BYTES * 4 // max(row_bytes, 1)))
         out = AppendableDataset(self._f, key, dtype, row_shape, rows, comp)
-        out.ds.attrs["per_frame"] = bool(per_frame)
-        out.ds.attrs["checksum_id"] = cid = len(self._ds)
+        cid = len(self._ds)
+        write_attr(out.ds, "per_frame", bool(per_frame))
+        write_attr(out.ds, "checksum_id", cid)
         entry = self._ds[key] = [out, cid]
         return entry
 
-    def _write(self, key: str, b: _Buffer) -> np.ndarray | None:
-        """Write one block of a dataset; returns its rows' checksum records (None: no rows)."""
+    def _write(self, key: str, b: _Buffer) -> tuple | None:
+        """Write one block of a dataset; returns ``(checksum id, first row, Adler-32 of each row
+        written)`` (None: no rows)."""
         data = b.take()
         if data is None:
             return None
         borrowed = b.held is not None
         if borrowed:                  # the checksums leave with their rows, written or not
-            held_sums, b.sums = b.sums[:len(data)], []
+            sums, b.sums = b.sums[:len(data)], []
         dtype, shape = b.row_layout if borrowed else (data.dtype, data.shape[1:])
         out, cid = self._dataset(key, dtype, shape, b.per_frame)
         n = out.rows
@@ -355,43 +419,34 @@ class Recorder:
             out.append_each(data) if borrowed else out.append(data)
         except ValueError as exc:
             raise ValueError(f"{key}: {exc}") from None
-        cs = np.empty(len(data), CHECKSUM_DTYPE)
-        cs["dataset"] = cid
-        cs["row"] = np.arange(n, n + len(data))
-        if borrowed:
-            cs["adler32"] = held_sums
-        else:
-            cs["adler32"] = adler32_rows(data)
-        return cs
+        return cid, n, sums if borrowed else adler32_rows(data)
 
     def flush(self) -> None:
         """Write every buffered row as one block: the data of every dataset, pushed to the file
         (``H5Fflush``), then the block's checksum records, pushed too. A row counts as recorded once
         its checksum is on disk, and by then every row of its block is. SIGINT and SIGTERM wait until
         the block is written."""
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, _DEFERRED_SIGNALS)
-        try:
-            sums = []
+        with signals_deferred():
+            written = []
             for key, b in self._bufs.items():
-                cs = self._write(key, b)
-                if cs is not None:
-                    sums.append(cs)
-            if sums:
+                w = self._write(key, b)
+                if w is not None:
+                    written.append(w)
+            if written:
                 self._f.flush()
                 if self._sums is None:
                     self._sums = AppendableDataset(self._f, "checksums", CHECKSUM_DTYPE, (),
                                                    TABLE_CHUNK_ROWS * 4)
-                self._sums.append(np.concatenate(sums))
+                self._sums.append(checksum_records(written))
             self._f.flush()
             self.frames_written = self.frames
-        finally:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
 
     # ---------------------------------------------------------------- life cycle
     def close(self) -> Path:
         """Write what is buffered, mark the recording complete and move it to its final name."""
         if self._closed:
             return self.path
+        self._run_before_close()
         self.flush()
         self._f.attrs["complete"] = True
         self._f.close()
@@ -405,8 +460,11 @@ class Recorder:
         if self._closed:
             return self.partial
         try:
-            self._drop_unfinished_frame()
-            self.flush()
+            try:
+                self._run_before_close()
+            finally:                  # the whole frames are written even if a writer fails
+                self._drop_unfinished_frame()
+                self.flush()
         finally:
             self._f.close()
             self._closed = True
