@@ -8,7 +8,7 @@ phase (each moment to exactly one: the innermost phase running), then prints one
   a cold cache) wherever that happens, inside the other phases included;
 - ``simulate``: :meth:`hil_harness.event.Event.step`, the closed loop's frames;
 - ``record``: the recorder: its opening, every frame's :class:`~hil_harness.event.io.EventWriter`
-  call (appends and block writes), its closing;
+  call, the writer's drains (the rows of the frames it holds, and block writes), its closing;
 - ``figures``: after the recording is closed: figures, the viewer page, ``summary.json``;
 - ``other``: the rest of the command (scenario and catalogue set-up, run folder, summary);
 - ``frames``, ``loop_median_frame_us`` and ``mean_record_us`` from the run's ``summary.json``.
@@ -81,6 +81,7 @@ def measure(argv: list[str]) -> dict:
     ph.rename_base("other")
     ph.wrap(loop.Event, "step", "simulate")
     ph.wrap(io.EventWriter, "__call__", "record")
+    ph.wrap(io.EventWriter, "drain", "record")           # also the event's last, after its loop
     ph.wrap(recording.Recorder, "__init__", "record")
     ph.wrap(recording.Recorder, "close", "record", after=lambda: ph.rename_base("figures"))
     rc = main(["event", *argv])
