@@ -18,6 +18,7 @@ import pytest
 from flightsw.arith.m1750_float import encode32
 from flightsw.ip import ImageProcessor, load_default_sequence, process_frame
 from flightsw.ip.backend import backend_params
+from flightsw.ip.pipeline import step_words
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_INFO, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG,
                              ip_step_k)
@@ -131,14 +132,13 @@ def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check
           ctl=(90, 2048, 1024, 4096, 28672)):
     """(verdict, words, window, pack, front stages, back stages, info) of one ip_step_k call (no
     stages; ``info`` starts as garbage: the kernel writes every word)."""
-    fr = plan.front
     fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
     fst, bst = plan.no_stages
     info = np.full(STEP_INFO, -7, np.int64)
     out = ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
                     np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
-                    plan.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, plan.ffts, plan.poly,
-                    plan.mode, plan.recw, plan.prm[False] if prm is None else prm, fst, bst, info)
+                    *step_words(plan.geo, plan.front, plan.recw), plan.ffts, plan.poly,
+                    plan.mode, plan.prm[False] if prm is None else prm, fst, bst, info)
     return out + (fst, bst, info)
 
 

@@ -35,7 +35,7 @@ from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, Detr
 from flightsw.messages import IMAGER_CODES, CandidateMessage
 
 __all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "ip_frame_k",
-           "ip_frame_into_k", "plan_for", "OP_FILTER", "OP_HIGHPASS", "OP_NONE", "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
+           "ip_frame_into_k", "plan_for", "step_words", "OP_FILTER", "OP_HIGHPASS", "OP_NONE", "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
 
 #: front-end op codes (:attr:`FrontOps.ops`)
 OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD, OP_FFT, OP_POLY = 1, 2, 3, 4, 5, 6
@@ -398,6 +398,17 @@ def _front(sequence: ProcessingSequence):
     return front, kernels, names, costs, thr
 
 
+def step_words(geo, front: FrontOps, recw) -> tuple:
+    """The fixed arrays of a plan packed for :func:`flightsw.ip.step.ip_step_k`: (int64 [8 + 3 n +
+    60]: ``geo`` [8], then the front end's ``ops``, ``size`` and ``fft`` [n] each, then the
+    record's words [5, 12] row by row; int16 [56 n]: the kernels [n, 7, 7] then the taps [n, 7])
+    for a front end of n steps."""
+    ints = np.concatenate([np.asarray(geo, np.int64), front.ops, front.size, front.fft,
+                           np.asarray(recw, np.int64).ravel()]).astype(np.int64)
+    i16 = np.concatenate([front.kern.ravel(), front.taps.ravel()]).astype(np.int16)
+    return ints, i16
+
+
 def _geometry_words(f, r0, c0, h, w, pred):
     """(origin row, origin col (full-resolution pixels), then the 1750A words of the origin and of
     the centroid means: the prediction ``pred``, or the window centre if None)."""
@@ -457,9 +468,9 @@ class FramePlan:
                              self.record_id, self.threshold_stage is not None], np.int64)
         fr = self.front
         #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
-        #: fewer attribute reads on the per-frame path)
-        self.step_args = (self.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, self.ffts,
-                          self.poly, self.mode, self.recw)
+        #: fewer attribute reads on the per-frame path); the fixed arrays packed in two
+        #: (:func:`flightsw.ip.step.step_words`: each array argument costs ~50 ns a call to type)
+        self.step_args = step_words(self.geo, fr, self.recw) + (self.ffts, self.poly, self.mode)
         #: the stage arrays of a frame without stages (empty: one pair serves every frame)
         self.no_stages = (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
 

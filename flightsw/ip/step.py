@@ -60,8 +60,8 @@ def _message_words(pack, t, alpha, head):
 
 
 @njit(cache=True)
-def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, taps, fslot, ffts,
-              poly, mode, rec, prm, fst, bst, info):
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly, mode, prm, fst,
+              bst, info):
     """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
 
     Parameters
@@ -73,11 +73,13 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
     t, fc : time tag (s, float64) and frame count (0..65535)
     aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words (:func:`alpha_next_k`)
-    geo : int64 [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`): compacted H, W, window h, w,
-        compaction f, message word 6 (imager << 8 | f), record id, has a threshold step
-    ops, kern, size, taps, fslot : the fields of the pipeline's :class:`FrontOps` (passed as
-        arrays: a tuple argument costs ~0.5 us more to type at each call)
-    ffts, poly, mode, rec, prm : the pipeline's (:func:`ip_frame_into_k`)
+    ints, i16 : the plan's fixed words (:func:`flightsw.ip.pipeline.step_words`): int64 ``geo``
+        [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`: compacted H, W, window h, w, compaction
+        f, message word 6 (imager << 8 | f), record id, has a threshold step), the
+        :class:`FrontOps` fields ``ops``, ``size``, ``fft`` [n] and the record's words [5, 12];
+        int16 the kernels [n, 7, 7] and taps [n, 7] (packed: each array argument costs ~50 ns a
+        call to type, a tuple ~0.5 us)
+    ffts, poly, mode, prm : the pipeline's (:func:`ip_frame_into_k`)
     fst, bst : the stage arrays the pipeline fills (:func:`ip_frame_into_k`: int16 [n + 1, h, w]
         and int32 [2, h, w], or both [0, h, w] for none)
     info : int64 [STEP_INFO], written here: the caller's buffer (each array returned is one more
@@ -107,6 +109,8 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     info[:] = 0
     info[9] = feedback_words_k(cmd, fb) if cmd.shape[0] else 0
     use = ovr if ovr.shape[0] == 4 else fb
+    n = (ints.shape[0] - 8 - 60) // 3               # geo [8], 3 words a step, the record [5, 12]
+    geo = ints[:8]
     H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
     none = np.zeros(0, np.uint16)
     if bad or not math.isfinite(t):
@@ -117,7 +121,9 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     o0, o1 = r0 * f, c0 * f
     if math.isnan(pr):
         pr, pc = o0 + h * f / 2.0, o1 + w * f / 2.0
-    front = FrontOps(ops, kern, size, taps, fslot)
+    front = FrontOps(ints[8:8 + n], i16[:49 * n].reshape((n, 7, 7)), ints[8 + n:8 + 2 * n],
+                     i16[49 * n:56 * n].reshape((n, 7)), ints[8 + 2 * n:8 + 3 * n])
+    rec = ints[8 + 3 * n:8 + 3 * n + 60].reshape((5, 12))
     out = ip_frame_into_k(frame, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm,
                           encode_k(float(o0), np.int64(23), True),
                           encode_k(float(o1), np.int64(23), True),
