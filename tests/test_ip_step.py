@@ -311,3 +311,20 @@ def test_step_result_read_later_is_its_own_frame():
         assert res.context["subimage"] is res.subimage and res.context["threshold"]["alpha_q12"]
     assert outs[1].result.ledger.cycles(IP1750, "alpha_logic") == ALPHA_LOGIC_CYCLES
     assert outs[1].result.ledger is outs[1].result.ledger
+
+
+def test_step_blob_count_is_scipys_on_the_thresholded_window():
+    """``FrameResult.blob_count`` (read without the back end's result) is the number of
+    8-connected blobs SciPy finds in the frame's thresholded window, with or without stages."""
+    from scipy import ndimage
+    ip = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    for s in (1, 5, 7):
+        frame = _frame(s)
+        a = ip.step(frame, frame_count=s, time_tag=0.5 * s, imager="wfov_vis",
+                    want_stages=True).result
+        thr = next(st.image for st in a.stages if st.name == "threshold")
+        want = ndimage.label(thr != 0, structure=np.ones((3, 3)))[1]
+        ip.alpha.set_q12(a.context["threshold"]["alpha_q12"])     # the same alpha again
+        b = ip.step(frame, frame_count=s, time_tag=0.5 * s, imager="wfov_vis").result
+        assert a.blob_count == b.blob_count == want >= 1
+        assert b.blob_count == b.backend.count and b.message.count <= want

@@ -26,7 +26,7 @@ from flightsw.ip.rank import rank_k, record_words
 from flightsw.messages import CANDIDATE_DTYPE, MAX_CANDIDATES
 
 __all__ = ["backend", "backend_k", "backend_params", "BackendResult", "enc32", "BACK_KEYS",
-           "PACK_HEAD"]
+           "PACK_HEAD", "candidate_table"]
 
 BLOB_CYCLES = features_cycles(1)
 #: words of the pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts, bad
@@ -186,9 +186,14 @@ class BackendResult:
 
     def candidates(self) -> np.ndarray:
         """The reported candidates, CANDIDATE_DTYPE [m] (decoded exactly), best first."""
-        o = PACK_HEAD + 3 * self.m + 13 * self.count
-        # a view of the pack's table (``np.ndarray`` on the buffer: 0.2 us, a sliced .view 0.65)
-        return np.ndarray((self.m,), CANDIDATE_DTYPE, self.pack, 8 * o)
+        return candidate_table(self.pack, self.count, self.m)
+
+
+def candidate_table(pack, count: int, m: int) -> np.ndarray:
+    """The candidate table of a :func:`backend_k` pack with ``count`` blobs and ``m`` reported
+    candidates: CANDIDATE_DTYPE [m], a view of the pack (decoded exactly), best first."""
+    # ``np.ndarray`` on the buffer: 0.2 us, a sliced .view 0.65
+    return np.ndarray((m,), CANDIDATE_DTYPE, pack, 8 * (PACK_HEAD + 3 * m + 13 * count))
 
     def decoded_distances(self) -> np.ndarray:
         """Every blob's distance, float64 [count] (decoded exactly)."""
