@@ -188,16 +188,16 @@ class BackendResult:
         """The reported candidates, CANDIDATE_DTYPE [m] (decoded exactly), best first."""
         return candidate_table(self.pack, self.count, self.m)
 
+    def decoded_distances(self) -> np.ndarray:
+        """Every blob's distance, float64 [count] (decoded exactly)."""
+        return decode32_array(self.all_distance_words)
+
 
 def candidate_table(pack, count: int, m: int) -> np.ndarray:
     """The candidate table of a :func:`backend_k` pack with ``count`` blobs and ``m`` reported
     candidates: CANDIDATE_DTYPE [m], a view of the pack (decoded exactly), best first."""
     # ``np.ndarray`` on the buffer: 0.2 us, a sliced .view 0.65
     return np.ndarray((m,), CANDIDATE_DTYPE, pack, 8 * (PACK_HEAD + 3 * m + 13 * count))
-
-    def decoded_distances(self) -> np.ndarray:
-        """Every blob's distance, float64 [count] (decoded exactly)."""
-        return decode32_array(self.all_distance_words)
 
 
 def backend_params(record, diagonal: bool, intensity: bool, want_labels: bool, compaction: int,

@@ -36,7 +36,8 @@ from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, Detr
 from flightsw.messages import IMAGER_CODES, CandidateMessage
 
 __all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "ip_frame_k",
-           "ip_frame_into_k", "plan_for", "step_words", "OP_FILTER", "OP_HIGHPASS", "OP_NONE", "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
+           "ip_frame_into_k", "plan_for", "step_words", "OP_FILTER", "OP_HIGHPASS", "OP_NONE",
+           "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
 
 #: front-end op codes (:attr:`FrontOps.ops`)
 OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD, OP_FFT, OP_POLY = 1, 2, 3, 4, 5, 6
