@@ -81,8 +81,11 @@ def backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     quantize, thr, max_out = prm[6] != 0, prm[7], prm[8]
     cyc_colour, cyc_blob, cyc_rank = COLOUR_OP_CYCLES, BLOB_CYCLES, RANK_OP_CYCLES
     labels, count, sums, cops, bad = colour_k(img, diagonal, want_labels)
-    raw, f1 = features_k(sums, count, intensity)                 # feature-major [12, count]
-    words, f2 = normalise_k(raw, area, lin, fw, r0w, c0w)
+    if count:
+        raw, f1 = features_k(sums, count, intensity)             # feature-major [12, count]
+        words, f2 = normalise_k(raw, area, lin, fw, r0w, c0w)
+    else:        # no blobs: no feature words and no flags (the two stages' ~70 empty lane calls)
+        words, f1, f2 = np.zeros((12, 0), np.int64), 0, 0
     order, d, gof, f3, rops = rank_k(words, rec, mean_row, mean_col, override != 0, quantize, thr,
                                      max_out)
     m = order.size
