@@ -18,8 +18,10 @@ import pytest
 from flightsw.arith.m1750_float import encode32
 from flightsw.ip import ImageProcessor, load_default_sequence, process_frame
 from flightsw.ip.backend import backend_params
+from flightsw.ip.pipeline import step_words
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
-from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG, ip_step_k)
+from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_INFO, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG,
+                             ip_step_k)
 from flightsw.messages import (CANDIDATE_DTYPE, CandidateMessage, Feedback, MessageError,
                                TrackCommand, candidate_words_k, feedback_words_k)
 from flightsw.records import load_record
@@ -128,12 +130,16 @@ def _plan(seq="satellite", rec="satellite"):
 
 def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check=True, prm=None,
           ctl=(90, 2048, 1024, 4096, 28672)):
-    fr = plan.front
+    """(verdict, words, window, pack, front stages, back stages, info) of one ip_step_k call (no
+    stages; ``info`` starts as garbage: the kernel writes every word)."""
     fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
-    return ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
-                     np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
-                     plan.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, plan.ffts, plan.poly,
-                     plan.mode, plan.recw, plan.prm[False] if prm is None else prm, False)
+    fst, bst = plan.no_stages
+    info = np.full(STEP_INFO, -7, np.int64)
+    out = ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
+                    np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
+                    *step_words(plan.geo, plan.front, plan.recw), plan.ffts, plan.poly,
+                    plan.mode, plan.prm[False] if prm is None else prm, fst, bst, info)
+    return out + (fst, bst, info)
 
 
 @pytest.mark.cases("flightsw.ip.step.ip_step_k", "typical", "no-command", "no-prediction",
@@ -204,6 +210,52 @@ def test_step_kernel_refuses_a_message_it_cannot_carry():
     assert out[3][1] > 23 and out[0] == STEP_MESSAGE and out[1].size == 0
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "into", "empty")
+def test_frame_into_the_callers_stage_arrays():
+    """Stage arrays the caller gives (garbage in them) come back holding the window cut by hand,
+    the single-stage kernels composed in the sequence's order, a colour image that partitions the
+    thresholded pixels as SciPy's 8-connected labelling does, and each reported blob numbered by
+    its rank; empty ones are left empty and the pack is the same."""
+    from scipy import ndimage
+
+    from flightsw.ip import detrend as dt
+    from flightsw.ip import filters as flt
+    from flightsw.ip import threshold as th
+    from flightsw.ip.backend import enc32
+    from flightsw.ip.pipeline import ip_frame_into_k
+    _, plan = _plan()
+    frame = _frame(5)
+    h, w = plan.window_hw
+    fst, bst = plan.stage_arrays()
+    fst[:], bst[:] = -3, -3
+    args = (frame, plan.f, 86, 99, h, w, plan.front, plan.ffts, plan.poly, 16384, plan.mode,
+            plan.recw, plan.prm[True], enc32(86), enc32(99), enc32(120), enc32(128))
+    out = ip_frame_into_k(*args, fst, bst)
+    assert out[2] is fst and out[3] is bst
+    win = frame[86:150, 99:163].astype(np.int16)
+    assert np.array_equal(out[0], win) and np.array_equal(fst[0], win)
+    img = win
+    for i, st in enumerate(plan.sequence.steps[:4]):
+        p = st.params
+        img = {"filter": lambda x: flt.correlate_q15(x, p.kernel),
+               "detrend": lambda x: dt.detrend_highpass(x, p.taps),
+               "threshold": lambda x: th.threshold(x, 0.0, p.mode, alpha_q12=16384)[0]}[st.op](img)
+        assert np.array_equal(fst[i + 1], img), st.op
+    ref, n = ndimage.label(img != 0, structure=np.ones((3, 3)))
+    pack = out[1]
+    assert n == pack[0] >= 2 and pack[1] >= 1 and np.array_equal(bst[0] != 0, ref != 0)
+    pairs = set(zip(bst[0][ref != 0].tolist(), ref[ref != 0].tolist()))
+    assert len(pairs) == n                           # one colour per SciPy blob and back
+    rank = np.zeros_like(bst[0])
+    for q in range(pack[1]):
+        rank[bst[0] == pack[22 + q] + 1] = q + 1     # pack[22:]: the order, best first
+    assert np.array_equal(bst[1], rank)
+    e0, e1 = plan.no_stages
+    out2 = ip_frame_into_k(*args[:12], plan.prm[False], *args[13:], e0, e1)
+    assert e0.shape == (0, h, w) and e1.shape == (0, h, w)
+    assert np.array_equal(out2[0], win) and np.array_equal(out2[1], pack)
+
+
 # ------------------------------------------------------------------------------------------------
 # ImageProcessor.step around it
 # ------------------------------------------------------------------------------------------------
@@ -259,3 +311,20 @@ def test_step_result_read_later_is_its_own_frame():
         assert res.context["subimage"] is res.subimage and res.context["threshold"]["alpha_q12"]
     assert outs[1].result.ledger.cycles(IP1750, "alpha_logic") == ALPHA_LOGIC_CYCLES
     assert outs[1].result.ledger is outs[1].result.ledger
+
+
+def test_step_blob_count_is_scipys_on_the_thresholded_window():
+    """``FrameResult.blob_count`` (read without the back end's result) is the number of
+    8-connected blobs SciPy finds in the frame's thresholded window, with or without stages."""
+    from scipy import ndimage
+    ip = ImageProcessor(load_default_sequence("satellite"), load_record("satellite"))
+    for s in (1, 5, 7):
+        frame = _frame(s)
+        a = ip.step(frame, frame_count=s, time_tag=0.5 * s, imager="wfov_vis",
+                    want_stages=True).result
+        thr = next(st.image for st in a.stages if st.name == "threshold")
+        want = ndimage.label(thr != 0, structure=np.ones((3, 3)))[1]
+        ip.alpha.set_q12(a.context["threshold"]["alpha_q12"])     # the same alpha again
+        b = ip.step(frame, frame_count=s, time_tag=0.5 * s, imager="wfov_vis").result
+        assert a.blob_count == b.blob_count == want >= 1
+        assert b.blob_count == b.backend.count and b.message.count <= want

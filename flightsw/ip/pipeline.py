@@ -26,7 +26,8 @@ from flightsw.ip import detrend as dt
 from flightsw.ip import fftfilter as fft
 from flightsw.ip import filters as flt
 from flightsw.ip import threshold as th
-from flightsw.ip.backend import BACK_KEYS, BackendResult, backend_k, backend_params, enc32
+from flightsw.ip.backend import (BACK_KEYS, BackendResult, backend_k, backend_params,
+                                 candidate_table, enc32)
 from flightsw.ip.preprocess import Subimage, compact_k, window_origin
 from flightsw.ip.rank import record_words
 from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, DetrendParams,
@@ -35,7 +36,8 @@ from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, Detr
 from flightsw.messages import IMAGER_CODES, CandidateMessage
 
 __all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "ip_frame_k",
-           "plan_for", "OP_FILTER", "OP_HIGHPASS", "OP_NONE", "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
+           "ip_frame_into_k", "plan_for", "step_words", "OP_FILTER", "OP_HIGHPASS", "OP_NONE",
+           "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
 
 #: front-end op codes (:attr:`FrontOps.ops`)
 OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD, OP_FFT, OP_POLY = 1, 2, 3, 4, 5, 6
@@ -133,7 +135,8 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
 @njit(cache=True)
 def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w, mean_row,
                mean_col, want_stages):
-    """One frame through the image processor.
+    """One frame through the image processor (:func:`ip_frame_into_k` with the stage arrays made
+    here).
 
     Parameters
     ----------
@@ -172,9 +175,30 @@ def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w,
         window, the rest as for a frame.
     no-blobs : nothing passes the threshold -> count 0, m 0, rank image all 0.
     """
-    win = compact_k(src, f, r0, c0, h, w)
     n = front.ops.size
     fst = np.empty((n + 1 if want_stages else 0, h, w), np.int16)
+    bst = np.empty((2 if want_stages else 0, h, w), np.int32)
+    return ip_frame_into_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w,
+                           mean_row, mean_col, fst, bst)
+
+
+@njit(cache=True)
+def ip_frame_into_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w,
+                    mean_row, mean_col, fst, bst):
+    """:func:`ip_frame_k` with the stage images written into the caller's ``fst`` int16
+    [n + 1, h, w] and ``bst`` int32 [2, h, w] (n front-end steps), or none with both empty
+    ([0, h, w]: ``want_stages`` off); returns the same tuple, ``fst`` and ``bst`` in it.
+    :func:`flightsw.ip.step.ip_step_k` passes arrays it was given (no stage arrays to box on
+    return).
+
+    Cases
+    -----
+    into : given stage arrays -> filled with :func:`ip_frame_k`'s stage images, the same pack.
+    empty : empty stage arrays -> nothing written, the same pack.
+    """
+    want_stages = fst.shape[0] != 0
+    win = compact_k(src, f, r0, c0, h, w)
+    n = front.ops.size
     img = win
     if want_stages:
         fst[0] = win
@@ -186,7 +210,6 @@ def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w,
         if want_stages:
             fst[i + 1] = img
     labels, pack = backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, np.int64(1))
-    bst = np.zeros((2 if want_stages else 0, h, w), np.int32)
     if want_stages:
         bst[0] = labels
         lut = np.zeros(pack[0] + 1, np.int32)
@@ -213,6 +236,8 @@ class FrameResult:
         numbered by rank, 1 = best): the panels of the paper's Figure 3 (empty unless asked for).
     ledger : Ledger
     backend : BackendResult
+    blob_count : int
+        The back end's blob count (``backend.count``, without building the back end's result).
     subimage : flightsw.ip.preprocess.Subimage
     context : dict
         ``imager``, ``record``, ``subimage``, ``preprocess`` and, with a threshold step,
@@ -220,8 +245,8 @@ class FrameResult:
 
     Made by :meth:`FramePlan.result` from the compiled call's outputs; each attribute is built when
     first read (a caller of :meth:`flightsw.ip.ImageProcessor.step` reading only the words saves
-    ~2.5 us a frame; the closed loop reads the message and the back end's count, and saves the
-    context, subimage and stages only). A caller's ledger is charged at once; the ledger made when
+    ~2.5 us a frame; the closed loop reads the message and the blob count, and saves the back end,
+    context, subimage and stages). A caller's ledger is charged at once; the ledger made when
     none was given is made and charged when first read.
     """
 
@@ -259,6 +284,10 @@ class FrameResult:
         return be
 
     @property
+    def blob_count(self) -> int:
+        return self._raw[11][0]
+
+    @property
     def subimage(self) -> Subimage:
         if self._subimage is None:
             self._subimage = Subimage(*self._raw[3])
@@ -267,7 +296,7 @@ class FrameResult:
     @property
     def message(self) -> CandidateMessage:
         if self._message is None:
-            self._message = self._plan._message(self._raw, self.backend)
+            self._message = self._plan._message(self._raw)
         return self._message
 
     @property
@@ -377,6 +406,17 @@ def _front(sequence: ProcessingSequence):
     return front, kernels, names, costs, thr
 
 
+def step_words(geo, front: FrontOps, recw) -> tuple:
+    """The fixed arrays of a plan packed for :func:`flightsw.ip.step.ip_step_k`: (int64 [8 + 3 n +
+    60]: ``geo`` [8], then the front end's ``ops``, ``size`` and ``fft`` [n] each, then the
+    record's words [5, 12] row by row; int16 [56 n]: the kernels [n, 7, 7] then the taps [n, 7])
+    for a front end of n steps."""
+    ints = np.concatenate([np.asarray(geo, np.int64), front.ops, front.size, front.fft,
+                           np.asarray(recw, np.int64).ravel()]).astype(np.int64)
+    i16 = np.concatenate([front.kern.ravel(), front.taps.ravel()]).astype(np.int16)
+    return ints, i16
+
+
 def _geometry_words(f, r0, c0, h, w, pred):
     """(origin row, origin col (full-resolution pixels), then the 1750A words of the origin and of
     the centroid means: the prediction ``pred``, or the window centre if None)."""
@@ -436,9 +476,19 @@ class FramePlan:
                              self.record_id, self.threshold_stage is not None], np.int64)
         fr = self.front
         #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
-        #: fewer attribute reads on the per-frame path)
-        self.step_args = (self.geo, fr.ops, fr.kern, fr.size, fr.taps, fr.fft, self.ffts,
-                          self.poly, self.mode, self.recw)
+        #: fewer attribute reads on the per-frame path); the fixed arrays packed in two
+        #: (:func:`flightsw.ip.step.step_words`: each array argument costs ~50 ns a call to type)
+        self.step_args = step_words(self.geo, fr, self.recw) + (self.ffts, self.poly, self.mode)
+        #: the stage arrays of a frame without stages (empty: one pair serves every frame)
+        self.no_stages = (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
+
+    def stage_arrays(self) -> tuple:
+        """New stage arrays for a frame with stages (:func:`ip_frame_into_k`): int16
+        [n + 1, h, w] for the window and each front-end step, int32 [2, h, w] for the colour and
+        rank images."""
+        h, w = self.window_hw
+        return (np.empty((self.front.ops.size + 1, h, w), np.int16),
+                np.empty((2, h, w), np.int32))
 
     def cycles_for(self, h: int, w: int) -> tuple:
         """The front end's DSP cycles on an h x w window: compaction (0), then each step."""
@@ -524,16 +574,16 @@ class FramePlan:
         else:                          # the ledger raises its own error for the missing processor
             ledger.charge_many(k + (n,) for k, n in zip(keys, charged))
 
-    def _message(self, raw: tuple, be: BackendResult) -> CandidateMessage:
-        """The candidate message of a :class:`FrameResult` (``raw``: its fields)."""
-        (_, _, _, sub, origin, _, _, _, frame_count, time_tag, _, _) = raw
+    def _message(self, raw: tuple) -> CandidateMessage:
+        """The candidate message of a :class:`FrameResult` (``raw``: its fields; the candidates
+        read from the pack without the back end's result, ~0.5 us)."""
+        cand = candidate_table(raw[0], raw[11][0], raw[11][1])
+        sub, origin = raw[3], raw[4]
         h, w = sub[3]
         alpha = raw[5] / 4096.0 if self.threshold_stage is not None else 0.0
-        return CandidateMessage(frame_count=frame_count, time_tag=time_tag,
-                                imager=self.msg_imager, compaction=sub[2],
-                                window_row0=origin[0], window_col0=origin[1], window_rows=h,
-                                window_cols=w, alpha=alpha, record_id=self.record_id,
-                                candidates=be.candidates())
+        # positional, in the dataclass's field order (a call by keyword costs ~0.35 us more)
+        return CandidateMessage(raw[8], raw[9], self.msg_imager, sub[2], origin[0], origin[1], h,
+                                w, alpha, self.record_id, cand)
 
     def _context(self, raw: tuple, sub: Subimage) -> dict:
         """The context dict of a :class:`FrameResult` (``raw``: its fields)."""

@@ -23,7 +23,7 @@ from flightsw.ip.frame import check_inputs
 from flightsw.ip.pipeline import FramePlan, FrameResult
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
-from flightsw.ip.step import STEP_FRAME_RANGE, STEP_OK, STEP_TIME_TAG, ip_step_k
+from flightsw.ip.step import STEP_FRAME_RANGE, STEP_INFO, STEP_OK, STEP_TIME_TAG, ip_step_k
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
 from flightsw.messages import MAX_CANDIDATES, TRACK_WORDS, Feedback, MessageError, TrackCommand
 from flightsw.records import RECORD_FORMAT_ID, Record
@@ -149,6 +149,7 @@ class ImageProcessor:
         self.uplinks_accepted = 0
         self.uplinks_refused = 0
         self._last_frame_count = -1
+        self._info = np.zeros(STEP_INFO, np.int64)     # ip_step_k's info words, read each frame
 
     def _set_alpha(self, controller: AlphaController) -> None:
         self.alpha = controller
@@ -232,19 +233,25 @@ class ImageProcessor:
             check_inputs(aq, time_tag)
             frame, check = self.sequence.checked_frame(frame, check), False
         fc = int(frame_count) & 0xFFFF
-        want = bool(want_stages)
-        verdict, words, win, pack, fst, bst, info = ip_step_k(
-            frame, check, cmd, fb, ovr, time_tag, fc, aq, self._alpha_words, *plan.step_args,
-            plan.prm[want], want)
+        if want_stages:
+            fst, bst = plan.stage_arrays()
+            prm = plan.prm[True]
+        else:
+            fst, bst = plan.no_stages
+            prm = plan.prm[False]
+        info = self._info
+        verdict, words, win, pack = ip_step_k(frame, check, cmd, fb, ovr, time_tag, fc, aq,
+                                              self._alpha_words, *plan.step_args, prm, fst, bst,
+                                              info)
         r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict, *head = info.tolist()
         self._fb = fb
         if cmd_verdict:
             self.rejected_commands += 1
         if verdict != STEP_OK:
             self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
-        res = plan.result(pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),
-                          (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, ledger, fc, time_tag,
-                          ALPHA_LOGIC_CYCLES, head)
+        res = FrameResult(plan, (pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),
+                                 (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, fc, time_tag,
+                                 ALPHA_LOGIC_CYCLES, head), ledger)
         self.alpha.set_q12(aq_next)
         self.frames += 1
         self._last_frame_count = int(frame_count)

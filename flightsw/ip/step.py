@@ -1,7 +1,7 @@
 """One frame of the flight image processor as one compiled call: :func:`ip_step_k` reads the TP's
 track-command words (every check and the CRC: :func:`flightsw.messages.feedback_words_k`), checks
 the frame's 12-bit range, places the window about the prediction, runs the pipeline
-(:func:`flightsw.ip.pipeline.ip_frame_k`), encodes the candidate message
+(:func:`flightsw.ip.pipeline.ip_frame_into_k`), encodes the candidate message
 (:func:`flightsw.messages.candidate_words_k`) and applies the alpha logic
 (:func:`flightsw.ip.threshold.alpha_next_k`). :class:`flightsw.ip.ImageProcessor` calls it each
 frame; Python is left the error path (a failed check raises the same error as the Python checks
@@ -16,7 +16,7 @@ from numba import njit
 
 from flightsw.arith.m1750_float import encode_k
 from flightsw.ip.backend import PACK_HEAD
-from flightsw.ip.pipeline import FrontOps, ip_frame_k
+from flightsw.ip.pipeline import FrontOps, ip_frame_into_k
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import alpha_next_k
 from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
@@ -60,8 +60,8 @@ def _message_words(pack, t, alpha, head):
 
 
 @njit(cache=True)
-def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, taps, fslot, ffts,
-              poly, mode, rec, prm, want_stages):
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly, mode, prm, fst,
+              bst, info):
     """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
 
     Parameters
@@ -73,21 +73,28 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
     t, fc : time tag (s, float64) and frame count (0..65535)
     aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words (:func:`alpha_next_k`)
-    geo : int64 [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`): compacted H, W, window h, w,
-        compaction f, message word 6 (imager << 8 | f), record id, has a threshold step
-    ops, kern, size, taps, fslot : the fields of the pipeline's :class:`FrontOps` (passed as
-        arrays: a tuple argument costs ~0.5 us more to type at each call)
-    ffts, poly, mode, rec, prm, want_stages : the pipeline's (:func:`ip_frame_k`)
+    ints, i16 : the plan's fixed words (:func:`flightsw.ip.pipeline.step_words`): int64 ``geo``
+        [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`: compacted H, W, window h, w, compaction
+        f, message word 6 (imager << 8 | f), record id, has a threshold step), the
+        :class:`FrontOps` fields ``ops``, ``size``, ``fft`` [n] and the record's words [5, 12];
+        int16 the kernels [n, 7, 7] and taps [n, 7] (packed: each array argument costs ~50 ns a
+        call to type, a tuple ~0.5 us)
+    ffts, poly, mode, prm : the pipeline's (:func:`ip_frame_into_k`)
+    fst, bst : the stage arrays the pipeline fills (:func:`ip_frame_into_k`: int16 [n + 1, h, w]
+        and int32 [2, h, w], or both [0, h, w] for none)
+    info : int64 [STEP_INFO], written here: the caller's buffer (each array returned is one more
+        to box, ~0.2 us)
 
     Returns
     -------
     (verdict (``STEP_*``), message words uint16 [n] (empty unless ``STEP_OK``), window int16
-    [h, w], pack, front stages, back stages (:func:`ip_frame_k`), info int64 [STEP_INFO])
+    [h, w], pack (:func:`ip_frame_into_k`)); ``info``, ``fst``, ``bst`` and an accepted command's
+    ``fb`` are written in place
 
     Cases
     -----
     typical : the words :class:`flightsw.messages.CandidateMessage` encodes from
-        :func:`ip_frame_k`'s result on the window about the command's prediction, and the
+        :func:`ip_frame_into_k`'s result on the window about the command's prediction, and the
         alpha logic's next word.
     command-refused : a command failing a check -> its verdict in info[9], ``fb`` kept.
     no-command : ``cmd`` empty -> ``fb`` as it is.
@@ -99,25 +106,30 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     message : more than 23 candidates -> ``STEP_MESSAGE``.
     """
     bad = frame_over_12bit_k(frame) if check else False
-    info = np.zeros(STEP_INFO, np.int64)
+    info[:] = 0
     info[9] = feedback_words_k(cmd, fb) if cmd.shape[0] else 0
     use = ovr if ovr.shape[0] == 4 else fb
+    n = (ints.shape[0] - 8 - 60) // 3               # geo [8], 3 words a step, the record [5, 12]
+    geo = ints[:8]
     H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
     none = np.zeros(0, np.uint16)
     if bad or not math.isfinite(t):
-        return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none, np.zeros((0, 0), np.int16),
-                np.zeros(0, np.int64), np.zeros((0, h, w), np.int16), np.zeros((0, h, w), np.int32),
-                info)
+        return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none,
+                np.zeros((0, 0), np.int16), np.zeros(0, np.int64))
     pr, pc = use[0], use[1]
     r0, c0 = window_origin_k(H, W, h, w, f, pr, pc)
     o0, o1 = r0 * f, c0 * f
     if math.isnan(pr):
         pr, pc = o0 + h * f / 2.0, o1 + w * f / 2.0
-    front = FrontOps(ops, kern, size, taps, fslot)
-    out = ip_frame_k(frame, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm,
-                     encode_k(float(o0), np.int64(23), True), encode_k(float(o1), np.int64(23), True),
-                     encode_k(pr, np.int64(23), True), encode_k(pc, np.int64(23), True), want_stages)
-    win, pack, fst, bst = out[0], out[1], out[2], out[3]
+    front = FrontOps(ints[8:8 + n], i16[:49 * n].reshape((n, 7, 7)), ints[8 + n:8 + 2 * n],
+                     i16[49 * n:56 * n].reshape((n, 7)), ints[8 + 2 * n:8 + 3 * n])
+    rec = ints[8 + 3 * n:8 + 3 * n + 60].reshape((5, 12))
+    out = ip_frame_into_k(frame, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm,
+                          encode_k(float(o0), np.int64(23), True),
+                          encode_k(float(o1), np.int64(23), True),
+                          encode_k(pr, np.int64(23), True), encode_k(pc, np.int64(23), True), fst,
+                          bst)
+    win, pack = out[0], out[1]
     info[0], info[1], info[2], info[3] = r0, c0, o0, o1
     info[5], info[6], info[7], info[8] = out[11], out[12], out[13], out[14]
     info[10:16] = pack[:6]
@@ -126,6 +138,6 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, geo, ops, kern, size, 
     head[7], head[8], head[9], head[10], head[13] = o0 & 0xFFFF, o1 & 0xFFFF, h, w, geo[6]
     words = _message_words(pack, t, aq / 4096.0 if geo[7] else 0.0, head)
     if words.shape[0] == 0:
-        return STEP_MESSAGE, words, win, pack, fst, bst, info
+        return STEP_MESSAGE, words, win, pack
     info[4] = alpha_next_k(aq, pack[0], use[3] != 0.0, ctl)
-    return STEP_OK, words, win, pack, fst, bst, info
+    return STEP_OK, words, win, pack

@@ -355,7 +355,7 @@ class Event:
         res = ip_out.result
         out.message = res.message
         out.message_words = ip_out.words
-        out.n_blobs = int(res.backend.count)
+        out.n_blobs = res.blob_count
         out.alpha = float(res.message.alpha)
         if want:
             out.stages = [(s.name, s.image) for s in res.stages]
