@@ -158,13 +158,14 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray
 # kernels
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _radius_terms(D, r0, r1, r2):
-    """The radius terms the gravity routines share, from a position (packed 32-bit, m):
-    (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
+def _radius_terms(nmu, r0, r1, r2):
+    """The radius terms the gravity routines share, from a position (packed 32-bit, m) and
+    ``nmu`` = -mu (packed 32-bit, ``D[D_NMU]``: a scalar, so the inlined copies take no reference
+    on the table): (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
 
     Cases
     -----
-    typical : the four terms within the 32-bit rounding (``D[D_NMU]`` = -mu).
+    typical : the four terms within the 32-bit rounding.
     """
     f = 0
     x2, g = fm32(r0, r0); f |= g
@@ -175,7 +176,7 @@ def _radius_terms(D, r0, r1, r2):
     rn, g = sqrt32(s); f |= g
     inv, g = fd32(_ONE32, rn); f |= g
     inv2, g = fm32(inv, inv); f |= g
-    m3, g = fm32(D[D_NMU], inv); f |= g
+    m3, g = fm32(nmu, inv); f |= g
     m3, g = fm32(m3, inv2); f |= g              # -mu / r^3
     return z2, inv, inv2, m3, f
 
@@ -195,7 +196,7 @@ def accel(D, r0, r1, r2, tau):
     curve-fit : a fit of K terms -> the polynomial in ``tau`` by Horner's rule added per axis.
     constant-fit : K = 1 -> a constant acceleration added (no multiply by ``tau``).
     """
-    z2, inv, inv2, m3, f = _radius_terms(D, r0, r1, r2)
+    z2, inv, inv2, m3, f = _radius_terms(D[D_NMU], r0, r1, r2)
     cxy = m3
     cz = m3
     if D[D_J2] != 0:
@@ -239,7 +240,7 @@ def grav_gradient_h(D, r0, r1, r2, h):
     -----
     typical : ``h mu / r^3 (3 u_i u_j - delta_ij)`` for the upper triangle.
     """
-    _, inv, _, c, f = _radius_terms(D, r0, r1, r2)         # c = -mu/r^3
+    _, inv, _, c, f = _radius_terms(D[D_NMU], r0, r1, r2)         # c = -mu/r^3
     u0, g = fm32(r0, inv); f |= g
     u1, g = fm32(r1, inv); f |= g
     u2, g = fm32(r2, inv); f |= g
