@@ -19,11 +19,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import typeof
 
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
 from flightsw.messages import (
-    IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
+    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, AttitudeData,
+    CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
 from flightsw.tp.layout import (
@@ -35,11 +37,11 @@ from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
-from flightsw.tp.frame import run_frame
+from flightsw.tp.frame import run_frame, step_frame
 from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
+__all__ = ["TrackProcessor", "TPInputs", "TPOutputs", "FrameCommand"]
 
 
 @dataclass
@@ -64,21 +66,52 @@ class TPOutputs:
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 _INTS = (int, np.integer)
-# TrackCommand is built positionally (keywords cost ~0.8 us a frame): its field order, checked here
+# the command is built as a dict of TrackCommand's fields (TrackProcessor._command): its fields,
+# checked here
 _TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_col", "imager",
               "object_type", "locked", "status", "n_star_gates", "n_object_gates", "decided_frame",
               "object_index", "mode", "los_eci", "r_est", "v_est", "sigma_pos", "sigma_vel")
 if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
     raise ImportError("flightsw.tp.processor: TrackCommand's fields changed; update _TC_FIELDS and "
                       "TrackProcessor._command")
-# the command's arrays as slices of its copy of out[O_QP:O_SV]
-_A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
-_A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
+#: the command's arrays: their ranges of ``out``
+_ARRAYS = {"q_point": (O_QP, O_QP + 4), "los_eci": (O_LOS, O_R), "r_est": (O_R, O_V),
+           "v_est": (O_V, O_SP)}
 #: the snapshot's gate_kind: 0 star gate (even rows), 1 object gate (odd rows)
 _GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
 #: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
 _SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS,
                           F.S_NLOST, F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS])
+
+
+def _load_step_frame(MEM, FIO) -> None:
+    """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for the argument types
+    :meth:`TrackProcessor._step` passes -- int64 / float64 buffers, a C-contiguous
+    :data:`~flightsw.messages.CANDIDATE_DTYPE` array, float64 attitude arrays -- and forbid any
+    other: an argument of another type (a list, float32, a strided view, another dtype) then raises
+    TypeError at the call, and the processor takes its checking path instead of compiling a
+    variant every time."""
+    if step_frame.signatures:
+        return
+    f8 = np.zeros(4)
+    step_frame.compile(tuple(typeof(x) for x in (
+        MEM, FIO, np.zeros(1, CANDIDATE_DTYPE), 0.0, 0, 0, 0.0, f8, f8, f8, f8, True)))
+    step_frame.disable_compile()
+
+
+class FrameCommand(TrackCommand):
+    """The :class:`~flightsw.messages.TrackCommand` :meth:`TrackProcessor.step` returns: its arrays
+    (``q_point``, ``los_eci``, ``r_est``, ``v_est``) are made from the frame's outputs when first
+    read (a caller reading the scalars and the feedback saves ~0.5 us a frame); everything else, a
+    TrackCommand's (``dataclasses.replace`` makes a plain one of this class)."""
+
+    def __getattr__(self, name):        # only for attributes not yet in the instance
+        rng = _ARRAYS.get(name)
+        vals = self.__dict__.get("_out")
+        if rng is None or vals is None:
+            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
+        a = self.__dict__[name] = np.array(vals[rng[0]:rng[1]])
+        return a
 
 
 class TrackProcessor:
@@ -126,6 +159,7 @@ class TrackProcessor:
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
+        _load_step_frame(self.MEM, self.FIO)
         self.reset()
 
     @staticmethod
@@ -226,23 +260,42 @@ class TrackProcessor:
         return UplinkVerdict(True, "", changes)
 
     def _step(self, message, attitude, ledger):
-        msg = None
-        if isinstance(message, CandidateMessage):
-            msg = message
-        elif message is not None and not isinstance(message, (str, bytes)):
-            try:
-                msg = CandidateMessage.from_words(message)
-            except (ValueError, TypeError):
-                msg = None
-        if msg is None or not self._read_message(msg):
-            self.hdr.fill(0.0)                    # unusable: the kernel coasts
-        self._read_attitude(attitude)
-        status = run_frame(self.MEM, self.FIO)
+        status = -1
+        if type(message) is CandidateMessage and type(attitude) is AttitudeData:
+            status = self._step_decoded(message, attitude)
+        if status < 0:                            # anything else: the checking readers
+            msg = None
+            if isinstance(message, CandidateMessage):
+                msg = message
+            elif message is not None and not isinstance(message, (str, bytes)):
+                try:
+                    msg = CandidateMessage.from_words(message)
+                except (ValueError, TypeError):
+                    msg = None
+            if msg is None or not self._read_message(msg):
+                self.hdr.fill(0.0)                # unusable: the kernel coasts
+            self._read_attitude(attitude)
+            status = run_frame(self.MEM, self.FIO)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
                     ledger.charge(TP1750, name, int(c))
         return self._command(int(status))
+
+    def _step_decoded(self, msg, att) -> int:
+        """The frame in one compiled call (:func:`~flightsw.tp.frame.step_frame`) when the message
+        and the attitude hold the types it was compiled for -> status bits; -1 when they do not
+        (nothing written, nothing run: :meth:`_step` takes the checking readers)."""
+        idx = self._img_index.get(msg.imager)
+        fc = msg.frame_count
+        if idx is None or not isinstance(fc, _INTS):
+            return -1
+        try:                                      # other types: TypeError (_load_step_frame)
+            return step_frame(self.MEM, self.FIO, msg.candidates, float(msg.time_tag), idx,
+                              int(fc) & 0xFFFF, float(att.t), att.q_body_to_eci, att.rate_body,
+                              att.r_eci, att.v_eci, bool(att.valid))
+        except (TypeError, ValueError):
+            return -1
 
     def _read_message(self, msg) -> bool:
         """The message's header into ``hdr`` and its centroids into ``rows``/``cols`` -> True; a
@@ -287,13 +340,15 @@ class TrackProcessor:
                 att[1] = 0.0
 
     def _command(self, status: int) -> TrackCommand:
-        v = self.out.tolist()
-        a = self.out[O_QP:O_SV].copy()           # one copy; the command's arrays are views of it
-        cmd = TrackCommand(
-            int(v[O_FRAME]), v[O_T], a[_A_QP], v[O_PROW], v[O_PCOL], self._img_names[int(v[O_IMG])],
-            self._object_type, v[O_LOCKED] != 0.0, status, int(v[O_NSTAR]), int(v[O_NOBJ]),
-            int(v[O_DECF]), int(v[O_OBJIDX]), self._mode, a[_A_LOS], a[_A_R], a[_A_V], v[O_SP],
-            v[O_SV])
+        v = self.out.tolist()                    # the frame's outputs, kept by the command
+        cmd = object.__new__(FrameCommand)
+        cmd.__dict__ = {
+            "frame_count": int(v[O_FRAME]), "time_tag": v[O_T], "predicted_row": v[O_PROW],
+            "predicted_col": v[O_PCOL], "imager": self._img_names[int(v[O_IMG])],
+            "object_type": self._object_type, "locked": v[O_LOCKED] != 0.0, "status": status,
+            "n_star_gates": int(v[O_NSTAR]), "n_object_gates": int(v[O_NOBJ]),
+            "decided_frame": int(v[O_DECF]), "object_index": int(v[O_OBJIDX]), "mode": self._mode,
+            "sigma_pos": v[O_SP], "sigma_vel": v[O_SV], "_out": v}
         self._last_cmd = cmd
         return cmd
 
