@@ -260,18 +260,18 @@ class TrackProcessor:
         return UplinkVerdict(True, "", changes)
 
     def _step(self, message, attitude, ledger):
+        msg = None
+        if isinstance(message, CandidateMessage):
+            msg = message
+        elif message is not None and not isinstance(message, (str, bytes)):
+            try:
+                msg = CandidateMessage.from_words(message)
+            except (ValueError, TypeError):
+                msg = None
         status = -1
-        if type(message) is CandidateMessage and type(attitude) is AttitudeData:
-            status = self._step_decoded(message, attitude)
+        if msg is not None and type(attitude) is AttitudeData:
+            status = self._step_decoded(msg, attitude)
         if status < 0:                            # anything else: the checking readers
-            msg = None
-            if isinstance(message, CandidateMessage):
-                msg = message
-            elif message is not None and not isinstance(message, (str, bytes)):
-                try:
-                    msg = CandidateMessage.from_words(message)
-                except (ValueError, TypeError):
-                    msg = None
             if msg is None or not self._read_message(msg):
                 self.hdr.fill(0.0)                # unusable: the kernel coasts
             self._read_attitude(attitude)
