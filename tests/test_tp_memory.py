@@ -15,7 +15,7 @@ from flightsw.tp.ekf import E_WORDS, K_WORDS
 from flightsw.messages import CANDIDATE_DTYPE
 from flightsw.tp.frame import run_frame, step_frame, tp_frame
 from flightsw.tp.geometry import IMG_WORDS
-from flightsw.tp.memory import float_views, host_views, int_views, new_memory
+from flightsw.tp.memory import float_views, host_views, int_views, new_memory, unowned
 
 INT_ORDER = ("C", "D", "K", "IMG", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc")
 FLOAT_ORDER = ("hdr", "att", "rows", "cols", "out")
@@ -97,6 +97,23 @@ def test_run_frame_is_tp_frame_on_the_buffers_views():
     for k, a in zip(INT_ORDER[:12] + FLOAT_ORDER + ("cyc",), args):
         np.testing.assert_array_equal(got[k], a, err_msg=k)
     assert any((got[k] != before[k]).any() for k in ("S", "V", "out"))   # the frame did work
+
+
+@njit
+def _write_through_unowned(a, i, x):
+    u = unowned(a)
+    u[i] = x
+    return u.copy()
+
+
+@pytest.mark.cases("flightsw.tp.memory.unowned", "typical")
+@pytest.mark.parametrize("dtype", [np.int64, np.float64])
+def test_unowned_is_the_buffers_memory(dtype):
+    a = np.arange(7, dtype=dtype)
+    seen = _write_through_unowned(a, 3, 99)
+    assert seen.dtype == a.dtype and seen.shape == a.shape
+    np.testing.assert_array_equal(seen, [0, 1, 2, 99, 4, 5, 6])
+    np.testing.assert_array_equal(a, seen)                 # the write went to the buffer
 
 
 def _by_hand(MEM, FIO, cand, t, img, fc, att, valid):

@@ -40,7 +40,7 @@ from flightsw.tp.geometry import observations
 from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, STAGES, begin_frame,
                                 evidence, has_nominal, long_gap, message_header, n_used,
                                 opportunity_mode, work_views)
-from flightsw.tp.memory import float_views, int_views
+from flightsw.tp.memory import float_views, int_views, unowned
 from flightsw.tp.opportunity import track_opportunity
 from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, report_object,
                                verify_object)
@@ -116,8 +116,8 @@ def run_frame(MEM, FIO):
     typical : the arrays are the buffers' views; the frame's status, words and outputs are
         :func:`tp_frame`'s on those arrays.
     """
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(MEM)
-    hdr, att, rows, cols, out = float_views(FIO)
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
+    hdr, att, rows, cols, out = float_views(unowned(FIO))
     return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
 
 
@@ -144,7 +144,7 @@ def step_frame(MEM, FIO, cand, t_msg, img_idx, frame_count, att_t, q, rate, r, v
     """
     if q.shape[0] != 4 or rate.shape[0] != 3 or r.shape[0] != 3 or v.shape[0] != 3:
         return -1
-    hdr, att, rows, cols, out = float_views(FIO)
+    hdr, att, rows, cols, out = float_views(unowned(FIO))
     n = min(cand.shape[0], MAX_OBS)
     for j in range(n):
         rows[j] = cand[j].row
@@ -162,5 +162,5 @@ def step_frame(MEM, FIO, cand, t_msg, img_idx, frame_count, att_t, q, rate, r, v
         att[6 + i] = rate[i]
         att[9 + i] = r[i]
         att[12 + i] = v[i]
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(MEM)
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
     return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
