@@ -757,14 +757,10 @@ def test_closed_loop_satellite_over_stars_with_groundsim_truth_centroids():
     assert np.linalg.norm(cmd.r_est - tg["r_eci"]) < 3 * cmd.sigma_pos
 
 
-def test_one_call_path_equals_the_checking_readers_and_commands_copy():
+def test_one_call_path_equals_the_checking_readers():
     """Decoded inputs go through one compiled call (step_frame); inputs of other types (here the
     candidates as a strided view, the attitude's arrays as lists) through the Python readers. Both
-    paths must give the same commands, words and state; the returned FrameCommand builds its arrays
-    on read and copies, pickles and replaces as a TrackCommand."""
-    import copy
-    import dataclasses
-    import pickle
+    paths must give the same commands, words and state."""
     s = Stream(31, "track", n_frames=24, p_miss=0.0, n_clutter=1.0)
     fast, slow = s.processor(), s.processor()
     for k in range(24):
@@ -779,10 +775,4 @@ def test_one_call_path_equals_the_checking_readers_and_commands_copy():
         a, b = fast.step(msg, att), slow.step(msg2, att2)
         np.testing.assert_array_equal(a.to_words(), b.to_words())
         np.testing.assert_array_equal(fast.MEM, slow.MEM)
-    assert a.locked and type(a).__name__ == "FrameCommand" and isinstance(a, TrackCommand)
-    for c in (copy.deepcopy(a), pickle.loads(pickle.dumps(a)), dataclasses.replace(a, locked=False)):
-        for name in ("q_point", "los_eci", "r_est", "v_est"):
-            np.testing.assert_array_equal(getattr(c, name), getattr(a, name))
-    assert a.q_point is a.q_point and np.all(np.isfinite(a.r_est))
-    with pytest.raises(AttributeError):
-        a.no_such_field
+    assert a.locked

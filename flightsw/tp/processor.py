@@ -41,7 +41,7 @@ from flightsw.tp.frame import run_frame, step_frame
 from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor", "TPInputs", "TPOutputs", "FrameCommand"]
+__all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
 
 
 @dataclass
@@ -66,17 +66,16 @@ class TPOutputs:
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 _INTS = (int, np.integer)
-# the command is built as a dict of TrackCommand's fields (TrackProcessor._command): its fields,
-# checked here
+# TrackCommand is built positionally (keywords cost ~0.8 us a frame): its field order, checked here
 _TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_col", "imager",
               "object_type", "locked", "status", "n_star_gates", "n_object_gates", "decided_frame",
               "object_index", "mode", "los_eci", "r_est", "v_est", "sigma_pos", "sigma_vel")
 if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
     raise ImportError("flightsw.tp.processor: TrackCommand's fields changed; update _TC_FIELDS and "
                       "TrackProcessor._command")
-#: the command's arrays: their ranges of ``out``
-_ARRAYS = {"q_point": (O_QP, O_QP + 4), "los_eci": (O_LOS, O_R), "r_est": (O_R, O_V),
-           "v_est": (O_V, O_SP)}
+# the command's arrays as slices of its copy of out[O_QP:O_SV]
+_A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
+_A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
 #: the snapshot's gate_kind: 0 star gate (even rows), 1 object gate (odd rows)
 _GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
 #: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
@@ -97,21 +96,6 @@ def _load_step_frame(MEM, FIO) -> None:
     step_frame.compile(tuple(typeof(x) for x in (
         MEM, FIO, np.zeros(1, CANDIDATE_DTYPE), 0.0, 0, 0, 0.0, f8, f8, f8, f8, True)))
     step_frame.disable_compile()
-
-
-class FrameCommand(TrackCommand):
-    """The :class:`~flightsw.messages.TrackCommand` :meth:`TrackProcessor.step` returns: its arrays
-    (``q_point``, ``los_eci``, ``r_est``, ``v_est``) are made from the frame's outputs when first
-    read (a caller reading the scalars and the feedback saves ~0.5 us a frame); everything else, a
-    TrackCommand's (``dataclasses.replace`` makes a plain one of this class)."""
-
-    def __getattr__(self, name):        # only for attributes not yet in the instance
-        rng = _ARRAYS.get(name)
-        vals = self.__dict__.get("_out")
-        if rng is None or vals is None:
-            raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
-        a = self.__dict__[name] = np.array(vals[rng[0]:rng[1]])
-        return a
 
 
 class TrackProcessor:
@@ -340,15 +324,13 @@ class TrackProcessor:
                 att[1] = 0.0
 
     def _command(self, status: int) -> TrackCommand:
-        v = self.out.tolist()                    # the frame's outputs, kept by the command
-        cmd = object.__new__(FrameCommand)
-        cmd.__dict__ = {
-            "frame_count": int(v[O_FRAME]), "time_tag": v[O_T], "predicted_row": v[O_PROW],
-            "predicted_col": v[O_PCOL], "imager": self._img_names[int(v[O_IMG])],
-            "object_type": self._object_type, "locked": v[O_LOCKED] != 0.0, "status": status,
-            "n_star_gates": int(v[O_NSTAR]), "n_object_gates": int(v[O_NOBJ]),
-            "decided_frame": int(v[O_DECF]), "object_index": int(v[O_OBJIDX]), "mode": self._mode,
-            "sigma_pos": v[O_SP], "sigma_vel": v[O_SV], "_out": v}
+        v = self.out.tolist()
+        a = self.out[O_QP:O_SV].copy()           # one copy; the command's arrays are views of it
+        cmd = TrackCommand(
+            int(v[O_FRAME]), v[O_T], a[_A_QP], v[O_PROW], v[O_PCOL], self._img_names[int(v[O_IMG])],
+            self._object_type, v[O_LOCKED] != 0.0, status, int(v[O_NSTAR]), int(v[O_NOBJ]),
+            int(v[O_DECF]), int(v[O_OBJIDX]), self._mode, a[_A_LOS], a[_A_R], a[_A_V], v[O_SP],
+            v[O_SV])
         self._last_cmd = cmd
         return cmd
 
