@@ -27,7 +27,8 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
-    encode32, encode48, fa32, fa48, fc48, fd32, fd48, fm32, fm48, fs32, fs48, sqrt32, to32, to48,
+    encode32, encode48, fa32, fa48, fc48, fd32, fd48, fm32, fm48, fs32, fs48, madd48, sqrt32, to32,
+    to48,
 )
 from flightsw.tp.f1750 import cycles, dec48, mix
 
@@ -277,12 +278,9 @@ def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
     typical : ``r + c k`` (48-bit) and ``v + c32 a`` (product 32-bit, sum 48-bit).
     """
     f = 0
-    p, g = fm48(c, k0); f |= g
-    s0, g = fa48(r0, p); f |= g
-    p, g = fm48(c, k1); f |= g
-    s1, g = fa48(r1, p); f |= g
-    p, g = fm48(c, k2); f |= g
-    s2, g = fa48(r2, p); f |= g
+    s0, g = madd48(r0, c, k0); f |= g
+    s1, g = madd48(r1, c, k1); f |= g
+    s2, g = madd48(r2, c, k2); f |= g
     q, g = fm32(c32, a0); f |= g
     w0, g = fa48(v0, to48(q)); f |= g
     q, g = fm32(c32, a1); f |= g
@@ -342,14 +340,12 @@ def rk4_step(D, X, o, t, h):
         m, g = fa48(m, m); f |= g
         e, g = fa48(va, vd); f |= g
         m, g = fa48(m, e); f |= g
-        m, g = fm48(h6, m); f |= g
-        X[o + i], g = fa48(X[o + i], m); f |= g
+        X[o + i], g = madd48(X[o + i], h6, m); f |= g
         n, g = fa32(ab, ac); f |= g
         n, g = fa32(n, n); f |= g
         e2, g = fa32(aa, ad); f |= g
         n, g = fa32(n, e2); f |= g
-        m, g = fm48(h6, to48(n)); f |= g
-        X[o + 3 + i], g = fa48(X[o + 3 + i], m); f |= g
+        X[o + 3 + i], g = madd48(X[o + 3 + i], h6, to48(n)); f |= g
     return f
 
 
