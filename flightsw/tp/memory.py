@@ -13,8 +13,8 @@ The views (:func:`int_views`, :func:`float_views` in compiled code, :func:`host_
 host) are contiguous slices of the buffers: a write through a view is a write to the buffer.
 
 Inside the frame's call the buffers are taken :func:`unowned` (no reference count): numba passes
-an array from routine to routine with an atomic incref/decref pair per call (~440 a frame,
-~2 us); an array without one costs a null test instead.
+an array from routine to routine with an atomic incref/decref pair per call that takes it (~440
+a frame); on an array without one each is a null test (~0.5 us a frame saved).
 """
 from __future__ import annotations
 

@@ -2,8 +2,10 @@
 
 The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
 buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
-arguments, runs :func:`flightsw.tp.frame.run_frame` once per frame, charges the emulated
-cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
+arguments, runs the frame in one compiled call (:func:`flightsw.tp.frame.step_frame` for a decoded
+message and attitude data of the usual types, else the Python readers and
+:func:`flightsw.tp.frame.run_frame`), charges the emulated cycles to the frame's
+:class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
 :data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
 Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
@@ -90,12 +92,16 @@ def _load_step_frame(MEM, FIO) -> None:
     other: an argument of another type (a list, float32, a strided view, another dtype) then raises
     TypeError at the call, and the processor takes its checking path instead of compiling a
     variant every time."""
-    if step_frame.signatures:
+    if _STEP_FRAME_LOADED:
         return
     f8 = np.zeros(4)
     step_frame.compile(tuple(typeof(x) for x in (
         MEM, FIO, np.zeros(1, CANDIDATE_DTYPE), 0.0, 0, 0, 0.0, f8, f8, f8, f8, True)))
     step_frame.disable_compile()
+    _STEP_FRAME_LOADED.append(True)
+
+
+_STEP_FRAME_LOADED: list = []                 # non-empty once _load_step_frame has run
 
 
 class TrackProcessor:
