@@ -755,3 +755,24 @@ def test_closed_loop_satellite_over_stars_with_groundsim_truth_centroids():
     assert math.hypot(tg["row"] - 122.0, tg["col"] - 128.0) < 1.5            # on the boresight
     assert math.hypot(cmd.predicted_row - tg["row"], cmd.predicted_col - tg["col"]) < 1.0
     assert np.linalg.norm(cmd.r_est - tg["r_eci"]) < 3 * cmd.sigma_pos
+
+
+def test_one_call_path_equals_the_checking_readers():
+    """Decoded inputs go through one compiled call (step_frame); inputs of other types (here the
+    candidates as a strided view, the attitude's arrays as lists) through the Python readers. Both
+    paths must give the same commands, words and state."""
+    s = Stream(31, "track", n_frames=24, p_miss=0.0, n_clutter=1.0)
+    fast, slow = s.processor(), s.processor()
+    for k in range(24):
+        msg, att, _ = s.frame(k)
+        wide = np.zeros(2 * len(msg.candidates), CANDIDATE_DTYPE)
+        wide[::2] = msg.candidates
+        msg2 = CandidateMessage(frame_count=msg.frame_count, time_tag=msg.time_tag,
+                                candidates=wide[::2])
+        att2 = AttitudeData(att.t, list(att.q_body_to_eci), list(att.rate_body), list(att.r_eci),
+                            list(att.v_eci), att.valid)
+        assert slow._step_decoded(msg2, att2) == -1       # not the compiled types: no call
+        a, b = fast.step(msg, att), slow.step(msg2, att2)
+        np.testing.assert_array_equal(a.to_words(), b.to_words())
+        np.testing.assert_array_equal(fast.MEM, slow.MEM)
+    assert a.locked

@@ -116,3 +116,23 @@ def test_quaternion_product_and_matrix_against_scipy():
     R = np.zeros(9, np.int64)
     assert qdcm(*[w(v) for v in qa], R) == 0
     assert d(*R).reshape(3, 3) == pytest.approx(ra.as_matrix(), abs=1e-6)
+
+
+@pytest.mark.cases("flightsw.arith.m1750_float.madd48", "typical", "flags")
+@pytest.mark.cases("flightsw.arith.m1750_float._mul48_core", "typical")
+def test_madd48_is_efm_then_efa():
+    """The covariance's and RK4's multiply-accumulate: exactly EFA(acc, EFM(a, b)) -- both
+    truncations, both instructions' flags (EFM and EFA are checked against exact rational
+    arithmetic in test_m1750)."""
+    from flightsw.arith.m1750 import encode48, fa48, fm48, madd48
+
+    rng = np.random.default_rng(5)
+    x = rng.normal(0, 1, (400, 3)) * 10.0 ** rng.integers(-6, 7, (400, 3))
+    x[:40, 0] = -x[:40, 1] * x[:40, 2]                 # cancellation: acc ~ -a b
+    for acc, a, b in x:
+        acc, a, b = (encode48(float(v), rounding="nearest") for v in (acc, a, b))
+        p, f1 = fm48(a, b)
+        s, f2 = fa48(acc, p)
+        assert madd48(acc, a, b) == (s, f1 | f2)
+    tiny = p48(1 << 38, -100)                          # 0.5 * 2**-100: the square underflows
+    assert madd48(encode48(1.0), tiny, tiny) == (encode48(1.0), FLAG_FLOAT_UNDERFLOW)

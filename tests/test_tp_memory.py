@@ -1,6 +1,7 @@
 """The track processor's two flat buffers (flightsw.tp.memory): the views tile the buffers in the
-documented order, compiled and host views agree, and one frame through ``run_frame`` equals
-``tp_frame`` on separate arrays holding the same words."""
+documented order, compiled and host views agree, one frame through ``run_frame`` equals
+``tp_frame`` on separate arrays holding the same words, and ``step_frame`` writes the inputs where
+the layout says before running the frame."""
 from __future__ import annotations
 
 import numpy as np
@@ -11,9 +12,10 @@ from test_tp import Stream
 from flightsw.tp import layout as L
 from flightsw.tp.dynamics import D_WORDS
 from flightsw.tp.ekf import E_WORDS, K_WORDS
-from flightsw.tp.frame import run_frame, tp_frame
+from flightsw.messages import CANDIDATE_DTYPE
+from flightsw.tp.frame import run_frame, step_frame, tp_frame
 from flightsw.tp.geometry import IMG_WORDS
-from flightsw.tp.memory import float_views, host_views, int_views, new_memory
+from flightsw.tp.memory import float_views, host_views, int_views, new_memory, unowned
 
 INT_ORDER = ("C", "D", "K", "IMG", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc")
 FLOAT_ORDER = ("hdr", "att", "rows", "cols", "out")
@@ -95,3 +97,59 @@ def test_run_frame_is_tp_frame_on_the_buffers_views():
     for k, a in zip(INT_ORDER[:12] + FLOAT_ORDER + ("cyc",), args):
         np.testing.assert_array_equal(got[k], a, err_msg=k)
     assert any((got[k] != before[k]).any() for k in ("S", "V", "out"))   # the frame did work
+
+
+@njit
+def _write_through_unowned(a, i, x):
+    u = unowned(a)
+    u[i] = x
+    return u.copy()
+
+
+@pytest.mark.cases("flightsw.tp.memory.unowned", "typical")
+@pytest.mark.parametrize("dtype", [np.int64, np.float64])
+def test_unowned_is_the_buffers_memory(dtype):
+    a = np.arange(7, dtype=dtype)
+    seen = _write_through_unowned(a, 3, 99)
+    assert seen.dtype == a.dtype and seen.shape == a.shape
+    np.testing.assert_array_equal(seen, [0, 1, 2, 99, 4, 5, 6])
+    np.testing.assert_array_equal(a, seen)                 # the write went to the buffer
+
+
+def _by_hand(MEM, FIO, cand, t, img, fc, att, valid):
+    """The documented input layout (flightsw.tp.layout: hdr, att [16], rows, cols) filled with
+    numpy, then ``run_frame``: the oracle for ``step_frame``."""
+    v = host_views(MEM, FIO)
+    n = min(len(cand), L.MAX_OBS)
+    v["rows"][:n], v["cols"][:n] = cand["row"][:n], cand["col"][:n]
+    v["hdr"][[L.H_OK, L.H_IMG, L.H_T, L.H_FC, L.H_N]] = 1.0, img, t, fc, n
+    v["att"][:15] = np.concatenate([[att.t, float(valid)], att.q_body_to_eci, att.rate_body,
+                                    att.r_eci, att.v_eci])
+    return run_frame(MEM, FIO)
+
+
+@pytest.mark.cases("flightsw.tp.frame.step_frame", "typical", "capped", "not-valid", "bad-length")
+def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
+    s = Stream(78, "track", n_frames=30, p_miss=0.0, n_clutter=0.0)
+    tp = s.processor()
+    for k in range(20):
+        tp.step(*s.frame(k)[:2])
+    msg, att, _ = s.frame(20)
+    extra = np.zeros(30 - len(msg.candidates), CANDIDATE_DTYPE)
+    extra["row"], extra["col"] = 100.0 + np.arange(len(extra)), 50.0
+    for cand, valid in ((msg.candidates, True), (np.concatenate([msg.candidates, extra]), True),
+                        (msg.candidates, False)):
+        M1, F1, M2, F2 = tp.MEM.copy(), tp.FIO.copy(), tp.MEM.copy(), tp.FIO.copy()
+        want = _by_hand(M1, F1, cand, msg.time_tag, 0, msg.frame_count, att, valid)
+        got = step_frame(M2, F2, cand, msg.time_tag, 0, msg.frame_count, att.t, att.q_body_to_eci,
+                         att.rate_body, att.r_eci, att.v_eci, valid)
+        assert got == want
+        np.testing.assert_array_equal(M2, M1)
+        np.testing.assert_array_equal(F2, F1)
+        v = host_views(M2, F2)
+        assert v["hdr"][L.H_N] == min(len(cand), L.MAX_OBS) and v["att"][1] == float(valid)
+    M, F = tp.MEM.copy(), tp.FIO.copy()
+    assert step_frame(M, F, msg.candidates, msg.time_tag, 0, msg.frame_count, att.t, np.zeros(3),
+                      att.rate_body, att.r_eci, att.v_eci, True) == -1
+    np.testing.assert_array_equal(M, tp.MEM)
+    np.testing.assert_array_equal(F, tp.FIO)

@@ -102,7 +102,7 @@ __all__ = [
     "FLAG_FLOAT_OVERFLOW", "FLAG_FIXED_OVERFLOW", "FLAG_FLOAT_UNDERFLOW", "FLAG_DOMAIN",
     "encode32", "encode48", "decode32", "decode48", "encode32_array", "encode48_array",
     "decode32_array", "decode48_array", "is_normalized32", "is_normalized48",
-    "fa32", "fs32", "fm32", "fd32", "fa48", "fs48", "fm48", "fd48",
+    "fa32", "fs32", "fm32", "fd32", "fa48", "fs48", "fm48", "fd48", "madd48",
     "flt32", "fix32", "flt48", "fix48", "fabs32", "fneg32", "fabs48", "fneg48", "fc32", "fc48",
     "to48", "to32", "unpack32", "unpack48", "pack32", "pack48",
     "to_signed16", "to_signed32", "encode_k", "decode32_k", "decode48_k", "is_normalized32_k",
@@ -482,26 +482,14 @@ def prod80(A, B):
     return a1 * b1 + (mid >> 20) + (low >> 40), low & ((np.int64(1) << 40) - 1)
 
 
-@njit(cache=True)
-def _fm48_k(a, b):
-    """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (:func:`prod80`)
-    normalised and truncated toward minus infinity.
+@njit(cache=True, inline="always")
+def _mul48_core(a, b):
+    """EFM's body, compiled into :func:`_fm48_k` and :func:`madd48` (its cases are
+    :func:`_fm48_k`'s).
 
     Cases
     -----
-    zero-operand : either mantissa 0 -> (0, 0), before any exponent check.
-    exp-overflow : EA + EO > 127 -> overflow word of the product's sign + FLAG_FLOAT_OVERFLOW.
-    exp-underflow : EA + EO < -128 -> (0, FLAG_FLOAT_UNDERFLOW).
-    minus-one-squared : (-1.0)(-1.0) -> 0.5 * 2**(n+1).
-    minus-one-squared-overflow : (-1.0)(-1.0) with n = 127 -> (MAX48, FLAG_FLOAT_OVERFLOW).
-    positive-no-shift : positive product >= 0.5 -> floor(|P| / 2**39).
-    positive-shift : positive product < 0.5 -> floor(|P| / 2**38), exponent - 1.
-    negative-no-shift : negative product, |P| > 0.5 -> -ceil(|P| / 2**39) (floor of the signed
-        value).
-    negative-shift : negative product, |P| < 0.5 -> -ceil(|P| / 2**38), exponent - 1.
-    minus-half : a product of exactly -0.5 -> -1.0 * 2**(n-1).
-    norm-underflow : the normalising shift takes the exponent below -128 ->
-        (0, FLAG_FLOAT_UNDERFLOW).
+    typical : the normalised product truncated toward minus infinity with EFM's flags.
     """
     ma, ea = unpack48(a)
     mo, eo = unpack48(b)
@@ -539,6 +527,47 @@ def _fm48_k(a, b):
     if n < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
     return pack48(m, n), 0
+
+
+@njit(cache=True)
+def _fm48_k(a, b):
+    """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (:func:`prod80`)
+    normalised and truncated toward minus infinity.
+
+    Cases
+    -----
+    zero-operand : either mantissa 0 -> (0, 0), before any exponent check.
+    exp-overflow : EA + EO > 127 -> overflow word of the product's sign + FLAG_FLOAT_OVERFLOW.
+    exp-underflow : EA + EO < -128 -> (0, FLAG_FLOAT_UNDERFLOW).
+    minus-one-squared : (-1.0)(-1.0) -> 0.5 * 2**(n+1).
+    minus-one-squared-overflow : (-1.0)(-1.0) with n = 127 -> (MAX48, FLAG_FLOAT_OVERFLOW).
+    positive-no-shift : positive product >= 0.5 -> floor(|P| / 2**39).
+    positive-shift : positive product < 0.5 -> floor(|P| / 2**38), exponent - 1.
+    negative-no-shift : negative product, |P| > 0.5 -> -ceil(|P| / 2**39) (floor of the signed
+        value).
+    negative-shift : negative product, |P| < 0.5 -> -ceil(|P| / 2**38), exponent - 1.
+    minus-half : a product of exactly -0.5 -> -1.0 * 2**(n-1).
+    norm-underflow : the normalising shift takes the exponent below -128 ->
+        (0, FLAG_FLOAT_UNDERFLOW).
+    """
+    return _mul48_core(a, b)
+
+
+@njit(cache=True)
+def madd48(acc, a, b):
+    """EFM then EFA, ``acc + a * b`` -> (p, flags): exactly ``fa48(acc, fm48(a, b))`` (two
+    truncations, the flags of both OR'ed) in one compiled call instead of two -- for the
+    multiply-accumulate loops of the track processor's covariance and RK4 (compiled code only, no
+    argument checks).
+
+    Cases
+    -----
+    typical : ``fa48(acc, fm48(a, b))``, flags OR'ed.
+    flags : an EFM overflow or underflow flag is kept even when the EFA raises none.
+    """
+    p, f = _mul48_core(a, b)
+    s, g = _add_core(acc, p, 39, False)
+    return s, f | g
 
 
 # ================================================================================================

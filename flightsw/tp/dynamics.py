@@ -27,7 +27,8 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
-    encode32, encode48, fa32, fa48, fc48, fd32, fd48, fm32, fm48, fs32, fs48, sqrt32, to32, to48,
+    encode32, encode48, fa32, fa48, fc48, fd32, fd48, fm32, fm48, fs32, fs48, madd48, sqrt32, to32,
+    to48,
 )
 from flightsw.tp.f1750 import cycles, dec48, mix
 
@@ -158,13 +159,14 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray
 # kernels
 # ------------------------------------------------------------------------------------------------
 @njit(cache=True, inline="always")
-def _radius_terms(D, r0, r1, r2):
-    """The radius terms the gravity routines share, from a position (packed 32-bit, m):
-    (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
+def _radius_terms(nmu, r0, r1, r2):
+    """The radius terms the gravity routines share, from a position (packed 32-bit, m) and
+    ``nmu`` = -mu (packed 32-bit, ``D[D_NMU]``: a scalar, so the inlined copies take no reference
+    on the table): (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
 
     Cases
     -----
-    typical : the four terms within the 32-bit rounding (``D[D_NMU]`` = -mu).
+    typical : the four terms within the 32-bit rounding.
     """
     f = 0
     x2, g = fm32(r0, r0); f |= g
@@ -175,7 +177,7 @@ def _radius_terms(D, r0, r1, r2):
     rn, g = sqrt32(s); f |= g
     inv, g = fd32(_ONE32, rn); f |= g
     inv2, g = fm32(inv, inv); f |= g
-    m3, g = fm32(D[D_NMU], inv); f |= g
+    m3, g = fm32(nmu, inv); f |= g
     m3, g = fm32(m3, inv2); f |= g              # -mu / r^3
     return z2, inv, inv2, m3, f
 
@@ -195,7 +197,7 @@ def accel(D, r0, r1, r2, tau):
     curve-fit : a fit of K terms -> the polynomial in ``tau`` by Horner's rule added per axis.
     constant-fit : K = 1 -> a constant acceleration added (no multiply by ``tau``).
     """
-    z2, inv, inv2, m3, f = _radius_terms(D, r0, r1, r2)
+    z2, inv, inv2, m3, f = _radius_terms(D[D_NMU], r0, r1, r2)
     cxy = m3
     cz = m3
     if D[D_J2] != 0:
@@ -239,7 +241,7 @@ def grav_gradient_h(D, r0, r1, r2, h):
     -----
     typical : ``h mu / r^3 (3 u_i u_j - delta_ij)`` for the upper triangle.
     """
-    _, inv, _, c, f = _radius_terms(D, r0, r1, r2)         # c = -mu/r^3
+    _, inv, _, c, f = _radius_terms(D[D_NMU], r0, r1, r2)         # c = -mu/r^3
     u0, g = fm32(r0, inv); f |= g
     u1, g = fm32(r1, inv); f |= g
     u2, g = fm32(r2, inv); f |= g
@@ -276,12 +278,9 @@ def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
     typical : ``r + c k`` (48-bit) and ``v + c32 a`` (product 32-bit, sum 48-bit).
     """
     f = 0
-    p, g = fm48(c, k0); f |= g
-    s0, g = fa48(r0, p); f |= g
-    p, g = fm48(c, k1); f |= g
-    s1, g = fa48(r1, p); f |= g
-    p, g = fm48(c, k2); f |= g
-    s2, g = fa48(r2, p); f |= g
+    s0, g = madd48(r0, c, k0); f |= g
+    s1, g = madd48(r1, c, k1); f |= g
+    s2, g = madd48(r2, c, k2); f |= g
     q, g = fm32(c32, a0); f |= g
     w0, g = fa48(v0, to48(q)); f |= g
     q, g = fm32(c32, a1); f |= g
@@ -341,14 +340,12 @@ def rk4_step(D, X, o, t, h):
         m, g = fa48(m, m); f |= g
         e, g = fa48(va, vd); f |= g
         m, g = fa48(m, e); f |= g
-        m, g = fm48(h6, m); f |= g
-        X[o + i], g = fa48(X[o + i], m); f |= g
+        X[o + i], g = madd48(X[o + i], h6, m); f |= g
         n, g = fa32(ab, ac); f |= g
         n, g = fa32(n, n); f |= g
         e2, g = fa32(aa, ad); f |= g
         n, g = fa32(n, e2); f |= g
-        m, g = fm48(h6, to48(n)); f |= g
-        X[o + 3 + i], g = fa48(X[o + 3 + i], m); f |= g
+        X[o + 3 + i], g = madd48(X[o + 3 + i], h6, to48(n)); f |= g
     return f
 
 

@@ -52,7 +52,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import (
-    encode48, fa48, fc48, fd48, fm32, fm48, fs32, fs48, sqrt32, to32, to48,
+    encode48, fa48, fc48, fd48, fm32, fm48, fs32, fs48, madd48, sqrt32, to32, to48,
 )
 from flightsw.tp.dynamics import CYC_GRAD, dyn_table, grav_gradient_h, rk4_step, rk4_step_cycles
 from flightsw.tp.f1750 import cycles, dec32, dec48, dot3, enc32, enc48, mix, unit3
@@ -167,41 +167,33 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
     # M11 = A + h B^T
     for i in range(3):
         for j in range(3):
-            p, g = fm48(h, wk[9 + j * 3 + i]); f |= g
-            wk[36 + i * 3 + j], g = fa48(wk[i * 3 + j], p); f |= g
+            wk[36 + i * 3 + j], g = madd48(wk[i * 3 + j], h, wk[9 + j * 3 + i]); f |= g
     # W = C A + B^T
     for i in range(3):
         for j in range(3):
             acc = wk[9 + j * 3 + i]
             for k in range(3):
-                p, g = fm48(wk[27 + i * 3 + k], wk[k * 3 + j]); f |= g
-                acc, g = fa48(acc, p); f |= g
+                acc, g = madd48(acc, wk[27 + i * 3 + k], wk[k * 3 + j]); f |= g
             wk[45 + i * 3 + j] = acc
     # P'rr = M11 + h (B + h D)            (upper)
     for i in range(3):
         for j in range(i, 3):
-            p, g = fm48(h, wk[18 + i * 3 + j]); f |= g
-            p, g = fa48(wk[9 + i * 3 + j], p); f |= g
-            p, g = fm48(h, p); f |= g
-            E[P + UT[i, j]], g = fa48(wk[36 + i * 3 + j], p); f |= g
+            p, g = madd48(wk[9 + i * 3 + j], h, wk[18 + i * 3 + j]); f |= g
+            E[P + UT[i, j]], g = madd48(wk[36 + i * 3 + j], h, p); f |= g
     # P'rv = M11 C + B + h D
     for i in range(3):
         for j in range(3):
-            p, g = fm48(h, wk[18 + i * 3 + j]); f |= g
-            acc, g = fa48(wk[9 + i * 3 + j], p); f |= g
+            acc, g = madd48(wk[9 + i * 3 + j], h, wk[18 + i * 3 + j]); f |= g
             for k in range(3):
-                p, g = fm48(wk[36 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
-                acc, g = fa48(acc, p); f |= g
+                acc, g = madd48(acc, wk[36 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
             E[P + UT[i, 3 + j]] = acc
     # P'vv = W C + C B + D                 (upper)
     for i in range(3):
         for j in range(i, 3):
             acc = wk[18 + i * 3 + j]
             for k in range(3):
-                p, g = fm48(wk[45 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
-                acc, g = fa48(acc, p); f |= g
-                p, g = fm48(wk[27 + i * 3 + k], wk[9 + k * 3 + j]); f |= g
-                acc, g = fa48(acc, p); f |= g
+                acc, g = madd48(acc, wk[45 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
+                acc, g = madd48(acc, wk[27 + i * 3 + k], wk[9 + k * 3 + j]); f |= g
             E[P + UT[3 + i, 3 + j]] = acc
     # Q: q h^3/3, q h^2/2, q h
     qh, g = fm48(q, h); f |= g

@@ -37,16 +37,17 @@ from flightsw.tp.command import command, end_frame, filter_outputs
 from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, propagate_gates,
                                smooth_gates)
 from flightsw.tp.geometry import observations
-from flightsw.tp.layout import (STAGES, begin_frame, evidence, has_nominal, long_gap,
-                                message_header, n_used, opportunity_mode, work_views)
-from flightsw.tp.memory import float_views, int_views
+from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, STAGES, begin_frame,
+                                evidence, has_nominal, long_gap, message_header, n_used,
+                                opportunity_mode, work_views)
+from flightsw.tp.memory import float_views, int_views, unowned
 from flightsw.tp.opportunity import track_opportunity
 from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, report_object,
                                verify_object)
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
 
-__all__ = ["tp_frame", "run_frame", "STAGES"]
+__all__ = ["tp_frame", "run_frame", "step_frame", "STAGES"]
 
 
 @njit(cache=True)
@@ -115,6 +116,52 @@ def run_frame(MEM, FIO):
     typical : the arrays are the buffers' views; the frame's status, words and outputs are
         :func:`tp_frame`'s on those arrays.
     """
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(MEM)
-    hdr, att, rows, cols, out = float_views(FIO)
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
+    hdr, att, rows, cols, out = float_views(unowned(FIO))
+    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
+
+
+@njit(cache=True)
+def step_frame(MEM, FIO, cand, t_msg, img_idx, frame_count, att_t, q, rate, r, v, att_valid):
+    """A usable candidate message and an attitude record written into ``FIO`` as the processor's
+    host readers write them, then :func:`tp_frame` on the buffers' views (as :func:`run_frame`)
+    -> status bits: the processor's one call a frame for a decoded message (filling the views
+    from Python cost ~2.6 us a frame, this call's twelve arguments ~0.5 us).
+
+    ``cand`` the message's candidates (record array with float64 ``row``, ``col``: full-resolution
+    pixels, best ranked first); ``t_msg`` its time tag (s), ``img_idx`` the imager's index in the
+    processor's table, ``frame_count`` 0..65535; ``att_t`` (s), ``q`` (4,) body -> ECI,
+    ``rate`` (3,) rad/s, ``r`` (3,) m, ``v`` (3,) m/s float64, ``att_valid`` the attitude data's
+    validity.
+
+    Cases
+    -----
+    typical : header ``(usable, imager, time tag, frame count, n)``, the centroids and the attitude
+        in ``FIO``'s views; the status is :func:`run_frame`'s on those buffers.
+    capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked).
+    not-valid : ``att_valid`` False -> ``att[1] = 0`` (the frame coasts), the values still written.
+    bad-length : an attitude array of the wrong length -> -1, nothing written, no frame run (the
+        processor then takes its checking path).
+    """
+    if q.shape[0] != 4 or rate.shape[0] != 3 or r.shape[0] != 3 or v.shape[0] != 3:
+        return -1
+    hdr, att, rows, cols, out = float_views(unowned(FIO))
+    n = min(cand.shape[0], MAX_OBS)
+    for j in range(n):
+        rows[j] = cand[j].row
+        cols[j] = cand[j].col
+    hdr[H_T] = t_msg
+    hdr[H_OK] = 1.0
+    hdr[H_IMG] = img_idx
+    hdr[H_FC] = frame_count
+    hdr[H_N] = n
+    att[0] = att_t
+    att[1] = 1.0 if att_valid else 0.0
+    for i in range(4):
+        att[2 + i] = q[i]
+    for i in range(3):
+        att[6 + i] = rate[i]
+        att[9 + i] = r[i]
+        att[12 + i] = v[i]
+    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
     return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)

@@ -2,8 +2,10 @@
 
 The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
 buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
-arguments, runs :func:`flightsw.tp.frame.run_frame` once per frame, charges the emulated
-cycles to the frame's :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
+arguments, runs the frame in one compiled call (:func:`flightsw.tp.frame.step_frame` for a decoded
+message and attitude data of the usual types, else the Python readers and
+:func:`flightsw.tp.frame.run_frame`), charges the emulated cycles to the frame's
+:class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
 :data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
 Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
@@ -19,11 +21,13 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import typeof
 
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
 from flightsw.messages import (
-    IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage, TrackCommand,
+    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, AttitudeData,
+    CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
@@ -36,7 +40,7 @@ from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
-from flightsw.tp.frame import run_frame
+from flightsw.tp.frame import run_frame, step_frame
 from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
@@ -80,6 +84,25 @@ _GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
 #: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
 _SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS,
                           F.S_NLOST, F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS])
+
+
+def _load_step_frame(MEM, FIO) -> None:
+    """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for the argument types
+    :meth:`TrackProcessor._step` passes -- int64 / float64 buffers, a C-contiguous
+    :data:`~flightsw.messages.CANDIDATE_DTYPE` array, float64 attitude arrays -- and forbid any
+    other: an argument of another type (a list, float32, a strided view, another dtype) then raises
+    TypeError at the call, and the processor takes its checking path instead of compiling a
+    variant every time."""
+    if _STEP_FRAME_LOADED:
+        return
+    f8 = np.zeros(4)
+    step_frame.compile(tuple(typeof(x) for x in (
+        MEM, FIO, np.zeros(1, CANDIDATE_DTYPE), 0.0, 0, 0, 0.0, f8, f8, f8, f8, True)))
+    step_frame.disable_compile()
+    _STEP_FRAME_LOADED.append(True)
+
+
+_STEP_FRAME_LOADED: list = []                 # non-empty once _load_step_frame has run
 
 
 class TrackProcessor:
@@ -127,6 +150,7 @@ class TrackProcessor:
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
+        _load_step_frame(self.MEM, self.FIO)
         self.reset()
 
     @staticmethod
@@ -237,15 +261,34 @@ class TrackProcessor:
                 msg = CandidateMessage.from_words(message)
             except (ValueError, TypeError):
                 msg = None
-        if msg is None or not self._read_message(msg):
-            self.hdr.fill(0.0)                    # unusable: the kernel coasts
-        self._read_attitude(attitude)
-        status = run_frame(self.MEM, self.FIO)
+        status = -1
+        if msg is not None and type(attitude) is AttitudeData:
+            status = self._step_decoded(msg, attitude)
+        if status < 0:                            # anything else: the checking readers
+            if msg is None or not self._read_message(msg):
+                self.hdr.fill(0.0)                # unusable: the kernel coasts
+            self._read_attitude(attitude)
+            status = run_frame(self.MEM, self.FIO)
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
                     ledger.charge(TP1750, name, int(c))
         return self._command(int(status))
+
+    def _step_decoded(self, msg, att) -> int:
+        """The frame in one compiled call (:func:`~flightsw.tp.frame.step_frame`) when the message
+        and the attitude hold the types it was compiled for -> status bits; -1 when they do not
+        (nothing written, nothing run: :meth:`_step` takes the checking readers)."""
+        idx = self._img_index.get(msg.imager)
+        fc = msg.frame_count
+        if idx is None or not isinstance(fc, _INTS):
+            return -1
+        try:                                      # other types: TypeError (_load_step_frame)
+            return step_frame(self.MEM, self.FIO, msg.candidates, float(msg.time_tag), idx,
+                              int(fc) & 0xFFFF, float(att.t), att.q_body_to_eci, att.rate_body,
+                              att.r_eci, att.v_eci, bool(att.valid))
+        except (TypeError, ValueError):
+            return -1
 
     def _read_message(self, msg) -> bool:
         """The message's header into ``hdr`` and its centroids into ``rows``/``cols`` -> True; a
