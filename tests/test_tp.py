@@ -757,22 +757,36 @@ def test_closed_loop_satellite_over_stars_with_groundsim_truth_centroids():
     assert np.linalg.norm(cmd.r_est - tg["r_eci"]) < 3 * cmd.sigma_pos
 
 
-def test_one_call_path_equals_the_checking_readers():
-    """Decoded inputs go through one compiled call (step_frame); inputs of other types (here the
-    candidates as a strided view, the attitude's arrays as lists) through the Python readers. Both
-    paths must give the same commands, words and state."""
+def test_other_forms_of_the_same_inputs_give_the_same_frames():
+    """The processor converts its inputs to the one compiled call's types: candidates as a strided
+    view or in another record type with ``row``/``col``, attitude arrays as lists, give the same
+    commands, words and state as the decoded forms; attitude data of the wrong length count as no
+    attitude, candidates without centroids as an unusable message (as None does)."""
     s = Stream(31, "track", n_frames=24, p_miss=0.0, n_clutter=1.0)
-    fast, slow = s.processor(), s.processor()
+    ref, other, bad, none = (s.processor() for _ in range(4))
+    alt = np.dtype([("col", np.float32), ("flag", np.int8), ("row", np.float64)])
     for k in range(24):
         msg, att, _ = s.frame(k)
         wide = np.zeros(2 * len(msg.candidates), CANDIDATE_DTYPE)
         wide[::2] = msg.candidates
-        msg2 = CandidateMessage(frame_count=msg.frame_count, time_tag=msg.time_tag,
-                                candidates=wide[::2])
+        form = wide[::2] if k % 2 else np.zeros(len(msg.candidates), alt)
+        if not k % 2:
+            form["row"], form["col"] = msg.candidates["row"], msg.candidates["col"]
+            msg = CandidateMessage(frame_count=msg.frame_count, time_tag=msg.time_tag,
+                                   candidates=msg.candidates.copy())
+            msg.candidates["col"] = form["col"]          # float32-exact in both forms
+        msg2 = CandidateMessage(frame_count=msg.frame_count, time_tag=msg.time_tag, candidates=form)
         att2 = AttitudeData(att.t, list(att.q_body_to_eci), list(att.rate_body), list(att.r_eci),
                             list(att.v_eci), att.valid)
-        assert slow._step_decoded(msg2, att2) == -1       # not the compiled types: no call
-        a, b = fast.step(msg, att), slow.step(msg2, att2)
+        a, b = ref.step(msg, att), other.step(msg2, att2)
         np.testing.assert_array_equal(a.to_words(), b.to_words())
-        np.testing.assert_array_equal(fast.MEM, slow.MEM)
+        np.testing.assert_array_equal(ref.MEM, other.MEM)
+        short = AttitudeData(att.t, att.q_body_to_eci[:3], att.rate_body, att.r_eci, att.v_eci,
+                             att.valid)
+        no_rc = CandidateMessage(frame_count=msg.frame_count, time_tag=msg.time_tag,
+                                 candidates=np.zeros(3, [("x", np.float64)]))
+        c, d = bad.step(no_rc, short), none.step(None, None)
+        np.testing.assert_array_equal(c.to_words(), d.to_words())
+        np.testing.assert_array_equal(bad.MEM, none.MEM)
+        assert c.status & TC_BAD_MESSAGE
     assert a.locked

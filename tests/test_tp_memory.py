@@ -116,19 +116,25 @@ def test_unowned_is_the_buffers_memory(dtype):
     np.testing.assert_array_equal(a, seen)                 # the write went to the buffer
 
 
-def _by_hand(MEM, FIO, cand, t, img, fc, att, valid):
+def _by_hand(MEM, FIO, cand, t, img, fc, att, valid, usable=True):
     """The documented input layout (flightsw.tp.layout: hdr, att [16], rows, cols) filled with
-    numpy, then ``run_frame``: the oracle for ``step_frame``."""
+    numpy, then ``run_frame``: the oracle for ``step_frame``. ``att`` None: no attitude."""
     v = host_views(MEM, FIO)
-    n = min(len(cand), L.MAX_OBS)
-    v["rows"][:n], v["cols"][:n] = cand["row"][:n], cand["col"][:n]
-    v["hdr"][[L.H_OK, L.H_IMG, L.H_T, L.H_FC, L.H_N]] = 1.0, img, t, fc, n
-    v["att"][:15] = np.concatenate([[att.t, float(valid)], att.q_body_to_eci, att.rate_body,
-                                    att.r_eci, att.v_eci])
+    if usable:
+        n = min(len(cand), L.MAX_OBS)
+        v["rows"][:n], v["cols"][:n] = cand["row"][:n], cand["col"][:n]
+        v["hdr"][[L.H_OK, L.H_IMG, L.H_T, L.H_FC, L.H_N]] = 1.0, img, t, fc, n
+    else:
+        v["hdr"][:] = 0.0
+    v["att"][1] = 0.0
+    if att is not None:
+        v["att"][:15] = np.concatenate([[att.t, float(valid)], att.q_body_to_eci, att.rate_body,
+                                        att.r_eci, att.v_eci])
     return run_frame(MEM, FIO)
 
 
-@pytest.mark.cases("flightsw.tp.frame.step_frame", "typical", "capped", "not-valid", "bad-length")
+@pytest.mark.cases("flightsw.tp.frame.step_frame", "typical", "capped", "unusable", "not-valid",
+                   "no-attitude", "bad-length")
 def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
     s = Stream(78, "track", n_frames=30, p_miss=0.0, n_clutter=0.0)
     tp = s.processor()
@@ -137,19 +143,28 @@ def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
     msg, att, _ = s.frame(20)
     extra = np.zeros(30 - len(msg.candidates), CANDIDATE_DTYPE)
     extra["row"], extra["col"] = 100.0 + np.arange(len(extra)), 50.0
-    for cand, valid in ((msg.candidates, True), (np.concatenate([msg.candidates, extra]), True),
-                        (msg.candidates, False)):
+    wide = np.concatenate([msg.candidates, extra])
+    for cand, a, valid, usable in ((msg.candidates, att, True, True), (wide, att, True, True),
+                                   (msg.candidates, att, True, False),
+                                   (msg.candidates, att, False, True),
+                                   (msg.candidates, None, False, True)):
         M1, F1, M2, F2 = tp.MEM.copy(), tp.FIO.copy(), tp.MEM.copy(), tp.FIO.copy()
-        want = _by_hand(M1, F1, cand, msg.time_tag, 0, msg.frame_count, att, valid)
-        got = step_frame(M2, F2, cand, msg.time_tag, 0, msg.frame_count, att.t, att.q_body_to_eci,
-                         att.rate_body, att.r_eci, att.v_eci, valid)
+        want = _by_hand(M1, F1, cand, msg.time_tag, 0, msg.frame_count, a, valid, usable)
+        given = a is not None
+        b = a if given else att                   # arrays step_frame must not read
+        got = step_frame(M2, F2, usable, cand, msg.time_tag, 0, msg.frame_count, given, b.t,
+                         b.q_body_to_eci, b.rate_body, b.r_eci, b.v_eci, valid)
         assert got == want
         np.testing.assert_array_equal(M2, M1)
         np.testing.assert_array_equal(F2, F1)
         v = host_views(M2, F2)
-        assert v["hdr"][L.H_N] == min(len(cand), L.MAX_OBS) and v["att"][1] == float(valid)
-    M, F = tp.MEM.copy(), tp.FIO.copy()
-    assert step_frame(M, F, msg.candidates, msg.time_tag, 0, msg.frame_count, att.t, np.zeros(3),
-                      att.rate_body, att.r_eci, att.v_eci, True) == -1
-    np.testing.assert_array_equal(M, tp.MEM)
-    np.testing.assert_array_equal(F, tp.FIO)
+        assert v["hdr"][L.H_N] == (min(len(cand), L.MAX_OBS) if usable else 0)
+        assert v["att"][1] == float(valid and given)
+        if not given:                             # the rest of att as it was
+            np.testing.assert_array_equal(v["att"][2:], host_views(tp.MEM, tp.FIO)["att"][2:])
+    M1, F1, M2, F2 = tp.MEM.copy(), tp.FIO.copy(), tp.MEM.copy(), tp.FIO.copy()
+    want = _by_hand(M1, F1, msg.candidates, msg.time_tag, 0, msg.frame_count, None, False)
+    got = step_frame(M2, F2, True, msg.candidates, msg.time_tag, 0, msg.frame_count, True, att.t,
+                     att.q_body_to_eci[:3], att.rate_body, att.r_eci, att.v_eci, True)
+    assert got == want                            # a 3-element quaternion: as no attitude
+    np.testing.assert_array_equal(F2, F1)

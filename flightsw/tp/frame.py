@@ -109,7 +109,8 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
 @njit(cache=True)
 def run_frame(MEM, FIO):
     """:func:`tp_frame` over the TP's two buffers (:mod:`flightsw.tp.memory`: int64 words ``MEM``,
-    float64 inputs and outputs ``FIO``) -> status bits: the processor's one call a frame.
+    float64 inputs and outputs ``FIO``) -> status bits, on the inputs already in ``FIO``
+    (:func:`step_frame` writes them, then calls this).
 
     Cases
     -----
@@ -122,46 +123,52 @@ def run_frame(MEM, FIO):
 
 
 @njit(cache=True)
-def step_frame(MEM, FIO, cand, t_msg, img_idx, frame_count, att_t, q, rate, r, v, att_valid):
-    """A usable candidate message and an attitude record written into ``FIO`` as the processor's
-    host readers write them, then :func:`tp_frame` on the buffers' views (as :func:`run_frame`)
-    -> status bits: the processor's one call a frame for a decoded message (filling the views
-    from Python cost ~2.6 us a frame, this call's twelve arguments ~0.5 us).
+def step_frame(MEM, FIO, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r,
+               v, att_valid):
+    """The frame's inputs written into ``FIO`` in the documented layout (:mod:`flightsw.tp.layout`:
+    ``hdr``, ``att`` [16], ``rows``, ``cols``), then :func:`run_frame` -> status bits: the
+    processor's one compiled call a frame (filling the views from Python cost ~2.6 us a frame).
 
-    ``cand`` the message's candidates (record array with float64 ``row``, ``col``: full-resolution
+    ``usable`` whether the message can be used at all; ``cand`` its candidates
+    (:data:`~flightsw.messages.CANDIDATE_DTYPE` array, float64 ``row``, ``col``: full-resolution
     pixels, best ranked first); ``t_msg`` its time tag (s), ``img_idx`` the imager's index in the
-    processor's table, ``frame_count`` 0..65535; ``att_t`` (s), ``q`` (4,) body -> ECI,
-    ``rate`` (3,) rad/s, ``r`` (3,) m, ``v`` (3,) m/s float64, ``att_valid`` the attitude data's
-    validity.
+    processor's table, ``frame_count`` 0..65535. ``att_given`` whether attitude data came;
+    ``att_t`` (s), ``q`` (4,) body -> ECI, ``rate`` (3,) rad/s, ``r`` (3,) m, ``v`` (3,) m/s
+    (float64), ``att_valid`` their validity flag.
 
     Cases
     -----
     typical : header ``(usable, imager, time tag, frame count, n)``, the centroids and the attitude
         in ``FIO``'s views; the status is :func:`run_frame`'s on those buffers.
     capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked).
-    not-valid : ``att_valid`` False -> ``att[1] = 0`` (the frame coasts), the values still written.
-    bad-length : an attitude array of the wrong length -> -1, nothing written, no frame run (the
-        processor then takes its checking path).
+    unusable : ``usable`` False -> the header all zero (the frame is lost and coasts), no centroid
+        written.
+    not-valid : ``att_valid`` False -> ``att[1] = 0`` (no attitude this frame), the values written.
+    no-attitude : ``att_given`` False -> ``att[1] = 0``, the rest of ``att`` untouched.
+    bad-length : attitude arrays of other lengths -> as no attitude.
     """
-    if q.shape[0] != 4 or rate.shape[0] != 3 or r.shape[0] != 3 or v.shape[0] != 3:
-        return -1
     hdr, att, rows, cols, out = float_views(unowned(FIO))
-    n = min(cand.shape[0], MAX_OBS)
-    for j in range(n):
-        rows[j] = cand[j].row
-        cols[j] = cand[j].col
-    hdr[H_T] = t_msg
-    hdr[H_OK] = 1.0
-    hdr[H_IMG] = img_idx
-    hdr[H_FC] = frame_count
-    hdr[H_N] = n
-    att[0] = att_t
-    att[1] = 1.0 if att_valid else 0.0
-    for i in range(4):
-        att[2 + i] = q[i]
-    for i in range(3):
-        att[6 + i] = rate[i]
-        att[9 + i] = r[i]
-        att[12 + i] = v[i]
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
-    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
+    if usable:
+        n = min(cand.shape[0], MAX_OBS)
+        for j in range(n):
+            rows[j] = cand[j].row
+            cols[j] = cand[j].col
+        hdr[H_T] = t_msg
+        hdr[H_OK] = 1.0
+        hdr[H_IMG] = img_idx
+        hdr[H_FC] = frame_count
+        hdr[H_N] = n
+    else:
+        for i in range(hdr.shape[0]):
+            hdr[i] = 0.0
+    att[1] = 0.0
+    if att_given and q.shape[0] == 4 and rate.shape[0] == 3 and r.shape[0] == 3 and v.shape[0] == 3:
+        att[0] = att_t
+        att[1] = 1.0 if att_valid else 0.0
+        for i in range(4):
+            att[2 + i] = q[i]
+        for i in range(3):
+            att[6 + i] = rate[i]
+            att[9 + i] = r[i]
+            att[12 + i] = v[i]
+    return run_frame(MEM, FIO)

@@ -2,9 +2,8 @@
 
 The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
 buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
-arguments, runs the frame in one compiled call (:func:`flightsw.tp.frame.step_frame` for a decoded
-message and attitude data of the usual types, else the Python readers and
-:func:`flightsw.tp.frame.run_frame`), charges the emulated cycles to the frame's
+arguments (the types :func:`flightsw.tp.frame.step_frame` is compiled for: other forms of the
+same inputs are converted, unusable ones flagged), runs the frame in that one compiled call, charges the emulated cycles to the frame's
 :class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
 :data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
 
@@ -21,26 +20,26 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import typeof
+from numba import typeof, types
 
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
 from flightsw.messages import (
-    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, AttitudeData,
-    CandidateMessage, TrackCommand,
+    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage,
+    TrackCommand,
 )
 from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
 from flightsw.tp.layout import (
-    H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR,
-    O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V,
+    O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R,
+    O_SP, O_SV, O_T, O_V,
 )
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
-from flightsw.tp.frame import run_frame, step_frame
+from flightsw.tp.frame import step_frame
 from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
@@ -69,6 +68,12 @@ class TPOutputs:
 
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 _INTS = (int, np.integer)
+_F8 = np.dtype(np.float64)
+#: step_frame's candidates when the message is unusable; its attitude arrays when none came
+_NO_CANDIDATES = np.zeros(0, CANDIDATE_DTYPE)
+_NO_Q, _NO_V3 = np.zeros(4), np.zeros(3)
+_NO_ATTITUDE = (False, 0.0, _NO_Q, _NO_V3, _NO_V3, _NO_V3, False)
+_NO_MESSAGE = (False, _NO_CANDIDATES, 0.0, 0, 0)
 # TrackCommand is built positionally (keywords cost ~0.8 us a frame): its field order, checked here
 _TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_col", "imager",
               "object_type", "locked", "status", "n_star_gates", "n_object_gates", "decided_frame",
@@ -87,17 +92,18 @@ _SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINI
 
 
 def _load_step_frame(MEM, FIO) -> None:
-    """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for the argument types
-    :meth:`TrackProcessor._step` passes -- int64 / float64 buffers, a C-contiguous
-    :data:`~flightsw.messages.CANDIDATE_DTYPE` array, float64 attitude arrays -- and forbid any
-    other: an argument of another type (a list, float32, a strided view, another dtype) then raises
-    TypeError at the call, and the processor takes its checking path instead of compiling a
-    variant every time."""
+    """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for one set of argument types --
+    int64 / float64 buffers, a :data:`~flightsw.messages.CANDIDATE_DTYPE` array and float64
+    attitude arrays of any layout -- and forbid any other: inputs of other types then raise
+    TypeError at the call and :meth:`TrackProcessor._step` converts them (a variant compiled by
+    accident would cost seconds at some frame)."""
     if _STEP_FRAME_LOADED:
         return
-    f8 = np.zeros(4)
-    step_frame.compile(tuple(typeof(x) for x in (
-        MEM, FIO, np.zeros(1, CANDIDATE_DTYPE), 0.0, 0, 0, 0.0, f8, f8, f8, f8, True)))
+    f8 = types.Array(types.float64, 1, "A")
+    step_frame.compile((typeof(MEM), typeof(FIO), types.boolean,
+                        types.Array(typeof(_NO_CANDIDATES).dtype, 1, "A"), types.float64,
+                        types.int64, types.int64, types.boolean, types.float64, f8, f8, f8, f8,
+                        types.boolean))
     step_frame.disable_compile()
     _STEP_FRAME_LOADED.append(True)
 
@@ -145,7 +151,6 @@ class TrackProcessor:
                                cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
         self.C[:] = self._constants(cfg, nom)
         self.last_error = ""
-        self._cand_dtype = None                   # the last candidate dtype found to have row, col
         self.last_cycles: dict = {}
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
@@ -261,76 +266,70 @@ class TrackProcessor:
                 msg = CandidateMessage.from_words(message)
             except (ValueError, TypeError):
                 msg = None
-        status = -1
-        if msg is not None and type(attitude) is AttitudeData:
-            status = self._step_decoded(msg, attitude)
-        if status < 0:                            # anything else: the checking readers
-            if msg is None or not self._read_message(msg):
-                self.hdr.fill(0.0)                # unusable: the kernel coasts
-            self._read_attitude(attitude)
-            status = run_frame(self.MEM, self.FIO)
+        m = self._message_args(msg)
+        try:                                      # the inputs as they came ...
+            status = step_frame(self.MEM, self.FIO, *m, *self._attitude_fields(attitude))
+        except TypeError:                         # ... or converted to step_frame's types
+            status = step_frame(self.MEM, self.FIO, *self._converted(m),
+                                *self._attitude_args(attitude))
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
                     ledger.charge(TP1750, name, int(c))
         return self._command(int(status))
 
-    def _step_decoded(self, msg, att) -> int:
-        """The frame in one compiled call (:func:`~flightsw.tp.frame.step_frame`) when the message
-        and the attitude hold the types it was compiled for -> status bits; -1 when they do not
-        (nothing written, nothing run: :meth:`_step` takes the checking readers)."""
-        idx = self._img_index.get(msg.imager)
-        fc = msg.frame_count
-        if idx is None or not isinstance(fc, _INTS):
-            return -1
-        try:                                      # other types: TypeError (_load_step_frame)
-            return step_frame(self.MEM, self.FIO, msg.candidates, float(msg.time_tag), idx,
-                              int(fc) & 0xFFFF, float(att.t), att.q_body_to_eci, att.rate_body,
-                              att.r_eci, att.v_eci, bool(att.valid))
+    def _message_args(self, msg) -> tuple:
+        """:func:`~flightsw.tp.frame.step_frame`'s message arguments ``(usable, candidates, time
+        tag, imager index, frame count)``, the candidates as they came; a message the TP cannot
+        use (none, unconfigured imager, no candidate array) -> usable False."""
+        if msg is not None:
+            idx = self._img_index.get(msg.imager)
+            cand = msg.candidates
+            fc = msg.frame_count
+            if idx is not None and isinstance(cand, np.ndarray) and isinstance(fc, _INTS):
+                return True, cand, float(msg.time_tag), idx, int(fc) & 0xFFFF
+        return _NO_MESSAGE
+
+    @staticmethod
+    def _converted(args: tuple) -> tuple:
+        """Message arguments with candidates of another record type copied into a
+        :data:`~flightsw.messages.CANDIDATE_DTYPE` array (the TP reads their ``row`` and ``col``
+        only); without those fields -> the message is unusable."""
+        usable, cand = args[:2]
+        if not usable or cand.dtype == CANDIDATE_DTYPE:
+            return args
+        names = cand.dtype.names
+        if names is None or "row" not in names or "col" not in names:
+            return _NO_MESSAGE
+        c = np.zeros(len(cand), CANDIDATE_DTYPE)
+        c["row"], c["col"] = cand["row"], cand["col"]
+        return (True, c, *args[2:])
+
+    @staticmethod
+    def _attitude_fields(attitude) -> tuple:
+        """:func:`~flightsw.tp.frame.step_frame`'s attitude arguments ``(given, t, q, rate, r, v,
+        valid)`` as they came (None, or missing fields -> no attitude)."""
+        if attitude is None:
+            return _NO_ATTITUDE
+        try:
+            return (True, float(attitude.t), attitude.q_body_to_eci, attitude.rate_body,
+                    attitude.r_eci, attitude.v_eci, bool(attitude.valid))
+        except (AttributeError, TypeError, ValueError):
+            return _NO_ATTITUDE
+
+    @staticmethod
+    def _attitude_args(attitude) -> tuple:
+        """:meth:`_attitude_fields` with the arrays converted to 1-D float64 (lists, other float
+        types); data that do not convert -> no attitude (the kernel also treats arrays of the
+        wrong length as none)."""
+        given, t, *arrays, valid = TrackProcessor._attitude_fields(attitude)
+        if not given:
+            return _NO_ATTITUDE
+        try:
+            arrays = [np.ascontiguousarray(x, dtype=_F8).reshape(-1) for x in arrays]
         except (TypeError, ValueError):
-            return -1
-
-    def _read_message(self, msg) -> bool:
-        """The message's header into ``hdr`` and its centroids into ``rows``/``cols`` -> True; a
-        message the TP cannot use (unconfigured imager, no centroids) -> False, nothing written."""
-        idx = self._img_index.get(msg.imager)
-        cand = msg.candidates
-        fc = msg.frame_count
-        if idx is None or not isinstance(cand, np.ndarray) or not isinstance(fc, _INTS):
-            return False
-        dt = cand.dtype
-        if dt is not self._cand_dtype:            # checked once per dtype object (immutable)
-            if dt.names is None or "row" not in dt.names or "col" not in dt.names:
-                return False
-            self._cand_dtype = dt
-        n = len(cand)
-        if n > MAX_OBS:
-            n = MAX_OBS
-            cand = cand[:n]
-        self.rows[:n] = cand["row"]
-        self.cols[:n] = cand["col"]
-        h = self.hdr
-        h[H_T] = float(msg.time_tag)
-        h[H_OK] = 1.0
-        h[H_IMG] = idx
-        h[H_FC] = int(fc) & 0xFFFF
-        h[H_N] = n
-        return True
-
-    def _read_attitude(self, attitude) -> None:
-        """The attitude data into ``att`` (``att[1] = 0``: none, or not usable)."""
-        att = self.att
-        att[1] = 0.0
-        if attitude is not None:
-            try:
-                att[0] = attitude.t
-                att[2:6] = attitude.q_body_to_eci
-                att[6:9] = attitude.rate_body
-                att[9:12] = attitude.r_eci
-                att[12:15] = attitude.v_eci
-                att[1] = 1.0 if attitude.valid else 0.0
-            except (AttributeError, TypeError, ValueError):
-                att[1] = 0.0
+            return _NO_ATTITUDE
+        return (True, t, *arrays, valid)
 
     def _command(self, status: int) -> TrackCommand:
         v = self.out.tolist()
