@@ -1,0 +1,189 @@
+"""Alpha-logic rules tried against the raise-and-fall cycle on faint satellites (README "Why the
+floor"), on the satellite TRAINING family only:
+``python -m bench.alpha_logic_variants VARIANT [VARIANT...] --seeds 211,212,213``.
+
+Each closed-loop event (:class:`hil_harness.event.Event`, the defaults: ``satellite_track``)
+runs with the flight's alpha update replaced, after each frame, by the variant's rule computed
+here in integers on the same Q4.12 words (the word in force, the frame's blob count, the lock of
+the feedback in force); nothing in ``flightsw`` changes. Variants (``name`` or ``name:k=v,...``):
+
+* ``paper``: the shipped rule (:func:`flightsw.ip.threshold.alpha_next_k`), a check that the
+  override reproduces the defaults' figures exactly;
+* ``locked_near:n=N``: while the TP is locked, raise only when the count reaches ``N`` (not 90);
+* ``hold``: after a raise, the lowering without lock stops one step above the alpha that
+  overflowed, until the TP locks again;
+* ``steps:up=U,down=D,floor=F``: other step sizes or floor (alpha units);
+* ``int_step[:hold=1,down=D]``: a raise goes only as far as the smallest alpha that puts the
+  threshold at the next whole count (from the frame's mean and std words), so that the count that
+  set it off fails and the next one still passes.
+
+Prints per variant: frames held after lock k/n with the Wilson 95 % interval, correct decisions and
+events meeting the goal (correct decision, >= 95 % held, median <= 0.25 processed px); with
+``--events`` also one line per event and, per scenario, the frames whose message has a candidate at
+the target (within 1.5 processed px), split by the lock in force and a blob count >= 90. Truth is
+read only to score.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+
+from tqdm import tqdm
+
+from flightsw.ip.threshold import alpha_to_q12
+from hil_harness.event import Event, EventConfig
+from hil_harness.event.io import summarise
+from hil_harness.rates import wilson_interval
+
+__all__ = ["Rule", "parse_variant", "run_family", "main"]
+
+TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
+            "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid")
+
+
+class Rule:
+    """One alpha-logic variant on Q4.12 words (the defaults are the shipped ``satellite_track``
+    logic: near count 90, up 0.5, down 0.25, floor 0.75, ceiling 7.0)."""
+
+    def __init__(self, near_locked: int = 90, hold: bool = False, up: float = 0.5,
+                 down: float = 0.25, floor: float = 0.75, int_step: bool = False):
+        self.int_step = bool(int_step)
+        self.near, self.near_locked, self.hold = 90, int(near_locked), bool(hold)
+        self.up, self.down = alpha_to_q12(up), alpha_to_q12(down)
+        self.lo, self.hi = alpha_to_q12(floor), alpha_to_q12(7.0)
+        self.over = -1                                 # the alpha that last overflowed (hold)
+
+    def next(self, q: int, count: int, locked: bool, thr=None) -> int:
+        """The next Q4.12 word after a frame at ``q`` with ``count`` blobs and the TP's lock;
+        ``thr``: the frame's threshold words (t4, mean4, std4, shift), read by ``int_step``."""
+        if self.hold and locked:
+            self.over = -1
+        if count >= (self.near_locked if locked else self.near):
+            if self.hold:
+                self.over = q
+            if self.int_step and thr is not None and thr[2] > 0 and thr[3] == 0:
+                t4, m4, d4 = thr[0], thr[1], thr[2]
+                want = 16 * (t4 // 16 + 1)        # the next whole count: its pixels fail
+                need = -(-((want - m4) * 4096 - 2048) // d4)
+                return min(max(need, q + 1), self.hi)
+            return min(q + self.up, self.hi)
+        if not locked:
+            lo = self.lo if self.over < 0 else max(self.lo, min(self.over + self.down, q))
+            return max(q - self.down, lo)
+        return q
+
+
+def parse_variant(text: str) -> Rule:
+    """``name`` or ``name:k=v,...`` (module docstring) -> a fresh :class:`Rule`."""
+    name, _, args = text.partition(":")
+    kw = dict(a.split("=") for a in args.split(",") if a)
+    if name == "paper":
+        return Rule()
+    if name == "locked_near":
+        return Rule(near_locked=int(kw["n"]))
+    if name == "hold":
+        return Rule(hold=True)
+    if name == "int_step":
+        return Rule(int_step=True, hold=kw.get("hold", "0") == "1",
+                    down=float(kw.get("down", 0.25)))
+    if name == "steps":
+        return Rule(up=float(kw.get("up", 0.5)), down=float(kw.get("down", 0.25)),
+                    floor=float(kw.get("floor", 0.75)))
+    raise ValueError(f"unknown variant {text!r}")
+
+
+def _thr_words(thr):
+    if isinstance(thr, dict):
+        return tuple(int(thr[k]) for k in ("t4", "mean4", "std4", "shift"))
+    return tuple(int(v) for v in thr[:4])
+
+
+def _event(scenario: str, seed: int, variant: str) -> tuple:
+    """(summary, :func:`_message_share`) of one event under ``variant``."""
+    ev = Event(EventConfig(scenario=scenario, seed=seed))
+    rule, step, lock = parse_variant(variant), ev.ip.step, {}
+
+    def stepped(frame, **kw):
+        out = step(frame, **kw)
+        lock[int(kw["frame_count"])] = bool(out.feedback.locked)
+        thr = out.result.context.get("threshold") if rule.int_step else None
+        ev.ip.alpha.set_q12(rule.next(int(out.alpha_q12), int(out.result.blob_count),
+                                      bool(out.feedback.locked), thr and _thr_words(thr)))
+        return out
+
+    ev.ip.step = stepped
+    ev.run()
+    return summarise(ev), _message_share(ev, lock)
+
+
+def _message_share(ev, lock: dict) -> dict:
+    """Frames with the target in the field, by (lock in force, blob count >= 90): [with a
+    candidate within 1.5 processed px of the true pixel in the message, frames] (truth only to
+    measure)."""
+    f, share = ev.scenario.compaction, {}
+    for o in ev.outcomes:
+        tg = (o.truth or {}).get("target") or {}
+        if o.k not in lock or not tg.get("in_field") or o.message is None:
+            continue
+        at = any(math.hypot(c["row"] - tg["row"], c["col"] - tg["col"]) <= 1.5 * f
+                 for c in o.message.candidates)
+        a = share.setdefault((lock[o.k], o.n_blobs >= 90), [0, 0])
+        a[0] += at
+        a[1] += 1
+    return share
+
+
+def run_family(variant: str, seeds) -> dict:
+    """The training family under ``variant``: totals and one row per event."""
+    rows, k, share = [], {"held": 0, "n": 0, "correct": 0, "goal": 0}, {}
+    events = [(scenario, seed) for scenario in TRAINING for seed in seeds]
+    for scenario, seed in tqdm(events, desc=variant, unit="event", file=sys.stderr, leave=False):
+        s, sh = _event(scenario, seed, variant)
+        for key, (a, b) in sh.items():
+            c = share.setdefault((scenario,) + key, [0, 0])
+            c[0] += a
+            c[1] += b
+        h, d = s["held_after_lock"], s["decision"] or {}
+        med = (s["track_error_processed_px"] or {}).get("median")
+        ok = bool(d.get("correct"))
+        goal = ok and h["n"] > 0 and h["k"] >= 0.95 * h["n"] and med is not None and med <= 0.25
+        k["held"] += h["k"]
+        k["n"] += h["n"]
+        k["correct"] += ok
+        k["goal"] += goal
+        rows.append((scenario, seed, h["k"], h["n"], d.get("frame"), ok, med, goal))
+    return {"rows": rows, **k, "events": len(rows), "share": share}
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.alpha_logic_variants",
+                                 description=__doc__.split("\n\n")[0])
+    ap.add_argument("variants", nargs="+",
+                    help="paper | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step")
+    ap.add_argument("--seeds", default="211,212,213")
+    ap.add_argument("--events", action="store_true", help="one line per event too")
+    args = ap.parse_args(argv)
+    try:
+        seeds = [int(s) for s in args.seeds.split(",")]
+        for v in args.variants:
+            parse_variant(v)
+    except (ValueError, KeyError) as exc:
+        ap.error(f"bad variant or seeds: {exc}")
+    for v in args.variants:
+        r = run_family(v, seeds)
+        if args.events:
+            for row in r["rows"]:
+                print(v, *row)
+            for (scn, locked, many), (a, b) in sorted(r["share"].items()):
+                print(f"{v} {scn} {'locked' if locked else 'not locked'}, "
+                      f"{'>= 90' if many else '< 90'} blobs: target in the message {a}/{b}")
+        lo, hi = wilson_interval(r["held"], r["n"])
+        print(f"{v}: held after lock {r['held']}/{r['n']} = {100 * r['held'] / r['n']:.1f} % "
+              f"({100 * lo:.1f}-{100 * hi:.1f} %), correct decisions {r['correct']}/{r['events']}, "
+              f"goal met {r['goal']}/{r['events']}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
