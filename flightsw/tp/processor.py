@@ -3,9 +3,10 @@
 The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
 buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
 arguments (the types :func:`flightsw.tp.frame.step_frame` is compiled for: other forms of the
-same inputs are converted, unusable ones flagged), runs the frame in that one compiled call, charges the emulated cycles to the frame's
-:class:`~flightsw.budget.Ledger` (processor ``"tp1750"``, stages
-:data:`flightsw.tp.layout.STAGES`) and builds the :class:`~flightsw.messages.TrackCommand`.
+same inputs are converted, unusable ones flagged), runs the frame in that one compiled call,
+charges the emulated cycles to the frame's :class:`~flightsw.budget.Ledger` (processor
+``"tp1750"``, stages :data:`flightsw.tp.layout.STAGES`) and builds the
+:class:`~flightsw.messages.TrackCommand`.
 
 Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
 checksum, wrong length, unknown or unconfigured imager), a time tag not after the last frame's, a
