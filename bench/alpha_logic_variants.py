@@ -31,6 +31,8 @@ import sys
 
 from tqdm import tqdm
 
+from flightsw.ip.processor import alpha_controller_for
+from flightsw.ip.sequence import load_default_sequence
 from flightsw.ip.threshold import alpha_to_q12
 from hil_harness.event import Event, EventConfig
 from hil_harness.event.io import summarise
@@ -42,16 +44,26 @@ TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
             "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid")
 
 
-class Rule:
-    """One alpha-logic variant on Q4.12 words (the defaults are the shipped ``satellite_track``
-    logic: near count 90, up 0.5, down 0.25, floor 0.75, ceiling 7.0)."""
+def _shipped_words():
+    """The shipped ``satellite_track`` alpha logic's words (:meth:`AlphaController.words`: near
+    count, step up, step down, floor, ceiling; Q4.12)."""
+    return [int(w) for w in alpha_controller_for(load_default_sequence("satellite_track")).words()]
 
-    def __init__(self, near_locked: int = 90, hold: bool = False, up: float = 0.5,
-                 down: float = 0.25, floor: float = 0.75, int_step: bool = False):
+
+class Rule:
+    """One alpha-logic variant on Q4.12 words; what a variant does not set is the shipped
+    ``satellite_track`` logic's (:func:`_shipped_words`: near count 90, up 0.5, down 0.25, floor
+    0.75, ceiling 7.0). ``up``, ``down``, ``floor`` in alpha units."""
+
+    def __init__(self, near_locked: int | None = None, hold: bool = False, up: float | None = None,
+                 down: float | None = None, floor: float | None = None, int_step: bool = False):
+        near, w_up, w_down, w_lo, self.hi = _shipped_words()
         self.int_step = bool(int_step)
-        self.near, self.near_locked, self.hold = 90, int(near_locked), bool(hold)
-        self.up, self.down = alpha_to_q12(up), alpha_to_q12(down)
-        self.lo, self.hi = alpha_to_q12(floor), alpha_to_q12(7.0)
+        self.near, self.hold = near, bool(hold)
+        self.near_locked = near if near_locked is None else int(near_locked)
+        self.up = w_up if up is None else alpha_to_q12(up)
+        self.down = w_down if down is None else alpha_to_q12(down)
+        self.lo = w_lo if floor is None else alpha_to_q12(floor)
         self.over = -1                                 # the alpha that last overflowed (hold)
 
     def next(self, q: int, count: int, locked: bool, thr=None) -> int:
@@ -86,10 +98,9 @@ def parse_variant(text: str) -> Rule:
         return Rule(hold=True)
     if name == "int_step":
         return Rule(int_step=True, hold=kw.get("hold", "0") == "1",
-                    down=float(kw.get("down", 0.25)))
+                    down=float(kw["down"]) if "down" in kw else None)
     if name == "steps":
-        return Rule(up=float(kw.get("up", 0.5)), down=float(kw.get("down", 0.25)),
-                    floor=float(kw.get("floor", 0.75)))
+        return Rule(**{k: float(kw[k]) for k in ("up", "down", "floor") if k in kw})
     raise ValueError(f"unknown variant {text!r}")
 
 
