@@ -512,13 +512,22 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
 
 
 # ----------------------------------------------------------------------------- Python surface
+def _kernel_array(a, dtype=np.float64) -> np.ndarray:
+    """``a`` as the kernels take every array: C-contiguous and writable (a broadcast or read-only
+    array is copied). One layout, so numba compiles each kernel once per state dimension rather
+    than once per layout and flag combination a caller happens to pass."""
+    a = np.ascontiguousarray(a, dtype=dtype)
+    return a if a.flags.writeable else a.copy()
+
+
 def _per_step_matrices(M, N: int, n: int, name: str) -> np.ndarray:
+    """(N, n, n) float64 for the kernels (:func:`_kernel_array`); one (n, n) matrix is repeated."""
     A = np.asarray(M, dtype=np.float64)
     if A.ndim == 2:
         A = np.broadcast_to(A, (N, n, n))
     if A.shape != (N, n, n):
         raise ValueError(f"{name} must have shape ({N}, {n}, {n}) or ({n}, {n}); got {A.shape}")
-    return A
+    return _kernel_array(A)
 
 
 def _pack_uniform(H, R, zs, n: int):
@@ -576,20 +585,22 @@ def kalman_filter_packed(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff):
     large blocks transparent huge pages: fewer page faults than allocating inside the kernel) and
     filled by the numba kernel ``_filter_into``.
     """
-    x0 = np.ascontiguousarray(x0, dtype=np.float64).ravel()
+    x0 = _kernel_array(np.ravel(x0))
     n = x0.size
-    P0 = np.ascontiguousarray(P0, dtype=np.float64).reshape(n, n)
-    zoff = np.ascontiguousarray(zoff, dtype=np.int64)
-    roff = np.ascontiguousarray(roff, dtype=np.int64)
+    P0 = _kernel_array(P0).reshape(n, n)
+    zoff = _kernel_array(zoff, np.int64)
+    roff = _kernel_array(roff, np.int64)
     N = zoff.size - 1
     Phi = _per_step_matrices(Phi, N, n, "Phi")
     Q = _per_step_matrices(Q, N, n, "Q")
-    Hf = np.ascontiguousarray(Hf, dtype=np.float64).reshape(-1, n)
-    zf = np.ascontiguousarray(zf, dtype=np.float64).ravel()
-    Rf = np.ascontiguousarray(Rf, dtype=np.float64).ravel()
+    Hf = _kernel_array(Hf).reshape(-1, n)
+    zf = _kernel_array(np.ravel(zf))
+    Rf = _kernel_array(np.ravel(Rf))
     xf, xp = np.empty((N, n)), np.empty((N, n))
     Pf, Pp = np.empty((N, n, n)), np.empty((N, n, n))
-    _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, (0,) * n, _padded(n))
+    if N:                                       # an empty interval filters to nothing
+        _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, (0,) * n,
+                     _padded(n))
     return xf, Pf, xp, Pp
 
 
@@ -675,16 +686,16 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     ``C_k = P+_k Phi_{k+1}^T (P-_{k+1})^-1`` is computed by a Cholesky solve.
     Returns SmootherResult(xs (N, n), Ps (N, n, n)), float64; ``xs[-1] = xf[-1]``.
     """
-    xf = np.ascontiguousarray(xf, dtype=np.float64)
+    xf = _kernel_array(xf)
     N = xf.shape[0]
     if N == 0:                                  # an empty interval smooths to nothing
         n = xf.shape[1] if xf.ndim == 2 else 0
         return SmootherResult(np.zeros((0, n)), np.zeros((0, n, n)))
     xf = xf.reshape(N, -1)
     n = xf.shape[1]
-    Pf = np.ascontiguousarray(Pf, dtype=np.float64).reshape(N, n, n)
-    xp = np.ascontiguousarray(xp, dtype=np.float64).reshape(N, n)
-    Pp = np.ascontiguousarray(Pp, dtype=np.float64).reshape(N, n, n)
+    Pf = _kernel_array(Pf).reshape(N, n, n)
+    xp = _kernel_array(xp).reshape(N, n)
+    Pp = _kernel_array(Pp).reshape(N, n, n)
     Phi = _per_step_matrices(Phi, N, n, "Phi")
     xs, Ps = np.empty((N, n)), np.empty((N, n, n))
     if N:
