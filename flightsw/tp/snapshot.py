@@ -131,4 +131,3 @@ def snapshot_kernel(G, S, E, img, rec):
     for q in range(2):
         r.opp_pos[q] = dec32(S[S_OPP_X + q]) if opp else nan
         r.opp_vel[q] = dec32(S[S_OPP_V + q]) if opp else nan
-
