@@ -64,7 +64,8 @@ def _state():
 def test_no_state_is_nan_and_sentinels():
     G, S, E, img = _state()
     G[:, F.G_MISS], G[:, F.G_OBS], G[:, F.G_SEED] = 7, 3, 5        # ignored: the gates are dead
-    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_NLOST] = -1, 42, 70000     # no pair; 70000 wraps to int32
+    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_NLOST] = -1, 42, 70000     # no pair; 70000 fits int32
+    S[F.S_OPP_MISS] = 70000                                        # cut to int16, as numpy cuts
     rec = np.frombuffer(b"\x5a" * P.SNAPSHOT_DTYPE.itemsize, P.SNAPSHOT_DTYPE).copy()
     P.snapshot_kernel(G, S, E, img, rec)
     r = rec[0]
@@ -76,6 +77,7 @@ def test_no_state_is_nan_and_sentinels():
     assert r["gate_kind"].tolist() == [i % 2 for i in range(F.NG)]
     assert r["object_pair"] == -1 and r["decided_frame"] == -1 and r["n_lost"] == 70000
     assert r["ekf_running"] == 0 and r["opp_alive"] == 0
+    assert r["opp_missed"] == np.array([70000]).astype(np.int16)[0] == 70000 - 65536
 
 
 @pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "opp-on", "ekf-off")
