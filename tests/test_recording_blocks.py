@@ -113,6 +113,22 @@ def test_hdf5_types_equal_h5pys_own(dtype):
     """The member-by-member type is the one h5py makes (H5Tequal), and encodes to the same bytes."""
     ours, theirs = h5_type(dtype), h5py.h5t.py_create(dtype, logical=True)
     assert ours == theirs and ours.encode() == theirs.encode()
+    assert h5_type(dtype) is ours                       # built once a process
+
+
+def test_second_file_of_a_dtype_written_raw_and_read_back(tmp_path):
+    """The second dataset of a dtype takes its type and the kept-type verdict from the first:
+    its file type is still h5py's own, and h5py reads back the rows written."""
+    dt = np.dtype([("k", np.int32), ("v", np.float64, (3,)), ("s", "S5")])
+    rows = np.zeros(7, dt)
+    rows["k"], rows["v"], rows["s"] = np.arange(7), np.arange(21.0).reshape(7, 3), b"abc"
+    for i in range(2):
+        with h5py.File(tmp_path / f"{i}.h5", "w", libver="latest") as f:
+            ds = AppendableDataset(f, "t", dt, (), 4)
+            ds.append(rows[:5])
+            ds.append(rows[5:])
+            assert ds.ds.id.get_type() == h5py.h5t.py_create(dt, logical=True)
+            assert f["t"][()].tobytes() == rows.tobytes()
 
 
 def test_attributes_equal_h5pys_own(tmp_path):

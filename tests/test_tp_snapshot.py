@@ -59,27 +59,61 @@ def _state():
     return G, S, E, img
 
 
-@pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "dead-gate", "ekf-off", "opp-off")
+@pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "dead-gate", "ekf-off", "opp-off",
+                   "undecided")
 def test_no_state_is_nan_and_sentinels():
     G, S, E, img = _state()
     G[:, F.G_MISS], G[:, F.G_OBS], G[:, F.G_SEED] = 7, 3, 5        # ignored: the gates are dead
-    fv, iv = np.full(P.F_SIZE, 1.0), np.full(P.I_SIZE, 9, np.int16)
-    P.snapshot_kernel(G, S, E, img, False, False, fv, iv)
-    assert np.isnan(fv).all()
-    assert (iv[P.I_MISS:P.I_OBS] == 0).all() and (iv[P.I_OBS:P.I_SEED] == -1).all()
-    assert (iv[P.I_SEED:P.I_ALIVE] == -1).all() and (iv[P.I_ALIVE:] == 0).all()
+    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_NLOST] = -1, 42, 70000     # no pair; 70000 fits int32
+    S[F.S_OPP_MISS] = 70000                                        # cut to int16, as numpy cuts
+    rec = np.frombuffer(b"\x5a" * P.SNAPSHOT_DTYPE.itemsize, P.SNAPSHOT_DTYPE).copy()
+    P.snapshot_kernel(G, S, E, img, rec)
+    r = rec[0]
+    for name in ("gate_pos", "gate_vel", "gate_resid", "gate_pixel", "ekf_x", "ekf_p_diag",
+                 "ekf_t", "opp_pos", "opp_vel"):
+        assert np.isnan(r[name]).all(), name
+    assert (r["gate_missed"] == 0).all() and (r["gate_obs"] == -1).all()
+    assert (r["gate_seed"] == -1).all() and (r["gate_alive"] == 0).all()
+    assert r["gate_kind"].tolist() == [i % 2 for i in range(F.NG)]
+    assert r["object_pair"] == -1 and r["decided_frame"] == -1 and r["n_lost"] == 70000
+    assert r["ekf_running"] == 0 and r["opp_alive"] == 0
+    assert r["opp_missed"] == np.array([70000]).astype(np.int16)[0] == 70000 - 65536
 
 
 @pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "opp-on", "ekf-off")
 def test_opportunity_track_decoded_exactly():
     """Powers of two are exact in the 1750A 32-bit float: the decoded values are known."""
     G, S, E, img = _state()
+    S[F.S_OPP_ALIVE] = 1
     S[F.S_OPP_X], S[F.S_OPP_X + 1] = encode32(0.5), encode32(-0.25)
     S[F.S_OPP_V], S[F.S_OPP_V + 1] = encode32(2.0 ** -10), encode32(-3.0)
-    fv, iv = np.empty(P.F_SIZE), np.empty(P.I_SIZE, np.int16)
-    P.snapshot_kernel(G, S, E, img, False, True, fv, iv)
-    assert fv[P.F_OPP:P.F_SIZE].tolist() == [0.5, -0.25, 2.0 ** -10, -3.0]
-    assert np.isnan(fv[P.F_EKF_X:P.F_OPP]).all()
+    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_OPP_MISS] = 3, 17, 2
+    rec = np.zeros(1, P.SNAPSHOT_DTYPE)
+    P.snapshot_kernel(G, S, E, img, rec)
+    r = rec[0]
+    assert r["opp_alive"] == 1 and r["opp_missed"] == 2
+    assert r["opp_pos"].tolist() == [0.5, -0.25] and r["opp_vel"].tolist() == [2.0 ** -10, -3.0]
+    assert r["object_pair"] == 3 and r["decided_frame"] == 17
+    assert np.isnan(r["ekf_x"]).all() and np.isnan(r["ekf_t"])
+
+
+def test_snapshot_into_a_row_equals_the_dict():
+    """``snapshot(out=...)`` into an unaligned view inside a wider row holds what the dict holds
+    (the strings as UTF-8 bytes) and leaves the bytes around it alone."""
+    ev = Event(EventConfig("satellite_over_stars", frames=30), keep_frames=False)
+    ev.run()
+    snap = ev.tp.snapshot()
+    buf = np.full(P.SNAPSHOT_DTYPE.itemsize + 5, 0xEE, np.uint8)
+    out = buf[3:3 + P.SNAPSHOT_DTYPE.itemsize].view(P.SNAPSHOT_DTYPE)
+    assert ev.tp.snapshot(out=out) is out
+    assert list(snap) == list(P.SNAPSHOT_DTYPE.names)
+    for name, v in snap.items():
+        if isinstance(v, str):
+            assert out[0][name] == v.encode(), name
+        else:
+            assert np.asarray(v).dtype == P.SNAPSHOT_DTYPE[name].base, name
+            assert np.asarray(out[0][name]).tobytes() == np.asarray(v).tobytes(), name
+    assert buf[:3].tolist() == [0xEE] * 3 and buf[-2:].tolist() == [0xEE] * 2
 
 
 def test_snapshot_views_are_fresh_each_call():

@@ -85,11 +85,6 @@ if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
 # the command's arrays as slices of its copy of out[O_QP:O_SV]
 _A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
 _A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
-#: the snapshot's gate_kind: 0 star gate (even rows), 1 object gate (odd rows)
-_GATE_KIND = (np.arange(F.NG) & 1).astype(np.int8)
-#: the snapshot's scalar words of S: decision, its frame, rule, counters, opportunity misses, status
-_SNAP_SCALARS = np.array([F.S_DEC, F.S_DEC_FRAME, F.S_RULE, F.S_NDEC, F.S_NREINIT, F.S_NSPURIOUS,
-                          F.S_NLOST, F.S_NSTALE, F.S_OPP_MISS, F.S_STATUS])
 
 
 def _load_step_frame(MEM, FIO) -> None:
@@ -381,7 +376,7 @@ class TrackProcessor:
     def ekf_running(self) -> bool:
         return bool(self.E[E_RUN])
 
-    def snapshot(self) -> dict:
+    def snapshot(self, out: np.ndarray | None = None) -> dict | np.ndarray:
         """The TP's state after the last frame, for the recording: fixed-size arrays and scalars
         (decoded 1750A values, NaN where absent).
 
@@ -396,34 +391,20 @@ class TrackProcessor:
         rules 1-4 since reset), ``n_undecided_deleted`` (pairs deleted without a conclusion); ``ekf_running``, ``ekf_x`` (6,),
         ``ekf_p_diag`` (6,), ``ekf_t``; ``opp_alive``, ``opp_pos`` (2,), ``opp_vel`` (2,),
         ``opp_missed``; ``status``, ``mode``, ``imager``.
+
+        ``out``: a one-row array of :data:`flightsw.tp.snapshot.SNAPSHOT_DTYPE` (a view inside a
+        wider row will do), filled with the same values (``mode`` and ``imager`` as UTF-8 bytes)
+        and returned instead of the dict: the event recorder's path, one compiled call.
         """
         from flightsw.tp import snapshot as P
-        G, S = self.G, self.S
-        run, oa = bool(self.E[E_RUN]), bool(S[F.S_OPP_ALIVE])
-        fv, iv = np.empty(P.F_SIZE), np.empty(P.I_SIZE, np.int16)
-        P.snapshot_kernel(G, S, self.E, self.IMG[int(S[F.S_IMG])], run, oa, fv, iv)
-        ng = F.NG
-        sc = S[_SNAP_SCALARS]
-        s32 = sc.astype(np.int32)             # the counters as the snapshot types them
-        return {
-            "gate_alive": iv[P.I_ALIVE:].astype(np.int8), "gate_kind": _GATE_KIND.copy(),
-            "gate_pos": fv[P.F_POS:P.F_VEL].reshape(ng, 2),
-            "gate_vel": fv[P.F_VEL:P.F_RES].reshape(ng, 2),
-            "gate_resid": fv[P.F_RES:P.F_PIX],
-            "gate_missed": iv[P.I_MISS:P.I_OBS], "gate_obs": iv[P.I_OBS:P.I_SEED],
-            "gate_seed": iv[P.I_SEED:P.I_ALIVE],
-            "gate_pixel": fv[P.F_PIX:P.F_EKF_X].reshape(ng, 2),
-            "object_pair": np.int16(sc[0]),
-            "decided_frame": np.int32(sc[1] if sc[0] >= 0 else -1),
-            "decision_rule": np.int8(sc[2]),
-            "n_decisions": s32[3], "n_reinit": s32[4], "n_spurious": s32[5], "n_lost": s32[6],
-            "rule_counts": S[F.S_NRULE:F.S_NRULE + 4].astype(np.int32),
-            "n_undecided_deleted": s32[7],
-            "ekf_running": np.int8(run), "ekf_x": fv[P.F_EKF_X:P.F_EKF_P],
-            "ekf_p_diag": fv[P.F_EKF_P:P.F_EKF_T], "ekf_t": float(fv[P.F_EKF_T]),
-            "opp_alive": np.int8(oa), "opp_pos": fv[P.F_OPP:P.F_OPP + 2],
-            "opp_vel": fv[P.F_OPP + 2:P.F_SIZE],
-            "opp_missed": np.int16(sc[8]),
-            "status": s32[9], "mode": self._mode,
-            "imager": self._img_names[int(S[F.S_IMG])],
-        }
+        img = int(self.S[F.S_IMG])
+        rec = np.empty(1, P.SNAPSHOT_DTYPE) if out is None else out
+        P.snapshot_kernel(self.G, self.S, self.E, self.IMG[img], rec)
+        r = rec[0]
+        if out is not None:
+            r["mode"], r["imager"] = self._mode.encode(), self._img_names[img].encode()
+            return out
+        snap = {name: r[name] for name in P.SNAPSHOT_DTYPE.names[:-2]}     # views of rec
+        snap["ekf_t"] = float(snap["ekf_t"])
+        snap["mode"], snap["imager"] = self._mode, self._img_names[img]
+        return snap

@@ -1,10 +1,11 @@
 """The TP's state snapshot for the recording, decoded in one compiled call (host side, not flight).
 
 :meth:`flightsw.tp.processor.TrackProcessor.snapshot` hands its memory views to
-:func:`snapshot_kernel`, which decodes the 1750A words the snapshot shows into one float64 vector
-and the gates' small integers into one int16 vector; the snapshot's arrays are views of these two.
-One call replaces a dozen numpy calls and three kernel calls (~27 us of Python a frame before).
-The values are the words' exact decodings (``decode32_k`` / ``decode48_k``), as the
+:func:`snapshot_kernel`, which decodes the 1750A words the snapshot shows and copies its counters
+into one record of :data:`SNAPSHOT_DTYPE` (every field but the two strings, which the method sets);
+the snapshot's dict holds that record's fields, and the event recorder has the record written
+straight into its row of ``tables/tp`` (no dict, no per-field numpy calls: ~3 us a frame against
+~13 us). The values are the words' exact decodings (``decode32_k`` / ``decode48_k``), as the
 vectorised decoders give them; NaN where a gate, the EKF or the opportunity track is not running.
 """
 from __future__ import annotations
@@ -12,64 +13,67 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from flightsw.tp.ekf import E_P, E_T, E_X, UT
+from flightsw.tp import layout as F
+from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT
 from flightsw.tp.f1750 import dec32, dec48
 from flightsw.tp.geometry import directions_to_pixels
 from flightsw.tp.layout import (G_A, G_ALIVE, G_B, G_MISS, G_OBS, G_RES, G_SEED, G_VA, G_VB, NG,
                                 S_OPP_V, S_OPP_X)
 
-# float vector: offsets of the snapshot's float arrays (gates' rows (NG, 2) row-major)
-F_POS, F_VEL = 0, 2 * NG
-F_RES = 4 * NG
-F_PIX = 5 * NG
-F_EKF_X = 7 * NG
-F_EKF_P = F_EKF_X + 6
-F_EKF_T = F_EKF_P + 6
-F_OPP = F_EKF_T + 1                 # opp_pos (2), opp_vel (2)
-F_SIZE = F_OPP + 4
-# int16 vector: missed, obs, seed of every gate, then the alive flags (0/1)
-I_MISS, I_OBS, I_SEED, I_ALIVE = 0, NG, 2 * NG, 3 * NG
-I_SIZE = 4 * NG
+#: one snapshot: the fields of :meth:`~flightsw.tp.processor.TrackProcessor.snapshot`'s dict, in
+#: its order, packed (the layout ``tables/tp`` stores after ``k``); ``mode`` and ``imager`` as
+#: UTF-8 bytes
+SNAPSHOT_DTYPE = np.dtype([
+    ("gate_alive", np.int8, (NG,)), ("gate_kind", np.int8, (NG,)),
+    ("gate_pos", np.float64, (NG, 2)), ("gate_vel", np.float64, (NG, 2)),
+    ("gate_resid", np.float64, (NG,)), ("gate_missed", np.int16, (NG,)),
+    ("gate_obs", np.int16, (NG,)), ("gate_seed", np.int16, (NG,)),
+    ("gate_pixel", np.float64, (NG, 2)), ("object_pair", np.int16), ("decided_frame", np.int32),
+    ("decision_rule", np.int8), ("n_decisions", np.int32), ("n_reinit", np.int32),
+    ("n_spurious", np.int32), ("n_lost", np.int32), ("rule_counts", np.int32, (4,)),
+    ("n_undecided_deleted", np.int32), ("ekf_running", np.int8), ("ekf_x", np.float64, (6,)),
+    ("ekf_p_diag", np.float64, (6,)), ("ekf_t", np.float64), ("opp_alive", np.int8),
+    ("opp_pos", np.float64, (2,)), ("opp_vel", np.float64, (2,)), ("opp_missed", np.int16),
+    ("status", np.int32), ("mode", "S64"), ("imager", "S64")])
 #: packed-word index into E of each diagonal element of the EKF covariance (upper triangle)
 EKF_P_DIAG = (E_P + np.diag(UT)).astype(np.int64)
 
 
 @njit(cache=True)
-def snapshot_kernel(G, S, E, img, ekf_run, opp_alive, fv, iv):
-    """Decode the TP state the snapshot shows into ``fv`` and ``iv``.
+def snapshot_kernel(G, S, E, img, rec):
+    """Decode the TP state the snapshot shows into ``rec[0]`` (all fields but ``mode``, ``imager``).
 
     Parameters
     ----------
     G : int64[NG, GC]
         The gates (packed 32-bit floats in columns ``G_A``..``G_RES``).
     S : int64[S_WORDS]
-        The TP's scalar state (``S_OPP_X``, ``S_OPP_V``: packed 32-bit floats).
+        The TP's scalar state (counters; ``S_OPP_X``, ``S_OPP_V``: packed 32-bit floats).
     E : int64[>= E_T + 1]
-        The EKF's packed 48-bit words (x, P upper triangle, t).
+        The EKF's packed 48-bit words (run flag, x, P upper triangle, t).
     img : int64[...]
         The current imager's table row (for the gates' pixels).
-    ekf_run, opp_alive : bool
-        Whether the EKF / the opportunity track runs (else their values are NaN).
-    fv : float64[F_SIZE]
-        Written: gate_pos (NG, 2) rad at ``F_POS``, gate_vel (NG, 2) rad/s at ``F_VEL``,
-        gate_resid (NG,) rad^2 at ``F_RES``, gate_pixel (NG, 2) (row, col) at ``F_PIX``, ekf_x (6,)
-        at ``F_EKF_X`` (m, m/s), ekf_p_diag (6,) at ``F_EKF_P``, ekf_t (s) at ``F_EKF_T``, opp_pos
-        (2,) rad and opp_vel (2,) rad/s at ``F_OPP``.
-    iv : int16[I_SIZE]
-        Written: gate_missed, gate_obs, gate_seed (NG each) at ``I_MISS``, ``I_OBS``, ``I_SEED``
-        (0, -1, -1 for a dead gate; the words cut to 16 bits), gate_alive (0/1) at ``I_ALIVE``.
+    rec : SNAPSHOT_DTYPE[1] (any alignment: a view inside a wider row is fine)
+        Written: gate_alive (0/1), gate_kind (0 star, 1 object: the row's parity), gate_pos
+        (NG, 2) rad, gate_vel (NG, 2) rad/s, gate_resid (NG,) rad^2, gate_missed, gate_obs,
+        gate_seed (NG,) (the words cut to 16 bits), gate_pixel (NG, 2) (row, col); object_pair,
+        decided_frame, decision_rule, the counters, rule_counts (4,), ekf_running, ekf_x (6,)
+        (m, m/s), ekf_p_diag (6,), ekf_t (s), opp_alive, opp_pos (2,) rad, opp_vel (2,) rad/s,
+        opp_missed, status: the words cut to the field's width as numpy's casts cut them.
 
     Cases
     -----
     live-gate : a gate with ``G_ALIVE != 0`` -> its words decoded, its pixel through
         ``directions_to_pixels`` of the direction (1, a, b).
     dead-gate : ``G_ALIVE == 0`` -> floats NaN, missed 0, obs -1, seed -1, alive 0.
-    ekf-off : ``ekf_run`` False -> ekf_x, ekf_p_diag, ekf_t NaN.
-    ekf-on : the EKF's x, the diagonal of P and t decoded from their 48-bit words.
-    opp-off : ``opp_alive`` False -> opp_pos, opp_vel NaN.
-    opp-on : the opportunity track's position and velocity decoded from their 32-bit words.
+    ekf-off : ``E[E_RUN] == 0`` -> ekf_running 0; ekf_x, ekf_p_diag, ekf_t NaN.
+    ekf-on : ekf_running 1; the EKF's x, the diagonal of P and t decoded from their 48-bit words.
+    opp-off : ``S[S_OPP_ALIVE] == 0`` -> opp_alive 0; opp_pos, opp_vel NaN.
+    opp-on : opp_alive 1; the opportunity track's position and velocity decoded from their words.
+    undecided : ``S[S_DEC] < 0`` (no object pair) -> decided_frame -1 whatever its word holds.
     """
     nan = np.nan
+    r = rec[0]
     nlive = 0
     for i in range(NG):
         if G[i, G_ALIVE] != 0:
@@ -79,34 +83,51 @@ def snapshot_kernel(G, S, E, img, ekf_run, opp_alive, fv, iv):
     j = 0
     for i in range(NG):
         alive = G[i, G_ALIVE] != 0
-        iv[I_ALIVE + i] = 1 if alive else 0
+        r.gate_alive[i] = 1 if alive else 0
+        r.gate_kind[i] = i & 1
         if alive:
             a, b = dec32(G[i, G_A]), dec32(G[i, G_B])
-            fv[F_POS + 2 * i], fv[F_POS + 2 * i + 1] = a, b
-            fv[F_VEL + 2 * i], fv[F_VEL + 2 * i + 1] = dec32(G[i, G_VA]), dec32(G[i, G_VB])
-            fv[F_RES + i] = dec32(G[i, G_RES])
+            r.gate_pos[i, 0], r.gate_pos[i, 1] = a, b
+            r.gate_vel[i, 0], r.gate_vel[i, 1] = dec32(G[i, G_VA]), dec32(G[i, G_VB])
+            r.gate_resid[i] = dec32(G[i, G_RES])
             dirs[j, 1], dirs[j, 2] = a, b
             j += 1
-            iv[I_MISS + i] = np.int16(G[i, G_MISS])
-            iv[I_OBS + i] = np.int16(G[i, G_OBS])
-            iv[I_SEED + i] = np.int16(G[i, G_SEED])
+            r.gate_missed[i] = np.int16(G[i, G_MISS])
+            r.gate_obs[i] = np.int16(G[i, G_OBS])
+            r.gate_seed[i] = np.int16(G[i, G_SEED])
         else:
-            fv[F_POS + 2 * i] = fv[F_POS + 2 * i + 1] = nan
-            fv[F_VEL + 2 * i] = fv[F_VEL + 2 * i + 1] = nan
-            fv[F_RES + i] = nan
-            iv[I_MISS + i], iv[I_OBS + i], iv[I_SEED + i] = 0, -1, -1
+            r.gate_pos[i, 0] = r.gate_pos[i, 1] = nan
+            r.gate_vel[i, 0] = r.gate_vel[i, 1] = nan
+            r.gate_resid[i] = nan
+            r.gate_missed[i], r.gate_obs[i], r.gate_seed[i] = 0, -1, -1
     directions_to_pixels(img, dirs, pix)
     j = 0
     for i in range(NG):
         if G[i, G_ALIVE] != 0:
-            fv[F_PIX + 2 * i], fv[F_PIX + 2 * i + 1] = pix[j, 0], pix[j, 1]
+            r.gate_pixel[i, 0], r.gate_pixel[i, 1] = pix[j, 0], pix[j, 1]
             j += 1
         else:
-            fv[F_PIX + 2 * i] = fv[F_PIX + 2 * i + 1] = nan
+            r.gate_pixel[i, 0] = r.gate_pixel[i, 1] = nan
+    r.object_pair = np.int16(S[F.S_DEC])
+    r.decided_frame = np.int32(S[F.S_DEC_FRAME]) if S[F.S_DEC] >= 0 else -1
+    r.decision_rule = np.int8(S[F.S_RULE])
+    r.n_decisions = np.int32(S[F.S_NDEC])
+    r.n_reinit = np.int32(S[F.S_NREINIT])
+    r.n_spurious = np.int32(S[F.S_NSPURIOUS])
+    r.n_lost = np.int32(S[F.S_NLOST])
+    for q in range(4):
+        r.rule_counts[q] = np.int32(S[F.S_NRULE + q])
+    r.n_undecided_deleted = np.int32(S[F.S_NSTALE])
+    r.opp_missed = np.int16(S[F.S_OPP_MISS])
+    r.status = np.int32(S[F.S_STATUS])
+    ekf_run = E[E_RUN] != 0
+    r.ekf_running = 1 if ekf_run else 0
     for q in range(6):
-        fv[F_EKF_X + q] = dec48(E[E_X + q]) if ekf_run else nan
-        fv[F_EKF_P + q] = dec48(E[EKF_P_DIAG[q]]) if ekf_run else nan
-    fv[F_EKF_T] = dec48(E[E_T]) if ekf_run else nan
+        r.ekf_x[q] = dec48(E[E_X + q]) if ekf_run else nan
+        r.ekf_p_diag[q] = dec48(E[EKF_P_DIAG[q]]) if ekf_run else nan
+    r.ekf_t = dec48(E[E_T]) if ekf_run else nan
+    opp = S[F.S_OPP_ALIVE] != 0
+    r.opp_alive = 1 if opp else 0
     for q in range(2):
-        fv[F_OPP + q] = dec32(S[S_OPP_X + q]) if opp_alive else nan
-        fv[F_OPP + 2 + q] = dec32(S[S_OPP_V + q]) if opp_alive else nan
+        r.opp_pos[q] = dec32(S[S_OPP_X + q]) if opp else nan
+        r.opp_vel[q] = dec32(S[S_OPP_V + q]) if opp else nan

@@ -62,10 +62,17 @@ class AppendableDataset:
             self.ds = group.create_dataset(name, shape=shape, maxshape=(None,) + self.row_shape,
                                            dtype=self.dtype, chunks=chunks,
                                            compression=compression)
-        self._mtype = self.ds.id.get_type()     # the file type: rows stored as numpy holds them
         # built from numpy's own offsets, the file type (when HDF5 kept it: H5Tequal) stores a
-        # row in the bytes numpy does, so raw chunks are the rows as they are
-        self._direct = compression is None and self._mtype == tid
+        # row in the bytes numpy does, so raw chunks are the rows as they are; whether it keeps
+        # the type of a dtype is asked once a process (~20 us a dataset)
+        kept = compression is None and _KEPT.get(self.dtype)
+        if kept:
+            self._mtype = tid
+        else:
+            self._mtype = self.ds.id.get_type()     # the file type
+            if compression is None:
+                kept = _KEPT[self.dtype] = self._mtype == tid
+        self._direct = bool(kept)
         self._zeros = (0,) * len(self.row_shape)
         self._tail = np.zeros(chunks, self.dtype)    # rows of the last, partly filled chunk
         self.rows = 0
@@ -146,14 +153,20 @@ def _create(group, name: str, tid, shape: tuple, chunks: tuple):
 #: link creation: intermediate groups made as needed (one property list for every dataset)
 _LCPL = h5py.h5p.create(h5py.h5p.LINK_CREATE)
 _LCPL.set_create_intermediate_group(True)
-#: numpy dtype -> HDF5 type of the non-compound ones met so far (scalars, strings)
-_BASE_TYPES: dict = {}
+#: numpy dtype -> HDF5 type of every dtype met so far (read only once built: HDF5 copies a
+#: dataset's or attribute's type when it creates one)
+_TYPES: dict = {}
+#: numpy dtype -> whether a dataset created with its type keeps that type as its file type
+_KEPT: dict = {}
+#: the dataspace of a scalar attribute
+_SCALAR = h5py.h5s.create(h5py.h5s.SCALAR)
 
 
 def h5_type(dtype: np.dtype):
     """The HDF5 type h5py makes of ``dtype`` (``h5py.h5t.py_create(dtype, logical=True)``: the
-    same type, ``H5Tequal``), built member by member with the scalar and string types cached: a
-    compound of 25 fields in ~70 us instead of ~320 us (most of a dataset's creation).
+    same type, ``H5Tequal``), built member by member, once a process for each dtype (a
+    recording creates ~20 datasets of the same dtypes every event): a compound of 25 fields in
+    ~70 us the first time instead of ~320 us, then a dict look-up.
 
     Parameters
     ----------
@@ -165,18 +178,20 @@ def h5_type(dtype: np.dtype):
     h5py.h5t.TypeID
     """
     dtype = np.dtype(dtype)
+    tid = _TYPES.get(dtype)
+    if tid is not None:
+        return tid
     if dtype.names is not None:
         tid = h5py.h5t.create(h5py.h5t.COMPOUND, dtype.itemsize)
         for name in dtype.names:
             member, offset = dtype.fields[name][:2]
             tid.insert(name.encode(), offset, h5_type(member))
-        return tid
-    if dtype.subdtype is not None:
+    elif dtype.subdtype is not None:
         base, shape = dtype.subdtype
-        return h5py.h5t.array_create(h5_type(base), shape)
-    tid = _BASE_TYPES.get(dtype)
-    if tid is None:
-        tid = _BASE_TYPES[dtype] = h5py.h5t.py_create(dtype, logical=True)
+        tid = h5py.h5t.array_create(h5_type(base), shape)
+    else:
+        tid = h5py.h5t.py_create(dtype, logical=True)
+    _TYPES[dtype] = tid
     return tid
 
 
@@ -188,5 +203,5 @@ def write_attr(ds: h5py.Dataset, name: str, value) -> None:
     if data.ndim or data.dtype.kind not in "biuf":
         raise ValueError(f"{ds.name}: attribute {name!r}: a numeric or bool scalar, not {value!r}")
     tid = h5_type(data.dtype)
-    attr = h5py.h5a.create(ds.id, name.encode(), tid, h5py.h5s.create(h5py.h5s.SCALAR))
+    attr = h5py.h5a.create(ds.id, name.encode(), tid, _SCALAR)
     attr.write(data, mtype=tid)
