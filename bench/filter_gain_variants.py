@@ -16,9 +16,10 @@ correlation with the MR read ``s`` bits higher (what a filter output shift would
 detrend, threshold, colouring, features and ranking are the flight's, on the wider words; the
 record's brightness features (total, average, maximum: counts) are scaled by ``G`` with it.
 
-Variants ``g=G[,floor=F][,alpha=A][,gof=P][,FEATURE.COLUMN=V...]``: ``G`` in 1, 2, 4, 8 (8 x
-4095 = 32760 still fits the 16-bit word the board hands on); ``F``, ``A`` the threshold step's
-``alpha_min`` and ``alpha`` (default: the shipped sequence's); ``P`` the record's GOF threshold and
+Variants ``g=G[,floor=F][,alpha=A][,gof=P][,diag=0|1][,FEATURE.COLUMN=V...]``: ``G`` in 1, 2,
+4, 8 (8 x 4095 = 32760 still fits the 16-bit word the board hands on); ``F``, ``A`` the threshold
+step's ``alpha_min`` and ``alpha`` (default: the shipped sequence's); ``diag`` the colouring's
+diagonal connectivity (default: the shipped sequence's); ``P`` the record's GOF threshold and
 ``FEATURE.COLUMN`` (``mean``, ``sigma`` or ``weight`` of a Table 1 feature, e.g.
 ``semimajor.sigma=1.5``) what-ifs on the ``satellite`` record (applied after the gain scaling).
 ``g=1`` is the shipped pipeline (a check: it reproduces the defaults' figures).
@@ -76,22 +77,29 @@ class Variant:
     alpha: float | None = None
     gof: float | None = None
     edits: tuple = ()
+    diagonal: bool | None = None
 
     @property
     def label(self) -> str:
         parts = [f"g={self.gain}"]
         parts += [f"{k}={v:g}" for k, v in (("floor", self.floor), ("alpha", self.alpha),
-                                             ("gof", self.gof)) if v is not None]
+                                             ("gof", self.gof), ("diag", self.diagonal))
+                  if v is not None]
         return ",".join(parts + [f"{f}.{c}={v:g}" for f, c, v in self.edits])
 
     def sequence(self) -> ProcessingSequence:
-        """``satellite_track`` with this variant's ``alpha_min`` / ``alpha``."""
+        """``satellite_track`` with this variant's ``alpha_min`` / ``alpha`` and the colouring's
+        diagonal connectivity."""
         d = load_default_sequence("satellite_track").to_dict()
         thr = next(s for s in d["steps"] if s["op"] == "threshold")
         if self.alpha is not None:
             thr["alpha"] = self.alpha
         if self.floor is not None:
             thr["alpha_min"] = self.floor
+        if self.diagonal is not None:
+            d["steps"] = [s for s in d["steps"] if s["op"] not in ("colour", "label")]
+            d["steps"].insert(d["steps"].index(thr) + 1, {"op": "colour",
+                                                          "diagonal": self.diagonal})
         return ProcessingSequence.from_dict(d)
 
     def record(self):
@@ -110,7 +118,7 @@ class Variant:
 
 
 def parse_variant(text: str) -> Variant:
-    """``g=G[,floor=F][,alpha=A][,gof=P][,FEATURE.COLUMN=V...]`` -> :class:`Variant`
+    """``g=G[,floor=F][,alpha=A][,gof=P][,diag=0|1][,FEATURE.COLUMN=V...]`` -> :class:`Variant`
     (ValueError on anything else)."""
     kw, edits = {}, []
     for a in (a for a in text.split(",") if a):
@@ -122,13 +130,16 @@ def parse_variant(text: str) -> Variant:
             if feature not in FEATURE_NAMES or column not in RECORD_COLUMNS:
                 raise ValueError(f"{text!r}: {key!r} is not FEATURE.mean|sigma|weight")
             edits.append((feature, column, float(val)))
+        elif key == "diag" and val in ("0", "1"):
+            kw[key] = val == "1"
         elif key in ("g", "floor", "alpha", "gof"):
             kw[key] = int(val) if key == "g" else float(val)
         else:
             raise ValueError(f"{text!r}: unknown key {key!r}")
     if kw.get("g") not in (1, 2, 4, 8):
         raise ValueError(f"{text!r}: g=G with the gain 1, 2, 4 or 8 is required")
-    return Variant(kw["g"], kw.get("floor"), kw.get("alpha"), kw.get("gof"), tuple(edits))
+    return Variant(kw["g"], kw.get("floor"), kw.get("alpha"), kw.get("gof"), tuple(edits),
+                   kw.get("diag"))
 
 
 def gained_frame(frame: np.ndarray, gain: int, f: int = 2) -> np.ndarray:
@@ -271,7 +282,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.filter_gain_variants",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("variants", nargs="+",
-                    help="g=G[,floor=F][,alpha=A][,gof=P][,FEATURE.COLUMN=V...]")
+                    help="g=G[,floor=F][,alpha=A][,gof=P][,diag=0|1][,FEATURE.COLUMN=V...]")
     ap.add_argument("--seeds", default="211,212,213")
     ap.add_argument("--events", action="store_true", help="one line per event and scenario too")
     ap.add_argument("--curve", action="store_true",

@@ -67,7 +67,7 @@ def test_variant_record_scales_only_the_brightness_features_and_applies_edits():
 
 
 @pytest.mark.parametrize("text", ["g=3", "floor=0.75", "g=2,shift=1", "g=2,semimajor.lower=1",
-                                  "g=2,nosuch.sigma=1", "g=2,floor"])
+                                  "g=2,nosuch.sigma=1", "g=2,floor", "g=1,diag=2"])
 def test_parse_variant_rejects(text):
     with pytest.raises(ValueError):
         parse_variant(text)
@@ -78,3 +78,9 @@ def test_parse_variant_sets_the_threshold_words():
     thr = next(s for s in v.sequence().steps if s.op == "threshold")
     assert (v.gain, thr.raw["alpha_min"], thr.raw["alpha"]) == (8, 0.875, 4.0)
     assert v.label == "g=8,floor=0.875,alpha=4"
+
+
+def test_diag_sets_the_colouring_connectivity_once():
+    for text, want in (("g=1,diag=1", True), ("g=1,diag=0", False)):
+        colour = [s.raw for s in parse_variant(text).sequence().steps if s.op == "colour"]
+        assert colour == [{"op": "colour", "diagonal": want}]
