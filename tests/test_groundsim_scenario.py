@@ -19,7 +19,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval_offset_field", "satellite_train_faint_far", "satellite_train_faint_near",
             "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid",
             "satellite_eval2_faint_dim",
-            "satellite_eval2_faint_offset", "satellite_eval2_mid_far", "satellite_eval2_bright_steep"]
+            "satellite_eval2_faint_offset", "satellite_eval2_mid_far", "satellite_eval2_bright_steep",
+            "satellite_eval3_faint_trailing", "satellite_eval3_mid_offset_ahead",
+            "satellite_eval3_bright_low_fast"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)

@@ -1,16 +1,18 @@
 """The satellite event families (campaigns/satellite_train_events.toml, satellite_eval_events.toml,
-satellite_eval2_events.toml): the fresh second evaluation family loads, holds a target near
-magnitude 8 and a bright one, and shares no scenario, seed, epoch, site or geometry with the
-training family or the first evaluation family."""
+satellite_eval2_events.toml, satellite_eval3_events.toml): each fresh evaluation family loads,
+holds a target near magnitude 8 and a bright one, and shares no scenario, seed, epoch, site or
+geometry with the training family or any earlier evaluation family."""
 import math
 import tomllib
 from pathlib import Path
+
+import pytest
 
 from groundsim.scenario import Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 FAMILIES = ["campaigns/satellite_train_events.toml", "campaigns/satellite_eval_events.toml",
-            "campaigns/satellite_eval2_events.toml"]
+            "campaigns/satellite_eval2_events.toml", "campaigns/satellite_eval3_events.toml"]
 
 
 def _toml(rel):
@@ -25,11 +27,13 @@ def _keys(name):
             (rel["d_alt_km"], rel["d_phase_deg"], rel["d_raan_deg"]))
 
 
-def test_fresh_satellite_family_is_disjoint_and_spans_magnitudes():
-    spec = _toml(FAMILIES[2])
+@pytest.mark.parametrize("fresh, seeds, faint", [(2, [1101, 1102, 1103], (7.7, 8.5)),
+                                                  (3, [1201, 1202, 1203], (7.5, 8.0))])
+def test_fresh_satellite_family_is_disjoint_and_spans_magnitudes(fresh, seeds, faint):
+    spec = _toml(FAMILIES[fresh])
     names = spec["axes"]["scenario"]
-    assert spec["campaign"]["job"].endswith(":event") and spec["campaign"]["seeds"] == [1101, 1102, 1103]
-    others = [_toml(f) for f in FAMILIES[:2]]
+    assert spec["campaign"]["job"].endswith(":event") and spec["campaign"]["seeds"] == seeds
+    others = [_toml(f) for f in FAMILIES[:fresh]]
     other_names = [n for o in others for n in o["axes"]["scenario"]]
     assert not set(names) & set(other_names)
     assert not set(spec["campaign"]["seeds"]) & {s for o in others for s in o["campaign"]["seeds"]}
@@ -44,4 +48,4 @@ def test_fresh_satellite_family_is_disjoint_and_spans_magnitudes():
         _, _, truth = next(iter(s.frames()))
         rng_km = truth["target"]["range_m"] / 1e3
         mags.append(s.raw["target"]["mag_at_1000km"] + 5 * math.log10(rng_km / 1000.0))
-    assert max(mags) > 7.7 and min(mags) < 4.5       # one near magnitude 8, one bright
+    assert faint[0] < max(mags) < faint[1] and min(mags) < 4.5       # one near magnitude 8, one bright

@@ -128,3 +128,20 @@ def test_faint_point_source_is_found_where_the_unity_sum_chain_rounds_it_away():
 
 def test_shipped_and_resolvable_by_name():
     assert resolve_sequence("satellite_track").name == "satellite_track"
+
+
+def test_blobs_are_four_connected():
+    """The colouring runs without diagonal connectivity: on a noisy low-threshold window the IP's
+    blob count equals scipy.ndimage.label's with the 4-neighbour cross over the threshold stage's
+    surviving pixels, and differs from the 8-neighbour count (the case discriminates)."""
+    seq = load_default_sequence("satellite_track")
+    assert [s.raw for s in seq.steps if s.op == "colour"] == [{"op": "colour", "diagonal": False}]
+    rng = np.random.default_rng(11)
+    frame = _point_frame(rng, 121.3, 127.8, 60.0)
+    res = process_frame(frame, seq, load_record("satellite"), alpha_q12=alpha_to_q12(0.75),
+                        want_stages=True)
+    thr = next(s for s in res.stages if s.name.startswith("threshold"))
+    fg = np.asarray(thr.image) > 0
+    four = ndimage.label(fg, structure=ndimage.generate_binary_structure(2, 1))[1]
+    eight = ndimage.label(fg, structure=np.ones((3, 3)))[1]
+    assert res.backend.count == four and four > eight
