@@ -257,7 +257,10 @@ class World:
             th = self._theta0 + 7.2921150e-5 * t
             g = rot_z(th) @ geodetic_to_ecef(p["lat_deg"] * DEG, p["lon_deg"] * DEG, p["alt_km"] * 1e3)
             return q_pointing(g - r, up_eci=r, roll=roll)
-        # track_target: nominal trajectory, optionally offset in the field by offset_px (row, col)
+        # track_target: nominal trajectory, optionally offset in the field by offset_px (row, col).
+        # Open loop only: in a closed-loop event the TP's first command (frame 0) replaces this
+        # profile and points the boresight at the target, so the offset is where the target
+        # is at acquisition, not where it is held (README "Why `mid_offset_ahead`").
         rn, _ = self.target.nominal_state(t)
         q = q_pointing(rn - r, up_eci=r, roll=roll)
         off = p["offset_px"]
