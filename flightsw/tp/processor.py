@@ -31,10 +31,7 @@ from flightsw.messages import (
 )
 from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
-from flightsw.tp.layout import (
-    O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R,
-    O_SP, O_SV, O_T, O_V,
-)
+from flightsw.tp.layout import O_LOS, O_QP, O_R, O_SP, O_SV, O_V
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
@@ -269,15 +266,15 @@ class TrackProcessor:
                 msg = None
         m = self._message_args(msg)
         try:                                      # the inputs as they came ...
-            status = step_frame(self.MEM, self.FIO, *m, *self._attitude_fields(attitude))
+            fields = step_frame(self.MEM, self.FIO, *m, *self._attitude_fields(attitude))
         except TypeError:                         # ... or converted to step_frame's types
-            status = step_frame(self.MEM, self.FIO, *self._converted(m),
+            fields = step_frame(self.MEM, self.FIO, *self._converted(m),
                                 *self._attitude_args(attitude))
         if ledger is not None:
             for name, c in zip(F.STAGES, self.cyc):
                 if c:
                     ledger.charge(TP1750, name, int(c))
-        return self._command(int(status))
+        return self._command(fields)
 
     def _message_args(self, msg) -> tuple:
         """:func:`~flightsw.tp.frame.step_frame`'s message arguments ``(usable, candidates, time
@@ -332,14 +329,14 @@ class TrackProcessor:
             return _NO_ATTITUDE
         return (True, t, *arrays, valid)
 
-    def _command(self, status: int) -> TrackCommand:
-        v = self.out.tolist()
+    def _command(self, fields: tuple) -> TrackCommand:
+        """The frame's :class:`~flightsw.messages.TrackCommand` from
+        :func:`~flightsw.tp.frame.command_fields`' tuple and one copy of ``out``'s arrays."""
+        status, fc, img, n_star, n_obj, decf, obj, locked, t, row, col, sp, sv = fields
         a = self.out[O_QP:O_SV].copy()           # one copy; the command's arrays are views of it
         cmd = TrackCommand(
-            int(v[O_FRAME]), v[O_T], a[_A_QP], v[O_PROW], v[O_PCOL], self._img_names[int(v[O_IMG])],
-            self._object_type, v[O_LOCKED] != 0.0, status, int(v[O_NSTAR]), int(v[O_NOBJ]),
-            int(v[O_DECF]), int(v[O_OBJIDX]), self._mode, a[_A_LOS], a[_A_R], a[_A_V], v[O_SP],
-            v[O_SV])
+            fc, t, a[_A_QP], row, col, self._img_names[img], self._object_type, locked, status,
+            n_star, n_obj, decf, obj, self._mode, a[_A_LOS], a[_A_R], a[_A_V], sp, sv)
         self._last_cmd = cmd
         return cmd
 
