@@ -78,7 +78,7 @@ _TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_
               "object_index", "mode", "los_eci", "r_est", "v_est", "sigma_pos", "sigma_vel")
 if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
     raise ImportError("flightsw.tp.processor: TrackCommand's fields changed; update _TC_FIELDS and "
-                      "TrackProcessor._command")
+                      "TrackProcessor.step")
 # the command's arrays as slices of its copy of out[O_QP:O_SV]
 _A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
 _A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
@@ -93,7 +93,7 @@ def _load_step_frame(MEM, FIO) -> None:
     """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for one set of argument types --
     int64 / float64 buffers, a :data:`~flightsw.messages.CANDIDATE_DTYPE` array and float64
     attitude arrays of any layout -- and forbid any other: inputs of other types then raise
-    TypeError at the call and :meth:`TrackProcessor._step` converts them (a variant compiled by
+    TypeError at the call and :meth:`TrackProcessor.step` converts them (a variant compiled by
     accident would cost seconds at some frame)."""
     if _STEP_FRAME_LOADED:
         return
