@@ -76,8 +76,8 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
 
     ``G`` gates (int64 [NG, GC]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
     MAX_OBS], formed once a frame for both classes); coordinates are the 16-bit integers (LSB
-    2**-16 rad), distances their integer squares. Every live gate tests
-    every observation (:func:`gate_mask`), as the flight code does and is charged for.
+    2**-16 rad), distances their integer squares. Every live gate tests every observation
+    (:func:`gate_mask`), as the flight code does and is charged for.
 
     Cases
     -----

@@ -127,7 +127,7 @@ def run_frame(MEM, FIO):
 def command_fields(status, out):
     """The track command's scalars from the frame's status and ``out`` (float64 [O_WORDS]) ->
     ``(status, frame_count, imager index, n_star_gates, n_object_gates, decided_frame,
-    object_index, locked, time_tag, predicted_row, predicted_col, sigma_pos, sigma_vel)``: eight
+    object_index, locked, time_tag, predicted_row, predicted_col, sigma_pos, sigma_vel)``: seven
     int64, a bool, five float64 -- typed as the command's fields, so that the call that runs the
     frame hands them to Python without a second pass over ``out``.
 
