@@ -154,7 +154,7 @@ def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
         b = a if given else att                   # arrays step_frame must not read
         got = step_frame(M2, F2, usable, cand, msg.time_tag, 0, msg.frame_count, given, b.t,
                          b.q_body_to_eci, b.rate_body, b.r_eci, b.v_eci, valid)
-        assert got == want
+        assert got[0] == want
         np.testing.assert_array_equal(M2, M1)
         np.testing.assert_array_equal(F2, F1)
         v = host_views(M2, F2)
@@ -166,5 +166,31 @@ def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
     want = _by_hand(M1, F1, msg.candidates, msg.time_tag, 0, msg.frame_count, None, False)
     got = step_frame(M2, F2, True, msg.candidates, msg.time_tag, 0, msg.frame_count, True, att.t,
                      att.q_body_to_eci[:3], att.rate_body, att.r_eci, att.v_eci, True)
-    assert got == want                            # a 3-element quaternion: as no attitude
+    assert got[0] == want                         # a 3-element quaternion: as no attitude
     np.testing.assert_array_equal(F2, F1)
+
+
+def _fields_from_out(status, out):
+    """The command scalars read off ``out`` by hand (the layout's O_* words)."""
+    ints = [int(out[i]) for i in (L.O_FRAME, L.O_IMG, L.O_NSTAR, L.O_NOBJ, L.O_DECF, L.O_OBJIDX)]
+    return (status, *ints, bool(out[L.O_LOCKED] != 0.0),
+            *(float(out[i]) for i in (L.O_T, L.O_PROW, L.O_PCOL, L.O_SP, L.O_SV)))
+
+
+@pytest.mark.cases("flightsw.tp.frame.command_fields", "typical", "locked")
+def test_step_frame_returns_the_command_scalars_of_out():
+    s = Stream(78, "track", n_frames=40, p_miss=0.0, n_clutter=0.0)
+    tp = s.processor()
+    seen_locked = seen_unlocked = False
+    for k in range(40):
+        msg, att, _ = s.frame(k)
+        got = step_frame(tp.MEM, tp.FIO, True, msg.candidates, msg.time_tag, 0, msg.frame_count,
+                         True, att.t, att.q_body_to_eci, att.rate_body, att.r_eci, att.v_eci, True)
+        want = _fields_from_out(got[0], host_views(tp.MEM, tp.FIO)["out"])
+        assert len(got) == 13
+        assert [type(x) for x in got] == [int] * 7 + [bool] + [float] * 5
+        np.testing.assert_array_equal(np.array(got[:8]), np.array(want[:8]))
+        np.testing.assert_array_equal(np.array(got[8:]), np.array(want[8:]))   # NaN == NaN
+        seen_locked |= got[7]
+        seen_unlocked |= not got[7]
+    assert seen_locked and seen_unlocked

@@ -472,14 +472,15 @@ def test_in_gate_pairs_square_gate_on_integer_coordinates():
     OBS = _int_obs([(110, -45), (90, -60), (111, -50), (100, -39), (0, 0), (105, -50)])
     OBS[5, L.OBS_OK] = 0                                  # unusable, though inside
     PW, TAKEN, cyc = _scratch()
-    n = in_gate_pairs(G, OBS, 6, 0, 10, PW, cyc)          # star class, half-width 10
+    OC = observation_columns(OBS)
+    n = in_gate_pairs(G, OC, 6, 0, 10, PW, cyc)           # star class, half-width 10
     got = sorted(map(tuple, PW[:n].tolist()))
     # by hand: obs 0 (10, 5) and obs 1 (-10, -10) are inside (edges included); obs 2 (11, 0) and
     # obs 3 (0, 11) are out on one axis; obs 4 is only near the dead gate
     assert got == [(125, 0, 0), (200, 0, 1)]
-    n = in_gate_pairs(G, OBS, 6, 1, 10, PW, cyc)          # object class: row 1 only
+    n = in_gate_pairs(G, OC, 6, 1, 10, PW, cyc)           # object class: row 1 only
     assert sorted(map(tuple, PW[:n].tolist())) == [(125, 1, 0), (200, 1, 1)]
-    assert in_gate_pairs(G, OBS, 0, 0, 10, PW, cyc) == 0
+    assert in_gate_pairs(G, OC, 0, 0, 10, PW, cyc) == 0
 
 
 def _brute_pairs(G, OBS, nuse, kind, half):
@@ -521,7 +522,7 @@ def test_in_gate_pairs_equals_every_pair_tested():
         nuse, half = int(rng.integers(0, L.MAX_OBS + 1)), int(rng.integers(0, 12))
         for kind in range(2):
             PW, TAKEN, cyc = _scratch()
-            n = in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc)
+            n = in_gate_pairs(G, observation_columns(OBS), nuse, kind, half, PW, cyc)
             want = _brute_pairs(G, OBS, nuse, kind, half)
             assert PW[:n].tolist() == want
             live = int(G[kind::2, L.G_ALIVE].sum())

@@ -92,9 +92,10 @@ from fractions import Fraction
 from numbers import Integral, Real
 
 import numpy as np
-from numba import njit
+from llvmlite import ir
+from numba import njit, types
 from numba.cpython.unsafe.numbers import leading_zeros
-from numba.extending import overload
+from numba.extending import intrinsic, overload
 
 from flightsw.budget import PACE1750A, Processor, m1750_cycles
 
@@ -482,10 +483,31 @@ def prod80(A, B):
     return a1 * b1 + (mid >> 20) + (low >> 40), low & ((np.int64(1) << 40) - 1)
 
 
+@intrinsic
+def _prod_shr38(typingctx, a, b):
+    """``floor(a * b / 2**38)`` of two int64 (the exact 128-bit product, shifted right arithmetic,
+    truncated to 64 bits): one 64x64 -> 128-bit multiply. For EFM's mantissas (|a|, |b| <= 2**39,
+    not both -2**39) the result lies in (-2**40, 2**40)."""
+    def codegen(context, builder, signature, args):
+        i128 = ir.IntType(128)
+        p = builder.mul(builder.sext(args[0], i128), builder.sext(args[1], i128))
+        return builder.trunc(builder.ashr(p, ir.Constant(i128, 38)), ir.IntType(64))
+    return types.int64(types.int64, types.int64), codegen
+
+
 @njit(cache=True, inline="always")
 def _mul48_core(a, b):
     """EFM's body, compiled into :func:`_fm48_k` and :func:`madd48` (its cases are
     :func:`_fm48_k`'s).
+
+    The signed product ``P = MA * MO`` (value ``P / 2**78``) is taken floor-divided by 2**38 in
+    one 128-bit multiply (:func:`_prod_shr38`): flooring the signed value is EFM's truncation
+    toward minus infinity. ``m = floor(P / 2**38)`` outside [-2**39, 2**39) means ``|product| >=
+    0.5`` (``> 0.5`` when negative), already normalised: ``floor(P / 2**39) = m >> 1``; otherwise
+    one normalising shift is already in ``m`` (exactly -0.5 gives ``m = -2**39``, i.e. -1.0 at
+    exponent n - 1). The same words as the magnitude-and-sticky-bit form on 80-bit limbs
+    (:func:`prod80`, kept for the lane form) -- tests/test_m1750.py checks them against exact
+    integer arithmetic.
 
     Cases
     -----
@@ -499,31 +521,16 @@ def _mul48_core(a, b):
     done, p, f = _mul_exp_checks(ma, mo, n, 39)
     if done:
         return p, f
-    neg = (ma < 0) != (mo < 0)
-    A = -ma if ma < 0 else ma         # <= 2**39
-    B = -mo if mo < 0 else mo
-    if A == (1 << 39) and B == (1 << 39):      # (-1.0)(-1.0)
+    if ma == -(1 << 39) and mo == -(1 << 39):  # (-1.0)(-1.0)
         n += 1
         if n > 127:
             return MAX48, FLAG_FLOAT_OVERFLOW
         return pack48(1 << 38, n), 0
-    H, L = prod80(A, B)              # |P| = H * 2**40 + L; value |P| / 2**78
-    half = 1 << 37                    # |P| = 2**77  <=>  |product| = 0.5
-    if not neg:
-        if H >= half:                 # normalised as is: floor(|P| / 2**39)
-            m = (H << 1) | (L >> 39)
-        else:                         # one left shift: floor(|P| / 2**38)
-            m = (H << 2) | (L >> 38)
-            n -= 1
-    else:
-        if H > half or (H == half and L != 0):
-            m = -(((H << 1) | (L >> 39)) + (1 if (L & ((1 << 39) - 1)) != 0 else 0))
-        elif H == half:               # exactly -0.5 -> -1.0 * 2**(n-1)
-            m = -(1 << 39)
-            n -= 1
-        else:
-            m = -(((H << 2) | (L >> 38)) + (1 if (L & ((1 << 38) - 1)) != 0 else 0))
-            n -= 1
+    m = _prod_shr38(ma, mo)
+    if m >= (1 << 39) or m < -(1 << 39):       # normalised as is: floor(P / 2**39)
+        m = m >> 1
+    else:                                        # one left shift: floor(P / 2**38)
+        n -= 1
     if n < -128:
         return 0, FLAG_FLOAT_UNDERFLOW
     return pack48(m, n), 0
@@ -531,8 +538,8 @@ def _mul48_core(a, b):
 
 @njit(cache=True)
 def _fm48_k(a, b):
-    """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (:func:`prod80`)
-    normalised and truncated toward minus infinity.
+    """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (one 128-bit
+    multiply, :func:`_mul48_core`) normalised and truncated toward minus infinity.
 
     Cases
     -----
@@ -553,12 +560,12 @@ def _fm48_k(a, b):
     return _mul48_core(a, b)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def madd48(acc, a, b):
     """EFM then EFA, ``acc + a * b`` -> (p, flags): exactly ``fa48(acc, fm48(a, b))`` (two
-    truncations, the flags of both OR'ed) in one compiled call instead of two -- for the
+    truncations, the flags of both OR'ed), compiled into its caller (no call) -- for the
     multiply-accumulate loops of the track processor's covariance and RK4 (compiled code only, no
-    argument checks).
+    argument checks; 13 call sites, the TP's cold compile did not grow).
 
     Cases
     -----

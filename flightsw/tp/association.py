@@ -69,14 +69,15 @@ def gate_mask(OC, nuse, ia, ib, half):
 
 
 @njit(cache=True, inline="always")
-def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
+def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
     ``PW`` (int64 [NG * MAX_OBS, 3]), by gate row then observation index -> their number.
 
-    ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]); coordinates are
-    the 16-bit integers (LSB 2**-16 rad), distances their integer squares. Every live gate tests
-    every observation (:func:`gate_mask`), as the flight code does and is charged for.
+    ``G`` gates (int64 [NG, GC]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
+    MAX_OBS], formed once a frame for both classes); coordinates are the 16-bit integers (LSB
+    2**-16 rad), distances their integer squares. Every live gate tests every observation
+    (:func:`gate_mask`), as the flight code does and is charged for.
 
     Cases
     -----
@@ -88,7 +89,6 @@ def in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc):
     unusable-skipped : observations with ``OBS_OK == 0`` give no triple.
     no-observations : ``nuse == 0`` -> 0.
     """
-    OC = observation_columns(OBS)
     npairs = 0
     for row in range(kind, NG, 2):
         if G[row, G_ALIVE] == 0:
@@ -150,8 +150,9 @@ def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
         observation inside.
     no-pairs : nothing inside any gate -> every ``G_OBS`` stays -1.
     """
+    OC = observation_columns(OBS)
     for kind in range(2):
-        npairs = in_gate_pairs(G, OBS, nuse, kind, half, PW, cyc)
+        npairs = in_gate_pairs(G, OC, nuse, kind, half, PW, cyc)
         sort_pairs(PW, npairs, cyc)
         for j in range(nuse):
             TAKEN[j] = 0

@@ -285,7 +285,7 @@ def make_dR(w0, w1, w2, dt, R):
     return f
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def rot_tan(R, a, b):
     """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0.
 
