@@ -215,3 +215,18 @@ def test_record_export_is_readable_by_the_group(tmp_path):
         os.umask(old)
     for name in ("r.toml", "r.words"):
         assert stat.S_IMODE(os.stat(tmp_path / name).st_mode) == 0o644
+
+
+def test_console_entry_exits_with_mains_code_and_freezes_the_heap(monkeypatch):
+    """``uvisi`` (``hil_harness.cli:run``) exits with main()'s code, having moved what is left out
+    of the collector's reach (gc.get_freeze_count counts the frozen objects)."""
+    import gc
+
+    import hil_harness.cli as cli
+    monkeypatch.setattr(cli, "main", lambda: 3)
+    try:
+        with pytest.raises(SystemExit) as ex:
+            cli.run()
+        assert ex.value.code == 3 and gc.get_freeze_count() > 0
+    finally:
+        gc.unfreeze()

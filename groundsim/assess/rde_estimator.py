@@ -42,7 +42,7 @@ latency overlaps arithmetic. The Python wrappers allocate the outputs with numpy
 """
 from __future__ import annotations
 
-from typing import NamedTuple, Sequence
+from typing import NamedTuple
 
 import numpy as np
 from numba import njit, uint64

@@ -10,6 +10,7 @@ line saying where the full traceback was written; ``--debug`` prints it instead)
 from __future__ import annotations
 
 import argparse
+import gc
 import importlib
 import os
 import re
@@ -164,4 +165,18 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_INTERRUPTED
     except Exception:                       # noqa: BLE001 - the last resort: one line + a file
         return _internal_error(args.command, args.debug)
+
+
+def run() -> None:
+    """The ``uvisi`` console script (and ``python -m hil_harness.cli``): :func:`main` on the
+    command line, then exit with its code.
+
+    Before the interpreter's shutdown every object left is moved out of the garbage collector's
+    reach (``gc.freeze()``): the collections Python runs while it tears the modules down then skip
+    the numba dispatchers, compiled libraries and arrays a command leaves behind, which took ~0.35 s
+    of a 1.4 s warm ``uvisi event`` (every file is closed and flushed by then; atexit handlers
+    still run)."""
+    rc = main()
+    gc.freeze()
+    sys.exit(rc)
 
