@@ -13,11 +13,12 @@ phase (each moment to exactly one: the innermost phase running), then prints one
 - ``other``: the rest of the command (scenario and catalogue set-up, run folder, summary);
 - ``frames``, ``loop_median_frame_us`` and ``mean_record_us`` from the run's ``summary.json``.
 
-The parent (:mod:`bench.bench_event`) adds the interpreter's start-up from the process's total wall
-time. Wall-clock seconds; run it on a quiet machine.
+The parent (:mod:`bench.bench_event`) adds the interpreter's start-up and exit from the process's
+total wall time (the process leaves as the ``uvisi`` console script does: the heap frozen first). Wall-clock seconds; run it on a quiet machine.
 """
 from __future__ import annotations
 
+import gc
 import json
 import sys
 import time
@@ -106,4 +107,6 @@ def main(argv=None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    rc = main()
+    gc.freeze()                 # as the uvisi console script leaves (hil_harness.cli.run)
+    sys.exit(rc)

@@ -151,7 +151,7 @@ def render(groups: dict, machine: str, when: str) -> str:
 #: groups of bench/bench_event.py, rendered as the event section (mean per frame, phases)
 EVENT_PREFIX = "event: "
 #: (phase key of bench.event_phases, row label) of the event wall-time table
-EVENT_PHASES = (("python_start", "Python start-up"), ("imports", "imports"),
+EVENT_PHASES = (("python_start", "Python start-up and exit"), ("imports", "imports"),
                 ("cache_load", "numba cache load"), ("simulate", "simulate (the closed loop)"),
                 ("record", "record (open, every frame, close)"),
                 ("figures", "figures, viewer page, summary.json"),
