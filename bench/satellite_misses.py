@@ -27,7 +27,7 @@ from groundsim import get_imager
 from hil_harness.event import Event, EventConfig
 from hil_harness.event.metrics import held_after_lock
 
-__all__ = ["ideal_snr", "event_misses", "main"]
+__all__ = ["ideal_snr", "event_misses", "run_keeping_frames", "main"]
 
 
 def ideal_snr(frame, row: float, col: float, psf_sigma: float) -> float:
@@ -57,8 +57,9 @@ def ideal_snr(frame, row: float, col: float, psf_sigma: float) -> float:
     return float((p * d).sum() / (s * math.sqrt((p * p).sum()))) if s > 0 else float("nan")
 
 
-def _run(scenario: str, seed: int, sequence):
-    """The event, with each processed frame's (frame, feedback in force, IP result) kept."""
+def run_keeping_frames(scenario: str, seed: int, sequence=None):
+    """Run the event; returns ``(event, kept)``, ``kept`` mapping each processed frame's count to
+    its (frame, feedback in force, IP result)."""
     ev = Event(EventConfig(scenario=scenario, seed=seed, sequence=sequence))
     kept = {}
     step = ev.ip.step
@@ -81,7 +82,7 @@ def _at_target(message, tg: dict, radius: float) -> bool:
 
 def event_misses(scenario: str, seed: int, sequence=None) -> dict | None:
     """The figures of the module docstring for one event (None when the TP never locked)."""
-    ev, kept = _run(scenario, seed, sequence)
+    ev, kept = run_keeping_frames(scenario, seed, sequence)
     f = ev.scenario.compaction
     h = held_after_lock(ev.outcomes, ev.geometry, f)
     lock = h["lock_frame"]

@@ -34,8 +34,9 @@ from collections import Counter
 import numpy as np
 
 from flightsw.ip import process_frame
-from hil_harness.event import Event, EventConfig
 from hil_harness.event.metrics import held_after_lock
+
+from .satellite_misses import run_keeping_frames
 
 __all__ = ["window_statistics", "event_window_frames", "main"]
 
@@ -60,23 +61,6 @@ def window_statistics(d, alpha: float, trow: float, tcol: float) -> dict:
             "thr_wo": float(d[keep].mean() + alpha * d[keep].std())}
 
 
-def _run(scenario: str, seed: int, sequence):
-    """The event, with each processed frame's (frame, feedback in force) kept."""
-    ev = Event(EventConfig(scenario=scenario, seed=seed, sequence=sequence))
-    kept = {}
-    step = ev.ip.step
-
-    def keep(frame, **kw):
-        out = step(frame, **kw)
-        kept[int(kw["frame_count"])] = (frame, out.feedback)
-        return out
-
-    ev.ip.step = keep
-    while not ev.done:
-        ev.step()
-    return ev, kept
-
-
 def _threshold_input(res, sequence):
     """The stage image entering the threshold step (the window itself when it is the first)."""
     names = [s.stage for s in sequence.steps]
@@ -98,7 +82,7 @@ def event_window_frames(scenario: str, seed: int, sequence=None) -> dict | None:
     """Per processed frame with the target in the field: :func:`window_statistics` plus
     ``group``, ``pred_err``, ``off_centre``, ``corner``, ``hip`` (None when the TP never
     locked)."""
-    ev, kept = _run(scenario, seed, sequence)
+    ev, kept = run_keeping_frames(scenario, seed, sequence)
     f = ev.scenario.compaction
     lock = held_after_lock(ev.outcomes, ev.geometry, f)["lock_frame"]
     if lock is None:
@@ -111,7 +95,7 @@ def event_window_frames(scenario: str, seed: int, sequence=None) -> dict | None:
             continue
         cand = o.message.candidates
         at = any(math.hypot(x["row"] - tg["row"], x["col"] - tg["col"]) <= 1.5 * f for x in cand)
-        frame, fb = kept[o.k]
+        frame, fb, _ = kept[o.k]
         res = process_frame(frame, ev.ip.sequence, ev.ip.record, fb, imager=o.imager,
                             alpha_q12=int(round(o.alpha * 4096)), want_stages=True)
         sub = res.subimage
