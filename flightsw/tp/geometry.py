@@ -46,7 +46,6 @@ __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tange
 COL0, ROW0 = 128.0, 122.0
 N_ROWS, N_COLS = 244, 256
 ANGLE_LSB = 2.0 ** -16            # rad per LSB of the integer gate coordinates
-_C2_16 = 0x40000011               # 65536.0 (2**16) as a packed 32-bit float
 
 # imager table row: A (9, imager->body, row-major), scale_col, scale_row, 1/scale_col, 1/scale_row,
 # COL0, ROW0 (all packed 32-bit)
