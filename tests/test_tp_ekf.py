@@ -169,6 +169,7 @@ class RefEKF(ExtendedKalmanFilter):
 @pytest.mark.cases("flightsw.tp.ekf.ekf_init", "typical")
 @pytest.mark.cases("flightsw.tp.ekf.ekf_los", "typical")
 @pytest.mark.cases("flightsw.tp.ekf.ekf_update", "accepted")
+@pytest.mark.cases("flightsw.tp.ekf.ekf_update_los", "typical")
 @pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "whole-steps")
 @pytest.mark.cases("flightsw.tp.ekf._cov_step", "typical")
 def test_ekf_1750_tracks_filterpy_reference_within_1750a_precision():
@@ -416,13 +417,17 @@ def test_ekf_start_and_prediction_of_its_line_of_sight():
     assert de == pytest.approx(_tan(x2[:3]) - _tan(x1[:3]), abs=3e-7) and abs(de[0]) > 1e-3
 
 
-def _update_case(dx, dy, nrej=0):
+def _update_case(dx, dy, nrej=0, held=False):
     """An EKF 1 Mm ahead with P = diag(1e4 m^2, 1 (m/s)^2), one candidate (dx, dy) rad off the
-    estimate's line of sight (aligned imager, body = ECI, 1e-4 rad/px, sigma 0.5 px)."""
+    estimate's line of sight (aligned imager, body = ECI, 1e-4 rad/px, sigma 0.5 px); ``held``:
+    its line of sight and range left in E_LOS, V_ERHO as predict_ekf leaves them."""
     C, D, K, S, V, RM, cyc = _traj_arrays()
     E = np.zeros(E_WORDS, np.int64)
     ekf_init(E, *[_w48(x) for x in (*(RSC + [1.0e6, 50.0, -30.0]), *VT)], 0, K[K_P0R], K[K_P0V])
     E[E_NREJ] = nrej
+    if held:
+        l0, l1, l2, rho, _ = ekf_los(E, *V[L.V_RS:L.V_RS + 3])
+        E[E_LOS:E_LOS + 3], V[L.V_ERHO], V[L.V_ELOS] = (l0, l1, l2), rho, 1
     IMG = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 1e-4, 1e-4).table_row()[None, :]
     x, y = 5e-5 + dx, -3e-5 + dy
     rows, cols = np.zeros(L.MAX_OBS), np.zeros(L.MAX_OBS)
@@ -454,6 +459,18 @@ def test_update_ekf_is_two_sequential_scalar_updates():
     sig = np.sqrt(np.diag(P))
     assert np.abs(got_x - x).max() / sig.min() < 1e-3 and abs(got_x[1] - 50.0) > 1.0
     assert np.abs(got_P - P).max() / np.abs(P).max() < 1e-5
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "los-held", "los-formed")
+def test_update_ekf_held_line_of_sight_changes_nothing():
+    """Every outcome (both accepted, one refused, both refused, reset) gives the same words with
+    the line of sight held as formed, and leaves the final state's line of sight held."""
+    for args in ((1e-5, -2e-5), (0.0, 5e-3, 2), (5e-3, 5e-3, 1), (5e-3, 5e-3, 2), (5e-3, 0.0)):
+        E0, V0, _ = _update_case(*args)
+        E1, V1, _ = _update_case(*args, held=True)
+        assert np.array_equal(E0, E1) and np.array_equal(V0, V1), args
+        l0, l1, l2, rho, _ = ekf_los(E1, *V1[L.V_RS:L.V_RS + 3])
+        assert (*E1[E_LOS:E_LOS + 3], V1[L.V_ERHO], V1[L.V_ELOS]) == (l0, l1, l2, rho, 1)
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "one-rejected", "both-rejected", "reset")

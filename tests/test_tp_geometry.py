@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, encode32
+from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, encode32, fix32, fm32
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
 from flightsw.tp import layout as L
 from flightsw.tp.geometry import (ImagerGeometry, directions_to_pixels, host_to32, i16abs,
@@ -46,6 +46,24 @@ def test_tan_int_truncates_toward_zero_and_saturates_when_fix_overflows(a, want)
     # by hand: 0.49999 * 2**16 = 32767.3 -> 32767 without overflow; -0.4999999 * 2**16 = -32767.99
     # -> -32767 (toward zero); -0.5 * 2**16 = -32768 = -1.0 * 2**15 fits FIX: no overflow
     assert tan_int(w(a)) == want
+
+
+@pytest.mark.cases("flightsw.tp.geometry.tan_int", "tiny", "zero", "truncate", "minus-half")
+def test_tan_int_equals_fm_by_two_to_the_16_then_fix_on_every_exponent():
+    """The exponent edit against the instructions it stands for: FM by 2**16 (0.5 * 2**17), FIX,
+    saturated by a's sign on a FIX overflow -- every exponent, normalised mantissas of both signs
+    (the ends of each range and random ones), zero."""
+    rng = np.random.default_rng(16)
+    pos = [0x400000, 0x400001, 0x7FFFFF] + rng.integers(0x400000, 0x800000, 12).tolist()
+    neg = [-0x800000, -0x7FFFFF, -0x400001] + rng.integers(-0x800000, -0x400000, 12).tolist()
+    words = [0] + [((m & 0xFFFFFF) << 8) | (e & 0xFF) for e in range(-128, 128)
+                   for m in pos + neg]
+    for a in words:
+        s, _ = fm32(a, 0x40000011)
+        i, ovf = fix32(s)
+        want = (-32767 if a >> 31 else 32767) if ovf else (i - 0x10000 if i & 0x8000 else i)
+        assert tan_int(a) == want, hex(a)
+    assert tan_int(w(2.0 ** -17)) == 0 and tan_int(w(-(2.0 ** -17))) == 0       # tiny, toward 0
 
 
 @pytest.mark.cases("flightsw.tp.geometry.neg32", "typical", "zero")

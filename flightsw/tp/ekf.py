@@ -57,8 +57,8 @@ from flightsw.arith.m1750 import (
 from flightsw.tp.dynamics import CYC_GRAD, dyn_table, grav_gradient_h, rk4_step, rk4_step_cycles
 from flightsw.tp.f1750 import cycles, dec32, dec48, dot3, enc32, enc48, mix, unit3
 
-__all__ = ["EKF1750", "E_WORDS", "ekf_predict", "ekf_update", "ekf_init", "ekf_params",
-           "EKF_UPDATE_MIX", "ekf_predict_step_cycles"]
+__all__ = ["EKF1750", "E_WORDS", "ekf_predict", "ekf_update", "ekf_update_los", "ekf_init",
+           "ekf_params", "EKF_UPDATE_MIX", "ekf_predict_step_cycles"]
 
 # E array layout
 E_X, E_P, E_T, E_RUN, E_NREJ, E_LOS, E_HAVE_LOS = 0, 6, 27, 28, 29, 30, 33
@@ -266,7 +266,8 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     """Sequential scalar update with component ``comp`` (1 or 2) of the imager-frame unit line of
     sight ``z`` (packed 32-bit), ``M`` the ECI -> imager rotation (int64[9], packed 32-bit),
     ``r_sc`` packed 48-bit, ``rvar`` the measurement variance (packed 48-bit, rad^2), ``wk`` scratch
-    -> (accepted, nu (packed 32), s (packed 48), flags).
+    -> (accepted, nu (packed 32), s (packed 48), flags): :func:`ekf_los` of the state, then
+    :func:`ekf_update_los` (flags OR-ed).
 
     Cases
     -----
@@ -276,8 +277,23 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     covariance-guard : an update that would leave a diagonal element of P zero or negative ->
         refused with EKF_FLAG_COV, nothing changed.
     """
+    l0, l1, l2, rho, f = ekf_los(E, rs0, rs1, rs2)
+    ok, nu, s, g = ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar)
+    return ok, nu, s, f | g
+
+
+@njit(cache=True)
+def ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar):
+    """:func:`ekf_update` given the state's :func:`ekf_los` ``(l0, l1, l2, rho)`` (packed 32-bit),
+    for a caller that already holds it -> (accepted, nu, s, flags), the flags without
+    :func:`ekf_los`'s.
+
+    Cases
+    -----
+    typical : with ``(l0, l1, l2, rho) = ekf_los(E, r_sc)``, :func:`ekf_update`'s words, state
+        and covariance; its flags less those of ``ekf_los``.
+    """
     f = 0
-    l0, l1, l2, rho, g = ekf_los(E, rs0, rs1, rs2); f |= g
     b = 3 * comp
     hz, g = dot3(M[b], M[b + 1], M[b + 2], l0, l1, l2); f |= g
     nu, g = fs32(z, hz); f |= g

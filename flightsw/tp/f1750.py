@@ -54,7 +54,7 @@ def cycles(m: dict) -> int:
 # ------------------------------------------------------------------------------------------------
 # boundary: host float64 <-> packed words (nearest, ties to even; as encode32/48(rounding="nearest"))
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _enc(x, W):
     """float64 ``x`` -> (nearest packed 1750A float with ``W`` fraction bits: 23 for 32-bit, 39 for
     48-bit, flags).

@@ -66,6 +66,7 @@ V_Q, V_W, V_WM, V_RS, V_VS = 10, 14, 17, 20, 23      # attitude: q, rate, mean r
 V_NUSE, V_OBJ, V_LOCKED, V_EKF_ON = 26, 27, 28, 29
 V_DN, V_DE = 30, 32                  # a priori object motion: nominal, EKF (da, db)
 V_STATUS, V_FLAGS = 34, 35
+V_ERHO, V_ELOS = 36, 37              # E_LOS's range (32-bit); 1: E_LOS, V_ERHO are the state's
 V_WORDS = 40
 
 # ---- W: scratch words of one frame (views) -------------------------------------------------------

@@ -19,14 +19,14 @@ from flightsw.messages import (TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMIN
 from flightsw.tp.dynamics import propagate
 from flightsw.tp.ekf import (
     CYC_EKF_UPDATE, E_HAVE_LOS, E_LOS, E_NREJ, E_RUN, K_MAXSTEP, K_P0R, K_P0V, ekf_init, ekf_los,
-    ekf_predict, ekf_reset_cov, ekf_update,
+    ekf_predict, ekf_reset_cov, ekf_update_los,
 )
 from flightsw.tp.f1750 import MV3_MIX, UNIT3_MIX, cycles, dot3, mix, unit3
 from flightsw.tp.geometry import CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_delta, pix_unit
 from flightsw.tp.layout import (
     C_CYC_EKF_STEP, C_CYC_RK4, C_EKF_MAX_REJ, C_SIG_PX, N_T, N_X, S_HAVE_PREV, S_NL, S_NL_OK,
-    ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_FLAGS, V_IMG, V_OBJ, V_RS, V_STATUS,
-    V_T,
+    ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_ELOS, V_ERHO, V_FLAGS, V_IMG, V_OBJ,
+    V_RS, V_STATUS, V_T,
 )
 
 #: arithmetic-exception flags that mark the command (the EKF's covariance guard is not one)
@@ -113,6 +113,7 @@ def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
         V[V_DE], V[V_DE + 1], g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1], E[E_LOS + 2])
         fl |= g
     E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    V[V_ERHO], V[V_ELOS] = rho, 1
     E[E_HAVE_LOS] = 1
     cyc[ST_EKF_PRED] += CYC_LOS_DELTA
     V[V_FLAGS] |= fl
@@ -133,6 +134,7 @@ def start_ekf(K, N, E, V):
     l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2])
     V[V_FLAGS] |= g
     E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    V[V_ERHO], V[V_ELOS] = rho, 1
     E[E_HAVE_LOS] = 1
 
 
@@ -142,7 +144,10 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     updates of the EKF; both refused ``ekf_max_rejects`` frames running -> covariance reset.
 
     Measurement matrix ``M = (RM A)^T`` (``A`` the imager alignment), measurement the pixel's
-    imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis.
+    imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis. The
+    state's line of sight and range are formed once per state: taken from ``E[E_LOS]``,
+    ``V[V_ERHO]`` when ``V[V_ELOS]`` says this frame's :func:`predict_ekf` or :func:`start_ekf`
+    left them, again only after an accepted update.
 
     Cases
     -----
@@ -151,6 +156,9 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
     reset : both refused for the ``ekf_max_rejects``-th frame running -> P reset to its initial
         diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
+    los-held : ``V[V_ELOS] = 1`` -> the held line of sight is used; words and flags as when it
+        is formed here.
+    los-formed : ``V[V_ELOS] = 0`` -> formed from the state first.
     """
     fl = 0
     img = IMG[V[V_IMG]]
@@ -168,8 +176,20 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     sgy, g = fm32(C[C_SIG_PX], img[IMG_SR]); fl |= g
     rv1, g = fm48(to48(sgx), to48(sgx)); fl |= g
     rv2, g = fm48(to48(sgy), to48(sgy)); fl |= g
-    ok1, nu1, s1, g = ekf_update(E, K, wk, np.int64(1), e1, M, rs0, rs1, rs2, rv1); fl |= g & PI_FLAGS
-    ok2, nu2, s2, g = ekf_update(E, K, wk, np.int64(2), e2, M, rs0, rs1, rs2, rv2); fl |= g & PI_FLAGS
+    # the state's line of sight: predict_ekf's or start_ekf's this frame (their flags are in
+    # V_FLAGS already), formed again only after an accepted update changed the state
+    if V[V_ELOS] != 0:
+        l0, l1, l2, rho, lg = E[E_LOS], E[E_LOS + 1], E[E_LOS + 2], V[V_ERHO], 0
+    else:
+        l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
+    ok1, nu1, s1, g = ekf_update_los(E, K, wk, np.int64(1), e1, M, l0, l1, l2, rho, rv1)
+    fl |= (g | lg) & PI_FLAGS
+    if ok1:
+        l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
+    ok2, nu2, s2, g = ekf_update_los(E, K, wk, np.int64(2), e2, M, l0, l1, l2, rho, rv2)
+    fl |= (g | lg) & PI_FLAGS
+    if ok2:
+        l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
     cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
     if not (ok1 and ok2):
         V[V_STATUS] |= TC_INNOVATION_REJECTED
@@ -181,6 +201,7 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
             V[V_STATUS] |= TC_EKF_RESET
     else:
         E[E_NREJ] = 0
-    l0, l1, l2, rho, g = ekf_los(E, rs0, rs1, rs2); fl |= g
+    fl |= lg
     E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
+    V[V_ERHO], V[V_ELOS] = rho, 1
     V[V_FLAGS] |= fl
