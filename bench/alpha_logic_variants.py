@@ -38,7 +38,8 @@ from hil_harness.event import Event, EventConfig
 from hil_harness.event.io import summarise
 from hil_harness.rates import wilson_interval
 
-__all__ = ["Rule", "parse_variant", "run_family", "main"]
+__all__ = ["Rule", "parse_variant", "run_family", "event_outcome", "add_outcome", "family_line",
+           "TRAINING", "main"]
 
 TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
             "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid")
@@ -145,6 +146,33 @@ def _message_share(ev, lock: dict) -> dict:
     return share
 
 
+def event_outcome(scenario: str, seed: int, summary: dict) -> tuple:
+    """One event's row from its ``summary.json`` dict: (scenario, seed, held k, held n, decision
+    frame, decision correct, median track error (processed px), goal met), the goal being a
+    correct decision, >= 95 % held after lock and a median <= 0.25 processed px."""
+    h, d = summary["held_after_lock"], summary["decision"] or {}
+    med = (summary["track_error_processed_px"] or {}).get("median")
+    ok = bool(d.get("correct"))
+    goal = ok and h["n"] > 0 and h["k"] >= 0.95 * h["n"] and med is not None and med <= 0.25
+    return (scenario, seed, h["k"], h["n"], d.get("frame"), ok, med, goal)
+
+
+def add_outcome(totals: dict, row: tuple) -> dict:
+    """Add an :func:`event_outcome` row to ``totals`` (keys held, n, correct, goal; made when
+    empty) and return it."""
+    for key, v in zip(("held", "n", "correct", "goal"), (row[2], row[3], row[5], row[7])):
+        totals[key] = totals.get(key, 0) + v
+    return totals
+
+
+def family_line(label: str, r: dict) -> str:
+    """The one-line summary of a family's totals (:func:`run_family`'s dict)."""
+    lo, hi = wilson_interval(r["held"], r["n"])
+    return (f"{label}: held after lock {r['held']}/{r['n']} = "
+            f"{100 * r['held'] / max(r['n'], 1):.1f} % ({100 * lo:.1f}-{100 * hi:.1f} %), "
+            f"correct decisions {r['correct']}/{r['events']}, goal met {r['goal']}/{r['events']}")
+
+
 def run_family(variant: str, seeds) -> dict:
     """The training family under ``variant``: totals and one row per event."""
     rows, k, share = [], {"held": 0, "n": 0, "correct": 0, "goal": 0}, {}
@@ -155,15 +183,8 @@ def run_family(variant: str, seeds) -> dict:
             c = share.setdefault((scenario,) + key, [0, 0])
             c[0] += a
             c[1] += b
-        h, d = s["held_after_lock"], s["decision"] or {}
-        med = (s["track_error_processed_px"] or {}).get("median")
-        ok = bool(d.get("correct"))
-        goal = ok and h["n"] > 0 and h["k"] >= 0.95 * h["n"] and med is not None and med <= 0.25
-        k["held"] += h["k"]
-        k["n"] += h["n"]
-        k["correct"] += ok
-        k["goal"] += goal
-        rows.append((scenario, seed, h["k"], h["n"], d.get("frame"), ok, med, goal))
+        rows.append(event_outcome(scenario, seed, s))
+        add_outcome(k, rows[-1])
     return {"rows": rows, **k, "events": len(rows), "share": share}
 
 
@@ -189,10 +210,7 @@ def main(argv=None) -> int:
             for (scn, locked, many), (a, b) in sorted(r["share"].items()):
                 print(f"{v} {scn} {'locked' if locked else 'not locked'}, "
                       f"{'>= 90' if many else '< 90'} blobs: target in the message {a}/{b}")
-        lo, hi = wilson_interval(r["held"], r["n"])
-        print(f"{v}: held after lock {r['held']}/{r['n']} = {100 * r['held'] / r['n']:.1f} % "
-              f"({100 * lo:.1f}-{100 * hi:.1f} %), correct decisions {r['correct']}/{r['events']}, "
-              f"goal met {r['goal']}/{r['events']}")
+        print(family_line(v, r))
     return 0
 
 

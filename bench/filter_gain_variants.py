@@ -51,12 +51,11 @@ from flightsw.messages import FEATURE_NAMES
 from flightsw.records import load_record
 from hil_harness.event import Event, EventConfig
 from hil_harness.event.io import summarise
-from hil_harness.rates import wilson_interval
+
+from .alpha_logic_variants import TRAINING, add_outcome, event_outcome, family_line
 
 __all__ = ["Variant", "parse_variant", "gained_frame", "run_family", "main"]
 
-TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
-            "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid")
 FAINT = ("satellite_train_faint_near", "satellite_train_faint_mid")
 BRIGHTNESS = ("total_brightness", "avg_brightness", "max_brightness")
 CURVE_ALPHAS = (0.5, 0.625, 0.75, 0.875, 1.0, 1.125, 1.25, 1.5, 2.0)
@@ -232,16 +231,9 @@ def run_family(v: Variant, seeds, curve: bool = False, cut: bool = False) -> dic
         s, c, t = _event(scenario, seed, v, curve and faint, cut and faint)
         crv.extend(c)
         cuts.setdefault(scenario, []).extend(t)
-        h, d = s["held_after_lock"], s["decision"] or {}
-        med = (s["track_error_processed_px"] or {}).get("median")
-        ok = bool(d.get("correct"))
-        goal = ok and h["n"] > 0 and h["k"] >= 0.95 * h["n"] and med is not None and med <= 0.25
-        for tot in (k, per.setdefault(scenario, {"held": 0, "n": 0, "correct": 0, "goal": 0})):
-            tot["held"] += h["k"]
-            tot["n"] += h["n"]
-            tot["correct"] += ok
-            tot["goal"] += goal
-        rows.append((scenario, seed, h["k"], h["n"], d.get("frame"), ok, med, goal))
+        rows.append(event_outcome(scenario, seed, s))
+        add_outcome(k, rows[-1])
+        add_outcome(per.setdefault(scenario, {}), rows[-1])
     return {"rows": rows, **k, "events": len(rows), "per": per, "curve": crv, "cut": cuts}
 
 
@@ -305,11 +297,7 @@ def main(argv=None) -> int:
                       f"{t['correct']}, goal met {t['goal']}")
         for line in _curve_lines(v.label, r["curve"]) + _cut_lines(v.label, r["cut"]):
             print(line)
-        lo, hi = wilson_interval(r["held"], r["n"])
-        print(f"{v.label}: held after lock {r['held']}/{r['n']} = "
-              f"{100 * r['held'] / max(r['n'], 1):.1f} % ({100 * lo:.1f}-{100 * hi:.1f} %), "
-              f"correct decisions {r['correct']}/{r['events']}, goal met {r['goal']}/{r['events']}",
-              flush=True)
+        print(family_line(v.label, r), flush=True)
     return 0
 
 
