@@ -81,8 +81,8 @@ def warm_lanes():
 
 def warm_track_processor(n_frames: int = 4):
     """Step a TrackProcessor through ``n_frames`` synthetic frames (a staring imager, a few
-    candidates, attitude data every frame), ask for its prediction in pixels, and run the
-    candidate-message and track-command codecs both ways. Returns the last track command."""
+    candidates, attitude data every frame), ask for its prediction in pixels and its snapshot, and run
+    the candidate-message and track-command codecs both ways. Returns the last track command."""
     import numpy as np
 
     from flightsw.messages import CANDIDATE_DTYPE, AttitudeData, CandidateMessage, TrackCommand
@@ -107,6 +107,7 @@ def warm_track_processor(n_frames: int = 4):
                            rate_body=np.zeros(3), r_eci=r0 + v0 * t, v_eci=v0.copy())
         cmd = TrackCommand.from_words(tp.step(words, att).to_words())
         tp.predicted_pixel("wfov_vis")
+        tp.snapshot()                       # the recorder's row of every frame
     return cmd
 
 

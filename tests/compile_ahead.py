@@ -6,7 +6,7 @@ same on-disk cache, the kernels the suite reaches after its first minute, in the
 them, while the suite's own process compiles the image processor for its first tests:
 
 1. the 1750A lane operations and the track processor (:mod:`hil_harness.warmup`, as a first
-   ``uvisi`` run does), and the TP's snapshot;
+   ``uvisi`` run does, with the TP's snapshot);
 2. the ground simulator's frame (a satellite scenario and an aurora one: attitude data, the
    render, the spacecraft's command and step);
 3. the RDE filter and smoother for the state dimensions the tests use (2, 5, 12, 18);
@@ -33,16 +33,10 @@ LABEL_DTYPES = (np.bool_, np.uint8, np.int16, np.uint16, np.int64)
 
 
 def track_processor():
-    from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
     from hil_harness.warmup import warm_lanes, warm_track_processor
 
     warm_lanes()
     warm_track_processor()
-    geom = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 2.0e-4, 2.0e-4)
-    tp = TrackProcessor(TPConfig(imagers={"wfov_vis": geom},
-                                 nominal=NominalTrajectory(0.0, np.array([7.1e6, 0.0, 0.0]),
-                                                           np.array([0.0, 7.5e3, 0.0]))))
-    tp.snapshot()
 
 
 def ground_frames():
