@@ -13,6 +13,10 @@ the feedback in force); nothing in ``flightsw`` changes. Variants (``name`` or `
 * ``hold``: after a raise, the lowering without lock stops one step above the alpha that
   overflowed, until the TP locks again;
 * ``steps:up=U,down=D,floor=F``: other step sizes or floor (alpha units);
+* ``count_floor:deep=F2,few=N``: without lock, alpha falls below the floor, as far as ``F2``, only
+  while the frame's blob count is under ``N`` (a bright star that lifts the window's std leaves
+  few blobs at the floor; a star-rich window of faint noise blobs does not); the shipped rule
+  since the sparse floor (0.25 under 20 blobs); ``few=0`` is the rule before it;
 * ``int_step[:hold=1,down=D]``: a raise goes only as far as the smallest alpha that puts the
   threshold at the next whole count (from the frame's mean and std words), so that the count that
   set it off fails and the next one still passes.
@@ -47,18 +51,20 @@ TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
 
 def _shipped_words():
     """The shipped ``satellite_track`` alpha logic's words (:meth:`AlphaController.words`: near
-    count, step up, step down, floor, ceiling; Q4.12)."""
+    count, step up, step down, floor, ceiling, sparse floor (Q4.12), sparse count)."""
     return [int(w) for w in alpha_controller_for(load_default_sequence("satellite_track")).words()]
 
 
 class Rule:
     """One alpha-logic variant on Q4.12 words; what a variant does not set is the shipped
     ``satellite_track`` logic's (:func:`_shipped_words`: near count 90, up 0.5, down 0.25, floor
-    0.75, ceiling 7.0). ``up``, ``down``, ``floor`` in alpha units."""
+    0.75, ceiling 7.0, sparse floor 0.25 under 20 blobs). ``up``, ``down``, ``floor``, ``deep`` in
+    alpha units; ``few`` the sparse count (0: never sparse, the rule before the sparse floor)."""
 
     def __init__(self, near_locked: int | None = None, hold: bool = False, up: float | None = None,
-                 down: float | None = None, floor: float | None = None, int_step: bool = False):
-        near, w_up, w_down, w_lo, self.hi = _shipped_words()
+                 down: float | None = None, floor: float | None = None, int_step: bool = False,
+                 deep: float | None = None, few: int | None = None):
+        near, w_up, w_down, w_lo, self.hi, w_sparse, w_few = _shipped_words()
         self.int_step = bool(int_step)
         self.near, self.hold = near, bool(hold)
         self.near_locked = near if near_locked is None else int(near_locked)
@@ -66,6 +72,8 @@ class Rule:
         self.down = w_down if down is None else alpha_to_q12(down)
         self.lo = w_lo if floor is None else alpha_to_q12(floor)
         self.over = -1                                 # the alpha that last overflowed (hold)
+        self.deep = w_sparse if deep is None else alpha_to_q12(deep)
+        self.few = w_few if few is None else int(few)
 
     def next(self, q: int, count: int, locked: bool, thr=None) -> int:
         """The next Q4.12 word after a frame at ``q`` with ``count`` blobs and the TP's lock;
@@ -83,6 +91,7 @@ class Rule:
             return min(q + self.up, self.hi)
         if not locked:
             lo = self.lo if self.over < 0 else max(self.lo, min(self.over + self.down, q))
+            lo = min(lo, self.deep) if count < self.few else min(lo, q)   # below it: hold
             return max(q - self.down, lo)
         return q
 
@@ -100,6 +109,9 @@ def parse_variant(text: str) -> Rule:
     if name == "int_step":
         return Rule(int_step=True, hold=kw.get("hold", "0") == "1",
                     down=float(kw["down"]) if "down" in kw else None)
+    if name == "count_floor":
+        return Rule(deep=float(kw["deep"]) if "deep" in kw else None,
+                    few=int(kw["few"]) if "few" in kw else None)
     if name == "steps":
         return Rule(**{k: float(kw[k]) for k in ("up", "down", "floor") if k in kw})
     raise ValueError(f"unknown variant {text!r}")
@@ -192,7 +204,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.alpha_logic_variants",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("variants", nargs="+",
-                    help="paper | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step")
+                    help="paper | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step | "
+                         "count_floor:deep=F2,few=N")
     ap.add_argument("--seeds", default="211,212,213")
     ap.add_argument("--events", action="store_true", help="one line per event too")
     args = ap.parse_args(argv)

@@ -55,3 +55,71 @@ def test_satellite_track_floors_at_0_75_and_the_others_keep_1_0():
     assert alpha_controller_for(load_default_sequence("satellite_track")).alpha_min == 0.75
     for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
         assert alpha_controller_for(load_default_sequence(name)).alpha_min == 1.0
+
+
+# ---- the floor for sparse frames (alpha_min_sparse under sparse_blobs) -----------------------------
+def _ctl(sparse=0.25, few=20):
+    from flightsw.ip.threshold import AlphaController
+    return AlphaController(alpha=2.0, alpha_min=0.75, alpha_min_sparse=sparse, sparse_blobs=few)
+
+
+@pytest.mark.parametrize("q, count, locked, want", [
+    (3072, 5, False, 2048),        # sparse, unlocked: 0.75 -> 0.5, below the floor
+    (2048, 5, False, 1024),        # 0.5 -> 0.25
+    (1024, 5, False, 1024),        # held at the sparse floor 0.25
+    (2048, 40, False, 2048),       # below the floor, not sparse: held (not pulled back to 0.75)
+    (3072, 40, False, 3072),       # at the floor, not sparse: the floor
+    (4096, 40, False, 3072),       # 1.0 -> 0.75 as before
+    (1024, 95, False, 3072),       # too many blobs wins: 0.25 + 0.5
+    (1024, 5, True, 1024),         # locked: unchanged
+])
+def test_alpha_logic_with_a_sparse_floor_by_hand(q, count, locked, want):
+    from flightsw.ip.threshold import alpha_next_k
+    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl().words()) == want
+
+
+def test_without_a_sparse_count_the_logic_is_the_floor_alone():
+    from flightsw.ip.threshold import AlphaController, alpha_next_k
+    w = AlphaController(alpha=2.0, alpha_min=0.75).words()
+    assert list(w[5:]) == [3072, 0]
+    for count in (0, 5, 40):
+        assert alpha_next_k(np.int64(3072), np.int64(count), False, w) == 3072
+
+
+@pytest.mark.parametrize("kw, field", [
+    ({"alpha_min": 0.75, "alpha_min_sparse": 0.8, "sparse_blobs": 20}, "alpha_min_sparse"),
+    ({"alpha_min": 0.75, "alpha_min_sparse": 0.25}, "sparse_blobs"),
+    ({"alpha_min": 0.75, "sparse_blobs": 20}, "alpha_min_sparse"),
+    ({"alpha_min": 0.75, "alpha_min_sparse": 0.25, "sparse_blobs": 90}, "sparse_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_sparse": 0.25, "sparse_blobs": 2.5}, "sparse_blobs"),
+    ({"alpha_min_sparse": 1.25, "sparse_blobs": 20}, "alpha_min_sparse"),   # default floor 1.0
+])
+def test_a_bad_sparse_floor_is_refused_naming_the_field(kw, field):
+    with pytest.raises(SequenceError) as exc:
+        _seq(alpha=2.0, **kw)
+    assert exc.value.field == field and exc.value.step == 1
+
+
+def test_the_sparse_floor_crosses_the_uplink():
+    seq = _seq(alpha=2.0, alpha_min=0.75, alpha_min_sparse=0.25, sparse_blobs=20)
+    w = sequence_to_words(seq)
+    i = [k for k in range(len(w) - 2) if w[k] == (14 << 8) | 2]     # key 14, type float
+    # 0.25 = 0.5 * 2**-1: mantissa 0x400000 (words 0x4000, then its low byte 0x00), exponent 0xFF
+    assert len(i) == 1 and w[i[0] + 1] == 0x4000 and w[i[0] + 2] == 0x00FF
+    j = [k for k in range(len(w) - 1) if w[k] == (15 << 8) | 1]     # key 15, type int
+    assert len(j) == 1 and w[j[0] + 1] == 20
+    back = alpha_controller_for(sequence_from_words(w))
+    assert (back.alpha_min_sparse, back.sparse_blobs) == (0.25, 20)
+
+
+def test_on_frames_without_blobs_alpha_falls_to_the_sparse_floor():
+    # a constant frame: std 0, no blob, so every frame is sparse and unlocked
+    seq = _seq(alpha=2.0, alpha_min=0.75, alpha_min_sparse=0.25, sparse_blobs=20)
+    assert _alphas(seq, 10) == [max(2.0 - 0.25 * k, 0.25) for k in range(10)]
+
+
+def test_satellite_track_has_the_sparse_floor_and_the_others_not():
+    a = alpha_controller_for(load_default_sequence("satellite_track"))
+    assert (a.alpha_min_sparse, a.sparse_blobs) == (0.25, 20)
+    for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
+        assert alpha_controller_for(load_default_sequence(name)).sparse_blobs == 0

@@ -95,12 +95,17 @@ def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
 
 def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaController:
     """The alpha logic a sequence runs with: it starts from the threshold step's ``alpha`` and
-    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default);
-    ``settings`` (other :class:`AlphaController` fields) win over the sequence's floor."""
+    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default),
+    at its ``alpha_min_sparse`` on frames with fewer than ``sparse_blobs`` blobs when it sets
+    those; ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
     kw = {"alpha": sequence_alpha(sequence)}
     for st in sequence.steps:
-        if st.op == "threshold" and st.raw.get("alpha_min") is not None:
-            kw["alpha_min"] = float(st.raw["alpha_min"])
+        if st.op == "threshold":
+            if st.raw.get("alpha_min") is not None:
+                kw["alpha_min"] = float(st.raw["alpha_min"])
+            if st.raw.get("sparse_blobs") is not None:
+                kw["alpha_min_sparse"] = float(st.raw["alpha_min_sparse"])
+                kw["sparse_blobs"] = int(st.raw["sparse_blobs"])
             break
     kw.update({k: v for k, v in settings.items() if k != "alpha"})
     return AlphaController(**kw)

@@ -24,6 +24,8 @@ loadable from TOML::
     op = "threshold"
     alpha = 3.0             # 0 .. 7.99975 (Q4.12), where the onboard alpha logic starts
     alpha_min = 1.0         # optional, 0 .. alpha: the alpha logic's floor
+    alpha_min_sparse = 0.25 # optional, 0 .. alpha_min, with sparse_blobs: the floor while the
+    sparse_blobs = 20       #   frame has fewer blobs than sparse_blobs (1 .. 89)
     mode = "binarize"       # | "clip"
 
 The frequency-domain filter (the paper's slow path, :mod:`flightsw.ip.fftfilter`) is its own op, so
@@ -344,12 +346,20 @@ class ThresholdParams:
 
 
 def _validate_threshold(params, pre):
-    _fields(params, {"alpha", "mode", "alpha_min"})
+    _fields(params, {"alpha", "mode", "alpha_min", "alpha_min_sparse", "sparse_blobs"})
     if "alpha" not in params:
         raise FieldError("alpha", "missing (0 .. 7.99975)")
     alpha = _float_field(params, "alpha", None, _th.ALPHA_MIN, _th.ALPHA_MAX)
+    floor = min(alpha, 1.0)          # AlphaController's default floor
     if "alpha_min" in params:        # the alpha logic's floor for this sequence (AlphaController)
-        _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
+        floor = _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
+    sparse = [k for k in ("alpha_min_sparse", "sparse_blobs") if k in params]
+    if len(sparse) == 1:             # the floor for sparse frames: both fields or neither
+        other = ({"alpha_min_sparse", "sparse_blobs"} - set(sparse)).pop()
+        raise FieldError(other, f"missing (it comes with {sparse[0]})")
+    if sparse:
+        _float_field(params, "alpha_min_sparse", None, _th.ALPHA_MIN, floor)
+        _int_field(params, "sparse_blobs", None, 1, _th.NEAR_COUNT - 1)
     mode = _choice(params, "mode", "binarize", ("binarize", "clip"))
     h, w = pre.window_shape
     if h * w > 16384:

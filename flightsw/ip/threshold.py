@@ -45,11 +45,12 @@ from flightsw.budget import m1750_cycles
 
 __all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32", "threshold_words",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
-           "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k"]
+           "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k", "NEAR_COUNT"]
 
 ALPHA_MIN = 0.0
 ALPHA_MAX = 32767 / 4096          # Q4.12 word range (7.99975)
 BINARIZE, CLIP = 0, 1
+NEAR_COUNT = 90                   # blobs at which the alpha logic raises alpha (ASSUMED: "approaches 100")
 ISQRT_CYCLES = 16 * 6 + 4
 
 
@@ -271,7 +272,7 @@ def threshold_cycles(h, w):
 
 
 #: 1750A clocks of one alpha-logic update: 2 compares, 2 branches, one add and one store
-ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 2, "JC": 2, "A": 1, "ST": 1})
+ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 3, "JC": 3, "A": 1, "ST": 1})
 
 
 @njit(cache=True)
@@ -279,19 +280,25 @@ def alpha_next_k(q12, count, locked, ctl):
     """The alpha logic's next Q4.12 word (1750A integer code).
 
     ``q12``: alpha in force (Q4.12 word); ``count``: candidates detected this frame; ``locked``:
-    the TP's lock; ``ctl``: int64 [5] (:meth:`AlphaController.words`): near count, step up, step
-    down, alpha min, alpha max (Q4.12 words). Returns int.
+    the TP's lock; ``ctl``: int64 [7] (:meth:`AlphaController.words`): near count, step up, step
+    down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count. Returns int.
 
     Cases
     -----
     too-many : ``count >= near`` -> ``min(q12 + up, max)`` (wins over no lock).
     no-lock : fewer and not locked -> ``max(q12 - down, min)``.
+    no-lock-sparse : fewer than the sparse count and not locked -> ``max(q12 - down, sparse
+        floor)`` (a sparse count of 0, the default, never applies).
+    below-floor : not sparse, not locked and already below ``min`` (a sparse frame took it
+        there) -> ``q12`` unchanged (held, not pulled back up).
     locked : fewer and locked -> ``q12`` unchanged.
     """
     if count >= ctl[0]:
         return min(q12 + ctl[1], ctl[4])
     if not locked:
-        return max(q12 - ctl[2], ctl[3])
+        if count < ctl[6]:
+            return max(q12 - ctl[2], ctl[5])
+        return max(q12 - ctl[2], min(ctl[3], q12))
     return q12
 
 
@@ -307,7 +314,14 @@ class AlphaController:
     is assumed (the paper gives no floor); a sequence may set its own (threshold step
     ``alpha_min``, :func:`flightsw.ip.processor.alpha_controller_for`).
 
-    Each update charges the 1750A ``ip1750`` for 2 compares, 2 branches, one add and one store.
+    ``alpha_min_sparse`` / ``sparse_blobs``: without lock, on a frame with fewer than
+    ``sparse_blobs`` blobs, alpha may fall below ``alpha_min`` as far as ``alpha_min_sparse`` (and
+    stays there until the count rule raises it or a sparse frame lowers it further). Both are
+    ASSUMED (the paper gives no floor): a bright star in the window lifts ``mean + alpha * std``
+    over a faint object while few blobs pass, where a window whose std is the noise's passes many.
+    The default ``sparse_blobs = 0`` never applies.
+
+    Each update charges the 1750A ``ip1750`` for 3 compares, 3 branches, one add and one store.
     """
 
     alpha: float = 3.0
@@ -315,7 +329,9 @@ class AlphaController:
     alpha_max: float = 7.0
     step_up: float = 0.5
     step_down: float = 0.25
-    near_count: int = 90
+    near_count: int = NEAR_COUNT
+    alpha_min_sparse: float | None = None
+    sparse_blobs: int = 0
     q12: int = field(init=False)
 
     def __post_init__(self):
@@ -329,6 +345,14 @@ class AlphaController:
             raise ValueError("step_up and step_down must be > 0")
         if not isinstance(self.near_count, (int, np.integer)) or not 1 <= self.near_count <= 100:
             raise ValueError(f"near_count={self.near_count!r} must be an int in 1..100")
+        sparse = self.alpha_min if self.alpha_min_sparse is None else self.alpha_min_sparse
+        self._sparse = alpha_to_q12(sparse)
+        if self._sparse > self._min:
+            raise ValueError(f"alpha_min_sparse={sparse} > alpha_min={self.alpha_min}")
+        if not isinstance(self.sparse_blobs, (int, np.integer)) or \
+                not 0 <= self.sparse_blobs < self.near_count:
+            raise ValueError(f"sparse_blobs={self.sparse_blobs!r} must be an int in "
+                             f"0..{self.near_count - 1}")
         q = alpha_to_q12(self.alpha)
         if not self._min <= q <= self._max:
             raise ValueError(f"alpha={self.alpha} outside alpha_min..alpha_max")
@@ -340,9 +364,10 @@ class AlphaController:
         return self.q12 / 4096
 
     def words(self) -> np.ndarray:
-        """The logic's constants as :func:`alpha_next_k` takes them: int64 [5] near count, step
-        up, step down, alpha min, alpha max (Q4.12 words)."""
-        return np.array([self.near_count, self._up, self._down, self._min, self._max], np.int64)
+        """The logic's constants as :func:`alpha_next_k` takes them: int64 [7] near count, step
+        up, step down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count."""
+        return np.array([self.near_count, self._up, self._down, self._min, self._max,
+                         self._sparse, self.sparse_blobs], np.int64)
 
     def set_q12(self, q12: int) -> int:
         """Put the Q4.12 word ``q12`` in force (the compiled step's update); returns it."""
