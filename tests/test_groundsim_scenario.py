@@ -21,7 +21,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval2_faint_dim",
             "satellite_eval2_faint_offset", "satellite_eval2_mid_far", "satellite_eval2_bright_steep",
             "satellite_eval3_faint_trailing", "satellite_eval3_mid_offset_ahead",
-            "satellite_eval3_bright_low_fast"]
+            "satellite_eval3_bright_low_fast", "satellite_eval4_faint_leading",
+            "satellite_eval4_faint_offset_field", "satellite_eval4_mid_offset_trailing",
+            "satellite_eval4_bright_high"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
