@@ -1,7 +1,9 @@
-"""A sequence's own alpha floor (threshold step ``alpha_min``): validated, uplinked and used by the
-alpha logic. Oracles: the closed form of the logic without lock or candidates (alpha_k = max(a0 -
-0.25 k, floor)) on constant frames, which no threshold passes, and the 1750A float word of 0.75
-written by hand (mantissa 0.75 = 0x600000, exponent 0)."""
+"""A sequence's own alpha floor (threshold step ``alpha_min``) and its floor for sparse frames
+(``alpha_min_sparse`` under ``sparse_blobs``): validated, uplinked and used by the alpha logic.
+Oracles: the closed form of the logic without lock or candidates (alpha_k = max(a0 - 0.25 k,
+floor)) on constant frames, which no threshold passes, the logic's next word worked out by hand
+from its rule, and the 1750A float words of 0.75 and 0.25 written by hand (mantissa 0.75 =
+0x600000, exponent 0; 0.25 = 0.5 * 2**-1)."""
 import numpy as np
 import pytest
 
@@ -73,6 +75,8 @@ def _ctl(sparse=0.25, few=20):
     (1024, 95, False, 3072),       # too many blobs wins: 0.25 + 0.5
     (1024, 5, True, 1024),         # locked: unchanged
 ])
+@pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "too-many", "no-lock", "no-lock-sparse",
+                   "below-floor", "locked")
 def test_alpha_logic_with_a_sparse_floor_by_hand(q, count, locked, want):
     from flightsw.ip.threshold import alpha_next_k
     assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl().words()) == want

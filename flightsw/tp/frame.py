@@ -34,8 +34,8 @@ from numba import njit
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
-from flightsw.tp.gates import (drop_all_gates, gate_half_width, gate_params, propagate_gates,
-                               smooth_gates)
+from flightsw.tp.gates import (centre_object_gate, drop_all_gates, gate_half_width, gate_params,
+                               propagate_gates, smooth_gates)
 from flightsw.tp.geometry import observations
 from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG,
                                 O_LOCKED, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_SP, O_SV,
@@ -90,6 +90,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
             drop_all_gates(S, G, V)
         gate_params(C, IMG, V, GP, cyc)
         propagate_gates(S, G, V, GP, dR, cyc)
+        centre_object_gate(S, G, V, E, RM, cyc)
         if evidence(V):
             associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)
