@@ -23,7 +23,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval3_faint_trailing", "satellite_eval3_mid_offset_ahead",
             "satellite_eval3_bright_low_fast", "satellite_eval4_faint_leading",
             "satellite_eval4_faint_offset_field", "satellite_eval4_mid_offset_trailing",
-            "satellite_eval4_bright_high"]
+            "satellite_eval4_bright_high", "satellite_eval5_faint_high_ahead",
+            "satellite_eval5_faint_near_behind", "satellite_eval5_mid_offset_low",
+            "satellite_eval5_bright_mid_range"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
