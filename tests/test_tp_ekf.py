@@ -386,7 +386,8 @@ def test_nominal_line_of_sight_change_over_a_frame():
     assert abs(dn[0]) > 1e-3                                    # a real change (7 mrad)
 
 
-@pytest.mark.cases("flightsw.tp.trajectory.predict_ekf", "not-running", "first", "motion")
+@pytest.mark.cases("flightsw.tp.trajectory.predict_ekf", "not-running", "first", "motion",
+                   "behind")
 @pytest.mark.cases("flightsw.tp.trajectory.start_ekf", "typical")
 @pytest.mark.cases("flightsw.tp.trajectory.ekf_running", "typical")
 def test_ekf_start_and_prediction_of_its_line_of_sight():
@@ -408,13 +409,21 @@ def test_ekf_start_and_prediction_of_its_line_of_sight():
     V[L.V_T], V[L.V_EKF_ON] = _w48(2.5), 0                      # next frame; S: no previous
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
     assert V[L.V_EKF_ON] == 1 and V[L.V_DE] == 0 and decode48(int(E[E_T])) == 2.5
+    x1 = rk4(np.concatenate([RT, VT]), 0.5)
+    etan = lambda: [decode32(int(v)) for v in V[L.V_ETAN:L.V_ETAN + 2]]    # noqa: E731
+    assert V[L.V_ETAN_OK] == 1 and etan() == pytest.approx(_tan(x1[:3]), abs=3e-7)
     S[L.S_HAVE_PREV] = 1
     V[L.V_T] = _w48(3.0)
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
-    x1 = rk4(np.concatenate([RT, VT]), 0.5)
     x2 = rk4(x1, 0.5)
     de = [decode32(int(v)) for v in V[L.V_DE:L.V_DE + 2]]
     assert de == pytest.approx(_tan(x2[:3]) - _tan(x1[:3]), abs=3e-7) and abs(de[0]) > 1e-3
+    assert V[L.V_ETAN_OK] == 1 and etan() == pytest.approx(_tan(x2[:3]), abs=3e-7)
+    # the body turned half round about z: the line of sight is behind the tangent plane
+    V[L.V_T], V[L.V_ETAN_OK], V[L.V_ETAN], V[L.V_ETAN + 1] = _w48(3.5), 0, 0, 0
+    M1 = encode32(-1.0, rounding="nearest")
+    predict_ekf(C, D, K, S, E, V, wk, np.array([M1, 0, 0, 0, M1, 0, 0, 0, ONE32], np.int64), cyc)
+    assert V[L.V_ETAN_OK] == 0 and V[L.V_DE] == 0 and V[L.V_ETAN] == 0
 
 
 def _update_case(dx, dy, nrej=0, held=False):

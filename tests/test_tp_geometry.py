@@ -113,10 +113,13 @@ def test_los_tangent_coordinates_and_their_change():
     assert ok and (decode32(a), decode32(b)) == pytest.approx((0.01, -0.02), abs=2e-7)
     behind = [w(x) for x in rm @ np.array([-1.0, 0.0, 0.0])]
     assert los_tan(RM, *behind)[:3] == (0, 0, False)
-    da, db, f = los_delta(RM, *eci(0.013, -0.021), *eci(0.01, -0.02))
+    da, db, an, bn, okn, f = los_delta(RM, *eci(0.013, -0.021), *eci(0.01, -0.02))
     assert (decode32(da), decode32(db)) == pytest.approx((3e-3, -1e-3), abs=2e-7)
+    assert okn and (an, bn) == los_tan(RM, *eci(0.013, -0.021))[:2]
     assert los_delta(RM, *eci(0.013, -0.021), *behind)[:2] == (0, 0)
+    assert los_delta(RM, *eci(0.013, -0.021), *behind)[4]      # l itself is in front
     assert los_delta(RM, *behind, *eci(0.01, -0.02))[:2] == (0, 0)
+    assert not los_delta(RM, *behind, *eci(0.01, -0.02))[4]
 
 
 def _obs_stage(img_rows, rows, cols, evidence=1):

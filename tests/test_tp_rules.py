@@ -15,7 +15,6 @@ from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, 
 from flightsw.tp import layout as L
 from flightsw.tp.association import (CYC_PAIR_DIST, CYC_PAIR_TEST, associate, gate_mask,
                                      in_gate_pairs, observation_columns, sort_pairs)
-from flightsw.tp.ekf import E_LOS, E_WORDS
 from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
                                any_gate_alive, centre_object_gate, drop_all_gates,
                                gate_half_width, gate_params, kill_pair, propagate_gates,
@@ -422,47 +421,37 @@ def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_
 
 
 def _ekf_case():
-    """A verified pair 1 (gates 2, 3 alive at (0.01, 0.02)), the EKF running, its line of sight
-    ``l`` (ECI) and the attitude ``R`` (body -> ECI, 30 deg about z then 10 deg about x)."""
+    """A verified pair 1 (gates 2, 3 alive at (0.01, 0.02)) and the EKF's line of sight this frame
+    at (-0.004, 0.003) in body tangent coordinates (``V_ETAN``, as predict_ekf leaves it)."""
     C, S, G, V, GP, cyc = _state()
     S[L.S_DEC] = 1
     for row in (2, 3):
         G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B] = 1, w(0.01), w(0.02)
-    V[L.V_EKF_ON] = 1
-    c, s, c2, s2 = np.cos(np.pi / 6), np.sin(np.pi / 6), np.cos(np.pi / 18), np.sin(np.pi / 18)
-    R = np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]) @ np.array([[1, 0, 0], [0, c2, -s2],
-                                                                 [0, s2, c2]])
-    l = R @ np.array([1.0, -0.004, 0.003])                   # 4 and 3 mrad off the body +X
-    l /= np.linalg.norm(l)
-    E = np.zeros(E_WORDS, np.int64)
-    E[E_LOS:E_LOS + 3] = [w(x) for x in l]
-    RM = np.array([w(x) for x in R.ravel()], np.int64)
-    return S, G, V, E, RM, cyc, R, l
+    V[L.V_EKF_ON], V[L.V_ETAN_OK] = 1, 1
+    V[L.V_ETAN], V[L.V_ETAN + 1] = w(-0.004), w(0.003)
+    return S, G, V, cyc
 
 
 @pytest.mark.cases("flightsw.tp.gates.centre_object_gate", "centred", "otherwise")
 def test_the_verified_object_gate_is_put_on_the_ekf_line_of_sight():
-    S, G, V, E, RM, cyc, R, l = _ekf_case()
+    S, G, V, cyc = _ekf_case()
     before = G.copy()
-    centre_object_gate(S, G, V, E, RM, cyc)
-    b = R.T @ l                                              # the closed form, float64
-    got = (decode32(G[3, L.G_A]), decode32(G[3, L.G_B]))
-    # 24-bit mantissas: the O(1) products of R^T l that cancel to a few mrad keep ~2**-23 abs
-    assert got == pytest.approx((b[1] / b[0], b[2] / b[0]), abs=1.5e-7)
-    assert got == pytest.approx((-0.004, 0.003), abs=1.5e-7)
-    assert (G[3, L.G_IA], G[3, L.G_IB]) == (tan_int(G[3, L.G_A]), tan_int(G[3, L.G_B]))
+    centre_object_gate(S, G, V, cyc)
+    assert (G[3, L.G_A], G[3, L.G_B]) == (w(-0.004), w(0.003))
+    # the integer copies: FIX (toward zero) of 2**16 times the words, -262.1 and 196.6
+    assert (G[3, L.G_IA], G[3, L.G_IB]) == (-262, 196)
     assert np.array_equal(G[2], before[2])                  # the star gate is not moved
     assert cyc[L.ST_GATES] > 0 and V[L.V_FLAGS] == 0
-    for undo in ("no-decision", "no-ekf", "dead-gate"):
-        S, G, V, E, RM, cyc, R, l = _ekf_case()
+    for undo in ("no-decision", "no-line-of-sight", "dead-gate"):
+        S, G, V, cyc = _ekf_case()
         if undo == "no-decision":
             S[L.S_DEC] = -1
-        elif undo == "no-ekf":
-            V[L.V_EKF_ON] = 0
+        elif undo == "no-line-of-sight":
+            V[L.V_ETAN_OK] = 0
         else:
             G[3, L.G_ALIVE] = 0
         before = G.copy()
-        centre_object_gate(S, G, V, E, RM, cyc)
+        centre_object_gate(S, G, V, cyc)
         assert np.array_equal(G, before) and cyc[L.ST_GATES] == 0, undo
 
 

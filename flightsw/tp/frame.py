@@ -90,7 +90,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
             drop_all_gates(S, G, V)
         gate_params(C, IMG, V, GP, cyc)
         propagate_gates(S, G, V, GP, dR, cyc)
-        centre_object_gate(S, G, V, E, RM, cyc)
+        centre_object_gate(S, G, V, cyc)
         if evidence(V):
             associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)

@@ -17,7 +17,8 @@ squared differences or residuals between the observation and the gate center are
   nominal's) or, for the verified object with the EKF running, ``V[V_DE]``
   (:mod:`flightsw.tp.trajectory`).
 * The verified object's gate, once the EKF runs, is put on the EKF's predicted line of sight before
-  the association (:func:`centre_object_gate`). ASSUMED: the paper does not say how the verified
+  the association (:func:`centre_object_gate`; its tangent coordinates come from
+  :func:`flightsw.tp.trajectory.predict_ekf`, which forms them for ``V[V_DE]`` anyway). ASSUMED: the paper does not say how the verified
   object's gate moves once the EKF runs. Left to its own smoothing it follows whatever falls in
   it: a star crossing a faint target that the IP missed for a frame or two took the gate with it,
   the EKF refused the star's centroids (one axis rejected a frame, so its covariance was never
@@ -40,13 +41,12 @@ from numba import njit
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
 from flightsw.messages import TC_OBJECT_LOST
 from flightsw.tp.alphabeta import AB_UPDATE_MIX, ab_update
-from flightsw.tp.f1750 import MV3_MIX, cycles, mix
-from flightsw.tp.ekf import E_LOS
-from flightsw.tp.geometry import IMG_SC, IMG_SR, los_tan, rot_tan, tan_int
+from flightsw.tp.f1750 import cycles, mix
+from flightsw.tp.geometry import IMG_SC, IMG_SR, rot_tan, tan_int
 from flightsw.tp.layout import (
     C_ALPHA, C_BETA, C_GATE_PX, C_THR_OBJ, C_THR_STAR, G_A, G_ALIVE, G_B, G_DVA, G_DVB, G_HITS,
     G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_VA, G_VB, NG, NPAIR, OBS_A, OBS_B, S_DEC, S_NLOST,
-    ST_GATES, V_DE, V_DN, V_DT, V_EKF_ON, V_FLAGS, V_IMG, V_STATUS,
+    ST_GATES, V_DE, V_DN, V_DT, V_EKF_ON, V_ETAN, V_ETAN_OK, V_FLAGS, V_IMG, V_STATUS,
 )
 
 _ONE32 = 0x40000001
@@ -220,33 +220,31 @@ def propagate_gates(S, G, V, GP, dR, cyc):
     V[V_FLAGS] |= fl
 
 
-LOS_TAN_MIX = mix(MV3_MIX, {"FD": 1, "FM": 2, "L": 3, "ST": 4})
-CYC_CENTRE = cycles(LOS_TAN_MIX)
+CYC_CENTRE = cycles({"L": 3, "ST": 4})
 
 
 @njit(cache=True)
-def centre_object_gate(S, G, V, E, RM, cyc):
-    """The verified object's gate put on the running EKF's predicted line of sight.
+def centre_object_gate(S, G, V, cyc):
+    """The verified object's gate put on the running EKF's predicted line of sight, whose body
+    tangent coordinates :func:`flightsw.tp.trajectory.predict_ekf` left in ``V[V_ETAN]``.
 
     Cases
     -----
-    centred : a verified object, its gate alive, the EKF running this frame -> ``G_A``, ``G_B``
-        (and the integer coordinates) = the body tangent coordinates of ``E[E_LOS]``.
+    centred : a verified object, its gate alive, ``V_ETAN_OK`` -> ``G_A``, ``G_B`` (and the integer
+        coordinates) = ``V[V_ETAN]``.
     otherwise : nothing changed.
     """
-    if S[S_DEC] < 0 or V[V_EKF_ON] == 0:
+    if S[S_DEC] < 0 or V[V_ETAN_OK] == 0:
         return
     row = 2 * S[S_DEC] + 1
     if G[row, G_ALIVE] == 0:
         return
-    a, b, ok, fl = los_tan(RM, E[E_LOS], E[E_LOS + 1], E[E_LOS + 2])
-    if ok:
-        G[row, G_A] = a
-        G[row, G_B] = b
-        G[row, G_IA] = tan_int(a)
-        G[row, G_IB] = tan_int(b)
+    a, b = V[V_ETAN], V[V_ETAN + 1]
+    G[row, G_A] = a
+    G[row, G_B] = b
+    G[row, G_IA] = tan_int(a)
+    G[row, G_IB] = tan_int(b)
     cyc[ST_GATES] += CYC_CENTRE
-    V[V_FLAGS] |= fl
 
 
 @njit(cache=True)

@@ -336,21 +336,21 @@ def los_tan(RM, l0, l1, l2):
 @njit(cache=True, inline="always")
 def los_delta(RM, l0, l1, l2, p0, p1, p2):
     """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
-    both seen in the current attitude RM -> (da, db, flags); (0, 0) if either is behind the
-    tangent plane.
+    both seen in the current attitude RM -> (da, db, an, bn, okn, flags), ``(an, bn)`` the tangent
+    coordinates of l (``okn``: l in front); (da, db) = (0, 0) if either is behind the tangent plane.
 
     Cases
     -----
-    typical : ``T(RM^T l) - T(RM^T p)`` per coordinate.
+    typical : ``T(RM^T l) - T(RM^T p)`` per coordinate, ``T(RM^T l)`` with it.
     behind : either direction behind the body's tangent plane -> (0, 0).
     """
     an, bn, okn, f = los_tan(RM, l0, l1, l2)
     ap, bp, okp, g = los_tan(RM, p0, p1, p2); f |= g
     if not (okn and okp):
-        return 0, 0, f
+        return 0, 0, an, bn, okn, f
     da, g = fs32(an, ap); f |= g
     db, g = fs32(bn, bp); f |= g
-    return da, db, f
+    return da, db, an, bn, okn, f
 
 
 @njit(cache=True, inline="always")

@@ -67,7 +67,8 @@ V_NUSE, V_OBJ, V_LOCKED, V_EKF_ON = 26, 27, 28, 29
 V_DN, V_DE = 30, 32                  # a priori object motion: nominal, EKF (da, db)
 V_STATUS, V_FLAGS = 34, 35
 V_ERHO, V_ELOS = 36, 37              # E_LOS's range (32-bit); 1: E_LOS, V_ERHO are the state's
-V_WORDS = 40
+V_ETAN, V_ETAN_OK = 38, 40           # E_LOS's body tangent coordinates (a, b) this frame; 1: held
+V_WORDS = 41
 
 # ---- W: scratch words of one frame (views) -------------------------------------------------------
 W_WK, W_RM, W_DR, W_M, W_GP, W_TAKEN = 0, 80, 89, 98, 107, 115
