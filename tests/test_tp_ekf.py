@@ -375,6 +375,8 @@ def test_nominal_line_of_sight_change_over_a_frame():
     N[L.N_X:L.N_X + 6] = [_w48(x) for x in (*RT, *VT)]
     propagate_nominal(C, D, K, S, N, V, RM, cyc)               # t = 0: no step, no change
     assert V[L.V_DN] == 0 and V[L.V_DN + 1] == 0 and S[L.S_NL_OK] == 1
+    first = [decode32(int(v)) for v in V[L.V_NTAN:L.V_NTAN + 2]]
+    assert V[L.V_NTAN_OK] == 1 and first == pytest.approx(_tan(RT), abs=3e-7)
     S[L.S_HAVE_PREV] = 1
     V[L.V_T] = _w48(0.5)
     propagate_nominal(C, D, K, S, N, V, RM, cyc)
@@ -384,6 +386,8 @@ def test_nominal_line_of_sight_change_over_a_frame():
     dn = [decode32(int(v)) for v in V[L.V_DN:L.V_DN + 2]]
     assert dn == pytest.approx(_tan(x[:3]) - _tan(RT), abs=3e-7)
     assert abs(dn[0]) > 1e-3                                    # a real change (7 mrad)
+    ntan = [decode32(int(v)) for v in V[L.V_NTAN:L.V_NTAN + 2]]
+    assert V[L.V_NTAN_OK] == 1 and ntan == pytest.approx(_tan(x[:3]), abs=3e-7)
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.predict_ekf", "not-running", "first", "motion",

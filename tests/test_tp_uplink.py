@@ -25,6 +25,9 @@ def test_words_round_trip_and_layout():
     assert w[-1] == crc16_ccitt([int(x) for x in w[:-1]])
     assert decode_uplink(w) == {"gate_px": 3.0, "n_empty": 5, "residual_threshold_px2": 12.5}
     assert decode_uplink(encode_uplink(n_lost=-2)) == {"n_lost": -2}
+    w = encode_uplink(n_apriori=60)                                    # rule 5's count: code 19
+    assert w[3] == 19 and (int(w[4]) << 16 | int(w[5])) == 60
+    assert decode_uplink(w) == {"n_apriori": 60}
 
 
 @pytest.mark.parametrize("mutate, msg", [

@@ -43,8 +43,8 @@ from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_
                                 message_header, n_used, opportunity_mode, work_views)
 from flightsw.tp.memory import float_views, int_views, unowned
 from flightsw.tp.opportunity import track_opportunity
-from flightsw.tp.rules import (apply_rules, object_observed, reinitialise, report_object,
-                               verify_object)
+from flightsw.tp.rules import (apply_rules, apriori_rule, object_observed, reinitialise,
+                               report_object, verify_object)
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
 
@@ -95,6 +95,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
             associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)
             apply_rules(C, S, G, V, GP, cyc)
+            apriori_rule(C, S, G, V, GP, cyc)
         if verify_object(C, S, G, V) and not ekf_running(E):
             start_ekf(K, N, E, V)
         reinitialise(S, G, OBS, V, cyc)

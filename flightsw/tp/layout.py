@@ -57,6 +57,7 @@ C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_MAX_RATE2, C_QTOL = 13, 
 C_MAX_SKEW, C_EKF_MAX_REJ, C_RMIN2, C_RMAX2, C_VMAX2, C_GAP = 19, 20, 21, 22, 23, 24
 C_CYC_RK4, C_CYC_EKF_STEP = 25, 26          # clocks of one nominal RK4 step / one EKF predict step
 C_OPP_STARTUP = 27          # last observation count with growing-memory opportunity gains (0: off)
+C_N_APRIORI = 28            # rule 5's successive frames with both gates populated (0: off)
 C_WORDS = 32
 
 # ---- V: this frame's working values --------------------------------------------------------------
@@ -68,7 +69,8 @@ V_DN, V_DE = 30, 32                  # a priori object motion: nominal, EKF (da,
 V_STATUS, V_FLAGS = 34, 35
 V_ERHO, V_ELOS = 36, 37              # E_LOS's range (32-bit); 1: E_LOS, V_ERHO are the state's
 V_ETAN, V_ETAN_OK = 38, 40           # E_LOS's body tangent coordinates (a, b) this frame; 1: held
-V_WORDS = 41
+V_NTAN, V_NTAN_OK = 41, 43           # the nominal's line of sight, the same
+V_WORDS = 44
 
 # ---- W: scratch words of one frame (views) -------------------------------------------------------
 W_WK, W_RM, W_DR, W_M, W_GP, W_TAKEN = 0, 80, 89, 98, 107, 115

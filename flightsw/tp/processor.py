@@ -168,6 +168,7 @@ class TrackProcessor:
         C[F.C_N_EMPTY] = cfg.n_empty
         C[F.C_N_EMPTY_OBJ] = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
         C[F.C_N_LOST] = cfg.n_lost
+        C[F.C_N_APRIORI] = cfg.n_apriori
         C[F.C_FRAME_DT] = e48(cfg.frame_dt)
         C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
         C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)
@@ -382,9 +383,9 @@ class TrackProcessor:
         (46,) accumulated squared residuals (rad^2), ``gate_missed`` (46,) successive empty frames,
         ``gate_obs`` (46,) candidate used this frame (-1), ``gate_seed`` (46,) candidate index the
         pair was placed on, ``gate_pixel`` (46, 2) gate centre in pixels of the last imager;
-        ``object_pair`` (-1 none), ``decided_frame``, ``decision_rule`` (1-4, 0 none), counters
+        ``object_pair`` (-1 none), ``decided_frame``, ``decision_rule`` (1-5, 0 none), counters
         ``n_decisions``, ``n_reinit``, ``n_spurious``, ``n_lost``, ``rule_counts`` (4,) (conclusions by
-        rules 1-4 since reset), ``n_undecided_deleted`` (pairs deleted without a conclusion); ``ekf_running``, ``ekf_x`` (6,),
+        rules 1-4 since reset; a rule-5 decision counts in ``n_decisions`` alone), ``n_undecided_deleted`` (pairs deleted without a conclusion); ``ekf_running``, ``ekf_x`` (6,),
         ``ekf_p_diag`` (6,), ``ekf_t``; ``opp_alive``, ``opp_pos`` (2,), ``opp_vel`` (2,),
         ``opp_missed``; ``status``, ``mode``, ``imager``.
 

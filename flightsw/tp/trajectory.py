@@ -27,7 +27,7 @@ from flightsw.tp.geometry import (CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_d
 from flightsw.tp.layout import (
     C_CYC_EKF_STEP, C_CYC_RK4, C_EKF_MAX_REJ, C_SIG_PX, N_T, N_X, S_HAVE_PREV, S_NL, S_NL_OK,
     ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_ELOS, V_ERHO, V_ETAN, V_ETAN_OK,
-    V_FLAGS, V_IMG, V_OBJ, V_RS, V_STATUS, V_T,
+    V_FLAGS, V_IMG, V_NTAN, V_NTAN_OK, V_OBJ, V_RS, V_STATUS, V_T,
 )
 
 #: arithmetic-exception flags that mark the command (the EKF's covariance guard is not one)
@@ -51,15 +51,18 @@ def ekf_running(E):
 @njit(cache=True)
 def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     """The nominal state to this frame's time (RK4, 48-bit) and the change of its line of sight
-    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame).
+    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame); the line of
+    sight's body tangent coordinates -> ``V[V_NTAN]`` (``V_NTAN_OK = 1``; not when it is behind).
 
     ``N`` the nominal (int64 [N_WORDS], 48-bit state and time), ``RM`` body -> ECI (packed 32-bit
     [9]); the line of sight is kept in ``S[S_NL]`` for the next frame.
 
     Cases
     -----
-    first-frame : no previous line of sight -> ``V[V_DN]`` left 0; this one kept.
-    motion : a previous line of sight -> ``V[V_DN] = T(RM^T l) - T(RM^T l_prev)``.
+    first-frame : no previous line of sight -> ``V[V_DN]`` left 0; this one kept, its tangent
+        coordinates in ``V[V_NTAN]``.
+    motion : a previous line of sight -> ``V[V_DN] = T(RM^T l) - T(RM^T l_prev)``, ``V[V_NTAN] =
+        T(RM^T l)``.
     propagated : the nominal state integrated to this frame's time, ``N[N_T]`` = that time.
     """
     fl = 0
@@ -74,9 +77,13 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     d2, g = fs48(N[N_X + 2], V[V_RS + 2]); fl |= g
     l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
     if S[S_NL_OK] != 0 and S[S_HAVE_PREV] != 0:
-        V[V_DN], V[V_DN + 1], _, _, _, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1],
-                                                    S[S_NL + 2])
-        fl |= g
+        V[V_DN], V[V_DN + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1],
+                                                      S[S_NL + 2])
+    else:                            # (CYC_LOS_DELTA, charged below, holds two of these)
+        a, b, ok, g = los_tan(RM, l0, l1, l2)
+    fl |= g
+    if ok:                           # where the nominal puts the object (apriori_rule)
+        V[V_NTAN], V[V_NTAN + 1], V[V_NTAN_OK] = a, b, 1
     S[S_NL], S[S_NL + 1], S[S_NL + 2] = l0, l1, l2
     S[S_NL_OK] = 1
     cyc[ST_NOM] += CYC_LOS_DELTA
