@@ -25,7 +25,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval4_faint_offset_field", "satellite_eval4_mid_offset_trailing",
             "satellite_eval4_bright_high", "satellite_eval5_faint_high_ahead",
             "satellite_eval5_faint_near_behind", "satellite_eval5_mid_offset_low",
-            "satellite_eval5_bright_mid_range"]
+            "satellite_eval5_bright_mid_range", "satellite_eval6_slow_sky",
+            "satellite_eval6_faint_wide", "satellite_eval6_mid_offset_far",
+            "satellite_eval6_bright_fast"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
