@@ -422,51 +422,63 @@ def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_
 
 
 def _apriori_case(m=40):
-    """Pairs 0 and 2 alive (pair 0's object gate at (0.010, 0.020) rad, pair 2's at (0.030, -0.010)),
-    every gate populated 50 successive frames; the nominal at (0.0102, 0.0199); rule 5 after ``m``
-    frames; gate half-width 66 LSB (~1 mrad)."""
+    """Pairs 0 and 2 alive (pair 0's object gate at (0.010, 0.020) rad fed by observation 0, pair
+    2's at (0.030, -0.010) fed by observation 1), every gate populated 50 successive frames; the
+    nominal at (0.0102, 0.0199); rule 5 after ``m`` frames; gate half-width 66 LSB (~1 mrad)."""
     C, S, G, V, GP, cyc = _state()
     C[L.C_N_APRIORI] = m
-    for p, (a, b) in ((0, (0.010, 0.020)), (2, (0.030, -0.010))):
+    pts = [(0.010, 0.020), (0.030, -0.010)]
+    for j, (p, (a, b)) in enumerate(zip((0, 2), pts)):
         for row in (2 * p, 2 * p + 1):
-            G[row, L.G_ALIVE], G[row, L.G_RUN] = 1, 50
+            G[row, L.G_ALIVE], G[row, L.G_RUN], G[row, L.G_OBS] = 1, 50, j
             G[row, L.G_A], G[row, L.G_B] = w(a), w(b)
             G[row, L.G_IA], G[row, L.G_IB] = tan_int(w(a)), tan_int(w(b))
+    OBS = _obs(pts)
+    V[L.V_NUSE] = 2
     V[L.V_NTAN], V[L.V_NTAN + 1], V[L.V_NTAN_OK] = w(0.0102), w(0.0199), 1
     V[L.V_FC] = 77
-    return C, S, G, V, GP, cyc
+    return C, S, G, OBS, V, GP, cyc
 
 
-@pytest.mark.cases("flightsw.tp.rules.apriori_rule", "decided", "ambiguous", "none")
-def test_rule5_takes_the_one_long_undecided_pair_where_the_nominal_puts_the_object():
-    C, S, G, V, GP, cyc = _apriori_case()
-    apriori_rule(C, S, G, V, GP, cyc)
+@pytest.mark.cases("flightsw.tp.rules.apriori_rule", "decided", "star-by-position", "none")
+def test_rule5_takes_the_long_undecided_pair_nearest_the_nominal_and_drops_the_others():
+    C, S, G, OBS, V, GP, cyc = _apriori_case()
+    apriori_rule(C, S, G, OBS, V, GP, cyc)
     assert S[L.S_DEC] == 0 and S[L.S_RULE] == 5 and S[L.S_DEC_FRAME] == 77 and S[L.S_NDEC] == 1
     assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1          # its star gate deleted
-    assert G[4, L.G_ALIVE] == G[5, L.G_ALIVE] == 1                 # the other pair kept
+    assert G[4, L.G_ALIVE] == G[5, L.G_ALIVE] == 0                 # the other: a star by position
+    assert S[L.S_NSTALE] == 1
     assert V[L.V_STATUS] & TC_NEW_DECISION and cyc[L.ST_GATES] > 0
-    # ambiguous: the other pair's object gate also within the gate (66 LSB ~ 1 mrad) of it
-    C, S, G, V, GP, cyc = _apriori_case()
-    G[5, L.G_IA], G[5, L.G_IB] = G[1, L.G_IA] + 60, G[1, L.G_IB] - 60
-    apriori_rule(C, S, G, V, GP, cyc)
-    assert S[L.S_DEC] == -1 and not V[L.V_STATUS] & TC_NEW_DECISION
-    # none: one gate populated one frame too few; the nominal 1.2 mrad away; rule off; an
-    # object held; no nominal line of sight
-    for undo in ("short-run", "far", "off", "held", "no-nominal"):
-        C, S, G, V, GP, cyc = _apriori_case()
-        if undo == "short-run":
-            G[0, L.G_RUN] = 39
-        elif undo == "far":
-            V[L.V_NTAN] = w(0.0112)
-        elif undo == "off":
+    # star-by-position: an observation no gate holds lies nearer the nominal (0.0101, 0.0199)
+    C, S, G, OBS, V, GP, cyc = _apriori_case()
+    OBS[:3] = _obs([(0.010, 0.020), (0.030, -0.010), (0.0101, 0.0199)])[:3]
+    V[L.V_NUSE] = 3
+    apriori_rule(C, S, G, OBS, V, GP, cyc)
+    assert S[L.S_DEC] == -1 and S[L.S_NSTALE] == 2 and not G[:6, L.G_ALIVE].any()
+    assert not V[L.V_STATUS] & TC_NEW_DECISION
+    # the nearest, but 1.2 mrad from the nominal (beyond the 66-LSB gate): a star as well
+    C, S, G, OBS, V, GP, cyc = _apriori_case()
+    V[L.V_NTAN] = w(0.0112)
+    apriori_rule(C, S, G, OBS, V, GP, cyc)
+    assert S[L.S_DEC] == -1 and S[L.S_NSTALE] == 2
+    # none: one gate populated one frame too few (that pair is left alone); rule off; an object
+    # held; no nominal line of sight
+    C, S, G, OBS, V, GP, cyc = _apriori_case()
+    G[0, L.G_RUN] = 39
+    apriori_rule(C, S, G, OBS, V, GP, cyc)
+    assert S[L.S_DEC] == -1 and G[0, L.G_ALIVE] == G[1, L.G_ALIVE] == 1 and S[L.S_NSTALE] == 1
+    for undo in ("off", "held", "no-nominal"):
+        C, S, G, OBS, V, GP, cyc = _apriori_case()
+        if undo == "off":
             C[L.C_N_APRIORI] = 0
         elif undo == "held":
             S[L.S_DEC] = 2
             G[4, L.G_ALIVE] = 0
         else:
             V[L.V_NTAN_OK] = 0
-        apriori_rule(C, S, G, V, GP, cyc)
-        assert S[L.S_RULE] == 0 and S[L.S_NDEC] == 0 and G[0, L.G_ALIVE] == 1, undo
+        before = G.copy()
+        apriori_rule(C, S, G, OBS, V, GP, cyc)
+        assert np.array_equal(G, before) and S[L.S_RULE] == 0 and S[L.S_NSTALE] == 0, undo
         assert S[L.S_DEC] == (2 if undo == "held" else -1), undo
 
 

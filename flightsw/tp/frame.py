@@ -95,7 +95,7 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
             associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)
             apply_rules(C, S, G, V, GP, cyc)
-            apriori_rule(C, S, G, V, GP, cyc)
+            apriori_rule(C, S, G, OBS, V, GP, cyc)
         if verify_object(C, S, G, V) and not ekf_running(E):
             start_ekf(K, N, E, V)
         reinitialise(S, G, OBS, V, cyc)

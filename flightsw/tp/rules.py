@@ -31,12 +31,15 @@ other does not qualify, the residual rules are suspended; the pair is deleted wi
 when the empty gate reaches 4n frames (both gates empty for n frames: deleted at once).
 
 Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object
-is held and exactly one undecided pair has had both gates populated for ``n_apriori`` successive
-frames with its object gate within the gate half-width of where the nominal trajectory puts the
-object, conclude that it is the object. Velocity filtering cannot separate an object whose stars
-hardly move against it (0.02-0.03 px a frame: a star gate lags it by d (1 - alpha) / alpha ~ 0.06
-px and its residual grows ~0.006 px^2 a frame, below the centroid noise's), so both gates of
-every pair stay populated; in every other geometry rules 1-4 conclude each pair long before.
+is held, a pair whose gates have both been populated for ``n_apriori`` successive frames is
+decided by position: it is the object when its object gate holds the observation nearest where
+the nominal trajectory puts the object (and lies within the gate of it), a star otherwise (both
+gates deleted, so that reinitialisation can place pairs on the observations no gate holds: the
+paper reinitialises only when every gate is gone). Velocity filtering cannot separate an object
+whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by d (1 - alpha) /
+alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid noise's), so both
+gates of every pair stay populated; in every other geometry rules 1-4 conclude each pair long
+before.
 
 Decisions beyond the paper's text: the first object conclusion becomes *"the single valid target
 object"* (several on one frame: the one whose object gate has the smallest accumulated residual);
@@ -58,7 +61,8 @@ from flightsw.tp.gates import GP_HALF, GP_THR_OBJ, GP_THR_STAR, any_gate_alive, 
 from flightsw.tp.geometry import tan_int
 from flightsw.tp.layout import (
     C_N_APRIORI, C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, G_A, G_ALIVE, G_B, G_DVA, G_DVB, G_HITS,
-    G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR, OBS_A, OBS_B, OBS_OK, S_DEC,
+    G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR, OBS_A, OBS_B,
+    OBS_IA, OBS_IB, OBS_OK, S_DEC,
     S_DEC_FRAME, S_NDEC, S_NLOST, S_NREINIT, S_NRULE, S_NSPURIOUS, S_NSTALE, S_RULE, ST_GATES,
     V_EVIDENCE, V_FC, V_FLAGS, V_LOCKED, V_NTAN, V_NTAN_OK, V_NUSE, V_OBJ, V_STATUS,
 )
@@ -254,23 +258,30 @@ def apply_rules(C, S, G, V, GP, cyc):
 
 APRIORI_RULE = 5
 CYC_APRIORI = cycles({"FM": 2, "FIX": 2, "L": 3, "C": 1, "JC": 1})
-CYC_APRIORI_PAIR = cycles({"L": 6, "SR": 2, "C": 6, "JC": 6})
+CYC_APRIORI_OBS = cycles({"L": 3, "SR": 2, "MR": 2, "AR": 1, "CR": 1, "JC": 2})
+CYC_APRIORI_PAIR = cycles({"L": 6, "SR": 2, "C": 7, "JC": 7})
 
 
 @njit(cache=True)
-def apriori_rule(C, S, G, V, GP, cyc):
-    """Rule 5 (module docstring): the one long-undecidable pair where the nominal puts the object
-    becomes the verified object.
+def apriori_rule(C, S, G, OBS, V, GP, cyc):
+    """Rule 5 (module docstring): among the pairs that velocity filtering has left undecided for
+    ``n_apriori`` frames, the one fed by this frame's observation nearest the nominal's prediction
+    (and within the gate of it) is the object; the others are stars by position.
+
+    ``OBS`` this frame's observations (int64 [MAX_OBS, OBS_C]; the first ``V[V_NUSE]`` in use).
 
     Cases
     -----
-    decided : no object held, ``n_apriori > 0``, the nominal's line of sight in front, exactly one
-        live pair with both gates populated ``n_apriori`` successive frames and its object gate
-        within the gate half-width of the nominal's tangent coordinates -> it is the object (star
-        gate deleted, ``S_DEC``, ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE = 5``,
-        ``TC_NEW_DECISION``).
-    ambiguous : two or more such pairs -> nothing decided.
-    none : no such pair, an object held, ``n_apriori = 0`` or no nominal line of sight -> nothing.
+    decided : no object held, ``n_apriori > 0``, the nominal's line of sight in front, a live pair
+        with both gates populated ``n_apriori`` successive frames, its object gate fed by the
+        usable observation nearest the nominal's tangent coordinates (integer squared distance;
+        the first of equals) and within the gate half-width of them -> it is the object (star gate
+        deleted, ``S_DEC``, ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE = 5``, ``TC_NEW_DECISION``).
+    star-by-position : such a long-undecided pair not fed by that observation, or beyond the gate
+        -> both gates deleted, counted ``S_NSTALE`` (so that reinitialisation can place pairs on
+        the observations no gate holds).
+    none : no such pair, an object held, ``n_apriori = 0`` or no nominal line of sight ->
+        nothing.
     """
     m = C[C_N_APRIORI]
     if m <= 0 or S[S_DEC] >= 0 or V[V_NTAN_OK] == 0:
@@ -279,25 +290,37 @@ def apriori_rule(C, S, G, V, GP, cyc):
     na = tan_int(V[V_NTAN])
     nb = tan_int(V[V_NTAN + 1])
     half = GP[GP_HALF]
-    found = -1
-    count = 0
+    nearest = -1
+    dmin = 0
+    for j in range(V[V_NUSE]):
+        if OBS[j, OBS_OK] == 0:
+            continue
+        da = OBS[j, OBS_IA] - na
+        db = OBS[j, OBS_IB] - nb
+        d = da * da + db * db
+        if nearest < 0 or d < dmin:
+            nearest = j
+            dmin = d
+    cyc[ST_GATES] += V[V_NUSE] * CYC_APRIORI_OBS
     for p in range(NPAIR):
         rs = 2 * p
         ro = 2 * p + 1
         if G[rs, G_ALIVE] == 0 or G[ro, G_ALIVE] == 0:
             continue
         cyc[ST_GATES] += CYC_APRIORI_PAIR
-        if G[rs, G_RUN] >= m and G[ro, G_RUN] >= m and abs(G[ro, G_IA] - na) <= half \
-                and abs(G[ro, G_IB] - nb) <= half:
-            count += 1
-            found = p
-    if count == 1:
-        G[2 * found, G_ALIVE] = 0
-        S[S_DEC] = found
-        S[S_DEC_FRAME] = V[V_FC]
-        S[S_NDEC] += 1
-        S[S_RULE] = APRIORI_RULE
-        V[V_STATUS] |= TC_NEW_DECISION
+        if G[rs, G_RUN] < m or G[ro, G_RUN] < m:
+            continue
+        if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
+                and abs(G[ro, G_IB] - nb) <= half and S[S_DEC] < 0:
+            G[rs, G_ALIVE] = 0
+            S[S_DEC] = p
+            S[S_DEC_FRAME] = V[V_FC]
+            S[S_NDEC] += 1
+            S[S_RULE] = APRIORI_RULE
+            V[V_STATUS] |= TC_NEW_DECISION
+        else:
+            kill_pair(G, p)
+            S[S_NSTALE] += 1
 
 
 @njit(cache=True)
