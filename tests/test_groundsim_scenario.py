@@ -27,7 +27,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval5_faint_near_behind", "satellite_eval5_mid_offset_low",
             "satellite_eval5_bright_mid_range", "satellite_eval6_slow_sky",
             "satellite_eval6_faint_wide", "satellite_eval6_mid_offset_far",
-            "satellite_eval6_bright_fast"]
+            "satellite_eval6_bright_fast", "satellite_eval7_slow_patagonia",
+            "satellite_eval7_slowish_offset", "satellite_eval7_faint_ahead_low",
+            "satellite_eval7_mid_close"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
