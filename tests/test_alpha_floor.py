@@ -59,7 +59,7 @@ def test_satellite_track_floors_at_0_75_and_the_others_keep_1_0():
         assert alpha_controller_for(load_default_sequence(name)).alpha_min == 1.0
 
 
-# ---- the floor for sparse frames (alpha_min_sparse under sparse_blobs) -----------------------------
+# ---- the floor for sparse frames (alpha_min_sparse under sparse_blobs) ---------------------------
 def _ctl(sparse=0.25, few=20):
     from flightsw.ip.threshold import AlphaController
     return AlphaController(alpha=2.0, alpha_min=0.75, alpha_min_sparse=sparse, sparse_blobs=few)

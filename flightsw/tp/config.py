@@ -101,10 +101,11 @@ class TPConfig:
         The verified object's gate empty this many successive frames -> object lost.
     n_apriori : int
         Rule 5 (beyond the paper, :func:`flightsw.tp.rules.apriori_rule`): with no object held,
-        the one pair whose gates have both been populated this many successive frames and whose
-        object gate lies within the gate of the nominal's predicted position is the object. 0: off.
-        Default 40 frames (20 s): the smallest count that changes nothing on the satellite
-        training family (30 decided faint targets earlier there and held them less).
+        a pair whose gates have both been populated this many successive frames is the object
+        when its object gate holds the observation nearest the nominal's predicted position
+        (within the gate of it), a star otherwise. 0: off. Default 40 frames (20 s): the
+        smallest count that changes nothing on the satellite training family (30 decided faint
+        targets earlier there and held them less).
     frame_dt : float
         Nominal frame period, s (the prediction horizon of the feedback and pointing).
     max_coast_s : float

@@ -18,13 +18,13 @@ squared differences or residuals between the observation and the gate center are
   (:mod:`flightsw.tp.trajectory`).
 * The verified object's gate, once the EKF runs, is put on the EKF's predicted line of sight before
   the association (:func:`centre_object_gate`; its tangent coordinates come from
-  :func:`flightsw.tp.trajectory.predict_ekf`, which forms them for ``V[V_DE]`` anyway). ASSUMED: the paper does not say how the verified
-  object's gate moves once the EKF runs. Left to its own smoothing it follows whatever falls in
-  it: a star crossing a faint target that the IP missed for a frame or two took the gate with it,
-  the EKF refused the star's centroids (one axis rejected a frame, so its covariance was never
-  reset) and the pointing drifted off the target (satellite_train_faint_mid, seeds 214 and 215,
-  frames 28-140). Chosen on the satellite training family (README "Tracking on scenarios it was
-  not tuned on").
+  :func:`flightsw.tp.trajectory.predict_ekf`, which forms them for ``V[V_DE]`` anyway). ASSUMED:
+  the paper does not say how the verified object's gate moves once the EKF runs. Left to its own
+  smoothing it follows whatever falls in it: a star crossing a faint target that the IP missed for
+  a frame or two took the gate with it, the EKF refused the star's centroids (one axis rejected a
+  frame, so its covariance was never reset) and the pointing drifted off the target
+  (satellite_train_faint_mid, seeds 214 and 215, frames 28-140). Chosen on the satellite training
+  family (README "Tracking on scenarios it was not tuned on").
 * A learned velocity (beta > 0) moves a gate by ``v dt`` too; every gate keeps its last apparent
   velocity for the recording.
 * Smoothing: :func:`flightsw.tp.alphabeta.ab_update` with the associated observation; the squared
