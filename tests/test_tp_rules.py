@@ -441,6 +441,7 @@ def _apriori_case(m=40):
 
 
 @pytest.mark.cases("flightsw.tp.rules.apriori_rule", "decided", "star-by-position", "none")
+@pytest.mark.cases("flightsw.tp.rules.decide_pair", "typical")
 def test_rule5_takes_the_long_undecided_pair_nearest_the_nominal_and_drops_the_others():
     C, S, G, OBS, V, GP, cyc = _apriori_case()
     apriori_rule(C, S, G, OBS, V, GP, cyc)

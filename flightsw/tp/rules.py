@@ -247,13 +247,25 @@ def apply_rules(C, S, G, V, GP, cyc):
         elif concl == STAR or concl == DELETE:
             kill_pair(G, p)
     if best_p >= 0:
-        G[2 * best_p, G_ALIVE] = 0                    # delete the star gate
-        S[S_DEC] = best_p
-        S[S_DEC_FRAME] = V[V_FC]
-        S[S_NDEC] += 1
-        S[S_RULE] = best_rule
-        V[V_STATUS] |= TC_NEW_DECISION
+        decide_pair(S, G, V, best_p, best_rule)
     V[V_FLAGS] |= fl
+
+
+@njit(cache=True, inline="always")
+def decide_pair(S, G, V, p, rule):
+    """Pair ``p`` becomes the verified object by ``rule``: its star gate deleted, ``S_DEC``,
+    ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE`` set, ``TC_NEW_DECISION`` raised.
+
+    Cases
+    -----
+    typical : as above; the object gate and every other pair untouched.
+    """
+    G[2 * p, G_ALIVE] = 0
+    S[S_DEC] = p
+    S[S_DEC_FRAME] = V[V_FC]
+    S[S_NDEC] += 1
+    S[S_RULE] = rule
+    V[V_STATUS] |= TC_NEW_DECISION
 
 
 APRIORI_RULE = 5
@@ -312,12 +324,7 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
             continue
         if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
                 and abs(G[ro, G_IB] - nb) <= half and S[S_DEC] < 0:
-            G[rs, G_ALIVE] = 0
-            S[S_DEC] = p
-            S[S_DEC_FRAME] = V[V_FC]
-            S[S_NDEC] += 1
-            S[S_RULE] = APRIORI_RULE
-            V[V_STATUS] |= TC_NEW_DECISION
+            decide_pair(S, G, V, p, APRIORI_RULE)
         else:
             kill_pair(G, p)
             S[S_NSTALE] += 1
