@@ -100,7 +100,7 @@ def test_directions_behind_the_imager_have_no_pixel():
 
 
 @pytest.mark.cases("flightsw.tp.geometry.los_tan", "typical", "behind")
-@pytest.mark.cases("flightsw.tp.geometry.los_delta", "typical", "behind")
+@pytest.mark.cases("flightsw.tp.geometry.los_delta", "typical", "behind", "first")
 def test_los_tangent_coordinates_and_their_change():
     rm = _rz(0.3)
     RM = _packed(rm)
@@ -113,13 +113,16 @@ def test_los_tangent_coordinates_and_their_change():
     assert ok and (decode32(a), decode32(b)) == pytest.approx((0.01, -0.02), abs=2e-7)
     behind = [w(x) for x in rm @ np.array([-1.0, 0.0, 0.0])]
     assert los_tan(RM, *behind)[:3] == (0, 0, False)
-    da, db, an, bn, okn, f = los_delta(RM, *eci(0.013, -0.021), *eci(0.01, -0.02))
+    da, db, an, bn, okn, f = los_delta(RM, *eci(0.013, -0.021), *eci(0.01, -0.02), True)
     assert (decode32(da), decode32(db)) == pytest.approx((3e-3, -1e-3), abs=2e-7)
     assert okn and (an, bn) == los_tan(RM, *eci(0.013, -0.021))[:2]
-    assert los_delta(RM, *eci(0.013, -0.021), *behind)[:2] == (0, 0)
-    assert los_delta(RM, *eci(0.013, -0.021), *behind)[4]      # l itself is in front
-    assert los_delta(RM, *behind, *eci(0.01, -0.02))[:2] == (0, 0)
-    assert not los_delta(RM, *behind, *eci(0.01, -0.02))[4]
+    assert los_delta(RM, *eci(0.013, -0.021), *behind, True)[:2] == (0, 0)
+    assert los_delta(RM, *eci(0.013, -0.021), *behind, True)[4]      # l itself is in front
+    assert los_delta(RM, *behind, *eci(0.01, -0.02), True)[:2] == (0, 0)
+    assert not los_delta(RM, *behind, *eci(0.01, -0.02), True)[4]
+    # first: no previous direction (p not read: here it is behind) -> no change, l's coordinates
+    assert los_delta(RM, *eci(0.013, -0.021), *behind, False) == \
+        (0, 0, *los_tan(RM, *eci(0.013, -0.021)))
 
 
 def _obs_stage(img_rows, rows, cols, evidence=1):

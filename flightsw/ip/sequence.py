@@ -350,7 +350,7 @@ def _validate_threshold(params, pre):
     if "alpha" not in params:
         raise FieldError("alpha", "missing (0 .. 7.99975)")
     alpha = _float_field(params, "alpha", None, _th.ALPHA_MIN, _th.ALPHA_MAX)
-    floor = min(alpha, 1.0)          # AlphaController's default floor
+    floor = min(alpha, _th.AlphaController.alpha_min)     # the logic's default floor
     if "alpha_min" in params:        # the alpha logic's floor for this sequence (AlphaController)
         floor = _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
     sparse = [k for k in ("alpha_min_sparse", "sparse_blobs") if k in params]

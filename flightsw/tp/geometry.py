@@ -334,17 +334,21 @@ def los_tan(RM, l0, l1, l2):
 
 
 @njit(cache=True, inline="always")
-def los_delta(RM, l0, l1, l2, p0, p1, p2):
+def los_delta(RM, l0, l1, l2, p0, p1, p2, have_p):
     """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
     both seen in the current attitude RM -> (da, db, an, bn, okn, flags), ``(an, bn)`` the tangent
-    coordinates of l (``okn``: l in front); (da, db) = (0, 0) if either is behind the tangent plane.
+    coordinates of l (``okn``: l in front); (da, db) = (0, 0) if either is behind the tangent plane
+    or there is no previous direction (``have_p`` False: p is not read).
 
     Cases
     -----
     typical : ``T(RM^T l) - T(RM^T p)`` per coordinate, ``T(RM^T l)`` with it.
     behind : either direction behind the body's tangent plane -> (0, 0).
+    first : ``have_p`` False -> (0, 0) and ``T(RM^T l)``, the flags of that one alone.
     """
     an, bn, okn, f = los_tan(RM, l0, l1, l2)
+    if not have_p:
+        return 0, 0, an, bn, okn, f
     ap, bp, okp, g = los_tan(RM, p0, p1, p2); f |= g
     if not (okn and okp):
         return 0, 0, an, bn, okn, f

@@ -322,8 +322,9 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
         cyc[ST_GATES] += CYC_APRIORI_PAIR
         if G[rs, G_RUN] < m or G[ro, G_RUN] < m:
             continue
+        # an observation feeds one object gate at most (association), so one pair at most
         if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
-                and abs(G[ro, G_IB] - nb) <= half and S[S_DEC] < 0:
+                and abs(G[ro, G_IB] - nb) <= half:
             decide_pair(S, G, V, p, APRIORI_RULE)
         else:
             kill_pair(G, p)

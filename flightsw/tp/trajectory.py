@@ -22,8 +22,7 @@ from flightsw.tp.ekf import (
     ekf_predict, ekf_reset_cov, ekf_update_los,
 )
 from flightsw.tp.f1750 import MV3_MIX, UNIT3_MIX, cycles, dot3, mix, unit3
-from flightsw.tp.geometry import (CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_delta, los_tan,
-                                  pix_unit)
+from flightsw.tp.geometry import CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_delta, pix_unit
 from flightsw.tp.layout import (
     C_CYC_EKF_STEP, C_CYC_RK4, C_EKF_MAX_REJ, C_SIG_PX, N_T, N_X, S_HAVE_PREV, S_NL, S_NL_OK,
     ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_ELOS, V_ERHO, V_ETAN, V_ETAN_OK,
@@ -76,11 +75,9 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     d1, g = fs48(N[N_X + 1], V[V_RS + 1]); fl |= g
     d2, g = fs48(N[N_X + 2], V[V_RS + 2]); fl |= g
     l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
-    if S[S_NL_OK] != 0 and S[S_HAVE_PREV] != 0:
-        V[V_DN], V[V_DN + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1],
-                                                      S[S_NL + 2])
-    else:                            # (CYC_LOS_DELTA, charged below, holds two of these)
-        a, b, ok, g = los_tan(RM, l0, l1, l2)
+    V[V_DN], V[V_DN + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1],
+                                                  S[S_NL + 2],
+                                                  S[S_NL_OK] != 0 and S[S_HAVE_PREV] != 0)
     fl |= g
     if ok:                           # where the nominal puts the object (apriori_rule)
         V[V_NTAN], V[V_NTAN + 1], V[V_NTAN_OK] = a, b, 1
@@ -122,11 +119,9 @@ def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
     g, nsteps = ekf_predict(E, D, K, wk, V[V_T]); fl |= g
     cyc[ST_EKF_PRED] += nsteps * C[C_CYC_EKF_STEP]
     l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2]); fl |= g
-    if E[E_HAVE_LOS] != 0 and S[S_HAVE_PREV] != 0:
-        V[V_DE], V[V_DE + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1],
-                                                      E[E_LOS + 2])
-    else:                            # (CYC_LOS_DELTA, charged below, holds two of these)
-        a, b, ok, g = los_tan(RM, l0, l1, l2)
+    V[V_DE], V[V_DE + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1],
+                                                  E[E_LOS + 2],
+                                                  E[E_HAVE_LOS] != 0 and S[S_HAVE_PREV] != 0)
     fl |= g
     if ok:                           # the verified object's gate goes there (centre_object_gate)
         V[V_ETAN], V[V_ETAN + 1], V[V_ETAN_OK] = a, b, 1
