@@ -20,6 +20,7 @@ from flightsw.ip import ImageProcessor, load_default_sequence, process_frame
 from flightsw.ip.backend import backend_params
 from flightsw.ip.pipeline import step_words
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
+from flightsw.ip.threshold import AlphaController
 from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_INFO, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG,
                              ip_step_k)
 from flightsw.messages import (CANDIDATE_DTYPE, CandidateMessage, Feedback, MessageError,
@@ -128,8 +129,13 @@ def _plan(seq="satellite", rec="satellite"):
     return ip, ip._plans["wfov_vis"]
 
 
+#: the alpha logic's words (near 90, up 0.5, down 0.25, floor 1.0, ceiling 7.0, no sparse floor),
+#: in the layout the kernel reads (:meth:`AlphaController.words`)
+CTL = tuple(AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).words().tolist())
+
+
 def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check=True, prm=None,
-          ctl=(90, 2048, 1024, 4096, 28672)):
+          ctl=CTL):
     """(verdict, words, window, pack, front stages, back stages, info) of one ip_step_k call (no
     stages; ``info`` starts as garbage: the kernel writes every word)."""
     fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
