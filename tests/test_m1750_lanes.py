@@ -52,7 +52,11 @@ def _pairs(W, seed):
     return a, b
 
 
-@njit(cache=True)
+# The three helpers below take a compiled function as an argument, so they are not cached: numba
+# pickles such signatures with a weak reference to the argument's dispatcher, and a warm cache
+# index that holds one fails to save the next overload ("ReferenceError: underlying object has
+# vanished", numba issues 2956 and 6251).
+@njit
 def _apply2(op, a, b, out, flags):
     """out[i], flags[i] = op(a[i], b[i]) for a scalar kernel or a lane form (FC: flags 0)."""
     for i in range(a.size):
@@ -63,13 +67,13 @@ def _apply2(op, a, b, out, flags):
             out[i], flags[i] = r, 0
 
 
-@njit(cache=True)
+@njit
 def _apply1(op, a, out, flags):
     for i in range(a.size):
         out[i], flags[i] = op(a[i])
 
 
-@njit(cache=True)
+@njit
 def _apply_scale(op, a, k, out, flags):
     for i in range(a.size):
         out[i], flags[i] = op(a[i], k[i])

@@ -56,13 +56,16 @@ def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
     assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
 
 
-@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "within-threshold",
-                   "reversed")
+@pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "object-gate-recent",
+                   "within-threshold", "reversed")
 def test_rule3_star_residuals_exceed_object_residuals():
-    assert rule3(w(6e-8), w(1e-8), 1, THR)[0]          # 5e-8 > 4e-8, object gate populated
-    assert not rule3(w(6e-8), w(1e-8), 0, THR)[0]      # object gate empty this frame
-    assert not rule3(w(4e-8), w(1e-8), 1, THR)[0]      # 3e-8 not above the threshold
-    assert not rule3(w(1e-8), w(6e-8), 1, THR)[0]      # the other way round: rule 4's case
+    assert rule3(w(6e-8), w(1e-8), N, THR, N)[0]       # 5e-8 > 4e-8, object gate populated n frames
+    assert rule3(w(6e-8), w(1e-8), N + 4, THR, N)[0]
+    assert not rule3(w(6e-8), w(1e-8), 0, THR, N)[0]   # object gate empty this frame
+    assert not rule3(w(6e-8), w(1e-8), 1, THR, N)[0]   # one blob caught: not n frames yet
+    assert not rule3(w(6e-8), w(1e-8), N - 1, THR, N)[0]
+    assert not rule3(w(4e-8), w(1e-8), N, THR, N)[0]   # 3e-8 not above the threshold
+    assert not rule3(w(1e-8), w(6e-8), N, THR, N)[0]   # the other way round: rule 4's case
 
 
 @pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold",
@@ -78,7 +81,8 @@ def test_rule4_object_residuals_exceed_star_residuals():
     (3, 3, 0, 0, 0.0, 0.0, (DELETE, 0)),                # both gates empty n frames
     (3, 0, 0, 3, 9e-8, 1e-8, (OBJECT, 1)),
     (0, 3, 3, 0, 1e-8, 9e-8, (STAR, 2)),
-    (0, 0, 2, 2, 9e-8, 1e-8, (OBJECT, 3)),
+    (0, 0, 2, 3, 9e-8, 1e-8, (OBJECT, 3)),
+    (0, 0, 2, 2, 9e-8, 1e-8, (UNDECIDED, 0)),          # rule 3's residuals, object gate 2 < n frames
     (0, 0, 2, 2, 1e-8, 9e-8, (STAR, 4)),
     (0, 0, 2, 2, 2e-8, 1e-8, (UNDECIDED, 0)),          # residuals within the threshold
     (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 1 fails; residual rules suspended
@@ -87,7 +91,8 @@ def test_rule4_object_residuals_exceed_star_residuals():
     (0, 3, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0)),          # rule 2 fails; residual rules suspended
 ])
 @pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "both-empty", "rule1-object", "rule2-star",
-                   "rule3-object", "rule4-star", "within-threshold", "star-empty-suspended",
+                   "rule3-object", "rule3-recent", "rule4-star", "within-threshold",
+                   "star-empty-suspended",
                    "object-empty-suspended", "star-empty-stale", "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
     concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
