@@ -29,7 +29,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval6_faint_wide", "satellite_eval6_mid_offset_far",
             "satellite_eval6_bright_fast", "satellite_eval7_slow_patagonia",
             "satellite_eval7_slowish_offset", "satellite_eval7_faint_ahead_low",
-            "satellite_eval7_mid_close"]
+            "satellite_eval7_mid_close", "satellite_eval8_mid_offset_behind",
+            "satellite_eval8_faint_offset_ahead", "satellite_eval8_bright_crossing",
+            "satellite_eval8_faint_centre_high"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
