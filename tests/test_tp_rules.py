@@ -488,6 +488,24 @@ def test_rule5_takes_the_long_undecided_pair_nearest_the_nominal_and_drops_the_o
         assert S[L.S_DEC] == (2 if undo == "held" else -1), undo
 
 
+@pytest.mark.cases("flightsw.tp.rules.apriori_rule", "star-by-residual")
+def test_rule5_refuses_the_nearest_pair_when_its_star_gate_fits_better():
+    """The pair nearest the nominal is the object only while its object gate's accumulated residual
+    is not above its star gate's (equal counts as not above)."""
+    for res_star, res_obj, decided in ((2e-7, 1e-7, True), (2e-7, 2e-7, True), (1e-7, 3e-7, False),
+                                       (0.0, 1e-9, False)):
+        C, S, G, OBS, V, GP, cyc = _apriori_case()
+        G[0, L.G_RES] = w(res_star) if res_star else 0
+        G[1, L.G_RES] = w(res_obj)
+        apriori_rule(C, S, G, OBS, V, GP, cyc)
+        if decided:
+            assert S[L.S_DEC] == 0 and S[L.S_RULE] == 5 and S[L.S_NSTALE] == 1
+            assert G[1, L.G_ALIVE] == 1
+        else:                                          # both pairs dropped, nothing decided
+            assert S[L.S_DEC] == -1 and S[L.S_RULE] == 0 and S[L.S_NSTALE] == 2
+            assert not G[:6, L.G_ALIVE].any() and not V[L.V_STATUS] & TC_NEW_DECISION
+
+
 def _ekf_case():
     """A verified pair 1 (gates 2, 3 alive at (0.01, 0.02)) and the EKF's line of sight this frame
     at (-0.004, 0.003) in body tangent coordinates (``V_ETAN``, as predict_ekf leaves it)."""

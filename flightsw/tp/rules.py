@@ -38,9 +38,12 @@ when the empty gate reaches 4n frames (both gates empty for n frames: deleted at
 Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object
 is held, a pair whose gates have both been populated for ``n_apriori`` successive frames is
 decided by position: it is the object when its object gate holds the observation nearest where
-the nominal trajectory puts the object (and lies within the gate of it), a star otherwise (both
-gates deleted, so that reinitialisation can place pairs on the observations no gate holds: the
-paper reinitialises only when every gate is gone). Velocity filtering cannot separate an object
+the nominal trajectory puts the object (and lies within the gate of it) and has accumulated no more
+residual than its star gate, a star otherwise (both gates deleted, so that reinitialisation can
+place pairs on the observations no gate holds: the paper reinitialises only when every gate is
+gone). The residual test keeps a star that passes the nominal's position while a faint object is
+not detected from being verified: its star gate follows it better than its object gate does,
+although by less than the threshold of rule 4 (README "Rule 5 asks the residuals"). Velocity filtering cannot separate an object
 whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by d (1 - alpha) /
 alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid noise's), so both
 gates of every pair stay populated; in every other geometry rules 1-4 conclude each pair long
@@ -282,13 +285,15 @@ APRIORI_RULE = 5
 CYC_APRIORI = cycles({"FM": 2, "FIX": 2, "L": 3, "C": 1, "JC": 1})
 CYC_APRIORI_OBS = cycles({"L": 3, "SR": 2, "MR": 2, "AR": 1, "CR": 1, "JC": 2})
 CYC_APRIORI_PAIR = cycles({"L": 6, "SR": 2, "C": 7, "JC": 7})
+CYC_APRIORI_RES = cycles({"L": 2, "FC": 1, "JC": 1})
 
 
 @njit(cache=True)
 def apriori_rule(C, S, G, OBS, V, GP, cyc):
     """Rule 5 (module docstring): among the pairs that velocity filtering has left undecided for
     ``n_apriori`` frames, the one fed by this frame's observation nearest the nominal's prediction
-    (and within the gate of it) is the object; the others are stars by position.
+    (and within the gate of it) is the object, unless its object gate has accumulated more residual
+    than its star gate; the others are stars by position.
 
     ``OBS`` this frame's observations (int64 [MAX_OBS, OBS_C]; the first ``V[V_NUSE]`` in use).
 
@@ -297,8 +302,12 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
     decided : no object held, ``n_apriori > 0``, the nominal's line of sight in front, a live pair
         with both gates populated ``n_apriori`` successive frames, its object gate fed by the
         usable observation nearest the nominal's tangent coordinates (integer squared distance;
-        the first of equals) and within the gate half-width of them -> it is the object (star gate
-        deleted, ``S_DEC``, ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE = 5``, ``TC_NEW_DECISION``).
+        the first of equals) and within the gate half-width of them, its object gate's
+        accumulated residual not above its star gate's -> it is the object (star gate deleted,
+        ``S_DEC``, ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE = 5``, ``TC_NEW_DECISION``).
+    star-by-residual : that pair, but its object gate's residual above its star gate's (the
+        observation moves with the stars: a star passing where the nominal puts the object) ->
+        both gates deleted, counted ``S_NSTALE``.
     star-by-position : such a long-undecided pair not fed by that observation, or beyond the gate
         -> both gates deleted, counted ``S_NSTALE`` (so that reinitialisation can place pairs on
         the observations no gate holds).
@@ -335,10 +344,12 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
         # an observation feeds one object gate at most (association), so one pair at most
         if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
                 and abs(G[ro, G_IB] - nb) <= half:
-            decide_pair(S, G, V, p, APRIORI_RULE)
-        else:
-            kill_pair(G, p)
-            S[S_NSTALE] += 1
+            cyc[ST_GATES] += CYC_APRIORI_RES
+            if fc32(G[ro, G_RES], G[rs, G_RES]) <= 0:
+                decide_pair(S, G, V, p, APRIORI_RULE)
+                continue
+        kill_pair(G, p)
+        S[S_NSTALE] += 1
 
 
 @njit(cache=True)
