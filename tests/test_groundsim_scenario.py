@@ -31,7 +31,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval7_slowish_offset", "satellite_eval7_faint_ahead_low",
             "satellite_eval7_mid_close", "satellite_eval8_mid_offset_behind",
             "satellite_eval8_faint_offset_ahead", "satellite_eval8_bright_crossing",
-            "satellite_eval8_faint_centre_high"]
+            "satellite_eval8_faint_centre_high", "satellite_eval9_slow_faint_high",
+            "satellite_eval9_slow_mid_offset", "satellite_eval9_mid_fast_low",
+            "satellite_eval9_faint_offset_behind"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
