@@ -5,15 +5,17 @@ Defaults and where they come from:
 * ``alpha = 0.25, beta = 0`` -- the paper: *"alpha = 0.25 provides a 90% response in eight frames
   (4 s). The velocity gain beta is almost always set to 0 ... it must be 0 or both types of gates
   will follow the data and differentiation based on velocity cannot occur."*
-* ``n_empty = 3`` frames (rules 1, 2) and ``residual_threshold_px2 = 16`` px^2 (rules 3, 4). The
-  squared residual of a wrong hypothesis approaches ``(d / alpha)^2`` per frame for an apparent-
-  velocity difference of d px/frame (4 px^2 at d = 0.5 px/frame; 16 px^2 is reached on the 9th
-  frame with the transient), a right one ``4 sigma^2 / (2 - alpha) ~ 2.3 sigma^2`` per frame
-  (0.09 px^2 at sigma = 0.2 px). The paper gives no values ("n successive frames", "a specified amount"); these were
-  chosen on the synthetic streams of ``tests/test_tp.py``: 99.8 % of 1000 events decided for the
-  right candidate, median latency 4 frames (2 s), p95 10 frames; gate 3 px or threshold 8-12 px^2
-  give the same within 0.3 %. ``n_empty_object`` / ``residual_threshold_star_px2`` (rules 2 and 4:
-  concluding "star", which deletes both gates) default to the same values.
+* ``n_empty = 3`` frames (rules 1, 2; rule 3's populated run) and ``residual_threshold_px2 = 16``
+  px^2 (rules 3, 4). The squared residual of a wrong hypothesis approaches ``(d / alpha)^2`` per
+  frame for an apparent-velocity difference of d px/frame (4 px^2 at d = 0.5 px/frame; 16 px^2 is
+  reached on the 9th frame with the transient), a right one ``4 sigma^2 / (2 - alpha) ~ 2.3
+  sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no values ("n successive
+  frames", "a specified amount"); these were chosen on the synthetic streams of
+  ``tests/test_tp.py``: 99.8 % of 1000 events decided for the right candidate, median latency 4
+  frames (2 s), p95 11 frames (10 before rule 3 asked for n populated frames); gate 3 px or
+  threshold 8-12 px^2 give the same within 0.3 %. ``n_empty_object`` /
+  ``residual_threshold_star_px2`` (rules 2 and 4: concluding "star", which deletes both gates)
+  default to the same values.
 * ``gate_px = 4`` -- half-width of the square gate in pixels of the current imager (it must hold the
   first-frame lag of the right hypothesis, ``d``, and the steady lag ``d (1 - alpha) / alpha``
   plus the centroid noise).
@@ -90,6 +92,7 @@ class TPConfig:
         Half-width of the square star/object gate, pixels of the message's imager.
     n_empty : int
         Rule 1: a star gate empty for n successive frames (object gate populated) -> object.
+        Rule 3 asks for the object gate populated the last n frames as well.
     n_empty_object : int or None
         Rule 2's n (object gate empty -> star); None: ``n_empty``.
     residual_threshold_px2 : float
