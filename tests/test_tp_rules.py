@@ -92,8 +92,8 @@ def test_rule4_object_residuals_exceed_star_residuals():
 ])
 @pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "both-empty", "rule1-object", "rule2-star",
                    "rule3-object", "rule3-recent", "rule4-star", "within-threshold",
-                   "star-empty-suspended",
-                   "object-empty-suspended", "star-empty-stale", "object-empty-stale")
+                   "star-empty-suspended", "object-empty-suspended", "star-empty-stale",
+                   "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
     concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
     assert (concl, rule) == want and flags == 0

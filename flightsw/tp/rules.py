@@ -35,19 +35,19 @@ event, README "Rule 3 asks for n frames"). While one gate has been empty for n f
 other does not qualify, the residual rules are suspended; the pair is deleted without a conclusion
 when the empty gate reaches 4n frames (both gates empty for n frames: deleted at once).
 
-Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object
-is held, a pair whose gates have both been populated for ``n_apriori`` successive frames is
-decided by position: it is the object when its object gate holds the observation nearest where
-the nominal trajectory puts the object (and lies within the gate of it) and has accumulated no more
-residual than its star gate, a star otherwise (both gates deleted, so that reinitialisation can
-place pairs on the observations no gate holds: the paper reinitialises only when every gate is
-gone). The residual test keeps a star that passes the nominal's position while a faint object is
-not detected from being verified: its star gate follows it better than its object gate does,
-although by less than the threshold of rule 4 (README "Rule 5 asks the residuals"). Velocity filtering cannot separate an object
-whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by d (1 - alpha) /
-alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid noise's), so both
-gates of every pair stay populated; in every other geometry rules 1-4 conclude each pair long
-before.
+Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object is
+held, a pair whose gates have both been populated for ``n_apriori`` successive frames is decided by
+position: it is the object when its object gate holds the observation nearest where the nominal
+trajectory puts the object (and lies within the gate of it) and has accumulated no more residual
+than its star gate, a star otherwise (both gates deleted, so that reinitialisation can place pairs
+on the observations no gate holds: the paper reinitialises only when every gate is gone). The
+residual test keeps a star that passes the nominal's position while a faint object is not detected
+from being verified: its star gate follows it better than its object gate does, although by less
+than the threshold of rule 4 (README "Rule 5 asks the residuals"). Velocity filtering cannot
+separate an object whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by
+d (1 - alpha) / alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid
+noise's), so both gates of every pair stay populated; in every other geometry rules 1-4 conclude
+each pair long before.
 
 Decisions beyond the paper's text: the first object conclusion becomes *"the single valid target
 object"* (several on one frame: the one whose object gate has the smallest accumulated residual);
