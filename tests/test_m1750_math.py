@@ -18,7 +18,10 @@ PI = Fraction("3.141592653589793238462643383279502884197169399375105820974944592
               "0899862803482534211706798")
 
 
-@njit(cache=True)
+# Not cached: both helpers take a compiled function as an argument, and numba keeps a weak
+# reference to it in the cache index, which a warm index then fails to save ("ReferenceError:
+# underlying object has vanished", numba issues 2956 and 6251; as in test_m1750_lanes.py).
+@njit
 def _apply1(f, xs):
     out = np.empty_like(xs)
     fl = np.empty_like(xs)
@@ -27,7 +30,7 @@ def _apply1(f, xs):
     return out, fl
 
 
-@njit(cache=True)
+@njit
 def _apply2(f, ys, xs):
     out = np.empty_like(xs)
     fl = np.empty_like(xs)
