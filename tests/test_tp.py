@@ -174,6 +174,7 @@ def test_track_command_words_round_trip_and_crc():
     (dict(gate_px=-1.0), "gate_px"), (dict(residual_threshold_px2=float("nan")), "residual"),
     (dict(nominal="x"), "nominal"), (dict(ekf_accel_psd=0.0), "ekf_accel_psd"),
     (dict(j2=1), "j2"), (dict(opp_beta=-1.0), "opp_beta"),
+    (dict(aim_row_px=4.5), "aim_row_px"), (dict(aim_col_px=float("nan")), "aim_col_px"),
 ])
 def test_config_errors_name_the_field(kw, msg):
     base = dict(imagers={"wfov_vis": GEOM})
@@ -466,9 +467,9 @@ def test_launch_like_stream_without_stars_at_a_fast_stepwise_slew_decides_the_ob
 # ================================================================================================
 # bad input
 # ================================================================================================
-def _locked(seed=77):
+def _locked(seed=77, **kw):
     s = Stream(seed, "track", n_frames=50, p_miss=0.0, n_clutter=0.0)
-    tp = s.processor()
+    tp = s.processor(**kw)
     for k in range(20):
         cmd = tp.step(*s.frame(k)[:2])
     assert cmd.locked and cmd.status & TC_EKF_RUNNING
@@ -585,7 +586,7 @@ def test_step_never_raises_on_an_internal_error():
 # pointing, feedback, budget, snapshot
 # ================================================================================================
 def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation():
-    s, tp = _locked()
+    s, tp = _locked(aim_row_px=0.0, aim_col_px=0.0)             # +X itself on the target
     msg, att, _ = s.frame(20)
     cmd = tp.step(msg, att)
     q = np.asarray(cmd.q_point)
@@ -601,6 +602,25 @@ def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation(
     assert np.linalg.norm(los - cmd.los_eci) < 2e-6
     fb = cmd.feedback()
     assert fb.locked and fb.object_type == "satellite" and fb.has_prediction
+
+
+@pytest.mark.cases("flightsw.tp.command.aim_offset", "shifted", "zero")
+@pytest.mark.parametrize("aim", [(0.8, 0.67), (-1.5, 2.0), (0.0, 0.0)])
+def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
+    """With an aim of (rows, cols) imager pixels, the commanded attitude turns the body direction
+    of that pixel, A (1, dx, dy) with dx = cols * scale, dy = rows * scale (A = I here), onto the
+    predicted line of sight (to first order in the offset: < 1e-6 rad at ~1 mrad), and the
+    reported predicted pixel is unchanged by the aim."""
+    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1])
+    s0, tp0 = _locked(aim_row_px=0.0, aim_col_px=0.0)
+    msg, att, _ = s.frame(20)
+    cmd = tp.step(msg, att)
+    cmd0 = tp0.step(*s0.frame(20)[:2])
+    b = np.array([1.0, aim[1] * SCALE, aim[0] * SCALE])
+    b /= np.linalg.norm(b)
+    assert np.linalg.norm(dcm(np.asarray(cmd.q_point)) @ b - cmd.los_eci) < 1e-6
+    assert np.linalg.norm(np.asarray(cmd.los_eci) - np.asarray(cmd0.los_eci)) < 1e-9
+    assert (cmd.predicted_row, cmd.predicted_col) == (cmd0.predicted_row, cmd0.predicted_col)
 
 
 def test_ledger_charged_per_stage_on_the_tp_processor():

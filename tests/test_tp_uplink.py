@@ -28,6 +28,10 @@ def test_words_round_trip_and_layout():
     w = encode_uplink(n_apriori=60)                                    # rule 5's count: code 19
     assert w[3] == 19 and (int(w[4]) << 16 | int(w[5])) == 60
     assert decode_uplink(w) == {"n_apriori": 60}
+    w = encode_uplink(aim_row_px=0.5, aim_col_px=-0.75)               # the aim: codes 20, 21
+    assert (w[3], w[6]) == (20, 21)
+    assert (int(w[4]) << 16 | int(w[5])) == 0x40000000               # 0.5 = 0.5 * 2**0
+    assert decode_uplink(w) == {"aim_row_px": 0.5, "aim_col_px": -0.75}
 
 
 @pytest.mark.parametrize("mutate, msg", [

@@ -19,10 +19,10 @@ from flightsw.messages import TC_ARITH_FLAG, TC_EKF_RUNNING
 from flightsw.tp.ekf import E_X, ekf_sigmas
 from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, dec32, dec48, mix,
                                mtv3, mv3, qmul, qnormalize, unit3)
-from flightsw.tp.geometry import DR_MIX, make_dR, neg32, vec_to_pix
+from flightsw.tp.geometry import DR_MIX, IMG_SC, IMG_SR, make_dR, neg32, vec_to_pix
 from flightsw.tp.layout import (
-    C_FRAME_DT, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX,
-    O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV,
+    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS,
+    O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV,
     S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q, S_RS, S_STATUS, S_T,
     S_VS, S_W, ST_CMD,
     V_DT, V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS,
@@ -36,6 +36,7 @@ _BEHIND = 0x400000FA              # 2**-7
 CYC_PRATE = cycles({"FD": 1, "FS": 3, "FM": 3, "ST": 3})
 CYC_CMD = cycles(mix({"EFM": 12, "EFA": 12, "EFS": 3, "DL": 6}, UNIT3_MIX, MV3_MIX, DR_MIX, MV3_MIX,
                      {"FM": 4, "FA": 2, "FD": 1}, QNORM_MIX, QMUL_MIX, {"FA": 1, "FC": 1, "JC": 2}))
+CYC_AIM = cycles({"FM": 6, "FA": 2, "FS": 2, "L": 6})
 CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
@@ -150,6 +151,35 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
 
 
 @njit(cache=True, inline="always")
+def aim_offset(C, img, u1, u2):
+    """The direction to point +X body at so that the target falls ``aim_row_px``, ``aim_col_px``
+    imager pixels off the pixel +X falls on -> (u1', u2', flags): ``u - A (0, dx, dy)``, components
+    2 and 3, with ``dx = aim_col * scale_col``, ``dy = aim_row * scale_row`` and ``A`` the imager's
+    alignment (first order in the offset: ~1e-7 rad at 0.5 mrad).
+
+    ``C`` config (``C_AIM_ROW``, ``C_AIM_COL``, packed pixels); ``img`` the imager's table row;
+    ``u1``, ``u2`` packed components of the unit target direction (body).
+
+    Cases
+    -----
+    shifted : ``u1 - A11 dx - A12 dy``, ``u2 - A21 dx - A22 dy``.
+    zero : both aim words 0 -> ``u1``, ``u2`` unchanged.
+    """
+    f = 0
+    dx, g = fm32(C[C_AIM_COL], img[IMG_SC]); f |= g
+    dy, g = fm32(C[C_AIM_ROW], img[IMG_SR]); f |= g
+    t, g = fm32(img[4], dx); f |= g
+    p, g = fm32(img[5], dy); f |= g
+    t, g = fa32(t, p); f |= g
+    v1, g = fs32(u1, t); f |= g
+    t, g = fm32(img[7], dx); f |= g
+    p, g = fm32(img[8], dy); f |= g
+    t, g = fa32(t, p); f |= g
+    v2, g = fs32(u2, t); f |= g
+    return v1, v2, f
+
+
+@njit(cache=True, inline="always")
 def pointing(V, u0, u1, u2):
     """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
     target is behind (``1 + u_x <= 2**-7``).
@@ -194,6 +224,9 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         prow, pcol, have_pix, n0, n1, n2, g = predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc)
         fl |= g
         S[S_PRED], S[S_PRED + 1], S[S_PRED + 2] = n0, n1, n2
+        if not opportunity:
+            u1, u2, g = aim_offset(C, IMG[V[V_IMG]], u1, u2); fl |= g
+            cyc[ST_CMD] += CYC_AIM
         have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
         cyc[ST_CMD] += CYC_CMD
     if have_q:

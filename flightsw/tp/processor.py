@@ -169,6 +169,8 @@ class TrackProcessor:
         C[F.C_N_EMPTY_OBJ] = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
         C[F.C_N_LOST] = cfg.n_lost
         C[F.C_N_APRIORI] = cfg.n_apriori
+        C[F.C_AIM_ROW] = e32(cfg.aim_row_px)
+        C[F.C_AIM_COL] = e32(cfg.aim_col_px)
         C[F.C_FRAME_DT] = e48(cfg.frame_dt)
         C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
         C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)
