@@ -33,7 +33,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval8_faint_offset_ahead", "satellite_eval8_bright_crossing",
             "satellite_eval8_faint_centre_high", "satellite_eval9_slow_faint_high",
             "satellite_eval9_slow_mid_offset", "satellite_eval9_mid_fast_low",
-            "satellite_eval9_faint_offset_behind"]
+            "satellite_eval9_faint_offset_behind", "satellite_eval10_faint_ahead_mid",
+            "satellite_eval10_faint_offset_low", "satellite_eval10_mid_slowish",
+            "satellite_eval10_bright_offset_high"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
