@@ -605,6 +605,28 @@ def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation(
 
 
 @pytest.mark.cases("flightsw.tp.command.aim_offset", "shifted", "zero")
+def test_aim_offset_is_the_aim_pixel_through_scale_and_alignment():
+    """The kernel against numpy: u - A (0, cols * scale_col, rows * scale_row), components 2 and
+    3, with a rotated alignment (30 deg about +X) and unequal scales; both aims 0: u unchanged."""
+    from flightsw.arith.m1750 import decode32, encode32
+    from flightsw.tp import layout as L
+    from flightsw.tp.command import aim_offset
+    q = np.array([math.cos(math.radians(15)), math.sin(math.radians(15)), 0.0, 0.0])
+    img = ImagerGeometry(q, 9e-4, 7.5e-4).table_row()
+    A = dcm(q)
+    u = np.array([1.0, 0.004, -0.003])
+    u /= np.linalg.norm(u)
+    C = np.zeros(L.C_WORDS, np.int64)
+    C[L.C_AIM_ROW], C[L.C_AIM_COL] = encode32(0.8), encode32(-1.5)
+    v1, v2, f = aim_offset(C, img, encode32(u[1]), encode32(u[2]))
+    want = u - A @ np.array([0.0, -1.5 * 9e-4, 0.8 * 7.5e-4])
+    assert f == 0 and decode32(v1) == pytest.approx(want[1], abs=1e-8)   # 24-bit mantissas
+    assert decode32(v2) == pytest.approx(want[2], abs=1e-8)
+    C[L.C_AIM_ROW] = C[L.C_AIM_COL] = 0
+    w1, w2 = encode32(u[1]), encode32(u[2])
+    assert aim_offset(C, img, w1, w2) == (w1, w2, 0)
+
+
 @pytest.mark.parametrize("aim", [(0.8, 0.67), (-1.5, 2.0), (0.0, 0.0)])
 def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     """With an aim of (rows, cols) imager pixels, the commanded attitude turns the body direction
