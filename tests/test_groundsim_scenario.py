@@ -35,7 +35,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval9_slow_mid_offset", "satellite_eval9_mid_fast_low",
             "satellite_eval9_faint_offset_behind", "satellite_eval10_faint_ahead_mid",
             "satellite_eval10_faint_offset_low", "satellite_eval10_mid_slowish",
-            "satellite_eval10_bright_offset_high"]
+            "satellite_eval10_bright_offset_high", "satellite_eval11_faint_high_behind",
+            "satellite_eval11_faint_close_offset", "satellite_eval11_mid_ahead_far",
+            "satellite_eval11_bright_low_behind"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
