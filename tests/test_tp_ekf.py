@@ -488,8 +488,14 @@ def test_update_ekf_held_line_of_sight_changes_nothing():
 
 @pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "one-rejected", "both-rejected", "reset")
 def test_update_ekf_rejections_counted_and_the_covariance_reset():
-    E, V, z = _update_case(0.0, 5e-3, nrej=2)                 # y 100 sigma off, x on
-    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 0
+    E, V, z = _update_case(0.0, 5e-3, nrej=1)                 # y 100 sigma off, x on: counted
+    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 2
+    assert not np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))  # x incorporated
+    E, V, z = _update_case(0.0, 5e-3, nrej=2)                 # one axis, the third frame: reset
+    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED | TC_EKF_RESET and E[E_NREJ] == 0
+    assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
+    E, V, z = _update_case(1e-5, -2e-5, nrej=2)               # both accepted: the count restarts
+    assert V[L.V_STATUS] == 0 and E[E_NREJ] == 0
     E, V, z = _update_case(5e-3, 5e-3, nrej=1)
     assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 2
     x0, P0_ = _decoded(E)

@@ -22,7 +22,7 @@ squared differences or residuals between the observation and the gate center are
   the paper does not say how the verified object's gate moves once the EKF runs. Left to its own
   smoothing it follows whatever falls in it: a star crossing a faint target that the IP missed for
   a frame or two took the gate with it, the EKF refused the star's centroids (one axis rejected a
-  frame, so its covariance was never reset) and the pointing drifted off the target
+  frame, which then did not count towards a covariance reset) and the pointing drifted off the target
   (satellite_train_faint_mid, seeds 214 and 215, frames 28-140). Chosen on the satellite training
   family (README "Tracking on scenarios it was not tuned on").
 * A learned velocity (beta > 0) moves a gate by ``v dt`` too; every gate keeps its last apparent

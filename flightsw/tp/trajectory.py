@@ -154,7 +154,7 @@ def start_ekf(K, N, E, V):
 @njit(cache=True)
 def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
-    updates of the EKF; both refused ``ekf_max_rejects`` frames running -> covariance reset.
+    updates of the EKF; a component refused ``ekf_max_rejects`` frames running -> covariance reset.
 
     Measurement matrix ``M = (RM A)^T`` (``A`` the imager alignment), measurement the pixel's
     imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis. The
@@ -165,10 +165,10 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     Cases
     -----
     both-accepted : both components incorporated -> ``E_NREJ = 0``, no status bit.
-    one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ = 0``.
+    one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
     both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
-    reset : both refused for the ``ekf_max_rejects``-th frame running -> P reset to its initial
-        diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
+    reset : a component refused for the ``ekf_max_rejects``-th frame running -> P reset to its
+        initial diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
     los-held : ``V[V_ELOS] = 1`` -> the held line of sight is used; words and flags as when it
         is formed here.
     los-formed : ``V[V_ELOS] = 0`` -> formed from the state first.
@@ -204,9 +204,8 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     if ok2:
         l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
     cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
-    if not (ok1 and ok2):
-        V[V_STATUS] |= TC_INNOVATION_REJECTED
-    if not ok1 and not ok2:
+    if not (ok1 and ok2):                 # either component refused: counted (a one-axis
+        V[V_STATUS] |= TC_INNOVATION_REJECTED   # refusal can hold an offset for good)
         E[E_NREJ] += 1
         if E[E_NREJ] >= C[C_EKF_MAX_REJ]:
             ekf_reset_cov(E, K[K_P0R], K[K_P0V])
