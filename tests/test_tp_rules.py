@@ -428,14 +428,15 @@ def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_
 
 def _apriori_case(m=40):
     """Pairs 0 and 2 alive (pair 0's object gate at (0.010, 0.020) rad fed by observation 0, pair
-    2's at (0.030, -0.010) fed by observation 1), every gate populated 50 successive frames; the
+    2's at (0.030, -0.010) fed by observation 1), every gate populated on 50 frames, the last 3 of
+    them successive (``G_HITS`` 50, ``G_RUN`` 3); the
     nominal at (0.0102, 0.0199); rule 5 after ``m`` frames; gate half-width 66 LSB (~1 mrad)."""
     C, S, G, V, GP, cyc = _state()
     C[L.C_N_APRIORI] = m
     pts = [(0.010, 0.020), (0.030, -0.010)]
     for j, (p, (a, b)) in enumerate(zip((0, 2), pts)):
         for row in (2 * p, 2 * p + 1):
-            G[row, L.G_ALIVE], G[row, L.G_RUN], G[row, L.G_OBS] = 1, 50, j
+            G[row, L.G_ALIVE], G[row, L.G_HITS], G[row, L.G_RUN], G[row, L.G_OBS] = 1, 50, 3, j
             G[row, L.G_A], G[row, L.G_B] = w(a), w(b)
             G[row, L.G_IA], G[row, L.G_IB] = tan_int(w(a)), tan_int(w(b))
     OBS = _obs(pts)
@@ -467,10 +468,10 @@ def test_rule5_takes_the_long_undecided_pair_nearest_the_nominal_and_drops_the_o
     V[L.V_NTAN] = w(0.0112)
     apriori_rule(C, S, G, OBS, V, GP, cyc)
     assert S[L.S_DEC] == -1 and S[L.S_NSTALE] == 2
-    # none: one gate populated one frame too few (that pair is left alone); rule off; an object
-    # held; no nominal line of sight
+    # none: one gate populated on one frame too few (that pair is left alone, however long its
+    # run); rule off; an object held; no nominal line of sight
     C, S, G, OBS, V, GP, cyc = _apriori_case()
-    G[0, L.G_RUN] = 39
+    G[0, L.G_HITS], G[0, L.G_RUN] = 39, 39
     apriori_rule(C, S, G, OBS, V, GP, cyc)
     assert S[L.S_DEC] == -1 and G[0, L.G_ALIVE] == G[1, L.G_ALIVE] == 1 and S[L.S_NSTALE] == 1
     for undo in ("off", "held", "no-nominal"):

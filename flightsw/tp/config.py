@@ -104,7 +104,7 @@ class TPConfig:
         The verified object's gate empty this many successive frames -> object lost.
     n_apriori : int
         Rule 5 (beyond the paper, :func:`flightsw.tp.rules.apriori_rule`): with no object held,
-        a pair whose gates have both been populated this many successive frames is the object
+        a pair whose gates have both been populated on this many frames is the object
         when its object gate holds the observation nearest the nominal's predicted position
         (within the gate of it), a star otherwise. 0: off. Default 40 frames (20 s): the
         smallest count that changes nothing on the satellite training family (30 decided faint

@@ -36,7 +36,8 @@ other does not qualify, the residual rules are suspended; the pair is deleted wi
 when the empty gate reaches 4n frames (both gates empty for n frames: deleted at once).
 
 Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object is
-held, a pair whose gates have both been populated for ``n_apriori`` successive frames is decided by
+held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``; not
+necessarily successive: a gate empty ``n_empty`` frames running is deleted anyway) is decided by
 position: it is the object when its object gate holds the observation nearest where the nominal
 trajectory puts the object (and lies within the gate of it) and has accumulated no more residual
 than its star gate, a star otherwise (both gates deleted, so that reinitialisation can place pairs
@@ -47,7 +48,9 @@ than the threshold of rule 4 (README "Rule 5 asks the residuals"). Velocity filt
 separate an object whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by
 d (1 - alpha) / alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid
 noise's), so both gates of every pair stay populated; in every other geometry rules 1-4 conclude
-each pair long before.
+each pair long before. The count is of populated frames, not successive ones: a faint object
+detected on nine frames in ten almost never has 40 successive (0.9^40 = 1.5 %; eval9's
+``slow_faint_high`` was never decided), and rules 1-3 already ask for their runs.
 
 Decisions beyond the paper's text: the first object conclusion becomes *"the single valid target
 object"* (several on one frame: the one whose object gate has the smallest accumulated residual);
@@ -300,7 +303,7 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
     Cases
     -----
     decided : no object held, ``n_apriori > 0``, the nominal's line of sight in front, a live pair
-        with both gates populated ``n_apriori`` successive frames, its object gate fed by the
+        with both gates populated on ``n_apriori`` frames (``G_HITS``), its object gate fed by the
         usable observation nearest the nominal's tangent coordinates (integer squared distance;
         the first of equals) and within the gate half-width of them, its object gate's
         accumulated residual not above its star gate's -> it is the object (star gate deleted,
@@ -339,7 +342,7 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
         if G[rs, G_ALIVE] == 0 or G[ro, G_ALIVE] == 0:
             continue
         cyc[ST_GATES] += CYC_APRIORI_PAIR
-        if G[rs, G_RUN] < m or G[ro, G_RUN] < m:
+        if G[rs, G_HITS] < m or G[ro, G_HITS] < m:
             continue
         # an observation feeds one object gate at most (association), so one pair at most
         if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
