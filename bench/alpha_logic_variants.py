@@ -17,6 +17,10 @@ the feedback in force); nothing in ``flightsw`` changes. Variants (``name`` or `
   while the frame's blob count is under ``N`` (a bright star that lifts the window's std leaves
   few blobs at the floor; a star-rich window of faint noise blobs does not); the shipped rule
   since the sparse floor (0.25 under 20 blobs); ``few=0`` is the rule before it;
+* ``locked_floor:floor=F3,few=N``: while the TP holds lock, on a frame with fewer than ``N`` blobs,
+  alpha steps down towards ``F3`` (never pulled up from below it), so that a faint target's
+  neighbouring pixels pass and its centroid leaves the single pixel's centre; the shipped rule
+  since the locked floor (0.5 under 60 blobs); ``few=0`` is the rule before it;
 * ``int_step[:hold=1,down=D]``: a raise goes only as far as the smallest alpha that puts the
   threshold at the next whole count (from the frame's mean and std words), so that the count that
   set it off fails and the next one still passes.
@@ -51,20 +55,24 @@ TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
 
 def _shipped_words():
     """The shipped ``satellite_track`` alpha logic's words (:meth:`AlphaController.words`: near
-    count, step up, step down, floor, ceiling, sparse floor (Q4.12), sparse count)."""
+    count, step up, step down, floor, ceiling, sparse floor (Q4.12), sparse count, locked floor
+    (Q4.12), locked count)."""
     return [int(w) for w in alpha_controller_for(load_default_sequence("satellite_track")).words()]
 
 
 class Rule:
     """One alpha-logic variant on Q4.12 words; what a variant does not set is the shipped
     ``satellite_track`` logic's (:func:`_shipped_words`: near count 90, up 0.5, down 0.25, floor
-    0.75, ceiling 7.0, sparse floor 0.25 under 20 blobs). ``up``, ``down``, ``floor``, ``deep`` in
-    alpha units; ``few`` the sparse count (0: never sparse, the rule before the sparse floor)."""
+    0.75, ceiling 7.0, sparse floor 0.25 under 20 blobs, locked floor 0.5 under 60 blobs).
+    ``up``, ``down``, ``floor``, ``deep``, ``lock_floor`` in alpha units; ``few`` the sparse count
+    (0: never sparse, the rule before the sparse floor); ``lock_few`` the locked count (0: never,
+    the rule before the locked floor)."""
 
     def __init__(self, near_locked: int | None = None, hold: bool = False, up: float | None = None,
                  down: float | None = None, floor: float | None = None, int_step: bool = False,
-                 deep: float | None = None, few: int | None = None):
-        near, w_up, w_down, w_lo, self.hi, w_sparse, w_few = _shipped_words()
+                 deep: float | None = None, few: int | None = None,
+                 lock_floor: float | None = None, lock_few: int | None = None):
+        near, w_up, w_down, w_lo, self.hi, w_sparse, w_few, w_lock, w_lock_few = _shipped_words()
         self.int_step = bool(int_step)
         self.near, self.hold = near, bool(hold)
         self.near_locked = near if near_locked is None else int(near_locked)
@@ -74,6 +82,8 @@ class Rule:
         self.over = -1                                 # the alpha that last overflowed (hold)
         self.deep = w_sparse if deep is None else alpha_to_q12(deep)
         self.few = w_few if few is None else int(few)
+        self.lock_floor = w_lock if lock_floor is None else alpha_to_q12(lock_floor)   # Q4.12
+        self.lock_few = w_lock_few if lock_few is None else int(lock_few)
 
     def next(self, q: int, count: int, locked: bool, thr=None) -> int:
         """The next Q4.12 word after a frame at ``q`` with ``count`` blobs and the TP's lock;
@@ -93,6 +103,8 @@ class Rule:
             lo = self.lo if self.over < 0 else max(self.lo, min(self.over + self.down, q))
             lo = min(lo, self.deep) if count < self.few else min(lo, q)   # below it: hold
             return max(q - self.down, lo)
+        if count < self.lock_few:                      # locked, few blobs: the locked floor
+            return max(q - self.down, min(self.lock_floor, q))
         return q
 
 
@@ -112,6 +124,9 @@ def parse_variant(text: str) -> Rule:
     if name == "count_floor":
         return Rule(deep=float(kw["deep"]) if "deep" in kw else None,
                     few=int(kw["few"]) if "few" in kw else None)
+    if name == "locked_floor":
+        return Rule(lock_floor=float(kw["floor"]) if "floor" in kw else None,
+                    lock_few=int(kw["few"]) if "few" in kw else None)
     if name == "steps":
         return Rule(**{k: float(kw[k]) for k in ("up", "down", "floor") if k in kw})
     raise ValueError(f"unknown variant {text!r}")
@@ -205,7 +220,7 @@ def main(argv=None) -> int:
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("variants", nargs="+",
                     help="paper | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step | "
-                         "count_floor:deep=F2,few=N")
+                         "count_floor:deep=F2,few=N | locked_floor:floor=F3,few=N")
     ap.add_argument("--seeds", default="211,212,213")
     ap.add_argument("--events", action="store_true", help="one line per event too")
     args = ap.parse_args(argv)

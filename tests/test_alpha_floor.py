@@ -1,9 +1,10 @@
-"""A sequence's own alpha floor (threshold step ``alpha_min``) and its floor for sparse frames
-(``alpha_min_sparse`` under ``sparse_blobs``): validated, uplinked and used by the alpha logic.
-Oracles: the closed form of the logic without lock or candidates (alpha_k = max(a0 - 0.25 k,
-floor)) on constant frames, which no threshold passes, the logic's next word worked out by hand
-from its rule, and the 1750A float words of 0.75 and 0.25 written by hand (mantissa 0.75 =
-0x600000, exponent 0; 0.25 = 0.5 * 2**-1)."""
+"""A sequence's own alpha floor (threshold step ``alpha_min``), its floor for sparse frames
+(``alpha_min_sparse`` under ``sparse_blobs``) and its floor while the TP holds lock
+(``alpha_min_locked`` under ``locked_blobs``): validated, uplinked and used by the alpha logic.
+Oracles: the closed form of the logic without candidates (alpha_k = max(a0 - 0.25 k, floor)) on
+constant frames, which no threshold passes, the logic's next word worked out by hand from its rule,
+and the 1750A float words of 0.75, 0.5 and 0.25 written by hand (mantissa 0.75 = 0x600000, exponent
+0; 0.5 = 0x400000, exponent 0; 0.25 = 0.5 * 2**-1)."""
 import numpy as np
 import pytest
 
@@ -11,6 +12,7 @@ from flightsw.ip import ImageProcessor, ProcessingSequence
 from flightsw.ip.processor import alpha_controller_for
 from flightsw.ip.sequence import SequenceError, load_default_sequence
 from flightsw.ip.sequence_words import sequence_from_words, sequence_to_words
+from flightsw.messages import Feedback
 from flightsw.records import load_record
 
 
@@ -38,11 +40,12 @@ def test_alpha_min_crosses_the_uplink_as_a_1750a_float():
     assert alpha_controller_for(back).words()[3] == 0.75 * 4096
 
 
-def _alphas(seq, n, **settings):
+def _alphas(seq, n, locked=False, **settings):
     ip = ImageProcessor(seq, load_record("satellite"), alpha=settings or None)
     frame = np.full((244, 256), 300, np.uint16)          # std 0: nothing passes, no candidate
-    return [ip.step(frame, frame_count=k, time_tag=0.5 * k, imager="wfov_vis").alpha_q12 / 4096
-            for k in range(n)]
+    fb = Feedback(locked=True) if locked else None        # the TP's lock for every frame
+    return [ip.step(frame, frame_count=k, time_tag=0.5 * k, imager="wfov_vis",
+                    feedback=fb).alpha_q12 / 4096 for k in range(n)]
 
 
 def test_the_alpha_logic_floors_at_the_sequence_alpha_min():
@@ -85,7 +88,7 @@ def test_alpha_logic_with_a_sparse_floor_by_hand(q, count, locked, want):
 def test_without_a_sparse_count_the_logic_is_the_floor_alone():
     from flightsw.ip.threshold import AlphaController, alpha_next_k
     w = AlphaController(alpha=2.0, alpha_min=0.75).words()
-    assert list(w[5:]) == [3072, 0]
+    assert list(w[5:7]) == [3072, 0]
     for count in (0, 5, 40):
         assert alpha_next_k(np.int64(3072), np.int64(count), False, w) == 3072
 
@@ -127,3 +130,117 @@ def test_satellite_track_has_the_sparse_floor_and_the_others_not():
     assert (a.alpha_min_sparse, a.sparse_blobs) == (0.25, 20)
     for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
         assert alpha_controller_for(load_default_sequence(name)).sparse_blobs == 0
+
+
+# ---- the floor while the TP holds lock (alpha_min_locked under locked_blobs) ----------------------
+def _ctl_locked(**kw):
+    from flightsw.ip.threshold import AlphaController
+    return AlphaController(**{"alpha": 2.0, "alpha_min": 0.75, "alpha_min_sparse": 0.25,
+                              "sparse_blobs": 20, "alpha_min_locked": 0.5, "locked_blobs": 60,
+                              **kw})
+
+
+# Q4.12 by hand: 1.0 = 4096, 0.75 = 3072, 0.625 = 2560, 0.5 = 2048, 0.25 = 1024; down 0.25 = 1024,
+# up 0.5 = 2048; floor 0.75, sparse floor 0.25 under 20 blobs, locked floor 0.5 under 60 blobs
+@pytest.mark.parametrize("q, count, locked, want", [
+    (4096, 30, True, 3072),        # locked, few: 1.0 -> 0.75 (one step down)
+    (3072, 30, True, 2048),        # 0.75 -> 0.5, below the floor 0.75
+    (2560, 30, True, 2048),        # 0.625 - 0.25 = 0.375 stops at the locked floor 0.5
+    (2048, 30, True, 2048),        # held at the locked floor
+    (1024, 30, True, 1024),        # already below it (a sparse frame took it there): kept
+    (3072, 5, True, 2048),         # locked: the locked floor, not the sparse one (unlocked only)
+    (4096, 59, True, 3072),        # 59 < 60: steps down
+    (4096, 60, True, 4096),        # 60 blobs, not fewer: unchanged
+    (4096, 89, True, 4096),        # unchanged
+    (2048, 90, True, 4096),        # too many still wins: 0.5 + 0.5
+    (2048, 40, False, 2048),       # unlocked, not sparse, below the floor: held
+    (4096, 40, False, 3072),       # unlocked: 1.0 -> 0.75 as before
+    (3072, 5, False, 2048),        # unlocked, sparse: 0.75 -> 0.5 towards 0.25
+])
+@pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "too-many", "no-lock", "no-lock-sparse",
+                   "below-floor", "locked-floor", "locked")
+def test_alpha_logic_with_a_locked_floor_by_hand(q, count, locked, want):
+    from flightsw.ip.threshold import alpha_next_k
+    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl_locked().words()) == want
+
+
+@pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "locked")
+def test_without_a_locked_count_a_locked_frame_keeps_alpha():
+    from flightsw.ip.threshold import AlphaController, alpha_next_k
+    w = AlphaController(alpha=2.0, alpha_min=0.75, alpha_min_locked=0.25).words()
+    assert w.dtype == np.int64 and w.shape == (9,) and list(w[7:]) == [1024, 0]
+    assert list(AlphaController(alpha=2.0, alpha_min=0.75).words()[7:]) == [3072, 0]  # default
+    for count in (0, 5, 40, 89):
+        assert alpha_next_k(np.int64(4096), np.int64(count), True, w) == 4096
+
+
+def test_the_controller_steps_down_while_locked_and_few():
+    a = _ctl_locked(alpha=1.25)
+    assert [a.update(10, True) for _ in range(4)] == [4096, 3072, 2048, 2048]
+    assert a.update(70, True) == 2048          # locked, 70 >= 60 blobs: kept
+    assert a.update(95, True) == 4096          # too many: 0.5 + 0.5
+
+
+@pytest.mark.parametrize("kw, match", [
+    ({"alpha_min_locked": 0.8}, "alpha_min_locked"),           # above alpha_min 0.75
+    ({"alpha_min_locked": -0.25}, "alpha"),                     # below 0 (Q4.12 range)
+    ({"locked_blobs": 90}, "locked_blobs"),                     # near_count 90
+    ({"locked_blobs": -1}, "locked_blobs"),
+    ({"locked_blobs": 2.5}, "locked_blobs"),
+    ({"near_count": 50, "locked_blobs": 50}, "locked_blobs"),
+])
+def test_a_bad_locked_floor_is_refused_by_the_controller(kw, match):
+    with pytest.raises(ValueError, match=match):
+        _ctl_locked(**kw)
+
+
+@pytest.mark.parametrize("kw, field", [
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.8, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": -0.1, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": "low", "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5}, "locked_blobs"),
+    ({"alpha_min": 0.75, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 90}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 0}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 2.5}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": True}, "locked_blobs"),
+    ({"alpha_min_locked": 1.25, "locked_blobs": 60}, "alpha_min_locked"),   # default floor 1.0
+])
+def test_a_bad_locked_floor_is_refused_naming_the_field(kw, field):
+    with pytest.raises(SequenceError) as exc:
+        _seq(alpha=2.0, **kw)
+    assert exc.value.field == field and exc.value.step == 1
+
+
+def test_the_locked_floor_crosses_the_uplink():
+    seq = _seq(alpha=2.0, alpha_min=0.75, alpha_min_locked=0.5, locked_blobs=60)
+    w = sequence_to_words(seq)
+    i = [k for k in range(len(w) - 2) if w[k] == 0x1002]       # key 16, type float
+    # 0.5 = 0.5 * 2**0: mantissa 0x400000 (words 0x4000, then its low byte 0x00), exponent 0x00
+    assert len(i) == 1 and w[i[0] + 1] == 0x4000 and w[i[0] + 2] == 0x0000
+    j = [k for k in range(len(w) - 1) if w[k] == 0x1101]       # key 17, type int
+    assert len(j) == 1 and w[j[0] + 1] == 60
+    back = alpha_controller_for(sequence_from_words(w))
+    assert (back.alpha_min_locked, back.locked_blobs) == (0.5, 60)
+    assert list(back.words()[7:]) == [2048, 60]
+    assert sequence_from_words(w).to_dict()["steps"] == seq.to_dict()["steps"]
+
+
+def test_on_locked_frames_without_blobs_alpha_falls_to_the_locked_floor():
+    # a constant frame: std 0, no blob; the TP's lock on every frame: the locked floor 0.5, not
+    # the sparse floor 0.25 (which needs no lock)
+    seq = _seq(alpha=2.0, alpha_min=0.75, alpha_min_sparse=0.25, sparse_blobs=20,
+               alpha_min_locked=0.5, locked_blobs=60)
+    assert _alphas(seq, 10, locked=True) == [max(2.0 - 0.25 * k, 0.5) for k in range(10)]
+    assert _alphas(seq, 10) == [max(2.0 - 0.25 * k, 0.25) for k in range(10)]
+    # without the locked floor a locked frame keeps alpha
+    assert _alphas(_seq(alpha=2.0, alpha_min=0.75), 4, locked=True) == [2.0] * 4
+
+
+def test_satellite_track_has_the_locked_floor_and_the_others_not():
+    a = alpha_controller_for(load_default_sequence("satellite_track"))
+    assert (a.alpha_min_locked, a.locked_blobs) == (0.5, 60)
+    assert list(a.words()) == [90, 2048, 1024, 3072, 28672, 1024, 20, 2048, 60]
+    for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
+        b = alpha_controller_for(load_default_sequence(name))
+        assert b.locked_blobs == 0 and b.words()[7] == b.words()[3]

@@ -27,22 +27,41 @@ def _trace(variant):
 
 def test_paper_rule_cycles_through_the_floor():
     # 2.0 -0.25 x5 (floor 0.75, held); +0.5 on 200 blobs even though locked; no lock: back down
-    # to 0.75 in two frames; 200 blobs: up again (the raise-and-fall cycle); locked and few: kept
+    # to 0.75 in two frames; 200 blobs: up again (the raise-and-fall cycle); locked with 50 < 60
+    # blobs: one step down (the locked floor 0.5 is below); no lock, 50 >= 20 blobs: held at 0.75
     assert _trace("paper") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 1.25, 1.0, 0.75, 0.75, 1.25,
-                               1.0, 1.0, 0.75]
+                               1.0, 0.75, 0.75]
+
+
+def test_locked_floor_without_a_count_is_the_rule_before_it():
+    # few=0: a locked frame with few blobs keeps alpha (1.0 at the 13th frame)
+    assert _trace("locked_floor:few=0") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 1.25, 1.0, 0.75,
+                                            0.75, 1.25, 1.0, 1.0, 0.75]
+
+
+def test_locked_floor_steps_down_towards_its_floor_while_locked():
+    # Q4.12: 0.75 = 3072, 0.5 = 2048, 0.25 = 1024, 0.0 = 0; down 1024
+    r = parse_variant("locked_floor:floor=0.25,few=40")
+    assert r.next(3072, 39, True) == 2048 and r.next(2048, 39, True) == 1024
+    assert r.next(1024, 39, True) == 1024                     # at the floor: held
+    assert r.next(3072, 40, True) == 3072                     # 40 blobs, not fewer: kept
+    assert r.next(0, 39, True) == 0                           # below the floor: not pulled up
+    assert r.next(1024, 95, True) == 3072                     # too many wins: + 0.5
 
 
 def test_hold_stops_one_step_above_the_alpha_that_overflowed_until_the_next_lock():
     # the overflow at 0.75 is remembered: without lock the logic falls to 1.0 and stays; 200
     # blobs at 1.0 raise it to 1.5 and move the memory to 1.0 (stop at 1.25); the lock clears it
+    # and, with 50 < 60 blobs, steps down (locked floor); then without lock down to the floor
     assert _trace("hold") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 1.25, 1.0, 1.0, 1.0, 1.5, 1.25,
-                              1.25, 1.0]
+                              1.0, 0.75]
 
 
 def test_locked_near_count_only_raises_without_lock_below_it():
-    # locked with 200 < 4096 blobs: kept at 0.75; unlocked with 200 >= 90: raised
+    # locked with 200 < 4096 blobs (and >= 60): kept at 0.75; unlocked with 200 >= 90: raised;
+    # locked with 50 < 60 blobs: one step down (locked floor)
     assert _trace("locked_near:n=4096") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 0.75, 0.75, 0.75,
-                                            0.75, 1.25, 1.0, 1.0, 0.75]
+                                            0.75, 1.25, 1.0, 0.75, 0.75]
     r = parse_variant("locked_near:n=150")
     assert r.next(3072, 149, True) == 3072 and r.next(3072, 150, True) == 5120
 
@@ -53,7 +72,7 @@ def test_int_step_raises_to_the_next_whole_count():
     # >= 30: q * 38 >= 29.5 * 4096 = 120832, q >= 3179.8 -> 3180 (3179 * 38 / 4096 = 29.49 -> 29)
     r = parse_variant("int_step")
     assert r.next(3072, 200, True, (31, 2, 38, 0)) == 3180
-    assert r.next(3072, 50, True, (31, 2, 38, 0)) == 3072          # few: unchanged
+    assert r.next(3072, 70, True, (31, 2, 38, 0)) == 3072          # 60 .. 89 locked: unchanged
 
 
 def test_paper_variant_is_the_flight_update():

@@ -129,8 +129,8 @@ def _plan(seq="satellite", rec="satellite"):
     return ip, ip._plans["wfov_vis"]
 
 
-#: the alpha logic's words (near 90, up 0.5, down 0.25, floor 1.0, ceiling 7.0, no sparse floor),
-#: in the layout the kernel reads (:meth:`AlphaController.words`)
+#: the alpha logic's words (near 90, up 0.5, down 0.25, floor 1.0, ceiling 7.0, no sparse floor,
+#: no locked floor), in the layout the kernel reads (:meth:`AlphaController.words`, int64 [9])
 CTL = tuple(AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).words().tolist())
 
 

@@ -20,13 +20,14 @@ FRAMES = (0, 3, 20, 90, 180)
 
 def _track_sequence_floor_1():
     """``satellite_track`` as it was when the rows were recorded: the alpha logic's default floor
-    (1.0), not the sequence's ``alpha_min`` (0.75) and sparse floor that came later and change the
-    event."""
+    (1.0), not the sequence's ``alpha_min`` (0.75), sparse floor and locked floor that came later
+    and change the event."""
     from flightsw.ip import ProcessingSequence
     from flightsw.ip.sequence import load_default_sequence
     d = load_default_sequence("satellite_track").to_dict()
     for st in d["steps"]:
-        for key in ("alpha_min", "alpha_min_sparse", "sparse_blobs"):
+        for key in ("alpha_min", "alpha_min_sparse", "sparse_blobs", "alpha_min_locked",
+                    "locked_blobs"):
             st.pop(key, None)
     return ProcessingSequence.from_dict(d)
 

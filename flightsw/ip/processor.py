@@ -96,8 +96,9 @@ def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
 def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaController:
     """The alpha logic a sequence runs with: it starts from the threshold step's ``alpha`` and
     floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default),
-    at its ``alpha_min_sparse`` on frames with fewer than ``sparse_blobs`` blobs when it sets
-    those; ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
+    at its ``alpha_min_sparse`` on frames with fewer than ``sparse_blobs`` blobs and, while the TP
+    holds lock, at its ``alpha_min_locked`` on frames with fewer than ``locked_blobs`` blobs when it
+    sets those; ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
     kw = {"alpha": sequence_alpha(sequence)}
     for st in sequence.steps:
         if st.op == "threshold":
@@ -106,6 +107,9 @@ def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaContr
             if st.raw.get("sparse_blobs") is not None:
                 kw["alpha_min_sparse"] = float(st.raw["alpha_min_sparse"])
                 kw["sparse_blobs"] = int(st.raw["sparse_blobs"])
+            if st.raw.get("locked_blobs") is not None:
+                kw["alpha_min_locked"] = float(st.raw["alpha_min_locked"])
+                kw["locked_blobs"] = int(st.raw["locked_blobs"])
             break
     kw.update({k: v for k, v in settings.items() if k != "alpha"})
     return AlphaController(**kw)

@@ -26,6 +26,8 @@ loadable from TOML::
     alpha_min = 1.0         # optional, 0 .. alpha: the alpha logic's floor
     alpha_min_sparse = 0.25 # optional, 0 .. alpha_min, with sparse_blobs: the floor while the
     sparse_blobs = 20       #   frame has fewer blobs than sparse_blobs (1 .. 89)
+    alpha_min_locked = 0.5  # optional, 0 .. alpha_min, with locked_blobs: while the TP holds lock
+    locked_blobs = 60       #   and the frame has fewer blobs (1 .. 89), alpha steps down to this
     mode = "binarize"       # | "clip"
 
 The frequency-domain filter (the paper's slow path, :mod:`flightsw.ip.fftfilter`) is its own op, so
@@ -346,20 +348,23 @@ class ThresholdParams:
 
 
 def _validate_threshold(params, pre):
-    _fields(params, {"alpha", "mode", "alpha_min", "alpha_min_sparse", "sparse_blobs"})
+    _fields(params, {"alpha", "mode", "alpha_min", "alpha_min_sparse", "sparse_blobs",
+                     "alpha_min_locked", "locked_blobs"})
     if "alpha" not in params:
         raise FieldError("alpha", "missing (0 .. 7.99975)")
     alpha = _float_field(params, "alpha", None, _th.ALPHA_MIN, _th.ALPHA_MAX)
     floor = min(alpha, _th.AlphaController.alpha_min)     # the logic's default floor
     if "alpha_min" in params:        # the alpha logic's floor for this sequence (AlphaController)
         floor = _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
-    sparse = [k for k in ("alpha_min_sparse", "sparse_blobs") if k in params]
-    if len(sparse) == 1:             # the floor for sparse frames: both fields or neither
-        other = ({"alpha_min_sparse", "sparse_blobs"} - set(sparse)).pop()
-        raise FieldError(other, f"missing (it comes with {sparse[0]})")
-    if sparse:
-        _float_field(params, "alpha_min_sparse", None, _th.ALPHA_MIN, floor)
-        _int_field(params, "sparse_blobs", None, 1, _th.NEAR_COUNT - 1)
+    # the floor for sparse frames without lock, and the floor while locked: both fields or neither
+    for pair in (("alpha_min_sparse", "sparse_blobs"), ("alpha_min_locked", "locked_blobs")):
+        given = [k for k in pair if k in params]
+        if len(given) == 1:
+            other = (set(pair) - set(given)).pop()
+            raise FieldError(other, f"missing (it comes with {given[0]})")
+        if given:
+            _float_field(params, pair[0], None, _th.ALPHA_MIN, floor)
+            _int_field(params, pair[1], None, 1, _th.NEAR_COUNT - 1)
     mode = _choice(params, "mode", "binarize", ("binarize", "clip"))
     h, w = pre.window_shape
     if h * w > 16384:

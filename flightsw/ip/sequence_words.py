@@ -30,7 +30,7 @@ last       CRC-16/CCITT-FALSE over every preceding word (:func:`flightsw.message
 Op codes (:data:`OP_CODES`): filter 1, filter_fft 2, detrend 3, threshold 4, colour 5, label 6,
 features 7, rank 8. Key codes (:data:`KEYS`): kernel 1, size 2, sigma 3, coefficients 4, tile 5,
 method 6, taps 7, alpha 8, mode 9, diagonal 10, intensity_centroid 11, max_candidates 12,
-alpha_min 13, alpha_min_sparse 14, sparse_blobs 15.
+alpha_min 13, alpha_min_sparse 14, sparse_blobs 15, alpha_min_locked 16, locked_blobs 17.
 
 :func:`sequence_from_words` checks the words' format (id, length, CRC, codes, types, value ranges,
 nothing left over) and then the sequence's meaning (:meth:`ProcessingSequence.from_dict`, the same
@@ -57,7 +57,8 @@ KEYS = {"kernel": (1, T_ENUM), "size": (2, T_INT), "sigma": (3, T_FLOAT),
         "taps": (7, T_VECTOR), "alpha": (8, T_FLOAT), "mode": (9, T_ENUM),
         "diagonal": (10, T_BOOL), "intensity_centroid": (11, T_BOOL),
         "max_candidates": (12, T_INT), "alpha_min": (13, T_FLOAT),
-        "alpha_min_sparse": (14, T_FLOAT), "sparse_blobs": (15, T_INT)}
+        "alpha_min_sparse": (14, T_FLOAT), "sparse_blobs": (15, T_INT),
+        "alpha_min_locked": (16, T_FLOAT), "locked_blobs": (17, T_INT)}
 #: enumeration key -> its values in code order (code = index + 1)
 ENUMS = {"kernel": ("smooth", "matched", "custom", "gaussian"),
          "method": ("highpass", "polynomial", "none"),

@@ -72,7 +72,8 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
         accepted command replaces it in place
     ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
     t, fc : time tag (s, float64) and frame count (0..65535)
-    aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words (:func:`alpha_next_k`)
+    aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words, int64 [9]
+        (:meth:`flightsw.ip.threshold.AlphaController.words`, :func:`alpha_next_k`)
     ints, i16 : the plan's fixed words (:func:`flightsw.ip.pipeline.step_words`): int64 ``geo``
         [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`: compacted H, W, window h, w, compaction
         f, message word 6 (imager << 8 | f), record id, has a threshold step), the

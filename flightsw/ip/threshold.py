@@ -271,8 +271,9 @@ def threshold_cycles(h, w):
     return int(h * w * (5 + 4) + 2 * 3 * h + 250)
 
 
-#: 1750A clocks of one alpha-logic update: 2 compares, 2 branches, one add and one store
-ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 3, "JC": 3, "A": 1, "ST": 1})
+#: 1750A clocks of one alpha-logic update: 4 compares and 4 conditional jumps (the locked count's
+#: compare and jump included), one add and one store
+ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 4, "JC": 4, "A": 1, "ST": 1})
 
 
 @njit(cache=True)
@@ -280,18 +281,22 @@ def alpha_next_k(q12, count, locked, ctl):
     """The alpha logic's next Q4.12 word (1750A integer code).
 
     ``q12``: alpha in force (Q4.12 word); ``count``: candidates detected this frame; ``locked``:
-    the TP's lock; ``ctl``: int64 [7] (:meth:`AlphaController.words`): near count, step up, step
-    down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count. Returns int.
+    the TP's lock; ``ctl``: int64 [9] (:meth:`AlphaController.words`): near count, step up, step
+    down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count, locked floor (Q4.12
+    word), locked count. Returns int.
 
     Cases
     -----
-    too-many : ``count >= near`` -> ``min(q12 + up, max)`` (wins over no lock).
+    too-many : ``count >= near`` -> ``min(q12 + up, max)`` (wins over no lock and over lock).
     no-lock : fewer and not locked -> ``max(q12 - down, min)``.
     no-lock-sparse : fewer than the sparse count and not locked -> ``max(q12 - down, sparse
         floor)`` (a sparse count of 0, the default, never applies).
-    below-floor : not sparse, not locked and already below ``min`` (a sparse frame took it
-        there) -> ``q12`` unchanged (held, not pulled back up).
-    locked : fewer and locked -> ``q12`` unchanged.
+    below-floor : not sparse, not locked and already below ``min`` (a sparse or locked frame
+        took it there) -> ``q12`` unchanged (held, not pulled back up).
+    locked-floor : fewer than the locked count and locked -> ``max(q12 - down, min(locked
+        floor, q12))`` (steps down to the locked floor; already below it: unchanged).
+    locked : locked, not fewer than the locked count (0, the default, never applies) -> ``q12``
+        unchanged.
     """
     if count >= ctl[0]:
         return min(q12 + ctl[1], ctl[4])
@@ -299,6 +304,8 @@ def alpha_next_k(q12, count, locked, ctl):
         if count < ctl[6]:
             return max(q12 - ctl[2], ctl[5])
         return max(q12 - ctl[2], min(ctl[3], q12))
+    if count < ctl[8]:
+        return max(q12 - ctl[2], min(ctl[7], q12))
     return q12
 
 
@@ -321,7 +328,18 @@ class AlphaController:
     over a faint object while few blobs pass, where a window whose std is the noise's passes many.
     The default ``sparse_blobs = 0`` never applies.
 
-    Each update charges the 1750A ``ip1750`` for 3 compares, 3 branches, one add and one store.
+    ``alpha_min_locked`` / ``locked_blobs``: while the TP holds lock, on a frame with fewer than
+    ``locked_blobs`` blobs, alpha steps down by ``step_down`` towards ``alpha_min_locked`` (default
+    ``alpha_min``), never pulled up when already below it. Both are ASSUMED (the paper lowers
+    alpha only without lock): after lock a faint target often has a single compacted pixel above
+    the threshold, so its centroid is that pixel's centre wherever in the pixel the target lies (a
+    dead zone up to ~0.3 processed px) and the closed loop's track error sits there; a lower
+    threshold while locked lets the neighbouring pixels pass, and the record's centroid prior (the
+    TP's prediction) keeps the target ranked first among the extra noise blobs. The default
+    ``locked_blobs = 0`` never applies.
+
+    Each update charges the 1750A ``ip1750`` for 4 compares, 4 conditional jumps, one add and one
+    store (:data:`ALPHA_LOGIC_CYCLES`).
     """
 
     alpha: float = 3.0
@@ -330,9 +348,11 @@ class AlphaController:
     step_up: float = 0.5
     step_down: float = 0.25
     near_count: int = NEAR_COUNT
-    alpha_min_sparse: float | None = None
+    alpha_min_sparse: float | None = None       # host float, Q4.12 once built
     sparse_blobs: int = 0
-    q12: int = field(init=False)
+    alpha_min_locked: float | None = None       # host float, Q4.12 once built
+    locked_blobs: int = 0
+    q12: int = field(init=False)                # alpha in force, Q4.12 word
 
     def __post_init__(self):
         self._min = alpha_to_q12(self.alpha_min)
@@ -353,6 +373,14 @@ class AlphaController:
                 not 0 <= self.sparse_blobs < self.near_count:
             raise ValueError(f"sparse_blobs={self.sparse_blobs!r} must be an int in "
                              f"0..{self.near_count - 1}")
+        locked = self.alpha_min if self.alpha_min_locked is None else self.alpha_min_locked
+        self._locked = alpha_to_q12(locked)                     # Q4.12
+        if self._locked > self._min:
+            raise ValueError(f"alpha_min_locked={locked} > alpha_min={self.alpha_min}")
+        if not isinstance(self.locked_blobs, (int, np.integer)) or \
+                not 0 <= self.locked_blobs < self.near_count:
+            raise ValueError(f"locked_blobs={self.locked_blobs!r} must be an int in "
+                             f"0..{self.near_count - 1}")
         q = alpha_to_q12(self.alpha)
         if not self._min <= q <= self._max:
             raise ValueError(f"alpha={self.alpha} outside alpha_min..alpha_max")
@@ -364,10 +392,12 @@ class AlphaController:
         return self.q12 / 4096
 
     def words(self) -> np.ndarray:
-        """The logic's constants as :func:`alpha_next_k` takes them: int64 [7] near count, step
-        up, step down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count."""
+        """The logic's constants as :func:`alpha_next_k` takes them: int64 [9] near count, step
+        up, step down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count, locked
+        floor (Q4.12 word), locked count."""
         return np.array([self.near_count, self._up, self._down, self._min, self._max,
-                         self._sparse, self.sparse_blobs], np.int64)
+                         self._sparse, self.sparse_blobs, self._locked, self.locked_blobs],
+                        np.int64)
 
     def set_q12(self, q12: int) -> int:
         """Put the Q4.12 word ``q12`` in force (the compiled step's update); returns it."""
