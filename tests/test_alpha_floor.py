@@ -100,8 +100,18 @@ def test_without_a_sparse_count_the_logic_is_the_floor_alone():
     ({"alpha_min": 0.75, "alpha_min_sparse": 0.25, "sparse_blobs": 90}, "sparse_blobs"),
     ({"alpha_min": 0.75, "alpha_min_sparse": 0.25, "sparse_blobs": 2.5}, "sparse_blobs"),
     ({"alpha_min_sparse": 1.25, "sparse_blobs": 20}, "alpha_min_sparse"),   # default floor 1.0
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.8, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": -0.1, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": "low", "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5}, "locked_blobs"),
+    ({"alpha_min": 0.75, "locked_blobs": 60}, "alpha_min_locked"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 90}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 0}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 2.5}, "locked_blobs"),
+    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": True}, "locked_blobs"),
+    ({"alpha_min_locked": 1.25, "locked_blobs": 60}, "alpha_min_locked"),   # default floor 1.0
 ])
-def test_a_bad_sparse_floor_is_refused_naming_the_field(kw, field):
+def test_a_bad_sparse_or_locked_floor_is_refused_naming_the_field(kw, field):
     with pytest.raises(SequenceError) as exc:
         _seq(alpha=2.0, **kw)
     assert exc.value.field == field and exc.value.step == 1
@@ -192,24 +202,6 @@ def test_the_controller_steps_down_while_locked_and_few():
 def test_a_bad_locked_floor_is_refused_by_the_controller(kw, match):
     with pytest.raises(ValueError, match=match):
         _ctl_locked(**kw)
-
-
-@pytest.mark.parametrize("kw, field", [
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.8, "locked_blobs": 60}, "alpha_min_locked"),
-    ({"alpha_min": 0.75, "alpha_min_locked": -0.1, "locked_blobs": 60}, "alpha_min_locked"),
-    ({"alpha_min": 0.75, "alpha_min_locked": "low", "locked_blobs": 60}, "alpha_min_locked"),
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.5}, "locked_blobs"),
-    ({"alpha_min": 0.75, "locked_blobs": 60}, "alpha_min_locked"),
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 90}, "locked_blobs"),
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 0}, "locked_blobs"),
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": 2.5}, "locked_blobs"),
-    ({"alpha_min": 0.75, "alpha_min_locked": 0.5, "locked_blobs": True}, "locked_blobs"),
-    ({"alpha_min_locked": 1.25, "locked_blobs": 60}, "alpha_min_locked"),   # default floor 1.0
-])
-def test_a_bad_locked_floor_is_refused_naming_the_field(kw, field):
-    with pytest.raises(SequenceError) as exc:
-        _seq(alpha=2.0, **kw)
-    assert exc.value.field == field and exc.value.step == 1
 
 
 def test_the_locked_floor_crosses_the_uplink():

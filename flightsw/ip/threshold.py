@@ -365,26 +365,25 @@ class AlphaController:
             raise ValueError("step_up and step_down must be > 0")
         if not isinstance(self.near_count, (int, np.integer)) or not 1 <= self.near_count <= 100:
             raise ValueError(f"near_count={self.near_count!r} must be an int in 1..100")
-        sparse = self.alpha_min if self.alpha_min_sparse is None else self.alpha_min_sparse
-        self._sparse = alpha_to_q12(sparse)
-        if self._sparse > self._min:
-            raise ValueError(f"alpha_min_sparse={sparse} > alpha_min={self.alpha_min}")
-        if not isinstance(self.sparse_blobs, (int, np.integer)) or \
-                not 0 <= self.sparse_blobs < self.near_count:
-            raise ValueError(f"sparse_blobs={self.sparse_blobs!r} must be an int in "
-                             f"0..{self.near_count - 1}")
-        locked = self.alpha_min if self.alpha_min_locked is None else self.alpha_min_locked
-        self._locked = alpha_to_q12(locked)                     # Q4.12
-        if self._locked > self._min:
-            raise ValueError(f"alpha_min_locked={locked} > alpha_min={self.alpha_min}")
-        if not isinstance(self.locked_blobs, (int, np.integer)) or \
-                not 0 <= self.locked_blobs < self.near_count:
-            raise ValueError(f"locked_blobs={self.locked_blobs!r} must be an int in "
-                             f"0..{self.near_count - 1}")
+        self._sparse = self._extra_floor("alpha_min_sparse", "sparse_blobs")     # Q4.12
+        self._locked = self._extra_floor("alpha_min_locked", "locked_blobs")     # Q4.12
         q = alpha_to_q12(self.alpha)
         if not self._min <= q <= self._max:
             raise ValueError(f"alpha={self.alpha} outside alpha_min..alpha_max")
         self.q12 = q
+
+    def _extra_floor(self, floor_name: str, count_name: str) -> int:
+        """A floor below ``alpha_min`` and its blob count, checked -> the floor's Q4.12 word
+        (``alpha_min``'s when the floor is None)."""
+        floor = getattr(self, floor_name)
+        floor = self.alpha_min if floor is None else floor
+        q = alpha_to_q12(floor)
+        if q > self._min:
+            raise ValueError(f"{floor_name}={floor} > alpha_min={self.alpha_min}")
+        count = getattr(self, count_name)
+        if not isinstance(count, (int, np.integer)) or not 0 <= count < self.near_count:
+            raise ValueError(f"{count_name}={count!r} must be an int in 0..{self.near_count - 1}")
+        return q
 
     @property
     def value(self) -> float:
