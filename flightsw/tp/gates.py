@@ -22,14 +22,15 @@ squared differences or residuals between the observation and the gate center are
   the paper does not say how the verified object's gate moves once the EKF runs. Left to its own
   smoothing it follows whatever falls in it: a star crossing a faint target that the IP missed for
   a frame or two took the gate with it, the EKF refused the star's centroids (one axis rejected a
-  frame, which then did not count towards a covariance reset) and the pointing drifted off the target
-  (satellite_train_faint_mid, seeds 214 and 215, frames 28-140). Chosen on the satellite training
+  frame, which then did not count towards a covariance reset) and the pointing drifted off the
+  target (satellite_train_faint_mid, seeds 214 and 215, frames 28-140). Chosen on the satellite training
   family (README "Tracking on scenarios it was not tuned on").
 * A learned velocity (beta > 0) moves a gate by ``v dt`` too; every gate keeps its last apparent
   velocity for the recording.
 * Smoothing: :func:`flightsw.tp.alphabeta.ab_update` with the associated observation; the squared
   residual ``r_a^2 + r_b^2`` (rad^2) is accumulated per gate; the gate's successive empty frames
-  (``G_MISS``) and successive populated frames (``G_RUN``) count what the rules test.
+  (``G_MISS``), successive populated frames (``G_RUN``) and populated frames in all (``G_HITS``,
+  rule 5) count what the rules test.
 
 Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, int64 [NG, GC],
 packed 32-bit coordinates, 16-bit integer copies for the membership tests).

@@ -57,7 +57,7 @@ C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_MAX_RATE2, C_QTOL = 13, 
 C_MAX_SKEW, C_EKF_MAX_REJ, C_RMIN2, C_RMAX2, C_VMAX2, C_GAP = 19, 20, 21, 22, 23, 24
 C_CYC_RK4, C_CYC_EKF_STEP = 25, 26          # clocks of one nominal RK4 step / one EKF predict step
 C_OPP_STARTUP = 27          # last observation count with growing-memory opportunity gains (0: off)
-C_N_APRIORI = 28            # rule 5's successive frames with both gates populated (0: off)
+C_N_APRIORI = 28            # rule 5's count of frames with both gates populated (0: off)
 C_AIM_ROW, C_AIM_COL = 29, 30   # where the pointing puts the target, imager px off +X's pixel
 C_WORDS = 32
 

@@ -204,8 +204,9 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     if ok2:
         l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
     cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
-    if not (ok1 and ok2):                 # either component refused: counted (a one-axis
-        V[V_STATUS] |= TC_INNOVATION_REJECTED   # refusal can hold an offset for good)
+    # either component refused counts towards the reset: a one-axis refusal can hold an offset
+    if not (ok1 and ok2):
+        V[V_STATUS] |= TC_INNOVATION_REJECTED
         E[E_NREJ] += 1
         if E[E_NREJ] >= C[C_EKF_MAX_REJ]:
             ekf_reset_cov(E, K[K_P0R], K[K_P0V])
