@@ -37,7 +37,9 @@ FAMILIES = ["aurora_train_churchill_limb", "aurora_train_dusk_dayglow", "aurora_
             "satellite_eval10_faint_offset_low", "satellite_eval10_mid_slowish",
             "satellite_eval10_bright_offset_high", "satellite_eval11_faint_high_behind",
             "satellite_eval11_faint_close_offset", "satellite_eval11_mid_ahead_far",
-            "satellite_eval11_bright_low_behind"]
+            "satellite_eval11_bright_low_behind", "satellite_eval12_faint_mid_offset",
+            "satellite_eval12_dim_far_ahead", "satellite_eval12_mid_crossplane",
+            "satellite_eval12_bright_high_offset"]
 
 
 @pytest.mark.parametrize("name", SHIPPED + FAMILIES)
