@@ -175,6 +175,7 @@ def test_track_command_words_round_trip_and_crc():
     (dict(nominal="x"), "nominal"), (dict(ekf_accel_psd=0.0), "ekf_accel_psd"),
     (dict(j2=1), "j2"), (dict(opp_beta=-1.0), "opp_beta"),
     (dict(aim_row_px=4.5), "aim_row_px"), (dict(aim_col_px=float("nan")), "aim_col_px"),
+    (dict(aim_scan_px=-0.1), "aim_scan_px"), (dict(aim_scan_frames=2), "aim_scan_frames"),
 ])
 def test_config_errors_name_the_field(kw, msg):
     base = dict(imagers={"wfov_vis": GEOM})
@@ -586,7 +587,7 @@ def test_step_never_raises_on_an_internal_error():
 # pointing, feedback, budget, snapshot
 # ================================================================================================
 def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation():
-    s, tp = _locked(aim_row_px=0.0, aim_col_px=0.0)             # +X itself on the target
+    s, tp = _locked(aim_row_px=0.0, aim_col_px=0.0, aim_scan_px=0.0)  # +X itself on the target
     msg, att, _ = s.frame(20)
     cmd = tp.step(msg, att)
     q = np.asarray(cmd.q_point)
@@ -607,7 +608,8 @@ def test_pointing_puts_the_boresight_on_the_predicted_los_by_a_minimal_rotation(
 @pytest.mark.cases("flightsw.tp.command.aim_offset", "shifted", "zero")
 def test_aim_offset_is_the_aim_pixel_through_scale_and_alignment():
     """The kernel against numpy: u - A (0, cols * scale_col, rows * scale_row), components 2 and
-    3, with a rotated alignment (30 deg about +X) and unequal scales; both aims 0: u unchanged."""
+    3, with a rotated alignment (30 deg about +X), unequal scales and the scan's offset added to
+    the aim; aims and offset all 0: u unchanged."""
     from flightsw.arith.m1750 import decode32, encode32
     from flightsw.tp import layout as L
     from flightsw.tp.command import aim_offset
@@ -618,13 +620,41 @@ def test_aim_offset_is_the_aim_pixel_through_scale_and_alignment():
     u /= np.linalg.norm(u)
     C = np.zeros(L.C_WORDS, np.int64)
     C[L.C_AIM_ROW], C[L.C_AIM_COL] = encode32(0.8), encode32(-1.5)
-    v1, v2, f = aim_offset(C, img, encode32(u[1]), encode32(u[2]))
-    want = u - A @ np.array([0.0, -1.5 * 9e-4, 0.8 * 7.5e-4])
+    v1, v2, f = aim_offset(C, img, encode32(u[1]), encode32(u[2]), encode32(0.25), encode32(-0.5))
+    want = u - A @ np.array([0.0, -2.0 * 9e-4, 1.05 * 7.5e-4])
     assert f == 0 and decode32(v1) == pytest.approx(want[1], abs=1e-8)   # 24-bit mantissas
     assert decode32(v2) == pytest.approx(want[2], abs=1e-8)
     C[L.C_AIM_ROW] = C[L.C_AIM_COL] = 0
     w1, w2 = encode32(u[1]), encode32(u[2])
-    assert aim_offset(C, img, w1, w2) == (w1, w2, 0)
+    assert aim_offset(C, img, w1, w2, 0, 0) == (w1, w2, 0)
+
+
+@pytest.mark.cases("flightsw.tp.command.aim_scan", "idle", "scanning", "off")
+@pytest.mark.parametrize("radius, period", [(0.5, 32), (1.25, 7), (0.0, 32)])
+def test_aim_scan_traces_the_circle_of_its_radius_and_period(radius, period):
+    """Against the closed form: idle frames give (0, 0) and re-arm; the n-th held frame gives
+    radius (cos 2 pi n / N, sin 2 pi n / N) to 24-bit arithmetic, over three turns; radius 0: (0, 0)
+    throughout."""
+    from flightsw.arith.m1750 import decode32, encode32
+    from flightsw.tp import layout as L
+    from flightsw.tp.command import aim_scan
+    C = np.zeros(L.C_WORDS, np.int64)
+    C[L.C_SCAN_R] = encode32(radius)
+    C[L.C_SCAN_COS] = encode32(math.cos(2 * math.pi / period))
+    C[L.C_SCAN_SIN] = encode32(math.sin(2 * math.pi / period))
+    S = np.zeros(L.S_WORDS, np.int64)
+    S[L.S_SCAN], S[L.S_SCAN + 1] = encode32(0.3), encode32(0.7)       # left by an earlier hold
+    assert aim_scan(C, S, False) == (0, 0, 0)
+    for n in range(3 * period):
+        r, c, f = aim_scan(C, S, True)
+        ph = 2 * math.pi * n / period
+        assert f == 0
+        # 24-bit truncating multiplies: ~1e-8 px a step (1.1e-6 px after 96 at radius 0.5)
+        assert decode32(r) == pytest.approx(radius * math.cos(ph), abs=3e-6)
+        assert decode32(c) == pytest.approx(radius * math.sin(ph), abs=3e-6)
+    assert aim_scan(C, S, False) == (0, 0, 0)                          # the hold ends: re-armed
+    r, c, f = aim_scan(C, S, True)
+    assert (decode32(r), decode32(c)) == (pytest.approx(radius), 0.0)
 
 
 @pytest.mark.parametrize("aim", [(0.8, 0.67), (-1.5, 2.0), (0.0, 0.0)])
@@ -632,9 +662,10 @@ def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     """With an aim of (rows, cols) imager pixels, the commanded attitude turns the body direction
     of that pixel, A (1, dx, dy) with dx = cols * scale, dy = rows * scale (A = I here), onto the
     predicted line of sight (to first order in the offset: < 1e-6 rad at ~1 mrad), and the
-    reported predicted pixel is unchanged by the aim."""
-    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1])
-    s0, tp0 = _locked(aim_row_px=0.0, aim_col_px=0.0)
+    reported predicted pixel is unchanged by the aim. With the aim scan on, the n-th frame of the
+    hold puts aim + 0.5 (cos 2 pi n / 8, sin 2 pi n / 8) there instead."""
+    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.0)
+    s0, tp0 = _locked(aim_row_px=0.0, aim_col_px=0.0, aim_scan_px=0.0)
     msg, att, _ = s.frame(20)
     cmd = tp.step(msg, att)
     cmd0 = tp0.step(*s0.frame(20)[:2])
@@ -643,6 +674,14 @@ def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     assert np.linalg.norm(dcm(np.asarray(cmd.q_point)) @ b - cmd.los_eci) < 1e-6
     assert np.linalg.norm(np.asarray(cmd.los_eci) - np.asarray(cmd0.los_eci)) < 1e-9
     assert (cmd.predicted_row, cmd.predicted_col) == (cmd0.predicted_row, cmd0.predicted_col)
+    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.5, aim_scan_frames=8)
+    decided = tp.step(*s.frame(20)[:2]).decided_frame                   # n = 0 on that frame
+    for k in range(21, 30):
+        cmd = tp.step(*s.frame(k)[:2])
+        ph = 2 * math.pi * (k - decided) / 8
+        b = np.array([1.0, (aim[1] + 0.5 * math.sin(ph)) * SCALE, (aim[0] + 0.5 * math.cos(ph)) * SCALE])
+        b /= np.linalg.norm(b)
+        assert np.linalg.norm(dcm(np.asarray(cmd.q_point)) @ b - cmd.los_eci) < 1e-6
 
 
 def test_ledger_charged_per_stage_on_the_tp_processor():
@@ -794,7 +833,8 @@ def test_closed_loop_satellite_over_stars_with_groundsim_truth_centroids():
         w.advance()
     print(f"[tp] satellite_over_stars (truth centroids): object decided on frame {decided}")
     assert decided is not None and cmd.locked and cmd.object_index == 3
-    assert math.hypot(tg["row"] - 122.0, tg["col"] - 128.0) < 1.5            # on the boresight
+    # on the aim: +X's pixel (122, 128) + the default aim (1, 1) + the aim scan's 0.5 px circle
+    assert math.hypot(tg["row"] - 123.0, tg["col"] - 129.0) < 1.0
     assert math.hypot(cmd.predicted_row - tg["row"], cmd.predicted_col - tg["col"]) < 1.0
     assert np.linalg.norm(cmd.r_est - tg["r_eci"]) < 3 * cmd.sigma_pos
 

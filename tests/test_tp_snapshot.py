@@ -56,13 +56,15 @@ def test_recorded_rows_unchanged(tmp_path):
     ``tables/tp`` equal, byte for byte, those recorded before the snapshot was compiled, except
     the verified object's gate (row 1) from the decision on: it is put on the EKF's line of sight
     each frame since, so its position, velocity, residual and pixel moved (nothing else did).
-    Run with the pointing's aim of then (+X on the target: ``aim_row_px = aim_col_px = 0``)."""
+    Run with the pointing's aim of then (+X on the target: ``aim_row_px = aim_col_px = 0``, no
+    aim scan)."""
     want = np.load(DATA)
     from hil_harness.event.io import EventWriter  # the recorder's own row builder
     from hil_harness.event.recording import Recorder, Recording
     ev = Event(EventConfig("satellite_over_stars", frames=max(FRAMES) + 1,
                            sequence=_track_sequence_floor_1(), record=_satellite_record_then(),
-                           tp={"aim_row_px": 0.0, "aim_col_px": 0.0}),
+                           tp={"aim_row_px": 0.0, "aim_col_px": 0.0,
+                               "aim_scan_px": 0.0}),
                keep_frames=False)
     rec = Recorder(tmp_path / "r.h5")
     ev.run(on_frame=EventWriter(rec, ev, record_frames=False))

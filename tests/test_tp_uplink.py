@@ -32,6 +32,9 @@ def test_words_round_trip_and_layout():
     assert (w[3], w[6]) == (20, 21)
     assert (int(w[4]) << 16 | int(w[5])) == 0x40000000               # 0.5 = 0.5 * 2**0
     assert decode_uplink(w) == {"aim_row_px": 0.5, "aim_col_px": -0.75}
+    w = encode_uplink(aim_scan_px=0.25, aim_scan_frames=48)            # the aim scan: codes 22, 23
+    assert list(w[3:9:3]) == [22, 23]
+    assert decode_uplink(w) == {"aim_scan_px": 0.25, "aim_scan_frames": 48}
 
 
 @pytest.mark.parametrize("mutate, msg", [

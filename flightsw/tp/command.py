@@ -21,10 +21,10 @@ from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, 
                                mtv3, mv3, qmul, qnormalize, unit3)
 from flightsw.tp.geometry import DR_MIX, IMG_SC, IMG_SR, make_dR, neg32, vec_to_pix
 from flightsw.tp.layout import (
-    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS,
+    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, C_SCAN_COS, C_SCAN_R, C_SCAN_SIN, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS,
     O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME,
     S_FRAME, S_HAVE_PREV, S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q,
-    S_RS, S_STATUS, S_T, S_VS, S_W, ST_CMD,
+    S_RS, S_SCAN, S_STATUS, S_T, S_VS, S_W, ST_CMD,
     V_DT, V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS,
     V_STATUS, V_T, V_VS, V_W,
 )
@@ -36,7 +36,8 @@ _BEHIND = 0x400000FA              # 2**-7
 CYC_PRATE = cycles({"FD": 1, "FS": 3, "FM": 3, "ST": 3})
 CYC_CMD = cycles(mix({"EFM": 12, "EFA": 12, "EFS": 3, "DL": 6}, UNIT3_MIX, MV3_MIX, DR_MIX, MV3_MIX,
                      {"FM": 4, "FA": 2, "FD": 1}, QNORM_MIX, QMUL_MIX, {"FA": 1, "FC": 1, "JC": 2}))
-CYC_AIM = cycles({"FM": 6, "FA": 2, "FS": 2, "L": 6})
+CYC_AIM = cycles({"FM": 6, "FA": 4, "FS": 2, "L": 8})
+CYC_SCAN = cycles({"FM": 4, "FA": 1, "FS": 1, "L": 6, "ST": 2, "C": 1, "JC": 1})
 CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
@@ -151,23 +152,58 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
 
 
 @njit(cache=True, inline="always")
-def aim_offset(C, img, u1, u2):
-    """The direction to point +X body at so that the target falls ``aim_row_px``, ``aim_col_px``
-    imager pixels off the pixel +X falls on -> (u1', u2', flags): ``u - A (0, dx, dy)``, components
-    2 and 3, with ``dx = aim_col * scale_col``, ``dy = aim_row * scale_row`` and ``A`` the imager's
-    alignment (first order in the offset: ~1e-7 rad at 0.5 mrad).
+def aim_scan(C, S, held):
+    """This frame's offset of the aim scan -> (rows, cols, flags), packed 32-bit imager pixels;
+    the kept offset turned by ``2 pi / aim_scan_frames`` for the next frame:
+    ``(r, c) <- (r cos - c sin, r sin + c cos)``, so that the n-th frame of a hold reads
+    ``aim_scan_px (cos 2 pi n / N, sin 2 pi n / N)``. The truncating 32-bit multiplies shrink the
+    radius by ~1e-8 px a frame (0.5 px -> 0.49988 after 10^4 frames, 83 min).
+
+    ``C`` config (``C_SCAN_R``, ``C_SCAN_COS``, ``C_SCAN_SIN``); ``S`` the kept offset
+    (``S[S_SCAN]``, ``S[S_SCAN + 1]``); ``held`` True while an object is held.
+
+    Cases
+    -----
+    idle : no object held -> (0, 0); the scan re-armed at ``(aim_scan_px, 0)``.
+    scanning : held -> the kept offset; the kept one turned by one step.
+    off : ``aim_scan_px`` 0 -> (0, 0) held or not.
+    """
+    if not held:
+        S[S_SCAN], S[S_SCAN + 1] = C[C_SCAN_R], 0
+        return 0, 0, 0
+    r, c = S[S_SCAN], S[S_SCAN + 1]
+    f = 0
+    a, g = fm32(r, C[C_SCAN_COS]); f |= g
+    b, g = fm32(c, C[C_SCAN_SIN]); f |= g
+    S[S_SCAN], g = fs32(a, b); f |= g
+    a, g = fm32(r, C[C_SCAN_SIN]); f |= g
+    b, g = fm32(c, C[C_SCAN_COS]); f |= g
+    S[S_SCAN + 1], g = fa32(a, b); f |= g
+    return r, c, f
+
+
+@njit(cache=True, inline="always")
+def aim_offset(C, img, u1, u2, scan_r, scan_c):
+    """The direction to point +X body at so that the target falls ``aim_row_px + scan_r``,
+    ``aim_col_px + scan_c`` imager pixels off the pixel +X falls on -> (u1', u2', flags):
+    ``u - A (0, dx, dy)``, components 2 and 3, with ``dx = (aim_col + scan_c) * scale_col``,
+    ``dy = (aim_row + scan_r) * scale_row`` and ``A`` the imager's alignment (first order in the
+    offset: ~1e-7 rad at 0.5 mrad).
 
     ``C`` config (``C_AIM_ROW``, ``C_AIM_COL``, packed pixels); ``img`` the imager's table row;
-    ``u1``, ``u2`` packed components of the unit target direction (body).
+    ``u1``, ``u2`` packed components of the unit target direction (body); ``scan_r``, ``scan_c``
+    the aim scan's offset (packed pixels, :func:`aim_scan`).
 
     Cases
     -----
     shifted : ``u1 - A11 dx - A12 dy``, ``u2 - A21 dx - A22 dy``.
-    zero : both aim words 0 -> ``u1``, ``u2`` unchanged.
+    zero : aim words and scan offset all 0 -> ``u1``, ``u2`` unchanged.
     """
     f = 0
-    dx, g = fm32(C[C_AIM_COL], img[IMG_SC]); f |= g
-    dy, g = fm32(C[C_AIM_ROW], img[IMG_SR]); f |= g
+    ac, g = fa32(C[C_AIM_COL], scan_c); f |= g
+    ar, g = fa32(C[C_AIM_ROW], scan_r); f |= g
+    dx, g = fm32(ac, img[IMG_SC]); f |= g
+    dy, g = fm32(ar, img[IMG_SR]); f |= g
     t, g = fm32(img[4], dx); f |= g
     p, g = fm32(img[5], dy); f |= g
     t, g = fa32(t, p); f |= g
@@ -225,8 +261,9 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         fl |= g
         S[S_PRED], S[S_PRED + 1], S[S_PRED + 2] = n0, n1, n2
         if not opportunity:
-            u1, u2, g = aim_offset(C, IMG[V[V_IMG]], u1, u2); fl |= g
-            cyc[ST_CMD] += CYC_AIM
+            sr, sc, g = aim_scan(C, S, S[S_DEC] >= 0); fl |= g
+            u1, u2, g = aim_offset(C, IMG[V[V_IMG]], u1, u2, sr, sc); fl |= g
+            cyc[ST_CMD] += CYC_AIM + CYC_SCAN
         have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
         cyc[ST_CMD] += CYC_CMD
     if have_q:

@@ -30,7 +30,8 @@ S_OPP_ALIVE, S_OPP_X, S_OPP_V, S_OPP_MISS, S_OPP_HITS, S_OPP_OBS = 24, 25, 27, 2
 S_NFRAMES, S_STATUS, S_NREINIT, S_NDEC, S_NSPURIOUS, S_RULE, S_NLOST = 32, 33, 34, 35, 36, 37, 38
 S_NRULE, S_NSTALE = 39, 43          # conclusions per rule 1..4 (4 words), pairs deleted undecided
 S_PRED, S_PRED_OK = 44, 47          # the predicted direction for the next frame, body axes (3 x 32)
-S_WORDS = 48
+S_SCAN = 48                         # the aim scan's offset for this frame (rows, cols; 2 x 32, imager px)
+S_WORDS = 50
 
 # ---- G: gates, OBS: observations, N: nominal -----------------------------------------------------
 MAX_OBS = 23
@@ -59,7 +60,8 @@ C_CYC_RK4, C_CYC_EKF_STEP = 25, 26          # clocks of one nominal RK4 step / o
 C_OPP_STARTUP = 27          # last observation count with growing-memory opportunity gains (0: off)
 C_N_APRIORI = 28            # rule 5's count of frames with both gates populated (0: off)
 C_AIM_ROW, C_AIM_COL = 29, 30   # where the pointing puts the target, imager px off +X's pixel
-C_WORDS = 32
+C_SCAN_R, C_SCAN_COS, C_SCAN_SIN = 31, 32, 33   # aim scan radius (imager px), cos, sin of its step
+C_WORDS = 34
 
 # ---- V: this frame's working values --------------------------------------------------------------
 V_T, V_DT, V_DT48, V_LONG_GAP, V_FC, V_IMG = 0, 1, 2, 3, 4, 5         # time (48), dt (32, 48)

@@ -171,6 +171,9 @@ class TrackProcessor:
         C[F.C_N_APRIORI] = cfg.n_apriori
         C[F.C_AIM_ROW] = e32(cfg.aim_row_px)
         C[F.C_AIM_COL] = e32(cfg.aim_col_px)
+        C[F.C_SCAN_R] = e32(cfg.aim_scan_px)
+        C[F.C_SCAN_COS] = e32(math.cos(2.0 * math.pi / cfg.aim_scan_frames))
+        C[F.C_SCAN_SIN] = e32(math.sin(2.0 * math.pi / cfg.aim_scan_frames))
         C[F.C_FRAME_DT] = e48(cfg.frame_dt)
         C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
         C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)

@@ -37,6 +37,7 @@ UPLINK_PARAMS = {
     13: ("opp_gate_px", "f"), 14: ("opp_n_lost", "i"), 15: ("max_rate", "f"),
     16: ("quat_norm_tol", "f"), 17: ("max_time_skew", "f"), 18: ("max_coast_s", "f"),
     19: ("n_apriori", "i"), 20: ("aim_row_px", "f"), 21: ("aim_col_px", "f"),
+    22: ("aim_scan_px", "f"), 23: ("aim_scan_frames", "i"),
 }
 _CODE_OF = {name: code for code, (name, _) in UPLINK_PARAMS.items()}
 
