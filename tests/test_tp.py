@@ -679,7 +679,8 @@ def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     for k in range(21, 30):
         cmd = tp.step(*s.frame(k)[:2])
         ph = 2 * math.pi * (k - decided) / 8
-        b = np.array([1.0, (aim[1] + 0.5 * math.sin(ph)) * SCALE, (aim[0] + 0.5 * math.cos(ph)) * SCALE])
+        b = np.array([1.0, (aim[1] + 0.5 * math.sin(ph)) * SCALE,
+                      (aim[0] + 0.5 * math.cos(ph)) * SCALE])
         b /= np.linalg.norm(b)
         assert np.linalg.norm(dcm(np.asarray(cmd.q_point)) @ b - cmd.los_eci) < 1e-6
 

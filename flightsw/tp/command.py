@@ -21,12 +21,12 @@ from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, 
                                mtv3, mv3, qmul, qnormalize, unit3)
 from flightsw.tp.geometry import DR_MIX, IMG_SC, IMG_SR, make_dR, neg32, vec_to_pix
 from flightsw.tp.layout import (
-    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, C_SCAN_COS, C_SCAN_R, C_SCAN_SIN, G_ALIVE, NPAIR, O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS,
-    O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP, O_SV, O_T, O_V, S_DEC, S_DEC_FRAME,
-    S_FRAME, S_HAVE_PREV, S_IMG, S_NFRAMES, S_OPP_ALIVE, S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q,
-    S_RS, S_SCAN, S_STATUS, S_T, S_VS, S_W, ST_CMD,
-    V_DT, V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS,
-    V_STATUS, V_T, V_VS, V_W,
+    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, C_SCAN_COS, C_SCAN_R, C_SCAN_SIN, G_ALIVE, NPAIR, O_DECF,
+    O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP,
+    O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV, S_IMG, S_NFRAMES, S_OPP_ALIVE,
+    S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q, S_RS, S_SCAN, S_STATUS, S_T, S_VS, S_W, ST_CMD, V_DT,
+    V_EKF_ON, V_FC, V_FLAGS, V_HAD_ATT, V_IMG, V_LOCKED, V_LONG_GAP, V_OBJ, V_Q, V_RS, V_STATUS,
+    V_T, V_VS, V_W,
 )
 from flightsw.tp.trajectory import PI_FLAGS
 

@@ -30,7 +30,7 @@ S_OPP_ALIVE, S_OPP_X, S_OPP_V, S_OPP_MISS, S_OPP_HITS, S_OPP_OBS = 24, 25, 27, 2
 S_NFRAMES, S_STATUS, S_NREINIT, S_NDEC, S_NSPURIOUS, S_RULE, S_NLOST = 32, 33, 34, 35, 36, 37, 38
 S_NRULE, S_NSTALE = 39, 43          # conclusions per rule 1..4 (4 words), pairs deleted undecided
 S_PRED, S_PRED_OK = 44, 47          # the predicted direction for the next frame, body axes (3 x 32)
-S_SCAN = 48                         # the aim scan's offset for this frame (rows, cols; 2 x 32, imager px)
+S_SCAN = 48                         # the aim scan's offset this frame (rows, cols; 2 x 32, px)
 S_WORDS = 50
 
 # ---- G: gates, OBS: observations, N: nominal -----------------------------------------------------
