@@ -104,12 +104,10 @@ def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaContr
         if st.op == "threshold":
             if st.raw.get("alpha_min") is not None:
                 kw["alpha_min"] = float(st.raw["alpha_min"])
-            if st.raw.get("sparse_blobs") is not None:
-                kw["alpha_min_sparse"] = float(st.raw["alpha_min_sparse"])
-                kw["sparse_blobs"] = int(st.raw["sparse_blobs"])
-            if st.raw.get("locked_blobs") is not None:
-                kw["alpha_min_locked"] = float(st.raw["alpha_min_locked"])
-                kw["locked_blobs"] = int(st.raw["locked_blobs"])
+            for floor, count in (("alpha_min_sparse", "sparse_blobs"),
+                                 ("alpha_min_locked", "locked_blobs")):
+                if st.raw.get(count) is not None:
+                    kw[floor], kw[count] = float(st.raw[floor]), int(st.raw[count])
             break
     kw.update({k: v for k, v in settings.items() if k != "alpha"})
     return AlphaController(**kw)

@@ -348,9 +348,9 @@ class AlphaController:
     step_up: float = 0.5
     step_down: float = 0.25
     near_count: int = NEAR_COUNT
-    alpha_min_sparse: float | None = None       # host float, Q4.12 once built
+    alpha_min_sparse: float | None = None       # host float; its Q4.12 word is _sparse
     sparse_blobs: int = 0
-    alpha_min_locked: float | None = None       # host float, Q4.12 once built
+    alpha_min_locked: float | None = None       # host float; its Q4.12 word is _locked
     locked_blobs: int = 0
     q12: int = field(init=False)                # alpha in force, Q4.12 word
 
