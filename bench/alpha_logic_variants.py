@@ -7,8 +7,10 @@ runs with the flight's alpha update replaced, after each frame, by the variant's
 here in integers on the same Q4.12 words (the word in force, the frame's blob count, the lock of
 the feedback in force); nothing in ``flightsw`` changes. Variants (``name`` or ``name:k=v,...``):
 
-* ``paper``: the shipped rule (:func:`flightsw.ip.threshold.alpha_next_k`), a check that the
-  override reproduces the defaults' figures exactly;
+* ``shipped``: the flight update (:func:`flightsw.ip.threshold.alpha_next_k`) with the words of
+  ``satellite_track`` under both floor proposals (the configuration these variants were studied in,
+  before the floors became proposals: not the paper's alpha logic), a check that the override
+  reproduces that configuration's figures exactly;
 * ``locked_near:n=N``: while the TP is locked, raise only when the count reaches ``N`` (not 90);
 * ``hold``: after a raise, the lowering without lock stops one step above the alpha that
   overflowed, until the TP locks again;
@@ -39,7 +41,7 @@ import sys
 
 from tqdm import tqdm
 
-from flightsw.ip.processor import alpha_controller_for
+from flightsw.ip.processor import alpha_controller_for, apply_floor_proposals
 from flightsw.ip.sequence import load_default_sequence
 from flightsw.ip.threshold import alpha_to_q12
 from hil_harness.event import Event, EventConfig
@@ -53,11 +55,15 @@ TRAINING = ("satellite_train_faint_far", "satellite_train_faint_near",
             "satellite_train_mid_offset", "satellite_train_bright_low", "satellite_train_faint_mid")
 
 
+FLOORS = ("alpha_floor_locked", "alpha_floor_sparse")
+
+
 def _shipped_words():
-    """The shipped ``satellite_track`` alpha logic's words (:meth:`AlphaController.words`: near
-    count, step up, step down, floor, ceiling, sparse floor (Q4.12), sparse count, locked floor
-    (Q4.12), locked count)."""
-    return [int(w) for w in alpha_controller_for(load_default_sequence("satellite_track")).words()]
+    """The ``satellite_track`` alpha logic's words under both floor proposals
+    (:meth:`AlphaController.words`: near count, step up, step down, floor, ceiling, sparse floor
+    (Q4.12), sparse count, locked floor (Q4.12), locked count)."""
+    seq = apply_floor_proposals(load_default_sequence("satellite_track"), FLOORS)
+    return [int(w) for w in alpha_controller_for(seq, FLOORS).words()]
 
 
 class Rule:
@@ -112,7 +118,7 @@ def parse_variant(text: str) -> Rule:
     """``name`` or ``name:k=v,...`` (module docstring) -> a fresh :class:`Rule`."""
     name, _, args = text.partition(":")
     kw = dict(a.split("=") for a in args.split(",") if a)
-    if name == "paper":
+    if name == "shipped":
         return Rule()
     if name == "locked_near":
         return Rule(near_locked=int(kw["n"]))
@@ -140,7 +146,7 @@ def _thr_words(thr):
 
 def _event(scenario: str, seed: int, variant: str) -> tuple:
     """(summary, :func:`_message_share`) of one event under ``variant``."""
-    ev = Event(EventConfig(scenario=scenario, seed=seed))
+    ev = Event(EventConfig(scenario=scenario, seed=seed, proposals="all"))   # the studied configuration
     rule, step, lock = parse_variant(variant), ev.ip.step, {}
 
     def stepped(frame, **kw):
@@ -219,7 +225,7 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.alpha_logic_variants",
                                  description=__doc__.split("\n\n")[0])
     ap.add_argument("variants", nargs="+",
-                    help="paper | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step | "
+                    help="shipped | locked_near:n=N | hold | steps:up=U,down=D,floor=F | int_step | "
                          "count_floor:deep=F2,few=N | locked_floor:floor=F3,few=N")
     ap.add_argument("--seeds", default="211,212,213")
     ap.add_argument("--events", action="store_true", help="one line per event too")

@@ -21,6 +21,9 @@ File layout (all tables but ``[scenario]`` optional; unknown keys are errors)::
                  file, looked up next to the scenario first), corrupt_bits = N (optional: flip N bits
                  of the uplink words, a corrupted uplink the IP must refuse)
     [background] earth_glow = "auto" | true | false
+    [flight]     with = [proposal names] (flightsw.proposals; ["all"] for every one): the candidate
+                 flight-software changes in force for this scenario (default none: the paper's
+                 system); ``--with`` on the command line replaces it
 
 A malformed file raises :class:`ScenarioError` naming the file, the key and the reason.
 """
@@ -228,6 +231,7 @@ class Scenario:
     earth_glow: object = "auto"
     raw: dict = field(default_factory=dict, repr=False)
     uplinks: list = field(default_factory=list)            # [Uplink] by time
+    flight_with: tuple = ()            # [flight] with: proposal names, sorted (flightsw.proposals)
 
     # ------------------------------------------------------------------------------------------------
     @classmethod
@@ -288,11 +292,12 @@ class Scenario:
         if glow not in ("auto", True, False):
             raise bg.err("earth_glow", f"must be 'auto', true or false, got {glow!r}")
         bg.done()
+        flight_with = _parse_flight(top.sub("flight", {}), path)
         top.done()
         return cls(name=name, path=Path(str(path)), description=desc, epoch=epoch, duration=duration,
                    seed=int(fseed if seed is None else seed), imager=imager, compaction=compaction,
                    spacecraft=spc, pointing=pnt, target=tgt, imagers=imagers, faults=faults, earth_glow=glow,
-                   raw=data, uplinks=uplinks)
+                   raw=data, uplinks=uplinks, flight_with=flight_with)
 
     # ------------------------------------------------------------------------------------------------
     @property
@@ -501,6 +506,19 @@ def _parse_faults(t: _Table, duration) -> Faults:
         bus[key] = sorted(out, key=lambda f: f.frame)
     t.done()
     return Faults(frozenset(df), sorted(sw), gaps, bus["corrupt_candidate"], bus["corrupt_command"])
+
+
+def _parse_flight(ft, file) -> tuple:
+    """``[flight] with = [...]`` -> the proposal names (expanded, sorted); unknown names refused."""
+    from flightsw.proposals import expand
+    names = ft.raw("with", [])
+    ft.done()
+    if not isinstance(names, list):
+        raise ft.err("with", f"expected a list of proposal names, got {type(names).__name__}")
+    try:
+        return expand(names, "with")
+    except ValueError as e:
+        raise ScenarioError(file, "flight.with", str(e).split(": ", 1)[1]) from None
 
 
 def _parse_uplinks(entries, file, duration) -> list:

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flightsw.ip import ImageProcessor, ProcessingSequence
-from flightsw.ip.processor import alpha_controller_for
+from flightsw.ip.processor import alpha_controller_for, apply_floor_proposals
 from flightsw.ip.sequence import SequenceError, load_default_sequence
 from flightsw.ip.sequence_words import sequence_from_words, sequence_to_words
 from flightsw.messages import Feedback
@@ -40,8 +40,11 @@ def test_alpha_min_crosses_the_uplink_as_a_1750a_float():
     assert alpha_controller_for(back).words()[3] == 0.75 * 4096
 
 
-def _alphas(seq, n, locked=False, **settings):
-    ip = ImageProcessor(seq, load_record("satellite"), alpha=settings or None)
+FLOORS = ("alpha_floor_locked", "alpha_floor_sparse")     # the two floor proposals
+
+
+def _alphas(seq, n, locked=False, proposals=FLOORS, **settings):
+    ip = ImageProcessor(seq, load_record("satellite"), alpha=settings or None, proposals=proposals)
     frame = np.full((244, 256), 300, np.uint16)          # std 0: nothing passes, no candidate
     fb = Feedback(locked=True) if locked else None        # the TP's lock for every frame
     return [ip.step(frame, frame_count=k, time_tag=0.5 * k, imager="wfov_vis",
@@ -125,7 +128,7 @@ def test_the_sparse_floor_crosses_the_uplink():
     assert len(i) == 1 and w[i[0] + 1] == 0x4000 and w[i[0] + 2] == 0x00FF
     j = [k for k in range(len(w) - 1) if w[k] == (15 << 8) | 1]     # key 15, type int
     assert len(j) == 1 and w[j[0] + 1] == 20
-    back = alpha_controller_for(sequence_from_words(w))
+    back = alpha_controller_for(sequence_from_words(w), FLOORS)
     assert (back.alpha_min_sparse, back.sparse_blobs) == (0.25, 20)
 
 
@@ -136,10 +139,14 @@ def test_on_frames_without_blobs_alpha_falls_to_the_sparse_floor():
 
 
 def test_satellite_track_has_the_sparse_floor_and_the_others_not():
-    a = alpha_controller_for(load_default_sequence("satellite_track"))
+    on = ("alpha_floor_sparse",)
+    a = alpha_controller_for(apply_floor_proposals(load_default_sequence("satellite_track"), on), on)
     assert (a.alpha_min_sparse, a.sparse_blobs) == (0.25, 20)
-    for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
-        assert alpha_controller_for(load_default_sequence(name)).sparse_blobs == 0
+    for name in ("satellite", "aurora", "aurora_track", "star", "streak", "satellite_track"):
+        seq = load_default_sequence(name)
+        assert alpha_controller_for(seq).sparse_blobs == 0          # the paper's alpha logic
+        if name != "satellite_track":
+            assert alpha_controller_for(apply_floor_proposals(seq, on), on).sparse_blobs == 0
 
 
 # ---- the floor while the TP holds lock (alpha_min_locked under locked_blobs) ----------------------
@@ -212,7 +219,7 @@ def test_the_locked_floor_crosses_the_uplink():
     assert len(i) == 1 and w[i[0] + 1] == 0x4000 and w[i[0] + 2] == 0x0000
     j = [k for k in range(len(w) - 1) if w[k] == 0x1101]       # key 17, type int
     assert len(j) == 1 and w[j[0] + 1] == 60
-    back = alpha_controller_for(sequence_from_words(w))
+    back = alpha_controller_for(sequence_from_words(w), FLOORS)
     assert (back.alpha_min_locked, back.locked_blobs) == (0.5, 60)
     assert list(back.words()[7:]) == [2048, 60]
     assert sequence_from_words(w).to_dict()["steps"] == seq.to_dict()["steps"]
@@ -230,9 +237,43 @@ def test_on_locked_frames_without_blobs_alpha_falls_to_the_locked_floor():
 
 
 def test_satellite_track_has_the_locked_floor_and_the_others_not():
-    a = alpha_controller_for(load_default_sequence("satellite_track"))
+    seq = apply_floor_proposals(load_default_sequence("satellite_track"), FLOORS)
+    a = alpha_controller_for(seq, FLOORS)
     assert (a.alpha_min_locked, a.locked_blobs) == (0.5, 60)
     assert list(a.words()) == [90, 2048, 1024, 3072, 28672, 1024, 20, 2048, 60]
     for name in ("satellite", "aurora", "aurora_track", "star", "streak"):
         b = alpha_controller_for(load_default_sequence(name))
         assert b.locked_blobs == 0 and b.words()[7] == b.words()[3]
+
+
+# ---- the floors are proposals: off by default, each alone changes only its own floor ----------
+def test_the_paper_alpha_logic_has_no_extra_floor_and_refuses_a_sequence_setting_one():
+    """Default (no proposal): satellite_track's alpha logic has only alpha_min (the words' sparse
+    and locked counts 0, their floors alpha_min's); a sequence setting a floor field is refused
+    in one line naming the field and the proposal, at power-on and by uplink (the old one kept)."""
+    a = alpha_controller_for(load_default_sequence("satellite_track"))
+    assert list(a.words()) == [90, 2048, 1024, 3072, 28672, 3072, 0, 3072, 0]
+    seq = _seq(alpha=2.0, alpha_min=0.75, alpha_min_sparse=0.25, sparse_blobs=20)
+    with pytest.raises(SequenceError, match="alpha_min_sparse.*'alpha_floor_sparse'.*off"):
+        ImageProcessor(seq, load_record("satellite"))
+    ip = ImageProcessor(_seq(alpha=2.0), load_record("satellite"))
+    v = ip.uplink(sequence_to_words(seq))
+    assert not v.accepted and "alpha_floor_sparse" in v.reason and ip.uplinks_refused == 1
+    # on a constant frame, unlocked: the paper's logic stops at alpha_min
+    assert _alphas(_seq(alpha=2.0, alpha_min=0.75), 10, proposals=()) == \
+        [max(2.0 - 0.25 * k, 0.75) for k in range(10)]
+
+
+@pytest.mark.parametrize("on, unlocked_floor, locked_floor", [
+    ((), 0.75, 2.0), (("alpha_floor_sparse",), 0.25, 2.0), (("alpha_floor_locked",), 0.75, 0.5),
+    (FLOORS, 0.25, 0.5)])
+def test_each_floor_proposal_alone_changes_only_its_floor(on, unlocked_floor, locked_floor):
+    """satellite_track on blob-free frames (every frame sparse): with the sparse floor alone the
+    unlocked alpha goes on to 0.25 and a locked frame keeps alpha; with the locked floor alone the
+    locked alpha steps to 0.5 and the unlocked one stops at alpha_min 0.75."""
+    seq = apply_floor_proposals(load_default_sequence("satellite_track"), on)
+    got_u = _alphas(seq, 12, proposals=on)
+    got_l = _alphas(seq, 12, locked=True, proposals=on)
+    assert got_u == [max(2.0 - 0.25 * k, unlocked_floor) for k in range(12)]
+    step = 0.25 if locked_floor < 2.0 else 0.0
+    assert got_l == [max(2.0 - step * k, locked_floor) for k in range(12)]

@@ -1,12 +1,12 @@
 """The alpha-logic variants the README's satellite diagnosis measured (bench/alpha_logic_variants.py),
 against alpha traces worked out by hand on a made-up sequence of (blob count, TP lock), and the
-``paper`` variant against the flight's own update (:func:`flightsw.ip.threshold.alpha_next_k` with
+``shipped`` variant against the flight's own update (:func:`flightsw.ip.threshold.alpha_next_k` with
 ``satellite_track``'s words) on random sequences: the bench's shipped-rule figures are the
 defaults'."""
 import numpy as np
 
 from bench.alpha_logic_variants import parse_variant
-from flightsw.ip.processor import alpha_controller_for
+from flightsw.ip.processor import alpha_controller_for, apply_floor_proposals
 from flightsw.ip.sequence import load_default_sequence
 from flightsw.ip.threshold import alpha_next_k
 
@@ -25,11 +25,11 @@ def _trace(variant):
     return out
 
 
-def test_paper_rule_cycles_through_the_floor():
+def test_shipped_rule_cycles_through_the_floor():
     # 2.0 -0.25 x5 (floor 0.75, held); +0.5 on 200 blobs even though locked; no lock: back down
     # to 0.75 in two frames; 200 blobs: up again (the raise-and-fall cycle); locked with 50 < 60
     # blobs: one step down (the locked floor 0.5 is below); no lock, 50 >= 20 blobs: held at 0.75
-    assert _trace("paper") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 1.25, 1.0, 0.75, 0.75, 1.25,
+    assert _trace("shipped") == [1.75, 1.5, 1.25, 1.0, 0.75, 0.75, 1.25, 1.0, 0.75, 0.75, 1.25,
                                1.0, 0.75, 0.75]
 
 
@@ -75,10 +75,12 @@ def test_int_step_raises_to_the_next_whole_count():
     assert r.next(3072, 70, True, (31, 2, 38, 0)) == 3072          # 60 .. 89 locked: unchanged
 
 
-def test_paper_variant_is_the_flight_update():
-    ctl = alpha_controller_for(load_default_sequence("satellite_track")).words()
+def test_shipped_variant_is_the_flight_update():
+    fl = ("alpha_floor_locked", "alpha_floor_sparse")
+    ctl = alpha_controller_for(apply_floor_proposals(load_default_sequence("satellite_track"), fl),
+                               fl).words()
     rng = np.random.default_rng(20)
-    rule, q, want = parse_variant("paper"), 8192, 8192
+    rule, q, want = parse_variant("shipped"), 8192, 8192
     for _ in range(2000):
         count, locked = int(rng.integers(0, 250)), bool(rng.integers(0, 2))
         q = rule.next(q, count, locked)

@@ -67,5 +67,5 @@ def test_ground_command_forces_and_suspends_logic():
 def test_bad_params_and_records():
     with pytest.raises(ValueError, match="handover_lock_frames"):
         SelectionParams(handover_lock_frames=0)
-    assert record_name_for("aurora") == "aurora_surge" and record_name_for("launch") == "plume"
+    assert record_name_for("aurora") == "aurora" and record_name_for("launch") == "plume"  # Table 1
     assert record_name_for(None) == "star"

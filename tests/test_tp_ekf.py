@@ -430,11 +430,14 @@ def test_ekf_start_and_prediction_of_its_line_of_sight():
     assert V[L.V_ETAN_OK] == 0 and V[L.V_DE] == 0 and V[L.V_ETAN] == 0
 
 
-def _update_case(dx, dy, nrej=0, held=False):
+def _update_case(dx, dy, nrej=0, held=False, max_rejects=None):
     """An EKF 1 Mm ahead with P = diag(1e4 m^2, 1 (m/s)^2), one candidate (dx, dy) rad off the
     estimate's line of sight (aligned imager, body = ECI, 1e-4 rad/px, sigma 0.5 px); ``held``:
-    its line of sight and range left in E_LOS, V_ERHO as predict_ekf leaves them."""
+    its line of sight and range left in E_LOS, V_ERHO as predict_ekf leaves them; ``max_rejects``
+    the proposal ekf_reset's count (None: the arrays' own)."""
     C, D, K, S, V, RM, cyc = _traj_arrays()
+    if max_rejects is not None:
+        C[L.C_EKF_MAX_REJ] = max_rejects
     E = np.zeros(E_WORDS, np.int64)
     ekf_init(E, *[_w48(x) for x in (*(RSC + [1.0e6, 50.0, -30.0]), *VT)], 0, K[K_P0R], K[K_P0V])
     E[E_NREJ] = nrej
@@ -503,6 +506,19 @@ def test_update_ekf_rejections_counted_and_the_covariance_reset():
     E, V, z = _update_case(5e-3, 5e-3, nrej=2)                # the third frame running: reset
     assert V[L.V_STATUS] == TC_INNOVATION_REJECTED | TC_EKF_RESET and E[E_NREJ] == 0
     assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
+
+
+@pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "reset-off")
+def test_without_the_ekf_reset_proposal_the_covariance_is_never_reset():
+    """The paper's EKF (``ekf_max_rejects = 0``): a refused innovation is counted and flagged,
+    the covariance is left alone however long the refusals run; the proposal on (3 frames) resets
+    it on the third frame running, as the test above shows."""
+    for nrej in (2, 11, 500):
+        E, V, z = _update_case(5e-3, 5e-3, nrej=nrej, max_rejects=0)
+        assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == nrej + 1
+        assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
+    E, V, z = _update_case(5e-3, 5e-3, nrej=2, max_rejects=3)
+    assert V[L.V_STATUS] & TC_EKF_RESET and E[E_NREJ] == 0
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.no_nominal", "typical")

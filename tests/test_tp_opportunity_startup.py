@@ -131,12 +131,21 @@ def test_startup_frames_are_charged_the_gain_computation():
     assert cyc[3] == cyc[4]
 
 
-def test_config_word_follows_opp_startup():
+def test_config_word_follows_the_opp_startup_proposal():
+    """Off by default (the paper's steady alpha-beta); the proposal ``opp_startup`` on alone sets
+    the word to the last start-up count; the parameter without the proposal is refused."""
     g = {"wfov_uv": ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE)}
-    on = TrackProcessor(TPConfig(imagers=g, mode="opportunity"))
+    paper = TrackProcessor(TPConfig(imagers=g, mode="opportunity"))
+    assert paper.C[L.C_OPP_STARTUP] == 0 and paper.config.opp_startup is False
+    on = TrackProcessor(TPConfig(imagers=g, mode="opportunity", proposals=("opp_startup",)))
     assert on.C[L.C_OPP_STARTUP] == 14
-    off = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_startup=False))
-    no_beta = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_beta=0.0))
+    assert np.array_equal(np.delete(on.C, L.C_OPP_STARTUP), np.delete(paper.C, L.C_OPP_STARTUP))
+    off = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_startup=False,
+                                  proposals=("opp_startup",)))
+    no_beta = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_beta=0.0,
+                                      proposals=("opp_startup",)))
     assert off.C[L.C_OPP_STARTUP] == 0 and no_beta.C[L.C_OPP_STARTUP] == 0
     with pytest.raises(ValueError, match="TPConfig.opp_startup"):
-        TPConfig(imagers=g, opp_startup=1)
+        TPConfig(imagers=g, opp_startup=1, proposals=("opp_startup",))
+    with pytest.raises(ValueError, match="TPConfig.opp_startup=True.*'opp_startup'.*off"):
+        TPConfig(imagers=g, opp_startup=True)

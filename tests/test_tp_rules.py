@@ -33,48 +33,49 @@ def w(x):
 
 THR = w(4e-8)             # residual threshold, rad^2
 N = 3                     # successive empty frames for rules 1 and 2
+G = True                  # the proposal rule_guards on (the cases below state it)
 
 
 # ---- the rules as functions ----------------------------------------------------------------------
 @pytest.mark.cases("flightsw.tp.rules.rule1", "decides", "star-gate-recent", "object-gate-missed",
                     "run-capped-2n", "inconsistent")
 def test_rule1_star_gate_empty_object_gate_populated_and_consistent():
-    assert rule1(3, 3, w(1e-8), N, THR)                 # empty n, populated since, consistent
-    assert rule1(7, 6, w(1e-8), N, THR)                 # at most 2n populated frames asked for
-    assert not rule1(2, 5, w(1e-8), N, THR)             # star gate empty n - 1 frames only
-    assert not rule1(4, 3, w(1e-8), N, THR)             # object gate missed once since
-    assert not rule1(3, 3, w(5e-8), N, THR)             # inconsistent object gate
+    assert rule1(3, 3, w(1e-8), N, THR, G)                 # empty n, populated since, consistent
+    assert rule1(7, 6, w(1e-8), N, THR, G)                 # at most 2n populated frames asked for
+    assert not rule1(2, 5, w(1e-8), N, THR, G)             # star gate empty n - 1 frames only
+    assert not rule1(4, 3, w(1e-8), N, THR, G)             # object gate missed once since
+    assert not rule1(3, 3, w(5e-8), N, THR, G)             # inconsistent object gate
 
 
 @pytest.mark.cases("flightsw.tp.rules.rule2", "decides", "object-gate-recent", "star-gate-missed",
                     "inconsistent", "residual-at-threshold")
 def test_rule2_object_gate_empty_star_gate_populated_and_consistent():
-    assert rule2(3, 3, w(1e-8), N, THR)
-    assert not rule2(2, 3, w(1e-8), N, THR)
-    assert not rule2(3, 2, w(1e-8), N, THR)
-    assert not rule2(3, 3, w(4.1e-8), N, THR)
-    assert rule2(3, 3, THR, N, THR)                     # at the threshold: within it
+    assert rule2(3, 3, w(1e-8), N, THR, G)
+    assert not rule2(2, 3, w(1e-8), N, THR, G)
+    assert not rule2(3, 2, w(1e-8), N, THR, G)
+    assert not rule2(3, 3, w(4.1e-8), N, THR, G)
+    assert rule2(3, 3, THR, N, THR, G)                     # at the threshold: within it
 
 
 @pytest.mark.cases("flightsw.tp.rules.rule3", "decides", "object-gate-empty", "object-gate-recent",
                    "within-threshold", "reversed")
 def test_rule3_star_residuals_exceed_object_residuals():
-    assert rule3(w(6e-8), w(1e-8), N, THR, N)[0]       # 5e-8 > 4e-8, object gate populated n frames
-    assert rule3(w(6e-8), w(1e-8), N + 4, THR, N)[0]
-    assert not rule3(w(6e-8), w(1e-8), 0, THR, N)[0]   # object gate empty this frame
-    assert not rule3(w(6e-8), w(1e-8), 1, THR, N)[0]   # one blob caught: not n frames yet
-    assert not rule3(w(6e-8), w(1e-8), N - 1, THR, N)[0]
-    assert not rule3(w(4e-8), w(1e-8), N, THR, N)[0]   # 3e-8 not above the threshold
-    assert not rule3(w(1e-8), w(6e-8), N, THR, N)[0]   # the other way round: rule 4's case
+    assert rule3(w(6e-8), w(1e-8), N, THR, N, G)[0]       # 5e-8 > 4e-8, object gate populated n frames
+    assert rule3(w(6e-8), w(1e-8), N + 4, THR, N, G)[0]
+    assert not rule3(w(6e-8), w(1e-8), 0, THR, N, G)[0]   # object gate empty this frame
+    assert not rule3(w(6e-8), w(1e-8), 1, THR, N, G)[0]   # one blob caught: not n frames yet
+    assert not rule3(w(6e-8), w(1e-8), N - 1, THR, N, G)[0]
+    assert not rule3(w(4e-8), w(1e-8), N, THR, N, G)[0]   # 3e-8 not above the threshold
+    assert not rule3(w(1e-8), w(6e-8), N, THR, N, G)[0]   # the other way round: rule 4's case
 
 
 @pytest.mark.cases("flightsw.tp.rules.rule4", "decides", "star-gate-empty", "within-threshold",
                    "reversed")
 def test_rule4_object_residuals_exceed_star_residuals():
-    assert rule4(w(1e-8), w(6e-8), 1, THR)[0]
-    assert not rule4(w(1e-8), w(6e-8), 0, THR)[0]      # star gate empty this frame
-    assert not rule4(w(1e-8), w(4e-8), 1, THR)[0]
-    assert not rule4(w(6e-8), w(1e-8), 1, THR)[0]
+    assert rule4(w(1e-8), w(6e-8), 1, THR, G)[0]
+    assert not rule4(w(1e-8), w(6e-8), 0, THR, G)[0]      # star gate empty this frame
+    assert not rule4(w(1e-8), w(4e-8), 1, THR, G)[0]
+    assert not rule4(w(6e-8), w(1e-8), 1, THR, G)[0]
 
 
 @pytest.mark.parametrize("ms, mo, ks, ko, s_s, s_o, want", [
@@ -95,13 +96,50 @@ def test_rule4_object_residuals_exceed_star_residuals():
                    "star-empty-suspended", "object-empty-suspended", "star-empty-stale",
                    "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
-    concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR)
+    concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, G)
     assert (concl, rule) == want and flags == 0
+
+
+# ---- the rules as the paper states them (the proposal rule_guards off) -------------------------
+@pytest.mark.cases("flightsw.tp.rules.rule1", "inconsistent")
+@pytest.mark.cases("flightsw.tp.rules.rule2", "inconsistent")
+def test_rules_1_2_as_stated_ignore_the_populated_gates_residual():
+    """"If a star gate is empty for n successive frames but the object gate remains populated,
+    conclude ... a moving object": no residual condition; the guard alone refuses it."""
+    assert rule1(3, 3, w(5e-8), N, THR, False) and not rule1(3, 3, w(5e-8), N, THR, True)
+    assert rule2(3, 3, w(5e-8), N, THR, False) and not rule2(3, 3, w(5e-8), N, THR, True)
+    assert not rule1(2, 3, w(1e-8), N, THR, False)       # the run conditions stay (interpretation)
+    assert not rule1(4, 3, w(1e-8), N, THR, False)
+
+
+@pytest.mark.cases("flightsw.tp.rules.rule3", "object-gate-empty")
+@pytest.mark.cases("flightsw.tp.rules.rule4", "star-gate-empty")
+def test_rules_3_4_as_stated_need_no_populated_gate():
+    """Rules 3 and 4 compare accumulated residuals "by a specified amount" and nothing else."""
+    for ko in (0, 1, N - 1):
+        assert rule3(w(6e-8), w(1e-8), ko, THR, N, False)[0]
+        assert not rule3(w(6e-8), w(1e-8), ko, THR, N, True)[0]
+    assert rule4(w(1e-8), w(6e-8), 0, THR, False)[0] and not rule4(w(1e-8), w(6e-8), 0, THR, True)[0]
+    assert not rule3(w(4e-8), w(1e-8), 0, THR, N, False)[0]   # within the threshold either way
+
+
+@pytest.mark.parametrize("ms, mo, ks, ko, s_s, s_o, guarded, stated", [
+    (3, 0, 0, 3, 9e-8, 9e-8, (UNDECIDED, 0), (OBJECT, 1)),    # rule 1, object residual high
+    (0, 0, 2, 2, 9e-8, 1e-8, (UNDECIDED, 0), (OBJECT, 3)),    # rule 3, object gate 2 < n frames
+    (0, 0, 0, 2, 1e-8, 9e-8, (UNDECIDED, 0), (STAR, 4)),      # rule 4, star gate empty this frame
+    (0, 0, 2, 3, 9e-8, 1e-8, (OBJECT, 3), (OBJECT, 3)),       # both readings agree
+])
+@pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "rule1-unguarded", "rule3-unguarded")
+def test_pair_conclusion_with_and_without_the_guards(ms, mo, ks, ko, s_s, s_o, guarded, stated):
+    for guards, want in ((True, guarded), (False, stated)):
+        concl, rule, _ = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, guards)
+        assert (concl, rule) == want
 
 
 # ---- stage arrays --------------------------------------------------------------------------------
 def _state(dt=0.5):
     C = np.zeros(L.C_WORDS, np.int64)
+    C[L.C_RULE_GUARDS] = 1
     C[L.C_ALPHA] = w(0.5)
     C[L.C_N_EMPTY] = C[L.C_N_EMPTY_OBJ] = 1
     C[L.C_N_LOST] = 3
@@ -279,9 +317,9 @@ def test_verified_object_lost_after_n_lost_empty_frames():
 @pytest.mark.cases("flightsw.tp.rules.rule1", "residual-at-threshold")
 @pytest.mark.cases("flightsw.tp.rules.rule2", "run-capped-2n")
 def test_rules_1_2_threshold_is_inclusive_and_at_most_2n_populated_frames_are_asked_for():
-    assert rule1(3, 3, THR, N, THR)                     # S_o == thr: "within" the threshold
-    assert rule2(9, 6, w(1e-8), N, THR)                 # empty 3n frames: 2n = 6 populated suffice
-    assert not rule2(9, 5, w(1e-8), N, THR)
+    assert rule1(3, 3, THR, N, THR, G)                   # S_o == thr: "within" the threshold
+    assert rule2(9, 6, w(1e-8), N, THR, G)               # empty 3n frames: 2n = 6 populated suffice
+    assert not rule2(9, 5, w(1e-8), N, THR, G)
 
 
 @pytest.mark.cases("flightsw.tp.rules.apply_rules", "stale-deleted", "object-while-held",

@@ -26,9 +26,11 @@ from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
 from flightsw.ip.step import STEP_FRAME_RANGE, STEP_INFO, STEP_OK, STEP_TIME_TAG, ip_step_k
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
 from flightsw.messages import MAX_CANDIDATES, TRACK_WORDS, Feedback, MessageError, TrackCommand
+from flightsw.proposals import FLOOR_FIELDS, expand, floor_params
 from flightsw.records import RECORD_FORMAT_ID, Record
 
-__all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha", "alpha_controller_for"]
+__all__ = ["ImageProcessor", "IPOutput", "UplinkVerdict", "sequence_alpha", "alpha_controller_for",
+           "check_floor_proposals", "apply_floor_proposals"]
 
 _U16 = np.dtype(np.uint16)
 _COMMAND_SHAPE = (TRACK_WORDS,)
@@ -93,19 +95,58 @@ def sequence_alpha(sequence: ProcessingSequence, default: float = 3.0) -> float:
     return default
 
 
-def alpha_controller_for(sequence: ProcessingSequence, **settings) -> AlphaController:
+def check_floor_proposals(sequence: ProcessingSequence, proposals=(), where: str = "") -> None:
+    """Refuse (``SequenceError`` naming the field) a sequence whose threshold step sets a floor
+    field (``alpha_min_sparse``/``sparse_blobs``, ``alpha_min_locked``/``locked_blobs``) while the
+    proposal that carries it (``alpha_floor_sparse``, ``alpha_floor_locked``) is off: the paper's
+    alpha logic has the sequence's ``alpha_min`` floor only."""
+    on = set(proposals or ())
+    for st in sequence.steps:
+        if st.op != "threshold":
+            continue
+        for name, fields in FLOOR_FIELDS.items():
+            set_here = [f for f in fields if st.raw.get(f) is not None]
+            if set_here and name not in on:
+                raise SequenceError(f"{where or sequence.name}: threshold step sets "
+                                    f"{set_here[0]}, a parameter of the proposal {name!r}, which "
+                                    f"is off (switch it on with --with {name})")
+
+
+def apply_floor_proposals(sequence: ProcessingSequence, proposals=()) -> ProcessingSequence:
+    """The sequence with the floor proposals in force: a floor proposal that is on and whose fields
+    the threshold step does not set gives it the values chosen for that shipped sequence
+    (:func:`flightsw.proposals.floor_params`; none for other sequences). Returns ``sequence``
+    itself when nothing changes."""
+    add = {}
+    for name in FLOOR_FIELDS:
+        if name in (proposals or ()):
+            add.update(floor_params(name, sequence.name))
+    if not add:
+        return sequence
+    d = sequence.to_dict()
+    for st in d["steps"]:
+        if st.get("op") == "threshold":
+            for k, v in add.items():
+                st.setdefault(k, v)
+            break
+    return ProcessingSequence.from_dict(d)
+
+
+def alpha_controller_for(sequence: ProcessingSequence, proposals=(), **settings) -> AlphaController:
     """The alpha logic a sequence runs with: it starts from the threshold step's ``alpha`` and
-    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default),
-    at its ``alpha_min_sparse`` on frames with fewer than ``sparse_blobs`` blobs and, while the TP
-    holds lock, at its ``alpha_min_locked`` on frames with fewer than ``locked_blobs`` blobs when it
-    sets those; ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
+    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default);
+    with the proposal ``alpha_floor_sparse``, at its ``alpha_min_sparse`` on frames with fewer than
+    ``sparse_blobs`` blobs, and with ``alpha_floor_locked``, while the TP holds lock, at its
+    ``alpha_min_locked`` on frames with fewer than ``locked_blobs`` blobs, when it sets those (a
+    step that sets them with the proposal off is refused: :func:`check_floor_proposals`);
+    ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
+    check_floor_proposals(sequence, proposals)
     kw = {"alpha": sequence_alpha(sequence)}
     for st in sequence.steps:
         if st.op == "threshold":
             if st.raw.get("alpha_min") is not None:
                 kw["alpha_min"] = float(st.raw["alpha_min"])
-            for floor, count in (("alpha_min_sparse", "sparse_blobs"),
-                                 ("alpha_min_locked", "locked_blobs")):
+            for floor, count in FLOOR_FIELDS.values():
                 if st.raw.get(count) is not None:
                     kw[floor], kw[count] = float(st.raw[floor]), int(st.raw[count])
             break
@@ -128,14 +169,21 @@ class ImageProcessor:
         :func:`alpha_controller_for`).
     check : bool
         Check each frame's shape, dtype and 12-bit range (the fused path's frame check).
+    proposals : tuple of str
+        The proposals in force (:mod:`flightsw.proposals`; the IP acts on ``alpha_floor_sparse``
+        and ``alpha_floor_locked``, the others are the TP's). Default (): the paper's alpha logic;
+        a sequence (at power-on or uplinked) whose threshold step sets a floor of a proposal that
+        is off is refused.
     """
 
     def __init__(self, sequence: ProcessingSequence, record: Record, *, alpha: dict | None = None,
-                 check: bool = True):
+                 check: bool = True, proposals=()):
         if not isinstance(sequence, ProcessingSequence):
             raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
         if not isinstance(record, Record):
             raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
+        self.proposals = expand(proposals, "ImageProcessor.proposals")
+        check_floor_proposals(sequence, self.proposals)
         self._power_on = (sequence, record)
         self._alpha_settings = dict(alpha or {})
         self._alpha_settings.pop("alpha", None)
@@ -149,7 +197,8 @@ class ImageProcessor:
         self.sequence, self.record = self._power_on
         self._plans: dict[str, FramePlan] = {}       # per imager, for the sequence and record in force
         self._pending: list = []
-        self._set_alpha(alpha_controller_for(self.sequence, **self._alpha_settings))
+        self._set_alpha(alpha_controller_for(self.sequence, self.proposals,
+                                             **self._alpha_settings))
         self.feedback = Feedback()
         self.frames = 0
         self.rejected_commands = 0
@@ -289,6 +338,8 @@ class ImageProcessor:
             return UplinkVerdict(False, kind, reason)
         try:
             new = Record.from_words(w) if kind == "record" else sequence_from_words(w)
+            if kind == "sequence":
+                check_floor_proposals(new, self.proposals, "sequence uplink")
         except (ValueError, SequenceError) as exc:
             self.uplinks_refused += 1
             return UplinkVerdict(False, kind, str(exc))
@@ -304,5 +355,5 @@ class ImageProcessor:
                 self.record = new
             else:
                 self.sequence = new
-                self._set_alpha(alpha_controller_for(new, **self._alpha_settings))
+                self._set_alpha(alpha_controller_for(new, self.proposals, **self._alpha_settings))
         self._pending = []

@@ -21,7 +21,8 @@ from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, 
                                mtv3, mv3, qmul, qnormalize, unit3)
 from flightsw.tp.geometry import DR_MIX, IMG_SC, IMG_SR, make_dR, neg32, vec_to_pix
 from flightsw.tp.layout import (
-    C_AIM_COL, C_AIM_ROW, C_FRAME_DT, C_SCAN_COS, C_SCAN_R, C_SCAN_SIN, G_ALIVE, NPAIR, O_DECF,
+    C_AIM_COL, C_AIM_ON, C_AIM_ROW, C_FRAME_DT, C_SCAN_COS, C_SCAN_R, C_SCAN_SIN, G_ALIVE, NPAIR,
+    O_DECF,
     O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_QP, O_R, O_SP,
     O_SV, O_T, O_V, S_DEC, S_DEC_FRAME, S_FRAME, S_HAVE_PREV, S_IMG, S_NFRAMES, S_OPP_ALIVE,
     S_OPP_V, S_OPP_X, S_PRED, S_PRED_OK, S_Q, S_RS, S_SCAN, S_STATUS, S_T, S_VS, S_W, ST_CMD, V_DT,
@@ -245,7 +246,8 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
 
     Cases
     -----
-    tracked : direction, predicted pixel, line of sight and pointing all written.
+    tracked : direction, predicted pixel, line of sight and pointing all written; the pointing on
+        the object, or (``C_AIM_ON``, the proposals ``aim_offset`` / ``aim_scan``) aimed off it.
     nothing : no direction -> pointing, pixel and line of sight NaN, ``S_PRED_OK = 0``.
     off-imager : direction not in front of the imager -> pixel and line of sight NaN, pointing
         written.
@@ -260,7 +262,7 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         prow, pcol, have_pix, n0, n1, n2, g = predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc)
         fl |= g
         S[S_PRED], S[S_PRED + 1], S[S_PRED + 2] = n0, n1, n2
-        if not opportunity:
+        if not opportunity and C[C_AIM_ON] != 0:        # proposals aim_offset / aim_scan
             sr, sc, g = aim_scan(C, S, S[S_DEC] >= 0); fl |= g
             u1, u2, g = aim_offset(C, IMG[V[V_IMG]], u1, u2, sr, sc); fl |= g
             cyc[ST_CMD] += CYC_AIM + CYC_SCAN

@@ -5,8 +5,8 @@ Defaults and where they come from:
 * ``alpha = 0.25, beta = 0`` -- the paper: *"alpha = 0.25 provides a 90% response in eight frames
   (4 s). The velocity gain beta is almost always set to 0 ... it must be 0 or both types of gates
   will follow the data and differentiation based on velocity cannot occur."*
-* ``n_empty = 3`` frames (rules 1, 2; rule 3's populated run) and ``residual_threshold_px2 = 16``
-  px^2 (rules 3, 4). The squared residual of a wrong hypothesis approaches ``(d / alpha)^2`` per
+* ``n_empty = 3`` frames (rules 1, 2; with the proposal ``rule_guards``, rule 3's populated
+  run) and ``residual_threshold_px2 = 16`` px^2 (rules 3, 4). The squared residual of a wrong hypothesis approaches ``(d / alpha)^2`` per
   frame for an apparent-velocity difference of d px/frame (4 px^2 at d = 0.5 px/frame; 16 px^2 is
   reached on the 9th frame with the transient), a right one ``4 sigma^2 / (2 - alpha) ~ 2.3
   sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no values ("n successive
@@ -23,7 +23,8 @@ Defaults and where they come from:
   (covers unmodelled drag and, with ``j2=False``, part of J2 over a pass), initial sigmas 1 km and
   10 m/s about the nominal (the a priori trajectory the gates already trust).
 * Targets of opportunity: ``opp_alpha = 0.25``, ``opp_beta = alpha^2 / (2 - alpha)`` (the
-  Benedict-Bordner relation, 0.0357), gate 8 px; ``opp_startup = True``: a new track's first
+  Benedict-Bordner relation, 0.0357), gate 8 px. With the proposal ``opp_startup`` (off by
+  default: the paper's TP runs the steady alpha-beta) a new track's first
   observations are weighed with the growing-memory (least-squares) start-up gains of Kalata 1984 /
   Brookner, "Tracking and Kalman Filtering Made Easy" (1998) sec. 1.2.6, ``alpha_k = 2(2k-1)/
   (k(k+1))``, ``beta_k = 6/(k(k+1))`` after the k-th observation, each until it falls to its
@@ -37,12 +38,18 @@ import math
 from dataclasses import dataclass, field
 
 from flightsw.messages import IMAGER_CODES, OBJECT_TYPE_CODES
+from flightsw.proposals import PROPOSALS, expand
 from flightsw.tp.dynamics import NominalTrajectory
 from flightsw.tp.geometry import ImagerGeometry
 
-__all__ = ["TPConfig", "MODES"]
+__all__ = ["TPConfig", "MODES", "TP_PROPOSALS", "PROPOSAL_OFF"]
 
 MODES = ("dedicated", "opportunity")
+#: the proposals (:mod:`flightsw.proposals`) that change the TP
+TP_PROPOSALS = tuple(n for n, p in PROPOSALS.items() if p.processor == "tp")
+#: each TP proposal parameter's value with its proposal off (the paper's system)
+PROPOSAL_OFF = {"n_apriori": 0, "ekf_max_rejects": 0, "opp_startup": False, "aim_row_px": 0.0,
+                "aim_col_px": 0.0, "aim_scan_px": 0.0}
 
 
 def _num(name, v, lo=None, hi=None, lo_open=False, hi_open=False):
@@ -102,45 +109,28 @@ class TPConfig:
         Rule 4's amount (object residual exceeding the star residual -> star); None: same.
     n_lost : int
         The verified object's gate empty this many successive frames -> object lost.
-    n_apriori : int
-        Rule 5 (beyond the paper, :func:`flightsw.tp.rules.apriori_rule`): with no object held,
-        a pair whose gates have both been populated on this many frames is the object
-        when its object gate holds the observation nearest the nominal's predicted position
-        (within the gate of it), a star otherwise. 0: off. Default 40 frames (20 s): the
-        smallest count that changes nothing on the satellite training family (30 decided faint
-        targets earlier there and held them less).
-    aim_row_px, aim_col_px : float
-        Velocity-filter events (not opportunity): the pointing puts the target this many imager
-        pixels (rows, columns) off the pixel that +X body falls on, through the imager's scale and
-        alignment (ASSUMED; uplink codes 20, 21). +X falls on imager pixel (122, 128), the corner of
-        four compacted pixels at compaction 2, where a point target gives each a quarter of its
-        light and a faint one is missed. Default 1.0, 1.0: the centre of compacted pixel (61, 64),
-        the one place where a faint target's light stays in one compacted pixel *and* its centroid
-        is unbiased. After lock a faint target often passes the threshold in a single compacted
-        pixel, whose centre is then its centroid wherever in the pixel it lies; aimed off the
-        centre (the former 0.8, 0.67), the loop drives that centroid towards the aim and so the
-        target towards the corner (eval9's ``slow_faint_high``: held 100/390 frames against 286/314
-        at the centre). Training (seeds 211-225) does not tell them apart: goal met on 58 of 75
-        events either way (with ``ekf_max_rejects`` 12 and rule 5's populated count); the ten seen
-        evaluation families do: 104/114 against 98/114, and 110/114 against 107/114 with the IP's
-        floor while locked (``satellite_track``). 0, 0: the former pointing at the corner.
-    aim_scan_px, aim_scan_frames : float, int
-        While an object is held (velocity-filter events), the aim point circles the aim above:
+    n_apriori : int or None
+        Rule 5, the proposal ``rule5`` (:mod:`flightsw.proposals`; :func:`flightsw.tp.rules.
+        apriori_rule`): with no object held, a pair whose gates have both been populated on this
+        many frames is the object when its object gate holds the observation nearest the nominal's
+        predicted position (within the gate of it), a star otherwise. None: 40 with the proposal
+        on, 0 (off, the paper's four rules) otherwise. 40 frames (20 s) was the smallest count that
+        changed nothing on the satellite training family.
+    aim_row_px, aim_col_px : float or None
+        The proposal ``aim_offset``: the pointing puts the target this many imager pixels (rows,
+        columns) off the pixel that +X body falls on, through the imager's scale and alignment
+        (uplink codes 20, 21). None: 1.0, 1.0 with the proposal on (the centre of compacted pixel
+        (61, 64) at compaction 2, where a faint target's light stays in one compacted pixel), 0, 0
+        otherwise: the paper's TP points at the object.
+    aim_scan_px, aim_scan_frames : float or None, int
+        The proposal ``aim_scan``: while an object is held, the aim point circles the aim above:
         ``aim + aim_scan_px (cos 2 pi n / N, sin 2 pi n / N)`` imager pixels (rows, cols) on the
-        n-th frame of the hold, N = ``aim_scan_frames`` (uplink codes 22, 23; ASSUMED, chosen on
-        the training family). Why: the aim alone leaves a dead zone. A faint target that passes the
-        threshold in one compacted pixel reads that pixel's centre wherever in the pixel it lies,
-        so nothing pulls it back when the estimate drifts; it settles 0.3-0.4 processed px off
-        the centre (training ``faint_far``: per-event median errors 0.22-0.36 px) and, nearer the
-        edge, loses light to the neighbour pixel. A slow circle (a dither, as in quantised
-        control) sweeps it across the pixel's edges, where the centroid does move, so the EKF sees
-        the offset and the centroids average to the truth. Default 0.5 px (a quarter of a
-        compacted pixel: a centred target stays inside its pixel) and 32 frames (16 s: slow
-        enough that the predicted pixel, which turns the line of sight at the last interval's
-        attitude rate, follows it). Training (seeds 211-225): goal met on 60 of 75 events against
-        58 without it; ``faint_far``'s medians 0.11-0.27 px, at most 0.25 on 13 of 15 events
-        against 3 (its held share, ~90 %, is set by missed detections, not by the scan). Radius
-        0.35 and 0.75 px and periods 8, 16 and 64 frames were tried there too (55-60 of 75). 0: off.
+        n-th frame of the hold, N = ``aim_scan_frames`` (uplink codes 22, 23). A dither, as in
+        quantised control: a faint target that passes the threshold in one compacted pixel reads
+        that pixel's centre wherever in the pixel it lies; a slow circle sweeps it across the
+        pixel's edges, where the centroid does move. None: 0.5 px with the proposal on, 0 (off)
+        otherwise; 32 frames (16 s). The evidence is in :data:`flightsw.proposals.PROPOSALS` and
+        ``docs/fidelity.md``.
     frame_dt : float
         Nominal frame period, s (the prediction horizon of the feedback and pointing).
     max_coast_s : float
@@ -152,27 +142,29 @@ class TPConfig:
     ekf_meas_sigma_px, ekf_gate_sigma, ekf_accel_psd, ekf_sigma_pos0, ekf_sigma_vel0 : float
         EKF measurement sigma (px), innovation gate (sigma), white-acceleration PSD (m^2/s^3),
         initial sigmas (m, m/s).
-    ekf_max_rejects : int
-        Successive frames with a scalar update (either axis) rejected before the covariance is
-        reset to its initial value (status ``TC_EKF_RESET``). ASSUMED: default 12 frames (6 s).
-        Counting only frames with both refused let a one-axis offset stand for good: on
-        satellite_train_mid_offset seed 220 (with the aim at a compacted pixel's centre) the EKF
-        was decided 2 px off in rows, refused every row centroid and accepted every column one,
-        and predicted 2 px off for 170 frames (median error 1.9 processed px). 6 frames reset it
-        during star crossings as well (satellite_train_faint_near seeds 211 and 215, 9 px off);
-        12 left both alone.
+    ekf_max_rejects : int or None
+        The proposal ``ekf_reset``: successive frames with a scalar update (either axis) rejected
+        before the covariance is reset to its initial value (status ``TC_EKF_RESET``; uplink code
+        10). None: 12 frames (6 s) with the proposal on, 0 (never: the paper's EKF) otherwise.
     opp_alpha, opp_beta, opp_gate_px, opp_n_lost
         Target-of-opportunity alpha-beta gains, gate half-width (px) and frames without an
         observation before the track is dropped.
-    opp_startup : bool
-        Growing-memory start-up gains for a new opportunity track (see above); ignored (off) when
-        ``opp_beta == 0``, where the filter estimates no velocity.
+    opp_startup : bool or None
+        The proposal ``opp_startup``: growing-memory start-up gains for a new opportunity track
+        (see above); ignored (off) when ``opp_beta == 0``, where the filter estimates no velocity.
+        None: True with the proposal on, False (the paper's steady alpha-beta) otherwise.
     max_rate : float
         Attitude rates above this (rad/s) are "out of range" (attitude treated as invalid).
     quat_norm_tol : float
         Accepted deviation of the attitude quaternion's norm from 1.
     max_time_skew : float
         Largest accepted |attitude time - frame time|, s.
+    proposals : tuple of str
+        The TP proposals in force (names of :data:`flightsw.proposals.PROPOSALS`; ``"all"``
+        expands): ``rule_guards``, ``rule5``, ``ekf_reset``, ``opp_startup``, ``aim_offset``,
+        ``aim_scan``; the IP's two floor proposals are accepted and do nothing here. Default ():
+        the paper's TP. A proposal's parameter set away from its off value while the proposal is
+        off is refused.
     """
 
     imagers: dict
@@ -187,10 +179,10 @@ class TPConfig:
     residual_threshold_px2: float = 16.0
     residual_threshold_star_px2: float | None = None
     n_lost: int = 6
-    n_apriori: int = 40
-    aim_row_px: float = 1.0
-    aim_col_px: float = 1.0
-    aim_scan_px: float = 0.5
+    n_apriori: int | None = None
+    aim_row_px: float | None = None
+    aim_col_px: float | None = None
+    aim_scan_px: float | None = None
     aim_scan_frames: int = 32
     frame_dt: float = 0.5
     max_coast_s: float = 10.0
@@ -201,19 +193,49 @@ class TPConfig:
     ekf_accel_psd: float = 1e-3
     ekf_sigma_pos0: float = 1000.0
     ekf_sigma_vel0: float = 10.0
-    ekf_max_rejects: int = 12
+    ekf_max_rejects: int | None = None
     opp_alpha: float = 0.25
     opp_beta: float = 0.25 ** 2 / (2.0 - 0.25)
     opp_gate_px: float = 8.0
     opp_n_lost: int = 6
-    opp_startup: bool = True
+    opp_startup: bool | None = None
     max_rate: float = 0.2
     quat_norm_tol: float = 1e-3
     max_time_skew: float = 0.25
+    proposals: tuple = ()
     _validated: bool = field(default=False, init=False, repr=False, compare=False)
 
     def __post_init__(self):
+        self.proposals = expand(self.proposals, "TPConfig.proposals")
+        for name in TP_PROPOSALS:                   # a parameter left None: its proposal's value
+            for fld, on in PROPOSALS[name].on.items():
+                if getattr(self, fld) is None:
+                    setattr(self, fld, on if name in self.proposals else PROPOSAL_OFF[fld])
         self.validate()
+
+    @property
+    def rule_guards(self) -> bool:
+        """The rule guards (proposal ``rule_guards``) are in force."""
+        return "rule_guards" in self.proposals
+
+    @property
+    def aim(self) -> bool:
+        """The pointing is aimed off the object (proposals ``aim_offset`` or ``aim_scan``)."""
+        return "aim_offset" in self.proposals or "aim_scan" in self.proposals
+
+    def _check_proposals(self) -> None:
+        """A proposal's parameter set away from its off value while the proposal is off."""
+        for name in TP_PROPOSALS:
+            if name in self.proposals:
+                continue
+            for fld in PROPOSALS[name].on:
+                if getattr(self, fld) != PROPOSAL_OFF[fld]:
+                    raise ValueError(f"TPConfig.{fld}={getattr(self, fld)!r} is a parameter of the "
+                                     f"proposal {name!r}, which is off (switch it on with --with "
+                                     f"{name}, or proposals=({name!r},))")
+        if self.ekf_max_rejects == 0 and "ekf_reset" in self.proposals:
+            raise ValueError("TPConfig.ekf_max_rejects=0 with the proposal 'ekf_reset' on: must be "
+                             ">= 1")
 
     def validate(self) -> "TPConfig":
         """Check every field; ``ValueError`` naming the field on the first bad one."""
@@ -260,7 +282,7 @@ class TPConfig:
         _num("ekf_accel_psd", self.ekf_accel_psd, 0.0, 1e6, lo_open=True)
         _num("ekf_sigma_pos0", self.ekf_sigma_pos0, 0.0, 1e7, lo_open=True)
         _num("ekf_sigma_vel0", self.ekf_sigma_vel0, 0.0, 1e4, lo_open=True)
-        _int("ekf_max_rejects", self.ekf_max_rejects, 1, 10 ** 6)
+        _int("ekf_max_rejects", self.ekf_max_rejects, 0, 10 ** 6)
         _num("opp_alpha", self.opp_alpha, 0.0, 1.0, lo_open=True)
         _num("opp_beta", self.opp_beta, 0.0, 2.0, hi_open=True)
         _num("opp_gate_px", self.opp_gate_px, 0.5, 256.0)
@@ -270,5 +292,6 @@ class TPConfig:
         _num("max_rate", self.max_rate, 0.0, 10.0, lo_open=True)
         _num("quat_norm_tol", self.quat_norm_tol, 0.0, 0.5, lo_open=True)
         _num("max_time_skew", self.max_time_skew, 0.0, 60.0)
+        self._check_proposals()
         self._validated = True
         return self

@@ -61,7 +61,9 @@ C_OPP_STARTUP = 27          # last observation count with growing-memory opportu
 C_N_APRIORI = 28            # rule 5's count of frames with both gates populated (0: off)
 C_AIM_ROW, C_AIM_COL = 29, 30   # where the pointing puts the target, imager px off +X's pixel
 C_SCAN_R, C_SCAN_COS, C_SCAN_SIN = 31, 32, 33   # aim scan radius (imager px), cos, sin of its step
-C_WORDS = 34
+C_RULE_GUARDS = 34          # 1: the proposal rule_guards (rules' residual / run / populated guards)
+C_AIM_ON = 35               # 1: the proposals aim_offset / aim_scan (0: point at the object)
+C_WORDS = 36
 
 # ---- V: this frame's working values --------------------------------------------------------------
 V_T, V_DT, V_DT48, V_LONG_GAP, V_FC, V_IMG = 0, 1, 2, 3, 4, 5         # time (48), dt (32, 48)

@@ -4,39 +4,39 @@ MSX paper, "Track processing algorithms" (*"four rules control the velocity filt
 algorithm"*), per undecided pair after smoothing, with ``m_s``, ``m_o`` the gates' successive empty
 frames, ``k_s``, ``k_o`` their successive populated frames and ``S_s``, ``S_o`` their accumulated
 squared residuals (rad^2, packed 32-bit), ``n``/``n'`` the star/object empty limits and
-``thr``/``thr'`` the object/star residual thresholds:
+``thr``/``thr'`` the object/star residual thresholds. As the paper states them (the default):
 
-1. ``m_s >= n``, ``k_o >= min(m_s, 2n)`` and ``S_o <= thr``: *"If a star gate is empty for n
-   successive frames but the object gate remains populated, conclude that the observation is a
-   moving object and delete the associated star gate."* ("remains populated": populated on every
-   frame since the star gate emptied -- at most 2n frames are asked for, so that one missed
-   observation only delays the conclusion -- by observations consistent with it, its accumulated
-   residual within the threshold);
-2. ``m_o >= n'``, ``k_s >= min(m_o, 2n')`` and ``S_s <= thr'``: *"If an object gate is empty for n
-   successive frames but the star gate remains populated, conclude that the observation is a star
-   and delete both the star and object gates."*;
-3. ``S_s - S_o > thr`` and ``k_o >= n`` (the object gate populated the last ``n`` frames, as rule 1
-   asks): *"If the accumulated residuals of a star gate exceed those of the object gate by a
-   specified amount, conclude that the observation is a moving object and delete the associated
-   star gate."*;
-4. ``S_o - S_s > thr'`` and the star gate populated this frame: *"If the accumulated residuals of
-   an object gate exceed those of the star gate by a specified amount, conclude that the
-   observation is a star and delete both the star and the object gates."*
+1. ``m_s >= n`` and ``k_o >= min(m_s, 2n)``: *"If a star gate is empty for n successive frames but
+   the object gate remains populated, conclude that the observation is a moving object and delete
+   the associated star gate."* ("remains populated", INTERPRETED: populated on every frame since
+   the star gate emptied, at most 2n frames asked for, so that one missed observation only delays
+   the conclusion);
+2. ``m_o >= n'`` and ``k_s >= min(m_o, 2n')``: *"If an object gate is empty for n successive frames
+   but the star gate remains populated, conclude that the observation is a star and delete both the
+   star and object gates."*;
+3. ``S_s - S_o > thr``: *"If the accumulated residuals of a star gate exceed those of the object
+   gate by a specified amount, conclude that the observation is a moving object and delete the
+   associated star gate."*;
+4. ``S_o - S_s > thr'``: *"If the accumulated residuals of an object gate exceed those of the star
+   gate by a specified amount, conclude that the observation is a star and delete both the star and
+   the object gates."*
 
-The "populated" conditions are this implementation's reading of "remains populated" (and its
-analogue for rules 3, 4): a gate that catches a stray star or clutter point once, or a star
-drifting through it, while its partner follows nothing, must not win the pair (on the synthetic
-streams of ``tests/test_tp.py`` the loose reading decides a star or a clutter point as the object
-in 2-5 % of the events; this reading in ~0.2 %). Rule 3 asks for ``n`` populated frames, not one
-(ASSUMED, chosen on the satellite training family): one stray blob caught ~4 px off in a star gate
-adds up to 2 gate^2 = 32 px^2, above the 16 px^2 threshold, so a pair placed on a noise blob, whose
-object gate then caught another, was verified on one association each (seen on a fresh evaluation
-event, README "Rule 3 asks for n frames"). While one gate has been empty for n frames and the
-other does not qualify, the residual rules are suspended; the pair is deleted without a conclusion
-when the empty gate reaches 4n frames (both gates empty for n frames: deleted at once).
+The proposal ``rule_guards`` (:mod:`flightsw.proposals`, off by default) adds three conditions the
+paper does not state: rules 1 and 2 ask the populated gate's accumulated residual within the
+threshold (``S_o <= thr``, ``S_s <= thr'``), rule 3 asks the object gate populated the last ``n``
+frames (``k_o >= n``), rule 4 asks the star gate populated this frame. On the synthetic streams of
+``tests/test_tp.py`` the rules as stated decide a star or a clutter point as the object in 2-5 % of
+the events, with the guards in ~0.2 %; one stray blob caught ~4 px off in a star gate adds up to 2
+gate^2 = 32 px^2, above the 16 px^2 threshold, so rule 3 without its guard can verify a pair on one
+association.
 
-Rule 5, beyond the paper (ASSUMED; :func:`apriori_rule`, ``TPConfig.n_apriori``): when no object is
-held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``; not
+INTERPRETED (the paper is silent on a pair whose empty gate's partner does not qualify): while one
+gate has been empty for n frames and the other does not qualify, the residual rules are suspended;
+the pair is deleted without a conclusion when the empty gate reaches 4n frames (both gates empty for
+n frames: deleted at once), so that reinitialisation, which needs every gate gone, can happen.
+
+Rule 5, the proposal ``rule5`` (off by default; :func:`apriori_rule`, ``TPConfig.n_apriori``):
+when no object is held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``; not
 necessarily successive: a gate empty ``n_empty`` frames running is deleted anyway) is decided by
 position: it is the object when its object gate holds the observation nearest where the nominal
 trajectory puts the object (and lies within the gate of it) and has accumulated no more residual
@@ -71,8 +71,8 @@ from flightsw.tp.f1750 import cycles
 from flightsw.tp.gates import GP_HALF, GP_THR_OBJ, GP_THR_STAR, any_gate_alive, kill_pair
 from flightsw.tp.geometry import tan_int
 from flightsw.tp.layout import (
-    C_N_APRIORI, C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, G_A, G_ALIVE, G_B, G_DVA, G_DVB, G_HITS,
-    G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR, OBS_A, OBS_B,
+    C_N_APRIORI, C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, C_RULE_GUARDS, G_A, G_ALIVE, G_B, G_DVA,
+    G_DVB, G_HITS, G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR, OBS_A, OBS_B,
     OBS_IA, OBS_IB, OBS_OK, S_DEC,
     S_DEC_FRAME, S_NDEC, S_NLOST, S_NREINIT, S_NRULE, S_NSPURIOUS, S_NSTALE, S_RULE, ST_GATES,
     V_EVIDENCE, V_FC, V_FLAGS, V_LOCKED, V_NTAN, V_NTAN_OK, V_NUSE, V_OBJ, V_STATUS,
@@ -87,100 +87,112 @@ CYC_NEW_PAIR = cycles({"L": 4, "ST": 22})
 
 
 @njit(cache=True, inline="always")
-def rule1(ms, ko, res_o, n, thr_o):
-    """Star gate empty ``n`` frames, object gate populated since and consistent -> moving object.
+def rule1(ms, ko, res_o, n, thr_o, guards):
+    """Star gate empty ``n`` frames, object gate populated since -> moving object; with the
+    proposal ``rule_guards`` its residual must be within the threshold as well.
 
     ``ms``, ``ko``: successive empty / populated frame counts (int); ``res_o``, ``thr_o``: packed
-    32-bit 1750A floats (rad^2); ``n``: the star gate's empty limit -> bool.
+    32-bit 1750A floats (rad^2); ``n``: the star gate's empty limit; ``guards``: the proposal
+    ``rule_guards`` in force -> bool.
 
     Cases
     -----
-    decides : ``ms >= n``, ``ko >= min(ms, 2n)`` and ``res_o <= thr_o`` -> True.
+    decides : ``ms >= n``, ``ko >= min(ms, 2n)`` -> True (with the guards, ``res_o <= thr_o`` too).
     star-gate-recent : ``ms < n`` -> False whatever the object gate does.
     object-gate-missed : ``ko < min(ms, 2n)`` (the object gate missed a frame since) -> False.
     run-capped-2n : ``ms > 2n``: ``ko = 2n`` populated frames suffice -> True.
-    inconsistent : ``res_o > thr_o`` -> False.
+    inconsistent : ``res_o > thr_o`` -> True as the paper states the rule; False with the guards.
     residual-at-threshold : ``res_o == thr_o`` counts as within the threshold -> True.
     """
-    return ms >= n and ko >= min(ms, 2 * n) and fc32(res_o, thr_o) <= 0
+    return ms >= n and ko >= min(ms, 2 * n) and (not guards or fc32(res_o, thr_o) <= 0)
 
 
 @njit(cache=True, inline="always")
-def rule2(mo, ks, res_s, n_o, thr_s):
-    """Object gate empty ``n'`` frames, star gate populated since and consistent -> star.
+def rule2(mo, ks, res_s, n_o, thr_s, guards):
+    """Object gate empty ``n'`` frames, star gate populated since -> star; with the proposal
+    ``rule_guards`` its residual must be within the threshold as well.
 
     ``mo``, ``ks``: successive empty / populated frame counts (int); ``res_s``, ``thr_s``: packed
-    32-bit 1750A floats (rad^2); ``n_o``: the object gate's empty limit -> bool.
+    32-bit 1750A floats (rad^2); ``n_o``: the object gate's empty limit; ``guards``: the proposal
+    ``rule_guards`` in force -> bool.
 
     Cases
     -----
-    decides : ``mo >= n'``, ``ks >= min(mo, 2n')`` and ``res_s <= thr_s`` -> True.
+    decides : ``mo >= n'``, ``ks >= min(mo, 2n')`` -> True (with the guards, ``res_s <= thr_s``).
     object-gate-recent : ``mo < n'`` -> False.
     star-gate-missed : ``ks < min(mo, 2n')`` -> False.
     run-capped-2n : ``mo > 2n'``: ``ks = 2n'`` populated frames suffice -> True.
-    inconsistent : ``res_s > thr_s`` -> False.
+    inconsistent : ``res_s > thr_s`` -> True as the paper states the rule; False with the guards.
     residual-at-threshold : ``res_s == thr_s`` counts as within the threshold -> True.
     """
-    return mo >= n_o and ks >= min(mo, 2 * n_o) and fc32(res_s, thr_s) <= 0
+    return mo >= n_o and ks >= min(mo, 2 * n_o) and (not guards or fc32(res_s, thr_s) <= 0)
 
 
 @njit(cache=True, inline="always")
-def rule3(res_s, res_o, ko, thr_o, n):
-    """Star gate's residuals exceed the object gate's by more than ``thr`` while the object gate
-    has been populated ``n`` successive frames -> (moving object, flags).
+def rule3(res_s, res_o, ko, thr_o, n, guards):
+    """Star gate's residuals exceed the object gate's by more than ``thr`` -> (moving object,
+    flags); with the proposal ``rule_guards``, only while the object gate has been populated ``n``
+    successive frames.
 
     ``res_s``, ``res_o``, ``thr_o``: packed 32-bit 1750A floats (rad^2); ``ko``: the object gate's
-    populated run (int); ``n``: the run asked for (rule 1's ``n``); flags: the 1750A subtraction's
-    status bits.
+    populated run (int); ``n``: the run the guard asks for (rule 1's ``n``); ``guards``: the
+    proposal in force; flags: the 1750A subtraction's status bits.
 
     Cases
     -----
-    decides : ``res_s - res_o > thr_o`` with ``ko >= n`` -> True.
-    object-gate-empty : ``ko == 0`` -> False however large the difference.
-    object-gate-recent : ``0 < ko < n`` (one stray blob, or a gate just refilled) -> False.
+    decides : ``res_s - res_o > thr_o`` -> True (with the guards, ``ko >= n`` too).
+    object-gate-empty : ``ko == 0`` -> True as the paper states the rule; False with the guards.
+    object-gate-recent : ``0 < ko < n`` (one stray blob, or a gate just refilled) -> False with
+        the guards.
     within-threshold : difference positive but ``<= thr_o`` -> False.
     reversed : ``res_o > res_s`` (negative difference, rule 4's side) -> False.
     """
     d, f = fs32(res_s, res_o)
-    return ko >= n and fc32(d, thr_o) > 0, f
+    return (not guards or ko >= n) and fc32(d, thr_o) > 0, f
 
 
 @njit(cache=True, inline="always")
-def rule4(res_s, res_o, ks, thr_s):
-    """Object gate's residuals exceed the star gate's by more than ``thr'`` while the star gate is
-    populated -> (star, flags).
+def rule4(res_s, res_o, ks, thr_s, guards):
+    """Object gate's residuals exceed the star gate's by more than ``thr'`` -> (star, flags); with
+    the proposal ``rule_guards``, only while the star gate is populated.
 
     ``res_s``, ``res_o``, ``thr_s``: packed 32-bit 1750A floats (rad^2); ``ks``: the star gate's
-    populated run (int); flags: the 1750A subtraction's status bits.
+    populated run (int); ``guards``: the proposal in force; flags: the 1750A subtraction's status
+    bits.
 
     Cases
     -----
-    decides : ``res_o - res_s > thr_s`` with the star gate populated -> True.
-    star-gate-empty : ``ks <= 0`` -> (False, 0) without subtracting.
+    decides : ``res_o - res_s > thr_s`` -> True (with the guards, the star gate populated too).
+    star-gate-empty : ``ks <= 0`` -> decided on the residuals as the paper states the rule; with
+        the guards (False, 0) without subtracting.
     within-threshold : difference positive but ``<= thr_s`` -> False.
     reversed : ``res_s > res_o`` (negative difference, rule 3's side) -> False.
     """
-    if ks <= 0:
+    if guards and ks <= 0:
         return False, 0
     d, f = fs32(res_o, res_s)
     return fc32(d, thr_s) > 0, f
 
 
 @njit(cache=True, inline="always")
-def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o):
+def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
     """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags).
 
-    Counts are ints, residuals and thresholds packed 32-bit 1750A floats (rad^2).
+    Counts are ints, residuals and thresholds packed 32-bit 1750A floats (rad^2); ``guards``: the
+    proposal ``rule_guards`` in force (the cases below are with it on unless they say otherwise).
 
     Cases
     -----
     both-empty : both gates empty for their limits -> (DELETE, 0) at once.
     rule1-object : star gate empty ``n``, object gate populated and consistent -> (OBJECT, 1).
+    rule1-unguarded : star gate empty ``n``, object gate populated, its residual above the
+        threshold, no guards -> (OBJECT, 1).
     rule2-star : object gate empty ``n'``, star gate populated and consistent -> (STAR, 2).
     rule3-object : star residuals exceed the object's by more than ``thr``, object gate populated
         ``n`` frames -> (OBJECT, 3).
     rule3-recent : the same residuals, object gate populated fewer than ``n`` frames ->
         UNDECIDED (rule 4 still tried).
+    rule3-unguarded : the same, no guards -> (OBJECT, 3).
     rule4-star : object residuals exceed the star's by more than ``thr'`` -> (STAR, 4).
     within-threshold : both gates live, residual difference within the thresholds -> UNDECIDED.
     star-empty-suspended : star gate empty ``n``..``4n - 1`` frames, rule 1 fails -> UNDECIDED
@@ -195,17 +207,17 @@ def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o):
     if star_empty and obj_empty:
         return DELETE, 0, 0
     if star_empty:
-        if rule1(ms, ko, res_o, n, thr_o):
+        if rule1(ms, ko, res_o, n, thr_o, guards):
             return OBJECT, 1, 0
         return (DELETE if ms >= 4 * n else UNDECIDED), 0, 0     # stale: no consistent partner
     if obj_empty:
-        if rule2(mo, ks, res_s, n_o, thr_s):
+        if rule2(mo, ks, res_s, n_o, thr_s, guards):
             return STAR, 2, 0
         return (DELETE if mo >= 4 * n_o else UNDECIDED), 0, 0
-    hit, f = rule3(res_s, res_o, ko, thr_o, n)
+    hit, f = rule3(res_s, res_o, ko, thr_o, n, guards)
     if hit:
         return OBJECT, 3, f
-    hit, g = rule4(res_s, res_o, ks, thr_s)
+    hit, g = rule4(res_s, res_o, ks, thr_s, guards)
     if hit:
         return STAR, 4, f | g
     return UNDECIDED, 0, f | g
@@ -243,7 +255,8 @@ def apply_rules(C, S, G, V, GP, cyc):
             continue
         cyc[ST_GATES] += CYC_RULE
         concl, rule, g = pair_conclusion(G[rs, G_MISS], G[ro, G_MISS], G[rs, G_RUN], G[ro, G_RUN],
-                                         G[rs, G_RES], G[ro, G_RES], n, n_o, thr_s, thr_o)
+                                         G[rs, G_RES], G[ro, G_RES], n, n_o, thr_s, thr_o,
+                                         C[C_RULE_GUARDS] != 0)
         fl |= g
         if rule > 0:
             S[S_NRULE + rule - 1] += 1

@@ -154,7 +154,8 @@ def start_ekf(K, N, E, V):
 @njit(cache=True)
 def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
-    updates of the EKF; a component refused ``ekf_max_rejects`` frames running -> covariance reset.
+    updates of the EKF; with the proposal ``ekf_reset``, a component refused ``ekf_max_rejects``
+    frames running -> covariance reset.
 
     Measurement matrix ``M = (RM A)^T`` (``A`` the imager alignment), measurement the pixel's
     imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis. The
@@ -167,8 +168,9 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     both-accepted : both components incorporated -> ``E_NREJ = 0``, no status bit.
     one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
     both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
-    reset : a component refused for the ``ekf_max_rejects``-th frame running -> P reset to its
-        initial diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
+    reset : a component refused for the ``ekf_max_rejects``-th frame running (the proposal
+        ``ekf_reset``) -> P reset to its initial diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
+    reset-off : ``ekf_max_rejects = 0`` (the paper's EKF) -> never reset, ``E_NREJ`` counts on.
     los-held : ``V[V_ELOS] = 1`` -> the held line of sight is used; words and flags as when it
         is formed here.
     los-formed : ``V[V_ELOS] = 0`` -> formed from the state first.
@@ -208,7 +210,7 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
     if not (ok1 and ok2):
         V[V_STATUS] |= TC_INNOVATION_REJECTED
         E[E_NREJ] += 1
-        if E[E_NREJ] >= C[C_EKF_MAX_REJ]:
+        if C[C_EKF_MAX_REJ] > 0 and E[E_NREJ] >= C[C_EKF_MAX_REJ]:
             ekf_reset_cov(E, K[K_P0R], K[K_P0V])
             E[E_NREJ] = 0
             V[V_STATUS] |= TC_EKF_RESET

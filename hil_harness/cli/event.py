@@ -5,7 +5,8 @@ The ground simulator renders each 2 Hz frame of the scenario; the flight image p
 a candidate message, the track processor into a pointing command, which the spacecraft follows. Writes
 ``recording.h5``, the figures (processing stages, centroid track, track error, gates, budget, an animated
 GIF) and ``summary.json`` to DIR, and prints a short table. SCENARIO is a shipped name (``uvisi
-scenarios`` lists them) or a TOML file.
+scenarios`` lists them) or a TOML file. The flight code is the paper's system; ``--with`` switches on
+candidate changes (``uvisi proposals`` lists them).
 
 The recording is written in blocks of 20 frames as ``recording.partial.h5`` and renamed
 ``recording.h5`` at the end; an interrupted event (Ctrl-C, SIGTERM, kill -9) leaves the partial file
@@ -21,6 +22,7 @@ import sys
 import threading
 from pathlib import Path
 
+from hil_harness.cli.options import add_with_option, with_names
 from hil_harness.console import progress_enabled
 
 
@@ -46,6 +48,7 @@ def register(sub) -> None:
                    help="price every frame under a budget hypothesis (uvisi budget --explain lists "
                         "them), overruns included; default: today's cycle model")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
+    add_with_option(p)
     p.set_defaults(func=run)
 
 
@@ -83,7 +86,8 @@ def run(args) -> int:
                       record_frames=not args.no_frames, figures=not args.no_figures,
                       progress=progress_enabled(), sequence=args.sequence, record=args.record,
                       selection=SelectionParams(handover=args.handover), force=replace,
-                      hypothesis=args.hypothesis)
+                      hypothesis=args.hypothesis, proposals=with_names(args),
+                      proposals_where="--with")
     except EventInterrupted as exc:
         how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
         print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "

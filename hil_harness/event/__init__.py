@@ -22,8 +22,8 @@ from __future__ import annotations
 
 from .io import replay, run_event
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, SKIP_REASONS,
-                   Event, EventConfig, FrameOutcome, nominal_trajectory)
+                   Event, EventConfig, FrameOutcome, flight_profile, nominal_trajectory)
 
 __all__ = ["Event", "EventConfig", "FrameOutcome", "run_event", "replay", "nominal_trajectory",
            "FRAME_DT", "MAX_MESSAGE_WORDS", "SKIP_NONE", "SKIP_DROPPED", "SKIP_OVERRUN",
-           "SKIP_REASONS"]
+           "SKIP_REASONS", "flight_profile"]

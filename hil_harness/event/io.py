@@ -41,9 +41,9 @@ from flightsw.tp.ekf import E_P, E_RUN, UT
 from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
-                   EventConfig, FrameOutcome)
+                   EventConfig, FrameOutcome, flight_profile)
 from .recording import Recorder, Recording, row_dtype, signals_deferred
-from .replay import ReplayEvent, replay_config
+from .replay import ReplayEvent, predates_proposals, replay_config
 from .run_folder import RunFolder
 
 MAX_COMMAND_WORDS = 128
@@ -105,7 +105,7 @@ def _versions() -> dict:
 def _config_dict(ev: Event) -> dict:
     c = ev.config
     return {"sequence": ev.sequence.to_dict(), "record": ev.record_name,
-            "selection": asdict(c.selection), "overrun_policy": c.overrun_policy,
+            "flight": flight_profile(ev.proposals), "selection": asdict(c.selection), "overrun_policy": c.overrun_policy,
             "tp": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.tp.items()},
             "frames": ev.n_frames, "stage_frame": c.stage_frame, "hypothesis": c.hypothesis,
             "processors": None if not c.processors else {
@@ -500,6 +500,7 @@ def summarise(ev: Event) -> dict:
                 "candidate_messages_rejected_by_tp": int(status_counts.get("bad_message", 0))},
         "tp_status_frames": status_counts,
         "sequence": ev.sequence.name, "record": ev.record_name,
+        "flight": flight_profile(ev.proposals),
     }
 
 
@@ -800,6 +801,8 @@ def replay(path) -> dict:
         if n == 0:
             return out
         ev = ReplayEvent(replay_config(path, rec, n), rec)
+        out["flight"] = flight_profile(ev.proposals)
+        out["predates_proposals"] = predates_proposals(rec)
         fr = rec.table("frames")
         mw, cw = rec.array("message_words"), rec.array("command_words")
         mism = []

@@ -40,6 +40,9 @@ import numpy as np
 
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
 from flightsw.ip import ImageProcessor, ProcessingSequence
+from flightsw.ip.processor import apply_floor_proposals, check_floor_proposals
+from flightsw.proposals import ALL as PROPOSAL_NAMES
+from flightsw.proposals import check_applicable
 from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
@@ -94,6 +97,12 @@ class EventConfig:
     hypothesis : str, optional
         A budget hypothesis (``hil_harness.budget.hypotheses.HYPOTHESES``) to price every frame
         under, overruns included; default: today's cycle model.
+    proposals : tuple of str, str or None
+        The proposals in force (:mod:`flightsw.proposals`: names, ``"all"``, or one comma-separated
+        string); None: the scenario's ``[flight] with`` (default none: the paper's system). A
+        proposal named explicitly that the event's TP mode never uses is refused.
+    proposals_where : str
+        How the proposals were given, for the error naming them (``--with``, a file's field).
     """
 
     scenario: str | Path = "satellite_over_stars"
@@ -107,6 +116,8 @@ class EventConfig:
     tp: dict = field(default_factory=dict)
     stage_frame: int | None = None
     hypothesis: str | None = None
+    proposals: tuple | str | None = None
+    proposals_where: str = "proposals"
 
     def __post_init__(self):
         if self.overrun_policy != "skip":
@@ -177,6 +188,20 @@ def nominal_trajectory(world, duration: float):
     return NominalTrajectory(0.0, r0, v0, accel_coeffs=coeffs)
 
 
+def flight_profile(proposals) -> dict:
+    """The ``flight`` entry of a run's summary, recording and rows: ``profile`` "paper" (no
+    proposal: the paper's system), "all-proposals" (all eight) or "paper+NAME,NAME"; ``with`` the
+    proposals in force, sorted."""
+    names = sorted(proposals or ())
+    if not names:
+        profile = "paper"
+    elif tuple(names) == PROPOSAL_NAMES:
+        profile = "all-proposals"
+    else:
+        profile = "paper+" + ",".join(names)
+    return {"profile": profile, "with": names}
+
+
 class Event:
     """One closed-loop event. ``reset()``, then ``step()`` until ``done``; ``outcomes`` holds every
     frame's :class:`FrameOutcome`."""
@@ -207,11 +232,21 @@ class Event:
             tp_imagers[iid] = ImagerGeometry(q_imager_to_body=q, scale_col=float(im.scale_col),
                                              scale_row=float(im.scale_row))
         mode = "opportunity" if ttype == "aurora" else "dedicated"
+        given, where = cfg.proposals, cfg.proposals_where
+        if given is None:
+            given, where = scn.flight_with, f"{scn.path}: flight.with"
+        #: the proposals in force (sorted names; () is the paper's system)
+        self.proposals = check_applicable(given, mode, where)
+        check_floor_proposals(self.sequence, self.proposals,
+                              f"sequence {cfg.sequence}" if cfg.sequence is not None else "")
+        self.sequence = apply_floor_proposals(self.sequence, self.proposals)
         nominal = nominal_trajectory(self.world, scn.duration) if mode == "dedicated" else None
-        tp_kw = dict(imagers=tp_imagers, mode=mode, object_type=self.object_type, nominal=nominal)
+        tp_kw = dict(imagers=tp_imagers, mode=mode, object_type=self.object_type, nominal=nominal,
+                     proposals=self.proposals)
         tp_kw.update(cfg.tp)
         self.tp = TrackProcessor(TPConfig(**tp_kw))
-        self.ip = ImageProcessor(self.sequence, self.record, check=not self._frames_vouched())
+        self.ip = ImageProcessor(self.sequence, self.record, check=not self._frames_vouched(),
+                                 proposals=self.proposals)
         # the uplinks' words, built (and their files read) before the event starts
         self.uplink_words = [self._uplink_words(i, u) for i, u in enumerate(scn.uplinks)]
         self._budget_hypothesis = None

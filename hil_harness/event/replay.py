@@ -59,7 +59,26 @@ def replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
     return EventConfig(scenario=scn, frames=n, sequence=ProcessingSequence.from_dict(cfgd["sequence"]),
                        record=record, selection=SelectionParams(**cfgd["selection"]),
                        tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
-                       processors=procs or None, hypothesis=cfgd.get("hypothesis"))
+                       processors=procs or None, hypothesis=cfgd.get("hypothesis"),
+                       proposals=recorded_proposals(cfgd), proposals_where=f"{path}: config.flight")
+
+
+def recorded_proposals(cfgd: dict) -> tuple:
+    """The proposals a recording was made with (its ``config["flight"]["with"]``); a recording made
+    before proposals existed has none: it ran today's configuration, all eight
+    (:data:`flightsw.proposals.ALL`; the caller says so: :func:`predates_proposals`)."""
+    from flightsw.proposals import ALL
+    fl = cfgd.get("flight")
+    if not isinstance(fl, dict):
+        return ALL
+    return tuple(fl.get("with") or ())
+
+
+def predates_proposals(rec: Recording) -> bool:
+    """The recording was made before the ``flight`` entry existed (replayed with all proposals)."""
+    at = rec.attrs
+    cfgd = at["config"] if isinstance(at["config"], dict) else json.loads(at["config"])
+    return not isinstance(cfgd.get("flight"), dict)
 
 
 def replay_frames(rec: Recording, stages: bool = False):

@@ -14,8 +14,10 @@ The logic, with every criterion an uplinkable parameter of :class:`SelectionPara
 * a **ground command** (the scenario's ``[faults] imager_switch``) forces an imager at a time and
   suspends the automatic logic for the rest of the event.
 
-The a priori record in force follows the track processor's object type (:data:`RECORD_FOR_TYPE`),
-or a ground-commanded record.
+The a priori record in force is chosen when the event starts, from the scenario's object type
+(:data:`RECORD_FOR_TYPE`) or the user's ``--record``; it changes only by a ground uplink. (The paper's
+IP "can dynamically change which a priori feature record is used from information supplied by the
+TP": not built yet, an omission listed in ``docs/fidelity.md``.)
 
 Every switch is returned as a :class:`Switch` with its reason, and the harness records it.
 """
@@ -25,11 +27,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-#: object type (the TP's / the scenario's) -> shipped a priori record name. Aurora: the record tuned
-#: in closed loop with the ``aurora_track`` sequence (``flightsw/data/record_aurora_surge.toml``;
-#: Table 1 itself stays the shipped record ``aurora``; figures in ``data/records/README.md``)
+#: object type (the scenario's) -> shipped a priori record name. Aurora: the paper's Table 1
+#: (record ``aurora``: "used the a priori feature record listed in Table 1 for all image
+#: sequences"); ``aurora_surge``, tuned in closed loop with the ``aurora_track`` sequence, is an
+#: operator choice (``--record aurora_surge``; figures in ``data/records/README.md``)
 RECORD_FOR_TYPE = {"satellite": "satellite", "launch": "plume", "plume": "plume",
-                   "aurora": "aurora_surge", "star": "star", None: "star", "": "star",
+                   "aurora": "aurora", "star": "star", None: "star", "": "star",
                    "none": "star"}
 
 #: narrow-FOV partner of each wide-FOV imager (same band)
