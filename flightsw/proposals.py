@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 __all__ = ["Proposal", "PROPOSALS", "ALL", "expand", "applicable", "check_applicable",
-           "floor_params", "FLOOR_FIELDS", "sequence_floor_fields"]
+           "floor_params", "FLOOR_FIELDS", "sequence_floor_fields", "flight_profile"]
 
 
 @dataclass(frozen=True)
@@ -203,3 +203,17 @@ def check_applicable(names, mode: str, where: str = "--with") -> tuple:
             raise ValueError(f"{where}: proposal {n!r} is never used on a {what} event "
                              f"(it acts in {'/'.join(PROPOSALS[n].modes)} mode)")
     return got
+
+
+def flight_profile(proposals) -> dict:
+    """The ``flight`` entry of a run's summary, recording, rows and JSON: ``profile`` "paper" (no
+    proposal: the paper's system), "all-proposals" (all eight) or "paper+NAME,NAME"; ``with`` the
+    proposals in force, sorted."""
+    names = sorted(proposals or ())
+    if not names:
+        profile = "paper"
+    elif tuple(names) == ALL:
+        profile = "all-proposals"
+    else:
+        profile = "paper+" + ",".join(names)
+    return {"profile": profile, "with": names}

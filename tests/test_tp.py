@@ -664,8 +664,9 @@ def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     predicted line of sight (to first order in the offset: < 1e-6 rad at ~1 mrad), and the
     reported predicted pixel is unchanged by the aim. With the aim scan on, the n-th frame of the
     hold puts aim + 0.5 (cos 2 pi n / 8, sin 2 pi n / 8) there instead."""
-    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.0)
-    s0, tp0 = _locked(aim_row_px=0.0, aim_col_px=0.0, aim_scan_px=0.0)
+    on = ("aim_offset", "aim_scan")                                      # the two proposals
+    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.0, proposals=on)
+    s0, tp0 = _locked()                                                  # the paper's pointing
     msg, att, _ = s.frame(20)
     cmd = tp.step(msg, att)
     cmd0 = tp0.step(*s0.frame(20)[:2])
@@ -674,7 +675,8 @@ def test_pointing_puts_the_aim_pixel_on_the_predicted_los(aim):
     assert np.linalg.norm(dcm(np.asarray(cmd.q_point)) @ b - cmd.los_eci) < 1e-6
     assert np.linalg.norm(np.asarray(cmd.los_eci) - np.asarray(cmd0.los_eci)) < 1e-9
     assert (cmd.predicted_row, cmd.predicted_col) == (cmd0.predicted_row, cmd0.predicted_col)
-    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.5, aim_scan_frames=8)
+    s, tp = _locked(aim_row_px=aim[0], aim_col_px=aim[1], aim_scan_px=0.5, aim_scan_frames=8,
+                    proposals=on)
     decided = tp.step(*s.frame(20)[:2]).decided_frame                   # n = 0 on that frame
     for k in range(21, 30):
         cmd = tp.step(*s.frame(k)[:2])
@@ -834,8 +836,8 @@ def test_closed_loop_satellite_over_stars_with_groundsim_truth_centroids():
         w.advance()
     print(f"[tp] satellite_over_stars (truth centroids): object decided on frame {decided}")
     assert decided is not None and cmd.locked and cmd.object_index == 3
-    # on the aim: +X's pixel (122, 128) + the default aim (1, 1) + the aim scan's 0.5 px circle
-    assert math.hypot(tg["row"] - 123.0, tg["col"] - 129.0) < 1.0
+    # the paper's TP points at the object: on +X's pixel (122, 128)
+    assert math.hypot(tg["row"] - 122.0, tg["col"] - 128.0) < 1.0
     assert math.hypot(cmd.predicted_row - tg["row"], cmd.predicted_col - tg["col"]) < 1.0
     assert np.linalg.norm(cmd.r_est - tg["r_eci"]) < 3 * cmd.sigma_pos
 

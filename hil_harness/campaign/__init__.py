@@ -193,9 +193,10 @@ class CampaignSpec:
     def from_dict(cls, data, source="<spec>", job: str | None = None) -> "CampaignSpec":
         if not isinstance(data, dict):
             raise ValueError(f"{source}: a campaign spec must be a table")
-        extra = sorted(set(data) - {"campaign", "params", "axes"})
+        extra = sorted(set(data) - {"campaign", "params", "axes", "flight"})
         if extra:
-            raise ValueError(f"{source}: unknown top-level key(s) {extra} (campaign, params, axes)")
+            raise ValueError(f"{source}: unknown top-level key(s) {extra} (campaign, params, axes, "
+                             f"flight)")
         head = data.get("campaign")
         if not isinstance(head, dict):
             raise ValueError(f"{source}: missing [campaign] table")
@@ -242,15 +243,39 @@ class CampaignSpec:
         both = sorted(set(params) & set(axes))
         if both:
             raise ValueError(f"{source}: {both} in both [params] and [axes]")
+        flight = flight_proposals(data.get("flight"), source, jobname)
+        if flight and "proposals" in set(params) | set(axes):
+            raise ValueError(f"{source}: proposals given both in [flight] with and in "
+                             f"[params]/[axes]")
         runs = []
         keys = list(axes)
         for s in seeds:
             for combo in itertools.product(*[axes[k] for k in keys]):
                 p = dict(params)
                 p.update(zip(keys, combo))
+                if flight:
+                    p["proposals"] = list(flight)
                 p["seed"] = s
                 runs.append(p)
         return cls(name, jobname, runs, str(head.get("description", "")), source, data)
+
+
+def flight_proposals(table, source: str, job: str) -> tuple:
+    """``[flight] with = [...]`` of a campaign spec -> the proposal names (sorted; () without the
+    table). Only the closed-loop event job runs the TP and the alpha logic they change."""
+    if table is None:
+        return ()
+    if not isinstance(table, dict) or set(table) - {"with"}:
+        raise ValueError(f"{source}: [flight] takes one key, with = [proposal names]")
+    names = table.get("with", [])
+    if not isinstance(names, list):
+        raise ValueError(f"{source}: flight.with must be a list of proposal names")
+    from flightsw.proposals import expand
+    got = expand(names, f"{source}: flight.with")
+    if got and not job.endswith(":event"):
+        raise ValueError(f"{source}: flight.with applies to the closed-loop event job "
+                         f"(hil_harness.campaign.jobs:event), not {job}")
+    return got
 
 
 # ================================================================================================

@@ -180,6 +180,8 @@ def _flatten_numeric(d, prefix="") -> dict:
             out[key] = float(v)
         elif isinstance(v, str) and len(v) <= 200:
             out[key] = v
+        elif isinstance(v, list) and all(isinstance(x, str) for x in v):
+            out[key] = ",".join(v)                   # e.g. flight.with
         elif isinstance(v, np.ndarray) and v.ndim == 0 and v.dtype.kind in "biuf":
             out[key] = v.item()
     return out

@@ -28,6 +28,7 @@ SUBCOMMAND_MODULES = (
     "hil_harness.cli.track",
     "hil_harness.cli.event",
     "hil_harness.cli.replay",
+    "hil_harness.cli.proposals",
     "hil_harness.cli.view",
     "hil_harness.cli.scenarios",
     "hil_harness.cli.budget",

@@ -6,12 +6,16 @@ the spec's job (default ``hil_harness.campaign.jobs:identification``) on a Dask 
 one of ``--workers`` processes (default 2), or the existing scheduler at ``--scheduler`` -- and the
 results land in ``DIR/results.parquet`` (one row per run). Each finished run is committed at once
 (``DIR/parts/``); after an interruption ``--resume`` runs only what is missing. ``--serial`` runs in
-this process without Dask (the single-process baseline for throughput).
+this process without Dask (the single-process baseline for throughput). The closed-loop event job
+runs the paper's system unless the spec's ``[flight] with = [...]`` or ``--with`` (which replaces
+it) names proposals; each result row carries ``flight.profile`` and ``flight.with``.
 """
 from __future__ import annotations
 
 import json
 from pathlib import Path
+
+from hil_harness.cli.options import add_with_option, with_names
 
 
 def register(sub) -> None:
@@ -32,6 +36,7 @@ def register(sub) -> None:
     p.add_argument("--job", default=None, help="job 'module:function' (overrides the spec)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", default=None, help="write the run summary (JSON)")
+    add_with_option(p)
     p.set_defaults(func=run)
 
 
@@ -49,8 +54,11 @@ def run(args) -> int:
     if not args.serial and not args.scheduler and args.workers < 1:
         raise ValueError(f"--workers {args.workers} must be >= 1")
     spec = CampaignSpec.load(args.spec)
-    if args.job:
-        spec = CampaignSpec.from_dict(spec.raw, spec.source, args.job)
+    if args.job or args.with_ is not None:
+        raw = dict(spec.raw)
+        if args.with_ is not None:                    # --with replaces the spec's [flight] with
+            raw["flight"] = {"with": list(with_names(args))}
+        spec = CampaignSpec.from_dict(raw, spec.source, args.job)
     spec.validate_inputs()
     out = Path(args.out or f"campaign_{spec.name}")
     print(f"[campaign] {spec.name}: {len(spec.runs)} runs of {spec.job} -> {out}")

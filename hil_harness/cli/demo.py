@@ -2,7 +2,8 @@
 
 Runs ``uvisi event satellite_over_stars`` (a satellite crossing a star field in the wide-FOV visible
 imager, 90 s at 2 Hz, closed loop) into DIR (default ``./events/satellite_over_stars``) and prints
-where the recording, summary and figures are. ``--arith`` prints instead the flight-arithmetic
+where the recording, summary and figures are. The flight code is the paper's system; ``--with``
+switches on proposals (``uvisi proposals``). ``--arith`` prints instead the flight-arithmetic
 self-report: the cases the processors' documents pin down, each checked against its reference, and
 the emulated cycle budget of the image processor's heaviest vector step.
 """
@@ -13,6 +14,8 @@ from fractions import Fraction
 
 import numpy as np
 
+from hil_harness.cli.options import add_with_option
+
 
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the product's main job on the built-in default",
@@ -22,6 +25,7 @@ def register(sub) -> None:
                         "run; another run in a given one is refused unless --force)")
     p.add_argument("--force", action="store_true", help="replace another run found in --out")
     p.add_argument("--arith", action="store_true", help="flight-arithmetic self-report instead")
+    add_with_option(p)
     p.set_defaults(func=run)
 
 
@@ -65,6 +69,8 @@ def event_args(args):
         argv += ["--out", str(args.out)]
     if getattr(args, "force", False):
         argv.append("--force")
+    if getattr(args, "with_", None) is not None:
+        argv += ["--with", str(args.with_)]
     return build_parser().parse_args(argv)
 
 

@@ -44,6 +44,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.cli.options import add_with_option, with_names
 from hil_harness.fileio import temp_beside
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
@@ -71,6 +72,7 @@ def register(sub) -> None:
                         "field, 13.1 deg over 256 columns, scaled to the frame width)")
     p.add_argument("--no-scale", action="store_true",
                    help="the pixels must already be 12-bit counts (no mapping)")
+    add_with_option(p)
     p.set_defaults(func=run)
 
 
@@ -133,10 +135,12 @@ def _frame_entry(k, name, tag, rf, scale, flags) -> dict:
             "chosen": rf.chosen + 1 if rf.chosen >= 0 else None, "track": track}
 
 
-def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None):
+def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None,
+                   proposals=()):
     """IP + TP over ``counts`` (uint16 [F, H, W]) -> (list of ReplayFrame, ImagerGeometry).
 
-    ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames)."""
+    ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames);
+    ``proposals``: those in force (default none: the paper's system)."""
     from hil_harness.tuning.closed_loop import ReplayEvent, replay
     from hil_harness.tuning.events import imager_geometry
     if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
@@ -147,7 +151,7 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
     geom = imager_geometry("real", fov, counts.shape[1:])
     ev = ReplayEvent(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
                      name="input", object_type=record.object_type)
-    return replay(ev, sequence, record, "tp", skip=skip), geom, fov
+    return replay(ev, sequence, record, "tp", skip=skip, proposals=proposals), geom, fov
 
 
 def _write_json(path, obj):
@@ -175,8 +179,12 @@ def run(args) -> int:
         if f:
             print(f"uvisi track: warning: {n}: flagged {', '.join(f)} (the IP still answers; the "
                   f"track does not move on it)", file=sys.stderr)
-    frames, geom, fov = track_sequence(counts, record, seq, args.frame_dt, args.fov, skip)
-    out = {"record": record.name, "sequence": seq.name, "frame_dt": args.frame_dt,
+    from flightsw.proposals import flight_profile
+    proposals = with_names(args, "opportunity") or ()     # uvisi track: no velocity filter
+    frames, geom, fov = track_sequence(counts, record, seq, args.frame_dt, args.fov, skip,
+                                       proposals)
+    out = {"record": record.name, "sequence": seq.name, "flight": flight_profile(proposals),
+           "frame_dt": args.frame_dt,
            "fov_deg": fov, "scale_rad_per_px": geom.scale_col,
            "frames": [_frame_entry(k, names[k], tags[k], rf, scales[k], flags[k])
                       for k, rf in enumerate(frames)]}

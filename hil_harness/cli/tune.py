@@ -31,6 +31,8 @@ import json
 import time
 from pathlib import Path
 
+from hil_harness.cli.options import add_with_option, with_names
+
 
 def register(sub) -> None:
     p = sub.add_parser("tune", help="fit, optimise and validate a priori feature records",
@@ -88,6 +90,7 @@ def register(sub) -> None:
                         "by scenario entry and seed: empty it when the renderer changes)")
     q.add_argument("--json", default=None, help="write the optimisation summary (JSON)")
     _naming(q)
+    add_with_option(q)
     q.set_defaults(func=_optimise)
 
     q = ts.add_parser("validate", help="identification rates and report on a held-out set")
@@ -102,6 +105,7 @@ def register(sub) -> None:
     q.add_argument("--events", default=None,
                    help="directory keeping the rendered events (read back when present; keyed "
                         "by scenario entry and seed: empty it when the renderer changes)")
+    add_with_option(q)
     q.set_defaults(func=_validate)
     p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
 
@@ -175,7 +179,9 @@ def _replayer(args):
     nobj = sum(int(e.has_object.sum()) for e in evs)
     print(f"[tune] set {spec.name}: {len(evs)} events, {sum(e.n_frames for e in evs)} frames "
           f"({nobj} with the object) ({time.perf_counter() - t0:.1f} s)")
-    return Replayer(evs, spec.sequence, event_radius(spec), spec.base_dir, spec.name)
+    # the closed-loop replays run the TP in target-of-opportunity mode (no velocity filter)
+    return Replayer(evs, spec.sequence, event_radius(spec), spec.base_dir, spec.name,
+                    proposals=with_names(args, "opportunity") or ())
 
 
 def _rate_text(r) -> str:

@@ -105,7 +105,8 @@ def _versions() -> dict:
 def _config_dict(ev: Event) -> dict:
     c = ev.config
     return {"sequence": ev.sequence.to_dict(), "record": ev.record_name,
-            "flight": flight_profile(ev.proposals), "selection": asdict(c.selection), "overrun_policy": c.overrun_policy,
+            "flight": flight_profile(ev.proposals), "selection": asdict(c.selection),
+            "overrun_policy": c.overrun_policy,
             "tp": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.tp.items()},
             "frames": ev.n_frames, "stage_frame": c.stage_frame, "hypothesis": c.hypothesis,
             "processors": None if not c.processors else {

@@ -41,8 +41,7 @@ import numpy as np
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
 from flightsw.ip import ImageProcessor, ProcessingSequence
 from flightsw.ip.processor import apply_floor_proposals, check_floor_proposals
-from flightsw.proposals import ALL as PROPOSAL_NAMES
-from flightsw.proposals import check_applicable
+from flightsw.proposals import check_applicable, flight_profile
 from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor
@@ -186,20 +185,6 @@ def nominal_trajectory(world, duration: float):
         acc = np.array(acc)
         coeffs = np.array([np.polyfit(ts, acc[:, i], 3) for i in range(3)])
     return NominalTrajectory(0.0, r0, v0, accel_coeffs=coeffs)
-
-
-def flight_profile(proposals) -> dict:
-    """The ``flight`` entry of a run's summary, recording and rows: ``profile`` "paper" (no
-    proposal: the paper's system), "all-proposals" (all eight) or "paper+NAME,NAME"; ``with`` the
-    proposals in force, sorted."""
-    names = sorted(proposals or ())
-    if not names:
-        profile = "paper"
-    elif tuple(names) == PROPOSAL_NAMES:
-        profile = "all-proposals"
-    else:
-        profile = "paper+" + ",".join(names)
-    return {"profile": profile, "with": names}
 
 
 class Event:

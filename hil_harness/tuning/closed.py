@@ -81,11 +81,14 @@ class Replayer:
         Processing sequence (shipped name or TOML), set to each event's frame shape.
     radii : dict or float
         Object radius (full-resolution px) by event name, or one for all.
+    proposals : tuple of str
+        The proposals the replays run with (default none: the paper's system).
     """
 
-    def __init__(self, events, sequence, radii, base_dir=None, name: str = "set"):
+    def __init__(self, events, sequence, radii, base_dir=None, name: str = "set", proposals=()):
         self.events = list(events)
         self.name = name
+        self.proposals = tuple(proposals or ())
         self.sequence, self.base_dir = sequence, base_dir
         self._radii = radii
         self.radius = [float(radii.get(e.name, 24.0)) if isinstance(radii, dict) else float(radii)
@@ -97,7 +100,8 @@ class Replayer:
                 self._seq[shp] = load_sequence(sequence, base_dir, shp)
 
     def subset(self, events) -> "Replayer":
-        return Replayer(events, self.sequence, self._radii, self.base_dir, self.name)
+        return Replayer(events, self.sequence, self._radii, self.base_dir, self.name,
+                        self.proposals)
 
     @property
     def n_frames_with_object(self) -> int:
@@ -108,7 +112,8 @@ class Replayer:
 
     def replays(self, record, prior="tp") -> list:
         """Per event, the list of :class:`~hil_harness.tuning.closed_loop.ReplayFrame`."""
-        return [replay(e, self.seq_for(e), record, prior) for e in self.events]
+        return [replay(e, self.seq_for(e), record, prior, proposals=self.proposals)
+                for e in self.events]
 
     def hits(self, record, prior="tp", replays=None) -> list:
         """Per event, bool [F] rank-1 hits (scored against truth)."""

@@ -31,8 +31,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightsw.ip import process_frame
-from flightsw.ip.processor import alpha_controller_for
+from flightsw.ip.processor import alpha_controller_for, apply_floor_proposals
 from flightsw.messages import AttitudeData, CandidateMessage, Feedback, TrackCommand
+from flightsw.proposals import expand
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 
 
@@ -188,7 +189,7 @@ def _nominal_dt(t) -> float:
 
 
 def replay(event: ReplayEvent, sequence, record, prior: str = "tp", *, tp_overrides=None,
-           skip=None, attitude_times=None) -> list:
+           skip=None, attitude_times=None, proposals=()) -> list:
     """Replay ``event`` through the IP (and, for ``prior="tp"``, the TP) -> list of
     :class:`ReplayFrame`, one per frame.
 
@@ -208,16 +209,22 @@ def replay(event: ReplayEvent, sequence, record, prior: str = "tp", *, tp_overri
         track coasts over them).
     attitude_times : ndarray [F], optional
         Time tags given the TP (default ``event.t``).
+    proposals : tuple of str
+        The proposals in force (:mod:`flightsw.proposals`; default none, the paper's system): the
+        TP's (``opp_startup``) and the alpha logic's floors.
     """
     if prior not in PRIOR_MODES:
         raise ValueError(f"prior={prior!r} must be one of {PRIOR_MODES}")
     n = event.n_frames
     skip = np.zeros(n, bool) if skip is None else np.asarray(skip, bool)
     times = event.t if attitude_times is None else np.asarray(attitude_times, float)
-    tp = _tp_for(event, _nominal_dt(times), tp_overrides) if prior == "tp" else None
+    proposals = expand(proposals, "proposals")
+    tp = _tp_for(event, _nominal_dt(times), {"proposals": proposals, **(tp_overrides or {})}) \
+        if prior == "tp" else None
     if tp is not None:
         tp.reset()
-    alpha = alpha_controller_for(sequence)
+    sequence = apply_floor_proposals(sequence, proposals)
+    alpha = alpha_controller_for(sequence, proposals)
     fb = Feedback(object_type=record.object_type)
     out = []
     for k in range(n):
