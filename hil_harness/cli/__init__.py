@@ -35,6 +35,7 @@ SUBCOMMAND_MODULES = (
     "hil_harness.cli.tune",
     "hil_harness.cli.record",
     "hil_harness.cli.campaign",
+    "hil_harness.cli.compare",
     "hil_harness.cli.rde",
     "hil_harness.cli.inr",
 )
