@@ -115,8 +115,8 @@ def test_a_budget_hypothesis_is_opt_in_per_event():
 def test_shipped_uplink_scenario_refuses_the_corrupted_record_then_ranks_with_the_intact_one():
     ev = Event(EventConfig(scenario="aurora_uplink"))
     ev.run()
-    default, table1 = load_record(ev.record_name).record_id, load_record("aurora").record_id
-    assert default != table1
+    default, tuned = load_record(ev.record_name).record_id, load_record("aurora_surge").record_id
+    assert default != tuned and ev.record_name == "aurora"           # Table 1 by default
     ids = np.array([int(o.message_words[13]) if o.message_words is not None else -1
                     for o in ev.outcomes])
     processed = ids >= 0
@@ -124,4 +124,4 @@ def test_shipped_uplink_scenario_refuses_the_corrupted_record_then_ranks_with_th
     assert refused["verdict"] == "refused" and refused["frame"] == 20 and "CRC" in refused["reason"]
     assert accepted["verdict"] == "accepted" and accepted["effective_frame"] == 40
     assert np.all(ids[:40][processed[:40]] == default)        # the refused uplink changed nothing
-    assert np.all(ids[40:][processed[40:]] == table1)
+    assert np.all(ids[40:][processed[40:]] == tuned)
