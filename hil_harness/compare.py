@@ -761,7 +761,9 @@ def compare_plot(res: dict, path) -> Path:
     import matplotlib.pyplot as plt
     arms = res["arms"]
     x = np.arange(len(arms))
-    fig, ax = plt.subplots(figsize=(max(4.5, 1.6 * len(arms) + 2), 4.2), dpi=110)
+    many = len(arms) > 6                   # long names side by side would overlap: turn them
+    fig, ax = plt.subplots(figsize=(min(16.0, max(4.5, (0.75 if many else 1.6) * len(arms) + 2)),
+                                    5.2 if many else 4.2), dpi=110)
     for e in res["per_event"]:
         y = [a["held_after_lock"]["rate"] for a in e["arms"]]
         ax.plot(x, y, "-", color="0.8", lw=0.8, zorder=1)
@@ -779,7 +781,8 @@ def compare_plot(res: dict, path) -> Path:
                                            [max(0.0, ev["ci95"][1] - m)]], fmt="D",
                         color="C3", capsize=4, zorder=3,
                         label="mean of events, t 95 %" if i == 0 else None)
-    ax.set_xticks(x, [a["name"] for a in arms])
+    ax.set_xticks(x, [a["name"] for a in arms], rotation=35 if many else 0,
+                  ha="right" if many else "center", fontsize=8 if many else 10)
     ax.set_ylim(-0.03, 1.03)
     ax.set_ylabel("held after lock (fraction of frames)")
     ax.set_title(f"{Path(res['spec']).name}: {len(res['events'])} events (grey: per event)",
