@@ -18,8 +18,9 @@ File layout (all tables but ``[scenario]`` optional; unknown keys are errors)::
                  corrupt_candidate = [{frame, bits}], corrupt_command = [{frame, bits}] (bus faults:
                  flip ``bits`` bits of that frame's candidate message / track command)
     [[uplinks]]  t (s), exactly one of record = / sequence = (a shipped name, a TOML file or a .words
-                 file, looked up next to the scenario first), corrupt_bits = N (optional: flip N bits
-                 of the uplink words, a corrupted uplink the IP must refuse)
+                 file, looked up next to the scenario first) / table = {object type = record name
+                 or id} (the IP's record table), corrupt_bits = N (optional: flip N bits of the
+                 uplink words, a corrupted uplink the IP must refuse)
     [background] earth_glow = "auto" | true | false
     [flight]     with = [proposal names] (flightsw.proposals; ["all"] for every one): the candidate
                  flight-software changes in force for this scenario (default none: the paper's
@@ -521,6 +522,18 @@ def _parse_flight(ft, file) -> tuple:
         raise ScenarioError(file, "flight.with", str(e).split(": ", 1)[1]) from None
 
 
+def _table_source(et) -> str:
+    """``table = {aurora = "aurora_surge", star = 2}`` (object type -> shipped record name or record
+    id) -> its source text "aurora=aurora_surge,star=2" (the words are built by the harness)."""
+    v = et.raw("table")
+    if not isinstance(v, dict) or not v:
+        raise et.err("table", "expected a table {object type = record name or id, ...}")
+    for k, x in v.items():
+        if isinstance(x, bool) or not isinstance(x, (str, int)) or (isinstance(x, str) and not x):
+            raise et.err(f"table.{k}", f"{x!r}: expected a shipped record name or a record id")
+    return ",".join(f"{k}={x}" for k, x in v.items())
+
+
 def _parse_uplinks(entries, file, duration) -> list:
     if not isinstance(entries, list):
         raise ScenarioError(file, "uplinks", "expected an array of tables [[uplinks]]")
@@ -531,10 +544,15 @@ def _parse_uplinks(entries, file, duration) -> list:
         t = et.num("t", lo=0.0)
         if t > duration:
             raise et.err("t", f"{t} is after the end of the event ({duration} s)")
-        kinds = [k for k in ("record", "sequence") if et.has(k)]
+        kinds = [k for k in ("record", "sequence", "table") if et.has(k)]
         if len(kinds) != 1:
-            raise et.err("record", "give exactly one of record = ..., sequence = ...")
+            raise et.err("record", "give exactly one of record = ..., sequence = ..., table = ...")
         kind = kinds[0]
+        if kind == "table":
+            out.append(Uplink(t, kind, _table_source(et), None, et.int_("corrupt_bits", default=0,
+                                                                         lo=0)))
+            et.done()
+            continue
         source = et.str_(kind)
         path = None
         if source.endswith((".toml", ".words")) or "/" in source:

@@ -115,7 +115,8 @@ def test_default_event_is_the_paper_system_and_no_proposal_acts(paper_event):
     ev = paper_event
     assert ev.proposals == () and ev.record_name == "satellite"
     from hil_harness.event.io import summarise
-    assert summarise(ev)["flight"] == {"profile": "paper", "with": []}
+    fl = summarise(ev)["flight"]
+    assert (fl["profile"], fl["with"], fl["records_used"]) == ("paper", [], ["satellite"])
     assert ev.tp.S[L.S_SCAN] == ev.tp.S[L.S_SCAN + 1] == 0
     assert ev.tp.S[L.S_RULE] != 5
     words = ev.ip.alpha.words()
@@ -190,8 +191,8 @@ def test_replay_takes_the_proposals_from_the_recording(tmp_path, capsys):
     assert main(["event", "satellite_over_stars", "--frames", "30", "--no-figures", "--out",
                  str(out), "--with", "aim_offset,rule_guards"]) == 0
     s = json.loads((out / "summary.json").read_text())
-    assert s["flight"] == {"profile": "paper+aim_offset,rule_guards",
-                           "with": ["aim_offset", "rule_guards"]}
+    assert (s["flight"]["profile"], s["flight"]["with"]) == ("paper+aim_offset,rule_guards",
+                                                            ["aim_offset", "rule_guards"])
     capsys.readouterr()
     assert main(["replay", str(out / "recording.h5")]) == 0
     assert "all bit-identical" in capsys.readouterr().out

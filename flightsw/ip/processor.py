@@ -21,11 +21,13 @@ import numpy as np
 from flightsw.budget import Ledger
 from flightsw.ip.frame import check_inputs
 from flightsw.ip.pipeline import FramePlan, FrameResult
+from flightsw.ip.record_table import TABLE_FORMAT_ID, TABLE_TYPES, RecordStore, decode_table
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
 from flightsw.ip.step import STEP_FRAME_RANGE, STEP_INFO, STEP_OK, STEP_TIME_TAG, ip_step_k
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
-from flightsw.messages import MAX_CANDIDATES, TRACK_WORDS, Feedback, MessageError, TrackCommand
+from flightsw.messages import (MAX_CANDIDATES, OBJECT_TYPE_CODES, TRACK_WORDS, Feedback,
+                               MessageError, TrackCommand)
 from flightsw.proposals import FLOOR_FIELDS, expand, floor_params
 from flightsw.records import RECORD_FORMAT_ID, Record
 
@@ -36,6 +38,7 @@ _U16 = np.dtype(np.uint16)
 _COMMAND_SHAPE = (TRACK_WORDS,)
 _NO_WORDS = np.zeros(0, np.uint16)            # no command this frame
 _NO_VALUES = np.zeros(0, np.float64)          # no feedback override
+_TYPE_BY_CODE = {c: t for t, c in OBJECT_TYPE_CODES.items()}
 
 
 @dataclass(frozen=True)
@@ -46,7 +49,7 @@ class UplinkVerdict:
     ----------
     accepted : bool
     kind : str
-        "record", "sequence" or "unknown" (the format id was not recognised).
+        "record", "sequence", "table" or "unknown" (the format id was not recognised).
     reason : str
         Why it was refused ("" when accepted): the decoder's message, naming the word or field.
     effective_frame : int or None
@@ -174,10 +177,23 @@ class ImageProcessor:
         and ``alpha_floor_locked``, the others are the TP's). Default (): the paper's alpha logic;
         a sequence (at power-on or uplinked) whose threshold step sets a floor of a proposal that
         is off is refused.
+    records : iterable of Record
+        Further records held at power-on (:mod:`flightsw.ip.record_table`: at most
+        ``MAX_RECORDS`` in all).
+    table : dict, optional
+        Object type -> record id at power-on; ``record`` is set as the entry for ``object_type``.
+    object_type : str, optional
+        The event's object type (default ``record.object_type``): ``record`` is its table entry,
+        so the TP's feedback of that type keeps it in force.
+
+    After each frame the fed-back object type selects, through the table, the record of the next
+    frame (``record_switches`` lists every change of the record in force, ``records_used`` the
+    records' names in order of first use).
     """
 
     def __init__(self, sequence: ProcessingSequence, record: Record, *, alpha: dict | None = None,
-                 check: bool = True, proposals=()):
+                 check: bool = True, proposals=(), records=(), table: dict | None = None,
+                 object_type: str | None = None):
         if not isinstance(sequence, ProcessingSequence):
             raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
         if not isinstance(record, Record):
@@ -185,6 +201,9 @@ class ImageProcessor:
         self.proposals = expand(proposals, "ImageProcessor.proposals")
         check_floor_proposals(sequence, self.proposals)
         self._power_on = (sequence, record)
+        store = RecordStore([*records, record], dict(table or {}))    # validates
+        store.hold(record, object_type if object_type in TABLE_TYPES else None)
+        self._power_on_store = (dict(store.records), dict(store.table))
         self._alpha_settings = dict(alpha or {})
         self._alpha_settings.pop("alpha", None)
         self.check = bool(check)
@@ -195,6 +214,10 @@ class ImageProcessor:
         """Power-on state: the construction's sequence and record, alpha from the sequence, no
         feedback, no pending uplink, counters zero."""
         self.sequence, self.record = self._power_on
+        recs, table = self._power_on_store
+        self.store = RecordStore(recs.values(), table)
+        self.record_switches: list[dict] = []
+        self.records_used: list[str] = [self.record.name]
         self._plans: dict[str, FramePlan] = {}       # per imager, for the sequence and record in force
         self._pending: list = []
         self._set_alpha(alpha_controller_for(self.sequence, self.proposals,
@@ -206,6 +229,14 @@ class ImageProcessor:
         self.uplinks_refused = 0
         self._last_frame_count = -1
         self._info = np.zeros(STEP_INFO, np.int64)     # ip_step_k's info words, read each frame
+
+    def power_on_store(self) -> dict:
+        """The records held at power-on and the table, JSON-ready: ``{"names": [...], "records":
+        [[129 words]...], "table": {object type: record id}}`` (a recording keeps it)."""
+        recs, table = self._power_on_store
+        return {"names": [r.name for r in recs.values()],
+                "records": [[int(x) for x in r.to_words()] for r in recs.values()],
+                "table": dict(table)}
 
     def _set_alpha(self, controller: AlphaController) -> None:
         self.alpha = controller
@@ -261,7 +292,8 @@ class ImageProcessor:
         array of the frame shape) are read or converted here first, with the same checks.
         """
         if self._pending:
-            self._apply_pending()
+            self._apply_pending(frame_count)
+        self._select_record(frame_count)
         plan = self._plans.get(imager)
         if plan is None:
             plan = self._plans[imager] = FramePlan(self.sequence, self.record, str(imager))
@@ -329,16 +361,25 @@ class ImageProcessor:
         refused ones change nothing."""
         w = np.asarray(words)
         head = int(w[0]) if w.ndim == 1 and w.size and np.issubdtype(w.dtype, np.integer) else -1
-        kind = {RECORD_FORMAT_ID: "record", SEQUENCE_FORMAT_ID: "sequence"}.get(head, "unknown")
+        kind = {RECORD_FORMAT_ID: "record", SEQUENCE_FORMAT_ID: "sequence",
+                TABLE_FORMAT_ID: "table"}.get(head, "unknown")
         if kind == "unknown":
             self.uplinks_refused += 1
-            reason = (f"word 0: format id {head:#06x} is neither a record (0x{RECORD_FORMAT_ID:04X}) "
-                      f"nor a sequence (0x{SEQUENCE_FORMAT_ID:04X})" if head >= 0 else
+            reason = (f"word 0: format id {head:#06x} is not a record (0x{RECORD_FORMAT_ID:04X}), "
+                      f"a sequence (0x{SEQUENCE_FORMAT_ID:04X}) or a record table "
+                      f"(0x{TABLE_FORMAT_ID:04X})" if head >= 0 else
                       "not a 1-D array of 16-bit words")
             return UplinkVerdict(False, kind, reason)
         try:
-            new = Record.from_words(w) if kind == "record" else sequence_from_words(w)
-            if kind == "sequence":
+            if kind == "record":
+                new = Record.from_words(w)
+                full = self.store.can_hold(new)
+                if full:
+                    raise ValueError(full)
+            elif kind == "table":
+                new = decode_table(w)
+            else:
+                new = sequence_from_words(w)
                 check_floor_proposals(new, self.proposals, "sequence uplink")
         except (ValueError, SequenceError) as exc:
             self.uplinks_refused += 1
@@ -347,13 +388,36 @@ class ImageProcessor:
         self.uplinks_accepted += 1
         return UplinkVerdict(True, kind, "", (self._last_frame_count + 1) & 0xFFFF)
 
-    def _apply_pending(self) -> None:
+    def _apply_pending(self, frame_count: int) -> None:
         if self._pending:
             self._plans = {}
         for kind, new in self._pending:
-            if kind == "record":
-                self.record = new
+            if kind == "record":         # in force, and the entry for the type being tracked
+                t = _TYPE_BY_CODE.get(int(self._fb[2]), "")
+                self.store.hold(new, t if t in TABLE_TYPES else None)
+                self._put_in_force(new, frame_count, "record uplink")
+            elif kind == "table":
+                self.store.table = dict(new)
             else:
                 self.sequence = new
                 self._set_alpha(alpha_controller_for(new, self.proposals, **self._alpha_settings))
         self._pending = []
+
+    def _select_record(self, frame_count: int) -> None:
+        """The record the table gives for the fed-back object type, in force from this frame
+        (none for the type, or not held: the record in force stays)."""
+        t = _TYPE_BY_CODE.get(int(self._fb[2]), "")
+        new = self.store.select(t) if t in TABLE_TYPES else None
+        if new is not None and new is not self.record:
+            self._plans = {}
+            self._put_in_force(new, frame_count,
+                               f"the TP's object type {t!r}: table entry record {new.record_id}")
+
+    def _put_in_force(self, new: Record, frame_count: int, reason: str) -> None:
+        old = self.record
+        self.record = new
+        if new.name not in self.records_used:
+            self.records_used.append(new.name)
+        if new is not old:
+            self.record_switches.append({"frame": int(frame_count), "from": old.name,
+                                         "to": new.name, "reason": reason})

@@ -88,7 +88,11 @@ class TPConfig:
         gates and the 6-state EKF. Targets of opportunity (e.g. aurora): no velocity filtering,
         the highest-ranked candidate inside the angular gate feeds an alpha-beta track.
     object_type : str
-        Type reported to the IP (a key of :data:`flightsw.messages.OBJECT_TYPE_CODES`).
+        Type reported to the IP on every command (a key of
+        :data:`flightsw.messages.OBJECT_TYPE_CODES`; uplink code 24). INTERPRETED: the event's
+        configured type, whether or not an object is held yet: the TP is tracking that type from
+        the first frame (its nominal and gates are that object's), and the IP keeps ranking with
+        the record for it while the TP acquires (:mod:`flightsw.ip.record_table`).
     nominal : NominalTrajectory or None
         The a priori trajectory (dedicated mode). None in dedicated mode: nothing can be
         discriminated; the TP reports status ``TC_NO_NOMINAL`` and commands nothing. Ignored in

@@ -233,6 +233,7 @@ class TrackProcessor:
         if self._pending is not None:             # an uplink accepted last frame takes effect
             self.config, C = self._pending
             self.C[:] = C
+            self._object_type = self.config.object_type
             self._pending = None
         # one body, no helper call per stage of the step (each Python call ~0.06 us a frame)
         try:

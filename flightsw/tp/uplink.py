@@ -23,12 +23,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from flightsw.arith.m1750 import decode32, encode32
-from flightsw.messages import crc16_ccitt
+from flightsw.messages import OBJECT_TYPE_CODES, crc16_ccitt
+
+_TYPE_BY_CODE = {c: t for t, c in OBJECT_TYPE_CODES.items()}
 
 __all__ = ["UPLINK_FORMAT_ID", "UPLINK_PARAMS", "UplinkVerdict", "encode_uplink", "decode_uplink"]
 
 UPLINK_FORMAT_ID = 0x5450
-#: code -> (TPConfig field, kind): "f" a 1750A 32-bit float, "i" a 32-bit integer
+#: code -> (TPConfig field, kind): "f" a 1750A 32-bit float, "i" a 32-bit integer, "t" an object
+#: type code (:data:`flightsw.messages.OBJECT_TYPE_CODES`) in the low word, the high word 0
 UPLINK_PARAMS = {
     1: ("alpha", "f"), 2: ("beta", "f"), 3: ("gate_px", "f"), 4: ("n_empty", "i"),
     5: ("n_empty_object", "i"), 6: ("residual_threshold_px2", "f"),
@@ -38,6 +41,7 @@ UPLINK_PARAMS = {
     16: ("quat_norm_tol", "f"), 17: ("max_time_skew", "f"), 18: ("max_coast_s", "f"),
     19: ("n_apriori", "i"), 20: ("aim_row_px", "f"), 21: ("aim_col_px", "f"),
     22: ("aim_scan_px", "f"), 23: ("aim_scan_frames", "i"),
+    24: ("object_type", "t"),
 }
 _CODE_OF = {name: code for code, (name, _) in UPLINK_PARAMS.items()}
 
@@ -76,6 +80,11 @@ def encode_uplink(**values) -> np.ndarray:
                              f"{sorted(_CODE_OF)}")
         if UPLINK_PARAMS[code][1] == "f":
             p = encode32(float(v), rounding="nearest")
+        elif UPLINK_PARAMS[code][1] == "t":
+            if v not in OBJECT_TYPE_CODES:
+                raise ValueError(f"TP uplink: {name}={v!r} must be one of "
+                                 f"{sorted(OBJECT_TYPE_CODES)}")
+            p = OBJECT_TYPE_CODES[v]
         else:
             if isinstance(v, bool) or int(v) != v or not -2 ** 31 <= int(v) < 2 ** 31:
                 raise ValueError(f"TP uplink: {name}={v!r} must be a 32-bit integer")
@@ -118,6 +127,10 @@ def decode_uplink(words) -> dict:
                 raise ValueError(f"TP uplink: words {k + 1}-{k + 2}: {name} is not a normalised "
                                  f"1750A float")
             out[name] = v
+        elif kind == "t":
+            if p not in _TYPE_BY_CODE:
+                raise ValueError(f"TP uplink: words {k + 1}-{k + 2}: {p} is not an object type code")
+            out[name] = _TYPE_BY_CODE[p]
         else:
             out[name] = p - (1 << 32) if p & 0x80000000 else p
     return out

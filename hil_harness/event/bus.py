@@ -18,7 +18,7 @@ from flightsw.records import load_record, shipped_records
 
 from hil_harness.tuning.export import read_words
 
-__all__ = ["FAULT_CODES", "flip_bits", "fault_rng", "uplink_words"]
+__all__ = ["FAULT_CODES", "flip_bits", "fault_rng", "uplink_words", "table_words"]
 
 #: generator stream per fault kind (part of the seed)
 FAULT_CODES = {"candidate": 1, "command": 2, "uplink": 3}
@@ -44,8 +44,10 @@ def uplink_words(kind: str, source: str, path: str | None = None) -> np.ndarray:
     """The uplink words of a record or processing sequence named in a scenario's ``[[uplinks]]``:
     a shipped name, a TOML file, or a ``.words`` file (taken as it is: a damaged file is the IP's to
     refuse). ``path`` is the file the scenario resolved, if any."""
+    if kind == "table":
+        return table_words(source)
     if kind not in ("record", "sequence"):
-        raise ValueError(f"uplink kind {kind!r}: expected 'record' or 'sequence'")
+        raise ValueError(f"uplink kind {kind!r}: expected 'record', 'sequence' or 'table'")
     p = Path(path) if path else None
     if p is not None and p.suffix.lower() != ".toml":
         return np.asarray(read_words(p), np.int64).astype(np.uint16)
@@ -64,3 +66,20 @@ def uplink_words(kind: str, source: str, path: str | None = None) -> np.ndarray:
                          f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
     return sequence_to_words(seq)
 
+
+
+def table_words(source: str) -> np.ndarray:
+    """The IP's record-table uplink words (:mod:`flightsw.ip.record_table`) of a scenario's
+    ``table = {...}`` source text "type=name_or_id,...": a shipped record name stands for its id."""
+    from flightsw.ip.record_table import encode_table
+    table = {}
+    for item in source.split(","):
+        t, _, v = item.partition("=")
+        if v.isdigit():
+            table[t] = int(v)
+        elif v in shipped_records():
+            table[t] = load_record(v).record_id
+        else:
+            raise ValueError(f"uplink table: {t} = {v!r}: not a shipped record "
+                             f"({', '.join(sorted(shipped_records()))}) nor a record id")
+    return encode_table(table)

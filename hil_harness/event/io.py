@@ -105,7 +105,8 @@ def _versions() -> dict:
 def _config_dict(ev: Event) -> dict:
     c = ev.config
     return {"sequence": ev.sequence.to_dict(), "record": ev.record_name,
-            "flight": flight_profile(ev.proposals), "selection": asdict(c.selection),
+            "flight": flight_profile(ev.proposals), "record_store": ev.ip.power_on_store(),
+            "selection": asdict(c.selection),
             "overrun_policy": c.overrun_policy,
             "tp": {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in c.tp.items()},
             "frames": ev.n_frames, "stage_frame": c.stage_frame, "hypothesis": c.hypothesis,
@@ -501,7 +502,8 @@ def summarise(ev: Event) -> dict:
                 "candidate_messages_rejected_by_tp": int(status_counts.get("bad_message", 0))},
         "tp_status_frames": status_counts,
         "sequence": ev.sequence.name, "record": ev.record_name,
-        "flight": flight_profile(ev.proposals),
+        "flight": {**flight_profile(ev.proposals), "records_used": list(ev.ip.records_used)},
+        "record_switches": [dict(sw) for sw in ev.ip.record_switches],
     }
 
 

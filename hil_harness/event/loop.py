@@ -50,7 +50,7 @@ from hil_harness.console import compile_seconds
 from hil_harness.sequences import resolve_sequence
 
 from .bus import fault_rng, flip_bits, uplink_words
-from .selection import ImagerSelector, SelectionParams, Switch, record_name_for
+from .selection import ImagerSelector, SelectionParams, Switch, power_on_store, record_name_for
 
 FRAME_DT = 0.5
 #: the sequence an event runs by target type when none is given (others: "satellite"): "aurora_track"
@@ -102,6 +102,9 @@ class EventConfig:
         proposal named explicitly that the event's TP mode never uses is refused.
     proposals_where : str
         How the proposals were given, for the error naming them (``--with``, a file's field).
+    record_store : dict, optional
+        The IP's power-on records and table (a recording's, at replay); default the shipped
+        records (:func:`hil_harness.event.selection.power_on_store`).
     """
 
     scenario: str | Path = "satellite_over_stars"
@@ -117,6 +120,7 @@ class EventConfig:
     hypothesis: str | None = None
     proposals: tuple | str | None = None
     proposals_where: str = "proposals"
+    record_store: dict | None = None
 
     def __post_init__(self):
         if self.overrun_policy != "skip":
@@ -230,8 +234,10 @@ class Event:
                      proposals=self.proposals)
         tp_kw.update(cfg.tp)
         self.tp = TrackProcessor(TPConfig(**tp_kw))
+        held, table = power_on_store(cfg.record_store)
         self.ip = ImageProcessor(self.sequence, self.record, check=not self._frames_vouched(),
-                                 proposals=self.proposals)
+                                 proposals=self.proposals, records=held, table=table,
+                                 object_type=self.object_type)
         # the uplinks' words, built (and their files read) before the event starts
         self.uplink_words = [self._uplink_words(i, u) for i, u in enumerate(scn.uplinks)]
         self._budget_hypothesis = None
@@ -366,10 +372,13 @@ class Event:
         k, imager = out.k, out.imager
         want = self.all_stages or ((self.stage_frame == k) if self.stage_frame is not None
                                    else (self._processed == 11))
+        n_switches = len(self.ip.record_switches)
         ip_out = self.ip.step(frame, frame_count=k, time_tag=out.t, imager=imager,
                               command_words=None if override is not None else self._command_words,
                               feedback=override, ledger=ledger, want_stages=want)
         self._command_words = None
+        for sw in self.ip.record_switches[n_switches:]:      # the record in force changed
+            out.switches.append(Switch(k, out.t, "record", sw["from"], sw["to"], sw["reason"]))
         t2 = time.perf_counter()
         host["ip"] = 1e6 * (t2 - t1)
         res = ip_out.result

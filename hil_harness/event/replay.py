@@ -60,7 +60,8 @@ def replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
                        record=record, selection=SelectionParams(**cfgd["selection"]),
                        tp=cfgd.get("tp", {}), stage_frame=cfgd.get("stage_frame"),
                        processors=procs or None, hypothesis=cfgd.get("hypothesis"),
-                       proposals=recorded_proposals(cfgd), proposals_where=f"{path}: config.flight")
+                       proposals=recorded_proposals(cfgd), proposals_where=f"{path}: config.flight",
+                       record_store=cfgd.get("record_store"))
 
 
 def recorded_proposals(cfgd: dict) -> tuple:

@@ -14,10 +14,11 @@ The logic, with every criterion an uplinkable parameter of :class:`SelectionPara
 * a **ground command** (the scenario's ``[faults] imager_switch``) forces an imager at a time and
   suspends the automatic logic for the rest of the event.
 
-The a priori record in force is chosen when the event starts, from the scenario's object type
-(:data:`RECORD_FOR_TYPE`) or the user's ``--record``; it changes only by a ground uplink. (The paper's
-IP "can dynamically change which a priori feature record is used from information supplied by the
-TP": not built yet, an omission listed in ``docs/fidelity.md``.)
+The IP holds the shipped record of every object type (:func:`power_on_store`) and a table object type
+-> record; the event's record (the scenario's object type's, :data:`RECORD_FOR_TYPE`, or the user's
+``--record``) is the entry for the event's type. After each frame the IP ranks with the record the
+table gives for the object type the TP feeds back (:mod:`flightsw.ip.record_table`): the paper's IP
+"can dynamically change which a priori feature record is used from information supplied by the TP".
 
 Every switch is returned as a :class:`Switch` with its reason, and the harness records it.
 """
@@ -182,6 +183,23 @@ def convert_pixel(row: float, col: float, g_from, g_to) -> tuple[float, float]:
     if n[0] <= 0:
         return float("nan"), float("nan")
     return float(122.0 + n[2] / n[0] / sr_b), float(128.0 + n[1] / n[0] / sc_b)
+
+
+def power_on_store(store: dict | None = None) -> tuple[list, dict]:
+    """The records the IP holds at power-on and its table object type -> record id
+    (:mod:`flightsw.ip.record_table`): the shipped record of every object type of
+    :data:`RECORD_FOR_TYPE` (a recording's ``store``, ``{"records": [words...], "table": {...}}``,
+    when given: what the event ran with)."""
+    from flightsw.ip.record_table import TABLE_TYPES
+    from flightsw.records import Record, load_record
+    if store is not None:
+        recs = [Record.from_words(np.asarray(w, np.int64), name=str(n))
+                for n, w in zip(store["names"], store["records"])]
+        return recs, {str(t): int(i) for t, i in store["table"].items()}
+    names = list(dict.fromkeys(RECORD_FOR_TYPE[t] for t in TABLE_TYPES if t in RECORD_FOR_TYPE))
+    recs = [load_record(n) for n in names]
+    ids = {r.name: r.record_id for r in recs}
+    return recs, {t: ids[RECORD_FOR_TYPE[t]] for t in TABLE_TYPES if t in RECORD_FOR_TYPE}
 
 
 def record_name_for(object_type) -> str:
