@@ -554,6 +554,7 @@ def _event_arm(r: dict, ref: dict) -> dict:
             "median_track_error_px": r["median_track_error_px"],
             "budget_worst_ms": {p: r["budget"][p]["worst_ms"] for p in PROCESSORS},
             "overruns": r["overruns"],
+            "records_used": list(r["flight"].get("records_used", [])),
             "first_command_difference": first, "frames_identical_until": same,
             "inputs_identical": same == r["frames"] == ref["frames"] if first is None
             else same > first,
