@@ -25,7 +25,7 @@ from flightsw.ip.record_table import TABLE_FORMAT_ID, TABLE_TYPES, RecordStore, 
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
 from flightsw.ip.step import STEP_FRAME_RANGE, STEP_INFO, STEP_OK, STEP_TIME_TAG, ip_step_k
-from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController
+from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController, alpha_bounds
 from flightsw.messages import (MAX_CANDIDATES, OBJECT_TYPE_CODES, TRACK_WORDS, Feedback,
                                MessageError, TrackCommand)
 from flightsw.proposals import FLOOR_FIELDS, expand, floor_params
@@ -137,18 +137,21 @@ def apply_floor_proposals(sequence: ProcessingSequence, proposals=()) -> Process
 
 def alpha_controller_for(sequence: ProcessingSequence, proposals=(), **settings) -> AlphaController:
     """The alpha logic a sequence runs with: it starts from the threshold step's ``alpha`` and
-    floors at its ``alpha_min`` when the step sets one (else :class:`AlphaController`'s default);
+    moves within :func:`~flightsw.ip.threshold.alpha_bounds` (the step's ``alpha_min`` when it
+    sets one, else ``min(alpha, 1.0)``; ceiling ``max(alpha, 7.0)``);
     with the proposal ``alpha_floor_sparse``, at its ``alpha_min_sparse`` on frames with fewer than
     ``sparse_blobs`` blobs, and with ``alpha_floor_locked``, while the TP holds lock, at its
     ``alpha_min_locked`` on frames with fewer than ``locked_blobs`` blobs, when it sets those (a
     step that sets them with the proposal off is refused: :func:`check_floor_proposals`);
     ``settings`` (other :class:`AlphaController` fields) win over the sequence's."""
     check_floor_proposals(sequence, proposals)
-    kw = {"alpha": sequence_alpha(sequence)}
+    alpha = sequence_alpha(sequence)
+    kw = {"alpha": alpha}
     for st in sequence.steps:
         if st.op == "threshold":
-            if st.raw.get("alpha_min") is not None:
-                kw["alpha_min"] = float(st.raw["alpha_min"])
+            given = st.raw.get("alpha_min")
+            kw["alpha_min"], kw["alpha_max"] = alpha_bounds(
+                alpha, None if given is None else float(given))
             for floor, count in FLOOR_FIELDS.values():
                 if st.raw.get(count) is not None:
                     kw[floor], kw[count] = float(st.raw[floor]), int(st.raw[count])
@@ -381,6 +384,9 @@ class ImageProcessor:
             else:
                 new = sequence_from_words(w)
                 check_floor_proposals(new, self.proposals, "sequence uplink")
+                # what the flight code will run with it, built now: a sequence it cannot run
+                # is refused here and the one in force kept (never an error at the next frame)
+                alpha_controller_for(new, self.proposals, **self._alpha_settings)
         except (ValueError, SequenceError) as exc:
             self.uplinks_refused += 1
             return UplinkVerdict(False, kind, str(exc))

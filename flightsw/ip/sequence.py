@@ -353,7 +353,7 @@ def _validate_threshold(params, pre):
     if "alpha" not in params:
         raise FieldError("alpha", "missing (0 .. 7.99975)")
     alpha = _float_field(params, "alpha", None, _th.ALPHA_MIN, _th.ALPHA_MAX)
-    floor = min(alpha, _th.AlphaController.alpha_min)     # the logic's default floor
+    floor = _th.alpha_bounds(alpha)[0]                     # the logic's default floor
     if "alpha_min" in params:        # the alpha logic's floor for this sequence (AlphaController)
         floor = _float_field(params, "alpha_min", None, _th.ALPHA_MIN, alpha)
     # the floor for sparse frames without lock, and the floor while locked: both fields or neither

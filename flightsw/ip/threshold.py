@@ -51,6 +51,18 @@ ALPHA_MIN = 0.0
 ALPHA_MAX = 32767 / 4096          # Q4.12 word range (7.99975)
 BINARIZE, CLIP = 0, 1
 NEAR_COUNT = 90                   # blobs at which the alpha logic raises alpha (ASSUMED: "approaches 100")
+#: the alpha logic's default floor and ceiling (ASSUMED: the paper gives neither)
+DEFAULT_FLOOR, DEFAULT_CEILING = 1.0, 7.0
+
+
+def alpha_bounds(alpha: float, alpha_min: float | None = None) -> tuple[float, float]:
+    """The range ``(floor, ceiling)`` the alpha logic keeps a sequence's alpha in: the floor is
+    the threshold step's ``alpha_min`` when it sets one, else ``min(alpha, 1.0)``; the ceiling is
+    ``max(alpha, 7.0)``. One definition for the sequence's validation, the alpha logic and
+    ``docs/formats.md``: every alpha of the word range 0 .. 7.99975 runs (a sequence starting
+    below the default floor or above the default ceiling is not stopped by them)."""
+    floor = min(alpha, DEFAULT_FLOOR) if alpha_min is None else alpha_min
+    return floor, max(alpha, DEFAULT_CEILING)
 ISQRT_CYCLES = 16 * 6 + 4
 
 
