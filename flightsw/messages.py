@@ -503,6 +503,8 @@ def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
     bad-time-tag : time tag not a normalised 48-bit float -> ``_BAD_FLOAT`` at 3.
     absent-value : an absent group's words non-zero -> ``_NOT_ZERO`` at the value's first word.
     bad-float : a present 32-bit or 48-bit value not normalised -> ``_BAD_FLOAT`` there.
+    non-unit-quaternion : a pointing quaternion whose norm is off 1 by more than
+        :data:`Q_NORM_TOL` -> ``_BAD_RANGE`` at its first word (13).
     """
     bad = _words_ok(w)
     if bad >= 0:
@@ -546,6 +548,10 @@ def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
             if not is_normalized32_k(p):
                 return _BAD_FLOAT, a, 0.0
             v[i] = decode32_k(p)
+    if flags & _TC_FLAG[0]:                 # a pointing quaternion: unit within the 1750A rounding
+        n2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]
+        if abs(math.sqrt(n2) - 1.0) > Q_NORM_TOL:
+            return _BAD_RANGE, _TC_AT[0], 0.0
     return 0, 0, decode48_k(_f48_at(w, np.int64(3)))
 
 
@@ -834,6 +840,9 @@ TC_OBJECT_LOST = 0x0400          # the verified object's gate stayed empty: obje
 TC_EKF_RESET = 0x0800            # EKF covariance reset after repeated rejections or a long gap
 TC_ARITH_FLAG = 0x1000           # a 1750A overflow/underflow/domain flag was raised this frame
 TC_NO_NOMINAL = 0x2000           # dedicated mode without a nominal trajectory: nothing to track
+TC_BAD_CONTENT = 0x4000          # a well-formed message whose content is meaningless (a candidate
+#                                  outside the imager, a window outside the frame or empty, a GOF
+#                                  outside [0, 1], a negative or non-finite distance): refused
 TC_INTERNAL_ERROR = 0x8000       # step() caught an exception (see TrackProcessor.last_error)
 
 TC_STATUS_NAMES = {
@@ -842,13 +851,18 @@ TC_STATUS_NAMES = {
     TC_REINITIALISED: "reinitialised", TC_OBJECT_DECIDED: "object_decided",
     TC_NEW_DECISION: "new_decision", TC_EKF_RUNNING: "ekf_running",
     TC_EMPTY_MESSAGE: "empty_message", TC_OBJECT_LOST: "object_lost", TC_EKF_RESET: "ekf_reset",
-    TC_ARITH_FLAG: "arith_flag", TC_NO_NOMINAL: "no_nominal", TC_INTERNAL_ERROR: "internal_error",
+    TC_ARITH_FLAG: "arith_flag", TC_NO_NOMINAL: "no_nominal", TC_BAD_CONTENT: "bad_content",
+    TC_INTERNAL_ERROR: "internal_error",
 }
+
+#: the largest |norm - 1| of a pointing quaternion the receivers accept: 2**-20, ~8 roundings of a
+#: 1750A 32-bit component (the TP's normalised quaternions are within 3.1e-7 on the shipped events)
+Q_NORM_TOL = 2.0 ** -20
 
 # flag-word bits of the track command (which optional values are present)
 _TCF_LOCKED, _TCF_PRED, _TCF_EST, _TCF_DECIDED, _TCF_POINT, _TCF_OPP, _TCF_OBJIDX = (
     0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40)
-_TC_STATUS_MASK = sum(TC_STATUS_NAMES)          # the defined status bits (0xBFFF)
+_TC_STATUS_MASK = sum(TC_STATUS_NAMES)          # the defined status bits (0xFFFF)
 _TYPE_OK = _code_table(OBJECT_TYPE_CODES)
 _MODES = {"dedicated": 0, "opportunity": _TCF_OPP}    # mode -> its flag bit
 
@@ -1018,6 +1032,11 @@ class TrackCommand:
         cannot carry, or a group of values partly NaN -> :class:`MessageError`."""
         head = self._head()
         t = _real_field("TrackCommand", "time_tag", self.time_tag)
+        q = np.asarray(self.q_point, np.float64)
+        if q.shape == (4,) and np.all(np.isfinite(q)) and \
+                abs(math.sqrt(float(q @ q)) - 1.0) > Q_NORM_TOL:
+            raise MessageError("TrackCommand", None, "q_point", f"norm {math.sqrt(float(q @ q)):.9g}"
+                               f" is off 1 by more than the 1750A rounding ({Q_NORM_TOL:.2g})")
         out = np.empty(TRACK_WORDS, np.uint16)
         if not _track_encode_k(head, t, self._values(), out, _CRC_TABLE):
             raise MessageError("TrackCommand", None, "values", "a group of values (q_point; "
@@ -1040,6 +1059,9 @@ class TrackCommand:
                 reason += f": 0x{crc16_ccitt(w[:-1]):04X} computed, 0x{int(w[-1]):04X} received"
             elif verdict == _BAD_CODE2:
                 reason = "unknown object type code (low byte)"
+            elif verdict == _BAD_RANGE:
+                reason = (f"pointing quaternion's norm off 1 by more than the 1750A rounding "
+                          f"({Q_NORM_TOL:.2g})")
             raise MessageError(o, i, _track_field(i), reason)
         return w, v, t
 

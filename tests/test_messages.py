@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 import pytest
+from flightsw.arith import m1750 as _m1750
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -161,6 +162,13 @@ def random_candidate_message(rng, kmax=23):
         alpha=float(_f32_values(rng, 1)[0]), record_id=int(rng.integers(0, 0x10000)), candidates=c)
 
 
+def _unit_q(rng):
+    """A unit quaternion as 1750A 32-bit values (a pointing quaternion: Q_NORM_TOL)."""
+    q = rng.normal(size=4)
+    q /= np.linalg.norm(q)
+    return np.array([_m1750.decode32(_m1750.encode32(float(x), rounding="nearest")) for x in q])
+
+
 def random_track_command(rng):
     nan3 = np.full(3, np.nan)
     pred, est, point = rng.random(3) < 0.7
@@ -169,7 +177,7 @@ def random_track_command(rng):
         status |= bit if rng.random() < 0.3 else 0
     return TrackCommand(
         frame_count=int(rng.integers(0, 0x10000)), time_tag=_f48_value(rng),
-        q_point=_f32_values(rng, 4) if point else np.full(4, np.nan),
+        q_point=_unit_q(rng) if point else np.full(4, np.nan),
         predicted_row=float(_f32_values(rng, 1)[0]) if pred else math.nan,
         predicted_col=float(_f32_values(rng, 1)[0]) if pred else math.nan,
         imager=str(rng.choice(list(IMAGER_CODES))),
@@ -325,8 +333,13 @@ def track_commands(draw):
     if np.isfinite(est[0]):
         est[6:] = draw(st.lists(F32, min_size=2, max_size=2))
     status = draw(st.sets(st.sampled_from(sorted(TC_STATUS_NAMES))))
+    q = np.full(4, np.nan)                 # a pointing quaternion is a unit one (Q_NORM_TOL)
+    if draw(st.booleans()):
+        q = np.array(draw(st.lists(st.floats(-1.0, 1.0), min_size=4, max_size=4)))
+        q = q / np.linalg.norm(q) if np.linalg.norm(q) > 0.1 else np.array([1.0, 0.0, 0.0, 0.0])
+        q = np.array([_m1750.decode32(_m1750.encode32(float(x), rounding="nearest")) for x in q])
     return TrackCommand(
-        frame_count=draw(U16), time_tag=draw(F48), q_point=group(4, F32),
+        frame_count=draw(U16), time_tag=draw(F48), q_point=q,
         predicted_row=float(pred[0]), predicted_col=float(pred[1]), los_eci=pred[2:5],
         imager=draw(st.sampled_from(list(IMAGER_CODES))),
         object_type=draw(st.sampled_from(list(OBJECT_TYPE_CODES))), locked=draw(st.booleans()),
@@ -415,7 +428,6 @@ def test_candidate_rules(word, value, match):
 
 @pytest.mark.parametrize("word,value,match", [
     (6, 0x0208, r"word 6 \(imager/object_type\): unknown object type"),
-    (7, 0x4000, r"word 7 \(status\): undefined bits"),
     (8, 0x0080 | 0x2B, r"word 8 \(flags\): undefined bits"),
     (8, 0x2B & ~0x08, r"word 11 \(decided_frame\): reserved or absent"),   # decided flag cleared
     (12, 5, r"word 12 \(object_index\): reserved or absent"),
@@ -453,7 +465,7 @@ def test_encoders_refuse_what_the_format_cannot_carry():
     with pytest.raises(MessageError, match=r"candidates\[1\]: holds a non-finite"):
         CandidateMessage(candidates=bad).to_words()
     with pytest.raises(MessageError, match="status"):
-        TrackCommand(status=0x4000).to_words()
+        TrackCommand(status=0x10000).to_words()
     with pytest.raises(MessageError, match="all finite or all NaN"):
         TrackCommand(predicted_row=1.0).to_words()
     with pytest.raises(MessageError, match="mode"):

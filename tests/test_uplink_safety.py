@@ -125,3 +125,101 @@ def test_no_accepted_tp_uplink_stops_the_tp():
                     k += 1
                     assert not cmd.status & TC_INTERNAL_ERROR, (name, v, tp.last_error)
                 assert tp.uplink(encode_uplink(n_lost=6)).accepted
+
+
+# ---- meaning checked where it is used (issue 39, item 2) ------------------------------------------
+from flightsw.ip.step import CMD_PREDICTION_OUTSIDE, read_command_k            # noqa: E402
+from flightsw.messages import (CANDIDATE_DTYPE, Q_NORM_TOL, TC_BAD_CONTENT,      # noqa: E402
+                               TC_BAD_MESSAGE, MessageError, TrackCommand)
+from flightsw.tp.processor import message_content_fault                        # noqa: E402
+
+
+def _cand(**kw):
+    c = np.zeros(1, CANDIDATE_DTYPE)
+    c["row"], c["col"], c["gof"], c["distance"] = 100.0, 120.0, 0.5, 3.0
+    for k, v in kw.items():
+        c[k] = v
+    return c
+
+
+@pytest.mark.parametrize("kw, msg_kw, want", [
+    ({}, {}, ""),
+    ({"row": 1e30, "col": 1e30}, {}, "candidate outside the imager"),
+    ({"row": 244.0}, {}, "candidate outside the imager"),
+    ({"col": -0.5}, {}, "candidate outside the imager"),
+    ({"gof": 2.0}, {}, "GOF outside [0, 1]"),
+    ({"gof": -1.0}, {}, "GOF outside [0, 1]"),
+    ({"distance": 1e30}, {}, ""),                       # large but a distance: usable
+    ({"distance": -1.0}, {}, "distance negative or not finite"),
+    ({"distance": np.inf}, {}, "distance negative or not finite"),
+    ({}, {"window_rows": 0}, "window of zero size"),
+    ({}, {"window_row0": -2}, "window outside the frame"),
+    ({}, {"window_col0": 200, "compaction": 2}, "window outside the frame"),
+    ({}, {"window_row0": 0, "window_rows": 61, "compaction": 4}, ""),   # 61 x 4 = 244: inside
+])
+def test_meaningless_candidate_messages_are_named(kw, msg_kw, want):
+    m = CandidateMessage(candidates=_cand(**kw), **msg_kw)
+    assert message_content_fault(m) == want
+
+
+def test_the_tp_refuses_meaningless_content_never_locks_and_counts_each():
+    """Candidates at row/col 1e30 for 6 frames: the paper's TP placed gates on them and locked;
+    now every one is refused (TC_BAD_CONTENT with TC_BAD_MESSAGE), nothing is decided, nothing is
+    predicted, each refusal counted by reason."""
+    g = {"wfov_vis": ImagerGeometry(np.array([1.0, 0, 0, 0]), 1e-4, 1e-4)}
+    for mode in ("dedicated", "opportunity"):
+        tp = TrackProcessor(TPConfig(imagers=g, mode=mode, object_type="aurora"))
+        for k in range(6):
+            m = CandidateMessage(frame_count=k, time_tag=0.5 * k,
+                                 candidates=_cand(row=1e30, col=1e30))
+            cmd = tp.step(m.to_words(), None)
+            assert cmd.status & TC_BAD_CONTENT and cmd.status & TC_BAD_MESSAGE
+            assert not cmd.locked and not cmd.decided and not np.isfinite(cmd.predicted_row)
+        assert tp.content_refusals == {"candidate outside the imager": 6}
+        m = CandidateMessage(frame_count=6, time_tag=3.0, candidates=_cand())
+        assert not tp.step(m, None).status & TC_BAD_CONTENT        # a good one is used again
+
+
+@pytest.mark.cases("flightsw.ip.step.read_command_k", "accepted", "refused-format",
+                   "prediction-outside")
+def test_the_ip_refuses_a_prediction_outside_the_compacted_image_and_keeps_the_last():
+    los = np.array([1.0, 0.0, 0.0])
+    good = TrackCommand(predicted_row=120.0, predicted_col=130.0, los_eci=los,
+                        object_type="satellite", locked=True).to_words()
+    fb = np.array([np.nan, np.nan, 0.0, 0.0])
+    assert read_command_k(good, fb, 244, 256) == 0 and fb[0] == 120.0
+    for r, c in ((1e30, 1e30), (-1e30, 5.0), (5000.0, 10.0), (244.0, 10.0), (10.0, 256.0)):
+        far = TrackCommand(predicted_row=r, predicted_col=c, los_eci=los,
+                           object_type="star").to_words()
+        before = fb.copy()
+        assert read_command_k(far, fb, 244, 256) == CMD_PREDICTION_OUTSIDE
+        assert np.array_equal(fb, before)
+    bad = good.copy()
+    bad[-1] ^= 1
+    assert read_command_k(bad, fb, 244, 256) not in (0, CMD_PREDICTION_OUTSIDE)
+    ip = ImageProcessor(load_default_sequence("satellite_c2"), load_record("satellite"))
+    ip.step(FRAMES[0], frame_count=0, time_tag=0.0, imager="wfov_vis", command_words=good)
+    far = TrackCommand(predicted_row=5000.0, predicted_col=10.0, los_eci=los).to_words()
+    ip.step(FRAMES[0], frame_count=1, time_tag=0.5, imager="wfov_vis", command_words=far)
+    assert (ip.feedback.predicted_row, ip.rejected_commands, ip.refused_predictions) == \
+        (120.0, 1, 1)
+    assert not ip.receive_command(far) and ip.refused_predictions == 2
+    with pytest.raises(ValueError, match="imager 'xfov' is not one of"):
+        ip.step(FRAMES[0], frame_count=2, time_tag=1.0, imager="xfov")
+
+
+@pytest.mark.cases("flightsw.messages._track_check_k", "non-unit-quaternion")
+def test_a_pointing_quaternion_off_unit_is_refused_by_its_readers():
+    from flightsw.arith.m1750 import encode32
+    from flightsw.messages import crc16_ccitt
+    ok = TrackCommand(q_point=np.array([1.0, 0.0, 0.0, 0.0])).to_words()
+    TrackCommand.from_words(ok)
+    for q0 in (2.0, 0.5, 1.0 + 4 * Q_NORM_TOL):
+        with pytest.raises(MessageError, match="q_point: norm"):            # the encoder
+            TrackCommand(q_point=np.array([q0, 0.0, 0.0, 0.0])).to_words()
+        w = [int(x) for x in ok]                                            # crafted words
+        p = encode32(q0, rounding="nearest")
+        w[13], w[14] = p >> 16, p & 0xFFFF
+        w[-1] = crc16_ccitt(w[:-1])
+        with pytest.raises(MessageError, match=r"word 13 \(q_point\).*norm"):
+            TrackCommand.from_words(np.array(w, np.uint16))

@@ -24,10 +24,11 @@ from flightsw.ip.pipeline import FramePlan, FrameResult
 from flightsw.ip.record_table import TABLE_FORMAT_ID, TABLE_TYPES, RecordStore, decode_table
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
-from flightsw.ip.step import STEP_FRAME_RANGE, STEP_INFO, STEP_OK, STEP_TIME_TAG, ip_step_k
+from flightsw.ip.step import (CMD_PREDICTION_OUTSIDE, STEP_FRAME_RANGE, STEP_INFO, STEP_OK,
+                              STEP_TIME_TAG, ip_step_k)
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController, alpha_bounds
-from flightsw.messages import (MAX_CANDIDATES, OBJECT_TYPE_CODES, TRACK_WORDS, Feedback,
-                               MessageError, TrackCommand)
+from flightsw.messages import (IMAGER_CODES, MAX_CANDIDATES, OBJECT_TYPE_CODES, TRACK_WORDS,
+                               Feedback, MessageError, TrackCommand)
 from flightsw.proposals import FLOOR_FIELDS, expand, floor_params
 from flightsw.records import RECORD_FORMAT_ID, Record
 
@@ -228,6 +229,8 @@ class ImageProcessor:
         self.feedback = Feedback()
         self.frames = 0
         self.rejected_commands = 0
+        #: commands refused for predicting a pixel outside the frame (counted in rejected too)
+        self.refused_predictions = 0
         self.uplinks_accepted = 0
         self.uplinks_refused = 0
         self._last_frame_count = -1
@@ -262,10 +265,17 @@ class ImageProcessor:
         """Read the TP's feedback from track-command words; True if accepted. A command that fails
         its CRC or its checks is counted (``rejected_commands``) and the last good feedback stays."""
         try:
-            self.feedback = TrackCommand.feedback_from_words(np.asarray(words))
+            fb = TrackCommand.feedback_from_words(np.asarray(words))
         except ValueError:
             self.rejected_commands += 1
             return False
+        pre = self.sequence.preprocess
+        rows, cols = (n // pre.compaction * pre.compaction for n in pre.frame_shape)
+        if fb.has_prediction and not (0 <= fb.predicted_row < rows and 0 <= fb.predicted_col < cols):
+            self.rejected_commands += 1
+            self.refused_predictions += 1
+            return False
+        self.feedback = fb
         return True
 
     def step(self, frame, *, frame_count: int, time_tag: float, imager: str,
@@ -299,6 +309,8 @@ class ImageProcessor:
         self._select_record(frame_count)
         plan = self._plans.get(imager)
         if plan is None:
+            if imager not in IMAGER_CODES:          # the message would carry a made-up code
+                raise ValueError(f"imager {imager!r} is not one of {sorted(IMAGER_CODES)}")
             plan = self._plans[imager] = FramePlan(self.sequence, self.record, str(imager))
         cmd, fb = _NO_WORDS, self._fb
         if command_words is not None:
@@ -338,6 +350,8 @@ class ImageProcessor:
         self._fb = fb
         if cmd_verdict:
             self.rejected_commands += 1
+            if cmd_verdict == CMD_PREDICTION_OUTSIDE:
+                self.refused_predictions += 1
         if verdict != STEP_OK:
             self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
         res = FrameResult(plan, (pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),

@@ -21,8 +21,36 @@ from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import alpha_next_k
 from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
 
-__all__ = ["ip_step_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE", "STEP_MESSAGE",
-           "STEP_INFO"]
+__all__ = ["ip_step_k", "read_command_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE",
+           "STEP_MESSAGE", "STEP_INFO", "CMD_PREDICTION_OUTSIDE"]
+
+#: :func:`read_command_k`'s verdict for a well-formed command predicting a pixel outside the frame
+#: (the others are :func:`flightsw.messages.feedback_words_k`'s)
+CMD_PREDICTION_OUTSIDE = 64
+
+@njit(cache=True)
+def read_command_k(cmd, fb, H, W):
+    """The IP's read of the TP's command words ``cmd`` (uint16 [n]) into the feedback values
+    ``fb`` (float64 [4]): every check of :func:`flightsw.messages.feedback_words_k`, then the
+    prediction's meaning: a predicted full-resolution pixel outside the compacted image's extent
+    (``H`` x ``W`` full-resolution pixels: the compacted size times the compaction) is refused
+    (:data:`CMD_PREDICTION_OUTSIDE`) and ``fb`` keeps the last good feedback. Returns the verdict
+    (0 accepted).
+
+    Cases
+    -----
+    accepted : a well-formed command predicting inside the frame, or no prediction -> 0.
+    refused-format : a failing check -> its verdict, ``fb`` unchanged.
+    prediction-outside : row outside [0, H) or col outside [0, W) -> ``CMD_PREDICTION_OUTSIDE``,
+        ``fb`` unchanged.
+    """
+    a0, a1, a2, a3 = fb[0], fb[1], fb[2], fb[3]
+    verdict = feedback_words_k(cmd, fb)
+    if verdict == 0 and not math.isnan(fb[0]) and not (0.0 <= fb[0] < H and 0.0 <= fb[1] < W):
+        fb[0], fb[1], fb[2], fb[3] = a0, a1, a2, a3
+        return CMD_PREDICTION_OUTSIDE
+    return verdict
+
 
 #: :func:`ip_step_k` verdicts: done; the time tag is not finite; a pixel above 4095; the candidate
 #: message cannot carry the result (the back end's 16-bit range flag cannot be raised here: the
@@ -97,7 +125,8 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
     typical : the words :class:`flightsw.messages.CandidateMessage` encodes from
         :func:`ip_frame_into_k`'s result on the window about the command's prediction, and the
         alpha logic's next word.
-    command-refused : a command failing a check -> its verdict in info[9], ``fb`` kept.
+    command-refused : a command failing a check, or predicting outside the compacted image ->
+        its verdict in info[9], ``fb`` kept.
     no-command : ``cmd`` empty -> ``fb`` as it is.
     override : ``ovr`` given -> its prediction and lock instead of ``fb``'s.
     no-prediction : a NaN prediction -> the window at the image centre, the centroid means its
@@ -108,11 +137,12 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
     """
     bad = frame_over_12bit_k(frame) if check else False
     info[:] = 0
-    info[9] = feedback_words_k(cmd, fb) if cmd.shape[0] else 0
-    use = ovr if ovr.shape[0] == 4 else fb
     n = (ints.shape[0] - 8 - 60) // 3               # geo [8], 3 words a step, the record [5, 12]
     geo = ints[:8]
     H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
+    if cmd.shape[0]:
+        info[9] = read_command_k(cmd, fb, H * f, W * f)
+    use = ovr if ovr.shape[0] == 4 else fb
     none = np.zeros(0, np.uint16)
     if bad or not math.isfinite(t):
         return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none,

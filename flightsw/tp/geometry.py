@@ -73,11 +73,16 @@ class ImagerGeometry:
         Normalised here; a norm outside 1 +- 1e-3 is a ``ValueError``.
     scale_col, scale_row : float
         Tangent-plane radians per pixel along columns / rows (> 0).
+    n_rows, n_cols : int
+        The frame's pixels (default the UVISI 244 x 256; a ground tool's camera may have others):
+        a candidate outside them is refused (:func:`flightsw.tp.processor.message_content_fault`).
     """
 
     q_imager_to_body: np.ndarray
     scale_col: float
     scale_row: float
+    n_rows: int = N_ROWS
+    n_cols: int = N_COLS
 
     def __post_init__(self):
         q = np.asarray(self.q_imager_to_body, dtype=float)
@@ -96,6 +101,11 @@ class ImagerGeometry:
                 raise ValueError(f"ImagerGeometry.{name}={v!r} must be a finite tangent-plane "
                                  f"radians-per-pixel value in (0, 0.05)")
             object.__setattr__(self, name, float(v))
+        for name in ("n_rows", "n_cols"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or not 1 <= v <= 65535:
+                raise ValueError(f"ImagerGeometry.{name}={v!r} must be an int in 1..65535")
+            object.__setattr__(self, name, int(v))
 
     def table_row(self) -> np.ndarray:
         """The imager's row of the kernels' imager table (packed 32-bit words, see IMG_*)."""

@@ -26,8 +26,8 @@ from numba import typeof, types
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
 from flightsw.messages import (
-    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR, CandidateMessage,
-    TrackCommand,
+    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_CONTENT, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR,
+    CandidateMessage, TrackCommand,
 )
 from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
@@ -38,10 +38,41 @@ from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
 from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import step_frame
+from flightsw.tp.geometry import N_COLS, N_ROWS
 from flightsw.tp.memory import host_views, new_memory
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor", "TPInputs", "TPOutputs"]
+__all__ = ["TrackProcessor", "TPInputs", "TPOutputs", "message_content_fault"]
+
+
+def message_content_fault(msg: CandidateMessage, n_rows: int = N_ROWS, n_cols: int = N_COLS) -> str:
+    """Why a well-formed candidate message means nothing the TP can use, or "" when it is usable:
+    a candidate outside the imager's pixels (``row``/``col`` in [0, n_rows) x [0, n_cols); the
+    UVISI frame is 244 x 256), a
+    processing window of zero size or outside the frame (``window_row0/col0 >= 0`` and the window's
+    full-resolution extent within the frame), a GOF outside [0, 1], a distance negative or not
+    finite. The TP refuses such a message (status ``TC_BAD_CONTENT`` with ``TC_BAD_MESSAGE``,
+    counted in :attr:`TrackProcessor.content_refusals` by reason) and coasts."""
+    f = int(msg.compaction)
+    if msg.window_rows < 1 or msg.window_cols < 1:
+        return "window of zero size"
+    if msg.window_row0 < 0 or msg.window_col0 < 0 or \
+            msg.window_row0 + msg.window_rows * f > n_rows + f - 1 or \
+            msg.window_col0 + msg.window_cols * f > n_cols + f - 1:
+        return "window outside the frame"
+    c = msg.candidates
+    if not len(c) or c.dtype.names is None:
+        return ""
+    names = c.dtype.names
+    if "row" in names and "col" in names and not (
+            np.all((c["row"] >= 0) & (c["row"] < n_rows)) and
+            np.all((c["col"] >= 0) & (c["col"] < n_cols))):
+        return "candidate outside the imager"
+    if "gof" in names and not np.all((c["gof"] >= 0) & (c["gof"] <= 1)):
+        return "GOF outside [0, 1]"
+    if "distance" in names and not np.all(np.isfinite(c["distance"]) & (c["distance"] >= 0)):
+        return "distance negative or not finite"
+    return ""
 
 
 @dataclass
@@ -128,6 +159,7 @@ class TrackProcessor:
         self.config = cfg = config
         self._img_names = [k for k in _IMAGER_ORDER if k in cfg.imagers]
         self._img_index = {k: i for i, k in enumerate(self._img_names)}
+        self._img_shape = [(cfg.imagers[k].n_rows, cfg.imagers[k].n_cols) for k in self._img_names]
         self.MEM, self.FIO = new_memory(len(self._img_names))
         views = host_views(self.MEM, self.FIO)
         (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS, self.PW,
@@ -211,6 +243,9 @@ class TrackProcessor:
             self.N[F.N_T] = encode48(self._nominal.t0, rounding="nearest")
         self.last_error = ""
         self._last_cmd = None
+        #: well-formed messages refused for their content, by reason (:func:`message_content_fault`)
+        self.content_refusals: dict[str, int] = {}
+        self._content_refused = False
 
     # ---------------------------------------------------------------------------------------------
     def step(self, message, attitude=None, ledger=None):
@@ -236,6 +271,7 @@ class TrackProcessor:
             self._object_type = self.config.object_type
             self._pending = None
         # one body, no helper call per stage of the step (each Python call ~0.06 us a frame)
+        self._content_refused = False
         try:
             args = self._frame_args(message, attitude)
             try:                                  # the inputs as they came ...
@@ -247,6 +283,9 @@ class TrackProcessor:
             # the command (positional, see _TC_FIELDS): step_frame's scalars, arrays as views of
             # one copy of out[O_QP:O_SV]
             status, fc, img, n_star, n_obj, decf, obj, locked, t, row, col, sp, sv = fields
+            if self._content_refused:
+                status |= TC_BAD_CONTENT
+                self._content_refused = False
             a = self.out[O_QP:O_SV].copy()
             cmd = self._last_cmd = TrackCommand(
                 fc, t, a[_A_QP], row, col, self._img_names[img], self._object_type, locked,
@@ -314,6 +353,11 @@ class TrackProcessor:
         cand = msg.candidates
         fc = msg.frame_count
         if idx is not None and isinstance(cand, np.ndarray) and isinstance(fc, _INTS):
+            fault = message_content_fault(msg, *self._img_shape[idx])
+            if fault:                             # well formed, meaningless: refused, counted
+                self.content_refusals[fault] = self.content_refusals.get(fault, 0) + 1
+                self._content_refused = True
+                return _NO_MESSAGE
             return True, cand, float(msg.time_tag), idx, int(fc) & 0xFFFF
         return _NO_MESSAGE
 

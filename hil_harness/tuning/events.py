@@ -41,7 +41,7 @@ def imager_geometry(imager: str, fov_deg: float | None = None, shape=(244, 256))
         if not 0.0 < float(fov_deg) < 90.0:
             raise ValueError(f"field of view {fov_deg!r} deg must be in (0, 90)")
         s = 2.0 * math.tan(math.radians(float(fov_deg)) / 2.0) / int(shape[1])
-        return ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), s, s)
+        return ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), s, s, int(shape[0]), int(shape[1]))
     from groundsim.imagers import get_imager
     im = get_imager(imager)
     return ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), float(im.scale_col), float(im.scale_row))
