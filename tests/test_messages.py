@@ -11,10 +11,10 @@ import os
 
 import numpy as np
 import pytest
-from flightsw.arith import m1750 as _m1750
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from flightsw.arith import m1750 as _m1750
 from flightsw.messages import (_CRC_TABLE, CANDIDATE_DTYPE, FEATURE_NAMES, IMAGER_CODES,
                                OBJECT_TYPE_CODES, TC_STATUS_NAMES, CandidateMessage, MessageError,
                                TrackCommand, _crc_range, crc16_ccitt, crc16_ccitt_bytes)
