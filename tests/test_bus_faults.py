@@ -90,7 +90,7 @@ def test_uplink_scenario_replays_from_its_recorded_words(tmp_path):
     rec.write_text((SCENARIO_DIR.parents[1] / "flightsw" / "data" / "record_star.toml").read_text())
     raw = _raw("satellite_over_stars")
     raw["scenario"]["duration"] = 6.0
-    raw["uplinks"] = [{"t": 2.0, "record": str(rec)}]
+    raw["uplinks"] = [{"t": 2.0, "record": rec.name}]
     s = run_event(Scenario.from_dict(raw, str(tmp_path / "up.toml")), out=tmp_path / "ev",
                   figures=False)
     assert [u["verdict"] for u in s["uplinks"]] == ["accepted"]
