@@ -3,6 +3,7 @@ timeline parse into what they say, and every malformed entry is refused naming t
 from __future__ import annotations
 
 import copy
+import json
 import tomllib
 from pathlib import Path
 
@@ -168,3 +169,15 @@ def test_cli_event_refuses_an_outside_uplink_in_one_line(tmp_path, capsys):
     assert "root:" not in err and not (tmp_path / "ev").exists()
     assert main(["event", str(scn), "--uplink-dir", str(tmp_path / "nope")]) == 2
     assert "--uplink-dir" in capsys.readouterr().err
+    given = tmp_path / "given"                              # --uplink-dir: read there instead
+    given.mkdir()
+    (given / "mine.toml").write_text((SCENARIO_DIR.parents[1] / "flightsw" / "data" /
+                                      "record_star.toml").read_text())
+    scn.write_text(text + '\n[[uplinks]]\nt = 0.5\nrecord = "mine.toml"\n')
+    assert main(["event", str(scn), "--frames", "3", "--no-figures", "--out",
+                 str(tmp_path / "ev")]) == 2
+    assert "no such file 'mine.toml' in the scenario's folder" in capsys.readouterr().err
+    assert main(["event", str(scn), "--uplink-dir", str(given), "--frames", "3", "--no-figures",
+                 "--out", str(tmp_path / "ev"), "--json"]) == 0
+    s = json.loads(capsys.readouterr().out)
+    assert [(u["source"], u["verdict"]) for u in s["uplinks"]] == [("mine.toml", "accepted")]
