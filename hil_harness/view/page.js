@@ -10,12 +10,12 @@ const fmt = (v, d) => (v === null || v === undefined) ? "-" :
 // The one way anything reaches the page, on the written and the served page alike: an element
 // whose attribute values and children are set as values and text nodes, never parsed as HTML (a
 // recording's text -- names, reasons, error messages quoting its configuration -- is data).
-// attrs: {name: value} (names from this file only; null/undefined/false left out), "class", and
+// attrs: {name: value} (names from this file only; null/undefined left out), "class", and
 // "style" ({property: value}); kids: nodes or strings (text), arrays of them flattened.
 function el(tag, attrs, ...kids) {
   const e = document.createElement(tag);
   for (const [name, v] of Object.entries(attrs || {})) {
-    if (v === null || v === undefined || v === false) continue;
+    if (v === null || v === undefined) continue;
     if (name === "class") e.className = String(v);
     else if (name === "style") for (const [p, x] of Object.entries(v)) e.style.setProperty(p, String(x));
     else e.setAttribute(name, String(v));
