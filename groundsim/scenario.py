@@ -182,8 +182,9 @@ class Uplink:
 
     ``source`` is a shipped name, a TOML file or a ``.words`` file (one 4-hex-digit word per line),
     as written in the scenario; ``path`` is the real path of the file it names, inside the scenario
-    file's folder (the uplink path rule, :func:`uplink_file`), None for a shipped name. ``corrupt_bits`` > 0 flips that many
-    bits of the words before they are sent (a corrupted uplink the IP must refuse)."""
+    file's folder (the uplink path rule, :func:`uplink_file`), None for a shipped name.
+    ``corrupt_bits`` > 0 flips that many bits of the words before they are sent (a corrupted uplink
+    the IP must refuse)."""
 
     t: float
     kind: str
@@ -568,12 +569,17 @@ def uplink_file(source: str, base: Path, et: _Table, kind: str, given: bool = Fa
     rule = f"uplink files are named relative to {where} {str(base)!r} (the uplink path rule)"
     p = Path(source)
     if p.is_absolute() or source.startswith("~"):
-        raise et.err(kind, f"{source!r} is an absolute path: {rule}")
+        raise et.err(kind, f"{source!r} is an absolute path (or names a home folder): {rule}")
     if ".." in p.parts:
         raise et.err(kind, f"{source!r} is outside {where} ('..'): {rule}")
-    real = (base / p).resolve()
-    if not real.is_relative_to(base):
+    try:
+        real = (base / p).resolve()
+        inside, found = real.is_relative_to(base), real.is_file()
+    except (OSError, ValueError) as exc:        # a NUL byte, a symlink loop, a name too long
+        raise et.err(kind, f"{source!r} is not a usable file name ({exc.__class__.__name__})") \
+            from None
+    if not inside:
         raise et.err(kind, f"{source!r} is outside {where} (a symlink leads out): {rule}")
-    if not real.is_file():
+    if not found:
         raise et.err(kind, f"no such file {source!r} in {where} {str(base)!r}")
     return str(real)
