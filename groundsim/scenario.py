@@ -575,7 +575,7 @@ def uplink_file(source: str, base: Path, et: _Table, kind: str, given: bool = Fa
     try:
         real = (base / p).resolve()
         inside, found = real.is_relative_to(base), real.is_file()
-    except (OSError, ValueError) as exc:        # a NUL byte, a symlink loop, a name too long
+    except (OSError, ValueError, RuntimeError) as exc:   # NUL byte, symlink loop, long name
         raise et.err(kind, f"{source!r} is not a usable file name ({exc.__class__.__name__})") \
             from None
     if not inside:
