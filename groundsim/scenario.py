@@ -17,10 +17,11 @@ File layout (all tables but ``[scenario]`` optional; unknown keys are errors)::
     [faults]     dropped_frames = [frame indices], imager_switch = [{t, imager}], attitude_gap = [{t0, t1}],
                  corrupt_candidate = [{frame, bits}], corrupt_command = [{frame, bits}] (bus faults:
                  flip ``bits`` bits of that frame's candidate message / track command)
-    [[uplinks]]  t (s), exactly one of record = / sequence = (a shipped name, a TOML file or a .words
-                 file, looked up next to the scenario first) / table = {object type = record name
-                 or id} (the IP's record table), corrupt_bits = N (optional: flip N bits of the
-                 uplink words, a corrupted uplink the IP must refuse)
+    [[uplinks]]  t (s), exactly one of record = / sequence = (a shipped name: no slash, no suffix; or
+                 a TOML / .words / binary words file inside the scenario's folder: the uplink path
+                 rule, :func:`uplink_file`) / table = {object type = record name or id} (the IP's
+                 record table), corrupt_bits = N (optional: flip N bits of the uplink words, a
+                 corrupted uplink the IP must refuse)
     [background] earth_glow = "auto" | true | false
     [flight]     with = [proposal names] (flightsw.proposals; ["all"] for every one): the candidate
                  flight-software changes in force for this scenario (default none: the paper's
@@ -181,9 +182,10 @@ class Uplink:
     """A ground uplink during the event: at ``t`` (s) a record or processing sequence goes to the IP.
 
     ``source`` is a shipped name, a TOML file or a ``.words`` file (one 4-hex-digit word per line),
-    as written in the scenario; ``path`` is the file it names (looked up next to the scenario file
-    first, then in the working folder), None for a shipped name. ``corrupt_bits`` > 0 flips that many
-    bits of the words before they are sent (a corrupted uplink the IP must refuse)."""
+    as written in the scenario; ``path`` is the real path of the file it names, inside the scenario
+    file's folder (the uplink path rule, :func:`uplink_file`), None for a shipped name.
+    ``corrupt_bits`` > 0 flips that many bits of the words before they are sent (a corrupted uplink
+    the IP must refuse)."""
 
     t: float
     kind: str
@@ -236,9 +238,10 @@ class Scenario:
 
     # ------------------------------------------------------------------------------------------------
     @classmethod
-    def load(cls, name_or_path, seed=None) -> "Scenario":
+    def load(cls, name_or_path, seed=None, uplink_dir=None) -> "Scenario":
         """Load a shipped scenario by name (``groundsim/scenarios/<name>.toml``) or a TOML file by path;
-        ``seed`` overrides the file's seed."""
+        ``seed`` overrides the file's seed; ``uplink_dir`` replaces the scenario's folder as the one
+        its ``[[uplinks]]`` files are read from (the uplink path rule)."""
         p = Path(str(name_or_path))
         if not p.suffix and not p.exists():
             p = SCENARIO_DIR / f"{name_or_path}.toml"
@@ -253,14 +256,16 @@ class Scenario:
             raise ScenarioError(p, "-", f"not valid TOML: {e}") from None
         except (OSError, UnicodeDecodeError) as e:
             raise ScenarioError(p, "-", f"cannot read the file ({e.__class__.__name__}: {e})") from None
-        return cls.from_dict(data, p, seed=seed)
+        return cls.from_dict(data, p, seed=seed, uplink_dir=uplink_dir)
 
     @classmethod
     def shipped(cls) -> list:
         return sorted(x.stem for x in SCENARIO_DIR.glob("*.toml"))
 
     @classmethod
-    def from_dict(cls, data, path="<dict>", seed=None) -> "Scenario":
+    def from_dict(cls, data, path="<dict>", seed=None, uplink_dir=None) -> "Scenario":
+        """The scenario a parsed TOML document describes; ``path`` names it in errors, and its folder
+        (``uplink_dir`` if given, the working folder for ``"<dict>"``) holds its uplink files."""
         top = _Table(data, path, "")
         sc = top.sub("scenario")
         if sc is None:
@@ -287,7 +292,7 @@ class Scenario:
                                                        f"target.type is {tgt['type']!r}")
         imagers = _parse_imagers(top.sub("imagers", {}))
         faults = _parse_faults(top.sub("faults", {}), duration)
-        uplinks = _parse_uplinks(top.raw("uplinks", []), path, duration)
+        uplinks = _parse_uplinks(top.raw("uplinks", []), path, duration, uplink_dir)
         bg = top.sub("background", {})
         glow = bg.raw("earth_glow", "auto")
         if glow not in ("auto", True, False):
@@ -534,10 +539,15 @@ def _table_source(et) -> str:
     return ",".join(f"{k}={x}" for k, x in v.items())
 
 
-def _parse_uplinks(entries, file, duration) -> list:
+def _parse_uplinks(entries, file, duration, uplink_dir=None) -> list:
     if not isinstance(entries, list):
         raise ScenarioError(file, "uplinks", "expected an array of tables [[uplinks]]")
-    base = None if str(file).startswith("<") else Path(str(file)).resolve().parent
+    if uplink_dir is not None:
+        base = Path(uplink_dir).resolve()
+    elif str(file).startswith("<"):
+        base = Path.cwd().resolve()
+    else:
+        base = Path(str(file)).resolve().parent
     out = []
     for i, e in enumerate(entries):
         et = _Table(e, file, f"uplinks[{i}]")
@@ -554,16 +564,40 @@ def _parse_uplinks(entries, file, duration) -> list:
             et.done()
             continue
         source = et.str_(kind)
-        path = None
-        if source.endswith((".toml", ".words")) or "/" in source:
-            p = Path(source)
-            cands = ([base / p] if base is not None and not p.is_absolute() else []) + [p]
-            hit = next((c for c in cands if c.is_file()), None)
-            if hit is None:
-                raise et.err(kind, f"no such file {source!r} (looked next to the scenario and in the "
-                                   f"working folder)")
-            path = str(hit)
+        path = uplink_file(source, base, et, kind, uplink_dir is not None)
         bits = et.int_("corrupt_bits", default=0, lo=0)
         et.done()
         out.append(Uplink(t, kind, source, path, bits))
     return sorted(out, key=lambda u: u.t)
+
+
+def is_uplink_file(source: str) -> bool:
+    """Whether an ``[[uplinks]]`` entry names a file (a slash or a suffix) or a shipped name."""
+    return "/" in source or "\\" in source or Path(source).suffix != "" or source in (".", "..")
+
+
+def uplink_file(source: str, base: Path, et: _Table, kind: str, given: bool = False) -> str | None:
+    """The uplink path rule: the real path of the file an ``[[uplinks]]`` entry names, inside
+    ``base`` (the scenario file's folder, or ``--uplink-dir``); None for a shipped name. An absolute
+    path, a ``..`` or a symlink leading outside ``base`` is refused naming the field, never reading
+    the file."""
+    if not is_uplink_file(source):
+        return None
+    where = "the folder given with --uplink-dir" if given else "the scenario's folder"
+    rule = f"uplink files are named relative to {where} {str(base)!r} (the uplink path rule)"
+    p = Path(source)
+    if p.is_absolute() or source.startswith("~"):
+        raise et.err(kind, f"{source!r} is an absolute path (or names a home folder): {rule}")
+    if ".." in p.parts:
+        raise et.err(kind, f"{source!r} is outside {where} ('..'): {rule}")
+    try:
+        real = (base / p).resolve()
+        inside, found = real.is_relative_to(base), real.is_file()
+    except (OSError, ValueError, RuntimeError) as exc:   # NUL byte, symlink loop, long name
+        raise et.err(kind, f"{source!r} is not a usable file name ({exc.__class__.__name__})") \
+            from None
+    if not inside:
+        raise et.err(kind, f"{source!r} is outside {where} (a symlink leads out): {rule}")
+    if not found:
+        raise et.err(kind, f"no such file {source!r} in {where} {str(base)!r}")
+    return str(real)

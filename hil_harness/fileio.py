@@ -1,13 +1,18 @@
 """Writing output files the way a command-line tool should: atomically (a temp file beside the
 target, renamed over it) and readable as the user's umask allows (0644 under the usual 022), not
-the 0600 that :func:`tempfile.mkstemp` gives every temp file."""
+the 0600 that :func:`tempfile.mkstemp` gives every temp file; and one writer at a time per output
+folder (:class:`FolderLock`)."""
 from __future__ import annotations
 
+import fcntl
 import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["file_mode", "temp_beside"]
+__all__ = ["file_mode", "temp_beside", "FolderLock", "LOCK_NAME"]
+
+#: the lock file a command holds in its output folder while it writes there
+LOCK_NAME = ".uvisi.lock"
 
 
 def file_mode() -> int:
@@ -26,3 +31,53 @@ def temp_beside(path, prefix: str | None = None, suffix: str = ".tmp") -> tuple[
                                "." + path.name + ".", suffix=suffix)
     os.fchmod(fd, file_mode())
     return fd, tmp
+
+
+class FolderLock:
+    """An exclusive ``fcntl.flock`` on ``<folder>/.uvisi.lock`` (the file holds the holder's pid),
+    held while ``command`` (``"uvisi event"``, ``"uvisi campaign"``) writes to the folder; the
+    kernel releases it when the process ends, however it ends.
+
+    :meth:`acquire` creates the folder; ``ValueError`` (one line naming the folder) when it is a
+    file, cannot be created or written, or another process holds the lock."""
+
+    def __init__(self, path, command: str):
+        self.path, self.command = Path(path), command
+        self._fd = None
+
+    def acquire(self) -> "FolderLock":
+        p = self.path
+        if p.exists() and not p.is_dir():
+            raise ValueError(f"{p}: exists and is a file, not an output folder")
+        try:
+            p.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            raise ValueError(f"{p}: cannot create the output folder ({exc.strerror})") from None
+        try:
+            fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
+        except OSError as exc:
+            raise ValueError(f"{p}: cannot write to the output folder ({exc.strerror})") from None
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
+            os.close(fd)
+            raise ValueError(f"{p}: another {self.command} (pid {holder}) is writing to this "
+                             f"folder") from None
+        os.ftruncate(fd, 0)
+        os.write(fd, str(os.getpid()).encode())
+        self._fd = fd
+        return self
+
+    def release(self) -> None:
+        if self._fd is not None:
+            fcntl.flock(self._fd, fcntl.LOCK_UN)
+            os.close(self._fd)
+            self._fd = None
+
+    def __enter__(self):
+        return self.acquire()
+
+    def __exit__(self, *exc):
+        self.release()
+        return False

@@ -10,9 +10,11 @@ from __future__ import annotations
 import json
 import tomllib
 
+import h5py
 import numpy as np
 import pytest
 
+from flightsw.messages import TC_STATUS_NAMES
 from flightsw.records import load_record
 from groundsim.scenario import SCENARIO_DIR, Scenario
 from hil_harness.event.bus import fault_rng, flip_bits
@@ -47,11 +49,51 @@ def test_shipped_fault_scenario_runs_to_the_end_and_reports_every_fault(tmp_path
     cmd = [f for f in s["faults"] if f["kind"] == "corrupt_command"]
     assert [f["frame"] for f in cand] == [22, 40] and [f["frame"] for f in cmd] == [24, 44]
     assert all(f["verdict"] == "rejected" for f in cand + cmd)
-    assert s["bus"] == {"commands_rejected_by_ip": 2, "candidate_messages_rejected_by_tp": 2}
+    assert s["bus"] == {"candidate_messages_corrupted": 2, "candidate_messages_rejected_by_tp": 2,
+                        "commands_corrupted": 2, "commands_rejected": 2}
     on_disk = json.loads((tmp_path / "ev" / "summary.json").read_text())
     assert on_disk["faults"] == json.loads(json.dumps(s["faults"]))
     r = replay(tmp_path / "ev" / "recording.h5")             # the faults are re-injected alike
     assert r["identical"], r
+
+
+def test_summary_counts_every_refusal_of_a_fault_storm(tmp_path):
+    """A storm of bus faults, both messages of a frame corrupted on 16 frames, the last frame's
+    command among them: summary.json counts what the recording's tables hold. 1 to 3 flipped bits
+    are always caught by the CRC-16 (Hamming distance 4 over a message this short), so every
+    corrupted message and command is refused: 20 and 31 by hand."""
+    raw = _raw("satellite_over_stars")
+    raw["scenario"]["duration"] = 20.0                       # frames 0..40
+    cand_frames, cmd_frames = list(range(2, 41, 2)), list(range(10, 41))
+    raw["faults"] = {"corrupt_candidate": [{"frame": k, "bits": 1 + k % 3} for k in cand_frames],
+                     "corrupt_command": [{"frame": k, "bits": 1 + k % 3} for k in cmd_frames]}
+    assert len(cand_frames) == 20 and len(cmd_frames) == 31
+    assert len(set(cand_frames) & set(cmd_frames)) == 16
+    s = run_event(Scenario.from_dict(raw), out=tmp_path / "ev", figures=False)
+    assert s["frames"] == 41
+    with h5py.File(tmp_path / "ev" / "recording.h5", "r") as f:
+        fr = f["tables/frames"][()]
+        cw = f["arrays/command_words"][()]
+    issued = fr["cmd_len"] > 0                               # the TP answered the frame
+    assert issued.all()                                      # (no overrun in this scenario)
+    bad_message = (cw[:, 7] & 0x0002) != 0                   # word 7: the TP's status bits
+    refused_cmd = issued & (fr["status"] == -1)              # no command arrived on the bus
+    assert sorted(np.flatnonzero(refused_cmd).tolist()) == cmd_frames
+    assert set(cand_frames) <= set(np.flatnonzero(bad_message).tolist())
+    bus = s["bus"]
+    assert bus == {"candidate_messages_corrupted": 20,
+                   "candidate_messages_rejected_by_tp": int(bad_message.sum()),
+                   "commands_corrupted": 31, "commands_rejected": 31}
+    both = sorted(set(cand_frames) & set(cmd_frames))
+    assert bad_message[both].all() and (fr["status"][both] == -1).all()   # both refused, counted
+    for bit, name in TC_STATUS_NAMES.items():                # every status bit, the same way
+        want = int(((cw[issued, 7] & bit) != 0).sum())
+        assert s["tp_status_frames"].get(name, 0) == want, name
+    on_disk = json.loads((tmp_path / "ev" / "summary.json").read_text())
+    assert on_disk["bus"] == bus and on_disk["tp_status_frames"] == s["tp_status_frames"]
+    verdicts = {(e["kind"], e["frame"]): e["verdict"] for e in s["faults"]}
+    assert all(verdicts[("corrupt_candidate", k)] == "rejected" for k in cand_frames)
+    assert all(verdicts[("corrupt_command", k)] == "rejected" for k in cmd_frames)
 
 
 def test_a_refused_command_keeps_the_last_good_prediction():
@@ -90,7 +132,7 @@ def test_uplink_scenario_replays_from_its_recorded_words(tmp_path):
     rec.write_text((SCENARIO_DIR.parents[1] / "flightsw" / "data" / "record_star.toml").read_text())
     raw = _raw("satellite_over_stars")
     raw["scenario"]["duration"] = 6.0
-    raw["uplinks"] = [{"t": 2.0, "record": str(rec)}]
+    raw["uplinks"] = [{"t": 2.0, "record": rec.name}]
     s = run_event(Scenario.from_dict(raw, str(tmp_path / "up.toml")), out=tmp_path / "ev",
                   figures=False)
     assert [u["verdict"] for u in s["uplinks"]] == ["accepted"]

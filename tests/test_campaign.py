@@ -342,3 +342,45 @@ def test_unreachable_scheduler_is_one_line(tmp_path, monkeypatch, capsys):
                  "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "cannot reach the Dask scheduler" in err
+
+
+def second_resume_job(params: dict) -> dict:
+    """A job that, while its campaign runs, starts a second ``uvisi campaign --resume`` on the same
+    folder and reports how it ended (the nested one only logs that it ran)."""
+    with open(os.path.join(params["log_dir"], f"seed{params['seed']}.{os.getpid()}"), "a") as fh:
+        fh.write("ran\n")
+    if os.environ.get("UVISI_TEST_NESTED"):
+        return {"second_rc": -1, "second_err": ""}
+    env = dict(os.environ, UVISI_TEST_NESTED="1",
+               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+    p = subprocess.run([sys.executable, "-m", "hil_harness.cli", "campaign", params["spec"],
+                        "--out", params["out"], "--resume", "--serial", "--no-progress"],
+                       cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)
+    return {"second_rc": p.returncode, "second_err": p.stderr}
+
+
+def test_a_second_campaign_on_a_running_folder_refuses(tmp_path, capsys):
+    """Two ``uvisi campaign --resume`` on one folder: the one started while the first runs stops at
+    once with one line naming the folder (exit 2) and runs nothing; the first finishes alone."""
+    out, spec = tmp_path / "out", tmp_path / "two.toml"
+    (tmp_path / "log").mkdir()
+    spec.write_text(f"""
+[campaign]
+name = "two"
+job = "test_campaign:second_resume_job"
+seeds = [0]
+[params]
+log_dir = "{tmp_path / 'log'}"
+spec = "{spec}"
+out = "{out}"
+""")
+    assert main(["campaign", str(spec), "--out", str(out), "--resume", "--serial",
+                 "--no-progress"]) == 0
+    row, = pq.read_table(out / "results.parquet").to_pylist()
+    assert row["status"] == "ok" and row["second_rc"] == 2
+    err = row["second_err"].strip()
+    assert err.count("\n") == 0 and str(out) in err
+    assert f"another uvisi campaign (pid {os.getpid()}) is writing to this folder" in err
+    assert [f.name for f in (tmp_path / "log").iterdir()] == [f"seed0.{os.getpid()}"]  # ran once
+    assert main(["campaign", str(spec), "--out", str(out), "--resume", "--serial",
+                 "--no-progress"]) == 0                      # the lock went with the first

@@ -251,3 +251,66 @@ def test_serve_fetches_frames_on_demand(event, tmp_path, capsys):
     finally:
         srv.shutdown()
         srv.server_close()
+
+
+# ---------------------------------------------------------------- a recording's text is data
+def test_served_page_answers_only_its_own_host_names(event, tmp_path):
+    """DNS rebinding: a page of another site that resolves to 127.0.0.1 sends its own Host."""
+    import http.client
+    rec_path = tmp_path / "recording.h5"
+    shutil.copy(event / "recording.h5", rec_path)
+    srv = make_server(rec_path, port=0)
+    assert srv.server_address[0] == "127.0.0.1"               # loopback only
+    port = srv.server_address[1]
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+
+    def get(path, host):
+        c = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+        c.putrequest("GET", path, skip_host=True)
+        if host is not None:
+            c.putheader("Host", host)
+        c.endheaders()
+        r = c.getresponse()
+        body = r.read()
+        c.close()
+        return r.status, body, r.getheader("Content-Security-Policy") or ""
+
+    try:
+        for host in ("evil.example", f"evil.example:{port}", "127.0.0.1", f"127.0.0.1:{port + 1}",
+                     f"localhost.evil.example:{port}", "", None):
+            for path in ("/", "/data.json", "/frames/3", "/stages/3", "/stars/3"):
+                status, body, _ = get(path, host)
+                assert 400 <= status < 500 and b"Host" in body and len(body) < 200, (host, path)
+        for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"LOCALHOST:{port}"):
+            status, body, csp = get("/data.json", host)
+            assert status == 200 and json.loads(body)["recording"]["frames_held"] == FRAMES
+            assert "script-src 'sha256-" in csp and "frame-ancestors 'none'" in csp
+        for path in ("/../recording.h5", "/recording.h5", "/etc/passwd", "/frames/../data.json",
+                     "/frames/-1", f"/frames/{FRAMES}", "//etc/passwd"):
+            assert get(path, f"127.0.0.1:{port}")[0] == 404, path
+    finally:
+        srv.shutdown()
+        srv.server_close()
+
+
+def test_page_inserts_text_never_html():
+    """page.js builds every element with its text helper: no HTML parsing of any string; the
+    template's placeholders are filled in one pass, and the JSON cannot end its script element."""
+    from importlib.resources import files
+    from hil_harness.view.page import page_html, script_json
+    js = files("hil_harness.view").joinpath("page.js").read_text()
+    for sink in ("innerHTML", "outerHTML", "insertAdjacentHTML", "document.write", "eval(",
+                 "new Function", "srcdoc", "DOMParser", "createContextualFragment"):
+        assert sink not in js, sink
+    x = '</script><img src=x onerror=alert(1)> __DATA__ __JS__ & <!--'
+    text = script_json({"a": x})
+    assert json.loads(text) == {"a": x} and not set("<>&") & set(text)
+    data = {"recording": {"scenario": x, "name": "__CSP__"}, "v": x}
+    page = page_html(data, {"mode": "serve"})
+    assert page_parts(page) == (data, {"mode": "serve"})      # each value where it belongs
+    script = re.search(r"<script>\n(.*)\n</script>", page, re.S).group(1)
+    assert script == js
+    title = re.search(r"<title>(.*?)</title>", page, re.S).group(1)
+    assert title == ("uvisi view: &lt;/script&gt;&lt;img src=x onerror=alert(1)&gt; __DATA__ "
+                     "__JS__ &amp; &lt;!-- (__CSP__)")
+    assert page.count("<img") == 0 and page.count("</script>") == 3

@@ -4,7 +4,10 @@ A 30-frame event is made once; its page is opened headless: no console error; st
 0, k and the last (arrow keys, End, Home) shows the candidate table and the TP's state that
 ``recording.h5`` holds for those frames (read back from the DOM, compared with h5py); pixels read
 back through the page's decoder equal the stored 12-bit counts; ``#frame=k`` opens frame k; the
-``--serve`` page fetches its frames; a ``--no-frames`` page says so. A screenshot is saved in
+``--serve`` page fetches its frames; a ``--no-frames`` page says so. A crafted recording whose
+texts are HTML (``<img src=x onerror=...>`` in its scenario name, its configuration -- which the
+replay's error message quotes -- and its fault list) shows them as text and runs nothing, on the
+written page and the served one, with and without the page's content security policy. A screenshot is saved in
 ``$UVISI_TEST_ARTIFACTS`` (default ``build/test-artifacts``).
 
 Skipped with one line when Playwright or the browser is missing, except under ``CI=true``, where it
@@ -12,7 +15,9 @@ fails instead (``.ci/run`` installs both).
 """
 from __future__ import annotations
 
+import json
 import os
+import shutil
 import threading
 from pathlib import Path
 
@@ -72,8 +77,21 @@ def open_page(browser, url):
     return page, errors
 
 
+def wait_until(page, condition: str, timeout_ms: int = 15000):
+    """Wait until the JavaScript ``condition`` holds in the page. (Not ``wait_for_function``: it
+    evaluates its predicate with ``eval``, which the page's content security policy forbids.)"""
+    page.evaluate("""([t]) => new Promise((ok, bad) => {
+      const t0 = performance.now();
+      (function poll() {
+        if (%s) ok(true);
+        else if (performance.now() - t0 > t) bad(new Error("timed out: " + %r));
+        else setTimeout(poll, 10);
+      })();
+    })""" % (condition, condition), [timeout_ms])
+
+
 def wait_frame(page, k):
-    page.wait_for_function(f"document.body.dataset.frame === '{k}'", timeout=15000)
+    wait_until(page, f"document.body.dataset.frame === '{k}'")
 
 
 def dom_state(page) -> dict:
@@ -152,7 +170,7 @@ def test_page_in_chromium(browser, event):
         wait_frame(page, 20)
         page.select_option("#rate", "25")                 # play, then pause: frames advance
         page.click("#play")
-        page.wait_for_function("window.uvisiView.frame >= 24")
+        wait_until(page, "window.uvisiView.frame >= 24")
         page.click("#play")
         assert page.inner_text("#play") == "play"
         page2, errors2 = open_page(browser, f"{url}#frame={K}")   # a link opens that frame
@@ -184,3 +202,63 @@ def test_served_and_no_frames_pages(browser, event, tmp_path):
     wait_frame(page, 3)
     assert "--no-frames" in page.inner_text("#warnings")
     assert errors == []
+
+
+# ---------------------------------------------------------------- a crafted recording
+X = '<img src=x onerror="window.__pwned = (window.__pwned || 0) + 1">'
+
+
+@pytest.fixture(scope="module")
+def crafted(event, tmp_path_factory):
+    """The event's recording with HTML where its texts go: the scenario name, the sequence's name
+    and first step (the replay fails, quoting it) and a fault entry's kind, verdict and reaction."""
+    path = tmp_path_factory.mktemp("crafted") / "recording.h5"
+    shutil.copy(event / "recording.h5", path)
+    with h5py.File(path, "r+") as f:
+        cfg = json.loads(f.attrs["config"])
+        cfg["sequence"]["name"] = X
+        cfg["sequence"]["steps"][0]["op"] = X
+        f.attrs["config"] = json.dumps(cfg)
+        f.attrs["scenario"] = X
+        summ = json.loads(f.attrs["summary"])
+        summ["faults"] = [{"t": 1.0, "frame": 2, "kind": X, "verdict": X, "reaction": X}]
+        f.attrs["summary"] = json.dumps(summ)
+    return path
+
+
+def shows_text_runs_nothing(page, where: str) -> None:
+    """The page of the crafted recording: every text shown as it is, no element made of it, no
+    handler run."""
+    assert page.evaluate("window.__pwned === undefined"), where
+    assert page.evaluate("document.querySelectorAll('img, [onerror]').length") == 0, where
+    assert X in page.inner_text("#facts") and X in page.inner_text("#title"), where
+    assert X in page.title(), where
+    events = page.inner_text("#events")
+    assert events.count(X) == 3, where                   # kind, verdict, reaction
+
+
+@pytest.mark.parametrize("bypass_csp", [False, True], ids=["with-csp", "without-csp"])
+def test_crafted_recording_runs_nothing_on_either_page(browser, crafted, bypass_csp):
+    """``bypass_csp``: the page's own policy switched off, so that the text helper alone is
+    tested (with it, an inline handler could not run anyway)."""
+    written = write_page(crafted, crafted.parent / "view.html")
+    page = browser.new_page(bypass_csp=bypass_csp)
+    page.goto(written.as_uri() + "#frame=0")
+    wait_frame(page, 0)
+    shows_text_runs_nothing(page, "written page")
+    assert X in page.inner_text("#stage-note")             # the replay's error, quoting the config
+    page.close()
+    srv = make_server(crafted, port=0)
+    threading.Thread(target=srv.serve_forever, daemon=True).start()
+    try:
+        page = browser.new_page(bypass_csp=bypass_csp)
+        page.goto(srv.url + "#frame=0")
+        wait_frame(page, 0)
+        wait_until(page, "document.querySelectorAll('#warnings [data-warning]').length > 0")
+        shows_text_runs_nothing(page, "served page")
+        assert "could not be replayed" in page.inner_text("#warnings")
+        assert X in page.inner_text("#warnings")            # the same error, fetched
+        page.close()
+    finally:
+        srv.shutdown()
+        srv.server_close()

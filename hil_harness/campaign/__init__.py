@@ -32,8 +32,10 @@ Output directory::
     errors/<run_id>.json   a run whose job raised (retried on --resume)
     results.parquet        every part merged (+ error rows), rewritten atomically at the end
 
-Interruption (Ctrl-C, kill, a lost cluster) loses at most the runs in flight: ``resume=True``
-reads the parts already committed, skips them and runs only the rest. Columns of the table:
+One campaign at a time runs in a folder: it holds ``.uvisi.lock`` there
+(:class:`~hil_harness.fileio.FolderLock`), and a second one (a second ``--resume``) stops with one
+line naming the folder. Interruption (Ctrl-C, kill, a lost cluster) loses at most the runs in
+flight: ``resume=True`` reads the parts already committed, skips them and runs only the rest. Columns of the table:
 ``run_id, run, status ("ok" | "error"), error, elapsed_s, worker, the parameters, the job's
 results`` (a result key that clashes with a parameter is prefixed ``result.``).
 """
@@ -51,7 +53,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from hil_harness.fileio import temp_beside
+from hil_harness.fileio import FolderLock, temp_beside
 
 __all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_parts",
            "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
@@ -461,6 +463,12 @@ def run_campaign(spec, out_dir, scheduler: str | None = None, workers: int | Non
         raise ValueError(f"workers={workers!r} must be >= 1 (or use serial)")
     spec.validate_inputs()
     out = Path(out_dir)
+    with FolderLock(out, "uvisi campaign"):          # one campaign at a time in a folder
+        return _run_locked(spec, out, scheduler, workers, resume, progress, serial, log)
+
+
+def _run_locked(spec, out: Path, scheduler, workers, resume, progress, serial, log) -> dict:
+    """:func:`run_campaign` once the folder is locked."""
     have = _prepare_out(spec, out, resume)
     ids = spec.run_ids
     todo = [(i, rid, p) for i, (rid, p) in enumerate(zip(ids, spec.runs)) if rid not in have]

@@ -6,7 +6,8 @@ a candidate message, the track processor into a pointing command, which the spac
 ``recording.h5``, the figures (processing stages, centroid track, track error, gates, budget, an animated
 GIF) and ``summary.json`` to DIR, and prints a short table. SCENARIO is a shipped name (``uvisi
 scenarios`` lists them) or a TOML file. The flight code is the paper's system; ``--with`` switches on
-candidate changes (``uvisi proposals`` lists them).
+candidate changes (``uvisi proposals`` lists them). The files a scenario's ``[[uplinks]]`` name are
+read inside the scenario file's folder (or ``--uplink-dir DIR``): the uplink path rule.
 
 The recording is written in blocks of 20 frames as ``recording.partial.h5`` and renamed
 ``recording.h5`` at the end; an interrupted event (Ctrl-C, SIGTERM, kill -9) leaves the partial file
@@ -47,6 +48,9 @@ def register(sub) -> None:
     p.add_argument("--hypothesis", default=None, metavar="NAME",
                    help="price every frame under a budget hypothesis (uvisi budget --explain lists "
                         "them), overruns included; default: today's cycle model")
+    p.add_argument("--uplink-dir", default=None, metavar="DIR",
+                   help="read the scenario's [[uplinks]] files inside DIR instead of the scenario "
+                        "file's folder (the uplink path rule, docs/formats.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
     add_with_option(p)
     p.set_defaults(func=run)
@@ -77,12 +81,17 @@ def run(args) -> int:
         from hil_harness.cli.budget import check_hypothesis
         check_hypothesis(args.hypothesis)
     out = Path(args.out) if args.out else Path("events") / Path(name).stem
+    scenario = name
+    if args.uplink_dir is not None:
+        if not Path(args.uplink_dir).is_dir():
+            raise ValueError(f"--uplink-dir {args.uplink_dir}: not a folder")
+        scenario = Scenario.load(name, seed=args.seed, uplink_dir=args.uplink_dir)
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
     main_thread = threading.current_thread() is threading.main_thread()
     prev = signal.signal(signal.SIGTERM, _terminate) if main_thread else None
     try:
-        s = run_event(name, seed=args.seed, frames=args.frames, out=out,
+        s = run_event(scenario, seed=args.seed, frames=args.frames, out=out,
                       record_frames=not args.no_frames, figures=not args.no_figures,
                       progress=progress_enabled(), sequence=args.sequence, record=args.record,
                       selection=SelectionParams(handover=args.handover), force=replace,

@@ -7,6 +7,7 @@ the frame and the fault kind, so an event and its replay inject the same faults.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,8 @@ from flightsw.records import load_record, shipped_records
 
 from hil_harness.tuning.export import read_words
 
-__all__ = ["FAULT_CODES", "flip_bits", "fault_rng", "uplink_words", "table_words"]
+__all__ = ["FAULT_CODES", "flip_bits", "fault_rng", "uplink_words", "table_words",
+           "without_quoted"]
 
 #: generator stream per fault kind (part of the seed)
 FAULT_CODES = {"candidate": 1, "command": 2, "uplink": 3}
@@ -40,32 +42,52 @@ def flip_bits(words, bits: int, rng: np.random.Generator) -> tuple[np.ndarray, l
     return w, pos
 
 
+#: a quoted text in an error message: a string's repr, single or double quoted
+_QUOTED = re.compile(r"'(?:[^'\\\n]|\\.)*'|\"(?:[^\"\\\n]|\\.)*\"")
+
+
+def without_quoted(message: str, limit: int = 300) -> str:
+    """An error message about a file's content with every quoted text replaced by ``'...'`` (the
+    values a loader quotes are the file's bytes), on one line, at most ``limit`` characters."""
+    out = _QUOTED.sub("'...'", " ".join(str(message).split()))
+    return out if len(out) <= limit else out[:limit - 3] + "..."
+
+
 def uplink_words(kind: str, source: str, path: str | None = None) -> np.ndarray:
     """The uplink words of a record or processing sequence named in a scenario's ``[[uplinks]]``:
-    a shipped name, a TOML file, or a ``.words`` file (taken as it is: a damaged file is the IP's to
-    refuse). ``path`` is the file the scenario resolved, if any."""
+    a shipped name, a TOML file, or a words file (taken as it is: a damaged file is the IP's to
+    refuse). ``path`` is the file the scenario resolved (the uplink path rule), if any. An error
+    reading the file names it and says what is wrong, never quoting the file's content."""
     if kind == "table":
         return table_words(source)
     if kind not in ("record", "sequence"):
         raise ValueError(f"uplink kind {kind!r}: expected 'record', 'sequence' or 'table'")
-    p = Path(path) if path else None
-    if p is not None and p.suffix.lower() != ".toml":
-        return np.asarray(read_words(p), np.int64).astype(np.uint16)
+    if path:
+        try:
+            return _file_words(kind, Path(path))
+        except (OSError, ValueError) as exc:
+            why = str(exc)
+            if why.startswith(f"{path}: "):
+                why = why[len(path) + 2:]
+            raise ValueError(f"{path}: {kind} uplink file: {without_quoted(why)}") from None
     if kind == "record":
-        if p is None and source not in shipped_records():
+        if source not in shipped_records():
             raise ValueError(f"uplink record {source!r}: not a shipped record "
                              f"({', '.join(sorted(shipped_records()))}) nor a file")
-        rec = load_record(p if p is not None else source)
-        return np.asarray(rec.to_words(), np.uint16)
-    if p is not None:
-        seq = ProcessingSequence.from_toml(p)
-    elif source in DEFAULT_SEQUENCES:
-        seq = load_default_sequence(source)
-    else:
-        raise ValueError(f"uplink sequence {source!r}: not a shipped sequence "
-                         f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
-    return sequence_to_words(seq)
+        return np.asarray(load_record(source).to_words(), np.uint16)
+    if source in DEFAULT_SEQUENCES:
+        return sequence_to_words(load_default_sequence(source))
+    raise ValueError(f"uplink sequence {source!r}: not a shipped sequence "
+                     f"({', '.join(sorted(DEFAULT_SEQUENCES))}) nor a file")
 
+
+def _file_words(kind: str, p: Path) -> np.ndarray:
+    """The words of an uplink file: a TOML record or sequence, else a words file (text or binary)."""
+    if p.suffix.lower() != ".toml":
+        return np.asarray(read_words(p), np.int64).astype(np.uint16)
+    if kind == "record":
+        return np.asarray(load_record(p).to_words(), np.uint16)
+    return sequence_to_words(ProcessingSequence.from_toml(p))
 
 
 def table_words(source: str) -> np.ndarray:

@@ -36,7 +36,7 @@ import numpy as np
 
 from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
-from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES
+from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES, TrackCommand
 from flightsw.tp.ekf import E_P, E_RUN, UT
 from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
@@ -405,6 +405,38 @@ def _pct(x, q):
     return float(np.percentile(x, q)) if len(x) else None
 
 
+def bus_counts(outcomes, events_log) -> tuple[dict, dict]:
+    """``tp_status_frames`` and the ``bus`` entry of the summary.
+
+    A status bit is counted on every frame whose track command the TP issued with it, read from the
+    TP's own command words (``arrays/command_words``), not from the command as it arrived: a command
+    damaged on the bus and refused still carries the TP's verdict on that frame's candidate message
+    (``bad_message``). ``commands_rejected`` counts the commands that failed their CRC or checks on
+    the bus (refused by the attitude processor and the IP alike; ``tables/frames`` holds no command
+    for them, ``status`` = -1), whether or not the IP read them before the event ended.
+    ``*_corrupted`` count the bus faults injected (the ``faults`` entries)."""
+    status_counts = {}
+    refused_commands = 0
+    for o in outcomes:
+        if o.command_words is None or not len(o.command_words):
+            continue
+        if o.command is None:
+            refused_commands += 1
+        try:
+            issued = TrackCommand.from_words(o.command_words)
+        except ValueError:          # never for the TP's own words: counted as no status
+            continue
+        for name in issued.status_names():
+            status_counts[name] = status_counts.get(name, 0) + 1
+    injected = {kind: sum(1 for e in events_log if e.get("kind") == kind)
+                for kind in ("corrupt_candidate", "corrupt_command")}
+    bus = {"candidate_messages_corrupted": injected["corrupt_candidate"],
+           "candidate_messages_rejected_by_tp": int(status_counts.get("bad_message", 0)),
+           "commands_corrupted": injected["corrupt_command"],
+           "commands_rejected": refused_commands}
+    return status_counts, bus
+
+
 def summarise(ev: Event) -> dict:
     """The event's ``summary.json`` content (plain data)."""
     outs = ev.outcomes
@@ -452,11 +484,7 @@ def summarise(ev: Event) -> dict:
         v = np.array([o.host_us.get(key, np.nan) for o in outs])
         stages_us[key] = _pct(v, 50)
     loop_s = float(np.nansum(host_total)) * 1e-6
-    status_counts = {}
-    for c in cmds:
-        if c is not None:
-            for name in getattr(c, "status_names", lambda: [])():
-                status_counts[name] = status_counts.get(name, 0) + 1
+    status_counts, bus = bus_counts(outs, ev.events_log)
     ttype = ev.object_type
     from .metrics import held_after_lock
     held = held_after_lock(outs, ev.geometry, comp)
@@ -498,8 +526,7 @@ def summarise(ev: Event) -> dict:
                       "reason": s.reason} for s in ev.switches],
         "faults": list(ev.events_log),
         "uplinks": list(ev.uplinks_log),
-        "bus": {"commands_rejected_by_ip": int(ev.ip.rejected_commands),
-                "candidate_messages_rejected_by_tp": int(status_counts.get("bad_message", 0))},
+        "bus": bus,
         "tp_status_frames": status_counts,
         "sequence": ev.sequence.name, "record": ev.record_name,
         "flight": {**flight_profile(ev.proposals), "records_used": list(ev.ip.records_used)},

@@ -8,11 +8,12 @@ the new run's.
 """
 from __future__ import annotations
 
-import fcntl
-import os
 from pathlib import Path
 
-LOCK_NAME = ".uvisi.lock"
+from hil_harness.fileio import LOCK_NAME, FolderLock
+
+__all__ = ["RunFolder", "RUN_PRODUCTS", "LOCK_NAME"]
+
 #: the files ``uvisi event`` writes into its folder (and so removes when replacing a run)
 RUN_PRODUCTS = ("recording.h5", "recording.partial.h5", "recording.h5.tmp", "summary.json",
                 "summary.json.tmp", "stages.png", "centroid_track.png", "track_error.png",
@@ -37,29 +38,10 @@ class RunFolder:
     def __init__(self, path, replace: bool = False):
         self.path = Path(path)
         self.replace = bool(replace)
-        self._fd = None
+        self._lock = None
 
     def acquire(self) -> "RunFolder":
-        p = self.path
-        if p.exists() and not p.is_dir():
-            raise ValueError(f"{p}: exists and is a file, not an output folder")
-        try:
-            p.mkdir(parents=True, exist_ok=True)
-        except OSError as exc:
-            raise ValueError(f"{p}: cannot create the output folder ({exc.strerror})") from None
-        try:
-            fd = os.open(p / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
-        except OSError as exc:
-            raise ValueError(f"{p}: cannot write to the output folder ({exc.strerror})") from None
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.read(fd, 32).decode(errors="replace").strip() or "?"
-            os.close(fd)
-            raise ValueError(f"{p}: another uvisi event (pid {holder}) is writing to this folder")
-        os.ftruncate(fd, 0)
-        os.write(fd, str(os.getpid()).encode())
-        self._fd = fd
+        self._lock = FolderLock(self.path, "uvisi event").acquire()
         try:
             self._clear_old_run()
         except BaseException:
@@ -80,10 +62,9 @@ class RunFolder:
                                  f"({exc.strerror})") from None
 
     def release(self) -> None:
-        if self._fd is not None:
-            fcntl.flock(self._fd, fcntl.LOCK_UN)
-            os.close(self._fd)
-            self._fd = None
+        if self._lock is not None:
+            self._lock.release()
+            self._lock = None
 
     def __enter__(self):
         return self.acquire()

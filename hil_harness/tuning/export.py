@@ -101,9 +101,10 @@ def read_words(path) -> np.ndarray:
         s = ln.split("#", 1)[0].strip()
         if not s:
             continue
-        for tok in s.replace(",", " ").split():
-            if not _HEX.match(tok):
-                raise ValueError(f"{p}: line {n}: {tok!r} is not a 16-bit hexadecimal word")
+        for j, tok in enumerate(s.replace(",", " ").split(), start=1):
+            if not _HEX.match(tok):     # the text is not quoted: the file may be anyone's
+                raise ValueError(f"{p}: line {n}: item {j} ({len(tok)} characters) is not a 16-bit "
+                                 f"hexadecimal word (1 to 4 hex digits, optional 0x)")
             out.append(int(tok, 16))
     return np.array(out, np.int64)
 

@@ -7,7 +7,23 @@ const F = D.frames, N = D.recording.frames_held, S = 2;          // S: display p
 const $ = (id) => document.getElementById(id);
 const fmt = (v, d) => (v === null || v === undefined) ? "-" :
   (typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toPrecision(d || 5)) : String(v));
-const esc = (t) => String(t).replace(/&/g, "&amp;").replace(/</g, "&lt;").replace(/"/g, "&quot;");
+// The one way anything reaches the page, on the written and the served page alike: an element
+// whose attribute values and children are set as values and text nodes, never parsed as HTML (a
+// recording's text -- names, reasons, error messages quoting its configuration -- is data).
+// attrs: {name: value} (names from this file only; null/undefined left out), "class", and
+// "style" ({property: value}); kids: nodes or strings (text), arrays of them flattened.
+function el(tag, attrs, ...kids) {
+  const e = document.createElement(tag);
+  for (const [name, v] of Object.entries(attrs || {})) {
+    if (v === null || v === undefined) continue;
+    if (name === "class") e.className = String(v);
+    else if (name === "style") for (const [p, x] of Object.entries(v)) e.style.setProperty(p, String(x));
+    else e.setAttribute(name, String(v));
+  }
+  for (const c of kids.flat()) if (c !== null && c !== undefined) e.append(c instanceof Node ? c : String(c));
+  return e;
+}
+function warn(text) { $("warnings").append(el("div", { class: "warn", "data-warning": "" }, text)); }
 const state = { k: 0, playing: null, lo: null, hi: null, cache: new Map(), stageCache: new Map() };
 
 // ---------------------------------------------------------------- image decoding
@@ -64,13 +80,12 @@ async function stageImages(k) {
     p = fetch(`stages/${k}`).then((r) => (r.ok ? r.json() : { stages: [], mismatch: null })).then((o) => {
       if (o.mismatch !== null && D.stage_mismatch === null) {
         D.stage_mismatch = o.mismatch;
-        $("warnings").insertAdjacentHTML("beforeend", `<div class="warn" data-warning>The replay of the ` +
-          `stages differs from the recording from frame ${o.mismatch}.</div>`);
+        warn(`The replay of the stages differs from the recording from frame ${o.mismatch}.`);
       }
       if (o.error && !state.stageError) {
         state.stageError = o.error;
-        $("warnings").insertAdjacentHTML("beforeend", `<div class="warn" data-warning>The stages could ` +
-          `not be replayed (${o.error}): only the recording's own stage frame is shown.</div>`);
+        warn(`The stages could not be replayed (${o.error}): only the recording's own stage frame ` +
+             "is shown.");
       }
       return o.stages;
     });
@@ -116,8 +131,8 @@ function legend() {
                  ["star", "star gate"], ["object", "object gate"],
                  ["ellipse", D.covariance === "diagonal" ? "EKF 1-sigma ellipse (recorded diagonal only)" :
                   "EKF 1-sigma ellipse"]];
-  $("legend").innerHTML = items.map(([c, t]) => `<span><i style="background:${COLORS[c]}"></i>${t}</span>`)
-    .join("");
+  $("legend").replaceChildren(...items.map(([c, t]) =>
+    el("span", {}, el("i", { style: { background: COLORS[c] } }), t)));
 }
 const off = document.createElement("canvas");
 async function drawFrame() {
@@ -204,7 +219,7 @@ function field(name, label, value) {
   const list = Array.isArray(value);
   const v = (value === null || value === undefined) ? "" : (list ? value.join(" ") : value);
   const shown = list ? (value.join(", ") || "-") : fmt(value);
-  return `<dt>${label}</dt><dd data-field="${name}" data-value="${esc(v)}">${esc(shown)}</dd>`;
+  return [el("dt", {}, label), el("dd", { "data-field": name, "data-value": v }, shown)];
 }
 function why(k) {
   const tp = D.tp[k], oi = F.object_index[k];
@@ -253,18 +268,18 @@ function tpPanel(k) {
     ["ekf_running", "EKF running", tp.ekf_running], ["sigma_pos", "EKF sigma pos (m)", F.sigma_pos[k]],
     ["error_urad", "track error (urad, truth)", F.error_urad[k]], ["alpha", "alpha", F.alpha[k]],
     ["n_candidates", "candidates", F.n_candidates[k]], ["n_blobs", "blobs", F.n_blobs[k]]];
-  $("tp-state").innerHTML = rows.map(([name, label, v]) => field(name, label, v)).join("");
+  $("tp-state").replaceChildren(...rows.flatMap(([name, label, v]) => field(name, label, v)));
 }
 function candTable(k) {
   const cols = D.candidate_columns;
-  $("cand-table").tHead.innerHTML = "<tr>" + cols.map((c) => `<th>${c}</th>`).join("") + "<th>TP</th></tr>";
+  $("cand-table").tHead.replaceChildren(el("tr", {}, cols.map((c) => el("th", {}, c)), el("th", {}, "TP")));
   const rows = D.candidates[k];
-  $("cand-table").tBodies[0].innerHTML = rows.map((r) => {
+  $("cand-table").tBodies[0].replaceChildren(...rows.map((r) => {
     const chosen = r[0] === F.object_index[k] + 1;
-    return `<tr data-rank="${r[0]}"${chosen ? ' class="chosen"' : ""}>` +
-      r.map((v, i) => `<td data-col="${cols[i]}" data-value="${v === null ? "" : v}">${fmt(v)}</td>`).join("") +
-      `<td data-col="chosen">${chosen ? "chosen" : ""}</td></tr>`;
-  }).join("");
+    return el("tr", { "data-rank": r[0], class: chosen ? "chosen" : null },
+      r.map((v, i) => el("td", { "data-col": cols[i], "data-value": v === null ? "" : v }, fmt(v))),
+      el("td", { "data-col": "chosen" }, chosen ? "chosen" : ""));
+  }));
   $("cand-note").textContent = rows.length ? `(${rows.length}, best GOF first)` :
     (F.skip[k] ? `(none: ${F.skip_reason[k]})` : "(none reported)");
 }
@@ -281,16 +296,16 @@ function budgetPanel(k) {
     ctx.fillStyle = "#000"; ctx.textAlign = "right";
     ctx.fillText(`${ms.toFixed(2)} ms`, x0 + w - 4, y + 12); ctx.textAlign = "left";
   });
-  $("budget-table").tBodies[0].innerHTML = rows.map(([i, ms]) =>
-    `<tr><td style="text-align:left">${esc(D.budget.stages[i])}</td>` +
-    `<td data-stage="${esc(D.budget.stages[i])}">${fmt(ms, 4)}</td></tr>`).join("");
+  $("budget-table").tBodies[0].replaceChildren(...rows.map(([i, ms]) => el("tr", {},
+    el("td", { style: { "text-align": "left" } }, D.budget.stages[i]),
+    el("td", { "data-stage": D.budget.stages[i] }, fmt(ms, 4)))));
 }
 async function stagesPanel(k) {
   const list = await stageImages(k);
   if (k !== state.k) return;
   state.stages = list;
   const box = $("stages");
-  box.innerHTML = "";
+  box.replaceChildren();
   $("stage-note").textContent = list.length ? `(frame ${k}, ${list[0].shape[0]} x ${list[0].shape[1]} processed px)` :
     `(${D.stage_note})`;
   for (const s of list) {
@@ -299,7 +314,7 @@ async function stagesPanel(k) {
     const fig = document.createElement("figure"), cv = document.createElement("canvas");
     toCanvas(s, lo, hi === lo ? lo + 1 : hi, cv);
     fig.appendChild(cv);
-    fig.insertAdjacentHTML("beforeend", `<figcaption>${s.name} [${lo}, ${hi}]</figcaption>`);
+    fig.append(el("figcaption", {}, `${s.name} [${lo}, ${hi}]`));
     box.appendChild(fig);
   }
 }
@@ -363,10 +378,9 @@ function cursor(ctx, x) {
   ctx.strokeStyle = "#e00"; ctx.beginPath(); ctx.moveTo(x, 0); ctx.lineTo(x, 44); ctx.stroke();
 }
 function eventList() {
-  $("events").innerHTML = D.events.length ? "<ul>" + D.events.map((e) =>
-    `<li data-frame="${e.frame}">frame ${e.frame} (t = ${fmt(e.t, 4)} s): ` +
-    `${esc(e.kind)} ${esc(e.verdict)} ${esc(e.text)}</li>`)
-    .join("") + "</ul>" : "<p>no faults, uplinks or switches in this event</p>";
+  $("events").replaceChildren(D.events.length ? el("ul", {}, D.events.map((e) =>
+    el("li", { "data-frame": e.frame }, `frame ${e.frame} (t = ${fmt(e.t, 4)} s): ` +
+       `${e.kind} ${e.verdict} ${e.text}`))) : el("p", {}, "no faults, uplinks or switches in this event"));
   for (const li of $("events").querySelectorAll("li")) li.addEventListener("click", () => go(Number(li.dataset.frame)));
 }
 
@@ -402,13 +416,14 @@ function init() {
   $("facts").textContent = `${N} frames held of ${r.frames_planned} planned; seed ${r.seed}; sequence ` +
     `${r.sequence}, record ${r.record}; run ${r.run_id}` + (r.lock_frame !== null && r.lock_frame !== undefined ?
     `; locked at frame ${r.lock_frame}` : "");
-  const warn = [];
-  if (!r.complete) warn.push(`Incomplete recording (complete = False): the event was interrupted; ` +
+  const warnings = [];
+  if (!r.complete) warnings.push(`Incomplete recording (complete = False): the event was interrupted; ` +
     `it holds ${N} of ${r.frames_planned} planned frames.`);
-  if (!r.has_frames) warn.push("Recorded with --no-frames: no images; everything else is shown.");
-  if (D.stage_mismatch !== null && D.stage_mismatch !== undefined) warn.push(`The replay of the ` +
+  if (!r.has_frames) warnings.push("Recorded with --no-frames: no images; everything else is shown.");
+  if (D.stage_mismatch !== null && D.stage_mismatch !== undefined) warnings.push(`The replay of the ` +
     `stages differs from the recording from frame ${D.stage_mismatch}: later stages are not the recorded run's.`);
-  $("warnings").innerHTML = warn.map((w) => `<div class="warn" data-warning>${w}</div>`).join("");
+  $("warnings").replaceChildren();
+  for (const w of warnings) warn(w);
   $("slider").max = Math.max(0, N - 1); $("frame-last").textContent = Math.max(0, N - 1);
   $("slider").addEventListener("input", () => go($("slider").value));
   $("prev").addEventListener("click", () => go(state.k - 1));
@@ -441,7 +456,7 @@ function init() {
   });
   window.addEventListener("hashchange", () => go(fromHash()));
   legend(); eventList();
-  if (N === 0) { $("warnings").insertAdjacentHTML("beforeend", '<div class="warn">No frame recorded.</div>'); return; }
+  if (N === 0) { warn("No frame recorded."); return; }
   go(fromHash());
 }
 // for tests and the console: the frame shown, a pixel's stored value, a promise of the current draw

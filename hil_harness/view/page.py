@@ -4,9 +4,12 @@ a recording's data (:func:`.data.extract`) and, for a self-contained page, every
 from __future__ import annotations
 
 import base64
+import hashlib
+import html
 import json
 import math
 import os
+import re
 from importlib.resources import files
 from pathlib import Path
 
@@ -34,25 +37,45 @@ def _clean(o):
 
 
 def script_json(o) -> str:
-    """Strict JSON safe inside a ``<script>`` element (``</`` escaped)."""
-    return json.dumps(_clean(o), allow_nan=False, separators=(",", ":")).replace("</", "<\\/")
+    """Strict JSON safe inside a ``<script>`` element: ``<``, ``>`` and ``&`` (which JSON holds only
+    inside strings) written as ``\\u003c``, ``\\u003e``, ``\\u0026``, so no text of a recording
+    can end the element or open a comment in it."""
+    text = json.dumps(_clean(o), allow_nan=False, separators=(",", ":"))
+    return text.replace("<", "\\u003c").replace(">", "\\u003e").replace("&", "\\u0026")
+
+
+#: the template's placeholders, filled in one pass (a value is never searched for another)
+_PLACEHOLDER = re.compile(r"__(CSS|JS|TITLE|DATA|IMAGES|CSP)__")
+
+
+def content_security_policy(js: str) -> str:
+    """The page's policy: only its own inline script runs (by its SHA-256; the template puts it
+    between two newlines), no inline event handler, no other source; styles inline; fetches to
+    its own server only (``--serve``)."""
+    digest = base64.b64encode(hashlib.sha256(f"\n{js}\n".encode("utf-8")).digest()).decode()
+    return (f"default-src 'none'; script-src 'sha256-{digest}'; style-src 'unsafe-inline'; "
+            f"img-src data:; connect-src 'self'; base-uri 'none'; form-action 'none'")
 
 
 def _resource(name: str) -> str:
     return files("hil_harness.view").joinpath(name).read_text(encoding="utf-8")
 
 
+def page_js() -> str:
+    """The page's script (``page.js``), as the page holds it."""
+    return _resource("page.js")
+
+
 def page_html(data: dict, images: dict) -> str:
     """The page of ``data`` (:func:`.data.extract`) with ``images``: ``{"mode": "inline", "frames":
     [packed or None] * n, "stages": {frame: [packed + "name"]}}`` or ``{"mode": "serve"}`` (the
     page fetches ``frames/<k>`` and ``stages/<k>`` from its server)."""
-    html = _resource("page.html")
+    js = page_js()
     title = f"{data['recording']['scenario']} ({data['recording']['name']})"
-    for key, value in (("__CSS__", _resource("page.css")), ("__JS__", _resource("page.js")),
-                       ("__TITLE__", title.replace("<", "&lt;").replace("&", "&amp;")),
-                       ("__DATA__", script_json(data)), ("__IMAGES__", script_json(images))):
-        html = html.replace(key, value, 1)
-    return html
+    values = {"CSS": _resource("page.css"), "JS": js, "TITLE": html.escape(title),
+              "DATA": script_json(data), "IMAGES": script_json(images),
+              "CSP": html.escape(content_security_policy(js))}
+    return _PLACEHOLDER.sub(lambda m: values[m.group(1)], _resource("page.html"))
 
 
 def frame_bytes(rec, k: int) -> bytes:

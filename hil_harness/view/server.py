@@ -12,7 +12,12 @@ frame's image, stages and stars when it is shown, never all of them up front. Ro
                      the replay could not run or null}``, replayed in frame order on demand
                      (:class:`.stages.StageReplay`) and ahead of the requests in a thread
 
-Anything else is 404; a frame number outside the recording is 404 with a one-line reason.
+Anything else is 404; a frame number outside the recording is 404 with a one-line reason. The
+server listens on 127.0.0.1 only and answers only requests whose ``Host`` header is
+``127.0.0.1:PORT`` or ``localhost:PORT`` (a page of another site that a DNS rebinding points at
+127.0.0.1 sends its own name): others get 403 with one line. It reads nothing but its recording
+(no route names a file), and its answers carry the page's content security policy and
+``nosniff``.
 """
 from __future__ import annotations
 
@@ -25,7 +30,7 @@ from pathlib import Path
 from hil_harness.console import debug
 
 from .data import extract, open_recording
-from .page import frame_bytes, page_html, script_json
+from .page import content_security_policy, frame_bytes, page_html, page_js, script_json
 from .stages import StageReplay, stage_note
 
 HOST = "127.0.0.1"
@@ -47,6 +52,7 @@ class ViewServer(ThreadingHTTPServer):
             self.data["stage_mismatch"] = None
             self.data["stage_note"] = stage_note(self.data, replayed=True)
             self.page = page_html(self.data, {"mode": "serve"}).encode("utf-8")
+            self.csp = content_security_policy(page_js())
             self.data_json = script_json(self.data).encode("utf-8")
             self.lock = threading.Lock()
             self._closing = threading.Event()
@@ -98,6 +104,12 @@ class ViewServer(ThreadingHTTPServer):
             self.rec.close()
 
 
+def allowed_hosts(port: int) -> frozenset:
+    """The ``Host`` header values the server answers (lower case): its own address by IP and by
+    ``localhost``, with its port."""
+    return frozenset({f"{HOST}:{int(port)}", f"localhost:{int(port)}"})
+
+
 class ViewHandler(BaseHTTPRequestHandler):
     server: ViewServer
 
@@ -106,6 +118,8 @@ class ViewHandler(BaseHTTPRequestHandler):
         self.send_header("Content-Type", ctype)
         self.send_header("Content-Length", str(len(body)))
         self.send_header("Cache-Control", "no-store")
+        self.send_header("X-Content-Type-Options", "nosniff")
+        self.send_header("Content-Security-Policy", self.server.csp + "; frame-ancestors 'none'")
         self.end_headers()
         try:
             self.wfile.write(body)
@@ -114,6 +128,10 @@ class ViewHandler(BaseHTTPRequestHandler):
 
     def do_GET(self) -> None:                                   # noqa: N802 (http.server's name)
         srv, path = self.server, self.path.split("?", 1)[0]
+        host = (self.headers.get("Host") or "").strip().lower()
+        if host not in allowed_hosts(srv.server_address[1]):
+            return self._send(403, b"this server answers only requests for 127.0.0.1:PORT or "
+                                   b"localhost:PORT (the Host header)\n", "text/plain")
         if path in ("/", "/index.html"):
             return self._send(200, srv.page, "text/html; charset=utf-8")
         if path == "/data.json":
