@@ -60,6 +60,8 @@ def register(sub) -> None:
                     help="recording: use the IP's centroids, not ones re-measured on the frames")
     pr.add_argument("--keep-blends", action="store_true",
                     help="recording: keep stars with a catalogue neighbour within 4 px")
+    from hil_harness.cli.checks import add_ignore_checksums
+    add_ignore_checksums(pr)
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
     pn.add_argument("output", help="output .npz")
     pn.add_argument("--seed", type=int, default=0)
@@ -169,6 +171,8 @@ def _reconstruct(args) -> int:
     if args.control_points.endswith((".h5", ".hdf5")):
         from groundsim.assess.recording_stars import (BLEND_PX, control_points_from_recording,
                                                       recording_status)
+        from hil_harness.cli.checks import verify_recording
+        verify_recording(args.control_points, args, "rde reconstruct")
         complete, held, planned = recording_status(args.control_points)
         if not complete:
             print(f"{args.control_points}: incomplete recording (complete = False: the event was "

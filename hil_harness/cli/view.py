@@ -29,6 +29,8 @@ def register(sub) -> None:
                    help="serve the recording on 127.0.0.1 instead of writing a page")
     p.add_argument("--port", type=int, default=None,
                    help="port of --serve (default 8765; 0 picks a free one)")
+    from hil_harness.cli.checks import add_ignore_checksums
+    add_ignore_checksums(p)
     p.set_defaults(func=run)
 
 
@@ -38,6 +40,12 @@ def run(args) -> int:
         raise ValueError("--port is for --serve")
     if args.serve and args.out is not None:
         raise ValueError("--serve writes no page: -o/--out is not used with it")
+    from hil_harness.cli.checks import verify_recording
+    from hil_harness.view import open_recording
+    with open_recording(args.recording, "ignore") as rec:     # the name the user gave may be
+        path = rec.path                                       # its recording.partial.h5
+    verify_recording(path, args, "view")
+    args.checksums = "ignore" if args.ignore_checksums else "verify"
     if args.serve:
         return _serve(args)
     from hil_harness.view import write_page
@@ -47,7 +55,7 @@ def run(args) -> int:
         raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
     if not out.parent.is_dir():
         raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
-    path = write_page(args.recording, out, progress=progress_enabled())
+    path = write_page(args.recording, out, progress=progress_enabled(), checksums=args.checksums)
     size = path.stat().st_size
     print(f"page: {path} ({size / 1e6:.1f} MB)")
     if size > LARGE_PAGE_BYTES:
@@ -60,7 +68,7 @@ def _serve(args) -> int:
     from hil_harness.view import make_server
     port = 8765 if args.port is None else args.port
     try:
-        srv = make_server(args.recording, port)
+        srv = make_server(args.recording, port, args.checksums)
     except OSError as exc:
         if isinstance(exc, FileNotFoundError):
             raise
