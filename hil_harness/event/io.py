@@ -42,7 +42,7 @@ from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome)
-from .recording import Recorder, Recording, row_dtype, signals_deferred
+from .recording import Recorder, open_checked, row_dtype, signals_deferred
 from .replay import ReplayEvent, replay_config
 from .run_folder import RunFolder
 
@@ -769,15 +769,18 @@ def _jsonable(d):
     return json.loads(json.dumps(d, default=_json_default))
 
 
-def replay(path) -> dict:
+def replay(path, ignore_checksums: bool = False) -> dict:
     """Verify a recording's checksums, then re-run the flight code (IP + TP) on its frames and
     attitude data and compare every candidate message and track command word with the recorded ones.
     A partial recording (``complete`` = False) is replayed over the frames it holds.
+    ``ignore_checksums``: replay rows as stored even where they differ from their checksums.
 
     Returns ``{"recording", "complete", "planned", "frames", "verified", "checksums", "compared",
-    "identical", "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and
-    replayed, ``verified``: frames whose stored data matched their checksums, ``checksums``: False
-    for a recording made before them (nothing verified), ``planned``: the event's length).
+    "identical", "mismatches": [{"k", "what", "first_word"}...], "note"}`` (``frames``: frames
+    held and replayed, ``verified``: frames whose stored data matched their checksums,
+    ``checksums``: False for a recording made before them (nothing verified), ``planned``: the
+    event's length, ``note``: the one line of :func:`hil_harness.event.recording.open_checked`
+    or None).
 
     Raises
     ------
@@ -787,13 +790,14 @@ def replay(path) -> dict:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with Recording(path) as rec:
+    rec, checked, note = open_checked(path, ignore_checksums)
+    with rec:
         at = rec.attrs
-        checked = rec.verify() if rec.has_checksums else {"frames": 0}
         n = rec.n_frames or 0
+        verified = 0 if checked["damaged"] else checked["frames"]
         out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
-               "frames": n, "verified": checked["frames"], "checksums": rec.has_checksums,
-               "compared": 0, "identical": True, "mismatches": []}
+               "frames": n, "verified": verified, "checksums": rec.has_checksums,
+               "compared": 0, "identical": True, "mismatches": [], "note": note}
         if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
             raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
                              f"replay needs them")
