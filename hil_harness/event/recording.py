@@ -533,7 +533,7 @@ class CheckedRows:
         return a if dtype is None else a.astype(dtype)
 
     def __getitem__(self, index):
-        if index is Ellipsis or index == ():
+        if index is Ellipsis or (isinstance(index, tuple) and not index):
             first, rest = slice(None), ()
         elif isinstance(index, tuple):
             first, rest = index[0], index[1:]
@@ -630,6 +630,11 @@ class Recording:
             cid = self._f[key].attrs.get("checksum_id")
             if cid is not None:
                 ids[int(cid)] = key
+        unknown = np.flatnonzero(~np.isin(recs["dataset"], list(ids)))
+        if unknown.size:
+            more = unknown.size - min(5, unknown.size)
+            raise RecordingDamaged(f"{self.path}: checksums {_row_list(unknown[:5], more)}: name "
+                                   f"no dataset (the checksum records are damaged)")
         out, where = {}, {}
         for cid, key in ids.items():
             at = np.flatnonzero(recs["dataset"] == cid)
@@ -641,11 +646,6 @@ class Recording:
                                        f"row {int(rows[bad])} where row {bad} belongs (the "
                                        f"checksum records are damaged)")
             out[key], where[key] = recs["adler32"][at], at
-        unknown = np.flatnonzero(~np.isin(recs["dataset"], list(ids)))
-        if unknown.size:
-            more = unknown.size - min(5, unknown.size)
-            raise RecordingDamaged(f"{self.path}: checksums {_row_list(unknown[:5], more)}: name "
-                                   f"no dataset (the checksum records are damaged)")
         return out, where
 
     @property
