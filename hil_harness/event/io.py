@@ -680,7 +680,17 @@ def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frame
     EventInterrupted
         On SIGINT (KeyboardInterrupt): the frames recorded so far are kept in
         ``recording.partial.h5`` (``complete`` = False).
+    hil_harness.sizes.SizeRefused
+        (a ``ValueError``) before anything runs, when the event's frames, recording and figures
+        would not fit in the free memory or disk (the frame cap is the command's:
+        ``uvisi event --no-size-check``).
     """
+    from groundsim.scenario import Scenario
+    from hil_harness.sizes import check, event_cost
+    if not isinstance(scenario, Scenario):
+        scenario = Scenario.load(scenario, seed=seed)
+    n = scenario.n_frames if frames is None else min(int(frames), scenario.n_frames)
+    check(event_cost(f"scenario {scenario.name}", n, out, record_frames, figures), lift_cap=True)
     cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
     ev = Event(cfg, keep_frames=bool(out) and figures)
     if out is None:
