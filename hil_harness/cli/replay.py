@@ -43,15 +43,13 @@ def _clear_flags(path: Path) -> int:
     return 0
 
 
-def _partial_head(r: dict) -> str:
+def _flags_tail(r: dict) -> str:
+    """The end of a partial recording's line: how to clear the flags a killed writer left."""
     from groundsim.assess.h5open import write_flags
-    head = (f"{r['recording']}: incomplete recording (complete = False: the event was "
-            f"interrupted), holds {r['frames']} of {r['planned']} frames; {r['verified']} frames "
-            f"verified (checksums)")
-    if write_flags(r["recording"]):
-        head += (f"; still flagged open-for-write (the writer was killed): HDF5 tools before 2.0 "
-                 f"open it after uvisi replay --clear-flags {r['recording']}")
-    return head
+    if r["complete"] or not write_flags(r["recording"]):
+        return ""
+    return (f"; still flagged open-for-write (the writer was killed): HDF5 tools before 2.0 open "
+            f"it after uvisi replay --clear-flags {r['recording']}")
 
 
 def run(args) -> int:
@@ -67,11 +65,13 @@ def run(args) -> int:
     if not r["checksums"]:
         head = f"{r['recording']}: recorded without checksums, not verified"
     if not r["complete"]:
-        head = _partial_head(r)
+        head = (f"{r['recording']}: incomplete recording (complete = False: the event was "
+                f"interrupted), holds {r['frames']} of {r['planned']} frames; {r['verified']} "
+                f"frames verified (checksums)")
     if r["identical"]:
-        print(f"{head}, {r['compared']} messages re-computed, all bit-identical")
+        print(f"{head}, {r['compared']} messages re-computed, all bit-identical{_flags_tail(r)}")
         return 0
-    print(f"{head}; {len(r['mismatches'])} of {r['compared']} messages differ")
+    print(f"{head}; {len(r['mismatches'])} of {r['compared']} messages differ{_flags_tail(r)}")
     for m in r["mismatches"][:20]:
         print(f"  frame {m['k']}: {m['what']} differs from word {m['first_word']}")
     return 1
