@@ -3,8 +3,8 @@ one line carrying the estimate when it exceeds a stated cap or the free memory o
 
 The per-frame and per-run figures are measured (``docs/formats.md``, "Sizes checked before work
 starts"): a recorded ``satellite_over_stars`` event of 20 and of 160 frames (recording size and
-peak resident memory, the difference over 140 frames), a campaign spec of 100,000 runs
-(``tracemalloc``) and one run's part file.
+peak resident memory, the difference over 140 frames), ``uvisi view``'s page of the same two
+recordings, a campaign spec of 100,000 runs (``tracemalloc``) and one run's part file.
 
 The caps (:data:`MAX_FRAMES`, :data:`MAX_RUNS`) stop a typo (``duration = 1e12``,
 ``count = 1e9``) that would run for days; ``--no-size-check`` lifts them. The free-memory and
@@ -31,6 +31,10 @@ FIGURES_BYTES_PER_FRAME = 62_000
 EVENT_MEMORY_PER_FRAME = 32_000
 #: ... and with figures, the frames and images kept for them (594 kB measured) [bytes]
 FIGURES_MEMORY_PER_FRAME = 600_000
+#: ``uvisi view``'s page per frame: packed frame, stages, tables (53,160 B measured) [bytes]
+PAGE_BYTES_PER_FRAME = 53_200
+#: ... and the memory building it takes per frame (410 kB measured) [bytes]
+PAGE_MEMORY_PER_FRAME = 410_000
 #: a campaign run in memory: its parameters, id, result row (360 B measured for the first two)
 RUN_MEMORY_BYTES = 1_000
 #: a campaign run on disk: its part file (10.5 kB measured, 30 result columns) and its row
@@ -125,4 +129,12 @@ def campaign_cost(what: str, runs: int, out=None) -> Cost:
     is not tested)."""
     return Cost(what, int(runs), "runs", runs * RUN_DISK_BYTES, runs * RUN_MEMORY_BYTES,
                 MAX_RUNS, Path(out) if out is not None else None)
+
+
+def page_cost(what: str, frames: int, out) -> Cost:
+    """The cost of ``uvisi view``'s self-contained page of a recording of ``frames`` frames,
+    written to ``out``."""
+    frames = int(frames)
+    return Cost(what, frames, "frames", frames * PAGE_BYTES_PER_FRAME,
+                frames * PAGE_MEMORY_PER_FRAME, MAX_FRAMES, Path(out).parent)
 

@@ -236,3 +236,17 @@ def test_size_check_by_hand(monkeypatch, tmp_path):
     with pytest.raises(sizes.SizeRefused, match="over the cap of 1,000,000 frames"):
         sizes.check(over)
     assert sizes.check(over, lift_cap=True) is over
+
+
+def test_view_prices_its_page_before_reading(recording, tmp_path, monkeypatch):
+    page = tmp_path / "v.html"
+    monkeypatch.setattr(sizes, "MAX_FRAMES", 4)
+    rc, err, _ = _run(["view", str(recording), "-o", str(page)])
+    assert rc == 2 and len(err) == 1 and not page.exists()
+    assert "8 frames, ~0.0 GB on disk, ~0.0 GB of memory: over the cap of 4 frames" in err[0], err
+    monkeypatch.setattr(sizes, "free_disk", lambda p: 1000)       # the cap lifted, not the disk
+    rc, err, _ = _run(["view", str(recording), "-o", str(page), "--no-size-check"])
+    assert rc == 2 and "free on disk" in err[0] and not page.exists(), err
+    monkeypatch.undo()
+    rc, err, out = _run(["view", str(recording), "-o", str(page)])
+    assert rc == 0 and page.exists() and not err
