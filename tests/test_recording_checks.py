@@ -1,10 +1,10 @@
 """Every reader of a recording verifies its checksums through one path, and every command that
 renders, records or runs campaigns prices the request before it starts.
 
-- Each reader (``replay``, ``view``, ``budget --recording``, ``rde reconstruct``, ``inr event`` and
-  the Python ``Recording``) refuses a recording with one flipped bit in a frame, in a table row or in
-  a checksum record: exit 2, one line naming the dataset and the row; with ``--ignore-checksums`` it
-  reads the file and one line says what was ignored.
+- Each reader (``replay``, ``view``, ``budget --recording``, ``rde reconstruct``, ``inr event``
+  and the Python ``Recording``) refuses a recording with one flipped bit in a frame, in a table
+  row or in a checksum record: exit 2, one line naming the dataset and the row; with
+  ``--ignore-checksums`` it reads the file and one line says what was ignored.
 - A campaign of 10^9 runs and a scenario of 10^12 s are refused before any work, the line carrying
   the estimate; 2 runs are not; ``--frames`` past the scenario's end is an error.
 """
@@ -63,8 +63,8 @@ def _flip_checksum(f):
     rec = cs[j:j + 1].copy()
     rec["adler32"] ^= 1 << 7
     f["checksums"][j:j + 1] = rec
-    return f"tables/truth row 2 (frame 2): stored data does not match its checksum (checksums row {j}", \
-        None
+    return (f"tables/truth row 2 (frame 2): stored data does not match its checksum "
+            f"(checksums row {j}"), None
 
 
 FLIPS = {"frame": _flip_frame, "table": _flip_table, "checksum": _flip_checksum}
@@ -250,3 +250,21 @@ def test_view_prices_its_page_before_reading(recording, tmp_path, monkeypatch):
     monkeypatch.undo()
     rc, err, out = _run(["view", str(recording), "-o", str(page)])
     assert rc == 0 and page.exists() and not err
+
+
+def test_a_tuning_set_of_1e12_s_scenarios_is_refused_before_rendering(tmp_path):
+    from argparse import Namespace
+
+    from hil_harness.cli.tune import check_render_size
+    from hil_harness.tuning.data import SetSpec
+    spec = ('[set]\nname = "huge"\nsequence = "aurora"\n[[scenario]]\n'
+            'name = "aurora_surge_wfov_uv"\nseeds = { start = 0, count = 3 }\n'
+            '[scenario.override.scenario]\nduration = DURATION\n')
+    big = tmp_path / "big.toml"
+    big.write_text(spec.replace("DURATION", "1e12"))
+    rc, err, _ = _run(["tune", "set", str(big), "-o", str(tmp_path / "s.npz")])
+    assert rc == 2 and len(err) == 1 and not (tmp_path / "s.npz").exists()
+    assert "set spec huge: 6,000,000,000,003 frames" in err[0] and "over the cap" in err[0], err
+    small = tmp_path / "small.toml"                # 3 seeds x 5 frames (2 s at 2 Hz)
+    small.write_text(spec.replace("DURATION", "2.0"))
+    check_render_size(SetSpec.load(small), Namespace(no_size_check=False, events=None))
