@@ -1,7 +1,7 @@
 """Every command that reads a file, fed the bad variants of that file: empty, truncated, the wrong
-type (text under the right extension), a folder, a missing path, and for recordings an HDF5 file that
-is not one. Each must end with exit status 2 and ONE line on stderr that names the file -- never a
-traceback, never a hang.
+type (text under the right extension), a folder, a missing path, and for recordings an HDF5 file
+that is not one. Each must end with exit status 2 and ONE line on stderr that names the file --
+never a traceback, never a hang.
 
 The table is the place to add a new command: one row per (command line, file kind); ``{f}`` is
 replaced by each bad variant of that kind.

@@ -52,7 +52,8 @@ def _datasets(path) -> dict:
     """dataset name -> its rows as this h5py (HDF5 2.0) reads them."""
     out = {}
     with h5py.File(path, "r", swmr=write_flags(path) != 0) as f:
-        f.visititems(lambda n, o: out.__setitem__(n, o[()]) if isinstance(o, h5py.Dataset) else None)
+        f.visititems(lambda n, o: out.__setitem__(n, o[()])
+                     if isinstance(o, h5py.Dataset) else None)
     return out
 
 
@@ -188,7 +189,8 @@ with h5py.File(sys.argv[1], "r") as f:
     def one(name, obj):
         if isinstance(obj, h5py.Dataset):
             a = obj[()]
-            out["datasets"][name] = [list(a.shape), a.dtype.descr, hashlib.sha256(a.tobytes()).hexdigest()]
+            digest = hashlib.sha256(a.tobytes()).hexdigest()
+            out["datasets"][name] = [list(a.shape), a.dtype.descr, digest]
     f.visititems(one)
     out["attrs"] = sorted(f.attrs)
 print(json.dumps(out))

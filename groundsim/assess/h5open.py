@@ -87,8 +87,9 @@ def _superblock(fh, path) -> tuple[int, bytes]:
         if fh.read(8) == _SIGNATURE:
             head = _SIGNATURE + fh.read(4)
             if len(head) < 12 or head[8] not in (2, 3):
-                raise ValueError(f"{path}: HDF5 superblock version {head[8] if len(head) > 8 else '?'}"
-                                 f" has no open-for-write flags (a recording's is 3)")
+                version = head[8] if len(head) > 8 else "?"
+                raise ValueError(f"{path}: HDF5 superblock version {version} has no "
+                                 f"open-for-write flags (a recording's is 3)")
             n = 12 + 4 * head[9] + 4              # four addresses, then the checksum
             fh.seek(at)
             block = fh.read(n)

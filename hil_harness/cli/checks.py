@@ -8,10 +8,11 @@ from __future__ import annotations
 
 import sys
 
-IGNORE_HELP = ("read the recording even where stored rows do not match their checksums (one line "
-               "says what was ignored); by default a mismatch is refused naming the dataset and rows")
-NO_SIZE_CHECK_HELP = ("lift the stated caps on the request's size (frames, runs); the check against "
-                      "free memory and disk still applies")
+IGNORE_HELP = ("read the recording even where stored rows do not match their checksums (one "
+               "line says what was ignored); by default a mismatch is refused naming the dataset "
+               "and rows")
+NO_SIZE_CHECK_HELP = ("lift the stated caps on the request's size (frames, runs); the check "
+                      "against free memory and disk still applies")
 
 
 def add_ignore_checksums(p) -> None:

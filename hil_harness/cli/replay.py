@@ -37,7 +37,8 @@ def _clear_flags(path: Path) -> int:
                          f"clear the flags once it has ended")
     flags = clear_write_flags(path)
     if flags:
-        print(f"{path}: open-for-write flags cleared (were 0x{flags:02x}); HDF5 1.10+ tools open it")
+        print(f"{path}: open-for-write flags cleared (were 0x{flags:02x}); HDF5 1.10+ tools "
+              f"open it")
     else:
         print(f"{path}: no open-for-write flags set; nothing to clear")
     return 0

@@ -517,8 +517,8 @@ class CheckedRows:
     :class:`Recording` that verifies. Indexing (``a[k]``, ``a[i:j]``, ``a[()]``, ``a[k, 20]``,
     an increasing index array) reads the whole rows selected along axis 0, checks each against its
     Adler-32 (:class:`RecordingDamaged` on a mismatch, one line naming the dataset and rows), then
-    applies the rest of the index. ``shape``, ``dtype``, ``ndim``, ``chunks``, ``name``, ``attrs``, ``len()`` as the
-    dataset's."""
+    applies the rest of the index. ``shape``, ``dtype``, ``ndim``, ``chunks``, ``name``,
+    ``attrs``, ``len()`` as the dataset's."""
 
     def __init__(self, rec: "Recording", key: str, ds: h5py.Dataset):
         self._rec, self.key, self.ds = rec, key, ds
@@ -595,9 +595,8 @@ class Recording:
             self.n_frames = self._frames_held()
         except (OSError, KeyError, TypeError, AttributeError) as exc:
             self._f.close()
-            raise RecordingDamaged(f"{self.path}: not a readable uvisi recording "
-                                   f"({str(exc).splitlines()[0] if str(exc) else type(exc).__name__})"
-                                   ) from None
+            why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RecordingDamaged(f"{self.path}: not a readable uvisi recording ({why})") from None
         except BaseException:
             self._f.close()
             raise
