@@ -21,8 +21,13 @@ at any moment therefore leaves a readable ``recording.partial.h5`` holding every
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
 leaves the file partial. Both first let a writer that holds frames back append them
-(:meth:`Recorder.before_close`). A partial file is still flagged open-for-writing: h5py opens it with
-``swmr=True`` (:func:`open_h5` does).
+(:meth:`Recorder.before_close`). A file whose writer was killed is still flagged open-for-writing:
+h5py opens it with ``swmr=True`` (:func:`open_h5` does); HDF5 tools before 2.0 once the flags are
+cleared (:func:`groundsim.assess.h5open.clear_write_flags`, ``uvisi replay --clear-flags``).
+
+Format: HDF5 1.10 (:data:`LIBVER`), read by HDF5 1.10 and later. Reading: :class:`Recording`
+checks every row it returns against its checksum (:meth:`Recording.check_rows`);
+:func:`open_checked` verifies a whole recording first, for the commands.
 """
 from __future__ import annotations
 
