@@ -25,21 +25,14 @@ def add_no_size_check(p) -> None:
     p.add_argument("--no-size-check", action="store_true", help=NO_SIZE_CHECK_HELP)
 
 
-def checked_recording(path, args, command: str):
-    """Open the recording ``path`` for a command, every stored row verified first
-    (:func:`hil_harness.event.recording.open_checked`); the note of ``--ignore-checksums`` (or of
-    a recording without checksums) goes to stderr as one line. Returns ``(Recording, verified)``:
-    the caller closes the recording."""
+def verify_recording(path, args, command: str) -> dict:
+    """Verify every stored row of the recording ``path`` before a command reads it
+    (:func:`hil_harness.event.recording.open_checked`: the one checksum path); the note of
+    ``--ignore-checksums`` (or of a recording without checksums) goes to stderr as one line.
+    Returns what was verified (``{"frames", "rows", "damaged"}``)."""
     from hil_harness.event.recording import open_checked
     rec, verified, note = open_checked(path, bool(getattr(args, "ignore_checksums", False)))
+    rec.close()
     if note:
         print(f"uvisi {command}: {note}", file=sys.stderr)
-    return rec, verified
-
-
-def verify_recording(path, args, command: str) -> dict:
-    """:func:`checked_recording` for a command that reads the file itself afterwards: the
-    recording is verified and closed; returns what was verified."""
-    rec, verified = checked_recording(path, args, command)
-    rec.close()
     return verified
