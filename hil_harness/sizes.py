@@ -63,7 +63,7 @@ class Cost:
         out = f"{self.count:,} {self.unit}"
         if self.disk:
             out += f", ~{_gb(self.disk)} on disk"
-        return out + f", ~{_gb(self.memory)} of memory"
+        return out + (f", ~{_gb(self.memory)} of memory" if self.memory else "")
 
 
 def _gb(n: float) -> str:

@@ -268,3 +268,11 @@ def test_a_tuning_set_of_1e12_s_scenarios_is_refused_before_rendering(tmp_path):
     small = tmp_path / "small.toml"                # 3 seeds x 5 frames (2 s at 2 Hz)
     small.write_text(spec.replace("DURATION", "2.0"))
     check_render_size(SetSpec.load(small), Namespace(no_size_check=False, events=None))
+
+
+def test_an_rde_study_of_1e9_realisations_is_refused(tmp_path):
+    rc, err, _ = _run(["rde", "study", "--realisations", "1000000000", "--out",
+                       str(tmp_path / "rs")])
+    assert rc == 2 and len(err) == 1 and not (tmp_path / "rs").exists()
+    assert "1,000,000,000 realisations per grid point: over the cap of 1,000,000" in err[0], err
+

@@ -48,6 +48,8 @@ def register(sub) -> None:
     ps.add_argument("--sensitivity", action="store_true",
                     help="rerun the study with each error-model input scaled x0.25..x4, one at a time")
     ps.add_argument("--workers", type=int, default=2, help="worker processes (1 = serial)")
+    from hil_harness.cli.checks import add_no_size_check
+    add_no_size_check(ps)
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
                     "event recording (.h5)")
@@ -91,6 +93,10 @@ def _check_study_args(args) -> None:
         args.realisations = 60 if args.sensitivity else 100
     if args.realisations < 2:
         raise ValueError(f"--realisations {args.realisations}: must be at least 2")
+    from hil_harness.sizes import MAX_RUNS, Cost, check
+    # realisations are reduced to their mean chunk by chunk: nothing grows with their number
+    check(Cost(f"rde study --realisations {args.realisations:,}", args.realisations,
+               "realisations per grid point", 0.0, 0.0, MAX_RUNS), lift_cap=args.no_size_check)
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: must be >= 1")
     if os.path.exists(args.out) and not os.path.isdir(args.out):
