@@ -66,7 +66,9 @@ def check_event_size(name: str, args, out: Path) -> None:
         raise ValueError(f"--frames {args.frames:,}: scenario {scn.name} has {n:,} frames "
                          f"({scn.duration:g} s at 2 Hz); give at most {n:,}")
     n = n if args.frames is None else args.frames
-    check(event_cost(f"scenario {scn.name}", n, out, not args.no_frames, not args.no_figures),
+    what = f"scenario {scn.name}" + ("" if name == scn.name else f" ({name})") + \
+        ("" if args.frames is not None else f", duration = {scn.duration:g} s at 2 Hz")
+    check(event_cost(what, n, out, not args.no_frames, not args.no_figures),
           lift_cap=bool(getattr(args, "no_size_check", False)))
 
 
