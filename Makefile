@@ -6,7 +6,7 @@ BIN    := $(VENV)/bin
 STAMP_RUN := $(VENV)/.uvisi-installed-run
 STAMP     := $(VENV)/.uvisi-installed
 
-.PHONY: test demo bench install clean fuzz coverage killcheck docs-check
+.PHONY: test demo bench install clean fuzz coverage killcheck docs-check interchange
 
 $(STAMP_RUN): pyproject.toml
 	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
@@ -53,5 +53,10 @@ bench: $(STAMP)
 killcheck: $(STAMP)
 	$(BIN)/python -m tests.kill_anywhere 20
 
+# recordings read by other HDF5 builds: Debian's h5dump (hdf5-tools) and h5py<3.12 on HDF5 1.14,
+# installed from PyPI into .venv-h5py-old on first use (make test skips the h5py part without it)
+interchange: $(STAMP)
+	UVISI_OLD_H5PY=1 $(BIN)/python -m pytest -q -p no:cacheprovider tests/test_recording_interchange.py
+
 clean:
-	rm -rf $(VENV) build *.egg-info
+	rm -rf $(VENV) .venv-h5py-old build *.egg-info

@@ -1,6 +1,7 @@
 """Every command that reads a file, fed the bad variants of that file: empty, truncated, the wrong
-type (text under the right extension), a folder, a missing path. Each must end with exit status 2
-and ONE line on stderr that names the file -- never a traceback, never a hang.
+type (text under the right extension), a folder, a missing path, and for recordings an HDF5 file
+that is not one. Each must end with exit status 2 and ONE line on stderr that names the file --
+never a traceback, never a hang.
 
 The table is the place to add a new command: one row per (command line, file kind); ``{f}`` is
 replaced by each bad variant of that kind.
@@ -53,6 +54,11 @@ def _variants(tmp: Path, kind: str, h5_source: Path) -> dict:
     (tmp / f"folder{ext}").mkdir()
     out["folder"] = tmp / f"folder{ext}"
     out["missing"] = tmp / f"missing{ext}"
+    if kind == "h5":                               # HDF5, but not a recording
+        import h5py
+        with h5py.File(tmp / f"other{ext}", "w") as f:
+            f["tables/frames"] = np.zeros(3)
+        out["not a recording"] = tmp / f"other{ext}"
     if real is not None:
         data = Path(real).read_bytes()
         (tmp / f"cut{ext}").write_bytes(data[:len(data) // 3])

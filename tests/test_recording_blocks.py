@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from hil_harness.event.appendable import AppendableDataset, h5_type, write_attr
-from hil_harness.event.recording import CHECKSUM_DTYPE, Recorder, Recording, checksum_records
+from hil_harness.event.recording import (CHECKSUM_DTYPE, LIBVER, Recorder, Recording,
+                                         checksum_records)
 
 ROW = np.dtype([("k", np.int32), ("name", "S64"), ("q", np.float64, (4,)), ("flag", np.int8),
                 ("grid", np.int16, (3, 2))])
@@ -25,7 +26,7 @@ def _rows(n, seed=0):
 @pytest.mark.parametrize("blocks", [[5, 5, 5], [5, 3, 2, 7, 5, 1], [12, 1], [2, 2, 2, 2, 2, 2, 2]])
 def test_blocks_read_back_as_written_whatever_their_alignment(tmp_path, blocks):
     rows = _rows(sum(blocks))
-    with h5py.File(tmp_path / "b.h5", "w", libver="latest", rdcc_nbytes=0) as f:
+    with h5py.File(tmp_path / "b.h5", "w", libver=LIBVER, rdcc_nbytes=0) as f:
         ours = AppendableDataset(f, "t", ROW, (), chunk_rows=5)
         plain = f.create_dataset("plain", data=rows)          # h5py's own write: the oracle
         n = 0
@@ -40,7 +41,7 @@ def test_blocks_read_back_as_written_whatever_their_alignment(tmp_path, blocks):
 
 def test_arrays_and_a_compressed_dataset_read_back(tmp_path):
     frames = np.random.default_rng(1).integers(0, 4096, (7, 24, 16)).astype(np.uint16)
-    with h5py.File(tmp_path / "a.h5", "w", libver="latest") as f:
+    with h5py.File(tmp_path / "a.h5", "w", libver=LIBVER) as f:
         raw = AppendableDataset(f, "raw", np.uint16, (24, 16), chunk_rows=1)
         gz = AppendableDataset(f, "gz", np.uint16, (24, 16), chunk_rows=2, compression="gzip")
         for i0, i1 in ((0, 3), (3, 4), (4, 7)):
@@ -59,7 +60,7 @@ def test_a_padded_layout_reads_back(tmp_path):
     dt = np.dtype([("a", np.int8), ("b", np.float64)], align=True)
     rows = np.zeros(6, dt)
     rows["a"], rows["b"] = np.arange(6), np.arange(6) / 3
-    with h5py.File(tmp_path / "p.h5", "w", libver="latest") as f:
+    with h5py.File(tmp_path / "p.h5", "w", libver=LIBVER) as f:
         ours = AppendableDataset(f, "t", dt, (), chunk_rows=3)
         ours.append(rows[:3])
         ours.append(rows[3:])
@@ -123,7 +124,7 @@ def test_second_file_of_a_dtype_written_raw_and_read_back(tmp_path):
     rows = np.zeros(7, dt)
     rows["k"], rows["v"], rows["s"] = np.arange(7), np.arange(21.0).reshape(7, 3), b"abc"
     for i in range(2):
-        with h5py.File(tmp_path / f"{i}.h5", "w", libver="latest") as f:
+        with h5py.File(tmp_path / f"{i}.h5", "w", libver=LIBVER) as f:
             ds = AppendableDataset(f, "t", dt, (), 4)
             ds.append(rows[:5])
             ds.append(rows[5:])
@@ -132,7 +133,7 @@ def test_second_file_of_a_dtype_written_raw_and_read_back(tmp_path):
 
 
 def test_attributes_equal_h5pys_own(tmp_path):
-    with h5py.File(tmp_path / "a.h5", "w", libver="latest") as f:
+    with h5py.File(tmp_path / "a.h5", "w", libver=LIBVER) as f:
         ours, theirs = (f.create_dataset(n, (1,), np.int8) for n in ("ours", "theirs"))
         for name, value in (("flag", True), ("id", 7), ("x", np.float32(0.5))):
             write_attr(ours, name, value)

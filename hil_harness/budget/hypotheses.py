@@ -575,10 +575,11 @@ def hypothesis_ledger(h: Hypothesis, sequence, shape, ledger: Ledger) -> Ledger:
     return out
 
 
-def rescore_recording(path, h: Hypothesis) -> dict:
+def rescore_recording(path, h: Hypothesis, checksums: str = "verify") -> dict:
     """Every processed frame of an event recording re-priced under ``h``: ``{"frames", "overruns"
     (k), "overrun_ci95" (Wilson), "overruns_recorded" (the recording's own overrun flags; None if
-    it has none), "worst_ms": {processor: ms}, "worst_frame"}``.
+    it has none), "worst_ms": {processor: ms}, "worst_frame"}``. ``checksums``: "verify" (the
+    rows read are checked) or "ignore" (:class:`hil_harness.event.recording.Recording`).
     ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
     from pathlib import Path
 
@@ -589,7 +590,7 @@ def rescore_recording(path, h: Hypothesis) -> dict:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with Recording(path) as rec:
+    with Recording(path, checksums) as rec:
         if "ledger" not in rec.tables():
             raise ValueError(f"{path}: the recording holds no ledger table")
         cfg = rec.attrs.get("config", {})

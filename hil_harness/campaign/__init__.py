@@ -181,7 +181,8 @@ class CampaignSpec:
         return hashlib.sha1((self.job + "|" + ",".join(self.run_ids)).encode()).hexdigest()[:16]
 
     @classmethod
-    def load(cls, path) -> "CampaignSpec":
+    def load(cls, path, lift_cap: bool = False) -> "CampaignSpec":
+        """The spec of the TOML file ``path`` (``lift_cap``: as :meth:`from_dict`)."""
         p = Path(path)
         if not p.exists():
             raise FileNotFoundError(f"{p}: no such campaign spec")
@@ -189,10 +190,14 @@ class CampaignSpec:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as exc:
             raise ValueError(f"{p}: not valid TOML: {exc}") from None
-        return cls.from_dict(data, str(p))
+        return cls.from_dict(data, str(p), lift_cap=lift_cap)
 
     @classmethod
-    def from_dict(cls, data, source="<spec>", job: str | None = None) -> "CampaignSpec":
+    def from_dict(cls, data, source="<spec>", job: str | None = None,
+                  lift_cap: bool = False) -> "CampaignSpec":
+        """The spec of a parsed TOML table. Its runs are counted before they are listed: more
+        than :data:`hil_harness.sizes.MAX_RUNS` (unless ``lift_cap``) or more than the free
+        memory holds is refused (:class:`hil_harness.sizes.SizeRefused`, one line)."""
         if not isinstance(data, dict):
             raise ValueError(f"{source}: a campaign spec must be a table")
         extra = sorted(set(data) - {"campaign", "params", "axes", "flight"})
@@ -218,14 +223,14 @@ class CampaignSpec:
             if not all(isinstance(x, int) and not isinstance(x, bool) for x in (s0, cnt)) \
                     or s0 < 0 or cnt < 1:
                 raise ValueError(f"{source}: campaign.seeds start >= 0 and count >= 1 integers")
-            seeds = list(range(s0, s0 + cnt))
+            seeds = range(s0, s0 + cnt)            # listed once the runs are counted
         elif isinstance(seeds, int) and not isinstance(seeds, bool):
             seeds = [seeds]
-        if not (isinstance(seeds, list) and seeds and all(
+        if not isinstance(seeds, range) and not (isinstance(seeds, list) and seeds and all(
                 isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in seeds)):
             raise ValueError(f"{source}: campaign.seeds must be a list of ints >= 0 or "
                              f"{{start, count}}, got {seeds!r}")
-        if len(set(seeds)) != len(seeds):
+        if not isinstance(seeds, range) and len(set(seeds)) != len(seeds):
             raise ValueError(f"{source}: campaign.seeds has duplicates")
         params = data.get("params", {})
         if not isinstance(params, dict):
@@ -249,6 +254,9 @@ class CampaignSpec:
         if flight and "proposals" in set(params) | set(axes):
             raise ValueError(f"{source}: proposals given both in [flight] with and in "
                              f"[params]/[axes]")
+        from hil_harness.sizes import campaign_cost, check
+        n_runs = len(seeds) * math.prod(len(v) for v in axes.values())
+        check(campaign_cost(f"campaign {source}", n_runs), lift_cap)
         runs = []
         keys = list(axes)
         for s in seeds:

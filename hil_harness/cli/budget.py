@@ -40,6 +40,8 @@ def register(sub) -> None:
                    help="an event recording (recording.h5): re-price every frame's ledger under "
                         "each hypothesis and count the frames that would overrun (the recording "
                         "itself keeps today's model)")
+    from hil_harness.cli.checks import add_ignore_checksums
+    add_ignore_checksums(p)
     p.add_argument("--plot", default=None, help="bar chart PNG of the stages")
     p.add_argument("--sensitivity", default=None,
                    help="PNG: largest window vs code overhead factor and DSP clock")
@@ -59,8 +61,11 @@ def _sources(results) -> str:
 
 def _run_recording(args) -> int:
     from hil_harness.budget import hypotheses as bh
+    from hil_harness.cli.checks import verify_recording
     names = [args.hypothesis] if args.hypothesis != "today" else [h.name for h in bh.HYPOTHESES]
-    rows = [bh.rescore_recording(args.recording, bh.hypothesis(n)) for n in names]
+    verify_recording(args.recording, args, "budget")
+    how = "ignore" if args.ignore_checksums else "verify"
+    rows = [bh.rescore_recording(args.recording, bh.hypothesis(n), how) for n in names]
     rec = rows[0]["overruns_recorded"]
     print(f"{args.recording}: {rows[0]['frames']} processed frames, "
           f"{'?' if rec is None else rec} overran as recorded (today's model)")

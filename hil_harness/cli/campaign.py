@@ -37,6 +37,8 @@ def register(sub) -> None:
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.add_argument("--json", default=None, help="write the run summary (JSON)")
     add_with_option(p)
+    from hil_harness.cli.checks import add_no_size_check
+    add_no_size_check(p)
     p.set_defaults(func=run)
 
 
@@ -53,14 +55,16 @@ def run(args) -> int:
         raise ValueError("--serial and --scheduler exclude each other")
     if not args.serial and not args.scheduler and args.workers < 1:
         raise ValueError(f"--workers {args.workers} must be >= 1")
-    spec = CampaignSpec.load(args.spec)
+    from hil_harness.sizes import campaign_cost, check
+    spec = CampaignSpec.load(args.spec, lift_cap=args.no_size_check)
     if args.job or args.with_ is not None:
         raw = dict(spec.raw)
         if args.with_ is not None:                    # --with replaces the spec's [flight] with
             raw["flight"] = {"with": list(with_names(args))}
-        spec = CampaignSpec.from_dict(raw, spec.source, args.job)
+        spec = CampaignSpec.from_dict(raw, spec.source, args.job, args.no_size_check)
     spec.validate_inputs()
     out = Path(args.out or f"campaign_{spec.name}")
+    check(campaign_cost(f"campaign {spec.source}", len(spec.runs), out), args.no_size_check)
     print(f"[campaign] {spec.name}: {len(spec.runs)} runs of {spec.job} -> {out}")
     s = run_campaign(spec, out, scheduler=args.scheduler, workers=args.workers,
                      resume=args.resume, progress=not args.no_progress, serial=args.serial)

@@ -53,10 +53,30 @@ def register(sub) -> None:
                         "file's folder (the uplink path rule, docs/formats.md)")
     p.add_argument("--json", action="store_true", help="print the summary as JSON instead of a table")
     add_with_option(p)
+    from hil_harness.cli.checks import add_no_size_check
+    add_no_size_check(p)
     p.set_defaults(func=run)
 
 
 _TERMINATED = []
+
+
+def check_event_size(name: str, args, out: Path) -> None:
+    """Before anything runs: ``--frames`` no longer than the scenario, and the event's frames,
+    recording and figures within the caps and the free memory and disk (:mod:`hil_harness.sizes`;
+    one line, exit 2)."""
+    from groundsim.scenario import Scenario
+    from hil_harness.sizes import check, event_cost
+    scn = Scenario.load(name, seed=args.seed)
+    n = scn.n_frames
+    if args.frames is not None and args.frames > n:
+        raise ValueError(f"--frames {args.frames:,}: scenario {scn.name} has {n:,} frames "
+                         f"({scn.duration:g} s at 2 Hz); give at most {n:,}")
+    n = n if args.frames is None else args.frames
+    what = f"scenario {scn.name}" + ("" if name == scn.name else f" ({name})") + \
+        ("" if args.frames is not None else f", duration = {scn.duration:g} s at 2 Hz")
+    check(event_cost(what, n, out, not args.no_frames, not args.no_figures),
+          lift_cap=bool(getattr(args, "no_size_check", False)))
 
 
 def _terminate(signum, frame):
@@ -86,6 +106,7 @@ def run(args) -> int:
         if not Path(args.uplink_dir).is_dir():
             raise ValueError(f"--uplink-dir {args.uplink_dir}: not a folder")
         scenario = Scenario.load(name, seed=args.seed, uplink_dir=args.uplink_dir)
+    check_event_size(name, args, out)
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
     main_thread = threading.current_thread() is threading.main_thread()

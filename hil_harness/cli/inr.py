@@ -53,6 +53,8 @@ def register(sub) -> None:
     pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
     pe.add_argument("--gate", type=float, default=3.0, help="star association gate [px] (default 3)")
     pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
+    from hil_harness.cli.checks import add_ignore_checksums
+    add_ignore_checksums(pe)
     _report_options(pe)
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
     ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
@@ -177,7 +179,9 @@ def _synthetic(args) -> int:
 def _event(args) -> int:
     from groundsim.assess.inr import write_csv
     from groundsim.assess.recording_stars import inr_table_from_recording, recording_status
+    from hil_harness.cli.checks import verify_recording
     cfg = config_from_args(args)
+    verify_recording(args.recording, args, "inr event")
     complete, held, planned = recording_status(args.recording)
     table = inr_table_from_recording(args.recording, args.imager, args.gate)
     if not complete:

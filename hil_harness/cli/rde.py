@@ -48,6 +48,8 @@ def register(sub) -> None:
     ps.add_argument("--sensitivity", action="store_true",
                     help="rerun the study with each error-model input scaled x0.25..x4, one at a time")
     ps.add_argument("--workers", type=int, default=2, help="worker processes (1 = serial)")
+    from hil_harness.cli.checks import add_no_size_check
+    add_no_size_check(ps)
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
                     "event recording (.h5)")
@@ -60,6 +62,8 @@ def register(sub) -> None:
                     help="recording: use the IP's centroids, not ones re-measured on the frames")
     pr.add_argument("--keep-blends", action="store_true",
                     help="recording: keep stars with a catalogue neighbour within 4 px")
+    from hil_harness.cli.checks import add_ignore_checksums
+    add_ignore_checksums(pr)
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
     pn.add_argument("output", help="output .npz")
     pn.add_argument("--seed", type=int, default=0)
@@ -89,6 +93,10 @@ def _check_study_args(args) -> None:
         args.realisations = 60 if args.sensitivity else 100
     if args.realisations < 2:
         raise ValueError(f"--realisations {args.realisations}: must be at least 2")
+    from hil_harness.sizes import MAX_RUNS, Cost, check
+    # realisations are reduced to their mean chunk by chunk: nothing grows with their number
+    check(Cost(f"rde study --realisations {args.realisations:,}", args.realisations,
+               "realisations per grid point", 0.0, 0.0, MAX_RUNS), lift_cap=args.no_size_check)
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: must be >= 1")
     if os.path.exists(args.out) and not os.path.isdir(args.out):
@@ -169,6 +177,8 @@ def _reconstruct(args) -> int:
     if args.control_points.endswith((".h5", ".hdf5")):
         from groundsim.assess.recording_stars import (BLEND_PX, control_points_from_recording,
                                                       recording_status)
+        from hil_harness.cli.checks import verify_recording
+        verify_recording(args.control_points, args, "rde reconstruct")
         complete, held, planned = recording_status(args.control_points)
         if not complete:
             print(f"{args.control_points}: incomplete recording (complete = False: the event was "

@@ -44,6 +44,8 @@ def register(sub) -> None:
         q.add_argument("--workers", type=int, default=None,
                        help="processes used to build a set from a spec (default: the spec's)")
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
+        from hil_harness.cli.checks import add_no_size_check
+        add_no_size_check(q)
 
     q = ts.add_parser("set", help="build and save a labelled training set")
     common(q)
@@ -122,11 +124,34 @@ def _get_set(args):
     p = Path(args.set)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such set spec or set")
+    if p.suffix == ".toml":
+        from hil_harness.tuning.data import SetSpec
+        check_render_size(SetSpec.load(p), args)
     t0 = time.perf_counter()
     ts = build_set(p, progress=not args.no_progress, workers=args.workers)
     print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
           f"({time.perf_counter() - t0:.1f} s)")
     return ts
+
+
+def check_render_size(spec, args) -> None:
+    """Before anything is rendered: the frames every scenario entry and seed of the set spec
+    renders (each entry's ``start``, ``every`` and ``frames`` over the scenario's length, overrides
+    applied), within the frame cap and the free memory (a rendered frame and its rows each, the
+    closed-loop commands keep them) and the free disk of ``--events`` (:mod:`hil_harness.sizes`)."""
+    from hil_harness.sizes import FRAME_BYTES, RECORD_BYTES_PER_FRAME, MAX_FRAMES, Cost, check
+    from hil_harness.tuning.data import scenario_from_entry
+    n = 0
+    for e in spec.scenarios:
+        scn = scenario_from_entry(e["name"], e.get("override"), None, spec.base_dir)
+        per_seed = max(0, -(-(scn.n_frames - e.get("start", 0)) // e.get("every", 1)))
+        if e.get("frames") is not None:
+            per_seed = min(per_seed, e["frames"])
+        n += per_seed * len(e["seeds"])
+    cache = getattr(args, "events", None)
+    check(Cost(f"set spec {spec.name}", n, "frames",
+               n * FRAME_BYTES if cache else 0.0, n * (FRAME_BYTES + RECORD_BYTES_PER_FRAME),
+               MAX_FRAMES, Path(cache) if cache else None), lift_cap=args.no_size_check)
 
 
 def _names(args):
@@ -173,6 +198,7 @@ def _replayer(args):
         raise ValueError(f"{p}: closed-loop tuning replays frames: give the set spec (.toml), "
                          f"not a saved feature set")
     spec = SetSpec.load(p)
+    check_render_size(spec, args)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,
                        progress=not args.no_progress)

@@ -29,6 +29,9 @@ def register(sub) -> None:
                    help="serve the recording on 127.0.0.1 instead of writing a page")
     p.add_argument("--port", type=int, default=None,
                    help="port of --serve (default 8765; 0 picks a free one)")
+    from hil_harness.cli.checks import add_ignore_checksums, add_no_size_check
+    add_ignore_checksums(p)
+    add_no_size_check(p)
     p.set_defaults(func=run)
 
 
@@ -38,16 +41,24 @@ def run(args) -> int:
         raise ValueError("--port is for --serve")
     if args.serve and args.out is not None:
         raise ValueError("--serve writes no page: -o/--out is not used with it")
+    from hil_harness.cli.checks import verify_recording
+    from hil_harness.sizes import check, page_cost
+    from hil_harness.view import open_recording, write_page
+    from hil_harness.view.page import LARGE_PAGE_BYTES
+    with open_recording(args.recording, "ignore") as rec:     # the name the user gave may be
+        path, frames = rec.path, rec.n_frames or 0            # its recording.partial.h5
+    if not args.serve:
+        out = Path(args.out) if args.out else Path(args.recording).parent / "view.html"
+        if out.is_dir():
+            raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
+        if not out.parent.is_dir():
+            raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
+        check(page_cost(f"page of {path}", frames, out), lift_cap=args.no_size_check)
+    verify_recording(path, args, "view")
+    args.checksums = "ignore" if args.ignore_checksums else "verify"
     if args.serve:
         return _serve(args)
-    from hil_harness.view import write_page
-    from hil_harness.view.page import LARGE_PAGE_BYTES
-    out = Path(args.out) if args.out else Path(args.recording).parent / "view.html"
-    if out.is_dir():
-        raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
-    if not out.parent.is_dir():
-        raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
-    path = write_page(args.recording, out, progress=progress_enabled())
+    path = write_page(args.recording, out, progress=progress_enabled(), checksums=args.checksums)
     size = path.stat().st_size
     print(f"page: {path} ({size / 1e6:.1f} MB)")
     if size > LARGE_PAGE_BYTES:
@@ -60,7 +71,7 @@ def _serve(args) -> int:
     from hil_harness.view import make_server
     port = 8765 if args.port is None else args.port
     try:
-        srv = make_server(args.recording, port)
+        srv = make_server(args.recording, port, args.checksums)
     except OSError as exc:
         if isinstance(exc, FileNotFoundError):
             raise

@@ -42,7 +42,7 @@ from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome, flight_profile)
-from .recording import Recorder, Recording, row_dtype, signals_deferred
+from .recording import Recorder, open_checked, row_dtype, signals_deferred
 from .replay import ReplayEvent, predates_proposals, replay_config
 from .run_folder import RunFolder
 
@@ -711,7 +711,17 @@ def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frame
     EventInterrupted
         On SIGINT (KeyboardInterrupt): the frames recorded so far are kept in
         ``recording.partial.h5`` (``complete`` = False).
+    hil_harness.sizes.SizeRefused
+        (a ``ValueError``) before anything runs, when the event's frames, recording and figures
+        would not fit in the free memory or disk (the frame cap is the command's:
+        ``uvisi event --no-size-check``).
     """
+    from groundsim.scenario import Scenario
+    from hil_harness.sizes import check, event_cost
+    if not isinstance(scenario, Scenario):
+        scenario = Scenario.load(scenario, seed=seed)
+    n = scenario.n_frames if frames is None else min(int(frames), scenario.n_frames)
+    check(event_cost(f"scenario {scenario.name}", n, out, record_frames, figures), lift_cap=True)
     cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
     ev = Event(cfg, keep_frames=bool(out) and figures)
     if out is None:
@@ -800,15 +810,18 @@ def _jsonable(d):
     return json.loads(json.dumps(d, default=_json_default))
 
 
-def replay(path) -> dict:
+def replay(path, ignore_checksums: bool = False) -> dict:
     """Verify a recording's checksums, then re-run the flight code (IP + TP) on its frames and
     attitude data and compare every candidate message and track command word with the recorded ones.
     A partial recording (``complete`` = False) is replayed over the frames it holds.
+    ``ignore_checksums``: replay rows as stored even where they differ from their checksums.
 
     Returns ``{"recording", "complete", "planned", "frames", "verified", "checksums", "compared",
-    "identical", "mismatches": [{"k", "what", "first_word"}...]}`` (``frames``: frames held and
-    replayed, ``verified``: frames whose stored data matched their checksums, ``checksums``: False
-    for a recording made before them (nothing verified), ``planned``: the event's length).
+    "identical", "mismatches": [{"k", "what", "first_word"}...], "note"}`` (``frames``: frames
+    held and replayed, ``verified``: frames whose stored data matched their checksums,
+    ``checksums``: False for a recording made before them (nothing verified), ``planned``: the
+    event's length, ``note``: the one line of :func:`hil_harness.event.recording.open_checked`
+    or None).
 
     Raises
     ------
@@ -818,13 +831,14 @@ def replay(path) -> dict:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
-    with Recording(path) as rec:
+    rec, checked, note = open_checked(path, ignore_checksums)
+    with rec:
         at = rec.attrs
-        checked = rec.verify() if rec.has_checksums else {"frames": 0}
         n = rec.n_frames or 0
+        verified = 0 if checked["damaged"] else checked["frames"]
         out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
-               "frames": n, "verified": checked["frames"], "checksums": rec.has_checksums,
-               "compared": 0, "identical": True, "mismatches": []}
+               "frames": n, "verified": verified, "checksums": rec.has_checksums,
+               "compared": 0, "identical": True, "mismatches": [], "note": note}
         if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
             raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
                              f"replay needs them")

@@ -21,8 +21,13 @@ at any moment therefore leaves a readable ``recording.partial.h5`` holding every
 written block. :meth:`Recorder.close` writes the rest, sets ``complete = True`` and renames the file to
 its final name; :meth:`Recorder.keep` (an interrupt, a failure) writes the whole frames buffered and
 leaves the file partial. Both first let a writer that holds frames back append them
-(:meth:`Recorder.before_close`). A partial file is still flagged open-for-writing: h5py opens it with
-``swmr=True`` (:func:`open_h5` does).
+(:meth:`Recorder.before_close`). A file whose writer was killed is still flagged open-for-writing:
+h5py opens it with ``swmr=True`` (:func:`open_h5` does); HDF5 tools before 2.0 once the flags are
+cleared (:func:`groundsim.assess.h5open.clear_write_flags`, ``uvisi replay --clear-flags``).
+
+Format: HDF5 1.10 (:data:`LIBVER`), read by HDF5 1.10 and later. Reading: :class:`Recording`
+checks every row it returns against its checksum (:meth:`Recording.check_rows`);
+:func:`open_checked` verifies a whole recording first, for the commands.
 """
 from __future__ import annotations
 
@@ -54,6 +59,10 @@ CHUNK_MAX_BYTES = 1 << 20
 #: /checksums: one record per stored row of every dataset (``dataset`` is its ``checksum_id``)
 CHECKSUM_DTYPE = np.dtype([("dataset", np.uint16), ("row", np.int64), ("adler32", np.uint32)])
 _DEFERRED_SIGNALS = {signal.SIGINT, signal.SIGTERM}
+#: HDF5 file-format bounds of a recording: the 1.10 format, the oldest SWMR writes (superblock
+#: version 3) and the newest every HDF5 >= 1.10 reads; "latest" under HDF5 2.0 writes datatype
+#: messages HDF5 1.10 - 1.14 cannot read (docs/formats.md lists the versions tested)
+LIBVER = ("v110", "v110")
 
 
 @contextmanager
@@ -240,7 +249,7 @@ class Recorder:
         self.compression = compression
         # chunk cache off: a block's chunks are written once and never read back by the writer, so
         # the cache would only hold memory (CPU per block measured the same with and without)
-        self._f = h5py.File(self.partial, "w", libver="latest", rdcc_nbytes=0)
+        self._f = h5py.File(self.partial, "w", libver=LIBVER, rdcc_nbytes=0)
         self._f.attrs["format"] = FORMAT
         self._f.attrs["complete"] = False
         self._f.attrs["flush_every"] = self.flush_every
@@ -501,63 +510,147 @@ class Recorder:
         return False
 
 
+def _row_list(rows, more: int = 0) -> str:
+    """``row 4`` / ``rows 4, 9, 12`` (``and N more``)."""
+    words = ", ".join(str(int(r)) for r in rows)
+    tail = f" and {more} more" if more else ""
+    return f"row {words}" if len(rows) == 1 and not more else f"rows {words}{tail}"
+
+
+class CheckedRows:
+    """A recorded array read through its checksums: ``rec.array(name)`` of a
+    :class:`Recording` that verifies. Indexing (``a[k]``, ``a[i:j]``, ``a[()]``, ``a[k, 20]``,
+    an increasing index array) reads the whole rows selected along axis 0, checks each against its
+    Adler-32 (:class:`RecordingDamaged` on a mismatch, one line naming the dataset and rows), then
+    applies the rest of the index. ``shape``, ``dtype``, ``ndim``, ``chunks``, ``name``,
+    ``attrs``, ``len()`` as the dataset's."""
+
+    def __init__(self, rec: "Recording", key: str, ds: h5py.Dataset):
+        self._rec, self.key, self.ds = rec, key, ds
+        self.shape, self.dtype, self.attrs = ds.shape, ds.dtype, ds.attrs
+        self.ndim, self.chunks, self.name = ds.ndim, ds.chunks, ds.name
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __array__(self, dtype=None, copy=None):
+        a = self[()]
+        return a if dtype is None else a.astype(dtype)
+
+    def __getitem__(self, index):
+        if index is Ellipsis or (isinstance(index, tuple) and not index):
+            first, rest = slice(None), ()
+        elif isinstance(index, tuple):
+            first, rest = index[0], index[1:]
+        else:
+            first, rest = index, ()
+        n = self.shape[0]
+        if isinstance(first, (int, np.integer)):
+            k = int(first) + (n if int(first) < 0 else 0)
+            if not 0 <= k < n:
+                raise IndexError(f"{self.key}: row {int(first)} out of range (0-{n - 1})")
+            rows = self.ds[k:k + 1]
+            self._rec.check_rows(self.key, k, rows)
+            return rows[0][rest] if rest else rows[0]
+        if isinstance(first, slice):
+            i0, i1, step = first.indices(n)
+            rows = self.ds[i0:max(i0, i1)] if step > 0 else self.ds[()]
+            self._rec.check_rows(self.key, i0 if step > 0 else 0, rows)
+            rows = rows[::step] if step > 0 else rows[first]
+        else:
+            ks = np.arange(n)[np.asarray(first)]
+            if ks.ndim != 1 or np.any(np.diff(ks) <= 0):
+                raise IndexError(f"{self.key}: rows must be increasing, not {first!r}")
+            rows = self.ds[ks] if len(ks) else self.ds[0:0]
+            for j, k in enumerate(ks):
+                self._rec.check_rows(self.key, int(k), rows[j:j + 1])
+        return rows[(slice(None),) + rest] if rest else rows
+
+
 class Recording:
     """Read access to a recording: ``rec.attrs``, ``rec.table(name)``, ``rec.array(name)``,
-    ``rec.complete``, ``rec.n_frames`` (frames held), ``rec.verify()``."""
+    ``rec.complete``, ``rec.n_frames`` (frames held), ``rec.verify()``.
 
-    def __init__(self, path):
+    Parameters
+    ----------
+    path : str or Path
+    checksums : {"verify", "ignore"}
+        "verify" (default): every row a table or array read returns is first checked against its
+        Adler-32 (:meth:`check_rows`, the one checksum path of every reader);
+        :class:`RecordingDamaged` names the dataset and rows that differ. "ignore": rows are read
+        as stored (the ``--ignore-checksums`` of the commands).
+
+    ``FileNotFoundError`` / ``ValueError`` (one line naming the file) when it is missing, a folder,
+    not HDF5, cut short or an HDF5 file that is not a recording.
+    """
+
+    def __init__(self, path, checksums: str = "verify"):
+        if checksums not in ("verify", "ignore"):
+            raise ValueError(f"checksums={checksums!r}: 'verify' or 'ignore'")
         self.path = Path(path)
+        self.checking = checksums == "verify"
         self._f = open_h5(self.path)
-        fmt = self._f.attrs.get("format")
-        if fmt not in READ_FORMATS:
-            self._f.close()
-            raise ValueError(f"{self.path} is not a uvisi recording (format attribute "
-                             f"{fmt!r} != {FORMAT!r})")
-        self.complete = bool(self._f.attrs.get("complete", True))
         try:
-            self._sums = self._checksums()
-        except RecordingDamaged:
+            fmt = self._f.attrs.get("format")
+            if fmt not in READ_FORMATS:
+                raise ValueError(f"{self.path}: not a uvisi recording (format attribute "
+                                 f"{fmt!r} != {FORMAT!r})")
+            self.complete = bool(self._f.attrs.get("complete", True))
+            self._sums, self._sum_rows = self._checksums()
+            self.n_frames = self._frames_held()
+        except (OSError, KeyError, TypeError, AttributeError) as exc:
+            self._f.close()
+            why = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+            raise RecordingDamaged(f"{self.path}: not a readable uvisi recording ({why})") from None
+        except BaseException:
             self._f.close()
             raise
-        self.n_frames = self._frames_held()
 
     def _datasets(self) -> list[str]:
         out = []
         for top in ("tables", "arrays", "host"):
             if top in self._f:
+                if not isinstance(self._f[top], h5py.Group):
+                    raise RecordingDamaged(f"{self.path}: /{top} is not a group")
                 out += [f"{top}/{k}" for k in self._f[top].keys()]
         return sorted(out)
 
-    def _checksums(self) -> dict[str, np.ndarray] | None:
-        """dataset -> the stored Adler-32 of its rows 0, 1, ... (as far as they are contiguous);
-        None for a recording made before checksums."""
+    def _checksums(self) -> tuple:
+        """``(sums, records)``: dataset -> the stored Adler-32 of its rows 0, 1, ... and dataset
+        -> the row of ``/checksums`` holding each; ``(None, None)`` for a recording made before
+        checksums."""
         if "checksums" not in self._f:
-            return None if self._f.attrs.get("format") != FORMAT else {}
+            return (None, None) if self._f.attrs.get("format") != FORMAT else ({}, {})
         try:
             recs = self._f["checksums"][()]
         except (OSError, ValueError) as exc:
             raise RecordingDamaged(f"{self.path}: checksums unreadable "
                                    f"({str(exc).splitlines()[0]})") from None
+        if recs.dtype != CHECKSUM_DTYPE:
+            raise RecordingDamaged(f"{self.path}: checksums: layout {recs.dtype} is not "
+                                   f"{CHECKSUM_DTYPE}")
         ids = {}
         for key in self._datasets():
             cid = self._f[key].attrs.get("checksum_id")
             if cid is not None:
                 ids[int(cid)] = key
-        out = {}
+        unknown = np.flatnonzero(~np.isin(recs["dataset"], list(ids)))
+        if unknown.size:
+            more = unknown.size - min(5, unknown.size)
+            raise RecordingDamaged(f"{self.path}: checksums {_row_list(unknown[:5], more)}: name "
+                                   f"no dataset (the checksum records are damaged)")
+        out, where = {}, {}
         for cid, key in ids.items():
-            mine = recs[recs["dataset"] == cid]
-            rows = mine["row"]
+            at = np.flatnonzero(recs["dataset"] == cid)
+            rows = recs["row"][at]
             n = len(rows)
             if n and not np.array_equal(rows, np.arange(n)):
                 bad = int(np.flatnonzero(rows != np.arange(n))[0])
-                raise RecordingDamaged(f"{self.path}: checksums of {key} out of order at its row "
-                                       f"{bad} (the checksum records are damaged)")
-            out[key] = mine["adler32"]
-        unknown = set(np.unique(recs["dataset"]).tolist()) - set(ids)
-        if unknown:
-            raise RecordingDamaged(f"{self.path}: checksum records name no dataset "
-                                   f"(ids {sorted(unknown)[:5]}): the checksum records are damaged")
-        return out
+                raise RecordingDamaged(f"{self.path}: checksums row {int(at[bad])}: names {key} "
+                                       f"row {int(rows[bad])} where row {bad} belongs (the "
+                                       f"checksum records are damaged)")
+            out[key], where[key] = recs["adler32"][at], at
+        return out, where
 
     @property
     def has_checksums(self) -> bool:
@@ -597,58 +690,139 @@ class Recording:
     def arrays(self) -> list[str]:
         return sorted(self._f["arrays"].keys()) if "arrays" in self._f else []
 
-    def _held_rows(self, ds: h5py.Dataset) -> slice:
-        """The rows of ``ds`` that belong to the frames held (all of them when complete)."""
+    def _held_rows(self, key: str, ds: h5py.Dataset) -> slice:
+        """The rows of ``ds`` that belong to the frames held (all of them when complete; of a
+        partial recording, per-frame datasets: the frames held, others: the rows whose checksums
+        are on disk)."""
         if self.n_frames is None or self.complete:
             return slice(None)
         if ds.attrs.get("per_frame", False):
             return slice(0, self.n_frames)
+        if self._sums is not None:
+            return slice(0, min(ds.shape[0], len(self._sums.get(key, ()))))
         return slice(None)
 
-    def table(self, name: str) -> np.ndarray:
-        """A table's rows (of a partial recording: the rows of the frames it holds)."""
+    def _read(self, key: str, ds: h5py.Dataset, sel: slice) -> np.ndarray:
+        """Rows ``sel`` of ``ds``, checked (:meth:`check_rows`); HDF5 read errors as
+        :class:`RecordingDamaged` naming the dataset."""
         try:
-            ds = self._f[f"tables/{name}"]
+            rows = ds[sel]
+        except (OSError, ValueError) as exc:
+            raise RecordingDamaged(f"{self.path}: {key}: unreadable "
+                                   f"({str(exc).splitlines()[0]})") from None
+        self.check_rows(key, sel.start or 0, rows)
+        return rows
+
+    def table(self, name: str) -> np.ndarray:
+        """A table's rows (of a partial recording: the rows of the frames it holds), checked."""
+        key = f"tables/{name}"
+        try:
+            ds = self._f[key]
         except KeyError:
             raise KeyError(f"recording {self.path.name} has no table {name!r}; "
                            f"it has {self.tables()}") from None
-        rows = ds[self._held_rows(ds)]
+        rows = self._read(key, ds, self._held_rows(key, ds))
         if not self.complete and self.n_frames is not None and rows.dtype.names \
                 and "k" in rows.dtype.names:
             rows = rows[rows["k"] < self.n_frames]
         return rows
 
-    def array(self, name: str) -> h5py.Dataset:
-        """The stacked dataset (lazy: index it to read rows; ``n_frames`` of them are whole)."""
+    def array(self, name: str) -> "CheckedRows | h5py.Dataset":
+        """The stacked dataset, lazy: index it to read rows (``n_frames`` of them are whole).
+        Verifying (and recorded with checksums): a :class:`CheckedRows` that checks every row
+        read; else the ``h5py.Dataset``."""
+        key = f"arrays/{name}"
         try:
-            return self._f[f"arrays/{name}"]
+            ds = self._f[key]
         except KeyError:
             raise KeyError(f"recording {self.path.name} has no array {name!r}; "
                            f"it has {self.arrays()}") from None
+        return CheckedRows(self, key, ds) if self.checking and self._sums is not None else ds
 
     def host_timing(self) -> np.ndarray | None:
-        return self._f["host/timing"][()] if "host/timing" in self._f else None
+        """``/host/timing`` (checked), None when absent."""
+        if "host/timing" not in self._f:
+            return None
+        ds = self._f["host/timing"]
+        return self._read("host/timing", ds, self._held_rows("host/timing", ds))
 
-    def verify(self) -> dict:
-        """Check every stored row of every dataset against its recorded Adler-32.
-
-        Returns
-        -------
-        dict : ``{"frames": frames held and verified, "rows": {dataset: rows verified}}``.
+    def check_rows(self, key: str, first: int, rows: np.ndarray) -> None:
+        """Check rows ``[first, first + len(rows))`` of dataset ``key`` (as read) against their
+        stored Adler-32: the one checksum check every reader goes through. Nothing is checked when
+        the recording is read with ``checksums="ignore"`` or was made before checksums.
 
         Raises
         ------
         RecordingDamaged
-            On the first row whose checksum differs, or a block HDF5 cannot read; the message is
-            one line naming the file, the dataset, the row and (where known) the frame.
+            One line naming the file, the dataset, the rows (and frames) that differ and the
+            ``/checksums`` rows holding their checksums; or rows without a checksum.
+        """
+        if not self.checking or self._sums is None or not len(rows):
+            return
+        bad = self.mismatches(key, first, rows)
+        if bad:
+            raise RecordingDamaged(self._damage_line(key, bad, rows, first))
+
+    def mismatches(self, key: str, first: int, rows: np.ndarray) -> list[int]:
+        """Rows (absolute numbers) of ``rows`` (rows ``first``... of ``key``) that differ from
+        their stored Adler-32 or have none."""
+        want = self._sums.get(key, np.zeros(0, np.uint32))[first:first + len(rows)]
+        got = adler32_rows(rows[:len(want)]) if len(want) else np.zeros(0, np.uint32)
+        bad = (first + np.flatnonzero(got != want)).tolist()
+        return bad + list(range(first + len(want), first + len(rows)))
+
+    def _damage_line(self, key: str, bad: list, rows: np.ndarray | None, first: int) -> str:
+        shown, more = bad[:5], len(bad) - min(5, len(bad))
+        per_frame = bool(self._f[key].attrs.get("per_frame", False))
+        if per_frame:
+            where = f" (frame{'s' if len(shown) > 1 else ''} {', '.join(map(str, shown))})"
+        elif rows is not None and rows.dtype.names and "k" in rows.dtype.names \
+                and all(0 <= b - first < len(rows) for b in shown):
+            ks = sorted({int(rows[b - first]["k"]) for b in shown})
+            where = f" (frame{'s' if len(ks) > 1 else ''} {', '.join(map(str, ks))})"
+        else:
+            where = ""
+        n_sums = len(self._sums.get(key, ()))
+        no_sum = [b for b in shown if b >= n_sums]
+        if no_sum and len(no_sum) == len(shown):
+            return f"{self.path}: {key} {_row_list(shown, more)}{where}: no checksum recorded"
+        recs = self._sum_rows[key][[b for b in shown if b < n_sums]]
+        return (f"{self.path}: {key} {_row_list(shown, more)}{where}: stored data does not match "
+                f"its checksum (checksums {_row_list(recs)})")
+
+    def verify(self, collect: bool = False) -> dict:
+        """Check every stored row of every dataset against its recorded Adler-32.
+
+        Parameters
+        ----------
+        collect : bool
+            Do not raise on a mismatch: list it in ``"damaged"`` and go on (what
+            ``--ignore-checksums`` reports).
+
+        Returns
+        -------
+        dict : ``{"frames": frames held and verified, "rows": {dataset: rows verified},
+        "damaged": [one line per damaged dataset]}``.
+
+        Raises
+        ------
+        RecordingDamaged
+            (without ``collect``) on the first block of rows whose checksums differ, or a block
+            HDF5 cannot read; the message is one line naming the file, the dataset, the rows and
+            (where known) the frames.
         """
         if self._sums is None:
             raise RecordingDamaged(f"{self.path}: recorded without checksums (format "
                                    f"{self._f.attrs.get('format')!r}); cannot verify it")
-        rows = {}
+        rows, damaged = {}, []
         for key in self._datasets():
-            rows[key] = self._verify_dataset(key)
-        return {"frames": self.n_frames or 0, "rows": rows}
+            try:
+                rows[key] = self._verify_dataset(key)
+            except RecordingDamaged as exc:
+                if not collect:
+                    raise
+                damaged.append(str(exc))
+        return {"frames": self.n_frames or 0, "rows": rows, "damaged": damaged}
 
     def _unreadable_row(self, key: str, ds: h5py.Dataset, i0: int, i1: int, per_frame: bool):
         """Raise :class:`RecordingDamaged` naming the first row of ``[i0, i1)`` HDF5 cannot read."""
@@ -662,6 +836,8 @@ class Recording:
         raise RecordingDamaged(f"{self.path}: {key} rows {i0}-{i1 - 1}: unreadable")
 
     def _verify_dataset(self, key: str) -> int:
+        """Rows of ``key`` verified (all its rows; of a partial recording, the rows held); raises
+        :class:`RecordingDamaged` naming every damaged row (up to 5) of the dataset."""
         ds = self._f[key]
         want_all = self._sums.get(key)
         if want_all is None:
@@ -675,23 +851,20 @@ class Recording:
         else:
             n = self.n_frames if per_frame and self.n_frames is not None else \
                 min(ds.shape[0], len(want_all))
+        bad, first_rows = [], None
         for i0 in range(0, n, VERIFY_BLOCK_ROWS):
             i1 = min(n, i0 + VERIFY_BLOCK_ROWS)
             try:
                 data = ds[i0:i1]
             except (OSError, ValueError):
                 self._unreadable_row(key, ds, i0, i1, per_frame)
-            bad = np.flatnonzero(adler32_rows(data) != want_all[i0:i1])
-            if bad.size:
-                i = i0 + int(bad[0])
-                if per_frame:
-                    where = f" (frame {i})"
-                elif data.dtype.names and "k" in data.dtype.names:
-                    where = f" (frame {int(data[bad[0]]['k'])})"
-                else:
-                    where = ""
-                raise RecordingDamaged(f"{self.path}: {key} row {i}{where}: stored data does not "
-                                       f"match its checksum")
+            found = self.mismatches(key, i0, data)
+            if found and not bad:
+                first_rows = (i0, data)
+            bad += found
+        if bad:
+            i0, data = first_rows
+            raise RecordingDamaged(self._damage_line(key, bad, data, i0))
         return n
 
     def close(self) -> None:
@@ -703,3 +876,50 @@ class Recording:
     def __exit__(self, *exc):
         self.close()
         return False
+
+
+def open_checked(path, ignore_checksums: bool = False) -> tuple[Recording, dict, str | None]:
+    """Open a recording for a command that reads it, and verify every stored row first (the
+    commands' one checksum path: :meth:`Recording.verify`, whose row check
+    :meth:`Recording.check_rows` the Python reader applies to every read).
+
+    Parameters
+    ----------
+    path : recording (``recording.h5`` or a ``recording.partial.h5``)
+    ignore_checksums : bool
+        Read the rows as stored: mismatches are listed, not raised, and the recording is opened
+        with ``checksums="ignore"``.
+
+    Returns
+    -------
+    (Recording, verified, note) : the open recording (the caller closes it), what
+    :meth:`Recording.verify` returned (``{"frames": 0, "rows": {}, "damaged": []}`` for a
+    recording made before checksums) and a one-line note for the user, or None: what
+    ``ignore_checksums`` ignored, or that the recording has no checksums.
+
+    Raises
+    ------
+    RecordingDamaged, ValueError, FileNotFoundError
+        One line naming the file (and the dataset and rows that differ).
+    """
+    rec = Recording(path, checksums="ignore" if ignore_checksums else "verify")
+    try:
+        if not rec.has_checksums:
+            return rec, {"frames": 0, "rows": {}, "damaged": []}, \
+                f"{rec.path}: recorded without checksums (format {rec.attrs.get('format')!r}): " \
+                f"not verified"
+        checked = rec.verify(collect=ignore_checksums)
+    except BaseException:
+        rec.close()
+        raise
+    note = None
+    if ignore_checksums:
+        bad = checked["damaged"]
+        if bad:
+            first = bad[0].split(": ", 1)[-1]
+            more = f" (+{len(bad) - 1} more datasets)" if len(bad) > 1 else ""
+            note = f"{rec.path}: --ignore-checksums: read as stored despite {first}{more}"
+        else:
+            note = (f"{rec.path}: --ignore-checksums: nothing to ignore, every row of "
+                    f"{len(checked['rows'])} datasets matched its checksum")
+    return rec, checked, note

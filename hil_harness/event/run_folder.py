@@ -72,3 +72,21 @@ class RunFolder:
     def __exit__(self, *exc):
         self.release()
         return False
+
+
+def writer_pid(path) -> str | None:
+    """The pid of the ``uvisi event`` writing to the folder ``path`` now (it holds the folder's
+    lock), None when none does (no lock file, or its lock free). The lock file is not created."""
+    try:
+        fd = os.open(Path(path) / LOCK_NAME, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            return os.read(fd, 32).decode(errors="replace").strip() or "?"
+        fcntl.flock(fd, fcntl.LOCK_UN)
+        return None
+    finally:
+        os.close(fd)

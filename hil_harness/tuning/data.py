@@ -263,7 +263,7 @@ def _seeds(v, where):
     if isinstance(v, dict) and set(v) <= {"start", "count"} and "count" in v:
         s, c = v.get("start", 0), v["count"]
         if all(isinstance(x, int) and not isinstance(x, bool) for x in (s, c)) and s >= 0 and c >= 1:
-            return list(range(s, s + c))
+            return range(s, s + c)             # listed when rendered: counted first
     raise ValueError(f"{where}: seeds must be an int >= 0, a list of them, or "
                      f"{{start = S, count = N}}, got {v!r}")
 

@@ -21,11 +21,12 @@ from .server import make_server
 __all__ = ["extract", "write_page", "make_server", "open_recording"]
 
 
-def write_page(recording, out=None, progress: bool = False) -> Path:
+def write_page(recording, out=None, progress: bool = False, checksums: str = "verify") -> Path:
     """Write the self-contained page of ``recording`` to ``out`` (default: ``view.html`` beside
-    it), atomically; returns its path."""
+    it), atomically; returns its path. ``checksums``: "verify" (every row read is checked) or
+    "ignore", as :class:`hil_harness.event.recording.Recording` takes it."""
     from .page import build, write_atomic
     out = Path(out) if out is not None else Path(recording).parent / "view.html"
-    with open_recording(recording) as rec:
+    with open_recording(recording, checksums) as rec:
         html = build(rec, progress=progress)
     return write_atomic(out, html)

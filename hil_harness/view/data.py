@@ -40,9 +40,10 @@ _FRAME_COLUMNS = ("k", "t", "skip", "n_candidates", "n_blobs", "alpha", "pred_ro
                   "status", "n_star_gates", "n_object_gates")
 
 
-def open_recording(path):
+def open_recording(path, checksums: str = "verify"):
     """Open a recording for viewing: ``recording.h5`` or an interrupted ``recording.partial.h5``
-    (given either name, the one that exists); FileNotFoundError / ValueError with one line."""
+    (given either name, the one that exists); FileNotFoundError / ValueError with one line.
+    ``checksums``: "verify" or "ignore" (:class:`hil_harness.event.recording.Recording`)."""
     from hil_harness.event.recording import Recording, partial_path
     p = Path(path)
     if p.is_dir():
@@ -51,7 +52,7 @@ def open_recording(path):
         p = partial_path(p)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such recording")
-    return Recording(p)
+    return Recording(p, checksums)
 
 
 def _num(x, nd: int = 9):

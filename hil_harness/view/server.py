@@ -42,8 +42,8 @@ class ViewServer(ThreadingHTTPServer):
 
     daemon_threads = True
 
-    def __init__(self, recording, port: int):
-        self.rec = open_recording(recording)
+    def __init__(self, recording, port: int, checksums: str = "verify"):
+        self.rec = open_recording(recording, checksums)
         try:
             self.data = extract(self.rec)
             self.stars = self.data["stars"]
@@ -157,9 +157,10 @@ class ViewHandler(BaseHTTPRequestHandler):
         debug("uvisi view: " + fmt % args)
 
 
-def make_server(recording, port: int = 8765) -> ViewServer:
+def make_server(recording, port: int = 8765, checksums: str = "verify") -> ViewServer:
     """A :class:`ViewServer` of ``recording`` bound to 127.0.0.1:``port`` (0: a free port);
-    call ``serve_forever()`` and, when done, ``server_close()``."""
+    call ``serve_forever()`` and, when done, ``server_close()``. ``checksums``: as
+    :class:`hil_harness.event.recording.Recording` takes it."""
     if not 0 <= int(port) <= 65535:
         raise ValueError(f"--port {port}: must be 0..65535")
-    return ViewServer(Path(recording), port)
+    return ViewServer(Path(recording), port, checksums)
