@@ -31,9 +31,13 @@ from pathlib import Path
 
 import numpy as np
 
-from hil_harness.images import ImageError, frame_flags, read_images, scale_note, to_counts
+from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
+                                to_counts, unusable)
 
-__all__ = ["register", "run", "detect_one", "read_frames", "to_12bit", "HELP_TEXT"]
+__all__ = ["register", "run", "detect_one", "add_input_options", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
+
+#: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
+FIELD_SPARE = 64
 
 HELP_TEXT = """\
 Run the flight image processor on image files. Every plane of every file (FITS, TIFF, PNG/JPEG,
@@ -86,6 +90,7 @@ def register(sub) -> None:
                    help="map the pixels to 12-bit counts (the default; kept for old scripts)")
     g.add_argument("--no-scale", action="store_true",
                    help="insist that the pixels already are 12-bit counts (integers 0..4095)")
+    add_input_options(p)
     p.add_argument("--max-candidates", type=int, default=23,
                    help="candidates reported per image, 1..1000 (default 23, the flight limit)")
     p.add_argument("--workers", type=int, default=1,
@@ -96,6 +101,48 @@ def register(sub) -> None:
                    help="PNG with candidates marked and numbered by rank (one per image: "
                         "_<i> is added when there are several)")
     p.set_defaults(func=run)
+
+
+def add_input_options(p) -> None:
+    """The input options ``detect``, ``track`` and the tuning commands share: ``--channel``,
+    ``--mask``, ``--field-circle`` (the field's mutually exclusive pair)."""
+    from hil_harness.field import parse_circle
+    p.add_argument("--channel", default="l", choices=CHANNELS,
+                   help="what a colour image becomes: l = luma by ITU-R BT.601 (0.299 R + 0.587 G "
+                        "+ 0.114 B; the default), or the r, g or b channel (auroral green 557.7 nm:"
+                        " g); greyscale images are read as they are")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--mask", default=None, metavar="FILE",
+                   help="the instrument's field: an image the size of the frames (any format read "
+                        "here), non-zero inside (default: found in each frame: a fisheye disc with "
+                        "dark corners, else the whole frame)")
+    g.add_argument("--field-circle", default=None, type=_circle_arg(parse_circle),
+                   metavar="ROW,COL,RADIUS",
+                   help="the field as a circle in full-resolution pixels (pixel centres at +0.5)")
+
+
+def _circle_arg(parse):
+    import argparse
+
+    def conv(text):
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
+    conv.__name__ = "ROW,COL,RADIUS"
+    return conv
+
+
+def read_mask(path):
+    """The ``--mask`` file as a 2-D array (its first frame), or None without one. Raises
+    :class:`ImageError` naming the file when it holds more than one frame."""
+    if path is None:
+        return None
+    frames = read_images([path])
+    if len(frames) != 1:
+        raise ImageError(f"{path}: --mask: the mask file holds {len(frames)} frames; give one "
+                         f"image")
+    return frames[0].data
 
 
 # ------------------------------------------------------------------------------------------------
@@ -140,21 +187,28 @@ def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
 # one image
 # ------------------------------------------------------------------------------------------------
 def detect_one(img12, seq, record, compaction, window_mode="full", max_candidates=23,
-               gate_sigma=None, tile=None) -> dict:
+               gate_sigma=None, tile=None, field=None) -> dict:
     """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
     ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
     ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
     job's peak gate (:func:`hil_harness.detect.jobs.peak_gate_record`) at this many sigmas of the
     processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
-    :func:`hil_harness.detect.jobs.tile_for`)."""
+    :func:`hil_harness.detect.jobs.tile_for`). ``field``: optional bool [H, W], the instrument's
+    field (:mod:`hil_harness.field`): the gate's noise is measured inside it and candidates whose
+    centroid falls outside it are dropped (a ground filter after the flight ranking; the flight
+    IP is asked for up to :data:`FIELD_SPARE` more candidates so that ``max_candidates`` remain)."""
     from flightsw.ip.preprocess import compact
+    from hil_harness.field import compact_mask, inside
     from flightsw.messages import FEATURE_NAMES
     from hil_harness.detect.jobs import GATE_TOP, peak_gate_record, tile_for
     from hil_harness.detect.fullframe import detect_frame
     from hil_harness.images import noise_sigma
     gate = None
+    whole = field is None or bool(np.all(field))
+    cmask = None if whole else compact_mask(field, compaction)
     if gate_sigma:
-        noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
+        comp = compact(img12, compaction) if compaction > 1 else img12
+        noise = noise_sigma(comp, cmask)
         noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
         # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
         # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
@@ -162,11 +216,16 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
         record = peak_gate_record(record, noise, gate_sigma)
         gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
                 "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
-    out = detect_frame(img12, seq, record, compaction, window_mode, max_candidates,
+    ask = max_candidates if whole else min(1000, max_candidates + FIELD_SPARE)
+    out = detect_frame(img12, seq, record, compaction, window_mode, ask,
                        tile_for(seq) if tile is None else tile)
+    keep = np.arange(len(out["feats"]))
+    if not whole and keep.size:
+        keep = keep[inside(field, out["feats"]["row"], out["feats"]["col"])]
+    keep = keep[:max_candidates]
     cands = []
-    for i, ft in enumerate(out["feats"]):
-        cands.append({"rank": i + 1, "row": float(ft["row"]), "col": float(ft["col"]),
+    for i, ft in zip(keep, out["feats"][keep]):
+        cands.append({"rank": len(cands) + 1, "row": float(ft["row"]), "col": float(ft["col"]),
                       "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
                       "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
     return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
@@ -270,24 +329,34 @@ def _setup(args):
     return record, seq, f, gate
 
 
-def _frame_job(args, record, seq, f, gate):
+def _frame_job(args, record, seq, f, gate, user_mask=None):
     """The work of one frame, as a function of the frame alone (run here or in a worker):
     ``InputFrame -> (entry, counts or None (no --plot), messages for stderr)``."""
+    from hil_harness.field import resolve_field
 
     def one(fr):
-        flags = frame_flags(fr.data)
         try:
-            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits)
+            field = resolve_field(fr.data, user_mask, args.field_circle)
+        except ValueError as exc:
+            opt = f"--mask {args.mask}" if args.mask else "--field-circle"
+            raise ImageError(f"{fr.name}: {opt}: {exc}") from None
+        flags = frame_flags(fr.data, field.mask)
+        try:
+            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits,
+                                   field=field.mask)
         except ImageError as exc:
             raise ImageError(f"{fr.name}: {exc}") from None
         note = scale_note(fr.name, scale)
         msgs = [f"uvisi detect: note: {note}"] if note else []
         if flags:
-            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
-                        f"answer is still given)")
-        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate)
+            kind = "unusable" if unusable(flags) else "warning only"
+            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
+                        f"the IP's answer is still given)")
+        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
+                         field=field.mask)
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
-                 "flags": flags, "scale": scale, "compaction": f, "mode": out["mode"],
+                 "flags": flags, "scale": scale, "field": field.to_json(), "compaction": f,
+                 "mode": out["mode"],
                  "windows": out["windows"], "record": record.name, "sequence": seq.name,
                  "gate": out["gate"], "candidates": out["candidates"]}
         return entry, (img if args.plot else None), msgs
@@ -300,12 +369,14 @@ def run(args) -> int:
 
     from hil_harness.detect.batch import map_ordered, workers_for
     record, seq, f, gate = _setup(args)
-    frames = read_images(args.images)
+    frames = read_images(args.images, args.channel)
+    user_mask = read_mask(args.mask)
     workers = workers_for(len(frames), args.workers)
     entries, plots = [], []
     bar = tqdm(total=len(frames), desc="detect", unit="frame", file=sys.stderr,
                disable=len(frames) < 4 or None)
-    for entry, img, msgs in map_ordered(_frame_job(args, record, seq, f, gate), frames, workers):
+    for entry, img, msgs in map_ordered(_frame_job(args, record, seq, f, gate, user_mask), frames,
+                                       workers):
         bar.update()
         for m in msgs:
             tqdm.write(m, file=sys.stderr)
