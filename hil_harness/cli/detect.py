@@ -190,45 +190,73 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
                gate_sigma=None, tile=None, field=None) -> dict:
     """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
     ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
-    ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
-    job's peak gate (:func:`hil_harness.detect.jobs.peak_gate_record`) at this many sigmas of the
-    processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
-    :func:`hil_harness.detect.jobs.tile_for`). ``field``: optional bool [H, W], the instrument's
-    field (:mod:`hil_harness.field`): the gate's noise is measured inside it and candidates whose
-    centroid falls outside it are dropped (a ground filter after the flight ranking; the flight
-    IP is asked for up to :data:`FIELD_SPARE` more candidates so that ``max_candidates`` remain)."""
+    ``cut_counts``), ``candidates`` (list of dicts, best first).
+
+    ``gate_sigma``: the star job: apply its peak gate (:func:`hil_harness.detect.jobs.
+    peak_gate_record`) at this many sigmas of the frame's pixel noise, then order the candidates
+    by aperture flux (:func:`hil_harness.detect.photometry.order_stars`: a ground ordering; the
+    flight ranking is unchanged and each candidate keeps its ``flight_rank``). ``tile``: full-frame
+    tile (default: the sequence's, :func:`hil_harness.detect.jobs.tile_for`). ``field``: optional
+    bool [H, W], the instrument's field (:mod:`hil_harness.field`): the noise is measured inside
+    it and candidates whose centroid falls outside it are dropped (a ground filter after the
+    flight ranking; the IP is asked for up to :data:`FIELD_SPARE` more candidates so that
+    ``max_candidates`` remain)."""
     from flightsw.ip.preprocess import compact
-    from hil_harness.field import compact_mask, inside
-    from flightsw.messages import FEATURE_NAMES
-    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record, tile_for
-    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.field import compact_mask
     from hil_harness.images import noise_sigma
-    gate = None
     whole = field is None or bool(np.all(field))
-    cmask = None if whole else compact_mask(field, compaction)
-    if gate_sigma:
-        comp = compact(img12, compaction) if compaction > 1 else img12
-        noise = noise_sigma(comp, cmask)
-        noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
-        # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
-        # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
-        noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
-        record = peak_gate_record(record, noise, gate_sigma)
-        gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
-                "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
-    ask = max_candidates if whole else min(1000, max_candidates + FIELD_SPARE)
-    out = detect_frame(img12, seq, record, compaction, window_mode, ask,
-                       tile_for(seq) if tile is None else tile)
+    mask = None if whole else np.asarray(field, bool)
+    tile = tile_for_seq(seq) if tile is None else tile
+    if not gate_sigma:
+        out, cands = _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates,
+                                    tile, mask)
+        return {"mode": out["mode"], "windows": out["windows"], "gate": None,
+                "candidates": cands}
+    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record
+    from hil_harness.detect.photometry import FILL_PEAK_SIGMA, order_stars
+    comp = compact(img12, compaction) if compaction > 1 else img12
+    noise = noise_sigma(comp, None if mask is None else compact_mask(mask, compaction))
+    noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+    # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
+    # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
+    noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
+    gate = {"feature": "max_brightness", "sigma": float(gate_sigma), "noise_counts": float(noise),
+            "cut_counts": float(gate_sigma * noise)}
+    out, gated = _ip_candidates(img12, seq, peak_gate_record(record, noise, gate_sigma),
+                                compaction, window_mode, 1000, tile, mask)
+    below = []
+    if len(gated) < max_candidates:
+        below = _ip_candidates(img12, seq, peak_gate_record(record, noise, FILL_PEAK_SIGMA),
+                               compaction, window_mode, 1000, tile, mask)[1]
+    pix_noise = noise_sigma(img12, mask)
+    cands = order_stars(img12, gated, below, pix_noise if pix_noise > 0 else 0.5,
+                        max_candidates, mask)
+    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+
+
+def tile_for_seq(seq) -> int:
+    """The full-frame tile of a sequence (:func:`hil_harness.detect.jobs.tile_for`)."""
+    from hil_harness.detect.jobs import tile_for
+    return tile_for(seq)
+
+
+def _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates, tile, mask):
+    """One run of the IP -> (detect_frame's dict, candidate dicts inside ``mask``, at most
+    ``max_candidates``, ranks 1.. in the IP's order)."""
+    from flightsw.messages import FEATURE_NAMES
+    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.field import inside
+    ask = max_candidates if mask is None else min(1000, max_candidates + FIELD_SPARE)
+    out = detect_frame(img12, seq, record, compaction, window_mode, ask, tile)
     keep = np.arange(len(out["feats"]))
-    if not whole and keep.size:
-        keep = keep[inside(field, out["feats"]["row"], out["feats"]["col"])]
-    keep = keep[:max_candidates]
+    if mask is not None and keep.size:
+        keep = keep[inside(mask, out["feats"]["row"], out["feats"]["col"])]
     cands = []
-    for i, ft in zip(keep, out["feats"][keep]):
+    for i, ft in zip(keep[:max_candidates], out["feats"][keep[:max_candidates]]):
         cands.append({"rank": len(cands) + 1, "row": float(ft["row"]), "col": float(ft["col"]),
                       "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
                       "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
-    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+    return out, cands
 
 
 # ------------------------------------------------------------------------------------------------
