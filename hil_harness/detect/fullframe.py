@@ -46,8 +46,8 @@ from functools import lru_cache
 
 import numpy as np
 
-__all__ = ["detect_frame", "front_image", "tile_starts", "merge_duplicates", "MAX_TILE",
-           "DEFAULT_TILE", "MERGE_RADIUS"]
+__all__ = ["detect_frame", "tile_starts", "merge_duplicates", "MAX_TILE", "DEFAULT_TILE",
+           "MERGE_RADIUS"]
 
 #: largest window (compacted pixels): the threshold's statistics limit (its 40-bit sum of squares)
 MAX_TILE = 128
@@ -188,25 +188,6 @@ def _ranking_record(plan, record):
     """The record the back end ranks against: the one the sequence's rank step names, else
     ``record`` (as :class:`flightsw.ip.pipeline.FramePlan` chooses)."""
     return record if plan.rank_record is plan.record else plan.rank_record
-
-
-def front_image(img12, seq, record, compaction) -> np.ndarray:
-    """The sequence's front end on the whole frame, up to (not including) its threshold step: the
-    image the threshold sees (the flight kernels, as :func:`detect_frame` runs them).
-
-    ``img12``: uint16 [H, W] counts; ``seq``, ``record``: as :func:`detect_frame`;
-    ``compaction``: 1, 2 or 4. Returns int16 [H // f, W // f] (Q16.0)."""
-    from flightsw.ip.pipeline import OP_THRESHOLD, front_step_k
-    from flightsw.ip.preprocess import compact_k
-    plan = _frame_plan(seq, record, compaction)
-    H, W = img12.shape
-    f = compaction
-    img = compact_k(np.ascontiguousarray(img12), f, 0, 0, H // f, W // f)
-    for i in range(plan.front.ops.size):
-        if plan.front.ops[i] == OP_THRESHOLD:
-            break
-        img = front_step_k(img, i, plan.front, None, None, plan.aq, plan.mode)[0]
-    return img
 
 
 @lru_cache(maxsize=32)
