@@ -32,6 +32,8 @@ def _check_schema(entry):
     assert isinstance(entry["flags"], list) and isinstance(entry["scale"], dict)
     star = entry["record"] == "star" and entry["gate"] is not None
     extra = {"flight_rank", "gate", "flux", "snr"} if star else set()
+    if entry["record"] == "streak":
+        extra = {"trail"}
     for i, c in enumerate(entry["candidates"]):
         assert c["rank"] == i + 1
         assert set(c) == {"rank", "row", "col", "distance", "gof", "features"} | extra
@@ -164,6 +166,10 @@ def test_streak_is_one_candidate_with_its_orientation(tmp_path, shape, cases):
         o = e["candidates"][0]["features"]["orientation"]
         err = abs(o - a) % 180.0
         assert min(err, 180.0 - err) <= 2.0, (a, o)
+        trail = e["candidates"][0]["trail"]                    # the ground measurement: ends
+        err = abs(trail["orientation"] - a) % 180.0
+        assert min(err, 180.0 - err) <= 2.0, (a, trail)
+        assert abs(trail["length"] - L) <= 0.1 * L, (L, trail)
 
 
 # ------------------------------------------------------------------------------------------------

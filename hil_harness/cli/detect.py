@@ -34,7 +34,7 @@ import numpy as np
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
                                 to_counts, unusable)
 
-__all__ = ["register", "run", "detect_one", "add_input_options", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
+__all__ = ["register", "run", "detect_one", "add_trails", "add_input_options", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
 
 #: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
 FIELD_SPARE = 64
@@ -187,7 +187,7 @@ def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
 # one image
 # ------------------------------------------------------------------------------------------------
 def detect_one(img12, seq, record, compaction, window_mode="full", max_candidates=23,
-               gate_sigma=None, tile=None, field=None) -> dict:
+               gate_sigma=None, tile=None, field=None, trails=False) -> dict:
     """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
     ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
     ``cut_counts``), ``candidates`` (list of dicts, best first).
@@ -200,7 +200,8 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     bool [H, W], the instrument's field (:mod:`hil_harness.field`): the noise is measured inside
     it and candidates whose centroid falls outside it are dropped (a ground filter after the
     flight ranking; the IP is asked for up to :data:`FIELD_SPARE` more candidates so that
-    ``max_candidates`` remain)."""
+    ``max_candidates`` remain). ``trails``: the streak job: each candidate gets ``"trail"``
+    (:func:`add_trails`)."""
     from flightsw.ip.preprocess import compact
     from hil_harness.field import compact_mask
     from hil_harness.images import noise_sigma
@@ -210,6 +211,8 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     if not gate_sigma:
         out, cands = _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates,
                                     tile, mask)
+        if trails:
+            add_trails(cands, img12, out.get("thresholded"), compaction, mask)
         return {"mode": out["mode"], "windows": out["windows"], "gate": None,
                 "candidates": cands}
     from hil_harness.detect.jobs import GATE_TOP, peak_gate_record
@@ -232,6 +235,29 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     cands = order_stars(img12, gated, below, pix_noise if pix_noise > 0 else 0.5,
                         max_candidates, mask)
     return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+
+
+def add_trails(cands, img12, thresholded, f, mask=None) -> None:
+    """The streak job's ground measurement, in place: each candidate dict gets ``"trail"``:
+    ``{"ends", "length", "orientation"}`` (full-resolution pixels, degrees from +column toward
+    +row), the ends of its blob in ``thresholded`` (int16 [H // f, W // f], the image the back
+    end labelled; :func:`hil_harness.detect.trails.trail_ends`) followed outward on ``img12``
+    (uint16 [H, W]) while the trail stands out of the noise
+    (:func:`hil_harness.detect.trails.trace_trail`); None when the mode gives no thresholded
+    image (``--window 64``) or no blob lies under the centroid."""
+    from scipy.ndimage import label
+
+    from hil_harness.detect.trails import trace_trail, trail_ends
+    from hil_harness.images import noise_sigma
+    if thresholded is None:
+        for c in cands:
+            c["trail"] = None
+        return
+    labels = label(np.asarray(thresholded) != 0, structure=np.ones((3, 3), int))[0]
+    noise = noise_sigma(img12, mask)
+    for c in cands:
+        te = trail_ends(thresholded, f, c["row"], c["col"], labels)
+        c["trail"] = None if te is None else trace_trail(img12, te["ends"], noise, mask)
 
 
 def tile_for_seq(seq) -> int:
@@ -381,7 +407,7 @@ def _frame_job(args, record, seq, f, gate, user_mask=None):
             msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
                         f"the IP's answer is still given)")
         out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
-                         field=field.mask)
+                         field=field.mask, trails=record.name == "streak")
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
                  "flags": flags, "scale": scale, "field": field.to_json(), "compaction": f,
                  "mode": out["mode"],
