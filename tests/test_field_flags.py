@@ -255,3 +255,23 @@ def test_track_uses_every_real_gillam_frame(tmp_path):
     assert res["field"]["kind"] == "circle"
     assert not any(f["track"].get("skipped") for f in res["frames"])
     assert any("saturated" in f["flags"] for f in res["frames"])   # a warning, frame still used
+
+
+@need_real
+def test_tuning_real_entries_take_a_channel(tmp_path):
+    from PIL import Image
+
+    from hil_harness.tuning.data import SetSpec
+    from hil_harness.tuning.events import real_event
+    g = read_images([G08])[0].data
+    rgb = np.zeros(g.shape + (3,), np.uint8)
+    rgb[..., 1] = g
+    Image.fromarray(rgb).save(tmp_path / "c.png")
+    (tmp_path / "l.csv").write_text("image,frame,row,col\nc.png,0,128.0,128.0\n")
+    entry = {"images": "c.png", "labels": "l.csv"}
+    spec = SetSpec.from_dict({"real": [dict(entry, channel="g")]}, base_dir=tmp_path)
+    assert spec.reals[0]["channel"] == "g"
+    ev = real_event(spec.reals[0], tmp_path)
+    assert np.array_equal(ev.frames[0], to_counts(g)[0])      # the green plane, as tuning maps it
+    with pytest.raises(ValueError, match=r"real\[0\].channel"):
+        SetSpec.from_dict({"real": [dict(entry, channel="x")]}, base_dir=tmp_path)

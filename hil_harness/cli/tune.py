@@ -42,6 +42,9 @@ def register(sub) -> None:
         q.add_argument("--workers", type=int, default=None,
                        help="processes used to build a set from a spec (default: the spec's)")
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
+        q.add_argument("--channel", default=None, choices=("l", "r", "g", "b"),
+                       help="what a colour image of a [[real]] entry becomes when the entry names "
+                            "no channel: l = BT.601 luma (the default), or the r, g or b channel")
 
     q = ts.add_parser("set", help="build and save a labelled training set")
     common(q)
@@ -119,10 +122,23 @@ def _get_set(args):
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such set spec or set")
     t0 = time.perf_counter()
-    ts = build_set(p, progress=not args.no_progress, workers=args.workers)
+    ts = build_set(_with_channel(p, args.channel), progress=not args.no_progress,
+                   workers=args.workers)
     print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
           f"({time.perf_counter() - t0:.1f} s)")
     return ts
+
+
+def _with_channel(p: Path, channel):
+    """The set spec at ``p`` with ``channel`` given to its ``[[real]]`` entries that name none
+    (``p`` itself when there is no channel to give or it is a saved set)."""
+    from hil_harness.tuning.data import SetSpec
+    if channel is None or p.suffix != ".toml":
+        return p
+    spec = SetSpec.load(p)
+    for e in spec.reals:
+        e["channel"] = e.get("channel") or channel
+    return spec
 
 
 def _names(args):
@@ -168,7 +184,7 @@ def _replayer(args):
     if p.suffix != ".toml":
         raise ValueError(f"{p}: closed-loop tuning replays frames: give the set spec (.toml), "
                          f"not a saved feature set")
-    spec = SetSpec.load(p)
+    spec = _with_channel(p, args.channel) if args.channel else SetSpec.load(p)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,
                        progress=not args.no_progress)
