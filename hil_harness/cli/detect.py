@@ -1,7 +1,8 @@
 """``uvisi detect``: the flight image processor on real image files.
 
 ``uvisi detect IMAGE... [--record NAME|FILE] [--sequence NAME|FILE] [--compaction N]
-[--window full|64] [--no-scale] [--max-candidates K] [--workers N] [--json OUT] [--plot PNG]``
+[--window full|64] [--no-scale] [--channel l|r|g|b] [--mask FILE | --field-circle ROW,COL,RADIUS]
+[--max-candidates K] [--workers N] [--json OUT] [--plot PNG]``
 
 Reads FITS, TIFF, PNG/JPEG, NPY/NPZ (every plane of a cube, in order: :mod:`hil_harness.images`),
 turns each frame into the flight's 12-bit counts (:func:`hil_harness.images.to_counts`: counts pass
@@ -11,13 +12,15 @@ sequence's front end, blob colouring, the 12 features, ranking against the recor
 image the candidates with full-resolution centroids (0-based ``[row, col]``, pixel centres at
 +0.5)::
 
-    {"images": [{"path", "time_utc", "shape", "flags", "scale", "compaction", "mode", "windows",
-                 "record", "sequence", "gate",
+    {"images": [{"path", "time_utc", "shape", "flags", "scale", "field", "compaction", "mode",
+                 "windows", "record", "sequence", "gate",
                  "candidates": [{"rank", "row", "col", "distance", "gof", "features": {...}}]}]}
 
-Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
-missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
-still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
+Without ``--json`` a table goes to stdout. The instrument's field (:mod:`hil_harness.field`) is
+found in each frame or given by ``--mask`` / ``--field-circle``; pixels outside it take part in no
+statistic, flag or detection. A flagged frame (unusable: blank, constant, nan, missing; warning:
+saturated; :func:`hil_harness.images.frame_flags`, inside the field) gets a warning on stderr; the
+IP's answer for it is still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
 tiling (:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help``
 text.
 """
@@ -44,16 +47,30 @@ Run the flight image processor on image files. Every plane of every file (FITS, 
 NPY/NPZ) becomes 12-bit counts: counts pass unchanged, wide integers whose low bits are always zero
 are shifted (a 12-bit reading stored << 4), anything else is mapped linearly from its sky level and
 pixel noise (sky -> 200 counts, noise -> 8 counts or more; never the maximum stretch). The mapping
-is in the JSON as "scale". Bad frames (blank, constant, nan, saturated, missing) are flagged in the
-JSON ("flags") and on stderr; the IP's answer for them is still given.
+is in the JSON as "scale". A colour image becomes its BT.601 luma (0.299 R + 0.587 G + 0.114 B) or
+the --channel asked for.
+
+Field: the instrument's field is found in each frame (a fisheye disc with dark corners; else the
+whole frame) or given by --mask FILE or --field-circle ROW,COL,RADIUS (JSON "field"). Pixels
+outside it are set to the field's median before the 12-bit mapping and take part in no statistic,
+flag or detection; candidate coordinates stay in the input image's pixels.
+
+Bad frames, measured inside the field on the pixel noise (JSON "flags", and stderr): unusable
+(blank, constant, nan, missing: kept from the TP by track) or a warning (saturated: >= 5 % of the
+field at the maximum). The IP's answer is still given.
 
 Jobs (--record; the job's sequence follows unless --sequence is given):
   star     (default) point sources: stars, distant satellites, any unresolved spot. Sequence
            'star': compaction 1, high-pass detrend, 5x5 smoothing, clipped threshold at 3 sigma.
            Candidates pass a significance gate (peak in the smoothed image >= 4.5 pixel-noise
-           sigmas, the noise measured on the frame) and come brightest first.
-  streak   satellite or meteor trails 100 px and longer. Sequence 'streak': compaction 4, one
-           candidate per trail with its orientation (degrees from +column toward +row).
+           sigmas, the noise measured on the frame). Ordering (a ground ordering; the flight
+           ranking is in "flight_rank"): gated candidates by aperture flux, brightest first, then
+           free slots filled with candidates below the gate of aperture S/N >= 5 ("gate": false).
+  streak   satellite or meteor trails 100 px and longer that stand out of the sky (a trail of a
+           few noise sigmas per pixel on a banded or graded sky is below the job's threshold).
+           Sequence 'streak': compaction 4, one candidate per trail with its orientation (degrees
+           from +column toward +row) and "trail": its ends, length and direction as traced on
+           the frame.
   aurora   extended UV glow, auroral arcs and surges. Sequence 'aurora': compaction 2, no
            detrend, clipped threshold at 1.5 sigma.
 
