@@ -20,11 +20,11 @@ Public API:
 The automatic rule (:func:`find_field`), on a copy of the frame reduced by block means to at most
 :data:`WORK_SIZE` pixels on its long side and median-filtered over 5 x 5 (stars and noise gone):
 
-1. levels: ``inside`` is the median of the central disc (radius a quarter of the short side),
+1. levels: ``centre`` is the median of the central disc (radius a quarter of the short side),
    ``corners`` the median of each of the four corner squares (6 % of the short side);
 2. a fisheye disc is tried only when all four corners are dark: the brightest corner at most
-   ``CORNER_SPREAD`` (50 %) of ``inside - darkest corner`` above the darkest (a readout ramp
-   outside the disc is allowed), and the contrast ``C = inside - brightest corner`` at least
+   ``CORNER_SPREAD`` (50 %) of ``centre - darkest corner`` above the darkest (a readout ramp
+   outside the disc is allowed), and the contrast ``C = centre - brightest corner`` at least
    ``MIN_CONTRAST_SIGMA`` (10) pixel-noise sigmas;
 3. the pixels brighter than ``brightest corner + EDGE_LEVEL * C`` (0.25), holes filled, largest
    connected region: its boundary (away from the frame's edges) is fitted with a circle (algebraic
@@ -238,11 +238,11 @@ def find_field(data, noise: float | None = None) -> Field:
                                              red[-s:, -s:])]
     rr, cc = np.mgrid[0:h, 0:w]
     central = np.hypot(rr + 0.5 - h / 2, cc + 0.5 - w / 2) <= min(h, w) / 4
-    inside = float(np.median(red[central]))
+    centre = float(np.median(red[central]))
     dark = max(corners)
-    contrast = inside - dark
+    contrast = centre - dark
     if not (contrast > 0 and contrast >= MIN_CONTRAST_SIGMA * max(noise, 1e-12)
-            and dark - min(corners) <= CORNER_SPREAD * (inside - min(corners))):
+            and dark - min(corners) <= CORNER_SPREAD * (centre - min(corners))):
         return none
     lab, n = label(red > dark + EDGE_LEVEL * contrast)
     if n == 0:
