@@ -275,3 +275,25 @@ def test_tuning_real_entries_take_a_channel(tmp_path):
     assert np.array_equal(ev.frames[0], to_counts(g)[0])      # the green plane, as tuning maps it
     with pytest.raises(ValueError, match=r"real\[0\].channel"):
         SetSpec.from_dict({"real": [dict(entry, channel="x")]}, base_dir=tmp_path)
+
+
+@need_real
+def test_track_takes_the_field_options(tmp_path, capsys):
+    out = tmp_path / "t.json"
+    assert main(["track", str(G14), "--record", "aurora", "--field-circle", "130,133,110",
+                 "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["field"] == {"kind": "circle", "row": 130.0,
+                                                    "col": 133.0, "radius": 110.0,
+                                                    "source": "option"}
+    m = np.zeros((256, 256), np.uint8)
+    m[40:200, 50:220] = 1
+    np.save(tmp_path / "m.npy", m)
+    assert main(["track", str(G14), "--record", "aurora", "--mask", str(tmp_path / "m.npy"),
+                 "--channel", "g", "--json", str(out)]) == 0
+    assert json.loads(out.read_text())["field"]["kind"] == "mask"
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as ex:                  # argparse's usage error: status 2
+        main(["track", str(G14), "--record", "aurora", "--field-circle", "1,2", "--json",
+              str(out)])
+    assert ex.value.code == 2
+    assert "--field-circle: expected ROW,COL,RADIUS" in capsys.readouterr().err
