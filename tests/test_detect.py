@@ -151,8 +151,13 @@ STREAKS = [(200, 0.0, 5.0), (200, 17.0, 20.0), (240, 45.0, 8.0), (320, 90.0, 5.0
            (260, 133.0, 12.0), (320, 171.0, 20.0)]
 
 
+SHORT = [(80, 0.0, 5.0), (80, 45.0, 20.0), (80, 133.0, 8.0), (90, 17.0, 8.0), (90, 90.0, 5.0),
+         (90, 171.0, 20.0)]                        # the job's shortest: 80 px
+
+
 @pytest.mark.parametrize("shape, cases", [((512, 512), STREAKS),          # one 128-px window
-                                          ((768, 1024), STREAKS[1::2])])  # tiled: pieces merged
+                                          ((768, 1024), STREAKS[1::2]),   # tiled: pieces merged
+                                          ((512, 512), SHORT)])
 def test_streak_is_one_candidate_with_its_orientation(tmp_path, shape, cases):
     stack = np.stack([streak_image(shape, L, a, snr, seed=i) for i, (L, a, snr) in
                       enumerate(cases)]).astype(np.float32)

@@ -77,6 +77,6 @@ def test_the_fireball_is_one_candidate_with_its_trail(tmp_path):
     assert len(on) == 1, on                                # one candidate, not pieces
     t = on[0]["trail"]
     eye_len, eye_deg = math.hypot(624.5 - 630.5, 1065 - 885), 178.1
-    assert abs(t["length"] - eye_len) <= 0.1 * eye_len, t
+    assert abs(t["length"] - eye_len) <= 0.1 * eye_len, t          # measured: 190.2 px
     err = abs(t["orientation"] - eye_deg) % 180.0
     assert min(err, 180 - err) <= 2.0, t

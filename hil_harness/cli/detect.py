@@ -66,7 +66,7 @@ Jobs (--record; the job's sequence follows unless --sequence is given):
            sigmas, the noise measured on the frame). Ordering (a ground ordering; the flight
            ranking is in "flight_rank"): gated candidates by aperture flux, brightest first, then
            free slots filled with candidates below the gate of aperture S/N >= 5 ("gate": false).
-  streak   satellite or meteor trails 100 px and longer that stand out of the sky (a trail of a
+  streak   satellite or meteor trails 80 px and longer that stand out of the sky (a trail of a
            few noise sigmas per pixel on a banded or graded sky is below the job's threshold).
            Sequence 'streak': compaction 4, one candidate per trail with its orientation (degrees
            from +column toward +row) and "trail": its ends, length and direction as traced on
