@@ -9,9 +9,16 @@ Public API (used by ``uvisi detect`` and ``uvisi track``):
 
 Formats: FITS (astropy; every image HDU, a cube gives one frame per plane; ``DATE-OBS`` is the time
 tag), TIFF (tifffile; a multi-page stack gives one frame per page; the ``DateTime`` tag), PNG/JPEG/
-BMP/GIF (pillow; colour -> luminance) and NPY/NPZ (never with pickles; in an NPZ the key ``img`` if
-present, else every numeric 2-D/3-D array; an NPZ ``time_utc`` array gives each plane its time tag).
-A colour image ``[H, W, 3|4]`` becomes one luminance frame (0.299 R + 0.587 G + 0.114 B).
+BMP/GIF (pillow) and NPY/NPZ (never with pickles; in an NPZ the key ``img`` if present, else every
+numeric 2-D/3-D array; an NPZ ``time_utc`` array gives each plane its time tag).
+
+Colour: a colour image (a Pillow colour mode, or an array ``[H, W, 3|4]`` in any format) becomes
+one frame: by default its luma by ITU-R BT.601, ``Y = 0.299 R + 0.587 G + 0.114 B`` on the stored
+(gamma-encoded) values, the rule JPEG's own Y'CbCr uses; or one channel (``channel="r"|"g"|"b"``,
+the command option ``--channel``; auroral green, 557.7 nm, is ``g``). An 8-bit colour image keeps
+the 8-bit rule of :func:`to_counts` (``rint(16 Y)``). A greyscale image is read as it is whatever
+the channel (its R, G and B are the same). A camera raw file or a Bayer-mosaic TIFF/FITS is refused
+with a one-line error saying how to demosaic it first.
 """
 from __future__ import annotations
 
@@ -21,8 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "scale_note", "frame_flags", "robust_stats",
-           "noise_sigma",
+__all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "scale_note", "frame_flags",
+           "unusable", "colour_plane", "CHANNELS", "LUMA_BT601", "robust_stats", "noise_sigma", "pixel_noise", "MIN_LINE", "UNUSABLE", "WARNINGS",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
            "LOW_PERCENTILE", "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION",
            "BLANK_MARGIN_SIGMA", "FLAG_NAMES"]
@@ -43,7 +50,12 @@ LOW_MARGIN_SIGMA = 5.0
 MISSING_FRACTION = 0.5
 SATURATED_FRACTION = 0.05
 BLANK_MARGIN_SIGMA = 1.5
+#: a row or column counts for "missing" only with at least this many finite field pixels
+MIN_LINE = 8
 FLAG_NAMES = ("blank", "constant", "nan", "saturated", "missing")
+#: the two kinds of flag: an unusable frame does not reach the TP; a warning is reported only
+UNUSABLE = ("nan", "missing", "constant", "blank")
+WARNINGS = ("saturated",)
 
 _MAX12 = 4095
 _FULL_SCALE = {2 ** k - 1 for k in (8, 10, 12, 14, 16, 32)} | {_MAX12 << 4}
@@ -74,14 +86,19 @@ class InputFrame:
 # ------------------------------------------------------------------------------------------------
 # reading
 # ------------------------------------------------------------------------------------------------
-def read_images(paths) -> list[InputFrame]:
+def read_images(paths, channel: str = "l") -> list[InputFrame]:
     """Every frame of every file in ``paths`` (a path or a sequence of paths), in order.
+
+    ``channel``: what a colour image becomes: ``"l"`` (BT.601 luma, the default), ``"r"``,
+    ``"g"`` or ``"b"`` (see the module docstring).
 
     Raises :class:`ImageError` naming the file for a missing, unreadable or unsupported file, an
     array that is not 2-D/3-D numeric, or an NPY/NPZ that would need pickles.
     """
     if isinstance(paths, (str, Path)):
         paths = [paths]
+    if channel not in CHANNELS:
+        raise ImageError(f"--channel {channel!r}: expected one of {', '.join(CHANNELS)}")
     out: list[InputFrame] = []
     for path in paths:
         p = Path(path)
@@ -90,7 +107,7 @@ def read_images(paths) -> list[InputFrame]:
         if p.is_dir():
             raise ImageError(f"{p}: is a directory, not an image file")
         try:
-            frames = _read_one(p)
+            frames = _read_one(p, channel)
         except ImageError:
             raise
         except Exception as exc:       # noqa: BLE001 -- any library failure becomes one line
@@ -129,9 +146,23 @@ def _has_finite(a: np.ndarray) -> bool:
     return not np.issubdtype(a.dtype, np.floating) or bool(np.isfinite(a).any())
 
 
-def _read_one(p: Path) -> list[InputFrame]:
+#: the colour rule: luma weights (ITU-R BT.601) and the channels a command may ask for
+LUMA_BT601 = (0.299, 0.587, 0.114)
+CHANNELS = ("l", "r", "g", "b")
+#: camera raw formats (a Bayer mosaic before demosaicing): refused with what to do
+RAW_SUFFIXES = (".cr2", ".cr3", ".crw", ".nef", ".nrw", ".arw", ".srf", ".sr2", ".dng", ".raf",
+                ".orf", ".rw2", ".pef", ".srw", ".x3f", ".3fr", ".erf", ".kdc", ".mef", ".mos",
+                ".raw", ".rwl", ".iiq")
+_DEMOSAIC = ("demosaic it first (e.g. rawpy.imread(path).postprocess(), or your camera "
+             "software) and save a TIFF/PNG/FITS, then give that file, with --channel to choose a "
+             "colour")
+
+
+def _read_one(p: Path, channel: str = "l") -> list[InputFrame]:
     name = p.name.lower()
     suf = p.suffix.lower()
+    if suf in RAW_SUFFIXES:
+        raise ImageError(f"{p}: a camera raw file (Bayer mosaic): {_DEMOSAIC}")
     kind = sniff(p)
     if kind is None and _KIND_OF_SUFFIX.get(suf) in ("npy", "npz", "png", "tiff"):
         raise ImageError(f"{p}: not a {suf[1:].upper()} file (its first bytes match no image or "
@@ -139,27 +170,39 @@ def _read_one(p: Path) -> list[InputFrame]:
     if kind is not None and kind != _KIND_OF_SUFFIX.get(suf, kind):
         suf = {"fits": ".fits", "tiff": ".tiff", "png": ".png", "npy": ".npy", "npz": ".npz"}[kind]
     if suf in (".fits", ".fit", ".fts") or name.endswith((".fits.gz", ".fit.gz", ".fts.gz")):
-        return _read_fits(p)
+        return _read_fits(p, channel)
     if suf in (".tif", ".tiff"):
-        return _read_tiff(p)
+        return _read_tiff(p, channel)
     if suf in (".png", ".jpg", ".jpeg", ".bmp", ".gif"):
-        from PIL import Image
-        with Image.open(p) as im:
-            if im.mode not in ("1", "L", "I", "I;16", "I;16B", "I;16L", "F"):
-                raise ImageError(f"{p}: a colour image (mode {im.mode}): frames are one channel; "
-                                 f"convert it first, e.g. PIL's Image.open(path).convert('L'), "
-                                 f"or save the channel you want")
-            frames = _planes(np.asarray(im), str(p), None)
-            bits = {"1": 1, "L": 8}.get(im.mode)
-            return [InputFrame(f.name, f.data, f.time_utc, bits) for f in frames]
+        return _read_pillow(p, channel)
     if suf == ".npy":
-        return _planes(np.load(p, allow_pickle=False), str(p), None)
+        return _planes(np.load(p, allow_pickle=False), str(p), None, channel)
     if suf == ".npz":
-        return _read_npz(p)
+        return _read_npz(p, channel)
     raise ImageError(f"{p}: unsupported format {suf or p.name!r} (FITS, TIFF, PNG/JPEG, NPY, NPZ)")
 
 
-def _read_fits(p: Path) -> list[InputFrame]:
+def _read_pillow(p: Path, channel: str) -> list[InputFrame]:
+    from PIL import Image
+    with Image.open(p) as im:
+        if im.mode in ("1", "L", "I", "I;16", "I;16B", "I;16L", "F"):
+            frames = _planes(np.asarray(im), str(p), None, channel)
+            bits = {"1": 1, "L": 8}.get(im.mode)
+            return [InputFrame(f.name, f.data, f.time_utc, bits) for f in frames]
+        if im.mode == "LA":
+            return [InputFrame(str(p), np.asarray(im.getchannel("L")), None, 8)]
+        if im.mode == "P" and _palette_is_grey(im):
+            return [InputFrame(str(p), np.asarray(im.convert("L")), None, 8)]
+        rgb = np.asarray(im.convert("RGB"))                  # P, RGBA, CMYK, YCbCr, LAB, HSV
+    return _planes(rgb, str(p), None, channel)
+
+
+def _palette_is_grey(im) -> bool:
+    pal = np.asarray(im.convert("RGB"))
+    return bool(np.all(pal[..., 0] == pal[..., 1]) and np.all(pal[..., 1] == pal[..., 2]))
+
+
+def _read_fits(p: Path, channel: str = "l") -> list[InputFrame]:
     from astropy.io import fits
     out = []
     with fits.open(p) as hdul:
@@ -167,26 +210,30 @@ def _read_fits(p: Path) -> list[InputFrame]:
                   if getattr(h, "is_image", False) and h.data is not None and h.data.ndim >= 2]
         for i, h in images:
             label = str(p) if len(images) == 1 else f"{p}[hdu{i}]"
+            if any(k in h.header for k in ("BAYERPAT", "CFA-PAT", "BAYOFFX")):
+                raise ImageError(f"{label}: a Bayer-mosaic frame (header BAYERPAT): {_DEMOSAIC}")
             t = h.header.get("DATE-OBS") or hdul[0].header.get("DATE-OBS")
             if t is not None and "T" not in str(t) and h.header.get("TIME-OBS"):
                 t = f"{t}T{h.header['TIME-OBS']}"
-            out += _planes(np.array(h.data), label, None if t is None else str(t))
+            out += _planes(np.array(h.data), label, None if t is None else str(t), channel)
     return out
 
 
-def _read_tiff(p: Path) -> list[InputFrame]:
+def _read_tiff(p: Path, channel: str = "l") -> list[InputFrame]:
     import tifffile
     with tifffile.TiffFile(p) as tf:
+        if len(tf.pages) and (tf.pages[0].photometric == 32803 or "CFAPattern" in tf.pages[0].tags):
+            raise ImageError(f"{p}: a Bayer-mosaic (CFA) TIFF: {_DEMOSAIC}")
         a = tf.asarray()
         t = None
         tag = tf.pages[0].tags.get("DateTime") if len(tf.pages) else None
         if tag is not None and isinstance(tag.value, str) and len(tag.value) >= 19:
             v = tag.value.strip()
             t = f"{v[0:4]}-{v[5:7]}-{v[8:10]}T{v[11:19]}"
-    return _planes(np.asarray(a), str(p), t)
+    return _planes(np.asarray(a), str(p), t, channel)
 
 
-def _read_npz(p: Path) -> list[InputFrame]:
+def _read_npz(p: Path, channel: str = "l") -> list[InputFrame]:
     out = []
     with np.load(p, allow_pickle=False) as z:
         keys = ["img"] if "img" in z.files else [k for k in z.files if k != "time_utc"]
@@ -200,25 +247,41 @@ def _read_npz(p: Path) -> list[InputFrame]:
                                      f"(shape {a.shape}, dtype {a.dtype})")
                 continue
             label = str(p) if k == "img" or len(keys) == 1 else f"{p}[{k}]"
-            out += _planes(a, label, times)
+            out += _planes(a, label, times, channel)
     return out
 
 
-def _planes(a: np.ndarray, label: str, times) -> list[InputFrame]:
-    """Split an array into 2-D frames; ``times``: None, one tag, or one tag per plane."""
+def _planes(a: np.ndarray, label: str, times, channel: str = "l") -> list[InputFrame]:
+    """Split an array into 2-D frames; ``times``: None, one tag, or one tag per plane; a colour
+    image ``[H, W, 3|4]`` -> one frame by ``channel`` (:func:`colour_plane`)."""
     a = np.asarray(a)
     if a.dtype == object or not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_):
         raise ImageError(f"{label}: pixels of type {a.dtype} are not numbers")
     if np.iscomplexobj(a):
         raise ImageError(f"{label}: complex pixels are not an image")
-    if a.ndim == 3 and a.shape[-1] in (3, 4) and a.shape[0] > 4:     # colour -> luminance
-        a = a[..., :3].astype(np.float64) @ np.array([0.299, 0.587, 0.114])
+    if a.ndim == 3 and a.shape[-1] in (3, 4) and a.shape[0] > 4:     # colour -> one plane
+        bits = 8 if a.dtype == np.uint8 else None
+        return [InputFrame(label, colour_plane(a, channel), _time(times, 0, 1), bits)]
     if a.ndim == 2:
         return [InputFrame(label, a, _time(times, 0, 1))]
     if a.ndim == 3:
         return [InputFrame(f"{label}[{i}]", a[i], _time(times, i, a.shape[0]))
                 for i in range(a.shape[0])]
     raise ImageError(f"{label}: expected a 2-D image or a [n, H, W] stack, got shape {a.shape}")
+
+
+def colour_plane(rgb, channel: str = "l") -> np.ndarray:
+    """One plane of a colour image: ``rgb`` [H, W, 3|4] (any numeric dtype; a 4th, alpha, plane
+    is ignored) -> float64 [H, W] in the input's units: the BT.601 luma
+    ``0.299 R + 0.587 G + 0.114 B`` for ``channel "l"``, else the R, G or B plane."""
+    a = np.asarray(rgb)
+    if a.ndim != 3 or a.shape[-1] not in (3, 4):
+        raise ImageError(f"expected a colour image [H, W, 3|4], got shape {a.shape}")
+    if channel == "l":
+        return a[..., :3].astype(np.float64) @ np.array(LUMA_BT601)
+    if channel not in CHANNELS:
+        raise ImageError(f"--channel {channel!r}: expected one of {', '.join(CHANNELS)}")
+    return a[..., "rgb".index(channel)].astype(np.float64)
 
 
 def _time(times, i, n):
@@ -304,38 +367,73 @@ def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tupl
     return med, sig
 
 
-def noise_sigma(data) -> float:
+def noise_sigma(data, mask=None) -> float:
     """Pixel noise of a 2-D image from neighbouring pixels: ``1.4826 MAD(d) / sqrt(6)`` over the
     horizontal and vertical second differences ``d = x[i-1] - 2 x[i] + x[i+1]`` of the finite
     pixels.
 
     Unlike the MAD of the pixels it ignores smooth structure (vignetting, a sky gradient, extended
     glow; a linear gradient cancels exactly): only pixel-to-pixel scatter counts. ``data``: 2-D
-    array, any numeric dtype; returns the noise in the input's units (0 when most differences are
-    0, NaN when no three finite pixels lie in a line). Assumes uncorrelated noise (smoothed data
-    read lower).
+    array, any numeric dtype; ``mask``: optional bool [H, W], only differences whose three pixels
+    are inside count (the instrument's field, :mod:`hil_harness.field`); returns the noise in the
+    input's units (0 when most differences are 0, NaN when no three finite pixels lie in a line).
+    Assumes uncorrelated noise (smoothed data read lower).
     """
-    x = np.asarray(data, dtype=np.float64)
-    if x.ndim != 2:
-        raise ImageError(f"expected a 2-D image, got shape {x.shape}")
-    d = np.concatenate([(x[:, :-2] - 2 * x[:, 1:-1] + x[:, 2:]).ravel(),
-                        (x[:-2] - 2 * x[1:-1] + x[2:]).ravel()])
-    d = d[np.isfinite(d)]
+    d = _second_differences(data, mask)
     if d.size == 0:
         return math.nan
-    if d.size > 1 << 21:
-        d = d[:: d.size // (1 << 21) + 1]
     return 1.4826 * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(6.0)
 
 
-def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple[np.ndarray, dict]:
+def pixel_noise(data, mask=None) -> float:
+    """:func:`noise_sigma`, or where that is 0 (more than half the second differences are 0: a
+    quantised low-noise frame, such as an 8-bit rendering of a dark sky) the 3-sigma-clipped RMS
+    of the second differences over ``sqrt(6)``. ``data``: 2-D array; ``mask``: optional bool
+    [H, W] as in :func:`noise_sigma`. Input units; 0 only when every kept difference is 0, NaN
+    when there is none."""
+    s = noise_sigma(data, mask)
+    if not s == 0.0:
+        return s
+    d = _second_differences(data, mask)
+    rms = float(np.sqrt(np.mean(d * d)))
+    for _ in range(5):
+        keep = d[np.abs(d) <= 3.0 * rms]
+        new = float(np.sqrt(np.mean(keep * keep))) if keep.size else 0.0
+        if new == rms:
+            break
+        rms = new
+    return rms / math.sqrt(6.0)
+
+
+def _second_differences(data, mask=None) -> np.ndarray:
+    """float64 [n]: the finite horizontal and vertical second differences of a 2-D image (those
+    with all three pixels inside ``mask`` when given), regularly subsampled to at most 2^21."""
+    x = np.asarray(data, dtype=np.float64)
+    if x.ndim != 2:
+        raise ImageError(f"expected a 2-D image, got shape {x.shape}")
+    dh = x[:, :-2] - 2 * x[:, 1:-1] + x[:, 2:]
+    dv = x[:-2] - 2 * x[1:-1] + x[2:]
+    if mask is not None:
+        m = np.asarray(mask, bool)
+        dh = dh[m[:, :-2] & m[:, 1:-1] & m[:, 2:]]
+        dv = dv[m[:-2] & m[1:-1] & m[2:]]
+    d = np.concatenate([dh.ravel(), dv.ravel()])
+    d = d[np.isfinite(d)]
+    if d.size > 1 << 21:
+        d = d[:: d.size // (1 << 21) + 1]
+    return d
+
+
+def to_counts(data, *, no_scale: bool = False, bits: int | None = None,
+              field=None) -> tuple[np.ndarray, dict]:
     """The flight's 12-bit counts from any 2-D image, and the mapping used (JSON-able dict).
 
     ``data``: 2-D array, any numeric dtype, as read. Returns ``(counts, mapping)``: ``counts`` is
     uint16 ``[H, W]`` in 0..4095. Rules, in order:
 
     0. an 8-bit or 1-bit image (``bits`` from :class:`InputFrame`, as a PNG/JPEG states it): 8-bit
-       values are shifted up to the 12-bit scale, ``counts = value << 4`` (0..4080),
+       values are shifted up to the 12-bit scale, ``counts = value << 4`` (0..4080; the luminance
+       or channel of an 8-bit colour image, 0..255 with fractions, is ``rint(16 value)``),
        ``{"method": "shift_up", "shift": 4, "from_bits": 8}``; 1-bit pixels become 0 or 4095,
        ``{"method": "binary", "from_bits": 1, "on": 4095}``. ``no_scale`` does not apply;
 
@@ -369,6 +467,13 @@ def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple
 
     Not the maximum stretch: a single bright star does not crush the sky noise.
     ``no_scale=True`` accepts rule 1 only and raises :class:`ImageError` otherwise.
+
+    ``field``: optional bool [H, W], the instrument's field (:mod:`hil_harness.field`). Pixels
+    outside it take part in no statistic: before any rule they are set to the field's median
+    pixel (the lower median of its finite pixels: a value the frame holds, so the exact rules
+    still apply), recorded as ``"outside_value"`` in the mapping, and the robust map's background,
+    noise and percentiles are those of the field. So the flight IP sees a flat sky outside the
+    field, at the field's background level (about ``SKY_COUNTS`` after rule 3).
     """
     a = np.asarray(data)
     if a.ndim != 2:
@@ -377,8 +482,38 @@ def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple
         raise ImageError("empty image")
     if not (np.issubdtype(a.dtype, np.number) or a.dtype == np.bool_) or np.iscomplexobj(a):
         raise ImageError(f"unsupported pixel type {a.dtype}")
-    if bits == 8 and np.issubdtype(a.dtype, np.integer) and int(a.min()) >= 0 and int(a.max()) <= 255:
-        return (a.astype(np.uint16) << 4), {"method": "shift_up", "shift": 4, "from_bits": 8}
+    mask = None if field is None else np.asarray(field, bool)
+    extra = {}
+    if mask is not None:
+        if mask.shape != a.shape:
+            raise ImageError(f"field mask {mask.shape} does not match the image {a.shape}")
+        if mask.all():
+            mask = None
+        else:
+            a, fill = _fill_outside(a, mask)
+            extra = {"outside_value": fill}
+    counts, m = _rules(a, no_scale, bits, mask)
+    m.update(extra)
+    return counts, m
+
+
+def _fill_outside(a: np.ndarray, mask: np.ndarray):
+    """``a`` with the pixels outside ``mask`` set to the lower median of the finite pixels inside
+    (0 when none is finite), and that value as a Python number."""
+    v = a[mask]
+    if np.issubdtype(a.dtype, np.floating):
+        v = v[np.isfinite(v)]
+    fill = np.sort(v)[(v.size - 1) // 2] if v.size else a.dtype.type(0)
+    out = a.copy()
+    out[~mask] = fill
+    return out, fill.item()
+
+
+def _rules(a, no_scale, bits, mask):
+    """Rules 0-3 of :func:`to_counts` on a frame whose outside pixels are already filled."""
+    if bits == 8 and _within(a, 255):
+        return (np.rint(a.astype(np.float64) * 16)).astype(np.uint16), \
+            {"method": "shift_up", "shift": 4, "from_bits": 8}
     if bits == 1:
         return (a.astype(bool).astype(np.uint16) * _MAX12), {"method": "binary", "from_bits": 1,
                                                              "on": _MAX12}
@@ -394,7 +529,16 @@ def to_counts(data, *, no_scale: bool = False, bits: int | None = None) -> tuple
             if n_full:
                 m["full_scale_pixels"] = n_full
             return (a.astype(np.uint64) >> np.uint64(k)).astype(np.uint16), m
-    return _robust_map(a)
+    return _robust_map(a, mask)
+
+
+def _within(a: np.ndarray, top: int) -> bool:
+    """True when every pixel is finite and in 0..top (an 8-bit image, or its luminance)."""
+    if a.dtype == np.bool_:
+        return True
+    if np.issubdtype(a.dtype, np.floating) and not np.all(np.isfinite(a)):
+        return False
+    return float(a.min()) >= 0 and float(a.max()) <= top
 
 
 def scale_note(name: str, scale: dict) -> str | None:
@@ -418,21 +562,22 @@ def _describe(a: np.ndarray) -> str:
     return f"{kind}{a.dtype} values {lo:.6g}..{hi:.6g}{nan}"
 
 
-def _robust_map(a: np.ndarray) -> tuple[np.ndarray, dict]:
+def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
     x = a.astype(np.float64)
     fin = np.isfinite(x)
-    if not fin.any():
+    inside = fin if mask is None else fin & mask
+    if not inside.any():
         return np.zeros(a.shape, np.uint16), {"method": "robust", "background": None,
                                               "noise": None, "offset": 0.0, "gain": 0.0,
                                               "sky_counts": SKY_COUNTS,
                                               "noise_counts": NOISE_COUNTS,
                                               "clipped_low": 0.0, "clipped_high": 0.0}
-    bkg, noise = robust_stats(x[fin])
-    dn = noise_sigma(x)
+    bkg, noise = robust_stats(x[inside])
+    dn = noise_sigma(x, mask)
     if dn > 0:
         noise = dn
     if noise > 0:
-        v = x[fin]
+        v = x[inside]
         low = float(np.percentile(v, LOW_PERCENTILE)) - LOW_MARGIN_SIGMA * noise
         gain = NOISE_COUNTS / noise
         vmax = float(v.max())
@@ -469,46 +614,63 @@ def _fit_gain(v, bkg, low):
 # ------------------------------------------------------------------------------------------------
 # bad-frame flags
 # ------------------------------------------------------------------------------------------------
-def frame_flags(data) -> list[str]:
-    """Bad-frame flags of one raw 2-D frame (as read, before :func:`to_counts`), in this order:
+def frame_flags(data, field=None) -> list[str]:
+    """Bad-frame flags of one raw 2-D frame (as read, before :func:`to_counts`), measured inside
+    the instrument's field only, in this order. Unusable (:data:`UNUSABLE`: the frame does not
+    reach the TP):
 
-    * ``"nan"``: every pixel is NaN or infinite (nothing to measure);
-    * ``"missing"``: at least ``MISSING_FRACTION`` (50 %) of the pixels are missing -- non-finite,
-      or in a row or column whose finite pixels all hold one value (a dropped line or a zero-filled
-      block reads as constant lines), for a frame of at least 2 rows and 2 columns;
-    * ``"constant"``: every finite pixel holds the same value;
-    * ``"blank"``: nothing stands out of the noise: the frame is constant, or its brightest finite
-      pixel is less than ``sqrt(2 ln n) + BLANK_MARGIN_SIGMA`` (1.5) noise sigmas above the
-      background (n finite pixels; sqrt(2 ln n) is the expected maximum of n Gaussian noise
+    * ``"nan"``: every field pixel is NaN or infinite (nothing to measure);
+    * ``"missing"``: at least ``MISSING_FRACTION`` (50 %) of the field's pixels are missing --
+      non-finite, or on a row or column whose finite field pixels (``MIN_LINE`` (8) or more) all
+      hold one value below the frame's maximum (a dropped line, a partial readout or a
+      zero-filled block reads as constant lines; a line at the maximum is saturated, not missing);
+    * ``"constant"``: every finite field pixel holds the same value;
+    * ``"blank"``: nothing stands out of the pixel noise: the field is constant, or its brightest
+      finite pixel is less than ``sqrt(2 ln n) + BLANK_MARGIN_SIGMA`` (1.5) noise sigmas above the
+      background (n finite field pixels; sqrt(2 ln n) is the expected maximum of n Gaussian noise
       samples, so a pure noise frame -- a drop-out read as dark noise -- is blank and a frame with
-      any real source is not); background and noise as in :func:`robust_stats`, over the pixels
-      that are not missing;
-    * ``"saturated"``: at least ``SATURATED_FRACTION`` (5 %) of the finite pixels sit at the frame's
-      maximum and that maximum is above the background (a flat-topped plateau: the detector's
-      ceiling), or the frame is constant at a full-scale value (2^k - 1 for k = 8, 10, 12, 14, 16,
-      32, or 4095 << 4).
+      any real source is not). Background: the clipped median of the field pixels that are not
+      missing (:func:`robust_stats`); noise: the *pixel* noise from second differences
+      (:func:`pixel_noise`), not the spread of the pixel values, which in an all-sky frame is the
+      scene (dark corners, sky glow, aurora).
 
-    ``data``: 2-D array, any numeric dtype. Returns a list of flag names (empty for a good frame).
+    Warning (:data:`WARNINGS`: reported, the frame is still used):
+
+    * ``"saturated"``: at least ``SATURATED_FRACTION`` (5 %) of the finite field pixels sit at the
+      frame's maximum and that maximum is above the background (a flat-topped plateau: the
+      detector's or the rendering's ceiling), or the field is constant at a full-scale value
+      (2^k - 1 for k = 8, 10, 12, 14, 16, 32, or 4095 << 4).
+
+    ``data``: 2-D array, any numeric dtype; ``field``: optional bool [H, W], True inside the field
+    (:mod:`hil_harness.field`; default the whole frame). Returns a list of flag names (empty for a
+    good frame).
     """
     a = np.asarray(data)
     if a.ndim != 2 or a.size == 0:
         raise ImageError(f"expected a non-empty 2-D image, got shape {a.shape}")
+    inside = np.ones(a.shape, bool) if field is None else np.asarray(field, bool)
+    if inside.shape != a.shape:
+        raise ImageError(f"field mask {inside.shape} does not match the image {a.shape}")
     x = a.astype(np.float64)
-    fin = np.isfinite(x)
+    fin = np.isfinite(x) & inside
     if not fin.any():
         return ["nan", "missing"]
     flags = []
-    missing = _missing_mask(x, fin)
-    if missing.mean() >= MISSING_FRACTION:
-        flags.append("missing")
     v = x[fin]
     lo, hi = float(v.min()), float(v.max())
+    missing = _missing_mask(x, fin, inside, hi if lo < hi else math.inf)
+    if missing[inside].mean() >= MISSING_FRACTION:
+        flags.append("missing")
     constant = lo == hi
     if constant:
         flags.append("constant")
-    bkg, noise = robust_stats(x[~missing] if not missing.all() else v)
-    if constant or noise <= 0 or (hi - bkg) < noise * (math.sqrt(2 * math.log(max(v.size, 2)))
-                                                       + BLANK_MARGIN_SIGMA):
+    good = inside & ~missing
+    if not good.any():
+        good = fin
+    bkg = robust_stats(x[good])[0]
+    noise = pixel_noise(x, good)
+    if constant or not noise > 0 or (hi - bkg) < noise * (math.sqrt(2 * math.log(max(v.size, 2)))
+                                                          + BLANK_MARGIN_SIGMA):
         flags.append("blank")
     at_max = float(np.mean(v == hi))
     if (not constant and hi > bkg and at_max >= SATURATED_FRACTION) or \
@@ -517,13 +679,22 @@ def frame_flags(data) -> list[str]:
     return flags
 
 
-def _missing_mask(x: np.ndarray, fin: np.ndarray) -> np.ndarray:
-    """bool [H, W]: pixels that are non-finite or on a constant row or column (see frame_flags)."""
-    missing = ~fin
+def unusable(flags) -> bool:
+    """True when any of ``flags`` (names from :func:`frame_flags`) is an unusable kind
+    (:data:`UNUSABLE`); warnings (:data:`WARNINGS`) alone leave the frame usable."""
+    return any(f in UNUSABLE for f in flags)
+
+
+def _missing_mask(x: np.ndarray, fin: np.ndarray, inside: np.ndarray, hi: float) -> np.ndarray:
+    """bool [H, W]: field pixels that are non-finite or on a constant row or column of at least
+    MIN_LINE finite field pixels below ``hi`` (the frame's maximum; inf for a constant frame,
+    whose lines are all missing) (see frame_flags)."""
+    missing = inside & ~fin
     if x.shape[0] >= 2 and x.shape[1] >= 2:
         big = np.where(fin, x, -np.inf)
         small = np.where(fin, x, np.inf)
-        row_const = (big.max(1) == small.min(1)) | ~fin.any(1)
-        col_const = (big.max(0) == small.min(0)) | ~fin.any(0)
-        missing = missing | row_const[:, None] | col_const[None, :]
+        for ax in (1, 0):
+            top, bottom, n = big.max(ax), small.min(ax), fin.sum(ax)
+            const = ((top == bottom) & (n >= MIN_LINE) & (top < hi)) | (~fin.any(ax) & inside.any(ax))
+            missing |= inside & (const[:, None] if ax == 1 else const[None, :])
     return missing

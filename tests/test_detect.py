@@ -30,13 +30,25 @@ def _check_schema(entry):
                 "sequence", "candidates"):
         assert key in entry
     assert isinstance(entry["flags"], list) and isinstance(entry["scale"], dict)
+    star = entry["record"] == "star" and entry["gate"] is not None
+    extra = {"flight_rank", "gate", "flux", "snr"} if star else set()
+    if entry["record"] == "streak":
+        extra = {"trail"}
     for i, c in enumerate(entry["candidates"]):
         assert c["rank"] == i + 1
-        assert set(c) == {"rank", "row", "col", "distance", "gof", "features"}
+        assert set(c) == {"rank", "row", "col", "distance", "gof", "features"} | extra
         assert len(c["features"]) == 12
         assert 0 <= c["row"] < entry["shape"][0] and 0 <= c["col"] < entry["shape"][1]
-    g = [c["gof"] for c in entry["candidates"]]
-    assert g == sorted(g, reverse=True)
+    if star:     # the star job's ground ordering: gated first, each part brightest flux first
+        gated = [c["gate"] for c in entry["candidates"]]
+        assert gated == sorted(gated, reverse=True)
+        for part in (True, False):
+            f = [c["flux"] for c in entry["candidates"] if c["gate"] is part]
+            assert f == sorted(f, reverse=True)
+        assert all(c["snr"] >= 5.0 for c in entry["candidates"] if not c["gate"])
+    else:
+        g = [c["gof"] for c in entry["candidates"]]
+        assert g == sorted(g, reverse=True)
 
 
 # ------------------------------------------------------------------------------------------------
@@ -58,8 +70,9 @@ def test_star_tracker_frame_matches_sep(tmp_path):
     d = (np.asarray(tifffile.imread(TIFF)) >> 4).astype(np.float64)
     bkg = sep.Background(d)
     objs = sep.extract(d - bkg, 5.0, err=bkg.globalrms)
-    rows = np.array([c["row"] for c in entry["candidates"]]) - 0.5     # SEP: centres at 0
-    cols = np.array([c["col"] for c in entry["candidates"]]) - 0.5
+    gated = [c for c in entry["candidates"] if c["gate"]]       # the gate's list against SEP's
+    rows = np.array([c["row"] for c in gated]) - 0.5                 # SEP: centres at 0
+    cols = np.array([c["col"] for c in gated]) - 0.5
     dist = np.hypot(rows[:, None] - objs["y"][None], cols[:, None] - objs["x"][None])
     found = dist.min(0) < 1.0                       # per SEP object
     ours_extra = dist.min(1) >= 1.0                 # per candidate of ours
@@ -138,8 +151,13 @@ STREAKS = [(200, 0.0, 5.0), (200, 17.0, 20.0), (240, 45.0, 8.0), (320, 90.0, 5.0
            (260, 133.0, 12.0), (320, 171.0, 20.0)]
 
 
+SHORT = [(80, 0.0, 5.0), (80, 45.0, 20.0), (80, 133.0, 8.0), (90, 17.0, 8.0), (90, 90.0, 5.0),
+         (90, 171.0, 20.0)]                        # the job's shortest: 80 px
+
+
 @pytest.mark.parametrize("shape, cases", [((512, 512), STREAKS),          # one 128-px window
-                                          ((768, 1024), STREAKS[1::2])])  # tiled: pieces merged
+                                          ((768, 1024), STREAKS[1::2]),   # tiled: pieces merged
+                                          ((512, 512), SHORT)])
 def test_streak_is_one_candidate_with_its_orientation(tmp_path, shape, cases):
     stack = np.stack([streak_image(shape, L, a, snr, seed=i) for i, (L, a, snr) in
                       enumerate(cases)]).astype(np.float32)
@@ -153,6 +171,10 @@ def test_streak_is_one_candidate_with_its_orientation(tmp_path, shape, cases):
         o = e["candidates"][0]["features"]["orientation"]
         err = abs(o - a) % 180.0
         assert min(err, 180.0 - err) <= 2.0, (a, o)
+        trail = e["candidates"][0]["trail"]                    # the ground measurement: ends
+        err = abs(trail["orientation"] - a) % 180.0
+        assert min(err, 180.0 - err) <= 2.0, (a, trail)
+        assert abs(trail["length"] - L) <= 0.1 * L, (L, trail)
 
 
 # ------------------------------------------------------------------------------------------------

@@ -251,7 +251,7 @@ def test_files_are_recognised_by_content_as_well_as_extension(tmp_path):
     assert np.array_equal(got[1].data, a.astype(np.uint8))
 
 
-def test_8bit_and_1bit_images_map_by_a_fixed_rule_and_colour_is_refused(tmp_path):
+def test_8bit_and_1bit_images_map_by_a_fixed_rule_and_grey_colour_reads_the_same(tmp_path):
     from PIL import Image
     a = (np.arange(16 * 16) % 256).astype(np.uint8).reshape(16, 16)
     Image.fromarray(a).save(tmp_path / "g8.png")
@@ -264,10 +264,13 @@ def test_8bit_and_1bit_images_map_by_a_fixed_rule_and_colour_is_refused(tmp_path
     fr = read_images([tmp_path / "b1.png"])[0]
     c, m = to_counts(fr.data, bits=fr.bits)
     assert fr.bits == 1 and m["method"] == "binary" and set(np.unique(c)) == {0, 4095}
-    for mode in ("RGB", "RGBA"):
+    for mode in ("RGB", "RGBA"):                     # R = G = B: every channel is the grey image
         Image.fromarray(np.stack([a] * len(mode), -1)).save(tmp_path / f"{mode}.png")
-        with pytest.raises(ImageError, match=f"{mode}.png: a colour image \\(mode {mode}\\)"):
-            read_images([tmp_path / f"{mode}.png"])
+        for ch in ("l", "r", "g", "b"):
+            fr = read_images([tmp_path / f"{mode}.png"], channel=ch)[0]
+            c, m = to_counts(fr.data, bits=fr.bits)
+            assert fr.bits == 8 and m["method"] == "shift_up"
+            assert np.array_equal(c, a.astype(np.uint16) * 16), (mode, ch)
 
 
 def test_a_file_without_a_finite_pixel_is_refused_but_a_nan_plane_is_read(tmp_path):

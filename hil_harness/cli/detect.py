@@ -1,7 +1,8 @@
 """``uvisi detect``: the flight image processor on real image files.
 
 ``uvisi detect IMAGE... [--record NAME|FILE] [--sequence NAME|FILE] [--compaction N]
-[--window full|64] [--no-scale] [--max-candidates K] [--workers N] [--json OUT] [--plot PNG]``
+[--window full|64] [--no-scale] [--channel l|r|g|b] [--mask FILE | --field-circle ROW,COL,RADIUS]
+[--max-candidates K] [--workers N] [--json OUT] [--plot PNG]``
 
 Reads FITS, TIFF, PNG/JPEG, NPY/NPZ (every plane of a cube, in order: :mod:`hil_harness.images`),
 turns each frame into the flight's 12-bit counts (:func:`hil_harness.images.to_counts`: counts pass
@@ -11,13 +12,15 @@ sequence's front end, blob colouring, the 12 features, ranking against the recor
 image the candidates with full-resolution centroids (0-based ``[row, col]``, pixel centres at
 +0.5)::
 
-    {"images": [{"path", "time_utc", "shape", "flags", "scale", "compaction", "mode", "windows",
-                 "record", "sequence", "gate",
+    {"images": [{"path", "time_utc", "shape", "flags", "scale", "field", "compaction", "mode",
+                 "windows", "record", "sequence", "gate",
                  "candidates": [{"rank", "row", "col", "distance", "gof", "features": {...}}]}]}
 
-Without ``--json`` a table goes to stdout. A flagged frame (blank, constant, nan, saturated,
-missing: :func:`hil_harness.images.frame_flags`) gets a warning on stderr; the IP's answer for it is
-still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
+Without ``--json`` a table goes to stdout. The instrument's field (:mod:`hil_harness.field`) is
+found in each frame or given by ``--mask`` / ``--field-circle``; pixels outside it take part in no
+statistic, flag or detection. A flagged frame (unusable: blank, constant, nan, missing; warning:
+saturated; :func:`hil_harness.images.frame_flags`, inside the field) gets a warning on stderr; the
+IP's answer for it is still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
 tiling (:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help``
 text.
 """
@@ -31,25 +34,43 @@ from pathlib import Path
 
 import numpy as np
 
-from hil_harness.images import ImageError, frame_flags, read_images, scale_note, to_counts
+from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
+                                to_counts, unusable)
 
-__all__ = ["register", "run", "detect_one", "read_frames", "to_12bit", "HELP_TEXT"]
+__all__ = ["register", "run", "detect_one", "add_trails", "add_input_options", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
+
+#: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
+FIELD_SPARE = 64
 
 HELP_TEXT = """\
 Run the flight image processor on image files. Every plane of every file (FITS, TIFF, PNG/JPEG,
 NPY/NPZ) becomes 12-bit counts: counts pass unchanged, wide integers whose low bits are always zero
 are shifted (a 12-bit reading stored << 4), anything else is mapped linearly from its sky level and
 pixel noise (sky -> 200 counts, noise -> 8 counts or more; never the maximum stretch). The mapping
-is in the JSON as "scale". Bad frames (blank, constant, nan, saturated, missing) are flagged in the
-JSON ("flags") and on stderr; the IP's answer for them is still given.
+is in the JSON as "scale". A colour image becomes its BT.601 luma (0.299 R + 0.587 G + 0.114 B) or
+the --channel asked for.
+
+Field: the instrument's field is found in each frame (a fisheye disc with dark corners; else the
+whole frame) or given by --mask FILE or --field-circle ROW,COL,RADIUS (JSON "field"). Pixels
+outside it are set to the field's median before the 12-bit mapping and take part in no statistic,
+flag or detection; candidate coordinates stay in the input image's pixels.
+
+Bad frames, measured inside the field on the pixel noise (JSON "flags", and stderr): unusable
+(blank, constant, nan, missing: kept from the TP by track) or a warning (saturated: >= 5 % of the
+field at the maximum). The IP's answer is still given.
 
 Jobs (--record; the job's sequence follows unless --sequence is given):
   star     (default) point sources: stars, distant satellites, any unresolved spot. Sequence
            'star': compaction 1, high-pass detrend, 5x5 smoothing, clipped threshold at 3 sigma.
            Candidates pass a significance gate (peak in the smoothed image >= 4.5 pixel-noise
-           sigmas, the noise measured on the frame) and come brightest first.
-  streak   satellite or meteor trails 100 px and longer. Sequence 'streak': compaction 4, one
-           candidate per trail with its orientation (degrees from +column toward +row).
+           sigmas, the noise measured on the frame). Ordering (a ground ordering; the flight
+           ranking is in "flight_rank"): gated candidates by aperture flux, brightest first, then
+           free slots filled with candidates below the gate of aperture S/N >= 5 ("gate": false).
+  streak   satellite or meteor trails 80 px and longer that stand out of the sky (a trail of a
+           few noise sigmas per pixel on a banded or graded sky is below the job's threshold).
+           Sequence 'streak': compaction 4, one candidate per trail with its orientation (degrees
+           from +column toward +row) and "trail": its ends, length and direction as traced on
+           the frame.
   aurora   extended UV glow, auroral arcs and surges. Sequence 'aurora': compaction 2, no
            detrend, clipped threshold at 1.5 sigma.
 
@@ -86,6 +107,7 @@ def register(sub) -> None:
                    help="map the pixels to 12-bit counts (the default; kept for old scripts)")
     g.add_argument("--no-scale", action="store_true",
                    help="insist that the pixels already are 12-bit counts (integers 0..4095)")
+    add_input_options(p)
     p.add_argument("--max-candidates", type=int, default=23,
                    help="candidates reported per image, 1..1000 (default 23, the flight limit)")
     p.add_argument("--workers", type=int, default=1,
@@ -96,6 +118,48 @@ def register(sub) -> None:
                    help="PNG with candidates marked and numbered by rank (one per image: "
                         "_<i> is added when there are several)")
     p.set_defaults(func=run)
+
+
+def add_input_options(p) -> None:
+    """The input options ``detect``, ``track`` and the tuning commands share: ``--channel``,
+    ``--mask``, ``--field-circle`` (the field's mutually exclusive pair)."""
+    from hil_harness.field import parse_circle
+    p.add_argument("--channel", default="l", choices=CHANNELS,
+                   help="what a colour image becomes: l = luma by ITU-R BT.601 (0.299 R + 0.587 G "
+                        "+ 0.114 B; the default), or the r, g or b channel (auroral green 557.7 nm:"
+                        " g); greyscale images are read as they are")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--mask", default=None, metavar="FILE",
+                   help="the instrument's field: an image the size of the frames (any format read "
+                        "here), non-zero inside (default: found in each frame: a fisheye disc with "
+                        "dark corners, else the whole frame)")
+    g.add_argument("--field-circle", default=None, type=_circle_arg(parse_circle),
+                   metavar="ROW,COL,RADIUS",
+                   help="the field as a circle in full-resolution pixels (pixel centres at +0.5)")
+
+
+def _circle_arg(parse):
+    import argparse
+
+    def conv(text):
+        try:
+            return parse(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).split(": ", 1)[-1]) from None
+    conv.__name__ = "ROW,COL,RADIUS"
+    return conv
+
+
+def read_mask(path):
+    """The ``--mask`` file as a 2-D array (its first frame), or None without one. Raises
+    :class:`ImageError` naming the file when it holds more than one frame."""
+    if path is None:
+        return None
+    frames = read_images([path])
+    if len(frames) != 1:
+        raise ImageError(f"{path}: --mask: the mask file holds {len(frames)} frames; give one "
+                         f"image")
+    return frames[0].data
 
 
 # ------------------------------------------------------------------------------------------------
@@ -140,36 +204,102 @@ def to_12bit(a, scale: bool, label: str = "image") -> np.ndarray:
 # one image
 # ------------------------------------------------------------------------------------------------
 def detect_one(img12, seq, record, compaction, window_mode="full", max_candidates=23,
-               gate_sigma=None, tile=None) -> dict:
+               gate_sigma=None, tile=None, field=None, trails=False) -> dict:
     """The flight IP on one 12-bit image (uint16 [H, W]) -> the JSON entry's processing part:
     ``mode``, ``windows``, ``gate`` (None, or the star gate's ``sigma``, ``noise_counts``,
-    ``cut_counts``), ``candidates`` (list of dicts, best first). ``gate_sigma``: apply the star
-    job's peak gate (:func:`hil_harness.detect.jobs.peak_gate_record`) at this many sigmas of the
-    processed image's pixel noise. ``tile``: full-frame tile (default: the sequence's,
-    :func:`hil_harness.detect.jobs.tile_for`)."""
+    ``cut_counts``), ``candidates`` (list of dicts, best first).
+
+    ``gate_sigma``: the star job: apply its peak gate (:func:`hil_harness.detect.jobs.
+    peak_gate_record`) at this many sigmas of the frame's pixel noise, then order the candidates
+    by aperture flux (:func:`hil_harness.detect.photometry.order_stars`: a ground ordering; the
+    flight ranking is unchanged and each candidate keeps its ``flight_rank``). ``tile``: full-frame
+    tile (default: the sequence's, :func:`hil_harness.detect.jobs.tile_for`). ``field``: optional
+    bool [H, W], the instrument's field (:mod:`hil_harness.field`): the noise is measured inside
+    it and candidates whose centroid falls outside it are dropped (a ground filter after the
+    flight ranking; the IP is asked for up to :data:`FIELD_SPARE` more candidates so that
+    ``max_candidates`` remain). ``trails``: the streak job: each candidate gets ``"trail"``
+    (:func:`add_trails`)."""
     from flightsw.ip.preprocess import compact
-    from flightsw.messages import FEATURE_NAMES
-    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record, tile_for
-    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.field import compact_mask
     from hil_harness.images import noise_sigma
-    gate = None
-    if gate_sigma:
-        noise = noise_sigma(compact(img12, compaction)) if compaction > 1 else noise_sigma(img12)
-        noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
-        # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
-        # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
-        noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
-        record = peak_gate_record(record, noise, gate_sigma)
-        gate = {"feature": "max_brightness", "sigma": float(gate_sigma),
-                "noise_counts": float(noise), "cut_counts": float(gate_sigma * noise)}
-    out = detect_frame(img12, seq, record, compaction, window_mode, max_candidates,
-                       tile_for(seq) if tile is None else tile)
+    whole = field is None or bool(np.all(field))
+    mask = None if whole else np.asarray(field, bool)
+    tile = tile_for_seq(seq) if tile is None else tile
+    if not gate_sigma:
+        out, cands = _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates,
+                                    tile, mask)
+        if trails:
+            add_trails(cands, img12, out.get("thresholded"), compaction, mask)
+        return {"mode": out["mode"], "windows": out["windows"], "gate": None,
+                "candidates": cands}
+    from hil_harness.detect.jobs import GATE_TOP, peak_gate_record
+    from hil_harness.detect.photometry import FILL_PEAK_SIGMA, order_stars
+    comp = compact(img12, compaction) if compaction > 1 else img12
+    noise = noise_sigma(comp, None if mask is None else compact_mask(mask, compaction))
+    noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+    # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
+    # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
+    noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
+    gate = {"feature": "max_brightness", "sigma": float(gate_sigma), "noise_counts": float(noise),
+            "cut_counts": float(gate_sigma * noise)}
+    out, gated = _ip_candidates(img12, seq, peak_gate_record(record, noise, gate_sigma),
+                                compaction, window_mode, 1000, tile, mask)
+    below = []
+    if len(gated) < max_candidates:
+        below = _ip_candidates(img12, seq, peak_gate_record(record, noise, FILL_PEAK_SIGMA),
+                               compaction, window_mode, 1000, tile, mask)[1]
+    pix_noise = noise_sigma(img12, mask)
+    cands = order_stars(img12, gated, below, pix_noise if pix_noise > 0 else 0.5,
+                        max_candidates, mask)
+    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+
+
+def add_trails(cands, img12, thresholded, f, mask=None) -> None:
+    """The streak job's ground measurement, in place: each candidate dict gets ``"trail"``:
+    ``{"ends", "length", "orientation"}`` (full-resolution pixels, degrees from +column toward
+    +row), the ends of its blob in ``thresholded`` (int16 [H // f, W // f], the image the back
+    end labelled; :func:`hil_harness.detect.trails.trail_ends`) followed outward on ``img12``
+    (uint16 [H, W]) while the trail stands out of the noise
+    (:func:`hil_harness.detect.trails.trace_trail`); None when the mode gives no thresholded
+    image (``--window 64``) or no blob lies under the centroid."""
+    from scipy.ndimage import label
+
+    from hil_harness.detect.trails import trace_trail, trail_ends
+    from hil_harness.images import noise_sigma
+    if thresholded is None:
+        for c in cands:
+            c["trail"] = None
+        return
+    labels = label(np.asarray(thresholded) != 0, structure=np.ones((3, 3), int))[0]
+    noise = noise_sigma(img12, mask)
+    for c in cands:
+        te = trail_ends(thresholded, f, c["row"], c["col"], labels)
+        c["trail"] = None if te is None else trace_trail(img12, te["ends"], noise, mask)
+
+
+def tile_for_seq(seq) -> int:
+    """The full-frame tile of a sequence (:func:`hil_harness.detect.jobs.tile_for`)."""
+    from hil_harness.detect.jobs import tile_for
+    return tile_for(seq)
+
+
+def _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates, tile, mask):
+    """One run of the IP -> (detect_frame's dict, candidate dicts inside ``mask``, at most
+    ``max_candidates``, ranks 1.. in the IP's order)."""
+    from flightsw.messages import FEATURE_NAMES
+    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.field import inside
+    ask = max_candidates if mask is None else min(1000, max_candidates + FIELD_SPARE)
+    out = detect_frame(img12, seq, record, compaction, window_mode, ask, tile)
+    keep = np.arange(len(out["feats"]))
+    if mask is not None and keep.size:
+        keep = keep[inside(mask, out["feats"]["row"], out["feats"]["col"])]
     cands = []
-    for i, ft in enumerate(out["feats"]):
-        cands.append({"rank": i + 1, "row": float(ft["row"]), "col": float(ft["col"]),
+    for i, ft in zip(keep[:max_candidates], out["feats"][keep[:max_candidates]]):
+        cands.append({"rank": len(cands) + 1, "row": float(ft["row"]), "col": float(ft["col"]),
                       "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
                       "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
-    return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
+    return out, cands
 
 
 # ------------------------------------------------------------------------------------------------
@@ -270,24 +400,34 @@ def _setup(args):
     return record, seq, f, gate
 
 
-def _frame_job(args, record, seq, f, gate):
+def _frame_job(args, record, seq, f, gate, user_mask=None):
     """The work of one frame, as a function of the frame alone (run here or in a worker):
     ``InputFrame -> (entry, counts or None (no --plot), messages for stderr)``."""
+    from hil_harness.field import resolve_field
 
     def one(fr):
-        flags = frame_flags(fr.data)
         try:
-            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits)
+            field = resolve_field(fr.data, user_mask, args.field_circle)
+        except ValueError as exc:
+            opt = f"--mask {args.mask}" if args.mask else "--field-circle"
+            raise ImageError(f"{fr.name}: {opt}: {exc}") from None
+        flags = frame_flags(fr.data, field.mask)
+        try:
+            img, scale = to_counts(fr.data, no_scale=args.no_scale, bits=fr.bits,
+                                   field=field.mask)
         except ImageError as exc:
             raise ImageError(f"{fr.name}: {exc}") from None
         note = scale_note(fr.name, scale)
         msgs = [f"uvisi detect: note: {note}"] if note else []
         if flags:
-            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} (the IP's "
-                        f"answer is still given)")
-        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate)
+            kind = "unusable" if unusable(flags) else "warning only"
+            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
+                        f"the IP's answer is still given)")
+        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
+                         field=field.mask, trails=record.name == "streak")
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
-                 "flags": flags, "scale": scale, "compaction": f, "mode": out["mode"],
+                 "flags": flags, "scale": scale, "field": field.to_json(), "compaction": f,
+                 "mode": out["mode"],
                  "windows": out["windows"], "record": record.name, "sequence": seq.name,
                  "gate": out["gate"], "candidates": out["candidates"]}
         return entry, (img if args.plot else None), msgs
@@ -300,12 +440,14 @@ def run(args) -> int:
 
     from hil_harness.detect.batch import map_ordered, workers_for
     record, seq, f, gate = _setup(args)
-    frames = read_images(args.images)
+    frames = read_images(args.images, args.channel)
+    user_mask = read_mask(args.mask)
     workers = workers_for(len(frames), args.workers)
     entries, plots = [], []
     bar = tqdm(total=len(frames), desc="detect", unit="frame", file=sys.stderr,
                disable=len(frames) < 4 or None)
-    for entry, img, msgs in map_ordered(_frame_job(args, record, seq, f, gate), frames, workers):
+    for entry, img, msgs in map_ordered(_frame_job(args, record, seq, f, gate, user_mask), frames,
+                                       workers):
         bar.update()
         for m in msgs:
             tqdm.write(m, file=sys.stderr)

@@ -15,13 +15,19 @@ of view (13.1 deg across 256 columns, scaled to the frame width), and a nominal 
 frame unless ``--frame-dt`` is given (real sequences can be minutes apart, beyond the TP's coast
 limit). Real time tags, where the input has them, are written beside each frame.
 
-Bad frames (:func:`hil_harness.images.frame_flags`: blank, constant, all-NaN, saturated, mostly
-missing) are reported in the JSON and on stderr; the IP's answer for them is still given, but their
-candidate message does not reach the TP: a flagged frame does not move the track.
+The instrument's field (``--mask FILE``, ``--field-circle ROW,COL,RADIUS``, else found on the
+median of up to 16 frames: :mod:`hil_harness.field`) is one for the whole sequence; pixels outside
+it take part in no statistic, flag or detection (:func:`hil_harness.images.to_counts` sets them to
+the field's background before the 12-bit mapping). ``--channel`` picks what a colour frame becomes.
+
+Bad frames (:func:`hil_harness.images.frame_flags`, measured inside the field) are reported in the
+JSON and on stderr. An *unusable* one (blank, constant, nan, missing) still gets the IP's answer,
+but its candidate message does not reach the TP: it does not move the track. A *warning*
+(saturated) is reported and the frame is used.
 
 Output (``--json``)::
 
-    {"record", "sequence", "frame_dt", "fov_deg", "scale_rad_per_px",
+    {"record", "sequence", "frame_dt", "fov_deg", "scale_rad_per_px", "field",
      "frames": [{"index", "input", "time_utc", "t", "shape", "flags", "scale",
                  "window": {"row0", "col0", "rows", "cols", "compaction"},
                  "prior": {"row", "col"} | null,
@@ -73,33 +79,54 @@ def register(sub) -> None:
     p.add_argument("--no-scale", action="store_true",
                    help="the pixels must already be 12-bit counts (no mapping)")
     add_with_option(p)
+    from hil_harness.cli.detect import add_input_options
+    add_input_options(p)
     p.set_defaults(func=run)
 
 
-def read_sequence(paths, no_scale: bool = False):
-    """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags)."""
+def sequence_field(frames, mask=None, circle=None):
+    """One field for a whole sequence (one imager): the user's ``mask`` (2-D array) or ``circle``
+    ((row, col, radius)), else :func:`hil_harness.field.find_field` on the per-pixel median of up
+    to 16 evenly spaced frames (a passing bright form does not move the field)."""
+    from hil_harness.field import resolve_field
+    pick = np.unique(np.linspace(0, len(frames) - 1, min(16, len(frames))).round().astype(int))
+    stack = np.array([np.asarray(frames[i].data, np.float64) for i in pick])
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(stack, axis=0) if stack.shape[0] > 1 else stack[0]
+    return resolve_field(med, mask, circle)
+
+
+def read_sequence(paths, no_scale: bool = False, channel: str = "l", mask=None, circle=None):
+    """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags,
+    field). ``channel``, ``mask``, ``circle``: as ``uvisi detect`` takes them."""
     from tqdm import tqdm
 
     from hil_harness.images import frame_flags, read_images, scale_note, to_counts
-    frames = read_images(paths)
+    frames = read_images(paths, channel)
     if not frames:
         raise ValueError(f"{paths[0]}: no frames")
     shape = frames[0].data.shape
-    counts, scales, flags = [], [], []
-    for fr in tqdm(frames, desc="[track] read", unit="frame", disable=len(frames) < 50,
-                   file=sys.stderr):
+    for fr in frames:
         if fr.data.shape != shape:
             raise ValueError(f"{fr.name}: frame shape {fr.data.shape} differs from the first "
                              f"frame's {shape} (one sequence, one imager)")
-        c, m = to_counts(fr.data, no_scale=no_scale, bits=fr.bits)
+    try:
+        field = sequence_field(frames, mask, circle)
+    except ValueError as exc:
+        raise ValueError(f"{frames[0].name}: {'--mask' if mask is not None else '--field-circle'}"
+                         f": {exc}") from None
+    counts, scales, flags = [], [], []
+    for fr in tqdm(frames, desc="[track] read", unit="frame", disable=len(frames) < 50,
+                   file=sys.stderr):
+        c, m = to_counts(fr.data, no_scale=no_scale, bits=fr.bits, field=field.mask)
         note = scale_note(fr.name, m)
         if note:
             print(f"uvisi track: note: {note}", file=sys.stderr)
         counts.append(c)
         scales.append(m)
-        flags.append(frame_flags(fr.data))
+        flags.append(frame_flags(fr.data, field.mask))
     return ([f.name for f in frames], np.array(counts, np.uint16), scales, flags,
-            [f.time_utc for f in frames])
+            [f.time_utc for f in frames], field)
 
 
 def _sequence(name, record, shape):
@@ -122,11 +149,12 @@ def _candidates(cands) -> list:
 
 
 def _frame_entry(k, name, tag, rf, scale, flags) -> dict:
+    from hil_harness.images import UNUSABLE
     r0, c0, rows, cols, f = rf.window
     prior = None if not math.isfinite(rf.prior[0]) else {"row": rf.prior[0], "col": rf.prior[1]}
     track = dict(rf.track)
     if track.get("skipped"):
-        track["reason"] = "flagged: " + ", ".join(flags)
+        track["reason"] = "flagged: " + ", ".join(f for f in flags if f in UNUSABLE)
     return {"index": k, "input": name, "time_utc": tag, "t": rf.t,
             "flags": list(flags), "scale": scale,
             "window": {"row0": int(r0), "col0": int(c0), "rows": int(rows), "cols": int(cols),
@@ -172,25 +200,29 @@ def run(args) -> int:
     record = load_record(args.record)
     if args.fov is not None and not 0.0 < args.fov < 90.0:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
-    names, counts, scales, flags, tags = read_sequence(args.images, args.no_scale)
+    from hil_harness.cli.detect import read_mask
+    from hil_harness.images import unusable
+    names, counts, scales, flags, tags, field = read_sequence(
+        args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle)
     seq = _sequence(args.sequence, record, counts.shape[1:])
-    skip = np.array([bool(f) for f in flags])
-    for n, f in zip(names, flags):
+    skip = np.array([unusable(f) for f in flags])
+    for n, f, s in zip(names, flags, skip):
         if f:
-            print(f"uvisi track: warning: {n}: flagged {', '.join(f)} (the IP still answers; the "
-                  f"track does not move on it)", file=sys.stderr)
+            why = ("unusable: the IP still answers; the track does not move on it" if s else
+                   "a warning: the frame is used")
+            print(f"uvisi track: warning: {n}: flagged {', '.join(f)} ({why})", file=sys.stderr)
     from flightsw.proposals import flight_profile
     proposals = with_names(args, "opportunity") or ()     # uvisi track: no velocity filter
     frames, geom, fov = track_sequence(counts, record, seq, args.frame_dt, args.fov, skip,
                                        proposals)
     out = {"record": record.name, "sequence": seq.name, "flight": flight_profile(proposals),
            "frame_dt": args.frame_dt,
-           "fov_deg": fov, "scale_rad_per_px": geom.scale_col,
+           "fov_deg": fov, "scale_rad_per_px": geom.scale_col, "field": field.to_json(),
            "frames": [_frame_entry(k, names[k], tags[k], rf, scales[k], flags[k])
                       for k, rf in enumerate(frames)]}
     _write_json(args.json, out)
     locked = sum(1 for e in out["frames"] if e["track"].get("locked"))
-    print(f"{len(frames)} frames ({int(skip.sum())} flagged), record {record.name}, sequence "
+    print(f"{len(frames)} frames ({int(skip.sum())} unusable), record {record.name}, sequence "
           f"{seq.name}: the TP locked on {locked}; wrote {args.json}")
     if args.plot:
         _plot(args.plot, counts, out["frames"], skip)

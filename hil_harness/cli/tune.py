@@ -46,6 +46,9 @@ def register(sub) -> None:
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
         from hil_harness.cli.checks import add_no_size_check
         add_no_size_check(q)
+        q.add_argument("--channel", default=None, choices=("l", "r", "g", "b"),
+                       help="what a colour image of a [[real]] entry becomes when the entry names "
+                            "no channel: l = BT.601 luma (the default), or the r, g or b channel")
 
     q = ts.add_parser("set", help="build and save a labelled training set")
     common(q)
@@ -128,7 +131,8 @@ def _get_set(args):
         from hil_harness.tuning.data import SetSpec
         check_render_size(SetSpec.load(p), args)
     t0 = time.perf_counter()
-    ts = build_set(p, progress=not args.no_progress, workers=args.workers)
+    ts = build_set(_with_channel(p, args.channel), progress=not args.no_progress,
+                   workers=args.workers)
     print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
           f"({time.perf_counter() - t0:.1f} s)")
     return ts
@@ -152,6 +156,18 @@ def check_render_size(spec, args) -> None:
     check(Cost(f"set spec {spec.name}", n, "frames",
                n * FRAME_BYTES if cache else 0.0, n * (FRAME_BYTES + RECORD_BYTES_PER_FRAME),
                MAX_FRAMES, Path(cache) if cache else None), lift_cap=args.no_size_check)
+
+
+def _with_channel(p: Path, channel):
+    """The set spec at ``p`` with ``channel`` given to its ``[[real]]`` entries that name none
+    (``p`` itself when there is no channel to give or it is a saved set)."""
+    from hil_harness.tuning.data import SetSpec
+    if channel is None or p.suffix != ".toml":
+        return p
+    spec = SetSpec.load(p)
+    for e in spec.reals:
+        e["channel"] = e.get("channel") or channel
+    return spec
 
 
 def _names(args):
@@ -197,7 +213,7 @@ def _replayer(args):
     if p.suffix != ".toml":
         raise ValueError(f"{p}: closed-loop tuning replays frames: give the set spec (.toml), "
                          f"not a saved feature set")
-    spec = SetSpec.load(p)
+    spec = _with_channel(p, args.channel) if args.channel else SetSpec.load(p)
     check_render_size(spec, args)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,

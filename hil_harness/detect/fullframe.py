@@ -122,10 +122,27 @@ def _single(img12, seq, record, f, size, max_candidates, mode_text):
     from flightsw.ip.frame import process_window
     s = _with_window(seq, f, size, img12.shape)
     res = process_window(s.window(img12, None), s, record, ledger=None,
-                         max_candidates=max_candidates, want_stages=False)
+                         max_candidates=max_candidates, want_stages=True)
     feats = words_to_struct(res.backend.feature_words[res.backend.order])
     return dict(mode=mode_text(res.subimage), windows=1, feats=feats,
-                distance=res.message.candidates["distance"], gof=res.message.candidates["gof"])
+                distance=res.message.candidates["distance"], gof=res.message.candidates["gof"],
+                thresholded=_threshold_canvas(res, img12.shape, f))
+
+
+def _threshold_canvas(res, shape, f):
+    """The threshold stage's window image placed in a zero compacted frame (int16 [H // f,
+    W // f]), or None when the sequence has no threshold step."""
+    sub = res.subimage
+    stage = [st for st in res.stages if st.data is not None and st.name != "colour"
+             and st.name != "rank"]
+    if not stage:
+        return None
+    img = np.asarray(stage[-1].image)
+    out = np.zeros((shape[0] // f, shape[1] // f), np.int16)
+    r0, c0 = sub.origin
+    h, w = min(img.shape[0], out.shape[0] - r0), min(img.shape[1], out.shape[1] - c0)
+    out[r0:r0 + h, c0:c0 + w] = img[:h, :w]
+    return out
 
 
 def detect_frame(img12, seq, record, compaction, window_mode="full", max_candidates=23,
@@ -140,7 +157,8 @@ def detect_frame(img12, seq, record, compaction, window_mode="full", max_candida
     call, see the module docstring, ranked together with the centroid means at the image
     centre). Returns a dict: ``mode`` (text),
     ``windows`` (int), ``feats`` (structured [m], FEATURE_DTYPE, best first), ``distance`` and
-    ``gof`` (float [m]).
+    ``gof`` (float [m]), and in the compiled full-frame mode ``thresholded`` (int16
+    [H // f, W // f], the image the back end labelled; absent in the other modes).
     """
     f = compaction
     H, W = img12.shape
@@ -212,7 +230,7 @@ def _compiled(img12, seq, record, f, max_candidates, tile, step):
     rows, cols, rcover, ccover = _geometry(ch, cw, th, tw, step)
     prm = backend_params(rec, *plan.flags, False, f, plan.imager,
                          max(1, min(max_candidates, 1000)))
-    pack, _ = fullframe_k(np.ascontiguousarray(img12), f, plan.front, None, None, plan.aq,
+    pack, kept = fullframe_k(np.ascontiguousarray(img12), f, plan.front, None, None, plan.aq,
                           plan.mode, rows, cols, th, tw, rcover, ccover, record_words(rec), prm,
                           enc32(0.0), enc32(0.0), enc32(H / 2.0), enc32(W / 2.0))
     be = result_from_pack(_NO_LABELS, pack)
@@ -223,7 +241,8 @@ def _compiled(img12, seq, record, f, max_candidates, tile, step):
                       f"pixel kept where any window's threshold passes it, blobs labelled once, "
                       f"ranked together with the centroid means at the image centre"),
                 windows=n_tiles, feats=words_to_struct(be.feature_words[be.order]),
-                distance=np.asarray(cand["distance"], float), gof=np.asarray(cand["gof"], float))
+                distance=np.asarray(cand["distance"], float), gof=np.asarray(cand["gof"], float),
+                thresholded=kept)
 
 
 _NO_LABELS = np.zeros((0, 0), np.int32)

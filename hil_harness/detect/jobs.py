@@ -25,7 +25,7 @@ JOBS = {
              "point sources (stars, distant satellites, any unresolved spot): compaction 1, "
              "centroids to a few hundredths of a pixel, brightest first"),
     "streak": ("streak", "streak",
-               "elongated trails (satellites or meteors crossing the frame, 100 px and longer): "
+               "elongated trails (satellites or meteors crossing the frame, 80 px and longer): "
                "compaction 4, one candidate per trail with its orientation"),
     "aurora": ("aurora", "aurora",
                "extended glow (auroral arcs and surges in UV frames): compaction 2, no detrend"),

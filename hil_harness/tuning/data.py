@@ -374,7 +374,7 @@ class SetSpec:
             if not isinstance(e, dict):
                 raise ValueError(f"{we}: must be a table")
             bad = sorted(set(e) - {"images", "labels", "frames", "radius_px", "predict",
-                                   "predict_noise_px", "imager", "group"})
+                                   "predict_noise_px", "imager", "group", "channel"})
             if bad:
                 raise ValueError(f"{we}: unknown key(s) {bad}")
             for k in ("images", "labels"):
@@ -384,7 +384,11 @@ class SetSpec:
             if fr is not None and not (isinstance(fr, list) and all(
                     isinstance(x, int) and not isinstance(x, bool) and x >= 0 for x in fr)):
                 raise ValueError(f"{we}.frames: expected a list of frame indices, got {fr!r}")
-            reals.append(dict(images=e["images"], labels=e["labels"], frames=fr,
+            ch = e.get("channel")
+            if ch is not None and ch not in ("l", "r", "g", "b"):
+                raise ValueError(f"{we}.channel: expected \"l\", \"r\", \"g\" or \"b\", got "
+                                 f"{ch!r}")
+            reals.append(dict(images=e["images"], labels=e["labels"], frames=fr, channel=ch,
                               radius_px=_num(e, "radius_px", we, radius, positive=True),
                               predict=_predict(e, "predict", we, predict),
                               predict_noise_px=_num(e, "predict_noise_px", we, noise, lo=0.0),
@@ -584,7 +588,7 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     record = load_record("aurora") if record is None else record
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
-    frames = read_images(ipath)
+    frames = read_images(ipath, entry.get("channel") or "l")
     name = ipath.name
     mine = {fr: pos for (im, fr), pos in labels.items() if im == name}
     if not mine:

@@ -96,7 +96,7 @@ def real_event(entry: dict, base_dir=None) -> ReplayEvent:
     from hil_harness.images import read_images
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
-    frames = read_images(ipath)
+    frames = read_images(ipath, entry.get("channel") or "l")
     name = ipath.name
     mine = {fr: pos for (im, fr), pos in labels.items() if im == name}
     if not mine:

@@ -1,0 +1,121 @@
+"""Aperture photometry at the candidates' centroids: the star job's ground ordering.
+
+The flight IP ranks its blobs by the record; the star job's record gates them on their peak in
+the smoothed, detrended image, and a peak favours a small sharp star over a bright broad one. To
+report the brightest stars of a field first, ``uvisi detect``'s star job (a ground tool, not the
+flight ranking) measures each candidate's flux on the 12-bit frame the IP was given and orders by
+it (:func:`aperture_flux`, :func:`order_stars`).
+
+The peak gate (4.5 input-noise sigmas, :data:`hil_harness.detect.jobs.GATE_SIGMA`) was set so that
+the gated list of a sharp star-tracker frame matches SEP's 5-sigma list; a camera with a broad
+point-spread function (an all-sky imager) puts its real stars below it (their smoothed peak is
+spread, not their flux). So free slots are filled with candidates below the gate whose aperture
+signal-to-noise is at least :data:`FILL_SNR`, after every gated one; the JSON marks each
+candidate's ``gate``.
+
+Public: :func:`aperture_flux`, :func:`order_stars` and their constants.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+__all__ = ["aperture_flux", "order_stars", "MIN_RADIUS", "MAX_RADIUS", "RADIUS_PER_AXIS",
+           "ANNULUS", "FILL_SNR", "FILL_PEAK_SIGMA", "SAME_STAR_PX"]
+
+#: aperture radius = RADIUS_PER_AXIS x the blob's semimajor axis, within MIN_RADIUS..MAX_RADIUS px
+RADIUS_PER_AXIS = 2.0
+MIN_RADIUS = 3.0
+MAX_RADIUS = 10.0
+#: background annulus: from the aperture radius + ANNULUS[0] to + ANNULUS[1] pixels
+ANNULUS = (3.0, 8.0)
+
+
+def aperture_flux(img, rows, cols, semimajor, noise: float, mask=None):
+    """Background-subtracted flux in a circular aperture about each point.
+
+    ``img``: 2-D array [H, W] (counts); ``rows``, ``cols``: float [n], full-resolution centroids
+    (pixel centres at +0.5); ``semimajor``: float [n], each blob's semimajor axis (pixels), which
+    sets its aperture radius ``clip(RADIUS_PER_AXIS * a, MIN_RADIUS, MAX_RADIUS)``; ``noise``: the
+    frame's pixel noise (counts); ``mask``: optional bool [H, W], pixels outside take no part.
+    The background is the median of the annulus ``r + ANNULUS[0] .. r + ANNULUS[1]``; a pixel
+    belongs to a circle when its centre does.
+
+    Returns ``(flux, snr)``: float64 [n] each, ``flux`` in counts (sum over the aperture of pixel
+    minus background), ``snr = flux / (noise * sqrt(pixels in the aperture))`` (the background-
+    limited signal-to-noise; NaN where the aperture holds no pixel).
+    """
+    a = np.asarray(img, np.float64)
+    H, W = a.shape
+    rows = np.asarray(rows, float)
+    cols = np.asarray(cols, float)
+    rad = np.clip(RADIUS_PER_AXIS * np.asarray(semimajor, float), MIN_RADIUS, MAX_RADIUS)
+    m = np.ones(a.shape, bool) if mask is None else np.asarray(mask, bool)
+    flux = np.full(rows.size, np.nan)
+    snr = np.full(rows.size, np.nan)
+    for i in range(rows.size):
+        r_out = rad[i] + ANNULUS[1]
+        r0, r1 = max(0, int(rows[i] - r_out)), min(H, int(rows[i] + r_out) + 2)
+        c0, c1 = max(0, int(cols[i] - r_out)), min(W, int(cols[i] + r_out) + 2)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        yy, xx = np.mgrid[r0:r1, c0:c1]
+        d = np.hypot(yy + 0.5 - rows[i], xx + 0.5 - cols[i])
+        cut, ok = a[r0:r1, c0:c1], m[r0:r1, c0:c1]
+        ap = ok & (d <= rad[i])
+        ring = ok & (d >= rad[i] + ANNULUS[0]) & (d <= r_out)
+        if not ap.any():
+            continue
+        bkg = float(np.median(cut[ring])) if ring.sum() >= 8 else float(np.median(cut[ok]))
+        flux[i] = float(np.sum(cut[ap] - bkg))
+        snr[i] = flux[i] / (max(noise, 1e-9) * math.sqrt(int(ap.sum())))
+    return flux, snr
+
+
+#: the star job's fill: a candidate below the peak gate may fill a free slot when its aperture
+#: signal-to-noise is at least FILL_SNR; the IP is re-run with its peak gate at FILL_PEAK_SIGMA
+#: input-noise sigmas to find them
+FILL_SNR = 5.0
+FILL_PEAK_SIGMA = 1.0
+#: a fill candidate within this distance (pixels) of a gated one is the same star
+SAME_STAR_PX = 2.0
+
+
+def order_stars(img12, gated: list, below: list, noise: float, max_candidates: int,
+                mask=None) -> list:
+    """The star job's ground ordering of ``uvisi detect``'s candidates (the flight ranking is not
+    changed; this orders what it reported): every candidate that passed the peak gate, brightest
+    aperture flux first; then, in the slots left up to ``max_candidates``, the candidates of a run
+    with the gate lowered to ``FILL_PEAK_SIGMA`` that are not a gated star (``SAME_STAR_PX``) and
+    whose aperture signal-to-noise is at least ``FILL_SNR``, brightest first.
+
+    ``img12``: uint16 [H, W], the counts the IP was given; ``gated``, ``below``: candidate dicts
+    (``row``, ``col``, ``features``: as :func:`hil_harness.cli.detect.detect_one` makes them)
+    from the gated and the lowered run; ``noise``: pixel noise of ``img12`` (counts); ``mask``:
+    optional bool [H, W], the field. Returns new dicts with ``rank`` (1-based, this order),
+    ``flight_rank`` (in its run), ``gate`` (True: passed the peak gate), ``flux`` (counts) and
+    ``snr`` added."""
+    def measured(cands, gate):
+        if not cands:
+            return []
+        r = np.array([c["row"] for c in cands])
+        c_ = np.array([c["col"] for c in cands])
+        a = np.array([c["features"]["semimajor"] for c in cands])
+        flux, snr = aperture_flux(img12, r, c_, a, noise, mask)
+        return [dict(c, flight_rank=c["rank"], gate=gate, flux=float(f), snr=float(s))
+                for c, f, s in zip(cands, flux, snr)]
+
+    first = measured(gated, True)
+    first.sort(key=lambda c: -np.nan_to_num(c["flux"], nan=-np.inf))
+    rest = []
+    if len(first) < max_candidates and below:
+        pos = np.array([[c["row"], c["col"]] for c in first]).reshape(-1, 2)
+        new = [c for c in below if not len(pos)
+               or np.hypot(pos[:, 0] - c["row"], pos[:, 1] - c["col"]).min() > SAME_STAR_PX]
+        rest = [c for c in measured(new, False) if c["snr"] >= FILL_SNR]
+        rest.sort(key=lambda c: -c["flux"])
+    out = (first + rest)[:max_candidates]
+    for i, c in enumerate(out):
+        c["rank"] = i + 1
+    return out
