@@ -146,6 +146,8 @@ def test_scenario_flight_with_is_read_and_checked(tmp_path):
     ev = Event(EventConfig(scenario=str(p), frames=2))
     assert ev.proposals == ("aim_offset", "rule5")
     assert Event(EventConfig(scenario=str(p), frames=2, proposals=())).proposals == ()  # --with wins
+    p.write_text(text + '\n[flight]\nwith = ["all"]\n')
+    assert Event(EventConfig(scenario=str(p), frames=2)).proposals == NAMES
     p.write_text(text + '\n[flight]\nwith = ["rule9"]\n')
     with pytest.raises(ScenarioError, match=r"s.toml: flight.with: unknown proposal 'rule9'"):
         Scenario.load(p)
@@ -180,10 +182,39 @@ def test_campaign_flight_with_reaches_every_run(tmp_path):
     head = '[campaign]\nname = "c"\njob = "hil_harness.campaign.jobs:event"\nseeds = [1, 2]\n'
     spec = CampaignSpec.from_dict(
         __import__("tomllib").loads(head + '[flight]\nwith = ["rule5", "aim_scan"]\n'), "c.toml")
-    assert all(r["proposals"] == ["aim_scan", "rule5"] for r in spec.runs)
+    assert all(r["proposals"] == ["rule5", "aim_scan"] for r in spec.runs)       # as written
+    every = CampaignSpec.from_dict(__import__("tomllib").loads(
+        head + '[axes]\nscenario = ["satellite_over_stars"]\n[flight]\nwith = ["all"]\n'),
+        "c.toml")
+    every.validate_inputs()                                  # "all" is accepted on any mode
+    assert every.runs[0]["proposals"] == ["all"]
     with pytest.raises(ValueError, match=r"c.toml: flight.with: unknown proposal 'x'"):
         CampaignSpec.from_dict(__import__("tomllib").loads(head + '[flight]\nwith = ["x"]\n'),
                                "c.toml")
+    aur = CampaignSpec.from_dict(__import__("tomllib").loads(
+        head + '[axes]\nscenario = ["aurora_surge_wfov_uv"]\n[flight]\nwith = ["rule5"]\n'),
+        "c.toml")
+    with pytest.raises(ValueError, match=r"c.toml: flight.with \(scenario aurora_surge_wfov_uv\): "
+                                         r"proposal 'rule5' is never used"):
+        aur.validate_inputs()
+
+
+def test_a_recording_made_before_proposals_replays_with_todays_configuration(tmp_path, capsys):
+    """A recording without a ``flight`` entry (made before it existed, when all eight ran): its
+    replay runs all eight, says so in one line, and is bit-identical."""
+    import h5py
+    out = tmp_path / "old"
+    assert main(["event", "satellite_over_stars", "--frames", "24", "--no-figures", "--out",
+                 str(out), "--with", "all"]) == 0
+    with h5py.File(out / "recording.h5", "r+") as f:
+        cfg = json.loads(f.attrs["config"])
+        del cfg["flight"]
+        f.attrs["config"] = json.dumps(cfg)
+    capsys.readouterr()
+    assert main(["replay", str(out / "recording.h5")]) == 0
+    lines = capsys.readouterr().out.strip().splitlines()
+    assert any("made before proposals existed" in x and "all eight" in x for x in lines)
+    assert "all bit-identical" in lines[-1]
 
 
 def test_replay_takes_the_proposals_from_the_recording(tmp_path, capsys):

@@ -3,8 +3,10 @@ four rules, the pair conclusion, reinitialisation, gate propagation, and two-fra
 propagate -> associate -> smooth -> rules, as Stone Soup tests its deleters.
 
 Values are built here as 1750A words with ``encode32`` (nearest); the expected outcomes follow from
-the rule statements in the MSX paper (quoted in ``flightsw.tp.rules``), and the propagated gate
-positions are checked against float64 closed forms.
+the rule statements in the MSX paper (quoted in ``flightsw.tp.rules``) and, where a case says so
+(``G``, the cases' default), from the three conditions the proposal ``rule_guards`` adds to them,
+which the paper does not state (the tests "as the paper states them" run without); the propagated
+gate positions are checked against float64 closed forms.
 """
 import numpy as np
 import pytest

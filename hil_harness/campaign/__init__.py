@@ -151,7 +151,9 @@ class CampaignSpec:
 
     def validate_inputs(self) -> None:
         """Check, before any worker starts, that every scenario, record and sequence the runs name
-        is a shipped one or an existing file; ValueError naming the spec, the key and the value."""
+        is a shipped one or an existing file, and that every proposal ``[flight] with`` names acts
+        on every scenario's tracker mode; ValueError naming the spec, the key and the value."""
+        self._check_proposals()
         seen = set()
         for params in self.runs:
             for k in PATH_KEYS:
@@ -171,6 +173,24 @@ class CampaignSpec:
                         f"{self.source}: {where}.{k} = {v!r}: neither a shipped {k} "
                         f"({', '.join(sorted(shipped))}) nor a file (looked in "
                         f"{' and '.join(dict.fromkeys(looked))})")
+
+    def _check_proposals(self) -> None:
+        """A proposal named in ``[flight] with`` that a run's scenario never uses (its tracker
+        mode: aurora events are targets of opportunity) is refused before any run starts."""
+        names = (self.raw.get("flight") or {}).get("with") or []
+        if not names:
+            return
+        from flightsw.proposals import check_applicable
+        from groundsim.scenario import Scenario
+        seen = set()
+        for params in self.runs:
+            name = params.get("scenario", "aurora_surge_wfov_uv")
+            if name in seen or not isinstance(name, str):
+                continue
+            seen.add(name)
+            path = name if name in Scenario.shipped() else resolve_spec_path(name, self.base_dir)
+            mode = "opportunity" if Scenario.load(path).target_type == "aurora" else "dedicated"
+            check_applicable(names, mode, f"{self.source}: flight.with (scenario {name})")
 
     @property
     def run_ids(self) -> list:
@@ -263,8 +283,8 @@ class CampaignSpec:
             for combo in itertools.product(*[axes[k] for k in keys]):
                 p = dict(params)
                 p.update(zip(keys, combo))
-                if flight:
-                    p["proposals"] = list(flight)
+                if flight:                     # as written ("all": all eight, any mode)
+                    p["proposals"] = list(data["flight"]["with"])
                 p["seed"] = s
                 runs.append(p)
         return cls(name, jobname, runs, str(head.get("description", "")), source, data)

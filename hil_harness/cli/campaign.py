@@ -60,7 +60,8 @@ def run(args) -> int:
     if args.job or args.with_ is not None:
         raw = dict(spec.raw)
         if args.with_ is not None:                    # --with replaces the spec's [flight] with
-            raw["flight"] = {"with": list(with_names(args))}
+            with_names(args)                          # unknown names refused here, by --with
+            raw["flight"] = {"with": [n.strip() for n in args.with_.split(",") if n.strip()]}
         spec = CampaignSpec.from_dict(raw, spec.source, args.job, args.no_size_check)
     spec.validate_inputs()
     out = Path(args.out or f"campaign_{spec.name}")

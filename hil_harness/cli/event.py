@@ -23,7 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option, with_names
+from hil_harness.cli.options import add_with_option
 from hil_harness.console import progress_enabled
 
 
@@ -67,7 +67,8 @@ def check_event_size(name: str, args, out: Path) -> None:
     one line, exit 2)."""
     from groundsim.scenario import Scenario
     from hil_harness.sizes import check, event_cost
-    scn = Scenario.load(name, seed=args.seed)
+    scn = Scenario.load(name, seed=args.seed,
+                        uplink_dir=getattr(args, "uplink_dir", None))
     n = scn.n_frames
     if args.frames is not None and args.frames > n:
         raise ValueError(f"--frames {args.frames:,}: scenario {scn.name} has {n:,} frames "
@@ -116,7 +117,7 @@ def run(args) -> int:
                       record_frames=not args.no_frames, figures=not args.no_figures,
                       progress=progress_enabled(), sequence=args.sequence, record=args.record,
                       selection=SelectionParams(handover=args.handover), force=replace,
-                      hypothesis=args.hypothesis, proposals=with_names(args),
+                      hypothesis=args.hypothesis, proposals=args.with_,
                       proposals_where="--with")
     except EventInterrupted as exc:
         how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"

@@ -16,6 +16,7 @@ replayed. Refused while a ``uvisi event`` still writes to the folder."""
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 

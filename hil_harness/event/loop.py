@@ -41,6 +41,7 @@ import numpy as np
 from flightsw.budget import DSP, IP1750, TP1750, Ledger
 from flightsw.ip import ImageProcessor, ProcessingSequence
 from flightsw.ip.processor import apply_floor_proposals, check_floor_proposals
+from flightsw.proposals import ALL as PROPOSAL_NAMES
 from flightsw.proposals import check_applicable, flight_profile
 from flightsw.messages import TC_BAD_MESSAGE, CandidateMessage, Feedback, TrackCommand
 from flightsw.records import Record, load_record
@@ -222,8 +223,9 @@ class Event:
                                              scale_row=float(im.scale_row))
         mode = "opportunity" if ttype == "aurora" else "dedicated"
         given, where = cfg.proposals, cfg.proposals_where
-        if given is None:
-            given, where = scn.flight_with, f"{scn.path}: flight.with"
+        if given is None:                      # the scenario's [flight] with ("all": all eight)
+            given = "all" if scn.flight_with == PROPOSAL_NAMES else scn.flight_with
+            where = f"{scn.path}: flight.with"
         #: the proposals in force (sorted names; () is the paper's system)
         self.proposals = check_applicable(given, mode, where)
         check_floor_proposals(self.sequence, self.proposals,

@@ -65,14 +65,15 @@ def replay_config(path: Path, rec: Recording, n: int) -> EventConfig:
 
 
 def recorded_proposals(cfgd: dict) -> tuple:
-    """The proposals a recording was made with (its ``config["flight"]["with"]``); a recording made
-    before proposals existed has none: it ran today's configuration, all eight
-    (:data:`flightsw.proposals.ALL`; the caller says so: :func:`predates_proposals`)."""
+    """The proposals a recording was made with (its ``config["flight"]["with"]``; ``"all"`` for all
+    eight); a recording made before proposals existed has none: it ran today's configuration, all
+    eight (the caller says so: :func:`predates_proposals`)."""
     from flightsw.proposals import ALL
     fl = cfgd.get("flight")
     if not isinstance(fl, dict):
-        return ALL
-    return tuple(fl.get("with") or ())
+        return "all"
+    got = tuple(fl.get("with") or ())
+    return "all" if got == ALL else got          # all eight, whatever the event's mode uses
 
 
 def predates_proposals(rec: Recording) -> bool:

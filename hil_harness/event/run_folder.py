@@ -8,6 +8,8 @@ the new run's.
 """
 from __future__ import annotations
 
+import fcntl
+import os
 from pathlib import Path
 
 from hil_harness.fileio import LOCK_NAME, FolderLock
