@@ -200,18 +200,23 @@ def test_campaign_flight_with_reaches_every_run(tmp_path):
 
 
 def test_a_recording_made_before_proposals_replays_with_todays_configuration(tmp_path, capsys):
-    """A recording without a ``flight`` entry (made before it existed, when all eight ran): its
-    replay runs all eight, says so in one line, and is bit-identical."""
+    """A recording without a ``flight`` entry (made before it existed, when all eight ran, in the
+    unsealed format 2): its replay runs all eight, says so in one line, and is bit-identical; as
+    any recording that cannot be verified in full, it passes only with --accept-unverified."""
     import h5py
     out = tmp_path / "old"
     assert main(["event", "satellite_over_stars", "--frames", "24", "--no-figures", "--out",
                  str(out), "--with", "all"]) == 0
-    with h5py.File(out / "recording.h5", "r+") as f:
+    with h5py.File(out / "recording.h5", "r+") as f:       # as the format-2 files were
         cfg = json.loads(f.attrs["config"])
         del cfg["flight"]
         f.attrs["config"] = json.dumps(cfg)
+        f.attrs["format"] = "uvisi-recording/2"
+        del f.attrs["attrs_sha256"]
     capsys.readouterr()
-    assert main(["replay", str(out / "recording.h5")]) == 0
+    assert main(["replay", str(out / "recording.h5")]) == 1           # not verified: fails
+    assert "not verified" in capsys.readouterr().err
+    assert main(["replay", str(out / "recording.h5"), "--accept-unverified"]) == 0
     lines = capsys.readouterr().out.strip().splitlines()
     assert any("made before proposals existed" in x and "all eight" in x for x in lines)
     assert "all bit-identical" in lines[-1]

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from hil_harness.cli import main as cli
+from hil_harness.event.checksum import attrs_digest
 from hil_harness.event.io import EventWriter, run_event
 from hil_harness.view import make_server, open_recording, write_page
 from hil_harness.view.codec import pack
@@ -133,6 +134,10 @@ def test_page_of_a_recording_replay_cannot_run(event, tmp_path):
         del cfg["sequence"]
         f.attrs["config"] = json.dumps(cfg)
         sk = int(f.attrs["stage_frame"])
+    with pytest.raises(ValueError, match="root attributes: changed since they were written"):
+        write_page(path)                             # an edit of the attributes is seen ...
+    with h5py.File(path, "r+") as f:                 # ... unless resealed, as a writer would
+        f.attrs["attrs_sha256"] = attrs_digest(dict(f.attrs))
     data, images = page_parts(write_page(path).read_text())
     assert list(images["stages"]) == [str(sk)]      # the recording's own stage frame, and why
     assert "could not be replayed" in data["stage_note"] and data["stage_error"]

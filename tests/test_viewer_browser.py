@@ -26,6 +26,7 @@ import numpy as np
 import pytest
 
 from bench.bench_viewer import chromium_path
+from hil_harness.event.checksum import attrs_digest
 from hil_harness.event.io import run_event
 from hil_harness.view import make_server, write_page
 
@@ -223,6 +224,7 @@ def crafted(event, tmp_path_factory):
         summ = json.loads(f.attrs["summary"])
         summ["faults"] = [{"t": 1.0, "frame": 2, "kind": X, "verdict": X, "reaction": X}]
         f.attrs["summary"] = json.dumps(summ)
+        f.attrs["attrs_sha256"] = attrs_digest(dict(f.attrs))     # resealed, as a writer would
     return path
 
 

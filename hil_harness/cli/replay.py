@@ -12,7 +12,12 @@ at that time: it is replayed with all eight proposals, and the report says so in
 ``uvisi replay --clear-flags RECORDING``: clear the open-for-write flags a killed ``uvisi event``
 leaves in its ``recording.partial.h5`` (as ``h5clear -s`` does), so that HDF5 tools older than 2.0
 (``h5dump`` 1.10, h5py on HDF5 1.14) open it; nothing else in the file changes and nothing is
-replayed. Refused while a ``uvisi event`` still writes to the folder."""
+replayed. Refused while a ``uvisi event`` still writes to the folder.
+
+The root attributes that describe the run (scenario, seed, config, summary, ``complete``, ...) are
+sealed by a digest (``attrs_sha256``); a file of the current format whose attributes changed, or
+that lacks the digest or its checksums, is refused. A recording of an older format is replayed with
+a one-line "not verified", and its verdict fails unless ``--accept-unverified``."""
 from __future__ import annotations
 
 import argparse
@@ -30,6 +35,9 @@ def register(sub) -> None:
                    help="only clear the open-for-write flags a killed event left in the file "
                         "(for HDF5 tools before 2.0), then stop")
     add_ignore_checksums(p)
+    p.add_argument("--accept-unverified", action="store_true",
+                   help="a recording of an older format (not sealed, or without checksums) is "
+                        "replayed and passes when bit-identical (default: a failed verdict, exit 1)")
     p.set_defaults(func=run)
 
 
@@ -84,6 +92,10 @@ def run(args) -> int:
                 f"frames verified (checksums)")
     if r["identical"]:
         print(f"{head}, {r['compared']} messages re-computed, all bit-identical{_flags_tail(r)}")
+        if r.get("unverified") and not args.accept_unverified:
+            print(f"uvisi replay: {r['recording']}: {r['unverified']}: a failed verdict "
+                  f"(--accept-unverified accepts it)", file=sys.stderr)
+            return 1
         return 0
     print(f"{head}; {len(r['mismatches'])} of {r['compared']} messages differ{_flags_tail(r)}")
     for m in r["mismatches"][:20]:

@@ -79,3 +79,32 @@ def adler32_rows(rows: np.ndarray) -> np.ndarray:
     out = np.empty(n, np.uint32)
     adler32_rows_kernel(u8.reshape(n, -1), out)
     return out
+
+
+#: the root attribute holding :func:`attrs_digest` of the others (recording format 3)
+ATTRS_DIGEST = "attrs_sha256"
+
+
+def _attr_bytes(v) -> bytes:
+    """One attribute value as bytes that do not depend on how HDF5 hands it back."""
+    if isinstance(v, bytes):
+        return b"b:" + v
+    if isinstance(v, str):
+        return b"s:" + v.encode()
+    a = np.asarray(v)
+    if a.dtype.kind in "USO":
+        return b"s:" + str(v).encode()
+    return f"{a.dtype.str}{a.shape}:".encode() + np.ascontiguousarray(a).tobytes()
+
+
+def attrs_digest(attrs) -> str:
+    """SHA-256 (hex) of a recording's root attributes, every one but :data:`ATTRS_DIGEST`, by
+    name: what describes the run (scenario, seed, config, summary, ``complete``, ``format``, ...)
+    cannot be edited without the reader seeing it."""
+    import hashlib
+    h = hashlib.sha256()
+    for k in sorted(attrs):
+        if k == ATTRS_DIGEST:
+            continue
+        h.update(k.encode() + b"=" + _attr_bytes(attrs[k]) + b";")
+    return h.hexdigest()

@@ -838,7 +838,8 @@ def replay(path, ignore_checksums: bool = False) -> dict:
         verified = 0 if checked["damaged"] else checked["frames"]
         out = {"recording": str(path), "complete": rec.complete, "planned": int(at["n_frames"]),
                "frames": n, "verified": verified, "checksums": rec.has_checksums,
-               "compared": 0, "identical": True, "mismatches": [], "note": note}
+               "compared": 0, "identical": True, "mismatches": [], "note": note,
+               "unverified": rec.unverified}
         if not bool(at.get("record_frames", True)) or (n and "frames" not in rec.arrays()):
             raise ValueError(f"{path}: the recording holds no frames (it was made with --no-frames); "
                              f"replay needs them")

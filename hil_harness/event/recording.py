@@ -43,11 +43,13 @@ import numpy as np
 from groundsim.assess.h5open import open_h5
 
 from .appendable import AppendableDataset, write_attr
-from .checksum import adler32_rows
+from .checksum import ATTRS_DIGEST, adler32_rows, attrs_digest
 
-FORMAT = "uvisi-recording/2"
-#: formats this module reads (version 1, before blocks and checksums, cannot be verified)
-READ_FORMATS = ("uvisi-recording/1", FORMAT)
+FORMAT = "uvisi-recording/3"
+#: formats this module reads: version 1 (before blocks and checksums) cannot be verified, version 2
+#: (rows checksummed, root attributes not sealed) only in part; both read with a one-line "not
+#: verified" (replay: a failed verdict unless --accept-unverified)
+READ_FORMATS = ("uvisi-recording/1", "uvisi-recording/2", FORMAT)
 #: rows read per step by :meth:`Recording.verify`
 VERIFY_BLOCK_ROWS = 64
 #: a recording's rows per inner chunk of a table (and of small arrays)
@@ -255,6 +257,7 @@ class Recorder:
         self._f.attrs["flush_every"] = self.flush_every
         for k, v in (attrs or {}).items():
             self._f.attrs[k] = _attr_value(v)
+        self._seal()
         self._f.swmr_mode = True
         # the compiled checksum loads from numba's cache now (3-7 ms), with the file's opening,
         # not in the middle of the event's first block
@@ -379,6 +382,12 @@ class Recorder:
 
     def set_attr(self, key: str, value) -> None:
         self._f.attrs[key] = _attr_value(value)
+        self._seal()
+
+    def _seal(self) -> None:
+        """Write the digest of the root attributes (:func:`~.checksum.attrs_digest`) after any
+        change to them."""
+        self._f.attrs[ATTRS_DIGEST] = attrs_digest(dict(self._f.attrs))
 
     def end_frame(self) -> None:
         """One frame's rows are all appended; every ``flush_every`` frames they are written."""
@@ -458,6 +467,7 @@ class Recorder:
         self._run_before_close()
         self.flush()
         self._f.attrs["complete"] = True
+        self._seal()
         self._f.close()
         os.replace(self.partial, self.path)
         self._closed = True
@@ -596,6 +606,8 @@ class Recording:
                 raise ValueError(f"{self.path}: not a uvisi recording (format attribute "
                                  f"{fmt!r} != {FORMAT!r})")
             self.complete = bool(self._f.attrs.get("complete", True))
+            #: why the recording cannot be verified in full ("" for the current format)
+            self.unverified = self._check_attrs(fmt)
             self._sums, self._sum_rows = self._checksums()
             self.n_frames = self._frames_held()
         except (OSError, KeyError, TypeError, AttributeError) as exc:
@@ -605,6 +617,23 @@ class Recording:
         except BaseException:
             self._f.close()
             raise
+
+    def _check_attrs(self, fmt) -> str:
+        """The root attributes against their digest: the current format must carry a matching
+        one (else :class:`RecordingDamaged`); an older format returns why it is not verified."""
+        if fmt != FORMAT:
+            return ("recorded without checksums" if fmt == "uvisi-recording/1" else
+                    "root attributes not sealed") + f" (format {fmt!r}): not verified"
+        want = self._f.attrs.get(ATTRS_DIGEST)
+        if not self.checking:
+            return ""
+        if want is None or str(want) != attrs_digest(dict(self._f.attrs)):
+            raise RecordingDamaged(f"{self.path}: root attributes: "
+                                   + ("no digest (attrs_sha256) in a file that claims format "
+                                      f"{FORMAT!r}" if want is None else
+                                      "changed since they were written (attrs_sha256 does not "
+                                      "match)"))
+        return ""
 
     def _datasets(self) -> list[str]:
         out = []
@@ -878,7 +907,25 @@ class Recording:
         return False
 
 
+#: a live partial recording found inconsistent is read again this many times, ``LIVE_RETRY_S``
+#: apart, before it is called damaged: its writer may be between a block's rows and their checksums
+LIVE_RETRIES, LIVE_RETRY_S = 4, 0.25
+
+
 def open_checked(path, ignore_checksums: bool = False) -> tuple[Recording, dict, str | None]:
+    """:func:`open_checked_once`, read again (:data:`LIVE_RETRIES`) when a partial recording
+    (``*.partial.h5``, perhaps still being written) looks damaged: a live file is never called
+    damaged for a block its writer had not finished."""
+    import time
+    for _ in range(LIVE_RETRIES if str(path).endswith(".partial.h5") else 0):
+        try:
+            return open_checked_once(path, ignore_checksums)
+        except (RecordingDamaged, OSError):
+            time.sleep(LIVE_RETRY_S)
+    return open_checked_once(path, ignore_checksums)
+
+
+def open_checked_once(path, ignore_checksums: bool = False) -> tuple[Recording, dict, str | None]:
     """Open a recording for a command that reads it, and verify every stored row first (the
     commands' one checksum path: :meth:`Recording.verify`, whose row check
     :meth:`Recording.check_rows` the Python reader applies to every read).
@@ -909,6 +956,8 @@ def open_checked(path, ignore_checksums: bool = False) -> tuple[Recording, dict,
                 f"{rec.path}: recorded without checksums (format {rec.attrs.get('format')!r}): " \
                 f"not verified"
         checked = rec.verify(collect=ignore_checksums)
+        if rec.unverified and not ignore_checksums:
+            return rec, checked, f"{rec.path}: {rec.unverified}"
     except BaseException:
         rec.close()
         raise
