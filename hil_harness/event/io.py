@@ -36,12 +36,13 @@ import numpy as np
 
 from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
-from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES, TrackCommand
+from flightsw.messages import (CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES, TC_STATUS_NAMES,
+                               TrackCommand)
 from flightsw.tp.ekf import E_P, E_RUN, UT
 from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
-                   EventConfig, FrameOutcome, flight_profile)
+                   EventConfig, FrameOutcome, FrameRecord, flight_profile)
 from .recording import Recorder, open_checked, row_dtype, signals_deferred
 from .replay import ReplayEvent, predates_proposals, replay_config
 from .run_folder import RunFolder
@@ -405,6 +406,21 @@ def _pct(x, q):
     return float(np.percentile(x, q)) if len(x) else None
 
 
+def _issued_status(o) -> int | None:
+    """The status bits of the command the TP issued on frame ``o`` (its own words, word 7), None
+    when it issued none (a :class:`FrameRecord` keeps them as ``issued_status``)."""
+    if isinstance(o, FrameRecord):
+        s = o.issued_status
+        return None if s < 0 else s
+    w = o.command_words
+    if w is None or not len(w):
+        return None
+    try:
+        return int(TrackCommand.from_words(w).status)
+    except ValueError:              # never for the TP's own words: counted as no status
+        return None
+
+
 def bus_counts(outcomes, events_log) -> tuple[dict, dict]:
     """``tp_status_frames`` and the ``bus`` entry of the summary.
 
@@ -418,16 +434,14 @@ def bus_counts(outcomes, events_log) -> tuple[dict, dict]:
     status_counts = {}
     refused_commands = 0
     for o in outcomes:
-        if o.command_words is None or not len(o.command_words):
+        status = _issued_status(o)
+        if status is None:
             continue
         if o.command is None:
             refused_commands += 1
-        try:
-            issued = TrackCommand.from_words(o.command_words)
-        except ValueError:          # never for the TP's own words: counted as no status
-            continue
-        for name in issued.status_names():
-            status_counts[name] = status_counts.get(name, 0) + 1
+        for bit, name in TC_STATUS_NAMES.items():
+            if status & bit:
+                status_counts[name] = status_counts.get(name, 0) + 1
     injected = {kind: sum(1 for e in events_log if e.get("kind") == kind)
                 for kind in ("corrupt_candidate", "corrupt_command")}
     bus = {"candidate_messages_corrupted": injected["corrupt_candidate"],
@@ -723,7 +737,8 @@ def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frame
     n = scenario.n_frames if frames is None else min(int(frames), scenario.n_frames)
     check(event_cost(f"scenario {scenario.name}", n, out, record_frames, figures), lift_cap=True)
     cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
-    ev = Event(cfg, keep_frames=bool(out) and figures)
+    # without figures nothing reads a frame's whole outcome after the recorder: keep it slim
+    ev = Event(cfg, keep_frames=bool(out) and figures, keep_outcomes=bool(out) and figures)
     if out is None:
         ev.run(progress=progress)
         return summarise(ev)
@@ -853,6 +868,7 @@ def replay(path, ignore_checksums: bool = False) -> dict:
         mism = []
         for k in range(n):
             o = ev.step()
+            ev.outcomes[-1] = FrameRecord(o)         # memory flat in the recording's length
             for what, got, ds, ln in (("message", o.message_words, mw, fr[k]["msg_len"]),
                                       ("command", o.command_words, cw, fr[k]["cmd_len"])):
                 want = np.asarray(ds[k])[:int(ln)]

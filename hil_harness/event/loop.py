@@ -162,6 +162,116 @@ class FrameOutcome:
     events: list = field(default_factory=list)   # faults injected and uplinks sent this frame
 
 
+class CommandState:
+    """What the summary keeps of a track command once its frame is written: locked, decided."""
+
+    __slots__ = ("locked", "decided")
+
+    def __init__(self, locked: bool, decided: bool):
+        self.locked, self.decided = bool(locked), bool(decided)
+
+
+class LedgerSeconds:
+    """What the summary keeps of a frame's ledger: the emulated seconds per processor."""
+
+    __slots__ = ("_s",)
+
+    def __init__(self, seconds: dict):
+        self._s = seconds
+
+    def seconds(self, processor: str) -> float:
+        return self._s.get(processor, 0.0)
+
+
+class AttitudeValid:
+    """What the summary keeps of a frame's attitude data: whether it was valid."""
+
+    __slots__ = ("valid",)
+
+    def __init__(self, valid: bool):
+        self.valid = bool(valid)
+
+
+_VALID, _INVALID = AttitudeValid(True), AttitudeValid(False)
+_NO_SWITCHES: tuple = ()
+#: the host timings a record keeps (us)
+HOST_KEYS = ("render", "ip", "tp", "world", "compile", "total")
+#: one frame record's numbers (one structured scalar: ~0.3 kB a frame with the record object)
+RECORD_DTYPE = np.dtype(
+    [("k", "i8"), ("t", "f8"), ("imager", "S8"), ("skip", "i1"), ("overrun", "?"),
+     ("error_urad", "f8"), ("track_row", "f8"), ("track_col", "f8"), ("pred_row", "f8"),
+     ("pred_col", "f8"), ("tg", "f8", (2,)), ("tg_state", "i1"), ("att_valid", "?"),
+     ("cmd", "i1"), ("issued_status", "i4"), ("ledger", "?"), ("secs", "f8", (3,)),
+     ("host", "f8", (len(HOST_KEYS),)), ("alpha", "f8"), ("n_blobs", "i4")])
+
+
+class FrameRecord:
+    """A frame's outcome once the recorder has it, slimmed to what :func:`~.io.summarise`, the
+    held-after-lock metric and the fault counts read, under :class:`FrameOutcome`'s names: an
+    event run with ``keep_outcomes=False`` keeps ~0.3 kB a frame instead of ~27 kB, so its memory
+    stays flat in time (the candidates, words, stages, ledger details and attitude are in the
+    recording)."""
+
+    __slots__ = ("_r", "switches")
+    message = None
+
+    def __init__(self, o: "FrameOutcome"):
+        tg = (o.truth or {}).get("target") or {}
+        c = o.command
+        w = o.command_words
+        issued = int(w[7]) if w is not None and len(w) > 7 else -1    # word 7: the TP's status
+        led = o.ledger
+        secs = [led.seconds(p) for p in (DSP, IP1750, TP1750)] if led is not None else [0.0] * 3
+        self._r = np.array((
+            o.k, o.t, str(o.imager).encode(), o.skip, o.overrun, o.error_urad, o.track_row,
+            o.track_col, o.pred_row, o.pred_col, (tg.get("row", np.nan), tg.get("col", np.nan)),
+            -1 if not tg else int(bool(tg.get("in_field", False))),
+            bool(getattr(o.attitude, "valid", True)),
+            0 if c is None else 1 + int(bool(c.locked)) + 2 * int(bool(getattr(c, "decided", 0))),
+            issued, led is not None, secs, [o.host_us.get(k, np.nan) for k in HOST_KEYS],
+            o.alpha, o.n_blobs), RECORD_DTYPE)[()]
+        self.switches = list(o.switches) if o.switches else _NO_SWITCHES
+
+    def __getattr__(self, name):
+        if name in RECORD_DTYPE.names:
+            v = self._r[name]
+            return v.decode() if isinstance(v, bytes) else v.item()
+        raise AttributeError(name)
+
+    @property
+    def truth(self) -> dict:
+        st = int(self._r["tg_state"])
+        if st < 0:
+            return {}
+        r, c = (float(x) for x in self._r["tg"])
+        return {"target": {"row": r, "col": c, "in_field": bool(st)}}
+
+    @property
+    def attitude(self) -> AttitudeValid:
+        return _VALID if self._r["att_valid"] else _INVALID
+
+    @property
+    def command(self) -> CommandState | None:
+        c = int(self._r["cmd"])
+        return None if c == 0 else CommandState((c - 1) & 1, (c - 1) >> 1)
+
+    @property
+    def command_words(self):
+        """The TP's status of the command it issued this frame (``issued_status``) stands for its
+        words here: :func:`~.io.bus_counts` reads that."""
+        return None
+
+    @property
+    def ledger(self) -> LedgerSeconds | None:
+        if not self._r["ledger"]:
+            return None
+        return LedgerSeconds(dict(zip((DSP, IP1750, TP1750), self._r["secs"].tolist())))
+
+    @property
+    def host_us(self) -> dict:
+        return {k: v for k, v in zip(HOST_KEYS, self._r["host"].tolist()) if not math.isnan(v)}
+
+
 def _with_compaction(seq, compaction):
     d = seq.to_dict()
     d["preprocess"]["compaction"] = int(compaction)
@@ -196,7 +306,8 @@ class Event:
     """One closed-loop event. ``reset()``, then ``step()`` until ``done``; ``outcomes`` holds every
     frame's :class:`FrameOutcome`."""
 
-    def __init__(self, config: EventConfig | None = None, *, keep_frames: bool = True):
+    def __init__(self, config: EventConfig | None = None, *, keep_frames: bool = True,
+                 keep_outcomes: bool = True):
         self.config = cfg = config or EventConfig()
         if isinstance(cfg.scenario, Scenario):
             scn = cfg.scenario
@@ -249,6 +360,9 @@ class Event:
         ground = [(float(t), str(i)) for t, i in scn.faults.imager_switch]
         self.selector = ImagerSelector(scn.imager, cfg.selection, ground, self.geometry)
         self.keep_frames = keep_frames
+        #: keep each frame's whole outcome (False: a :class:`FrameRecord` once ``run``'s
+        #: ``on_frame`` has it; the memory of a long event then stays flat)
+        self.keep_outcomes = keep_outcomes
         self.stage_frame = cfg.stage_frame
         #: keep the stage images of every processed frame (the viewer's replay), not one frame's
         self.all_stages = False
@@ -521,6 +635,8 @@ class Event:
                     on_frame(o)
                 if not self.keep_frames:
                     o.frame = None
+                if not self.keep_outcomes:
+                    self.outcomes[-1] = FrameRecord(o)
                 if bar is not None:
                     bar.update(1)
         finally:

@@ -86,13 +86,16 @@ def predates_proposals(rec: Recording) -> bool:
 def replay_frames(rec: Recording, stages: bool = False):
     """Re-run the flight IP and TP on an open recording's frames (as :func:`replay` does), yielding
     each frame's :class:`FrameOutcome` in order; with ``stages`` every processed frame carries its
-    stage images (``outcome.stages``: ``[(name, image)...]``). The recording must hold frames."""
+    stage images (``outcome.stages``: ``[(name, image)...]``). The recording must hold frames. An
+    outcome is the caller's until it asks for the next one (the replay then keeps a slim record)."""
     n = rec.n_frames or 0
     if n and "frames" not in rec.arrays():
         raise ValueError(f"{rec.path}: the recording holds no frames (it was made with --no-frames)")
     if n == 0:
         return
+    from .loop import FrameRecord
     ev = ReplayEvent(replay_config(rec.path, rec, n), rec)
     ev.all_stages = bool(stages)
     for _ in range(n):
         yield ev.step()
+        ev.outcomes[-1] = FrameRecord(ev.outcomes[-1])     # memory flat in the recording's length

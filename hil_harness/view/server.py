@@ -34,6 +34,9 @@ from .page import content_security_policy, frame_bytes, page_html, page_js, scri
 from .stages import StageReplay, stage_note
 
 HOST = "127.0.0.1"
+#: frames whose stage images the server keeps (~40-250 kB each): memory bounded whatever the
+#: event's length; a frame evicted is replayed again on request
+STAGE_CACHE_FRAMES = 256
 _ROUTE = re.compile(r"^/(frames|stages|stars)/(\d+)$")
 
 
@@ -48,7 +51,8 @@ class ViewServer(ThreadingHTTPServer):
             self.data = extract(self.rec)
             self.stars = self.data["stars"]
             self.data["stars"] = [] if self.stars is not None else None    # fetched per frame
-            self.stage_replay = StageReplay(self.rec)
+            self.stage_replay = StageReplay(self.rec, capacity=STAGE_CACHE_FRAMES)
+            self._last_request = 0                    # the viewer's frame: replay ahead of it
             self.data["stage_mismatch"] = None
             self.data["stage_note"] = stage_note(self.data, replayed=True)
             self.page = page_html(self.data, {"mode": "serve"}).encode("utf-8")
@@ -66,15 +70,21 @@ class ViewServer(ThreadingHTTPServer):
         self._ahead.start()
 
     def _replay_ahead(self) -> None:
-        """Replay the stages of every frame in the background, one frame per lock, so that a jump
-        far into the event finds its stages ready (a request for a later frame replays up to it).
-        A request waiting for the lock goes first (Python's lock is not fair)."""
+        """Replay the stages of the frames ahead of the last one asked for, in the background, one
+        frame per lock and at most half the cache (:data:`STAGE_CACHE_FRAMES`) ahead, so that
+        stepping on finds them ready and memory stays bounded (a request for a later frame replays
+        up to it, one for an evicted frame again from the start). A request waiting for the lock
+        goes first (Python's lock is not fair)."""
         while not self._closing.is_set():
             if self._waiting:
                 time.sleep(0.002)
                 continue
+            sr = self.stage_replay
+            if sr.next_k >= self._last_request + STAGE_CACHE_FRAMES // 2:
+                time.sleep(0.02)                      # far enough ahead of the viewer
+                continue
             with self.lock:
-                if self._closing.is_set() or not self.stage_replay.advance():
+                if self._closing.is_set() or not sr.advance():
                     return
 
     @property
@@ -91,6 +101,7 @@ class ViewServer(ThreadingHTTPServer):
         with self._count_lock:
             self._waiting -= 1
         try:
+            self._last_request = k
             st = self.stage_replay.get(k)
             return script_json({"stages": st, "mismatch": self.stage_replay.mismatch,
                                 "error": self.stage_replay.error}).encode("utf-8")

@@ -9,6 +9,8 @@ produced the recording, bit for bit, or the page says from which frame they are 
 """
 from __future__ import annotations
 
+from collections import OrderedDict
+
 import numpy as np
 
 from .codec import pack_b64
@@ -40,15 +42,23 @@ class StageReplay:
     ``get`` answers with the recording's own stage frame only).
     """
 
-    def __init__(self, rec):
-        from hil_harness.event.replay import replay_frames
+    def __init__(self, rec, capacity: int | None = None):
         self.rec = rec
         self.n = int(rec.n_frames or 0)
-        self.done: dict[int, list] = {}
+        #: frames whose stages are kept (None: every frame; the served page keeps a bounded cache
+        #: and replays an evicted frame again from the start)
+        self.capacity = capacity
+        self.done: OrderedDict[int, list] = OrderedDict()
         self.mismatch: int | None = None
         self.error: str | None = None
+        self.next_k = 0                     # the frame the replay yields next
         self._fr = rec.table("frames")
-        self._it = replay_frames(rec, stages=True) if self._replayable() else iter(())
+        self._it = self._start()
+
+    def _start(self):
+        from hil_harness.event.replay import replay_frames
+        self.next_k = 0
+        return replay_frames(self.rec, stages=True) if self._replayable() else iter(())
 
     def _replayable(self) -> bool:
         return self.n > 0 and "frames" in self.rec.arrays() and \
@@ -77,10 +87,19 @@ class StageReplay:
             return False
         if self.mismatch is None and not self._same(o.k, o):
             self.mismatch = int(o.k)
+        self.next_k = int(o.k) + 1
         self.done[int(o.k)] = stage_entries(o.stages)
+        if self.capacity is not None:
+            while len(self.done) > self.capacity:
+                self.done.popitem(last=False)      # the least recently used
         return True
 
     def get(self, k: int) -> list:
+        if k in self.done:
+            self.done.move_to_end(k)
+            return self.done[k]
+        if k < self.next_k and self.error is None:     # evicted: replayed again from the start
+            self._it = self._start()
         while k not in self.done and self.advance():
             pass
         return self.done.get(k, [])
