@@ -216,6 +216,11 @@ def _tp_state(rec, n: int) -> list:
     return out
 
 
+def _star_rows(rows) -> list:
+    return [[round(float(r["row"]), 2), round(float(r["col"]), 2), round(float(r["mag"]), 1)]
+            for r in rows]
+
+
 def stars(rec, n: int) -> list | None:
     """Per frame the catalogued stars in the field ``[[row, col, mag], ...]`` (pixels to 0.01,
     magnitude to 0.1; None: not recorded)."""
@@ -224,8 +229,33 @@ def stars(rec, n: int) -> list | None:
         tr = _table(rec, "truth")        # no star in any frame, or a recording made before stars
         none_in_field = tr is not None and "n_stars" in tr.dtype.names and not tr["n_stars"].any()
         return [[] for _ in range(n)] if none_in_field else None
-    return [[[round(float(r["row"]), 2), round(float(r["col"]), 2), round(float(r["mag"]), 1)]
-             for r in rows] for rows in _by_frame(st, n)]
+    return [_star_rows(rows) for rows in _by_frame(st, n)]
+
+
+class FrameStars:
+    """One frame's catalogued stars on request (the served page: memory bounded in the event's
+    length): ``get(k)`` as :func:`stars` gives frame ``k``'s, None when not recorded."""
+
+    def __init__(self, rec):
+        st = _table(rec, "stars")
+        self.recorded = True
+        if st is None:
+            tr = _table(rec, "truth")
+            self.recorded = tr is not None and "n_stars" in tr.dtype.names and \
+                not tr["n_stars"].any()
+            self._rows, self._k = None, None
+            return
+        order = np.argsort(st["k"], kind="stable")
+        self._rows = st[order][["row", "col", "mag"]]
+        self._k = np.asarray(st["k"])[order]
+
+    def get(self, k: int) -> list | None:
+        if not self.recorded:
+            return None
+        if self._rows is None:
+            return []
+        a, b = np.searchsorted(self._k, [k, k + 1])
+        return _star_rows(self._rows[a:b])
 
 
 def _imagers(at: dict) -> dict:
@@ -336,7 +366,7 @@ def _truth_columns(rec, n: int) -> dict:
             "in_field": [int(v) for v in tr["in_field"]]}
 
 
-def extract(rec) -> dict:
+def extract(rec, with_stars: bool = True) -> dict:
     """The page's data of an open :class:`hil_harness.event.recording.Recording`.
 
     Returns
@@ -382,7 +412,7 @@ def extract(rec) -> dict:
         "candidates": _candidates(rec, n),
         "tp": _tp_state(rec, n),
         "ellipse": ellipse, "covariance": cov,
-        "stars": stars(rec, n),
+        "stars": stars(rec, n) if with_stars else ([] if FrameStars(rec).recorded else None),
         "budget": {"stages": stage_names, "frames": budget},
         "events": _events(at, rec, n),
         "feature_names": list(FEATURE_NAMES),

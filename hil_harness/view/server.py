@@ -29,7 +29,7 @@ from pathlib import Path
 
 from hil_harness.console import debug
 
-from .data import extract, open_recording
+from .data import FrameStars, extract, open_recording
 from .page import content_security_policy, frame_bytes, page_html, page_js, script_json
 from .stages import StageReplay, stage_note
 
@@ -48,9 +48,8 @@ class ViewServer(ThreadingHTTPServer):
     def __init__(self, recording, port: int, checksums: str = "verify"):
         self.rec = open_recording(recording, checksums)
         try:
-            self.data = extract(self.rec)
-            self.stars = self.data["stars"]
-            self.data["stars"] = [] if self.stars is not None else None    # fetched per frame
+            self.data = extract(self.rec, with_stars=False)        # stars fetched per frame
+            self.stars = FrameStars(self.rec)
             self.stage_replay = StageReplay(self.rec, capacity=STAGE_CACHE_FRAMES)
             self._last_request = 0                    # the viewer's frame: replay ahead of it
             self.data["stage_mismatch"] = None
@@ -160,7 +159,7 @@ class ViewHandler(BaseHTTPRequestHandler):
                 return self._send(404, b"recorded with --no-frames: no images\n", "text/plain")
             return self._send(200, srv.frame(k), "application/octet-stream")
         if kind == "stars":
-            st = srv.stars[k] if srv.stars is not None else None
+            st = srv.stars.get(k)
             return self._send(200, script_json(st).encode("utf-8"), "application/json")
         return self._send(200, srv.stages(k), "application/json")
 
