@@ -223,3 +223,27 @@ def test_a_pointing_quaternion_off_unit_is_refused_by_its_readers():
         w[-1] = crc16_ccitt(w[:-1])
         with pytest.raises(MessageError, match=r"word 13 \(q_point\).*norm"):
             TrackCommand.from_words(np.array(w, np.uint16))
+
+
+def test_no_accepted_record_uplink_stops_the_ip():
+    """Every float of a record (mean, sigma, weight, lower, upper of each feature; the GOF
+    threshold) set to an edge value, re-CRC'd: whatever the IP accepts, its next frames run."""
+    from flightsw.arith.m1750 import encode32
+    from flightsw.messages import crc16_ccitt
+    values = (0.0, 1e-30, 1e-6, 0.5, 1.0, 1e6, 1e30, -1.0, -1e30)
+    base = load_record("satellite")
+    good = np.asarray(base.to_words(), np.int64)
+    ip = ImageProcessor(load_default_sequence("satellite_c2"), base)
+    k, accepted = 0, 0
+    for word in range(6, 128, 2):                          # GOF threshold, then 12 x 5 floats
+        for v in values:
+            w = good.copy()
+            p = encode32(v, rounding="nearest")
+            w[word], w[word + 1] = p >> 16, p & 0xFFFF
+            w[-1] = crc16_ccitt([int(x) for x in w[:-1]])
+            accepted += ip.uplink(w.astype(np.uint16)).accepted
+            _steps_run(ip, k)
+            k += len(FRAMES)
+    assert ip.uplink(good.astype(np.uint16)).accepted
+    _steps_run(ip, k)
+    assert accepted > 0
