@@ -415,23 +415,11 @@ def run_compare(spec: CompareSpec, workers: int = 2, scheduler: str | None = Non
 
 def _run_dask(spec, tasks, workers, scheduler, bar, log) -> list:
     """The tasks' results in task order, run on Dask (as ``uvisi campaign`` does)."""
-    import dask
-    from distributed import Client, LocalCluster, as_completed
-    from hil_harness.campaign import LOCAL_WORKER_CONFIG, SCHEDULER_TIMEOUT
-    cluster = None
-    if scheduler:
-        try:
-            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
-        except (OSError, TimeoutError) as exc:
-            raise ValueError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
-                             f"{SCHEDULER_TIMEOUT} ({type(exc).__name__})") from None
-    else:
-        if log:
-            log(f"[compare] starting a local Dask cluster of {workers} worker processes ...")
-        with dask.config.set(LOCAL_WORKER_CONFIG):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
-        client = Client(cluster)
+    from distributed import as_completed
+    from hil_harness.campaign import dask_client
+    if log and not scheduler:
+        log(f"[compare] starting a local Dask cluster of {workers} worker processes ...")
+    client, cluster = dask_client(scheduler, workers)
     try:
         futs = [client.submit(run_arm_event, arm, resolved, seed, spec.frames, spec.source,
                               pure=False, retries=0) for arm, (_, resolved, seed) in tasks]

@@ -55,8 +55,8 @@ from pathlib import Path
 
 from hil_harness.fileio import FolderLock, temp_beside
 
-__all__ = ["CampaignSpec", "run_campaign", "resolve_job", "execute_run", "merge_parts",
-           "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
+__all__ = ["CampaignSpec", "run_campaign", "dask_client", "resolve_job", "execute_run",
+           "merge_parts", "finished_runs", "DEFAULT_JOB", "run_id_of", "PATH_KEYS", "shipped_names",
            "resolve_spec_path", "failure_reasons", "campaign_report"]
 
 #: the job run when the spec names none (``hil_harness.campaign.DEFAULT_JOB`` or the environment
@@ -557,21 +557,28 @@ LOCAL_WORKER_CONFIG = {"distributed.worker.profile.enabled": False}
 SCHEDULER_TIMEOUT = "10s"
 
 
-def _run_dask(spec, out, todo, scheduler, workers, bar):
+def dask_client(scheduler: str | None, workers: int):
+    """``(client, cluster)``: a client of the Dask scheduler at ``scheduler`` (``cluster`` None),
+    or of a new local cluster of ``workers`` single-threaded processes; one line naming
+    ``--scheduler`` when it does not answer within :data:`SCHEDULER_TIMEOUT`. The caller closes
+    both."""
     import dask
-    from distributed import Client, LocalCluster, as_completed
-    cluster = None
+    from distributed import Client, LocalCluster
     if scheduler:
         try:
-            client = Client(scheduler, timeout=SCHEDULER_TIMEOUT)
+            return Client(scheduler, timeout=SCHEDULER_TIMEOUT), None
         except (OSError, TimeoutError) as exc:
             raise ValueError(f"--scheduler {scheduler}: cannot reach the Dask scheduler within "
                              f"{SCHEDULER_TIMEOUT} ({type(exc).__name__})") from None
-    else:
-        with dask.config.set(LOCAL_WORKER_CONFIG):
-            cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=40)
-        client = Client(cluster)
+    with dask.config.set(LOCAL_WORKER_CONFIG):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=None, silence_logs=40)
+    return Client(cluster), cluster
+
+
+def _run_dask(spec, out, todo, scheduler, workers, bar):
+    from distributed import as_completed
+    client, cluster = dask_client(scheduler, workers)
     failed = 0
     try:
         n_workers = len(client.scheduler_info().get("workers", {})) or (workers or 1)
