@@ -230,3 +230,18 @@ def test_console_entry_exits_with_mains_code_and_freezes_the_heap(monkeypatch):
         assert ex.value.code == 3 and gc.get_freeze_count() > 0
     finally:
         gc.unfreeze()
+
+
+def test_scenarios_lists_the_products_and_the_families_in_a_screen(capsys):
+    from groundsim.scenario import Scenario
+    assert main(["scenarios"]) == 0
+    out = capsys.readouterr().out.splitlines()
+    assert len(out) <= 20 and out[0].startswith("aurora_surge_wfov_uv")
+    assert any("satellite_eval12 (4)" in ln for ln in out)
+    assert main(["scenarios", "--family", "satellite_eval12"]) == 0
+    fam = capsys.readouterr().out.splitlines()
+    assert [ln.split()[0] for ln in fam] == sorted(n for n in Scenario.shipped()
+                                                   if n.startswith("satellite_eval12_"))
+    assert main(["scenarios", "--all"]) == 0
+    assert len(capsys.readouterr().out.splitlines()) == len(Scenario.shipped())
+    assert main(["scenarios", "--family", "nope"]) == 2
