@@ -1,5 +1,5 @@
-"""Alpha-logic rules tried against the raise-and-fall cycle on faint satellites (README "Why the
-floor"), on the satellite TRAINING family only:
+"""Alpha-logic rules tried against the raise-and-fall cycle on faint satellites
+(docs/validation.md, "Why the floor"), on the satellite TRAINING family only:
 ``python -m bench.alpha_logic_variants VARIANT [VARIANT...] --seeds 211,212,213``.
 
 Each closed-loop event (:class:`hil_harness.event.Event`, the defaults: ``satellite_track``)

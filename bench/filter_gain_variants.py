@@ -1,5 +1,5 @@
-"""What more integer resolution at the matched filter's output would do for faint satellites (README
-"Why the floor"), on the satellite TRAINING family only:
+"""What more integer resolution at the matched filter's output would do for faint satellites
+(docs/validation.md, "Why the floor"), on the satellite TRAINING family only:
 ``python -m bench.filter_gain_variants VARIANT [VARIANT...] --seeds 211,212,213 [--events]
 [--curve] [--cut]``.
 

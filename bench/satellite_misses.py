@@ -1,4 +1,4 @@
-"""Why a tracked satellite is not held after lock (the README's satellite figures):
+"""Why a tracked satellite is not held after lock (the satellite figures of docs/validation.md):
 ``python -m bench.satellite_misses SCENARIO [SCENARIO...] --seeds 211,212,213 [--sequence S]``.
 
 Runs each closed-loop event (:class:`hil_harness.event.Event`, the defaults unless ``--sequence``)

@@ -1,4 +1,4 @@
-"""Is a bright source in the IP's window what hides a tracked satellite? (README "Why
+"""Is a bright source in the IP's window what hides a tracked satellite? (docs/validation.md "Why
 `mid_offset_ahead`"): ``python -m bench.window_star SCENARIO [SCENARIO...] --seeds 211,212,213``.
 
 Runs each closed-loop event (:class:`hil_harness.event.Event`, the defaults unless

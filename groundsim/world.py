@@ -260,7 +260,7 @@ class World:
         # track_target: nominal trajectory, optionally offset in the field by offset_px (row, col).
         # Open loop only: in a closed-loop event the TP's first command (frame 0) replaces this
         # profile and points the boresight at the target, so the offset is where the target
-        # is at acquisition, not where it is held (README "Why `mid_offset_ahead`").
+        # is at acquisition, not where it is held (docs/validation.md "Why `mid_offset_ahead`").
         rn, _ = self.target.nominal_state(t)
         q = q_pointing(rn - r, up_eci=r, roll=roll)
         off = p["offset_px"]

@@ -5,14 +5,14 @@ Defaults and where they come from:
 * ``alpha = 0.25, beta = 0`` -- the paper: *"alpha = 0.25 provides a 90% response in eight frames
   (4 s). The velocity gain beta is almost always set to 0 ... it must be 0 or both types of gates
   will follow the data and differentiation based on velocity cannot occur."*
-* ``n_empty = 3`` frames (rules 1, 2; with the proposal ``rule_guards``, rule 3's populated
-  run) and ``residual_threshold_px2 = 16`` px^2 (rules 3, 4). The squared residual of a wrong hypothesis approaches ``(d / alpha)^2`` per
-  frame for an apparent-velocity difference of d px/frame (4 px^2 at d = 0.5 px/frame; 16 px^2 is
-  reached on the 9th frame with the transient), a right one ``4 sigma^2 / (2 - alpha) ~ 2.3
-  sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no values ("n successive
-  frames", "a specified amount"); these were chosen on the synthetic streams of
-  ``tests/test_tp.py``: 99.8 % of 1000 events decided for the right candidate, median latency 4
-  frames (2 s), p95 11 frames (10 before rule 3 asked for n populated frames); gate 3 px or
+* ``n_empty = 3`` frames (rules 1, 2; with the proposal ``rule_guards``, rule 3's populated run) and
+  ``residual_threshold_px2 = 16`` px^2 (rules 3, 4). The squared residual of a wrong hypothesis
+  approaches ``(d / alpha)^2`` per frame for an apparent-velocity difference of d px/frame (4 px^2
+  at d = 0.5 px/frame; 16 px^2 is reached on the 9th frame with the transient), a right one ``4
+  sigma^2 / (2 - alpha) ~ 2.3 sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no
+  values ("n successive frames", "a specified amount"); these were chosen on the synthetic streams
+  of ``tests/test_tp.py`` with the rule guards on (the configuration of that choice): 99.8 % of
+  1000 events decided for the right candidate, median latency 4 frames (2 s), p95 11 frames; gate 3 px or
   threshold 8-12 px^2 give the same within 0.3 %. ``n_empty_object`` /
   ``residual_threshold_star_px2`` (rules 2 and 4: concluding "star", which deletes both gates)
   default to the same values.
@@ -30,7 +30,7 @@ Defaults and where they come from:
   (k(k+1))``, ``beta_k = 6/(k(k+1))`` after the k-th observation, each until it falls to its
   steady value (k <= 14 at the defaults), instead of acquiring with zero velocity and the steady
   gains, which lag a moving spot by ~``v dt / alpha`` for tens of frames. Chosen on the training
-  aurora families (README, "Tracking on scenarios it was not tuned on").
+  aurora families (docs/validation.md, the evaluation families).
 """
 from __future__ import annotations
 

@@ -24,7 +24,7 @@ squared differences or residuals between the observation and the gate center are
   a frame or two took the gate with it, the EKF refused the star's centroids (one axis rejected a
   frame, which then did not count towards a covariance reset) and the pointing drifted off the
   target (satellite_train_faint_mid, seeds 214 and 215, frames 28-140). Chosen on the satellite
-  training family (README "Tracking on scenarios it was not tuned on").
+  training family (docs/validation.md, the evaluation families).
 * A learned velocity (beta > 0) moves a gate by ``v dt`` too; every gate keeps its last apparent
   velocity for the recording.
 * Smoothing: :func:`flightsw.tp.alphabeta.ab_update` with the associated observation; the squared

@@ -35,18 +35,18 @@ gate has been empty for n frames and the other does not qualify, the residual ru
 the pair is deleted without a conclusion when the empty gate reaches 4n frames (both gates empty for
 n frames: deleted at once), so that reinitialisation, which needs every gate gone, can happen.
 
-Rule 5, the proposal ``rule5`` (off by default; :func:`apriori_rule`, ``TPConfig.n_apriori``):
-when no object is held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``; not
-necessarily successive: a gate empty ``n_empty`` frames running is deleted anyway) is decided by
+Rule 5, the proposal ``rule5`` (off by default; :func:`apriori_rule`, ``TPConfig.n_apriori``): when
+no object is held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``;
+not necessarily successive: a gate empty ``n_empty`` frames running is deleted anyway) is decided by
 position: it is the object when its object gate holds the observation nearest where the nominal
 trajectory puts the object (and lies within the gate of it) and has accumulated no more residual
 than its star gate, a star otherwise (both gates deleted, so that reinitialisation can place pairs
 on the observations no gate holds: the paper reinitialises only when every gate is gone). The
 residual test keeps a star that passes the nominal's position while a faint object is not detected
 from being verified: its star gate follows it better than its object gate does, although by less
-than the threshold of rule 4 (README "Rule 5 asks the residuals"). Velocity filtering cannot
-separate an object whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags it by
-d (1 - alpha) / alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid
+than the threshold of rule 4 (docs/validation.md, "Rule 5 asks the residuals"). Velocity filtering
+cannot separate an object whose stars hardly move against it (0.02-0.03 px a frame: a star gate lags
+it by d (1 - alpha) / alpha ~ 0.06 px and its residual grows ~0.006 px^2 a frame, below the centroid
 noise's), so both gates of every pair stay populated; in every other geometry rules 1-4 conclude
 each pair long before. The count is of populated frames, not successive ones: a faint object
 detected on nine frames in ten almost never has 40 successive (0.9^40 = 1.5 %; eval9's
@@ -72,7 +72,8 @@ from flightsw.tp.gates import GP_HALF, GP_THR_OBJ, GP_THR_STAR, any_gate_alive, 
 from flightsw.tp.geometry import tan_int
 from flightsw.tp.layout import (
     C_N_APRIORI, C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, C_RULE_GUARDS, G_A, G_ALIVE, G_B, G_DVA,
-    G_DVB, G_HITS, G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR, OBS_A, OBS_B,
+    G_DVB, G_HITS, G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR,
+    OBS_A, OBS_B,
     OBS_IA, OBS_IB, OBS_OK, S_DEC,
     S_DEC_FRAME, S_NDEC, S_NLOST, S_NREINIT, S_NRULE, S_NSPURIOUS, S_NSTALE, S_RULE, ST_GATES,
     V_EVIDENCE, V_FC, V_FLAGS, V_LOCKED, V_NTAN, V_NTAN_OK, V_NUSE, V_OBJ, V_STATUS,

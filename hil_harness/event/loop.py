@@ -55,8 +55,9 @@ from .selection import ImagerSelector, SelectionParams, Switch, power_on_store, 
 
 FRAME_DT = 0.5
 #: the sequence an event runs by target type when none is given (others: "satellite"): "aurora_track"
-#: (README, alpha chosen on the aurora training family) and "satellite_track" (a PSF-sized matched
-#: filter, chosen on the satellite training family, campaigns/satellite_train_events.toml)
+#: (docs/validation.md, alpha chosen on the aurora training family) and "satellite_track" (a
+#: PSF-sized matched filter, chosen on the satellite training family,
+#: campaigns/satellite_train_events.toml); both are operator choices (docs/fidelity.md)
 DEFAULT_EVENT_SEQUENCE = {"aurora": "aurora_track", "satellite": "satellite_track"}
 #: longest candidate message (23 candidates): recorded padded to this many words
 MAX_MESSAGE_WORDS = 15 + 29 * 23 + 1
