@@ -30,7 +30,7 @@ test: $(STAMP)
 # 1,000 hypothesis examples per property (make test runs 300 and 40-150)
 fuzz: $(STAMP)
 	UVISI_FUZZ_CASES=10000 $(BIN)/python -m pytest -q -p no:cacheprovider \
-		tests/test_messages.py tests/test_fuzz_loaders.py
+		tests/flight/test_messages.py tests/harness/test_fuzz_loaders.py
 
 # branch coverage of the Python-visible code (njit bodies excluded: pyproject [tool.coverage])
 coverage: $(STAMP)
@@ -56,7 +56,7 @@ killcheck: $(STAMP)
 # recordings read by other HDF5 builds: Debian's h5dump (hdf5-tools) and h5py<3.12 on HDF5 1.14,
 # installed from PyPI into .venv-h5py-old on first use (make test skips the h5py part without it)
 interchange: $(STAMP)
-	UVISI_OLD_H5PY=1 $(BIN)/python -m pytest -q -p no:cacheprovider tests/test_recording_interchange.py
+	UVISI_OLD_H5PY=1 $(BIN)/python -m pytest -q -p no:cacheprovider tests/harness/test_recording_interchange.py
 
 clean:
 	rm -rf $(VENV) .venv-h5py-old build *.egg-info

@@ -26,9 +26,9 @@ import numpy as np
 
 #: the scenarios whose frames the early end-to-end tests render
 GROUND_SCENARIOS = ("satellite_over_stars", "aurora_train2_gjoa_faint_wavy_dawn")
-#: the RDE state dimensions of tests/test_rde.py and the package's 12- and 18-state models
+#: the RDE state dimensions of tests/groundsim/test_rde.py and the package's 12- and 18-state models
 RDE_DIMENSIONS = (2, 5, 12, 18)
-#: the image dtypes tests/test_ip_backend.py labels
+#: the image dtypes tests/ip/test_ip_backend.py labels
 LABEL_DTYPES = (np.bool_, np.uint8, np.int16, np.uint16, np.int64)
 
 

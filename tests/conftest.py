@@ -22,6 +22,9 @@ import pytest
 from hil_harness.warmup import WARMUP_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
+# the tests live in folders by package (tests/ip, tests/tp, ...); their shared helpers
+# (ip_reference, quat_oracle) stay here, importable from every folder
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 #: fewer collected tests than this (a file, a -k selection): no compile-ahead process
 COMPILE_AHEAD_MIN_TESTS = 300
 _PROCESS = pytest.StashKey[subprocess.Popen]()

@@ -506,7 +506,7 @@ def _mul48_core(a, b):
     0.5`` (``> 0.5`` when negative), already normalised: ``floor(P / 2**39) = m >> 1``; otherwise
     one normalising shift is already in ``m`` (exactly -0.5 gives ``m = -2**39``, i.e. -1.0 at
     exponent n - 1). The same words as the magnitude-and-sticky-bit form on 80-bit limbs
-    (:func:`prod80`, kept for the lane form) -- tests/test_m1750.py checks them against exact
+    (:func:`prod80`, kept for the lane form) -- tests/arith/test_m1750.py checks them against exact
     integer arithmetic.
 
     Cases
@@ -592,7 +592,7 @@ def _quotient_floor(A, B, W):
     ``A * 2**40 - Q * B`` fixes it. The remainder is computed modulo 2**64 (int64 wrap-around)
     and is exact because its true value lies in (-B, 2B). Measured on this host: 10 ns latency
     instead of 17 for the long division. Equal to Python's exact integer division on 400,000
-    operand pairs per width, random and adversarial (tests/test_m1750.py).
+    operand pairs per width, random and adversarial (tests/arith/test_m1750.py).
 
     The estimate is never one too low: at this scale every integer is a float64 grid point, so the
     correctly rounded ``q * 2**40`` of a true quotient ``X >= N`` is ``>= N``; the ``r >= B``

@@ -8,7 +8,7 @@ standard's register-transfer description (zero operands, the exponent pre-checks
 shift, normalisation, underflow, overflow) and *selects* the result the RTL would branch to, in the
 RTL's order of precedence. The scalar forms stay the reference and the faster choice for a single
 dependent chain (a select costs every case, a predicted branch only one); the tests compare the
-two on random and adversarial operands (``tests/test_m1750_lanes.py``).
+two on random and adversarial operands (``tests/arith/test_m1750_lanes.py``).
 
 Two host details differ from the scalar forms without changing a result:
 

@@ -975,7 +975,7 @@ _SIN32P = {"FM": 6, "FA": 4}
 _COS32P = {"FM": 6, "FA": 5}
 
 #: worst-path operation mix of each math routine (flightsw.budget keys); the float-instruction
-#: counts are checked against instrumented runs of the kernels in tests/test_m1750_math.py.
+#: counts are checked against instrumented runs of the kernels in tests/arith/test_m1750_math.py.
 MATH_OP_MIX = {
     "sqrt32": _mix({"FM": 3, "FA": 3, "FD": 2}, _EXP_EDIT, _EXP_EDIT, _TEST, _TEST, _CALL),
     "sqrt48": _mix({"EFM": 4, "EFA": 4, "EFD": 3}, _EXP_EDIT, _EXP_EDIT, _TEST, _TEST, _CALL),
@@ -1017,7 +1017,7 @@ CYC_SIN48, CYC_COS48 = MATH_CYCLES["sin48"], MATH_CYCLES["cos48"]
 CYC_ATAN2_32, CYC_ATAN2_48 = MATH_CYCLES["atan2_32"], MATH_CYCLES["atan2_48"]
 
 #: stated max errors, ``(kind, bound)``: kind "ulp" (units in the last place of the exact result,
-#: same format) or "abs" (absolute); asserted by tests/test_m1750_math.py
+#: same format) or "abs" (absolute); asserted by tests/arith/test_m1750_math.py
 MAX_ERROR = {
     "sqrt32": ("ulp", 1.5), "sqrt48": ("ulp", 1.5), "exp32": ("ulp", 3.0), "ln32": ("ulp", 4.0),
     "sin32": ("abs", 3.5 * 2.0 ** -23), "cos32": ("abs", 3.5 * 2.0 ** -23),

@@ -11,9 +11,9 @@ Defaults and where they come from:
   at d = 0.5 px/frame; 16 px^2 is reached on the 9th frame with the transient), a right one ``4
   sigma^2 / (2 - alpha) ~ 2.3 sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no
   values ("n successive frames", "a specified amount"); these were chosen on the synthetic streams
-  of ``tests/test_tp.py`` with the rule guards on (the configuration of that choice): 99.8 % of
-  1000 events decided for the right candidate, median latency 4 frames (2 s), p95 11 frames; gate 3 px or
-  threshold 8-12 px^2 give the same within 0.3 %. ``n_empty_object`` /
+  of ``tests/tp/test_tp.py`` with the rule guards on (the configuration of that choice): 99.8 % of
+  1000 events decided for the right candidate, median latency 4 frames (2 s), p95 11 frames; gate 3
+  px or threshold 8-12 px^2 give the same within 0.3 %. ``n_empty_object`` /
   ``residual_threshold_star_px2`` (rules 2 and 4: concluding "star", which deletes both gates)
   default to the same values.
 * ``gate_px = 4`` -- half-width of the square gate in pixels of the current imager (it must hold the

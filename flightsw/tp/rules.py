@@ -25,10 +25,10 @@ The proposal ``rule_guards`` (:mod:`flightsw.proposals`, off by default) adds th
 paper does not state: rules 1 and 2 ask the populated gate's accumulated residual within the
 threshold (``S_o <= thr``, ``S_s <= thr'``), rule 3 asks the object gate populated the last ``n``
 frames (``k_o >= n``), rule 4 asks the star gate populated this frame. On the synthetic streams of
-``tests/test_tp.py`` the rules as stated decide a star or a clutter point as the object in 2-5 % of
-the events, with the guards in ~0.2 %; one stray blob caught ~4 px off in a star gate adds up to 2
-gate^2 = 32 px^2, above the 16 px^2 threshold, so rule 3 without its guard can verify a pair on one
-association.
+``tests/tp/test_tp.py`` the rules as stated decide a star or a clutter point as the object in 2-5 %
+of the events, with the guards in ~0.2 %; one stray blob caught ~4 px off in a star gate adds up to
+2 gate^2 = 32 px^2, above the 16 px^2 threshold, so rule 3 without its guard can verify a pair on
+one association.
 
 INTERPRETED (the paper is silent on a pair whose empty gate's partner does not qualify): while one
 gate has been empty for n frames and the other does not qualify, the residual rules are suspended;

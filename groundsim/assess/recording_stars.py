@@ -286,7 +286,7 @@ MIN_MULTI_STAR_FRAMES = 5
 
 #: refined-centroid error model [full-resolution px], measured against the simulator's true star
 #: pixels on the closed-loop star_rich_slew / star_rich_misaligned recordings (975 / 1545 matched,
-#: non-blended stars) and the open-loop hold of tests/test_recording_stars.py. The photon + background
+#: non-blended stars) and the open-loop hold of tests/groundsim/test_recording_stars.py. The photon + background
 #: sigma of :func:`refine_centroids` predicts the core of the error (robust error / sigma = 1.0 - 1.1
 #: for Hp < 7, 0.03 - 0.11 px; 1.2 - 1.45 for Hp 7 - 8, 0.2 - 0.35 px), so a centroid's
 #: frame-to-frame sigma is ``hypot(REFINED_PHOTON_SCALE * photon, REFINED_FLOOR_PX)``. Two parts

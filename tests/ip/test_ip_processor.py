@@ -23,7 +23,7 @@ from flightsw.messages import Feedback, TrackCommand
 from flightsw.records import Record, load_record
 from flightsw.tp import TrackProcessor
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 import flight_replay as FR  # noqa: E402
 
 EXPECTED = json.loads(FR.HASH_FILE.read_text())
@@ -172,7 +172,7 @@ def test_record_uplink_takes_effect_on_the_next_frame_and_a_bad_one_is_refused()
     frame = _frame()
     first = ip.step(frame, frame_count=0, time_tag=0.0, imager="wfov_vis").words
     assert first[13] == load_record("satellite").record_id
-    new = Record.from_toml((Path(__file__).resolve().parents[1] / "flightsw" / "data" /
+    new = Record.from_toml((Path(__file__).resolve().parents[2] / "flightsw" / "data" /
                             "record_satellite.toml").read_text().replace("id = ", "id = 7#", 1))
     words = new.to_words()
     bad = words.copy()

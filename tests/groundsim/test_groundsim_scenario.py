@@ -212,7 +212,7 @@ LIMB_AT = {"aurora_train_churchill_limb": (0.0, False), "aurora_train_dusk_daygl
 def test_aurora_families_are_disjoint_and_listed():
     import tomllib
     from pathlib import Path
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     specs = {f: tomllib.loads((root / f).read_text()) for f in AURORA_FAMILIES}
     for f, names in AURORA_FAMILIES.items():
         assert specs[f]["axes"]["scenario"] == names and specs[f]["campaign"]["job"].endswith(":event")
@@ -298,7 +298,7 @@ def test_uvisi_scenarios_loads_no_kernels():
     numba, SGP4 or SciPy (their imports were most of its start-up time)."""
     import subprocess
     import sys
-    code = ("import sys\nfrom hil_harness.cli import main\nrc = main(['scenarios'])\n"
+    code = ("import sys\nfrom hil_harness.cli import main\nrc = main(['scenarios', '--all'])\n"
             "print('LOADED', *sorted(m for m in ('numba', 'sgp4', 'scipy') if m in sys.modules))\n"
             "sys.exit(rc)")
     p = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)

@@ -10,7 +10,7 @@ import pytest
 
 from groundsim.scenario import Scenario
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FAMILIES = ["campaigns/satellite_train_events.toml", "campaigns/satellite_eval_events.toml",
             "campaigns/satellite_eval2_events.toml", "campaigns/satellite_eval3_events.toml"]
 

@@ -13,7 +13,7 @@ from flightsw.messages import TC_BAD_MESSAGE, crc16_ccitt
 from flightsw.tp import TPInputs, TPOutputs, TrackProcessor, decode_uplink, encode_uplink
 from flightsw.tp.uplink import UPLINK_FORMAT_ID
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 import flight_replay as FR  # noqa: E402
 
 

@@ -24,7 +24,7 @@ from hil_harness.campaign import (CampaignSpec, finished_runs, merge_parts, reso
 from hil_harness.campaign.jobs import identification, split_overrides
 from hil_harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _spec(tmp_path, n=6, seconds=0.0, extra="", name="t"):
@@ -352,7 +352,8 @@ def second_resume_job(params: dict) -> dict:
     if os.environ.get("UVISI_TEST_NESTED"):
         return {"second_rc": -1, "second_err": ""}
     env = dict(os.environ, UVISI_TEST_NESTED="1",
-               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests")]))
+               PYTHONPATH=os.pathsep.join([str(ROOT), str(ROOT / "tests"),
+                                          str(Path(__file__).resolve().parent)]))
     p = subprocess.run([sys.executable, "-m", "hil_harness.cli", "campaign", params["spec"],
                         "--out", params["out"], "--resume", "--serial", "--no-progress"],
                        cwd=ROOT, env=env, capture_output=True, text=True, timeout=300)

@@ -14,7 +14,7 @@ from flightsw.tp import layout as F
 from flightsw.tp import snapshot as P
 from hil_harness.event import Event, EventConfig
 
-DATA = Path(__file__).resolve().parent / "data" / "tp_snapshot_rows.npy"
+DATA = Path(__file__).resolve().parents[1] / "data" / "tp_snapshot_rows.npy"
 FRAMES = (0, 3, 20, 90, 180)
 
 

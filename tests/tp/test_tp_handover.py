@@ -14,7 +14,7 @@ from flightsw.messages import AttitudeData, TrackCommand
 from flightsw.tp import TrackProcessor
 from hil_harness.event.selection import convert_pixel
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 import flight_replay as FR  # noqa: E402
 
 

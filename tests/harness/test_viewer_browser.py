@@ -32,7 +32,7 @@ from hil_harness.view import make_server, write_page
 
 FRAMES = 30
 K = 17                                   # a frame after the lock (frame 14 in this scenario)
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _playwright():

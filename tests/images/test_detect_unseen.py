@@ -18,7 +18,7 @@ import pytest
 
 from hil_harness.cli import main
 
-UNSEEN = Path(__file__).resolve().parents[1] / "data" / "real" / "star_tracker_unseen"
+UNSEEN = Path(__file__).resolve().parents[2] / "data" / "real" / "star_tracker_unseen"
 FRAMES = sorted(UNSEEN.glob("*.tiff"))
 
 

@@ -81,7 +81,7 @@ def _load_scenario(text, tmp):
     return Scenario.load(p)
 
 
-LOADERS = {"record": (_load_record, RecordError, (Path(__file__).parents[1] / "flightsw" / "data",
+LOADERS = {"record": (_load_record, RecordError, (Path(__file__).parents[2] / "flightsw" / "data",
                                                   "record_*.toml")),
            "sequence": (_load_sequence, SequenceError, (SEQUENCE_DIR, "sequence_*.toml")),
            "scenario": (_load_scenario, ScenarioError, (SCENARIO_DIR, "*.toml"))}

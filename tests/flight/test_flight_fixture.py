@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent / "fixtures"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "fixtures"))
 import flight_replay as FR  # noqa: E402
 
 EXPECTED = {p: json.loads(f.read_text()) for p, f in FR.HASH_FILES.items()}

@@ -17,7 +17,7 @@ import pytest
 
 from hil_harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: (command line with {f}, kind of file it reads)
 COMMANDS = [

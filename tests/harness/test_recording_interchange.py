@@ -26,7 +26,7 @@ import pytest
 from groundsim.assess.h5open import clear_write_flags, lookup3, write_flags
 from hil_harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 H5DUMP = shutil.which("h5dump")
 OLD_VENV = Path(os.environ.get("UVISI_OLD_H5PY_VENV", ROOT / ".venv-h5py-old"))
 need_h5dump = pytest.mark.skipif(H5DUMP is None, reason="h5dump not installed (Debian: apt-get "

@@ -27,7 +27,7 @@ from hil_harness.tuning import (build_set, check_record_file, cross_validate, ev
 from hil_harness.tuning.data import TrainingSet, scenario_from_entry
 from hil_harness.tuning.fit import FastRanker, threshold_record
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WIC = ROOT / "data" / "real" / "wic_20000828_0928-0957_15frames.npz"
 WIC_LABELS = ROOT / "data" / "labels" / "wic_20000828_surge.csv"
 

@@ -16,7 +16,7 @@ import pytest
 
 from hil_harness.cli import main
 
-REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+REAL = Path(__file__).resolve().parents[2] / "data" / "real"
 CEDAR = [REAL / "cedar_solve_jan1_g90_e100ms.jpg", REAL / "cedar_solve_test2_g100_e50ms.jpg"]
 GAKO = REAL / "themis_gako_20110106_1700_1frame.npz"
 GAKO_STARS = REAL / "themis_gako_20110106_1700_stars.csv"

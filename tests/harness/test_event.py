@@ -25,7 +25,7 @@ def test_satellite_locks_and_tracks_within_a_processed_pixel(sat):
     print(f"\n[event] satellite: lock frame {s['lock_frame']}, decision {s['decision']}, "
           f"error {s['track_error_urad']}, host {s['host']['median_frame_us']:.0f} us/frame")
     # the TP verifies the object with the star/object rules: synthetic streams decide in a median
-    # 4 frames (tests/test_tp.py); here the gates start from a cold window with stars around the
+    # 4 frames (tests/tp/test_tp.py); here the gates start from a cold window with stars around the
     # target, so allow 30 frames (15 s of a 90 s pass)
     assert s["lock_frame"] is not None and s["lock_frame"] <= 30
     assert s["decision"]["correct"] is True

@@ -10,7 +10,7 @@ import pytest
 
 from groundsim.scenario import Scenario
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 
 def _toml(rel):

@@ -5,7 +5,7 @@ candidate-message encoder for compiled callers.
 Oracles: hand-made words and frames whose answer is known, the standard library's CRC-CCITT
 (``binascii.crc_hqx``), the Fraction-exact 1750A encoder (``encode32``), the track command's
 Python-side decode (``TrackCommand.from_words``), and the committed flight-output hashes (through
-``tests/test_ip_processor.py``, which replays the fixtures through ``ImageProcessor.step``).
+``tests/ip/test_ip_processor.py``, which replays the fixtures through ``ImageProcessor.step``).
 """
 from __future__ import annotations
 

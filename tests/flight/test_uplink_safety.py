@@ -24,7 +24,7 @@ from flightsw.records import load_record
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 from flightsw.tp.uplink import UPLINK_PARAMS, encode_uplink
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 EDGES = (0, 1e-6, 0.25, 0.5, 1, 2, 3, 5, 7, 7.5, 7.99975, 8, 9, 15, 16, 31, 32, 63, 64, 89, 90,
          99, 100, 127, 128, 255, 256, 1000, 32767, 65535, -1, -0.5)
 FRAMES = (np.full((244, 256), 300, np.uint16),

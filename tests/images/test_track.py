@@ -16,7 +16,7 @@ import pytest
 
 from hil_harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 WIC = ROOT / "data" / "real" / "wic_20000828_0928-0957_15frames.npz"
 LABELS = ROOT / "data" / "labels" / "wic_20000828_surge.csv"
 RECORD = ROOT / "data" / "records" / "aurora_wic.toml"

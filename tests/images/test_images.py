@@ -10,7 +10,7 @@ import pytest
 from hil_harness.images import (ImageError, InputFrame, frame_flags, noise_sigma, read_images,
                                 robust_stats, to_counts)
 
-REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+REAL = Path(__file__).resolve().parents[2] / "data" / "real"
 TIFF = REAL / "2019-07-29T204726_Alt40_Azi-135_Try1.tiff"
 WIC = REAL / "wic_20000828_0928-0957_15frames.npz"
 

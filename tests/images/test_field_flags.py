@@ -16,7 +16,7 @@ from hil_harness.field import circle_field, find_field, mask_field, parse_circle
 from hil_harness.images import (UNUSABLE, ImageError, frame_flags, read_images, to_counts,
                                 unusable)
 
-REAL = Path(__file__).resolve().parents[1] / "data" / "real"
+REAL = Path(__file__).resolve().parents[2] / "data" / "real"
 G08 = REAL / "themis_gill_20080309_5frames.npz"
 G14 = REAL / "themis_gill_20140310_2frames.npz"
 GAKO = REAL / "themis_gako_20110106_1700_1frame.npz"

@@ -17,7 +17,7 @@ from flightsw.ip.sequence import IPConfig, ProcessingSequence, SequenceError, lo
 from flightsw.messages import Feedback
 from flightsw.records import load_record
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT / "data" / "real"
 
 

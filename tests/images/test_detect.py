@@ -11,7 +11,7 @@ import pytest
 
 from hil_harness.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 REAL = ROOT / "data" / "real"
 TIFF = REAL / "2019-07-29T204726_Alt40_Azi-135_Try1.tiff"
 WIC = REAL / "wic_20000828_0928-0957_15frames.npz"

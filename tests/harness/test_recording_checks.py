@@ -23,7 +23,7 @@ from hil_harness import sizes
 from hil_harness.cli import main
 from hil_harness.event.recording import Recording, RecordingDamaged
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 
 #: (command line with {f} and {out}) of every command that reads a recording
 READERS = ["replay {f}", "view {f} -o {out}/v.html", "budget --recording {f}",

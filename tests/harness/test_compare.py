@@ -306,7 +306,7 @@ def test_a_campaign_events_file_gives_its_scenarios_and_seeds(tmp_path):
         ("star_rich_slew", 5)]
     assert s.frames == 7 and [a.name for a in s.arms] == ["p", "r"]
     assert s.arms[1].with_ == ("rule5",)
-    root = Path(__file__).resolve().parents[1]
+    root = Path(__file__).resolve().parents[2]
     s12 = load_spec(_write(tmp_path, "e12.toml", f'[events]\ncampaign = '
                            f'"{root / "campaigns/satellite_eval12_events.toml"}"\nframes = 5\n'
                            f'[[arms]]\nname = "p"\n'))
