@@ -22,8 +22,39 @@ __all__ = ["serialise_cache_writes"]
 
 
 def serialise_cache_writes() -> None:
-    """Install the locked ``save`` (once per process; idempotent)."""
-    from numba.core import caching
+    """Install the locked ``save``: now if numba's cache module is loaded, else when it is (a
+    package that imports this does not import numba by itself: ``uvisi scenarios`` never loads
+    it). Idempotent."""
+    import sys
+    mod = sys.modules.get("numba.core.caching")
+    if mod is not None:
+        _lock_saves(mod)
+    elif not any(isinstance(f, _PatchOnImport) for f in sys.meta_path):
+        sys.meta_path.insert(0, _PatchOnImport())
+
+
+class _PatchOnImport:
+    """A meta-path finder that lets ``numba.core.caching`` load as usual, then locks its saves."""
+
+    def find_spec(self, name, path=None, target=None):
+        if name != "numba.core.caching":
+            return None
+        import importlib.util
+        import sys
+        sys.meta_path.remove(self)
+        spec = importlib.util.find_spec(name)
+        if spec is None or spec.loader is None:
+            return spec
+        run = spec.loader.exec_module
+
+        def exec_module(module):
+            run(module)
+            _lock_saves(module)
+        spec.loader.exec_module = exec_module
+        return spec
+
+
+def _lock_saves(caching) -> None:
     cls = caching.IndexDataCacheFile
     if getattr(cls.save, "uvisi_locked", False):
         return

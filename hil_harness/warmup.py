@@ -12,8 +12,12 @@ argument types the feature and ranking kernels pass, then steps a :class:`flight
 through a few synthetic frames and runs the message codecs: the same specialisations the event will
 ask for (the kernels take word and state arrays whose types do not depend on the scenario). When the
 event reaches them they are usually in the cache already; if not, numba compiles them in the
-event's process as it would have anyway. numba writes cache
-files atomically, so the two processes never leave a broken entry.
+event's process as it would have anyway.
+
+OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
+processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
+kernel tests off) where one process alone never did, even with numba's cache saves locked
+(:mod:`flightsw.numba_cache`); until that is understood the first run compiles in one process.
 """
 from __future__ import annotations
 
@@ -29,9 +33,9 @@ _STARTED: list = []
 
 
 def start() -> bool:
-    """Launch the warm-up process once per process (not from inside a warm-up child, not when
-    ``UVISI_WARMUP=0``). Returns True if one was started."""
-    if _STARTED or os.environ.get(WARMUP_ENV) or os.environ.get("UVISI_WARMUP", "1") == "0":
+    """Launch the warm-up process once per process (only with ``UVISI_WARMUP=1``, not from inside
+    a warm-up child). Returns True if one was started."""
+    if _STARTED or os.environ.get(WARMUP_ENV) or os.environ.get("UVISI_WARMUP", "0") != "1":
         return False
     _STARTED.append(True)
     env = dict(os.environ, **{WARMUP_ENV: "1"})

@@ -4,7 +4,8 @@ benchmark smoke test last.
 A session that collects at least :data:`COMPILE_AHEAD_MIN_TESTS` tests (the whole suite, not one
 file) starts ``python -m tests.compile_ahead`` beside it, and stops it when the session ends if it
 is still running. On a warm cache the process only loads the cache (a few seconds on the other
-core). ``UVISI_WARMUP=0`` turns it off, as it turns off the first-run warm-up of ``uvisi``.
+core). Only with ``UVISI_WARMUP=1``, as the first-run warm-up of ``uvisi``: two processes compiling
+at once have run wrong code for the opportunity track (``hil_harness/warmup.py``).
 
 tests/test_bench_smoke.py runs every benchmark once in a process of its own, which loads from the
 cache whatever the suite has compiled before it: run last, it compiles almost nothing (on a cold
@@ -41,7 +42,7 @@ def pytest_collection_modifyitems(session, config, items):
 
 def pytest_collection_finish(session):
     if len(session.items) < COMPILE_AHEAD_MIN_TESTS or os.environ.get(WARMUP_ENV) \
-            or os.environ.get("UVISI_WARMUP", "1") == "0" or session.config.option.collectonly:
+            or os.environ.get("UVISI_WARMUP", "0") != "1" or session.config.option.collectonly:
         return
     env = dict(os.environ, **{WARMUP_ENV: "1"})
     try:

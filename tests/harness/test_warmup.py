@@ -19,7 +19,7 @@ def launches(monkeypatch):
     monkeypatch.setattr(subprocess, "Popen", FakePopen)
     monkeypatch.setattr(warmup, "_STARTED", [])
     monkeypatch.delenv(warmup.WARMUP_ENV, raising=False)
-    monkeypatch.delenv("UVISI_WARMUP", raising=False)
+    monkeypatch.setenv("UVISI_WARMUP", "1")              # opt-in (off by default)
     return calls
 
 
@@ -36,6 +36,8 @@ def test_not_started_inside_a_child_or_when_switched_off(launches, monkeypatch):
     assert warmup.start() is False
     monkeypatch.delenv(warmup.WARMUP_ENV)
     monkeypatch.setenv("UVISI_WARMUP", "0")
+    assert warmup.start() is False
+    monkeypatch.delenv("UVISI_WARMUP")                   # off by default
     assert warmup.start() is False
     assert launches == []
 
