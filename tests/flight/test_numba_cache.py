@@ -35,7 +35,6 @@ def test_concurrent_saves_keep_every_key_with_its_own_data(tmp_path):
         p.join(60)
         assert p.exitcode == 0
     f = IndexDataCacheFile(str(tmp_path), "kernel-1.py311", ("stamp", 1))
-    index = f._load_index()                       # numba's own reader of the index
-    assert len(index) == 2 * N and len(set(index.values())) == 2 * N
-    for key in index:
-        assert f.load(key)["payload"] == key
+    for key in [(tag, i) for tag in "ab" for i in range(N)]:       # numba's own reader
+        got = f.load(key)
+        assert got is not None and got["payload"] == key, key
