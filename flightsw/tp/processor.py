@@ -21,7 +21,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import typeof, types
+from numba import njit, typeof, types
 
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
@@ -63,16 +63,49 @@ def message_content_fault(msg: CandidateMessage, n_rows: int = N_ROWS, n_cols: i
     c = msg.candidates
     if not len(c) or c.dtype.names is None:
         return ""
-    names = c.dtype.names
-    if "row" in names and "col" in names and not (
-            np.all((c["row"] >= 0) & (c["row"] < n_rows)) and
-            np.all((c["col"] >= 0) & (c["col"] < n_cols))):
-        return "candidate outside the imager"
-    if "gof" in names and not np.all((c["gof"] >= 0) & (c["gof"] <= 1)):
-        return "GOF outside [0, 1]"
-    if "distance" in names and not np.all(np.isfinite(c["distance"]) & (c["distance"] >= 0)):
-        return "distance negative or not finite"
-    return ""
+    if c.dtype != CANDIDATE_DTYPE:        # another record type: its fields that the check reads
+        full = np.zeros(len(c), CANDIDATE_DTYPE)
+        full["gof"] = 0.5                 # a field it lacks is not checked
+        for name in set(c.dtype.names) & {"row", "col", "gof", "distance"}:
+            full[name] = c[name]
+        if "row" not in c.dtype.names or "col" not in c.dtype.names:
+            full["row"] = full["col"] = 0.0
+        c = full
+    return _CONTENT_FAULTS[candidates_fault_k(c, n_rows, n_cols)]
+
+
+#: :func:`candidates_fault_k`'s verdicts
+_CONTENT_FAULTS = ("", "candidate outside the imager", "GOF outside [0, 1]",
+                   "distance negative or not finite")
+
+
+@njit(cache=True)
+def candidates_fault_k(cand, n_rows, n_cols):
+    """The first rule a candidate array (:data:`~flightsw.messages.CANDIDATE_DTYPE` [k]) breaks:
+    0 none, 1 a ``row``/``col`` outside [0, n_rows) x [0, n_cols), 2 a GOF outside [0, 1], 3 a
+    distance negative or not finite (each rule over every candidate before the next, as the
+    message reads in rank order).
+
+    Cases
+    -----
+    usable : every candidate inside, GOF in [0, 1], distance finite >= 0 -> 0.
+    outside : a row or col outside the frame (NaN included) -> 1.
+    gof : a GOF outside [0, 1] (NaN included) -> 2.
+    distance : a negative, infinite or NaN distance -> 3.
+    """
+    for i in range(cand.shape[0]):
+        r, c = cand[i]["row"], cand[i]["col"]
+        if not (0.0 <= r < n_rows and 0.0 <= c < n_cols):
+            return 1
+    for i in range(cand.shape[0]):
+        g = cand[i]["gof"]
+        if not (0.0 <= g <= 1.0):
+            return 2
+    for i in range(cand.shape[0]):
+        d = cand[i]["distance"]
+        if not (0.0 <= d < np.inf):
+            return 3
+    return 0
 
 
 @dataclass

@@ -156,10 +156,19 @@ def _cand(**kw):
     ({}, {"window_row0": -2}, "window outside the frame"),
     ({}, {"window_col0": 200, "compaction": 2}, "window outside the frame"),
     ({}, {"window_row0": 0, "window_rows": 61, "compaction": 4}, ""),   # 61 x 4 = 244: inside
+    ({"row": np.nan}, {}, "candidate outside the imager"),
+    ({"gof": np.nan}, {}, "GOF outside [0, 1]"),
+    ({"distance": np.nan}, {}, "distance negative or not finite"),
 ])
+@pytest.mark.cases("flightsw.tp.processor.candidates_fault_k", "usable", "outside", "gof",
+                   "distance")
 def test_meaningless_candidate_messages_are_named(kw, msg_kw, want):
     m = CandidateMessage(candidates=_cand(**kw), **msg_kw)
     assert message_content_fault(m) == want
+    other = np.zeros(1, [("row", "f4"), ("col", "f4"), ("gof", "f4"), ("distance", "f4")])
+    for name in other.dtype.names:                 # another record type: the same verdict
+        other[name] = m.candidates[name]
+    assert message_content_fault(CandidateMessage(candidates=other, **msg_kw)) == want
 
 
 def test_the_tp_refuses_meaningless_content_never_locks_and_counts_each():
