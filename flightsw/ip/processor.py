@@ -203,7 +203,6 @@ class ImageProcessor:
         if not isinstance(record, Record):
             raise ValueError(f"record must be a flightsw.records.Record, got {type(record).__name__}")
         self.proposals = expand(proposals, "ImageProcessor.proposals")
-        check_floor_proposals(sequence, self.proposals)
         self._power_on = (sequence, record)
         store = RecordStore([*records, record], dict(table or {}))    # validates
         store.hold(record, object_type if object_type in TABLE_TYPES else None)
@@ -397,9 +396,9 @@ class ImageProcessor:
                 new = decode_table(w)
             else:
                 new = sequence_from_words(w)
-                check_floor_proposals(new, self.proposals, "sequence uplink")
-                # what the flight code will run with it, built now: a sequence it cannot run
-                # is refused here and the one in force kept (never an error at the next frame)
+                # what the flight code will run with it, built now (its floor fields checked
+                # against the proposals too): a sequence it cannot run is refused here and the
+                # one in force kept (never an error at the next frame)
                 alpha_controller_for(new, self.proposals, **self._alpha_settings)
         except (ValueError, SequenceError) as exc:
             self.uplinks_refused += 1
