@@ -48,7 +48,6 @@ from __future__ import annotations
 import hashlib
 import math
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -129,14 +128,8 @@ class CompareSpec:
 
 def load_spec(path) -> CompareSpec:
     """Read and validate a comparison spec (TOML); ``ValueError`` naming the file and field."""
-    p = Path(path)
-    if not p.is_file():
-        raise FileNotFoundError(f"{p}: no such comparison spec")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as exc:
-        raise ValueError(f"{p}: not valid TOML: {exc}") from None
-    return spec_from_dict(data, str(p))
+    from hil_harness.fileio import read_toml
+    return spec_from_dict(read_toml(path, "comparison spec"), str(Path(path)))
 
 
 def _is_int(v) -> bool:

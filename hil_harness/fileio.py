@@ -81,3 +81,16 @@ class FolderLock:
     def __exit__(self, *exc):
         self.release()
         return False
+
+
+def read_toml(path, what: str) -> dict:
+    """The table of the TOML file ``path``; one line naming the file otherwise:
+    ``FileNotFoundError`` "<path>: no such <what>" (a folder too), ``ValueError`` for bad TOML."""
+    import tomllib
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"{p}: no such {what}")
+    try:
+        return tomllib.loads(p.read_text())
+    except tomllib.TOMLDecodeError as exc:
+        raise ValueError(f"{p}: not valid TOML: {exc}") from None

@@ -49,7 +49,6 @@ import math
 import os
 import socket
 import time
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -203,14 +202,8 @@ class CampaignSpec:
     @classmethod
     def load(cls, path, lift_cap: bool = False) -> "CampaignSpec":
         """The spec of the TOML file ``path`` (``lift_cap``: as :meth:`from_dict`)."""
-        p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: no such campaign spec")
-        try:
-            data = tomllib.loads(p.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{p}: not valid TOML: {exc}") from None
-        return cls.from_dict(data, str(p), lift_cap=lift_cap)
+        from hil_harness.fileio import read_toml
+        return cls.from_dict(read_toml(path, "campaign spec"), str(Path(path)), lift_cap=lift_cap)
 
     @classmethod
     def from_dict(cls, data, source="<spec>", job: str | None = None,

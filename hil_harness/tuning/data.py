@@ -51,7 +51,6 @@ import csv
 import json
 import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -312,14 +311,9 @@ class SetSpec:
 
     @classmethod
     def load(cls, path) -> "SetSpec":
+        from hil_harness.fileio import read_toml
         p = Path(path)
-        if not p.exists():
-            raise FileNotFoundError(f"{p}: no such set spec")
-        try:
-            data = tomllib.loads(p.read_text())
-        except tomllib.TOMLDecodeError as exc:
-            raise ValueError(f"{p}: not valid TOML: {exc}") from None
-        return cls.from_dict(data, source=str(p), base_dir=str(p.parent))
+        return cls.from_dict(read_toml(p, "set spec"), source=str(p), base_dir=str(p.parent))
 
     @classmethod
     def from_dict(cls, data, source="<spec>", base_dir=None) -> "SetSpec":
