@@ -442,8 +442,9 @@ _TC_FLAG = np.array([0x10] * 4 + [0x02] * 5 + [0x04] * 8, np.int64)
 def _track_encode_k(head, t, v, out, table):
     """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
     presence bits; words 3-5 are the time tag ``t``, finite, encoded here), ``v`` float64[17]
-    (:data:`_TC_AT` order). False when a group (q_point; the prediction; the estimate) is partly
-    present (nothing useful written).
+    (:data:`_TC_AT` order). Returns 0 when written; 1 when a group (q_point; the prediction; the
+    estimate) is partly present, 2 when the pointing quaternion's norm is off 1 by more than
+    :data:`Q_NORM_TOL` (nothing useful written).
 
     Cases
     -----
@@ -451,13 +452,17 @@ def _track_encode_k(head, t, v, out, table):
         prediction, 0x04 the estimate) and its values are encoded (nearest), 48-bit for r, v.
     absent-groups : a group all NaN leaves its flag clear and its words zero.
     reserved-and-crc : word 53 zero, word 54 the CRC of words 0-53.
-    partial-group : a group partly finite -> False.
+    partial-group : a group partly finite -> 1.
+    non-unit-quaternion : a present q_point whose norm is off 1 by more than ``Q_NORM_TOL`` -> 2.
     """
     gp = _group(v, np.int64(0), np.int64(4))
     gr = _group(v, np.int64(4), np.int64(9))
     ge = _group(v, np.int64(9), np.int64(17))
     if gp < 0 or gr < 0 or ge < 0:
-        return False
+        return 1
+    if gp and abs(math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2] + v[3] * v[3]) - 1.0) \
+            > Q_NORM_TOL:
+        return 2
     for i in range(13):
         out[i] = head[i]
     p = encode_k(t, 39, True)
@@ -478,7 +483,7 @@ def _track_encode_k(head, t, v, out, table):
             out[a + 1] = p & 0xFFFF
     out[53] = 0
     out[54] = _crc_range(out, np.int64(54), table)
-    return True
+    return 0
 
 
 @njit(cache=True)
@@ -1032,13 +1037,14 @@ class TrackCommand:
         cannot carry, or a group of values partly NaN -> :class:`MessageError`."""
         head = self._head()
         t = _real_field("TrackCommand", "time_tag", self.time_tag)
-        q = np.asarray(self.q_point, np.float64)
-        if q.shape == (4,) and np.all(np.isfinite(q)) and \
-                abs(math.sqrt(float(q @ q)) - 1.0) > Q_NORM_TOL:
-            raise MessageError("TrackCommand", None, "q_point", f"norm {math.sqrt(float(q @ q)):.9g}"
-                               f" is off 1 by more than the 1750A rounding ({Q_NORM_TOL:.2g})")
         out = np.empty(TRACK_WORDS, np.uint16)
-        if not _track_encode_k(head, t, self._values(), out, _CRC_TABLE):
+        v = self._values()
+        bad = _track_encode_k(head, t, v, out, _CRC_TABLE)
+        if bad == 2:
+            raise MessageError("TrackCommand", None, "q_point",
+                               f"norm {math.sqrt(float(v[:4] @ v[:4])):.9g} is off 1 by more than "
+                               f"the 1750A rounding ({Q_NORM_TOL:.2g})")
+        if bad:
             raise MessageError("TrackCommand", None, "values", "a group of values (q_point; "
                                "prediction + los_eci; the estimate) must be all finite or all NaN")
         return out

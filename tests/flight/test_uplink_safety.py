@@ -218,6 +218,7 @@ def test_the_ip_refuses_a_prediction_outside_the_compacted_image_and_keeps_the_l
 
 
 @pytest.mark.cases("flightsw.messages._track_check_k", "non-unit-quaternion")
+@pytest.mark.cases("flightsw.messages._track_encode_k", "non-unit-quaternion")
 def test_a_pointing_quaternion_off_unit_is_refused_by_its_readers():
     from flightsw.arith.m1750 import encode32
     from flightsw.messages import crc16_ccitt
