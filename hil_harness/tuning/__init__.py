@@ -40,13 +40,12 @@ from flightsw.records import Record, load_record
 from .data import SetSpec, TrainingSet, build_set, load_labels, load_set
 from .export import (CheckResult, check_record, check_record_file, export_record, read_words,
                      unit_problems, write_words)
-from .fit import (FastRanker, FlightRanking, OptimiseResult, cross_validate, fit_record,
-                  flight_rank, gof_threshold_for_frr, object_rows, optimise_record,
-                  optimise_weights, top1_rate)
+from .fit import (FastRanker, FlightRanking, fit_record, flight_rank, gof_threshold_for_frr,
+                  object_rows, top1_rate)
 from .validate import evaluate, threshold_sweep, validate
 
 __all__ = ["Record", "load_record", "SetSpec", "TrainingSet", "build_set", "load_set", "load_labels",
-           "fit_record", "optimise_record", "optimise_weights", "cross_validate", "flight_rank",
-           "FlightRanking", "FastRanker", "OptimiseResult", "gof_threshold_for_frr", "object_rows",
+           "fit_record", "flight_rank", "FlightRanking", "FastRanker", "gof_threshold_for_frr",
+           "object_rows",
            "top1_rate", "evaluate", "threshold_sweep", "validate", "export_record", "write_words",
            "read_words", "check_record", "check_record_file", "unit_problems", "CheckResult"]

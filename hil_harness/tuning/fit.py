@@ -15,25 +15,13 @@ Fit (:func:`fit_record`)
       between the two medians (kept within 5 % .. 95 % of ``t*`` so both thresholds stay positive). Centroids keep Table 1's style, the frame
       centre +/- 45 px.
 
-Optimise (:func:`optimise_record`)
-    The ranking depends only on ``c_i = w_i / sigma_i^2`` (and the means): the weights are searched
-    with SciPy's **differential evolution** (derivative-free, global: the top-1 rate is piecewise
-    constant in the weights, so local gradient-free simplex methods stall on its plateaus) over
-    ``u_i = log10 w_i`` in ``[-2, 1]``; ``u_i < -1.7`` switches the feature off (``w_i = 0``, one
-    degree of freedom less). The objective is the top-1 identification rate on the training frames
-    plus a tie-break worth less than one frame: ``0.25 / F`` times the mean normalised margin
-    ``(d_other - d_object) / (d_other + d_object)`` (prefers weights that win by more). The inner
-    loop is a vectorised float64 re-implementation of the flight ranking (:class:`FastRanker`);
-    afterwards every figure reported is recomputed with the flight kernel
-    (:func:`flight_rank`, 1750A arithmetic) and the agreement of the two is reported.
+Rank fast (:class:`FastRanker`)
+    The ranking depends only on ``c_i = w_i / sigma_i^2`` (and the means): :class:`FastRanker` is a
+    vectorised float64 re-implementation of the flight ranking, the inner loop of the closed-loop
+    optimiser (:func:`hil_harness.tuning.closed.optimise_closed_loop`); every figure reported is
+    recomputed with the flight kernel (:func:`flight_rank`, 1750A arithmetic).
 
-    The quantisation flag is chosen by cross-validation (``quantize="auto"``: both are tried; the
-    better cross-validated top-1 wins, then the lower false-lock rate on held-out frames without
-    the object (when the set has some), then "off"). Cross-validation is grouped by run
-    (a scenario seed or a real sequence): each fold refits means/sigmas/thresholds and re-optimises
-    the weights on the other groups, sets that fold's GOF threshold, and scores the held-out group
-    with the flight ranking (a single run is split into contiguous blocks of frames instead).
-
+Threshold (:func:`threshold_record`)
     The GOF rejection threshold is set for a stated false-rejection rate ``frr``: at the distance
     ``kappa * d_q``, where ``d_q`` is the training object distance exceeded by ``floor(frr * N)``
     objects and ``kappa >= 1`` the cross-validated widening -- the smallest factor for which each
@@ -49,17 +37,16 @@ Optimise (:func:`optimise_record`)
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
 from flightsw.records import Record, load_record
 
-__all__ = ["fit_record", "optimise_record", "FastRanker", "flight_rank", "FlightRanking",
-           "gof_threshold_for_frr", "object_rows", "cross_validate", "OptimiseResult", "top1_rate",
-           "optimise_weights", "threshold_record", "object_distances", "quantile_distance",
-           "scale_to_chi2"]
+__all__ = ["fit_record", "FastRanker", "flight_rank", "FlightRanking", "gof_threshold_for_frr",
+           "object_rows", "top1_rate", "threshold_record", "object_distances", "quantile_distance",
+           "scale_to_chi2", "GOF_FLOOR"]
 
 COL, ROW = 1, 2
 CENTRE = {"row": 122.0, "col": 128.0}
@@ -324,62 +311,10 @@ class FastRanker:
         return win.sum() / nF + 0.25 * margin / nF
 
 
-def _weights_from_u(u):
-    u = np.asarray(u, float)
-    w = np.where(u < LOG_W_OFF, 0.0, 10.0 ** u)
-    return w
-
-
 def _round_sig(x, digits=3):
     if x == 0:
         return 0.0
     return float(f"{x:.{digits}g}")
-
-
-def optimise_weights(tset, record, seed: int = 0, maxiter: int = 60, popsize: int = 12,
-                     frames=None, fixed_off=()) -> tuple:
-    """Differential evolution of the weights (module docstring) -> (weights tuple, fast score).
-
-    Objective (maximised): top-1 rate + (0.25 / F) * mean normalised margin
-    - (0.25 / F) * mean((u - u0)^2) / 9, with ``u0`` the record's own log-weights: two tie-breaks
-    that together are worth less than one frame, the first preferring weights that win by more,
-    the second staying as close to the starting weights (the paper's Table 1 by default) as the
-    identification rate allows. The weights are then scaled (the ranking does not change) so that
-    the object's median distance on the training frames equals ``n``: GOF = 1/2 there, as for a
-    chi-square variable, which keeps the GOF threshold meaningful."""
-    from scipy.optimize import differential_evolution
-    fr = FastRanker(tset, record, frames)
-    if fr.n_frames_total == 0:
-        raise ValueError("optimise: no labelled frames")
-    off = set(fixed_off)
-    free = [i for i in range(N_FEATURES) if i not in off]
-    w0 = np.asarray(record.weight, float)[free]
-    u0 = np.clip(np.where(w0 > 0, np.log10(np.maximum(w0, 1e-12)), LOG_W[0]), *LOG_W)
-    span2 = (LOG_W[1] - LOG_W[0]) ** 2
-    nF = fr.n_frames_total
-
-    def full(u):
-        uu = np.full(N_FEATURES, -10.0)
-        uu[free] = u
-        return _weights_from_u(uu)
-
-    def obj(u):
-        w = full(u)
-        if not np.any(w > 0):
-            return 1.0
-        prior = float(np.mean((np.asarray(u) - u0) ** 2)) / span2
-        return -(fr.score(w) - 0.25 * prior / nF)
-
-    rng = np.random.default_rng(seed)
-    npop = max(5, popsize * len(free))
-    init = rng.uniform(LOG_W[0], LOG_W[1], (npop, len(free)))
-    init[0] = u0                                   # the starting record itself
-    init[1] = 0.0                                  # all weights 1
-    res = differential_evolution(obj, [LOG_W] * len(free), init=init, maxiter=maxiter, tol=1e-8,
-                                 seed=seed, polish=False, mutation=(0.5, 1.0), recombination=0.7,
-                                 updating="immediate")
-    w = scale_to_chi2(fr, full(res.x))
-    return tuple(float(x) for x in w), fr.score(w)
 
 
 def scale_to_chi2(fr, w) -> np.ndarray:
@@ -400,41 +335,6 @@ def _chi2_scale(fr, w) -> float:
     s = n / med
     # keep every weight inside the representable, sensible range
     return float(np.clip(s, 1e-6 / max(w.max(), 1e-300), 1e6 / max(w.max(), 1e-300)))
-
-
-# ================================================================================================
-# cross-validation and the full optimisation
-# ================================================================================================
-def _folds(tset, k):
-    groups = tset.groups()
-    if len(groups) >= 2:
-        k = min(k, len(groups))
-        return [groups[i::k] for i in range(k)], "group"
-    # one group: contiguous blocks of frames
-    return None, "block"
-
-
-def _fold_masks(tset, k):
-    groups, how = _folds(tset, k)
-    g = np.asarray(tset.frames["group"]).astype(str)
-    if how == "group":
-        return [np.isin(g, fg) for fg in groups], how
-    F = tset.n_frames
-    k = max(2, min(k, F))
-    edges = np.linspace(0, F, k + 1).astype(int)
-    out = []
-    for i in range(k):
-        m = np.zeros(F, bool)
-        m[edges[i]:edges[i + 1]] = True
-        out.append(m)
-    return out, how
-
-
-def _fit_and_optimise(train, base, quantize, seed, maxiter, popsize, name, record_id, version):
-    rec = fit_record(train, base=base, name=name, record_id=record_id, version=version)
-    rec = rec.replace(quantize=bool(quantize))
-    w, score = optimise_weights(train, rec, seed=seed, maxiter=maxiter, popsize=popsize)
-    return rec.replace(weight=w), score
 
 
 #: smallest GOF a threshold is placed at (1750A 32-bit floats reach ~1.5e-39; exp32 underflows
@@ -485,132 +385,3 @@ def top1_rate(tset, record) -> float:
     if not lab.any():
         return float("nan")
     return float((rk.reported_rank[lab] == 1).mean())
-
-
-def cross_validate(tset, base, quantize, folds=5, seed=0, maxiter=60, popsize=12,
-                   frr: float = 0.0) -> dict:
-    """Grouped k-fold: refit + re-optimise on the other folds, flight ranking of the held-out one.
-
-    Returns ``ranking_top1`` (the object has the smallest distance), ``kappa`` (the smallest
-    widening >= 1 of each fold's training ``frr``-quantile distance that rejects at most ``frr`` of
-    the held-out objects, pooled over folds: the threshold calibration) and ``top1`` (the first
-    reported candidate is the object with each fold's threshold at ``kappa`` times its quantile)."""
-    masks, how = _fold_masks(tset, folds)
-    per, ratios, folds_out = [], [], []
-    for i, m in enumerate(masks):
-        train, test = tset.subset(~m), tset.subset(m)
-        if not train.has_label.any() or not test.has_label.any():
-            continue
-        try:
-            rec, _ = _fit_and_optimise(train, base, quantize, seed + i, maxiter, popsize,
-                                       "cv", None, 1)
-        except ValueError as exc:
-            per.append({"fold": i, "error": str(exc)})
-            continue
-        rk = flight_rank(test, rec)
-        lab = test.has_label
-        orow = object_rows(test)
-        d_obj = np.full(test.n_frames, np.inf)
-        d_obj[orow >= 0] = rk.distance[orow[orow >= 0]]
-        d_best = np.where(rk.best >= 0, rk.distance[np.maximum(rk.best, 0)], np.inf)
-        d_q = quantile_distance(object_distances(train, rec), frr)
-        if d_q is not None and d_q > 0:
-            ratios.append(d_obj[orow >= 0] / d_q)
-        folds_out.append((lab, rk.best_is_object, d_obj, d_q, d_best))
-        per.append({"fold": i, "frames": int(lab.sum()),
-                    "ranking_top1": float(rk.best_is_object[lab].mean()),
-                    "groups": sorted(str(g) for g in set(np.asarray(test.frames["group"])))})
-    kappa = 1.0
-    if ratios and frr > 0:
-        r = np.sort(np.concatenate(ratios))[::-1]
-        allowed = int(math.floor(frr * r.size))
-        kappa = max(1.0, float(r[allowed])) if allowed < r.size else 1.0
-    hits = rhits = total = locks = empties = 0
-    for (lab, bio, d_obj, d_q, d_best), pf in zip(folds_out, [p for p in per if "error" not in p]):
-        ok = bio & lab
-        reported = np.isfinite(d_best)
-        if d_q is not None and frr > 0:
-            ok &= d_obj <= kappa * d_q
-            reported &= d_best <= kappa * d_q
-        pf["top1"] = float(ok[lab].mean())
-        hits += int(ok[lab].sum())
-        rhits += int((bio & lab).sum())
-        total += int(lab.sum())
-        locks += int(reported[~lab].sum())
-        empties += int((~lab).sum())
-    return {"how": how, "folds": per, "kappa": kappa,
-            "top1": hits / total if total else float("nan"),
-            "ranking_top1": rhits / total if total else float("nan"), "frames": total,
-            "false_lock": locks / empties if empties else float("nan"), "frames_without": empties}
-
-
-@dataclass
-class OptimiseResult:
-    record: Record
-    cv: dict = field(default_factory=dict)
-    train_top1_fast: float = float("nan")
-    train_top1_flight: float = float("nan")
-    fast_flight_agreement: float = float("nan")
-    gof_threshold: float = 0.0
-    frr: float = 0.0
-    quantize_scores: dict = field(default_factory=dict)
-
-    def as_dict(self):
-        return {"record": self.record.name, "cv": self.cv, "train_top1_fast": self.train_top1_fast,
-                "train_top1_flight": self.train_top1_flight,
-                "fast_flight_agreement": self.fast_flight_agreement,
-                "gof_threshold": self.gof_threshold, "frr": self.frr,
-                "quantize_scores": self.quantize_scores, "weights": list(self.record.weight),
-                "quantize": self.record.quantize, "n": self.record.n_weighted}
-
-
-def optimise_record(tset, base="aurora", frr: float = 0.005, quantize="auto", folds: int = 5,
-                    seed: int = 0, maxiter: int = 60, popsize: int = 12, name: str = "aurora_tuned",
-                    record_id: int | None = None, version: int = 1, log=print) -> OptimiseResult:
-    """Fit + optimise the weights (+ the quantisation flag), cross-validated; GOF threshold for the
-    stated false-rejection rate, calibrated on the held-out folds. ``base`` supplies the starting
-    weights, object type and id."""
-    base = load_record(base)
-    if quantize not in ("auto", True, False, "on", "off"):
-        raise ValueError(f"quantize={quantize!r} must be 'auto', 'on' or 'off'")
-    if not 0.0 <= frr < 1.0:
-        raise ValueError(f"false-rejection rate {frr!r} must be in [0, 1)")
-    choices = {"auto": (False, True), "on": (True,), "off": (False,), True: (True,),
-               False: (False,)}[quantize]
-    cvs = {}
-    for q in choices:
-        cvs[q] = cross_validate(tset, base, q, folds, seed, maxiter, popsize, frr) \
-            if folds > 1 else {"top1": float("nan"), "ranking_top1": float("nan"), "folds": [],
-                               "how": "none", "frames": 0, "kappa": 1.0}
-        log(f"[tune] cross-validated top-1 (quantize {'on' if q else 'off'}): "
-            f"{cvs[q]['top1']:.4f} with the calibrated GOF threshold, "
-            f"{cvs[q]['ranking_top1']:.4f} by distance alone, over {cvs[q]['frames']} held-out "
-            f"frames ({len(cvs[q]['folds'])} folds by {cvs[q]['how']}); threshold widening "
-            f"kappa {cvs[q]['kappa']:.3g}"
-            + (f"; false lock {cvs[q]['false_lock']:.4f} on {cvs[q]['frames_without']} held-out "
-               f"frames without the object" if cvs[q].get("frames_without") else ""))
-    q = max(choices, key=lambda c: (np.nan_to_num(cvs[c]["top1"], nan=-1.0),
-                                    -np.nan_to_num(cvs[c].get("false_lock", 0.0), nan=0.0),
-                                    np.nan_to_num(cvs[c]["ranking_top1"], nan=-1.0), not c))
-    rid = base.record_id if record_id is None else record_id
-    rec, fast = _fit_and_optimise(tset, base, q, seed, maxiter, popsize, name, rid, version)
-    n_obj = int((object_rows(tset) >= 0).sum())
-    if frr > 0 and n_obj * frr < 1.0:
-        log(f"[tune] only {n_obj} object candidates: too few to estimate a {frr:g} false-rejection "
-            f"quantile; GOF threshold left at 0")
-    rec = threshold_record(tset, rec, frr, cvs[q].get("kappa", 1.0))
-    rec = Record.from_toml(rec.to_toml())                   # exactly what the file will hold
-    thr = rec.gof_threshold
-    rk = flight_rank(tset, rec.replace(gof_threshold=0.0))
-    fr = FastRanker(tset, rec)
-    fast_top = fr.top1(np.asarray(rec.weight))
-    lab = np.flatnonzero(tset.has_label)
-    agree = float(np.mean(fast_top == rk.best_is_object[lab])) if lab.size else float("nan")
-    flight_top1 = top1_rate(tset, rec)
-    res = OptimiseResult(rec, cvs[q], float(np.mean(fast_top)) if fast_top.size else float("nan"),
-                         flight_top1, agree, thr, frr,
-                         {("on" if c else "off"): cvs[c]["top1"] for c in choices})
-    log(f"[tune] chose quantize {'on' if q else 'off'}; training top-1 flight {flight_top1:.4f} "
-        f"(float64 optimiser {res.train_top1_fast:.4f}, same top candidate in {agree:.4f} of frames)"
-        f"; GOF threshold {thr:.6g} for false-rejection rate {frr:g}")
-    return res

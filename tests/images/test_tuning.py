@@ -20,10 +20,9 @@ from flightsw.arith.m1750 import encode32, encode32_array
 from flightsw.messages import FEATURE_NAMES, Feedback, crc16_ccitt
 from flightsw.records import RECORD_WORDS, Record, load_record
 from hil_harness.cli import main
-from hil_harness.tuning import (build_set, check_record_file, cross_validate, evaluate,
-                                export_record, fit_record, flight_rank, load_labels, load_set,
-                                object_rows, optimise_record, read_words, threshold_sweep,
-                                top1_rate, validate, write_words)
+from hil_harness.tuning import (build_set, check_record_file, evaluate, export_record,
+                                fit_record, flight_rank, load_labels, load_set, object_rows,
+                                read_words, threshold_sweep, validate, write_words)
 from hil_harness.tuning.data import TrainingSet, scenario_from_entry
 from hil_harness.tuning.fit import FastRanker, threshold_record
 
@@ -209,34 +208,6 @@ def _synthetic(F, seed, ndec=3):
                        {"name": f"synth{seed}"})
 
 
-def test_optimiser_finds_the_discriminating_weights():
-    train, test = _synthetic(240, 1), _synthetic(240, 2)
-    w = [1.0] * 12
-    for k in ("col", "row", "orientation", "total_brightness"):
-        w[FEATURE_NAMES.index(k)] = 0.0
-    base = load_record("aurora").replace(weight=tuple(w))
-    before = top1_rate(test, fit_record(train, base=base))
-    t0 = time.perf_counter()
-    res = optimise_record(train, base=base, frr=0.0, quantize="off", folds=3, maxiter=25,
-                          log=lambda *a: None)
-    after = top1_rate(test, res.record)
-    print(f"\n[tune] synthetic: equal weights {before:.3f} -> optimised {after:.3f} on held-out "
-          f"frames ({time.perf_counter() - t0:.1f} s); weights {res.record.weight}")
-    assert before < 0.9
-    assert after >= 0.97
-    assert res.cv["ranking_top1"] >= 0.95
-    assert res.fast_flight_agreement >= 0.99
-    wr = dict(zip(FEATURE_NAMES, res.record.weight))
-    # the discriminating features carry more weight than the average shape feature
-    shape = np.mean([wr[k] for k in ("size", "eccentricity", "semimajor", "semiminor",
-                                     "sigma_ratio", "max_brightness", "brightness_ratio")])
-    assert max(wr["col"], wr["row"], wr["avg_brightness"]) > 2 * shape
-    # the optimiser's chi-square scale: median object distance = n
-    d = FastRanker(train, res.record).distances(np.asarray(res.record.weight))
-    dobj = np.where(FastRanker(train, res.record).isobj, d, np.inf).min(axis=1)
-    assert np.median(dobj) == pytest.approx(res.record.n_weighted, rel=0.02)
-
-
 def test_gof_threshold_rejects_the_stated_fraction():
     train = _synthetic(200, 4)
     rec = fit_record(train)
@@ -253,15 +224,6 @@ def test_gof_threshold_rejects_the_stated_fraction():
     # too few samples for the quantile: no threshold
     assert threshold_record(train.subset(np.arange(train.n_frames) < 10), rec, 0.02) \
         .gof_threshold == 0.0
-
-
-def test_cross_validation_holds_out_whole_groups():
-    ts = _synthetic(120, 5)
-    cv = cross_validate(ts, "aurora", False, folds=3, maxiter=8, popsize=5, frr=0.05)
-    held = [g for f in cv["folds"] for g in f["groups"]]
-    assert sorted(held) == sorted(ts.groups()) and len(held) == len(set(held))
-    assert cv["frames"] == ts.n_frames and cv["kappa"] >= 1.0
-    assert 0.0 <= cv["top1"] <= cv["ranking_top1"] <= 1.0
 
 
 def test_smallest_kappa_hand_made():
@@ -350,13 +312,6 @@ def test_real_wic_set_and_held_out_frames():
     ts = build_set(spec)
     assert ts.n_frames == 15 and int(ts.has_label.sum()) == 14
     assert ts.detected()[ts.has_label].all()
-    train = ts.subset(np.asarray(ts.frames["index"]) % 2 == 0)
-    test = ts.subset(np.asarray(ts.frames["index"]) % 2 == 1)
-    res = optimise_record(train, frr=0.0, folds=1, maxiter=15, log=lambda *a: None)
-    tuned, table1 = top1_rate(test, res.record), top1_rate(test, load_record("aurora"))
-    print(f"\n[tune] IMAGE FUV-WIC odd frames (not trained on): tuned top-1 {tuned:.3f}, "
-          f"Table 1 {table1:.3f}")
-    assert tuned >= 6 / 7 and tuned > table1
 
 
 # ------------------------------------------------------------------------------------------------
