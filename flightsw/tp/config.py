@@ -1,39 +1,30 @@
-"""Configuration of the track processor (plain dataclass, validated; the kernels get packed words).
+"""Configuration of the track processor: small declared parts, one definition per parameter.
 
-Defaults and where they come from:
+Each parameter is declared once, in the part that holds its job, with a one-line doc, its unit,
+its bounds and its class (:data:`CLASSES`):
 
-* ``alpha = 0.25, beta = 0`` -- the paper: *"alpha = 0.25 provides a 90% response in eight frames
-  (4 s). The velocity gain beta is almost always set to 0 ... it must be 0 or both types of gates
-  will follow the data and differentiation based on velocity cannot occur."*
-* ``n_empty = 3`` frames (rules 1, 2; with the proposal ``rule_guards``, rule 3's populated run) and
-  ``residual_threshold_px2 = 16`` px^2 (rules 3, 4). The squared residual of a wrong hypothesis
-  approaches ``(d / alpha)^2`` per frame for an apparent-velocity difference of d px/frame (4 px^2
-  at d = 0.5 px/frame; 16 px^2 is reached on the 9th frame with the transient), a right one ``4
-  sigma^2 / (2 - alpha) ~ 2.3 sigma^2`` per frame (0.09 px^2 at sigma = 0.2 px). The paper gives no
-  values ("n successive frames", "a specified amount"); these were chosen on the synthetic streams
-  of ``tests/tp/test_tp.py`` with the rule guards on (the configuration of that choice): 99.8 % of
-  1000 events decided for the right candidate, median latency 4 frames (2 s), p95 11 frames; gate 3
-  px or threshold 8-12 px^2 give the same within 0.3 %. ``n_empty_object`` /
-  ``residual_threshold_star_px2`` (rules 2 and 4: concluding "star", which deletes both gates)
-  default to the same values.
-* ``gate_px = 4`` -- half-width of the square gate in pixels of the current imager (it must hold the
-  first-frame lag of the right hypothesis, ``d``, and the steady lag ``d (1 - alpha) / alpha``
-  plus the centroid noise).
-* EKF: measurement sigma 0.5 px, innovation gate 5 sigma, white-acceleration PSD 1e-3 m^2/s^3
-  (covers unmodelled drag and, with ``j2=False``, part of J2 over a pass), initial sigmas 1 km and
-  10 m/s about the nominal (the a priori trajectory the gates already trust).
-* Targets of opportunity: ``opp_alpha = 0.25``, ``opp_beta = alpha^2 / (2 - alpha)`` (the
-  Benedict-Bordner relation, 0.0357), gate 8 px. With the proposal ``opp_startup`` (off by
-  default: the paper's TP runs the steady alpha-beta) a new track's first
-  observations are weighed with the growing-memory (least-squares) start-up gains of Kalata 1984 /
-  Brookner, "Tracking and Kalman Filtering Made Easy" (1998) sec. 1.2.6, ``alpha_k = 2(2k-1)/
-  (k(k+1))``, ``beta_k = 6/(k(k+1))`` after the k-th observation, each until it falls to its
-  steady value (k <= 14 at the defaults), instead of acquiring with zero velocity and the steady
-  gains, which lag a moving spot by ~``v dt / alpha`` for tens of frames. Chosen on the training
-  aurora families (docs/validation.md, the evaluation families).
+* ``paper`` -- the value is the MSX paper's (quoted in :mod:`flightsw.tp.gates` and
+  ``docs/fidelity.md``), e.g. the gates' *"alpha = 0.25 provides a 90% response in eight frames
+  (4 s). The velocity gain beta is almost always set to 0"*;
+* ``interpretation`` -- the paper states the behaviour but no value ("n successive frames", "a
+  specified amount"): the value is ours, chosen as ``docs/fidelity.md`` says, and how it was
+  measured is in ``docs/validation.md`` (the TP's parameters);
+* ``proposal`` -- the parameter of a proposal (:mod:`flightsw.proposals`), at its off value (the
+  paper's system) unless its proposal is in force; ``None`` at construction takes the proposal's
+  value when on, :data:`PROPOSAL_OFF` otherwise.
+
+The parts (:data:`PARTS`): :class:`Gates`, :class:`Rules`, :class:`EKFParams`,
+:class:`OpportunityTrack`, :class:`Aim`, :class:`Timing`, :class:`InputChecks`; the proposals in
+force are the part ``proposals`` (a tuple of names). :class:`TPConfig` holds the event's
+description (imagers, mode, object type, nominal) and one of each part. It is built from flat
+keywords (``TPConfig(imagers=..., gate_px=3.0)``: each key goes to the part that declares it; the
+form scenario ``[tp]`` tables, recordings and uplinks use) or from parts, and read either way
+(``cfg.gates.gate_px`` or ``cfg.gate_px``). :meth:`TPConfig.describe` lists every parameter with
+its part, unit, class and doc.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -42,9 +33,12 @@ from flightsw.proposals import PROPOSALS, expand
 from flightsw.tp.dynamics import NominalTrajectory
 from flightsw.tp.geometry import ImagerGeometry
 
-__all__ = ["TPConfig", "MODES", "TP_PROPOSALS", "PROPOSAL_OFF"]
+__all__ = ["TPConfig", "MODES", "TP_PROPOSALS", "PROPOSAL_OFF", "CLASSES", "PARTS", "Gates",
+           "Rules", "EKFParams", "OpportunityTrack", "Aim", "Timing", "InputChecks"]
 
 MODES = ("dedicated", "opportunity")
+#: the classes of a parameter (module docstring)
+CLASSES = ("paper", "interpretation", "proposal")
 #: the proposals (:mod:`flightsw.proposals`) that change the TP
 TP_PROPOSALS = tuple(n for n, p in PROPOSALS.items() if p.processor == "tp")
 #: each TP proposal parameter's value with its proposal off (the paper's system)
@@ -52,31 +46,170 @@ PROPOSAL_OFF = {"n_apriori": 0, "ekf_max_rejects": 0, "opp_startup": False, "aim
                 "aim_col_px": 0.0, "aim_scan_px": 0.0}
 
 
-def _num(name, v, lo=None, hi=None, lo_open=False, hi_open=False):
+def param(default, unit: str, cls: str, doc: str, kind: str = "num", lo=None, hi=None,
+          lo_open: bool = False, hi_open: bool = False, optional: bool = False):
+    """A declared parameter: a dataclass field whose metadata holds its doc, unit, class and check
+    (``kind`` "num", "int" or "bool"; bounds ``lo``/``hi``, open or closed; ``optional``: None is
+    accepted, meaning what the doc says)."""
+    if cls not in CLASSES:
+        raise ValueError(f"parameter class {cls!r} must be one of {CLASSES}")
+    return field(default=default, metadata={"unit": unit, "class": cls, "doc": doc, "kind": kind,
+                                            "lo": lo, "hi": hi, "lo_open": lo_open,
+                                            "hi_open": hi_open, "optional": optional})
+
+
+def check_value(name: str, v, meta: dict):
+    """``v`` checked against a parameter's declaration; ``ValueError`` naming ``TPConfig.name``."""
+    if v is None and meta["optional"]:
+        return v
+    if meta["kind"] == "bool":
+        if not isinstance(v, bool):
+            raise ValueError(f"TPConfig.{name}={v!r} must be a bool")
+        return v
+    if meta["kind"] == "int":
+        if isinstance(v, bool) or not isinstance(v, int) and not hasattr(v, "__index__"):
+            raise ValueError(f"TPConfig.{name}={v!r} must be an integer")
+        i = int(v)
+        if not meta["lo"] <= i <= meta["hi"]:
+            raise ValueError(f"TPConfig.{name}={v!r} must be in {meta['lo']}..{meta['hi']}")
+        return i
     if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
         raise ValueError(f"TPConfig.{name}={v!r} must be a number")
     x = float(v)
     if not math.isfinite(x):
         raise ValueError(f"TPConfig.{name}={v!r} must be finite")
-    if lo is not None and (x < lo or (lo_open and x == lo)):
-        raise ValueError(f"TPConfig.{name}={v!r} must be {'>' if lo_open else '>='} {lo}")
-    if hi is not None and (x > hi or (hi_open and x == hi)):
-        raise ValueError(f"TPConfig.{name}={v!r} must be {'<' if hi_open else '<='} {hi}")
+    lo, hi = meta["lo"], meta["hi"]
+    if lo is not None and (x < lo or (meta["lo_open"] and x == lo)):
+        raise ValueError(f"TPConfig.{name}={v!r} must be {'>' if meta['lo_open'] else '>='} {lo}")
+    if hi is not None and (x > hi or (meta["hi_open"] and x == hi)):
+        raise ValueError(f"TPConfig.{name}={v!r} must be {'<' if meta['hi_open'] else '<='} {hi}")
     return x
 
 
-def _int(name, v, lo, hi):
-    if isinstance(v, bool) or not isinstance(v, int) and not (hasattr(v, "__index__")):
-        raise ValueError(f"TPConfig.{name}={v!r} must be an integer")
-    i = int(v)
-    if not lo <= i <= hi:
-        raise ValueError(f"TPConfig.{name}={v!r} must be in {lo}..{hi}")
-    return i
+# ---- the parts ----------------------------------------------------------------------------------
+@dataclass
+class Gates:
+    """The star and object gates of a dedicated event (paper, "Velocity filtering")."""
+
+    alpha: float = param(0.25, "1", "paper", "position gain of the gates' alpha-beta filter",
+                         lo=0.0, hi=1.0, lo_open=True)
+    beta: float = param(0.0, "1", "paper", "velocity gain (0: the gates keep the a priori "
+                        "velocities)", lo=0.0, hi=2.0, hi_open=True)
+    gate_px: float = param(4.0, "px", "interpretation", "half-width of the square star/object "
+                           "gate, pixels of the message's imager", lo=0.5, hi=128.0)
 
 
 @dataclass
+class Rules:
+    """The decision rules between a pair's star and object hypotheses (paper, rules 1-4)."""
+
+    n_empty: int = param(3, "frames", "interpretation", "rule 1: a star gate empty this many "
+                         "successive frames (object gate populated) -> object", kind="int",
+                         lo=1, hi=1000)
+    n_empty_object: int | None = param(None, "frames", "interpretation", "rule 2's count (object "
+                                       "gate empty -> star); None: n_empty", kind="int", lo=1,
+                                       hi=10 ** 6, optional=True)
+    residual_threshold_px2: float = param(16.0, "px^2", "interpretation", "rule 3: star residual "
+                                          "exceeding the object's by this -> object", lo=0.0,
+                                          hi=1e30, lo_open=True)
+    residual_threshold_star_px2: float | None = param(
+        None, "px^2", "interpretation", "rule 4's amount (object residual exceeding the star's -> "
+        "star); None: residual_threshold_px2", lo=0.0, hi=1e30, lo_open=True, optional=True)
+    n_lost: int = param(6, "frames", "interpretation", "the verified object's gate empty this many "
+                        "successive frames -> object lost", kind="int", lo=1, hi=1000)
+    n_apriori: int | None = param(None, "frames", "proposal", "rule 5 (proposal rule5): a pair "
+                                  "populated this many frames is decided by the nominal (0: off)",
+                                  kind="int", lo=0, hi=100000, optional=True)
+
+
+@dataclass
+class EKFParams:
+    """The 6-state extended Kalman filter on the verified object (paper, "Object tracking")."""
+
+    ekf_meas_sigma_px: float = param(0.5, "px", "interpretation", "measurement sigma of a "
+                                     "centroid", lo=0.0, hi=100.0, lo_open=True)
+    ekf_gate_sigma: float = param(5.0, "sigma", "interpretation", "innovation gate", lo=1.0,
+                                  hi=1e3)
+    ekf_accel_psd: float = param(1e-3, "m^2/s^3", "interpretation", "white-acceleration process "
+                                 "noise PSD", lo=0.0, hi=1e6, lo_open=True)
+    ekf_sigma_pos0: float = param(1000.0, "m", "interpretation", "initial position sigma about "
+                                  "the nominal", lo=0.0, hi=1e7, lo_open=True)
+    ekf_sigma_vel0: float = param(10.0, "m/s", "interpretation", "initial velocity sigma about "
+                                  "the nominal", lo=0.0, hi=1e4, lo_open=True)
+    ekf_max_rejects: int | None = param(None, "frames", "proposal", "proposal ekf_reset: frames "
+                                        "with an update rejected before the covariance is reset "
+                                        "(0: never)", kind="int", lo=0, hi=10 ** 6, optional=True)
+    j2: bool = param(True, "-", "interpretation", "J2 in the plant (nominal propagation and EKF)",
+                     kind="bool")
+    max_step: float = param(0.5, "s", "interpretation", "longest RK4 step", lo=0.01, hi=10.0)
+
+
+@dataclass
+class OpportunityTrack:
+    """The alpha-beta track of a target of opportunity (paper: "no velocity filtering. The
+    highest-ranked candidate observation that falls within the angular tracking gate window is
+    input to a simpler alpha-beta tracking filter")."""
+
+    opp_alpha: float = param(0.25, "1", "interpretation", "position gain (the gates' alpha)",
+                             lo=0.0, hi=1.0, lo_open=True)
+    opp_beta: float = param(0.25 ** 2 / (2.0 - 0.25), "1", "interpretation", "velocity gain "
+                            "(Benedict-Bordner: alpha^2 / (2 - alpha))", lo=0.0, hi=2.0,
+                            hi_open=True)
+    opp_gate_px: float = param(8.0, "px", "interpretation", "half-width of the angular gate",
+                               lo=0.5, hi=256.0)
+    opp_n_lost: int = param(6, "frames", "interpretation", "frames without an observation before "
+                            "the track is dropped", kind="int", lo=1, hi=1000)
+    opp_startup: bool | None = param(None, "-", "proposal", "proposal opp_startup: growing-memory "
+                                     "start-up gains for a new track", kind="bool", optional=True)
+
+
+@dataclass
+class Aim:
+    """Where the pointing puts the held object (the paper's TP points at it)."""
+
+    aim_row_px: float | None = param(None, "px", "proposal", "proposal aim_offset: rows off the "
+                                     "pixel +X body falls on", lo=-4.0, hi=4.0, optional=True)
+    aim_col_px: float | None = param(None, "px", "proposal", "proposal aim_offset: columns off "
+                                     "that pixel", lo=-4.0, hi=4.0, optional=True)
+    aim_scan_px: float | None = param(None, "px", "proposal", "proposal aim_scan: radius of the "
+                                      "circle the aim point follows while held", lo=0.0, hi=2.0,
+                                      optional=True)
+    aim_scan_frames: int = param(32, "frames", "proposal", "proposal aim_scan: frames of one "
+                                 "circle", kind="int", lo=3, hi=100000)
+
+
+@dataclass
+class Timing:
+    """The TP's clock."""
+
+    frame_dt: float = param(0.5, "s", "paper", "frame period (2 Hz): the prediction horizon of "
+                            "the feedback and pointing", lo=0.0, hi=60.0, lo_open=True)
+    max_coast_s: float = param(10.0, "s", "interpretation", "a time gap longer than this deletes "
+                               "every gate (the EKF keeps predicting)", lo=0.0, hi=3600.0,
+                               lo_open=True)
+
+
+@dataclass
+class InputChecks:
+    """The TP's checks on the attitude data it is given."""
+
+    max_rate: float = param(0.2, "rad/s", "interpretation", "attitude rates above this are out of "
+                            "range (attitude treated as invalid)", lo=0.0, hi=10.0, lo_open=True)
+    quat_norm_tol: float = param(1e-3, "1", "interpretation", "accepted deviation of the attitude "
+                                 "quaternion's norm from 1", lo=0.0, hi=0.5, lo_open=True)
+    max_time_skew: float = param(0.25, "s", "interpretation", "largest accepted |attitude time - "
+                                 "frame time|", lo=0.0, hi=60.0)
+
+
+#: part attribute of :class:`TPConfig` -> its class, in order
+PARTS = {"gates": Gates, "rules": Rules, "ekf": EKFParams, "opportunity": OpportunityTrack,
+         "aim": Aim, "timing": Timing, "checks": InputChecks}
+#: flat parameter name -> the part that declares it
+PART_OF = {f.name: part for part, cls in PARTS.items() for f in dataclasses.fields(cls)}
+
+
 class TPConfig:
-    """Track processor configuration.
+    """Track processor configuration: the event's description and the declared parts.
 
     Parameters
     ----------
@@ -97,125 +230,86 @@ class TPConfig:
         The a priori trajectory (dedicated mode). None in dedicated mode: nothing can be
         discriminated; the TP reports status ``TC_NO_NOMINAL`` and commands nothing. Ignored in
         opportunity mode.
-    alpha, beta : float
-        Gate alpha-beta gains (0 < alpha <= 1, 0 <= beta < 2).
-    gate_px : float
-        Half-width of the square star/object gate, pixels of the message's imager.
-    n_empty : int
-        Rule 1: a star gate empty for n successive frames (object gate populated) -> object.
-        Rule 3 asks for the object gate populated the last n frames as well.
-    n_empty_object : int or None
-        Rule 2's n (object gate empty -> star); None: ``n_empty``.
-    residual_threshold_px2 : float
-        Rule 3: star-gate accumulated residual exceeding the object gate's by this (px^2) ->
-        object.
-    residual_threshold_star_px2 : float or None
-        Rule 4's amount (object residual exceeding the star residual -> star); None: same.
-    n_lost : int
-        The verified object's gate empty this many successive frames -> object lost.
-    n_apriori : int or None
-        Rule 5, the proposal ``rule5`` (:mod:`flightsw.proposals`; :func:`flightsw.tp.rules.
-        apriori_rule`): with no object held, a pair whose gates have both been populated on this
-        many frames is the object when its object gate holds the observation nearest the nominal's
-        predicted position (within the gate of it), a star otherwise. None: 40 with the proposal
-        on, 0 (off, the paper's four rules) otherwise. 40 frames (20 s) was the smallest count that
-        changed nothing on the satellite training family.
-    aim_row_px, aim_col_px : float or None
-        The proposal ``aim_offset``: the pointing puts the target this many imager pixels (rows,
-        columns) off the pixel that +X body falls on, through the imager's scale and alignment
-        (uplink codes 20, 21). None: 1.0, 1.0 with the proposal on (the centre of compacted pixel
-        (61, 64) at compaction 2, where a faint target's light stays in one compacted pixel), 0, 0
-        otherwise: the paper's TP points at the object.
-    aim_scan_px, aim_scan_frames : float or None, int
-        The proposal ``aim_scan``: while an object is held, the aim point circles the aim above:
-        ``aim + aim_scan_px (cos 2 pi n / N, sin 2 pi n / N)`` imager pixels (rows, cols) on the
-        n-th frame of the hold, N = ``aim_scan_frames`` (uplink codes 22, 23). A dither, as in
-        quantised control: a faint target that passes the threshold in one compacted pixel reads
-        that pixel's centre wherever in the pixel it lies; a slow circle sweeps it across the
-        pixel's edges, where the centroid does move. None: 0.5 px with the proposal on, 0 (off)
-        otherwise; 32 frames (16 s). The evidence is in :data:`flightsw.proposals.PROPOSALS` and
-        ``docs/fidelity.md``.
-    frame_dt : float
-        Nominal frame period, s (the prediction horizon of the feedback and pointing).
-    max_coast_s : float
-        A time gap longer than this deletes every gate (the EKF keeps predicting).
-    j2 : bool
-        J2 in the plant (nominal propagation and EKF).
-    max_step : float
-        Longest RK4 step, s.
-    ekf_meas_sigma_px, ekf_gate_sigma, ekf_accel_psd, ekf_sigma_pos0, ekf_sigma_vel0 : float
-        EKF measurement sigma (px), innovation gate (sigma), white-acceleration PSD (m^2/s^3),
-        initial sigmas (m, m/s).
-    ekf_max_rejects : int or None
-        The proposal ``ekf_reset``: successive frames with a scalar update (either axis) rejected
-        before the covariance is reset to its initial value (status ``TC_EKF_RESET``; uplink code
-        10). None: 12 frames (6 s) with the proposal on, 0 (never: the paper's EKF) otherwise.
-    opp_alpha, opp_beta, opp_gate_px, opp_n_lost
-        Target-of-opportunity alpha-beta gains, gate half-width (px) and frames without an
-        observation before the track is dropped.
-    opp_startup : bool or None
-        The proposal ``opp_startup``: growing-memory start-up gains for a new opportunity track
-        (see above); ignored (off) when ``opp_beta == 0``, where the filter estimates no velocity.
-        None: True with the proposal on, False (the paper's steady alpha-beta) otherwise.
-    max_rate : float
-        Attitude rates above this (rad/s) are "out of range" (attitude treated as invalid).
-    quat_norm_tol : float
-        Accepted deviation of the attitude quaternion's norm from 1.
-    max_time_skew : float
-        Largest accepted |attitude time - frame time|, s.
     proposals : tuple of str
         The TP proposals in force (names of :data:`flightsw.proposals.PROPOSALS`; ``"all"``
         expands): ``rule_guards``, ``rule5``, ``ekf_reset``, ``opp_startup``, ``aim_offset``,
         ``aim_scan``; the IP's two floor proposals are accepted and do nothing here. Default ():
         the paper's TP. A proposal's parameter set away from its off value while the proposal is
         off is refused.
+    gates, rules, ekf, opportunity, aim, timing, checks : the part, optional
+        A part given whole (default: the part's declared defaults).
+    **params
+        Any declared parameter by its flat name (:data:`PART_OF`), applied over the parts.
+
+    ``ValueError`` names the field (``TPConfig.gate_px=...``) on the first bad value.
     """
 
-    imagers: dict
-    mode: str = "dedicated"
-    object_type: str = "satellite"
-    nominal: NominalTrajectory | None = None
-    alpha: float = 0.25
-    beta: float = 0.0
-    gate_px: float = 4.0
-    n_empty: int = 3
-    n_empty_object: int | None = None
-    residual_threshold_px2: float = 16.0
-    residual_threshold_star_px2: float | None = None
-    n_lost: int = 6
-    n_apriori: int | None = None
-    aim_row_px: float | None = None
-    aim_col_px: float | None = None
-    aim_scan_px: float | None = None
-    aim_scan_frames: int = 32
-    frame_dt: float = 0.5
-    max_coast_s: float = 10.0
-    j2: bool = True
-    max_step: float = 0.5
-    ekf_meas_sigma_px: float = 0.5
-    ekf_gate_sigma: float = 5.0
-    ekf_accel_psd: float = 1e-3
-    ekf_sigma_pos0: float = 1000.0
-    ekf_sigma_vel0: float = 10.0
-    ekf_max_rejects: int | None = None
-    opp_alpha: float = 0.25
-    opp_beta: float = 0.25 ** 2 / (2.0 - 0.25)
-    opp_gate_px: float = 8.0
-    opp_n_lost: int = 6
-    opp_startup: bool | None = None
-    max_rate: float = 0.2
-    quat_norm_tol: float = 1e-3
-    max_time_skew: float = 0.25
-    proposals: tuple = ()
-    _validated: bool = field(default=False, init=False, repr=False, compare=False)
-
-    def __post_init__(self):
-        self.proposals = expand(self.proposals, "TPConfig.proposals")
+    def __init__(self, imagers, mode: str = "dedicated", object_type: str = "satellite",
+                 nominal: NominalTrajectory | None = None, proposals=(), **params):
+        self.imagers, self.mode, self.object_type, self.nominal = imagers, mode, object_type, nominal
+        self.proposals = expand(proposals, "TPConfig.proposals")
+        for part, cls in PARTS.items():
+            given = params.pop(part, None)
+            if given is not None and not isinstance(given, cls):
+                raise ValueError(f"TPConfig.{part} must be a {cls.__name__}, got "
+                                 f"{type(given).__name__}")
+            object.__setattr__(self, part, dataclasses.replace(given) if given else cls())
+        for name, v in params.items():
+            if name not in PART_OF:
+                raise ValueError(f"TPConfig: unknown parameter {name!r}")
+            setattr(getattr(self, PART_OF[name]), name, v)
         for name in TP_PROPOSALS:                   # a parameter left None: its proposal's value
             for fld, on in PROPOSALS[name].on.items():
                 if getattr(self, fld) is None:
                     setattr(self, fld, on if name in self.proposals else PROPOSAL_OFF[fld])
         self.validate()
+
+    # ---- flat reads and writes go to the part that declares the parameter ------------------------
+    def __getattr__(self, name):
+        part = PART_OF.get(name)
+        if part is None or part not in self.__dict__:
+            raise AttributeError(f"TPConfig has no attribute {name!r}")
+        return getattr(self.__dict__[part], name)
+
+    def __setattr__(self, name, value):
+        part = PART_OF.get(name)
+        if part is not None:
+            setattr(self.__dict__[part], name, value)
+        else:
+            object.__setattr__(self, name, value)
+
+    def __eq__(self, other):
+        return isinstance(other, TPConfig) and self.as_dict() == other.as_dict()
+
+    def __repr__(self):
+        return (f"TPConfig(mode={self.mode!r}, object_type={self.object_type!r}, imagers="
+                f"{sorted(self.imagers)}, proposals={self.proposals}, "
+                + ", ".join(f"{p}={getattr(self, p)!r}" for p in PARTS) + ")")
+
+    def replace(self, **changes) -> "TPConfig":
+        """A copy with ``changes`` (flat parameter names, parts or the description's fields)
+        applied and checked; ``ValueError`` naming the field."""
+        kw = {"imagers": self.imagers, "mode": self.mode, "object_type": self.object_type,
+              "nominal": self.nominal, "proposals": self.proposals}
+        kw.update({p: getattr(self, p) for p in PARTS})
+        kw.update(changes)
+        return TPConfig(**kw)
+
+    def as_dict(self) -> dict:
+        """Every declared parameter by its flat name -> value (the parts flattened)."""
+        return {name: getattr(self, name) for name in PART_OF}
+
+    @staticmethod
+    def defaults() -> dict:
+        """Every declared parameter's default, by flat name (None: its proposal decides)."""
+        return {f.name: f.default for cls in PARTS.values() for f in dataclasses.fields(cls)}
+
+    @staticmethod
+    def describe() -> list[dict]:
+        """Every declared parameter: ``{"name", "part", "default", "unit", "class", "doc"}``."""
+        return [{"name": f.name, "part": part, "default": f.default, "unit": f.metadata["unit"],
+                 "class": f.metadata["class"], "doc": f.metadata["doc"]}
+                for part, cls in PARTS.items() for f in dataclasses.fields(cls)]
 
     @property
     def rule_guards(self) -> bool:
@@ -223,11 +317,11 @@ class TPConfig:
         return "rule_guards" in self.proposals
 
     @property
-    def aim(self) -> bool:
+    def aim_on(self) -> bool:
         """The pointing is aimed off the object (proposals ``aim_offset`` or ``aim_scan``)."""
         return "aim_offset" in self.proposals or "aim_scan" in self.proposals
 
-    def _check_proposals(self) -> None:
+    def check_proposals(self) -> None:
         """A proposal's parameter set away from its off value while the proposal is off."""
         for name in TP_PROPOSALS:
             if name in self.proposals:
@@ -260,42 +354,9 @@ class TPConfig:
         if self.nominal is not None and not isinstance(self.nominal, NominalTrajectory):
             raise ValueError(f"TPConfig.nominal must be a NominalTrajectory or None, got "
                              f"{type(self.nominal).__name__}")
-        _num("alpha", self.alpha, 0.0, 1.0, lo_open=True)
-        _num("beta", self.beta, 0.0, 2.0, hi_open=True)
-        _num("gate_px", self.gate_px, 0.5, 128.0)
-        _int("n_empty", self.n_empty, 1, 1000)
-        if self.n_empty_object is not None:
-            _int("n_empty_object", self.n_empty_object, 1, 10 ** 6)
-        _num("residual_threshold_px2", self.residual_threshold_px2, 0.0, 1e30, lo_open=True)
-        if self.residual_threshold_star_px2 is not None:
-            _num("residual_threshold_star_px2", self.residual_threshold_star_px2, 0.0, 1e30,
-                 lo_open=True)
-        _int("n_lost", self.n_lost, 1, 1000)
-        _int("n_apriori", self.n_apriori, 0, 100000)
-        _num("aim_row_px", self.aim_row_px, -4.0, 4.0)
-        _num("aim_col_px", self.aim_col_px, -4.0, 4.0)
-        _num("aim_scan_px", self.aim_scan_px, 0.0, 2.0)
-        _int("aim_scan_frames", self.aim_scan_frames, 3, 100000)
-        _num("frame_dt", self.frame_dt, 0.0, 60.0, lo_open=True)
-        _num("max_coast_s", self.max_coast_s, 0.0, 3600.0, lo_open=True)
-        if not isinstance(self.j2, bool):
-            raise ValueError(f"TPConfig.j2={self.j2!r} must be a bool")
-        _num("max_step", self.max_step, 0.01, 10.0)
-        _num("ekf_meas_sigma_px", self.ekf_meas_sigma_px, 0.0, 100.0, lo_open=True)
-        _num("ekf_gate_sigma", self.ekf_gate_sigma, 1.0, 1e3)
-        _num("ekf_accel_psd", self.ekf_accel_psd, 0.0, 1e6, lo_open=True)
-        _num("ekf_sigma_pos0", self.ekf_sigma_pos0, 0.0, 1e7, lo_open=True)
-        _num("ekf_sigma_vel0", self.ekf_sigma_vel0, 0.0, 1e4, lo_open=True)
-        _int("ekf_max_rejects", self.ekf_max_rejects, 0, 10 ** 6)
-        _num("opp_alpha", self.opp_alpha, 0.0, 1.0, lo_open=True)
-        _num("opp_beta", self.opp_beta, 0.0, 2.0, hi_open=True)
-        _num("opp_gate_px", self.opp_gate_px, 0.5, 256.0)
-        _int("opp_n_lost", self.opp_n_lost, 1, 1000)
-        if not isinstance(self.opp_startup, bool):
-            raise ValueError(f"TPConfig.opp_startup={self.opp_startup!r} must be a bool")
-        _num("max_rate", self.max_rate, 0.0, 10.0, lo_open=True)
-        _num("quat_norm_tol", self.quat_norm_tol, 0.0, 0.5, lo_open=True)
-        _num("max_time_skew", self.max_time_skew, 0.0, 60.0)
-        self._check_proposals()
-        self._validated = True
+        for part, cls in PARTS.items():
+            obj = getattr(self, part)
+            for f in dataclasses.fields(cls):
+                setattr(obj, f.name, check_value(f.name, getattr(obj, f.name), f.metadata))
+        self.check_proposals()
         return self

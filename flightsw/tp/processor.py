@@ -253,7 +253,7 @@ class TrackProcessor:
         C[F.C_MAX_SKEW] = e48(cfg.max_time_skew)
         C[F.C_EKF_MAX_REJ] = cfg.ekf_max_rejects
         C[F.C_RULE_GUARDS] = 1 if cfg.rule_guards else 0
-        C[F.C_AIM_ON] = 1 if cfg.aim else 0
+        C[F.C_AIM_ON] = 1 if cfg.aim_on else 0
         C[F.C_RMIN2] = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
         C[F.C_RMAX2] = e32(1.0e8 ** 2)
         C[F.C_VMAX2] = e32(2.0e4 ** 2)            # m/s
@@ -340,7 +340,7 @@ class TrackProcessor:
             return UplinkVerdict(False, str(exc))
         base = self._pending[0] if self._pending is not None else self.config
         try:
-            cfg = dataclasses.replace(base, **changes)
+            cfg = base.replace(**changes)
         except (ValueError, TypeError) as exc:
             return UplinkVerdict(False, str(exc))
         nominal = cfg.nominal if cfg.mode == "dedicated" else None

@@ -93,7 +93,7 @@ def _table(rec, name: str):
 def _tp_gate_px(cfg: dict) -> dict:
     """Half-widths of the TP's square gates (pixels): config overrides, else TPConfig defaults."""
     from flightsw.tp import TPConfig
-    dflt = {f.name: f.default for f in dataclasses.fields(TPConfig)}
+    dflt = TPConfig.defaults()
     tp = cfg.get("tp") or {}
     return {"gate_px": float(tp.get("gate_px", dflt.get("gate_px", 4.0))),
             "opp_gate_px": float(tp.get("opp_gate_px", dflt.get("opp_gate_px", 8.0)))}

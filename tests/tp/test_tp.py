@@ -28,6 +28,7 @@ from flightsw.tp import (
     STAGES, ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor, alpha_beta_step,
     imager_unit_vector, pixel_to_tangent, step_response_frames, tangent_to_pixel,
 )
+from flightsw.tp.config import Gates
 
 MU = 3.986004418e14
 RE = 6378137.0
@@ -182,6 +183,35 @@ def test_config_errors_name_the_field(kw, msg):
     base.update(kw)
     with pytest.raises(ValueError, match=msg):
         TPConfig(**base)
+
+
+def test_config_parts_declare_each_parameter_once():
+    """Every parameter is declared in exactly one part, with a unit, a doc and one of the three
+    classes; flat and part reads agree; a part given whole and flat keys over it combine; an
+    unknown key is refused by name; replace() checks what it changes."""
+    from flightsw.tp.config import CLASSES, PART_OF, PARTS
+    desc = TPConfig.describe()
+    names = [d["name"] for d in desc]
+    assert len(names) == len(set(names)) == len(PART_OF) == 31
+    assert all(d["class"] in CLASSES and d["unit"] and d["doc"] for d in desc)
+    # the proposal parameters are exactly the ones the proposals switch (plus the scan period)
+    from flightsw.proposals import PROPOSALS
+    switched = {f for p in PROPOSALS.values() for f in p.on}
+    assert {d["name"] for d in desc if d["class"] == "proposal"} == switched | {"aim_scan_frames"}
+    assert {d["name"] for d in desc if d["class"] == "paper"} == {"alpha", "beta", "frame_dt"}
+    cfg = TPConfig(imagers={"wfov_vis": GEOM}, gates=Gates(gate_px=3.0), n_empty=5)
+    assert cfg.gates.gate_px == cfg.gate_px == 3.0 and cfg.rules.n_empty == cfg.n_empty == 5
+    assert cfg.alpha == 0.25 and cfg.n_apriori == 0 and cfg.opp_startup is False
+    on = TPConfig(imagers={"wfov_vis": GEOM}, proposals=("rule5",))
+    assert on.n_apriori == PROPOSALS["rule5"].on["n_apriori"] == 40
+    assert set(PARTS) == {"gates", "rules", "ekf", "opportunity", "aim", "timing", "checks"}
+    with pytest.raises(ValueError, match="unknown parameter 'gate'"):
+        TPConfig(imagers={"wfov_vis": GEOM}, gate=3.0)
+    with pytest.raises(ValueError, match="TPConfig.gate_px"):
+        cfg.replace(gate_px=500.0)
+    r = cfg.replace(n_lost=9)
+    assert r.n_lost == 9 and cfg.n_lost == 6 and r.gate_px == 3.0 and r != cfg
+    assert cfg.replace() == cfg
 
 
 def test_nominal_trajectory_validation():
