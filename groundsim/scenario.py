@@ -312,6 +312,12 @@ class Scenario:
         return None if self.target["type"] == "none" else self.target["type"]
 
     @property
+    def tp_mode(self) -> str:
+        """The track processor's mode for this target: "opportunity" for aurora (no a priori
+        trajectory), else "dedicated"."""
+        return "opportunity" if self.target_type == "aurora" else "dedicated"
+
+    @property
     def n_frames(self) -> int:
         return int(math.floor(self.duration / FRAME_DT + 1e-9)) + 1
 

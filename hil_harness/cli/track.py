@@ -169,7 +169,7 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
 
     ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames);
     ``proposals``: those in force (default none: the paper's system)."""
-    from hil_harness.tuning.closed_loop import ReplayEvent, replay
+    from hil_harness.tuning.closed_loop import FrameSequence, replay
     from hil_harness.tuning.events import imager_geometry
     if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
         raise ValueError(f"--frame-dt {frame_dt!r} must be a positive number of seconds")
@@ -177,7 +177,7 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
     fov = fov_deg if fov_deg is not None else math.degrees(
         2 * math.atan(w / 256.0 * math.tan(math.radians(WFOV_DEG) / 2)))
     geom = imager_geometry("real", fov, counts.shape[1:])
-    ev = ReplayEvent(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
+    ev = FrameSequence(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
                      name="input", object_type=record.object_type)
     return replay(ev, sequence, record, "tp", skip=skip, proposals=proposals), geom, fov
 

@@ -161,6 +161,7 @@ class FrameOutcome:
     frame: np.ndarray | None = None
     stages: list | None = None
     events: list = field(default_factory=list)   # faults injected and uplinks sent this frame
+    feature_words: np.ndarray | None = None       # every blob's features (Event.keep_features)
 
 
 class CommandState:
@@ -305,15 +306,20 @@ def nominal_trajectory(world, duration: float):
 
 class Event:
     """One closed-loop event. ``reset()``, then ``step()`` until ``done``; ``outcomes`` holds every
-    frame's :class:`FrameOutcome`."""
+    frame's :class:`FrameOutcome`. Frames come from the ground simulator, or through the
+    acquisition hook (:meth:`_acquire`) from a recording (:mod:`hil_harness.event.replay`) or a
+    fixed sequence (:mod:`hil_harness.event.frames`)."""
+
+    #: keep every blob's feature words on each outcome (``FrameOutcome.feature_words``; tuning)
+    keep_features = False
 
     def __init__(self, config: EventConfig | None = None, *, keep_frames: bool = True,
                  keep_outcomes: bool = True):
         self.config = cfg = config or EventConfig()
-        if isinstance(cfg.scenario, Scenario):
-            scn = cfg.scenario
-        else:
+        if isinstance(cfg.scenario, (str, Path)):
             scn = Scenario.load(cfg.scenario, seed=cfg.seed)
+        else:               # a Scenario, or a fixed sequence's (hil_harness.event.frames)
+            scn = cfg.scenario
         self.scenario = scn
         self.world = scn.world()
         n = scn.n_frames if cfg.frames is None else min(int(cfg.frames), scn.n_frames)
@@ -332,8 +338,9 @@ class Event:
             q = np.asarray(im.align_onboard, float)
             self.geometry[iid] = (float(im.scale_col), float(im.scale_row), q)
             tp_imagers[iid] = ImagerGeometry(q_imager_to_body=q, scale_col=float(im.scale_col),
-                                             scale_row=float(im.scale_row))
-        mode = "opportunity" if ttype == "aurora" else "dedicated"
+                                             scale_row=float(im.scale_row), n_rows=int(im.n_rows),
+                                             n_cols=int(im.n_cols))
+        mode = scn.tp_mode
         given, where = cfg.proposals, cfg.proposals_where
         if given is None:                      # the scenario's [flight] with ("all": all eight)
             given = "all" if scn.flight_with == PROPOSAL_NAMES else scn.flight_with
@@ -404,6 +411,14 @@ class Event:
         subclass that acquires frames elsewhere (a replay's recorded frames) keeps the check."""
         own = type(self)._acquire is Event._acquire
         return own and all(int(im.adc_max) <= 4095 for im in self.scenario.imagers.values())
+
+    def frame_count(self, k: int) -> int:
+        """The frame counter frame ``k``'s message carries (a fixed sequence gives its own)."""
+        return k
+
+    def withheld(self, k: int) -> bool:
+        """Frame ``k``'s message does not reach the TP (a fixed sequence's flagged frames)."""
+        return False
 
     def _acquire(self, k: int, imager: str):
         """(attitude data, frame, truth, dropped) of frame ``k`` from the ground simulator (a replay
@@ -490,7 +505,7 @@ class Event:
         want = self.all_stages or ((self.stage_frame == k) if self.stage_frame is not None
                                    else (self._processed == 11))
         n_switches = len(self.ip.record_switches)
-        ip_out = self.ip.step(frame, frame_count=k, time_tag=out.t, imager=imager,
+        ip_out = self.ip.step(frame, frame_count=self.frame_count(k), time_tag=out.t, imager=imager,
                               command_words=None if override is not None else self._command_words,
                               feedback=override, ledger=ledger, want_stages=want)
         self._command_words = None
@@ -505,8 +520,12 @@ class Event:
         out.alpha = float(res.message.alpha)
         if want:
             out.stages = [(s.name, s.image) for s in res.stages]
+        if self.keep_features:
+            out.feature_words = res.backend.feature_words.copy()
         if self._tp_busy:
             self._tp_busy = False
+            cmd_words = None
+        elif self.withheld(k):
             cmd_words = None
         else:
             words = self._corrupt(out, "candidate", ip_out.words)

@@ -7,8 +7,8 @@ The paper's Table 1 "was determined from a training subset of the available auro
 ===================  =============================================================================
 :mod:`.events`       every event of a set spec (scenario + seed, or a real night) rendered or read
                      once, with the truth beside it
-:mod:`.closed_loop`  the flight IP + TP over an event's fixed frames: the IP's prior from the TP's
-                     prediction (Wilson-interval rates; truth read only to score)
+:mod:`.closed_loop`  an event's fixed frames through the one closed loop (the event loop's
+                     ``Event``, fed from the frames): the IP's prior from the TP's prediction
 :mod:`.closed`       the three rates of every report (closed loop, no prior, truth prior as an
                      upper bound), the closed-loop optimiser and event-grouped cross-validation
 :mod:`.data`         labelled feature sets: every blob's flight features with which blob is "the

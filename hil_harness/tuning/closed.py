@@ -71,12 +71,12 @@ def centroid_zeroed(record: Record) -> Record:
 
 
 class Replayer:
-    """Events (:class:`~hil_harness.tuning.closed_loop.ReplayEvent`) with their sequence and radius,
+    """Events (:class:`~hil_harness.event.frames.FrameSequence`) with their sequence and radius,
     replayed through IP + TP for any record.
 
     Parameters
     ----------
-    events : list of ReplayEvent
+    events : list of FrameSequence
     sequence : str or Path
         Processing sequence (shipped name or TOML), set to each event's frame shape.
     radii : dict or float

@@ -1,5 +1,5 @@
 """Events for closed-loop tuning and validation: each scenario run or real sequence of a set spec
-rendered (or read) once into a :class:`~hil_harness.tuning.closed_loop.ReplayEvent`, kept on disk if
+rendered (or read) once into a :class:`~hil_harness.event.frames.FrameSequence`, kept on disk if
 asked, then replayed through IP + TP for every record (:mod:`hil_harness.tuning.closed`).
 
 An **event** is one scenario run (scenario + seed: every frame from ``start``, every ``every``-th,
@@ -24,7 +24,7 @@ import numpy as np
 from flightsw.tp import ImagerGeometry
 from hil_harness.fileio import temp_beside
 
-from .closed_loop import ReplayEvent
+from hil_harness.event.frames import FrameSequence
 from .data import SetSpec, load_labels, map_jobs, resolve_path, scenario_from_entry
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
@@ -55,7 +55,7 @@ def real_to_counts(a) -> np.ndarray:
     return to_counts(a)[0]
 
 
-def render_scenario_event(entry: dict, seed: int, base_dir=None) -> ReplayEvent:
+def render_scenario_event(entry: dict, seed: int, base_dir=None) -> FrameSequence:
     """Render one scenario run (an entry of a set spec, one seed) without closing the loop through
     the spacecraft (the scenario's own pointing), keeping each frame, the attitude data the TP
     would get and the true object pixel (NaN when out of the field or ``object = false``)."""
@@ -85,12 +85,12 @@ def render_scenario_event(entry: dict, seed: int, base_dir=None) -> ReplayEvent:
     im = scn.imagers[imager]
     geom = ImagerGeometry(np.asarray(im.align_onboard, float), float(im.scale_col),
                           float(im.scale_row))
-    return ReplayEvent(np.array(frames, np.uint16), t, imager, geom, atts, k_list, tr, tc,
+    return FrameSequence(np.array(frames, np.uint16), t, imager, geom, atts, k_list, tr, tc,
                        name=f"{entry.get('group', 's')}/seed{seed}",
                        object_type=scn.target_type or "aurora")
 
 
-def real_event(entry: dict, base_dir=None) -> ReplayEvent:
+def real_event(entry: dict, base_dir=None) -> FrameSequence:
     """A ``[[real]]`` entry (image file + label CSV) -> one event (a night): its frames in order,
     12-bit counts (:func:`real_to_counts`), a nominal 0.5 s frame clock, fixed pointing."""
     from hil_harness.images import read_images
@@ -112,7 +112,7 @@ def real_event(entry: dict, base_dir=None) -> ReplayEvent:
     tr = [p[0] if p else math.nan for p in pos]
     tc = [p[1] if p else math.nan for p in pos]
     imager = entry.get("imager", "wfov_vis")
-    return ReplayEvent(imgs, NOMINAL_DT * np.arange(len(want)), imager,
+    return FrameSequence(imgs, NOMINAL_DT * np.arange(len(want)), imager,
                        imager_geometry(imager), None, np.asarray(want, np.int64), tr, tc,
                        name=entry.get("group", name), object_type="aurora")
 
@@ -133,7 +133,7 @@ def _cache_key(kind, entry, seed) -> str:
     return hashlib.sha256(raw.encode()).hexdigest()[:16]
 
 
-def _save_event(ev: ReplayEvent, path: Path):
+def _save_event(ev: FrameSequence, path: Path):
     att = np.array([[a.t, *a.q_body_to_eci, *a.rate_body, *a.r_eci, *a.v_eci, float(a.valid)]
                     for a in ev.attitude], float) if ev.attitude is not None else np.zeros((0, 15))
     geom = np.array([*ev.geometry.q_imager_to_body, ev.geometry.scale_col, ev.geometry.scale_row])
@@ -150,7 +150,7 @@ def _save_event(ev: ReplayEvent, path: Path):
             os.unlink(tmp)
 
 
-def _load_event(path: Path) -> ReplayEvent:
+def _load_event(path: Path) -> FrameSequence:
     from flightsw.messages import AttitudeData
     with np.load(path, allow_pickle=False) as z:
         if str(z["schema"]) != EVENT_SCHEMA:
@@ -158,7 +158,7 @@ def _load_event(path: Path) -> ReplayEvent:
         g = z["geom"]
         atts = [AttitudeData(float(a[0]), a[1:5].copy(), a[5:8].copy(), a[8:11].copy(),
                              a[11:14].copy(), bool(a[14])) for a in z["att"]] or None
-        return ReplayEvent(z["frames"], z["t"], str(z["imager"]),
+        return FrameSequence(z["frames"], z["t"], str(z["imager"]),
                            ImagerGeometry(g[:4], float(g[4]), float(g[5])), atts,
                            z["frame_count"], z["truth_row"], z["truth_col"], str(z["name"]),
                            str(z["object_type"]))

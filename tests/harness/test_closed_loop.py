@@ -15,7 +15,7 @@ from scipy.stats import binomtest
 from flightsw.ip import load_default_sequence
 from flightsw.records import load_record
 from flightsw.tp import ImagerGeometry
-from hil_harness.tuning.closed_loop import ReplayEvent, replay, score_top1
+from hil_harness.tuning.closed_loop import FrameSequence, replay, score_top1
 from hil_harness.rates import rate
 from hil_harness.rates import wilson_interval as wilson
 
@@ -58,7 +58,7 @@ def test_two_frame_replay_follows_the_tp():
     a0, a1, b1 = (140.0, 150.0), (142.0, 151.0), (118.0, 124.0)
     frames = _frames([[(*a0, 900.0)], [(*a1, 900.0), (*b1, 2500.0, 4.0)]])
     truth = np.array([a0, a1])
-    ev = ReplayEvent(frames, [0.0, 0.5], "wfov_uv", GEOM, truth_row=truth[:, 0],
+    ev = FrameSequence(frames, [0.0, 0.5], "wfov_uv", GEOM, truth_row=truth[:, 0],
                      truth_col=truth[:, 1], name="hand")
     seq = load_default_sequence("aurora")
     base = load_record("aurora")
@@ -92,7 +92,7 @@ def test_ranking_never_sees_truth():
     blobs = [[(*p, 1200.0), (60.0 + rng.uniform(0, 20), 200.0, 1500.0, 5.0)] for p in pos]
     frames = _frames(blobs, seed=1)
     p = np.array(pos)
-    ev = ReplayEvent(frames, 0.5 * np.arange(6), "wfov_uv", GEOM, truth_row=p[:, 0],
+    ev = FrameSequence(frames, 0.5 * np.arange(6), "wfov_uv", GEOM, truth_row=p[:, 0],
                      truth_col=p[:, 1], name="nan-truth")
     blind = ev.without_truth()
     assert not blind.has_object.any()
@@ -111,7 +111,7 @@ def test_skipped_frame_does_not_move_the_track():
     TP it moves the prediction; skipped, the prediction for frame 3 is the one made on frame 1."""
     pos = [(130.0, 140.0), (130.0, 140.0), (135.0, 140.0), (130.0, 140.0)]
     frames = _frames([[(*p, 900.0)] for p in pos], seed=2)
-    ev = ReplayEvent(frames, 0.5 * np.arange(4), "wfov_uv", GEOM, name="skip")
+    ev = FrameSequence(frames, 0.5 * np.arange(4), "wfov_uv", GEOM, name="skip")
     seq = load_default_sequence("aurora")
     rec = load_record("aurora")
     fed = replay(ev, seq, rec, "tp")
@@ -129,7 +129,7 @@ def test_one_night_is_cross_validated_by_blocks():
     pos = [(120.0 + k, 110.0 + 2 * k) for k in range(12)]
     blobs = [[(*p, 1100.0), (80.0 + rng.uniform(0, 10), 190.0, 1400.0, 5.0)] for p in pos]
     p = np.array(pos)
-    ev = ReplayEvent(_frames(blobs, seed=4), 0.5 * np.arange(12), "wfov_uv", GEOM,
+    ev = FrameSequence(_frames(blobs, seed=4), 0.5 * np.arange(12), "wfov_uv", GEOM,
                      truth_row=p[:, 0], truth_col=p[:, 1], name="night")
     cv = cross_validate_closed(Replayer([ev], "aurora", 24.0), folds=3, maxiter=1, popsize=1,
                                frr=0.0, quantize="off", log=lambda *a: None)
@@ -147,7 +147,7 @@ def test_cross_validation_by_scenario_holds_out_whole_entries():
     for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
         pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(6)])
         blobs = [[(*p, 1100.0), (80.0, 190.0, 1400.0, 5.0)] for p in pos]
-        evs.append(ReplayEvent(_frames(blobs, seed=s), 0.5 * np.arange(6), "wfov_uv", GEOM,
+        evs.append(FrameSequence(_frames(blobs, seed=s), 0.5 * np.arange(6), "wfov_uv", GEOM,
                                truth_row=pos[:, 0], truth_col=pos[:, 1], name=name))
     cv = cross_validate_closed(Replayer(evs, "aurora", 24.0), folds=3, maxiter=1, popsize=1,
                                frr=0.0, quantize="off", log=lambda *a: None, by="scenario")
