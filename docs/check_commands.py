@@ -8,12 +8,16 @@ code block:
   the repository's data files (so nothing is written into the repository), with ``uvisi`` as
   ``python -m hil_harness.cli``; it must exit with 0, or with the status a trailing
   ``# exit N`` comment states, and print no traceback. ``make`` lines are listed, not run (they
-  set up a virtual environment of their own).
+  set up a virtual environment of their own). The file commands a reader runs beside them
+  (``mkdir``, ``cp``, ``sed``) run too, without a shell, in the same folder.
 * a ``python`` block: run the same way; when the next block is its output (a plain fenced block),
   every line of that output must be printed, in order (a line ending in ``...`` matches any line
   that starts with the text before it).
 
 Exit status 0 when everything passes, 1 otherwise (each failure on one line).
+
+``python docs/check_commands.py README.md`` (or ``make docs-check DOCS=README.md``) checks one
+document; ``--list`` prints the commands without running them.
 """
 from __future__ import annotations
 
@@ -31,6 +35,10 @@ DOCS = [ROOT / "README.md"] + sorted((ROOT / "docs").glob("*.md"))
 #: copied into the scratch folder (commands write beside these files, never into the repository)
 COPIED = ("data", "campaigns", "flightsw/data", "groundsim/scenarios", "tests/data")
 FENCE = re.compile(r"^```(\w*)\s*$")
+#: the lines of a command block that are run: uvisi, python -m and make (listed only), and the file
+#: commands a reader types beside them
+FILE_COMMANDS = ("mkdir ", "cp ", "sed ")
+RUN_PREFIXES = ("uvisi ", "make ", "python -m ") + FILE_COMMANDS
 
 
 def blocks(path: Path) -> list[tuple[str, list[str], int]]:
@@ -57,7 +65,7 @@ def commands(lines: list[str]) -> list[tuple[str, int]]:
         if line.endswith("\\"):
             continue
         words = cur.split()
-        if cur.startswith(("uvisi ", "make ", "python -m ")) and not words[1].endswith(":"):
+        if cur.startswith(RUN_PREFIXES) and len(words) > 1 and not words[1].endswith(":"):
             m = re.search(r"#\s*exit\s+(\d+)", cur)
             out.append((cur.split("#")[0].strip(), int(m.group(1)) if m else 0))
         cur = ""
@@ -119,8 +127,11 @@ def check(path: Path, timeout: int, dry: bool) -> list[str]:
                 print(f"{where}: {cmd}" + ("" if want == 0 else f"  (exit {want})"))
                 continue
             argv = shlex.split(cmd)
-            argv = [sys.executable] + (argv[1:] if argv[0] == "python" else
-                                       ["-m", "hil_harness.cli"] + argv[1:])
+            if cmd.startswith(FILE_COMMANDS):
+                pass                                    # run as written, in the scratch folder
+            else:
+                argv = [sys.executable] + (argv[1:] if argv[0] == "python" else
+                                           ["-m", "hil_harness.cli"] + argv[1:])
             print(f"{where}: {cmd}", flush=True)
             try:
                 res = run(argv, work, timeout)
@@ -137,12 +148,20 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--list", action="store_true", help="list the commands, run nothing")
     ap.add_argument("--timeout", type=int, default=1800, help="seconds per command")
+    ap.add_argument("docs", nargs="*", metavar="FILE",
+                    help="check only these documents (README.md, docs/api.md or api.md); "
+                         "default: README.md and every docs/*.md")
     ap.add_argument("--only", nargs="*", default=None, metavar="FILE",
-                    help="check only these documents (names like README.md or api.md)")
+                    help="the same as naming the documents (kept for old scripts)")
     args = ap.parse_args(argv)
+    wanted = set(Path(d).name for d in (args.docs or []) + (args.only or []))
+    unknown = wanted - {p.name for p in DOCS}
+    if unknown:
+        ap.error(f"no such document: {', '.join(sorted(unknown))} "
+                 f"(known: {', '.join(p.name for p in DOCS)})")
     fails = []
     for path in DOCS:
-        if args.only and path.name not in args.only:
+        if wanted and path.name not in wanted:
             continue
         fails += check(path, args.timeout, args.list)
     for f in fails:

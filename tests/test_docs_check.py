@@ -23,3 +23,22 @@ def test_expected_output_lines_in_order_with_prefix_lines():
     assert C.expected_output_found(["a 1", "b 22 ...", "c"], printed) is None
     assert C.expected_output_found(["c", "a 1"], printed) == "a 1"          # order matters
     assert C.expected_output_found(["b 23 ..."], printed) == "b 23 ..."
+
+
+def test_file_commands_are_run_beside_uvisi(tmp_path):
+    md = tmp_path / "x.md"
+    md.write_text("```\nmkdir -p scratch\ncp a.toml scratch/b.toml\n"
+                  "sed -i 's/^alpha = 2.0/alpha = 3.0/' scratch/b.toml\nuvisi budget --sequence scratch/b.toml\n"
+                  "ls scratch\n```\n")
+    cmds = C.commands(C.blocks(md)[0][1])
+    assert [c for c, _ in cmds] == ["mkdir -p scratch", "cp a.toml scratch/b.toml",
+                                    "sed -i 's/^alpha = 2.0/alpha = 3.0/' scratch/b.toml",
+                                    "uvisi budget --sequence scratch/b.toml"]   # ls: not a command run
+
+
+def test_one_document_by_name(capsys):
+    assert C.main(["--list", "README.md"]) == 0
+    out = capsys.readouterr().out
+    assert out and all(line.startswith("README.md:") for line in out.splitlines())
+    assert C.main(["--list", "docs/api.md"]) == 0
+    assert all(line.startswith("docs/api.md:") for line in capsys.readouterr().out.splitlines())
