@@ -103,10 +103,24 @@ def expected_output_found(expected: list[str], printed: str) -> str | None:
     return None
 
 
-def check(path: Path, timeout: int, dry: bool) -> list[str]:
+def check(path: Path, timeout: int, dry: bool, keep: bool = False) -> list[str]:
+    """Run (or with ``dry`` list) one document's blocks; the scratch folder is removed afterwards
+    unless ``keep`` (then its path is printed)."""
+    import shutil
+    work = None if dry else scratch()
+    try:
+        return _check(path, timeout, dry, work)
+    finally:
+        if work is not None:
+            if keep:
+                print(f"{path.relative_to(ROOT)}: scratch folder kept: {work}")
+            else:
+                shutil.rmtree(work, ignore_errors=True)
+
+
+def _check(path: Path, timeout: int, dry: bool, work: Path | None) -> list[str]:
     fails = []
     bl = blocks(path)
-    work = None if dry else scratch()
     for j, (lang, lines, start) in enumerate(bl):
         where = f"{path.relative_to(ROOT)}:{start}"
         if lang == "python":
@@ -148,6 +162,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--list", action="store_true", help="list the commands, run nothing")
     ap.add_argument("--timeout", type=int, default=1800, help="seconds per command")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep each document's scratch folder (its path is printed)")
     ap.add_argument("docs", nargs="*", metavar="FILE",
                     help="check only these documents (README.md, docs/api.md or api.md); "
                          "default: README.md and every docs/*.md")
@@ -163,7 +179,7 @@ def main(argv=None) -> int:
     for path in DOCS:
         if wanted and path.name not in wanted:
             continue
-        fails += check(path, args.timeout, args.list)
+        fails += check(path, args.timeout, args.list, args.keep)
     for f in fails:
         print(f"FAIL {f}", file=sys.stderr)
     if not args.list:
