@@ -42,3 +42,13 @@ def test_one_document_by_name(capsys):
     assert out and all(line.startswith("README.md:") for line in out.splitlines())
     assert C.main(["--list", "docs/api.md"]) == 0
     assert all(line.startswith("docs/api.md:") for line in capsys.readouterr().out.splitlines())
+
+
+def test_readme_is_a_manual_of_at_most_450_lines():
+    text = C.ROOT.joinpath("README.md").read_text()
+    assert len(text.splitlines()) <= 450
+    # the glossary comes before the first job, and every job has a command block the checker runs
+    assert text.index("## Glossary") < text.index("## Job 1")
+    for job in ("## Job 1", "## Job 2", "## Job 3", "## Job 4"):
+        section = text[text.index(job):].split("\n## ", 1)[0]
+        assert "\n```\nmkdir -p scratch\nuvisi " in section or "\nuvisi " in section, job
