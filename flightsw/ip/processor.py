@@ -245,7 +245,7 @@ class ImageProcessor:
 
     def _set_alpha(self, controller: AlphaController) -> None:
         self.alpha = controller
-        self._alpha_words = controller.words()
+        self._alpha_logic = controller.logic()
 
     @property
     def feedback(self) -> Feedback:
@@ -343,7 +343,7 @@ class ImageProcessor:
             prm = plan.prm[False]
         info = self._info
         verdict, words, win, pack = ip_step_k(frame, check, cmd, fb, ovr, time_tag, fc, aq,
-                                              self._alpha_words, *plan.step_args, prm, fst, bst,
+                                              self._alpha_logic, *plan.step_args, prm, fst, bst,
                                               info)
         r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict, *head = info.tolist()
         self._fb = fb

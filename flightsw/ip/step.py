@@ -88,7 +88,7 @@ def _message_words(pack, t, alpha, head):
 
 
 @njit(cache=True)
-def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly, mode, prm, fst,
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, ints, i16, ffts, poly, mode, prm, fst,
               bst, info):
     """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
 
@@ -100,8 +100,8 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
         accepted command replaces it in place
     ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
     t, fc : time tag (s, float64) and frame count (0..65535)
-    aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words, int64 [9]
-        (:meth:`flightsw.ip.threshold.AlphaController.words`, :func:`alpha_next_k`)
+    aq, logic : alpha in force (Q4.12 word) and the alpha logic's constants,
+        :data:`flightsw.ip.threshold.ALPHA_LOGIC` [1] (:func:`alpha_next_k`)
     ints, i16 : the plan's fixed words (:func:`flightsw.ip.pipeline.step_words`): int64 ``geo``
         [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`: compacted H, W, window h, w, compaction
         f, message word 6 (imager << 8 | f), record id, has a threshold step), the
@@ -170,5 +170,5 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
     words = _message_words(pack, t, aq / 4096.0 if geo[7] else 0.0, head)
     if words.shape[0] == 0:
         return STEP_MESSAGE, words, win, pack
-    info[4] = alpha_next_k(aq, pack[0], use[3] != 0.0, ctl)
+    info[4] = alpha_next_k(aq, pack[0], use[3] != 0.0, logic)
     return STEP_OK, words, win, pack

@@ -130,8 +130,8 @@ def _plan(seq="satellite", rec="satellite"):
 
 
 #: the alpha logic's words (near 90, up 0.5, down 0.25, floor 1.0, ceiling 7.0, no sparse floor,
-#: no locked floor), in the layout the kernel reads (:meth:`AlphaController.words`, int64 [9])
-CTL = tuple(AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).words().tolist())
+#: no locked floor), in the record the kernel reads (:meth:`AlphaController.logic`)
+CTL = AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).logic()
 
 
 def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check=True, prm=None,
@@ -142,7 +142,7 @@ def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check
     fst, bst = plan.no_stages
     info = np.full(STEP_INFO, -7, np.int64)
     out = ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
-                    np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
+                    np.zeros(0) if ovr is None else ovr, t, fc, aq, ctl,
                     *step_words(plan.geo, plan.front, plan.recw), plan.ffts, plan.poly,
                     plan.mode, plan.prm[False] if prm is None else prm, fst, bst, info)
     return out + (fst, bst, info)
