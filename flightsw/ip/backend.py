@@ -61,14 +61,14 @@ def enc32(x: float) -> int:
 
 
 @njit(cache=True)
-def backend_k(img, prm, head):
+def backend_k(img, params, header):
     """Steps 6-8 on a thresholded window.
 
     Parameters
     ----------
     img : int [H, W] (16-bit words; non-zero = on)
-    prm : :data:`BACKEND_PARAMS` [1] (:func:`backend_params`)
-    head : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: reads the window origin words
+    params : :data:`BACKEND_PARAMS` [1] (:func:`backend_params`)
+    header : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: reads the window origin words
         ``r0w``, ``c0w`` and the centroid means ``mean_row``, ``mean_col`` (used if
         ``override``); writes ``count``, ``m``, ``flags``, the three cycle totals and ``bad``
 
@@ -92,8 +92,8 @@ def backend_k(img, prm, head):
     no-blobs : an empty window -> count 0, m 0, an empty pack.
     out-of-range : a word outside -32768..65535 -> ``bad`` set (the callers raise).
     """
-    p = prm[0]
-    hd = head[0]
+    p = params[0]
+    hd = header[0]
     labels, count, sums, cops, bad = colour_k(img, p.diagonal != 0, p.want_labels != 0)
     if count:
         raw, f1 = features_k(sums, count, p.intensity != 0)      # feature-major [12, count]
@@ -217,34 +217,34 @@ def candidate_table(pack, count: int, m: int) -> np.ndarray:
 
 def backend_params(record, diagonal: bool, intensity: bool, want_labels: bool, compaction: int,
                    imager: str, max_candidates: int) -> np.ndarray:
-    """The back end's parameters, :data:`BACKEND_PARAMS` [1] (:func:`backend_k`'s ``prm``): the
+    """The back end's parameters, :data:`BACKEND_PARAMS` [1] (:func:`backend_k`'s ``params``): the
     flags, the normalisation words of (compaction, imager), the record's quantisation flag, GOF
     threshold word and words, and the candidate limit (1..1000; ValueError otherwise)."""
     area, lin, fw = norm_consts(compaction, imager)
     if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)) \
             or not 1 <= max_candidates <= 1000:
         raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
-    prm = np.zeros(1, BACKEND_PARAMS)
-    p = prm[0]
+    params = np.zeros(1, BACKEND_PARAMS)
+    p = params[0]
     p["diagonal"], p["intensity"], p["want_labels"] = diagonal, intensity, want_labels
     p["area"], p["lin"], p["fw"] = area, lin, fw
     p["quantize"], p["gof_threshold"] = record.quantize, enc32(record.gof_threshold)
     p["max_out"], p["record"] = int(max_candidates), record_words(record)
-    return prm
+    return params
 
 
-def with_labels(prm: np.ndarray, want_labels: bool) -> np.ndarray:
-    """A copy of the :data:`BACKEND_PARAMS` ``prm`` with ``want_labels`` set."""
-    out = prm.copy()
+def with_labels(params: np.ndarray, want_labels: bool) -> np.ndarray:
+    """A copy of the :data:`BACKEND_PARAMS` ``params`` with ``want_labels`` set."""
+    out = params.copy()
     out[0]["want_labels"] = bool(want_labels)
     return out
 
 
-def result_from_head(labels, pack, head, ledger=None) -> BackendResult:
+def result_from_head(labels, pack, header, ledger=None) -> BackendResult:
     """BackendResult of a kernel's (labels, pack) and the frame header it wrote
     (:data:`flightsw.ip.frame_header.FRAME_HEADER` [1]), with the 16-bit range check and the back
     end's cycles charged to ``ledger``."""
-    hd = header_of(head.view(np.int64))
+    hd = header_of(header.view(np.int64))
     if hd.bad:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
     cycles = (hd.cyc_colour, hd.cyc_features, hd.cyc_rank)
@@ -273,11 +273,15 @@ def _mean_words(centroid_mean):
             from None
 
 
-def backend(window, record, diagonal: bool = True, intensity_centroid: bool = True,
+def backend(window, record, *, diagonal: bool = True, intensity_centroid: bool = True,
             compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis",
             centroid_mean=None, ledger: Ledger | None = None, want_labels: bool = True,
             max_candidates: int = MAX_CANDIDATES) -> BackendResult:
     """IP steps 6-8 on a thresholded (binary or clipped) window.
+
+    A public convenience whose keyword-only options are the reason for its nine more
+    parameters (each is one of the uplink's flags or the window's geometry; the compiled stage
+    :func:`backend_k` takes them as two records).
 
     Parameters
     ----------
@@ -313,11 +317,11 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
         r0w, c0w = enc32(float(r0)), enc32(float(c0))
     except (TypeError, ValueError):
         raise ValueError(f"window_origin={window_origin!r} must be (row0, col0) numbers") from None
-    head, _ = new_header()
-    h = head[0]
+    header, _ = new_header()
+    h = header[0]
     h["override"], h["mean_row"], h["mean_col"] = _mean_words(centroid_mean)
     h["r0w"], h["c0w"] = r0w, c0w
-    prm = backend_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
+    params = backend_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
                          compaction, imager, max_candidates)
-    labels, pack = backend_k(img, prm, head)
-    return result_from_head(labels, pack, head, ledger)
+    labels, pack = backend_k(img, params, header)
+    return result_from_head(labels, pack, header, ledger)

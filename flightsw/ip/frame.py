@@ -91,6 +91,9 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     want_stages : bool
         Keep the stage images (False: only the message; the label image is not formed).
 
+    Its keyword-only options are the reason for its 11 parameters (the message header's values
+    and the ground's overrides; the compiled pipeline takes its inputs as records).
+
     Returns
     -------
     FrameResult (iterates as ``message, stages, ledger``)
@@ -114,16 +117,15 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
 
 
 def process_window(sub: Subimage, sequence, record, centroid_mean=None, *,
-                   ledger: Ledger | None = None, imager: str = "wfov_vis", frame_count: int = 0,
-                   time_tag: float = 0.0, alpha_q12: int | None = None, want_stages: bool = True,
-                   max_candidates: int | None = None) -> FrameResult:
+                   imager: str = "wfov_vis", **options) -> FrameResult:
     """The part of :func:`process_frame` after the preprocessor, on a given ``Subimage`` ``sub``
     (the ground's full-frame mode cuts its own windows). ``centroid_mean`` (full-res (row, col))
-    replaces the record's centroid means; None: the window centre."""
+    replaces the record's centroid means; None: the window centre. ``options``: the keywords of
+    :meth:`flightsw.ip.pipeline.FramePlan.run_window` (``alpha_q12``, ``ledger``,
+    ``frame_count``, ``time_tag``, ``want_stages`` (default True here), ``max_candidates``)."""
     _check_objects(sequence, record)
-    check_inputs(alpha_q12, float(time_tag))
+    check_inputs(options.get("alpha_q12"), float(options.get("time_tag", 0.0)))
     if not isinstance(sub, Subimage):
         raise ValueError(f"sub must be a flightsw.ip.preprocess.Subimage, got {type(sub).__name__}")
-    return plan_for(sequence, record, imager).run_window(
-        sub, centroid_mean, alpha_q12=alpha_q12, ledger=ledger, frame_count=frame_count,
-        time_tag=time_tag, want_stages=want_stages, max_candidates=max_candidates)
+    options.setdefault("want_stages", True)
+    return plan_for(sequence, record, imager).run_window(sub, centroid_mean, **options)

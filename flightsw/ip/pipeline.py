@@ -61,8 +61,7 @@ class FrontOps(NamedTuple):
 class FFTTables(NamedTuple):
     """The frequency filters of a sequence (m of them; see :mod:`flightsw.ip.fftfilter`)."""
 
-    ints: np.ndarray    #: int64 [m, 4]: tile T, kernel size k, spectrum exponent ek, sum of taps
-    floats: np.ndarray  #: float64 [m, 4]: kmax, k2mean, dk, dw (the ground's error model)
+    spec: np.ndarray    #: :data:`flightsw.ip.fftfilter.FFT_SPEC` [m], each with the DC removal on
     kr: np.ndarray      #: int64 [m, T*T]: spectrum words, real, transposed and flattened
     ki: np.ndarray      #: int64 [m, T*T]: imaginary
     brev: np.ndarray    #: int64 [m, 64]: bit reversal of T
@@ -116,15 +115,13 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
             out = img
         else:
             j = front.fft[i]
-            T, kk, ek, ksum = ffts.ints[j, 0], ffts.ints[j, 1], ffts.ints[j, 2], ffts.ints[j, 3]
+            spec = ffts.spec[j:j + 1]
+            T = spec[0].tile
             kr = np.ascontiguousarray(ffts.kr[j, :T * T]).reshape((T, T))
             ki = np.ascontiguousarray(ffts.ki[j, :T * T]).reshape((T, T))
-            out = fft.fft_correlate_k(img, T, kk, kr, ki, ek, ffts.floats[j, 0],
-                                      ffts.floats[j, 1], ffts.floats[j, 2], ksum,
-                                      np.ascontiguousarray(ffts.brev[j, :T]),
+            out = fft.fft_correlate_k(img, spec, kr, ki, np.ascontiguousarray(ffts.brev[j, :T]),
                                       np.ascontiguousarray(ffts.twc[j, :T // 2]),
-                                      np.ascontiguousarray(ffts.tws[j, :T // 2]),
-                                      ffts.floats[j, 3], True)[0]
+                                      np.ascontiguousarray(ffts.tws[j, :T // 2]))[0]
     elif op == OP_POLY:
         if poly is None:                    # a plan without the polynomial detrender: not compiled
             out = img
@@ -136,9 +133,9 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
 
 
 @njit(cache=True)
-def place_window_k(head, pr, pc):
+def place_window_k(header, pr, pc):
     """Place the frame's window about the TP's predicted full-resolution pixel (``pr``, ``pc``;
-    NaN: none) in ``head`` (:data:`FRAME_HEADER` [1]): reads the plan's ``rows``, ``cols``,
+    NaN: none) in ``header`` (:data:`FRAME_HEADER` [1]): reads the plan's ``rows``, ``cols``,
     ``win_rows``, ``win_cols``, ``compaction``; writes ``r0``, ``c0`` (compacted pixels), ``o0``,
     ``o1`` (full resolution), their 1750A words ``r0w``, ``c0w``, and the centroid means
     ``mean_row``, ``mean_col`` (1750A words of the prediction, or of the window centre without
@@ -150,7 +147,7 @@ def place_window_k(head, pr, pc):
         means the prediction.
     no-prediction : ``pr`` NaN -> the window at the image centre, the means its centre.
     """
-    hd = head[0]
+    hd = header[0]
     f, h, w = hd.compaction, hd.win_rows, hd.win_cols
     r0, c0 = window_origin_k(hd.rows, hd.cols, h, w, f, pr, pc)
     o0, o1 = r0 * f, c0 * f
@@ -165,7 +162,7 @@ def place_window_k(head, pr, pc):
 
 
 @njit(cache=True)
-def ip_frame_at_k(src, head, pred, front, ffts, poly, prm, fst, bst):
+def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
     """:func:`ip_frame_into_k` on the window :func:`place_window_k` places about ``pred``
     (float64 [2]: the predicted full-resolution row and column, NaN: none): one frame of
     :meth:`FramePlan.run`.
@@ -175,12 +172,12 @@ def ip_frame_at_k(src, head, pred, front, ffts, poly, prm, fst, bst):
     typical : the window placed as :func:`flightsw.ip.step.ip_step_k` places it, then the same
         pipeline.
     """
-    place_window_k(head, pred[0], pred[1])
-    return ip_frame_into_k(src, head, front, ffts, poly, prm, fst, bst)
+    place_window_k(header, pred[0], pred[1])
+    return ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst)
 
 
 @njit(cache=True)
-def ip_frame_into_k(src, head, front, ffts, poly, prm, fst, bst):
+def ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst):
     """One frame through the image processor.
 
     Parameters
@@ -189,14 +186,14 @@ def ip_frame_into_k(src, head, front, ffts, poly, prm, fst, bst):
         The frame (12-bit counts; the header's ``compaction``, ``r0``, ``c0``, ``win_rows``,
         ``win_cols`` cut the window: compaction factor and window origin and shape in compacted
         pixels), or a window the caller cut (``compaction`` 1, origin 0).
-    head : :data:`FRAME_HEADER` [1]
+    header : :data:`FRAME_HEADER` [1]
         Reads the cut, ``alpha_q12`` and ``mode`` (the threshold's alpha, Q4.12, and mode) and the
         back end's words (:func:`flightsw.ip.backend.backend_k`); writes the threshold's ``t4``,
         ``mean4``, ``std4``, ``shift`` (0 without a threshold step) and the back end's counts.
     front, ffts, poly : FrontOps, FFTTables or None, PolyTables or None
         None when the sequence has no such step: numba then prunes (does not compile) the FFT or
         polynomial branch, which keeps a first run's compilation to the kernels the sequence uses
-    prm : :data:`flightsw.ip.backend.BACKEND_PARAMS` [1]
+    params : :data:`flightsw.ip.backend.BACKEND_PARAMS` [1]
     fst, bst : the stage images, written here: int16 [n + 1, h, w] (the window and each front-end
         step's output) and int32 [2, h, w] (labels, blobs numbered by rank), or both [0, h, w]
         for none (the caller's arrays: nothing to box on return)
@@ -219,7 +216,7 @@ def ip_frame_into_k(src, head, front, ffts, poly, prm, fst, bst):
         that window, the rest as for a frame.
     no-blobs : nothing passes the threshold -> count 0, m 0, rank image all 0.
     """
-    hd = head[0]
+    hd = header[0]
     h, w = hd.win_rows, hd.win_cols
     want_stages = fst.shape[0] != 0
     win = compact_k(src, hd.compaction, hd.r0, hd.c0, h, w)
@@ -234,7 +231,7 @@ def ip_frame_into_k(src, head, front, ffts, poly, prm, fst, bst):
             hd.t4, hd.mean4, hd.std4, hd.shift = a, b, c, d
         if want_stages:
             fst[i + 1] = img
-    labels, pack = backend_k(img, prm, head)
+    labels, pack = backend_k(img, params, header)
     if want_stages:
         bst[0] = labels
         lut = np.zeros(hd.count + 1, np.int32)
@@ -273,7 +270,7 @@ class FrameResult:
     context, subimage and stages). A caller's ledger is charged at once; the ledger made when
     none was given is made and charged when first read.
 
-    What it is made of (the fields): ``plan`` (:class:`FramePlan`), ``head``
+    What it is made of (the fields): ``plan`` (:class:`FramePlan`), ``header``
     (:class:`flightsw.ip.frame_header.FrameHeader`: the window, the threshold's words, the back
     end's counts and cycles), ``pack`` (:func:`flightsw.ip.backend.backend_k`), ``fst``, ``bst``
     (the stage arrays, empty without stages), ``window`` (the window image, its compacted origin,
@@ -282,14 +279,14 @@ class FrameResult:
     not run it).
     """
 
-    __slots__ = ("plan", "head", "pack", "fst", "bst", "window", "time_tag", "front_cycles",
+    __slots__ = ("plan", "header", "pack", "fst", "bst", "window", "time_tag", "front_cycles",
                  "alpha_cycles", "_ledger", "_message", "_stages", "_backend", "_subimage",
                  "_context")
 
-    def __init__(self, plan: "FramePlan", head, pack, stages: tuple, window: tuple,
+    def __init__(self, plan: "FramePlan", header, pack, stages: tuple, window: tuple,
                  time_tag: float, cycles: tuple, ledger: Ledger | None):
         """``stages``: (fst, bst); ``cycles``: (front cycles, alpha cycles or None)."""
-        self.plan, self.head, self.pack = plan, head, pack
+        self.plan, self.header, self.pack = plan, header, pack
         self.fst, self.bst = stages
         self.window, self.time_tag = window, time_tag
         self.front_cycles, self.alpha_cycles = cycles
@@ -312,7 +309,7 @@ class FrameResult:
     def backend(self) -> BackendResult:
         be = self._backend
         if be is None:
-            hd, bst = self.head, self.bst
+            hd, bst = self.header, self.bst
             labels = bst[0] if bst.shape[0] else _NO_LABELS
             be = self._backend = BackendResult(labels, self.pack, hd.count, hd.m, hd.flags,
                                                (hd.cyc_colour, hd.cyc_features, hd.cyc_rank))
@@ -320,7 +317,7 @@ class FrameResult:
 
     @property
     def blob_count(self) -> int:
-        return self.head.count
+        return self.header.count
 
     @property
     def subimage(self) -> Subimage:
@@ -365,8 +362,7 @@ def backend_steps(sequence: ProcessingSequence):
 
 def _fft_tables(kernels):
     m = len(kernels)
-    ints = np.zeros((m, 4), np.int64)
-    floats = np.zeros((m, 4), np.float64)
+    spec = np.zeros(m, fft.FFT_SPEC)
     kr = np.zeros((m, MAX_TILE * MAX_TILE), np.int64)
     ki = np.zeros_like(kr)
     brev = np.zeros((m, MAX_TILE), np.int64)
@@ -375,14 +371,13 @@ def _fft_tables(kernels):
     for j, kern in enumerate(kernels):
         T = kern.tile
         c, s, dw = fft.twiddles_q15(T)
-        ints[j] = (T, kern.size, kern.ek, kern.ksum)
-        floats[j] = (kern.kmax, kern.k2mean, kern.dk, dw)
+        spec[j] = fft.fft_spec(kern, dw, True)[0]
         kr[j, :T * T] = kern.kr.ravel()
         ki[j, :T * T] = kern.ki.ravel()
         brev[j, :T] = fft.bitrev(T)
         twc[j, :T // 2] = c
         tws[j, :T // 2] = s
-    return FFTTables(ints, floats, kr, ki, brev, twc, tws)
+    return FFTTables(spec, kr, ki, brev, twc, tws)
 
 
 def poly_tables(h: int, w: int, used: bool = True) -> PolyTables | None:
@@ -504,9 +499,9 @@ class FramePlan:
         H, W = pre.compacted_shape
         #: the frame header (:data:`flightsw.ip.frame_header.FRAME_HEADER` [1]) the kernels place
         #: each frame's window in and write the frame's words to, the plan's fields filled here;
-        #: ``head_words`` its int64 view (:func:`flightsw.ip.frame_header.header_of`)
-        self.head, self.head_words = new_header()
-        hd = self.head[0]
+        #: ``header_words`` its int64 view (:func:`flightsw.ip.frame_header.header_of`)
+        self.header, self.header_words = new_header()
+        hd = self.header[0]
         hd["rows"], hd["cols"], hd["win_rows"], hd["win_cols"] = H, W, h, w
         hd["compaction"] = self.f
         hd["imager_word"] = (IMAGER_CODES[self.msg_imager] << 8) | self.f
@@ -515,7 +510,7 @@ class FramePlan:
         #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
         #: fewer attribute reads on the per-frame path); the front end packed in two arrays
         #: (:func:`step_words`: each array argument costs ~50 ns a call to type)
-        self.step_args = (self.head,) + step_words(self.front) + (self.ffts, self.poly)
+        self.step_args = (self.header,) + step_words(self.front) + (self.ffts, self.poly)
         #: the stage arrays of a frame without stages (empty: one pair serves every frame)
         self.no_stages = (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
 
@@ -537,17 +532,17 @@ class FramePlan:
         """One checked frame (uint16 [244, 256], C order) through the pipeline; ``pred`` the TP's
         predicted pixel (full resolution) or None (the window is the image centre and the centroid
         means are the window centre)."""
-        hd = self.head[0]
+        hd = self.header[0]
         hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
         hd["frame_count"] = frame_count
         stages = self.stage_arrays() if want_stages else self.no_stages
         at = _NO_PREDICTION if pred is None else np.array(pred, np.float64)
-        win, pack = ip_frame_at_k(frame, self.head, at, self.front, self.ffts, self.poly,
+        win, pack = ip_frame_at_k(frame, self.header, at, self.front, self.ffts, self.poly,
                                   self.prm[bool(want_stages)], *stages)
-        head = header_of(self.head_words)
-        if head.bad:
+        header = header_of(self.header_words)
+        if header.bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
-        return FrameResult(self, head, pack, stages, (win, (head.r0, head.c0), self.f,
+        return FrameResult(self, header, pack, stages, (win, (header.r0, header.c0), self.f,
                                                       self.window_hw),
                            time_tag, (self.front_cycles, None), ledger)
 
@@ -561,15 +556,15 @@ class FramePlan:
         h, w = img.shape
         f = int(sub.factor)
         mc_limit = self.max_candidates if max_candidates is None else max_candidates
-        prm = self.prm[bool(want_stages)]
+        params = self.prm[bool(want_stages)]
         if f != self.f or mc_limit != self.max_candidates:
-            prm = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
+            params = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
                                  self.imager, mc_limit)
         poly = self.poly
         if poly is not None and (h, w) != tuple(poly.tables.shape[1:]):
             poly = poly_tables(h, w)
-        head, words = new_header()
-        hd = head[0]
+        header, words = new_header()
+        hd = header[0]
         hd["o0"], hd["o1"], hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = \
             _geometry_words(f, int(sub.origin[0]), int(sub.origin[1]), h, w, centroid_mean)
         hd["compaction"], hd["win_rows"], hd["win_cols"], hd["override"] = 1, h, w, 1
@@ -578,16 +573,16 @@ class FramePlan:
         stages = (np.empty((self.front.ops.size + 1, h, w), np.int16),
                   np.empty((2, h, w), np.int32)) if want_stages else \
             (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
-        _, pack = ip_frame_into_k(img, head, self.front, self.ffts, poly, prm, *stages)
-        head = header_of(words)
-        if head.bad:
+        _, pack = ip_frame_into_k(img, header, self.front, self.ffts, poly, params, *stages)
+        header = header_of(words)
+        if header.bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
-        return FrameResult(self, head, pack, stages, (img, tuple(sub.origin), f, (h, w)),
+        return FrameResult(self, header, pack, stages, (img, tuple(sub.origin), f, (h, w)),
                            time_tag, (self.cycles_for(h, w), None), ledger)
 
     def charge(self, ledger: Ledger, res: FrameResult) -> None:
         """Charge a :class:`FrameResult`'s cycles to ``ledger``."""
-        hd = res.head
+        hd = res.header
         back = (hd.cyc_colour, hd.cyc_features, hd.cyc_rank)
         if res.alpha_cycles is None:
             keys, charged = self.keys, res.front_cycles + back
@@ -601,7 +596,7 @@ class FramePlan:
     def message_of(self, res: FrameResult) -> CandidateMessage:
         """The candidate message of a :class:`FrameResult` (the candidates read from the pack
         without the back end's result, ~0.5 us)."""
-        hd = res.head
+        hd = res.header
         cand = candidate_table(res.pack, hd.count, hd.m)
         h, w = res.window[3]
         alpha = hd.alpha_q12 / 4096.0 if self.threshold_stage is not None else 0.0
@@ -614,7 +609,7 @@ class FramePlan:
         ctx = {"imager": self.imager, "record": self.record, "subimage": res.subimage,
                "preprocess": self.pre}
         if self.threshold_stage is not None:
-            hd = res.head
+            hd = res.header
             ctx["threshold"] = {"t4": hd.t4, "mean4": hd.mean4, "std4": hd.std4,
                                 "shift": hd.shift, "alpha_q12": hd.alpha_q12,
                                 "mode": self.mode_name}
@@ -625,7 +620,7 @@ class FramePlan:
         fst, bst, be = res.fst, res.bst, res.backend
         out = [Stage("window", fst[0])]
         for i, name in enumerate(self.step_names):
-            out.append(Stage(name, fst[i + 1], res.head.t4 if name == self.threshold_stage
+            out.append(Stage(name, fst[i + 1], res.header.t4 if name == self.threshold_stage
                              else None))
         out.append(Stage("colour", bst[0], be.count))
         out.append(Stage("rank", bst[1], be.order))

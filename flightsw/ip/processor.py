@@ -343,7 +343,7 @@ class ImageProcessor:
             prm = plan.prm[False]
         verdict, words, win, pack = ip_step_k(frame, check, cmd, fb, ovr, time_tag, fc, aq,
                                               self._alpha_logic, *plan.step_args, prm, fst, bst)
-        hd = header_of(plan.head_words)
+        hd = header_of(plan.header_words)
         self._fb = fb
         if hd.command:
             self.rejected_commands += 1

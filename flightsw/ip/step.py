@@ -58,9 +58,9 @@ STEP_OK, STEP_TIME_TAG, STEP_FRAME_RANGE, STEP_MESSAGE = 0, 1, 2, 3
 
 
 @njit(cache=True)
-def _message_words(pack, t, head):
+def _message_words(pack, t, header):
     """The candidate-message words (uint16) of the pipeline's ``pack`` (its candidate table,
-    :func:`flightsw.ip.backend.backend_k`) with the frame header ``head`` (:data:`FRAME_HEADER`
+    :func:`flightsw.ip.backend.backend_k`) with the frame header ``header`` (:data:`FRAME_HEADER`
     [1]), or an empty array when the message cannot carry it. The message's words are its
     format: positions here are the codec's (:class:`flightsw.messages.CandidateMessage`).
 
@@ -69,7 +69,7 @@ def _message_words(pack, t, head):
     typical : :func:`candidate_words_k` on the pack's candidate table, m candidates.
     too-many : more than :data:`flightsw.messages.MAX_CANDIDATES` (23) candidates -> empty.
     """
-    hd = head[0]
+    hd = header[0]
     count, m = hd.count, hd.m
     if m > MAX_CANDIDATES:
         return np.zeros(0, np.uint16)
@@ -104,7 +104,7 @@ def front_of(ints, i16):
 
 
 @njit(cache=True)
-def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, head, ints, i16, ffts, poly, prm,
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, header, ints, i16, ffts, poly, params,
               fst, bst):
     """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
 
@@ -123,19 +123,19 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, head, ints, i16, fft
     t, fc : time tag (s, float64) and frame count (0..65535)
     aq, logic : alpha in force (Q4.12 word) and the alpha logic's constants,
         :data:`flightsw.ip.threshold.ALPHA_LOGIC` [1] (:func:`alpha_next_k`)
-    head : :data:`FRAME_HEADER` [1], the plan's (:attr:`flightsw.ip.pipeline.FramePlan.head`):
+    header : :data:`FRAME_HEADER` [1], the plan's (:attr:`flightsw.ip.pipeline.FramePlan.header`):
         its fixed fields read, the frame's written (the window, the threshold's and the back
         end's words, ``alpha_next``, ``command``: the command's verdict)
     ints, i16 : the plan's front end packed (:func:`front_of`; each array argument costs ~50 ns a
         call to type, a tuple ~0.5 us)
-    ffts, poly, prm : the pipeline's (:func:`ip_frame_into_k`)
+    ffts, poly, params : the pipeline's (:func:`ip_frame_into_k`)
     fst, bst : the stage arrays the pipeline fills (:func:`ip_frame_into_k`: int16 [n + 1, h, w]
         and int32 [2, h, w], or both [0, h, w] for none)
 
     Returns
     -------
     (verdict (``STEP_*``), message words uint16 [n] (empty unless ``STEP_OK``), window int16
-    [h, w], pack (:func:`ip_frame_into_k`)); ``head``, ``fst``, ``bst`` and an accepted command's
+    [h, w], pack (:func:`ip_frame_into_k`)); ``header``, ``fst``, ``bst`` and an accepted command's
     ``fb`` are written in place
 
     Cases
@@ -154,7 +154,7 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, head, ints, i16, fft
     message : more than 23 candidates -> ``STEP_MESSAGE``.
     """
     bad = frame_over_12bit_k(frame) if check else False
-    hd = head[0]
+    hd = header[0]
     hd.command, hd.alpha_next, hd.count, hd.m = 0, aq, 0, 0
     hd.frame_count, hd.alpha_q12 = fc, aq
     if cmd.shape[0]:
@@ -165,9 +165,9 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, head, ints, i16, fft
     if bad or not math.isfinite(t):
         return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none,
                 np.zeros((0, 0), np.int16), np.zeros(0, np.int64))
-    place_window_k(head, use[0], use[1])
-    win, pack = ip_frame_into_k(frame, head, front_of(ints, i16), ffts, poly, prm, fst, bst)
-    words = _message_words(pack, t, head)
+    place_window_k(header, use[0], use[1])
+    win, pack = ip_frame_into_k(frame, header, front_of(ints, i16), ffts, poly, params, fst, bst)
+    words = _message_words(pack, t, header)
     if words.shape[0] == 0:
         return STEP_MESSAGE, words, win, pack
     hd.alpha_next = alpha_next_k(aq, hd.count, use[3] != 0.0, logic)

@@ -19,13 +19,13 @@ __all__ = ["fullframe_k"]
 
 
 @njit(cache=True)
-def fullframe_k(src, head, front, ffts, poly, prm, rows, cols, th, tw, rcover, ccover):
+def fullframe_k(src, header, front, ffts, poly, params, rows, cols, th, tw, rcover, ccover):
     """A frame through the full-frame mode.
 
     Parameters
     ----------
     src : integer [H, W], 12-bit counts
-    head : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: ``compaction`` f (1, 2 or 4; the
+    header : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: ``compaction`` f (1, 2 or 4; the
         compacted frame is ``H // f`` x ``W // f``), the threshold's ``alpha_q12`` (Q4.12) and
         ``mode`` (0 binarise, 1 clip), the back end's origin words (0) and centroid means;
         the back end writes its counts there
@@ -36,7 +36,7 @@ def fullframe_k(src, head, front, ffts, poly, prm, rows, cols, th, tw, rcover, c
         ``th`` x ``tw``
     rcover, ccover : int64 [H // f, 2], [W // f, 2], the windows covering each row and column
         (:func:`hil_harness.detect.union.cover_ranges`)
-    prm : the back end's parameters (:data:`flightsw.ip.backend.BACKEND_PARAMS` [1])
+    params : the back end's parameters (:data:`flightsw.ip.backend.BACKEND_PARAMS` [1])
 
     Returns
     -------
@@ -50,7 +50,7 @@ def fullframe_k(src, head, front, ffts, poly, prm, rows, cols, th, tw, rcover, c
         end as it is.
     """
     H, W = src.shape
-    hd = head[0]
+    hd = header[0]
     f, aq, mode = hd.compaction, hd.alpha_q12, hd.mode
     img = compact_k(src, f, 0, 0, H // f, W // f)
     for i in range(front.ops.size):
@@ -59,5 +59,5 @@ def fullframe_k(src, head, front, ffts, poly, prm, rows, cols, th, tw, rcover, c
             img = union_threshold_k(img, t4, rcover, ccover, mode)
         else:
             img = front_step_k(img, i, front, ffts, poly, aq, mode)[0]
-    labels, pack = backend_k(img, prm, head)
+    labels, pack = backend_k(img, params, header)
     return pack, img

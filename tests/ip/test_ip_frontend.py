@@ -687,7 +687,7 @@ def test_pipeline_without_a_threshold_step_returns_zero_words():
     seq = ProcessingSequence(SEQUENCES[2], {"compaction": 2, "window": 64})    # no threshold
     plan = FramePlan(seq, RECORD)
     res = plan.run(FRAMES[0], alpha_q12=5000)
-    hd = res.head
+    hd = res.header
     assert (hd.t4, hd.mean4, hd.std4, hd.shift) == (0, 0, 0, 0)
     assert res.fst.shape == (0,) + plan.window_hw and res.bst.shape == (0,) + plan.window_hw
     assert "threshold" not in run_stages(seq, FRAMES[0]).context

@@ -140,7 +140,7 @@ def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check
     call (no stages; the header's per-frame fields start as garbage: the kernel writes them)."""
     fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
     fst, bst = plan.no_stages
-    head = plan.head.copy()
+    head = plan.header.copy()
     for name in ("r0", "c0", "o0", "o1", "t4", "count", "m", "alpha_next", "command"):
         head[name] = -7
     out = ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
@@ -239,7 +239,7 @@ def test_frame_into_the_callers_stage_arrays():
     h, w = plan.window_hw
     fst, bst = plan.stage_arrays()
     fst[:], bst[:] = -3, -3
-    head = plan.head.copy()
+    head = plan.header.copy()
     hd = head[0]
     hd["r0"], hd["c0"], hd["alpha_q12"], hd["override"] = 86, 99, 16384, 1
     hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = enc32(86), enc32(99), enc32(120), \
