@@ -559,17 +559,12 @@ class FramePlan:
         params = self.prm[bool(want_stages)]
         if f != self.f or mc_limit != self.max_candidates:
             params = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
-                                 self.imager, mc_limit)
+                                    self.imager, mc_limit)
         poly = self.poly
         if poly is not None and (h, w) != tuple(poly.tables.shape[1:]):
             poly = poly_tables(h, w)
-        header, words = new_header()
-        hd = header[0]
-        hd["o0"], hd["o1"], hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = \
-            _geometry_words(f, int(sub.origin[0]), int(sub.origin[1]), h, w, centroid_mean)
-        hd["compaction"], hd["win_rows"], hd["win_cols"], hd["override"] = 1, h, w, 1
-        hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
-        hd["mode"], hd["frame_count"] = self.mode, frame_count
+        header, words = self.window_header(f, sub.origin, (h, w), centroid_mean, alpha_q12,
+                                           frame_count)
         stages = (np.empty((self.front.ops.size + 1, h, w), np.int16),
                   np.empty((2, h, w), np.int32)) if want_stages else \
             (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
@@ -579,6 +574,24 @@ class FramePlan:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
         return FrameResult(self, header, pack, stages, (img, tuple(sub.origin), f, (h, w)),
                            time_tag, (self.cycles_for(h, w), None), ledger)
+
+    def window_header(self, f: int, origin, size, centroid_mean=None,
+                      alpha_q12: int | None = None, frame_count: int = 0, cut: int = 1) -> tuple:
+        """A new frame header (:data:`FRAME_HEADER` [1] and its int64 view) for a window the
+        caller places: compaction ``f``, compacted ``origin`` (row, col) and ``size`` (h, w), the
+        centroid means ``centroid_mean`` (full-resolution (row, col); None: the window centre),
+        the plan's threshold (``alpha_q12`` None: the sequence's) and ``cut``, the factor the
+        kernel compacts its input by (1: the caller's window is already compacted; the full
+        frame's kernel compacts the frame itself)."""
+        header, words = new_header()
+        hd = header[0]
+        h, w = size
+        hd["o0"], hd["o1"], hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = \
+            _geometry_words(f, int(origin[0]), int(origin[1]), h, w, centroid_mean)
+        hd["compaction"], hd["win_rows"], hd["win_cols"], hd["override"] = cut, h, w, 1
+        hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
+        hd["mode"], hd["frame_count"] = self.mode, frame_count
+        return header, words
 
     def charge(self, ledger: Ledger, res: FrameResult) -> None:
         """Charge a :class:`FrameResult`'s cycles to ``ledger``."""
