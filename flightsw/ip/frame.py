@@ -2,6 +2,17 @@
 (:mod:`flightsw.ip.pipeline`): :func:`process_frame` for a frame, :func:`process_window` for a
 window the caller cut. The flight module is :class:`flightsw.ip.ImageProcessor`; the back end alone
 is :func:`flightsw.ip.backend.backend`.
+
+Every way of running a frame runs the same two kernels on a plan's frame header
+(:data:`flightsw.ip.frame_header.FRAME_HEADER`): :func:`flightsw.ip.pipeline.place_window_k`
+places the window about the prediction and :func:`flightsw.ip.pipeline.ip_frame_into_k` runs the
+pipeline. :meth:`flightsw.ip.ImageProcessor.step` calls them inside its one compiled step (with the
+command read, the message and the alpha logic); :func:`process_frame` through
+:meth:`flightsw.ip.pipeline.FramePlan.run` on a kept plan (:func:`flightsw.ip.pipeline.plan_for`:
+no processor is built per call); :func:`process_window` skips the placement (the caller cut the
+window). The ground's full-frame detector (:mod:`hil_harness.detect`) takes its header and the
+back end's parameters from the same plan and runs the same stage kernels, the window union its
+one added step.
 """
 from __future__ import annotations
 

@@ -4,13 +4,16 @@ The MSX paper's Image Processing section in order: the preprocessor board compac
 cuts the window about the TP's prediction (step 1); the DSP runs the uplinked sequence's front-end
 steps (spatial or frequency filters, detrenders, the threshold; steps 2-5); the 1750A colours the
 blobs, computes and normalises the features and ranks them against the a priori record (steps 6-8).
-:func:`ip_frame_into_k` runs all of it in one jitted call. The stage images of the paper's Figure 3
-(the window, every front-end step's output, the colour and rank images) are an output option of the
-same call (``want_stages``), not a second implementation.
+:func:`ip_frame_into_k` runs all of it in one jitted call on the window :func:`place_window_k`
+placed. The stage images of the paper's Figure 3 (the window, every front-end step's output, the
+colour and rank images) are an output option of the same call (stage arrays given or empty), not a
+second implementation.
 
 A :class:`FramePlan` holds what does not change from frame to frame for one (sequence, record,
-imager): the front-end steps as arrays, the back end's parameter words, the record's words, the
-ledger keys and the static cycles. The :class:`flightsw.ip.ImageProcessor` owns its plan and builds
+imager): the front-end steps as arrays, the back end's parameters
+(:data:`flightsw.ip.backend.BACKEND_PARAMS`), the frame header with the plan's fields filled
+(:data:`flightsw.ip.frame_header.FRAME_HEADER`: the kernels place each frame's window in it and
+write the frame's words to it), the ledger keys and the static cycles. The :class:`flightsw.ip.ImageProcessor` owns its plan and builds
 a new one when an uplink changes the sequence or the record; :func:`plan_for` keeps a few plans for
 the one-frame conveniences (:func:`flightsw.ip.process_frame`).
 """

@@ -20,11 +20,11 @@ import numpy as np
 
 from flightsw.budget import Ledger
 from flightsw.ip.frame import check_inputs
+from flightsw.ip.frame_header import header_of
 from flightsw.ip.pipeline import FramePlan, FrameResult
 from flightsw.ip.record_table import TABLE_FORMAT_ID, TABLE_TYPES, RecordStore, decode_table
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
-from flightsw.ip.frame_header import header_of
 from flightsw.ip.step import (CMD_PREDICTION_OUTSIDE, STEP_FRAME_RANGE, STEP_OK, STEP_TIME_TAG,
                               ip_step_k)
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController, alpha_bounds
