@@ -21,18 +21,36 @@ from flightsw.ip.colour import DIRECT_DTYPES, as_int_image, colour_k
 from flightsw.ip.colour import OP_CYCLES as COLOUR_OP_CYCLES
 from flightsw.ip.features import features_cycles, features_k, norm_consts, normalise_k, \
     words_to_struct
+from flightsw.ip.frame_header import header_of, new_header
 from flightsw.ip.rank import OP_CYCLES as RANK_OP_CYCLES
 from flightsw.ip.rank import rank_k, record_words
 from flightsw.messages import CANDIDATE_DTYPE, MAX_CANDIDATES
 
 __all__ = ["backend", "backend_k", "backend_params", "BackendResult", "enc32", "BACK_KEYS",
-           "PACK_HEAD", "candidate_table"]
+           "PACK_HEAD", "candidate_table", "BACKEND_PARAMS", "with_labels", "result_from_head"]
 
 BLOB_CYCLES = features_cycles(1)
-#: words of the pack header: count, m, flags, 3 cycle totals, 6 colour + 9 rank event counts, bad
-PACK_HEAD = 22
+#: words of the pack before its tables (none since the back end's counts went to the frame
+#: header, :data:`flightsw.ip.frame_header.FRAME_HEADER`)
+PACK_HEAD = 0
 #: the ledger keys of the back end's three stages, in charge order
 BACK_KEYS = ((IP1750, "colour"), (IP1750, "features"), (IP1750, "rank"))
+
+#: The back end's parameters: one record (:func:`backend_params`) :func:`backend_k` reads by field.
+BACKEND_PARAMS = np.dtype([
+    ("diagonal", np.int64),       # 1: 8-connected colouring (the uplink's diagonal flag)
+    ("intensity", np.int64),      # 1: intensity-weighted centroids
+    ("want_labels", np.int64),    # 1: form the final label image (a ground product)
+    ("area", np.int64),           # area normalisation word (1750A 32-bit float, packed):
+                                  #    (compaction, imager) scale, :func:`norm_consts`
+    ("lin", np.int64),            # linear (length) normalisation word, 1750A 32-bit float
+    ("fw", np.int64),             # the compaction f as a 1750A 32-bit float word
+    ("quantize", np.int64),       # 1: the record's sigmoid quantisation of the features
+    ("gof_threshold", np.int64),  # the record's GOF threshold, 1750A 32-bit float word
+    ("max_out", np.int64),        # the candidate limit (1..1000)
+    ("record", np.int64, (5, 12)),  # the record's words (:func:`record_words`): rows mean,
+                                    #    sigma, weight, lower, upper; 1750A 32-bit float words
+])
 
 
 @lru_cache(maxsize=4096)
@@ -43,24 +61,22 @@ def enc32(x: float) -> int:
 
 
 @njit(cache=True)
-def backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
+def backend_k(img, params, header):
     """Steps 6-8 on a thresholded window.
 
     Parameters
     ----------
     img : int [H, W] (16-bit words; non-zero = on)
-    rec : int64 [5, 12], the record's packed 1750A words (:func:`flightsw.ip.rank.record_words`)
-    prm : int64 [10], :func:`backend_params`: diagonal, intensity, want_labels, area, lin, f,
-        quantize, GOF threshold word, max_out, unused
-    r0w, c0w : 1750A words of the window origin (full-resolution pixels)
-    mean_row, mean_col, override : 1750A words of the centroid means this frame, used if override
+    params : :data:`BACKEND_PARAMS` [1] (:func:`backend_params`)
+    header : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: reads the window origin words
+        ``r0w``, ``c0w`` and the centroid means ``mean_row``, ``mean_col`` (used if
+        ``override``); writes ``count``, ``m``, ``flags``, the three cycle totals and ``bad``
 
     Returns
     -------
-    (labels int32 [H, W] (empty [0, 0] without want_labels), pack int64): ``pack`` holds the header
-    (:data:`PACK_HEAD` words), then order [m], gof [m], the reported distances [m], every distance
-    [count], the feature words [count, 12] and the candidate table [m, 15] (CANDIDATE_DTYPE layout,
-    decoded exactly).
+    (labels int32 [H, W] (empty [0, 0] without want_labels), pack int64): ``pack`` holds order
+    [m], gof [m], the reported distances [m], every distance [count], the feature words
+    [count, 12] and the candidate table [m, 15] (CANDIDATE_DTYPE layout, decoded exactly).
 
     Cases
     -----
@@ -71,46 +87,42 @@ def backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, override):
     no-override : ``override == 0`` -> the record's centroid means.
     max-out : at most ``max_out`` candidates (``m <= max_out``).
     candidate-table : row q = (order[q] + 1, d, GOF, the twelve features) decoded exactly.
-    cycles : header words 3..5 = the colour, features and rank cycles of the event counts.
+    cycles : ``cyc_colour``, ``cyc_features``, ``cyc_rank`` = the cycles of the event counts.
     no-labels : ``want_labels`` off -> labels an empty [0, 0] array, the same pack.
-    no-blobs : an empty window -> count 0, m 0, a pack of the header only.
-    out-of-range : a word outside -32768..65535 -> header word 21 set (the callers raise).
+    no-blobs : an empty window -> count 0, m 0, an empty pack.
+    out-of-range : a word outside -32768..65535 -> ``bad`` set (the callers raise).
     """
-    diagonal, intensity, want_labels = prm[0] != 0, prm[1] != 0, prm[2] != 0
-    area, lin, fw = prm[3], prm[4], prm[5]
-    quantize, thr, max_out = prm[6] != 0, prm[7], prm[8]
-    cyc_colour, cyc_blob, cyc_rank = COLOUR_OP_CYCLES, BLOB_CYCLES, RANK_OP_CYCLES
-    labels, count, sums, cops, bad = colour_k(img, diagonal, want_labels)
+    p = params[0]
+    hd = header[0]
+    labels, count, sums, cops, bad = colour_k(img, p.diagonal != 0, p.want_labels != 0)
     if count:
-        raw, f1 = features_k(sums, count, intensity)             # feature-major [12, count]
-        words, f2 = normalise_k(raw, area, lin, fw, r0w, c0w)
+        raw, f1 = features_k(sums, count, p.intensity != 0)      # feature-major [12, count]
+        words, f2 = normalise_k(raw, p.area, p.lin, p.fw, hd.r0w, hd.c0w)
     else:        # no blobs: no feature words and no flags (the two stages' ~70 empty lane calls)
         words, f1, f2 = np.zeros((12, 0), np.int64), 0, 0
-    order, d, gof, f3, rops = rank_k(words, rec, mean_row, mean_col, override != 0, quantize, thr,
-                                     max_out)
+    order, d, gof, f3, rops = rank_k(words, p.record, hd.mean_row, hd.mean_col,
+                                     hd.override != 0, p.quantize != 0, p.gof_threshold,
+                                     p.max_out)
     m = order.size
-    h = PACK_HEAD
-    o_words = h + 3 * m + count
+    hd.count = count
+    hd.m = m
+    hd.flags = f1 | f2 | f3
+    hd.cyc_colour = 0
+    for i in range(cops.size):
+        hd.cyc_colour += COLOUR_OP_CYCLES[i] * cops[i]
+    hd.cyc_features = count * BLOB_CYCLES
+    hd.cyc_rank = 0
+    for i in range(rops.size):
+        hd.cyc_rank += RANK_OP_CYCLES[i] * rops[i]
+    hd.bad = 1 if bad else 0
+    o_words = 3 * m + count
     o_cand = o_words + 12 * count
     pack = np.empty(o_cand + 15 * m, np.int64)
-    pack[0] = count
-    pack[1] = m
-    pack[2] = f1 | f2 | f3
-    pack[3] = 0
-    for i in range(cops.size):
-        pack[3] += cyc_colour[i] * cops[i]
-    pack[4] = count * cyc_blob
-    pack[5] = 0
-    for i in range(rops.size):
-        pack[5] += cyc_rank[i] * rops[i]
-    pack[6:12] = cops
-    pack[12:21] = rops
-    pack[21] = 1 if bad else 0
-    pack[h:h + m] = order
-    pack[h + m:h + 2 * m] = gof
+    pack[:m] = order
+    pack[m:2 * m] = gof
     for q in range(m):
-        pack[h + 2 * m + q] = d[order[q]]
-    pack[h + 3 * m:o_words] = d
+        pack[2 * m + q] = d[order[q]]
+    pack[3 * m:o_words] = d
     fwp = pack[o_words:o_cand]                                    # blob-major [count, 12]
     for i in range(12):
         fwp[i::12] = words[i]
@@ -162,24 +174,24 @@ class BackendResult:
 
     @property
     def order(self):
-        return self.pack[PACK_HEAD:PACK_HEAD + self.m]
+        return self.pack[:self.m]
 
     @property
     def gof_words(self):
-        return self.pack[PACK_HEAD + self.m:PACK_HEAD + 2 * self.m]
+        return self.pack[self.m:2 * self.m]
 
     @property
     def distance_words(self):
-        return self.pack[PACK_HEAD + 2 * self.m:PACK_HEAD + 3 * self.m]
+        return self.pack[2 * self.m:3 * self.m]
 
     @property
     def all_distance_words(self):
-        o = PACK_HEAD + 3 * self.m
+        o = 3 * self.m
         return self.pack[o:o + self.count]
 
     @property
     def feature_words(self):
-        o = PACK_HEAD + 3 * self.m + self.count
+        o = 3 * self.m + self.count
         return self.pack[o:o + 12 * self.count].reshape(self.count, 12)
 
     @property
@@ -200,32 +212,45 @@ def candidate_table(pack, count: int, m: int) -> np.ndarray:
     """The candidate table of a :func:`backend_k` pack with ``count`` blobs and ``m`` reported
     candidates: CANDIDATE_DTYPE [m], a view of the pack (decoded exactly), best first."""
     # ``np.ndarray`` on the buffer: 0.2 us, a sliced .view 0.65
-    return np.ndarray((m,), CANDIDATE_DTYPE, pack, 8 * (PACK_HEAD + 3 * m + 13 * count))
+    return np.ndarray((m,), CANDIDATE_DTYPE, pack, 8 * (3 * m + 13 * count))
 
 
 def backend_params(record, diagonal: bool, intensity: bool, want_labels: bool, compaction: int,
                    imager: str, max_candidates: int) -> np.ndarray:
-    """The back end's parameter words int64 [10] (:func:`backend_k`'s ``prm``): the flags, the
-    normalisation words of (compaction, imager), the record's quantisation flag and GOF threshold
-    word, and the candidate limit (1..1000; ValueError otherwise)."""
+    """The back end's parameters, :data:`BACKEND_PARAMS` [1] (:func:`backend_k`'s ``params``): the
+    flags, the normalisation words of (compaction, imager), the record's quantisation flag, GOF
+    threshold word and words, and the candidate limit (1..1000; ValueError otherwise)."""
     area, lin, fw = norm_consts(compaction, imager)
     if isinstance(max_candidates, bool) or not isinstance(max_candidates, (int, np.integer)) \
             or not 1 <= max_candidates <= 1000:
         raise ValueError(f"max_candidates={max_candidates!r} must be an int in 1..1000")
-    return np.array((diagonal, intensity, want_labels, area, lin, fw, record.quantize,
-                     enc32(record.gof_threshold), int(max_candidates), 0), np.int64)
+    params = np.zeros(1, BACKEND_PARAMS)
+    p = params[0]
+    p["diagonal"], p["intensity"], p["want_labels"] = diagonal, intensity, want_labels
+    p["area"], p["lin"], p["fw"] = area, lin, fw
+    p["quantize"], p["gof_threshold"] = record.quantize, enc32(record.gof_threshold)
+    p["max_out"], p["record"] = int(max_candidates), record_words(record)
+    return params
 
 
-def result_from_pack(labels, pack, ledger=None) -> BackendResult:
-    """BackendResult of a kernel's (labels, pack), with the 16-bit range check and the back end's
-    cycles charged to ``ledger``."""
-    head = pack[:PACK_HEAD].tolist()
-    if head[21]:
+def with_labels(params: np.ndarray, want_labels: bool) -> np.ndarray:
+    """A copy of the :data:`BACKEND_PARAMS` ``params`` with ``want_labels`` set."""
+    out = params.copy()
+    out[0]["want_labels"] = bool(want_labels)
+    return out
+
+
+def result_from_head(labels, pack, header, ledger=None) -> BackendResult:
+    """BackendResult of a kernel's (labels, pack) and the frame header it wrote
+    (:data:`flightsw.ip.frame_header.FRAME_HEADER` [1]), with the 16-bit range check and the back
+    end's cycles charged to ``ledger``."""
+    hd = header_of(header.view(np.int64))
+    if hd.bad:
         raise ValueError("window holds values outside the 16-bit word range -32768..65535")
-    cycles = tuple(head[3:6])
+    cycles = (hd.cyc_colour, hd.cyc_features, hd.cyc_rank)
     if ledger is not None:
         ledger.charge_many(k + (c,) for k, c in zip(BACK_KEYS, cycles))
-    return BackendResult(labels, pack, head[0], head[1], head[2], cycles)
+    return BackendResult(labels, pack, hd.count, hd.m, hd.flags, cycles)
 
 
 def _window_array(window):
@@ -248,11 +273,15 @@ def _mean_words(centroid_mean):
             from None
 
 
-def backend(window, record, diagonal: bool = True, intensity_centroid: bool = True,
+def backend(window, record, *, diagonal: bool = True, intensity_centroid: bool = True,
             compaction: int = 1, window_origin=(0, 0), imager: str = "wfov_vis",
             centroid_mean=None, ledger: Ledger | None = None, want_labels: bool = True,
             max_candidates: int = MAX_CANDIDATES) -> BackendResult:
     """IP steps 6-8 on a thresholded (binary or clipped) window.
+
+    A public convenience whose keyword-only options are the reason for its nine more
+    parameters (each is one of the uplink's flags or the window's geometry; the compiled stage
+    :func:`backend_k` takes them as two records).
 
     Parameters
     ----------
@@ -288,8 +317,11 @@ def backend(window, record, diagonal: bool = True, intensity_centroid: bool = Tr
         r0w, c0w = enc32(float(r0)), enc32(float(c0))
     except (TypeError, ValueError):
         raise ValueError(f"window_origin={window_origin!r} must be (row0, col0) numbers") from None
-    override, mr, mc = _mean_words(centroid_mean)
-    prm = backend_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
+    header, _ = new_header()
+    h = header[0]
+    h["override"], h["mean_row"], h["mean_col"] = _mean_words(centroid_mean)
+    h["r0w"], h["c0w"] = r0w, c0w
+    params = backend_params(record, bool(diagonal), bool(intensity_centroid), bool(want_labels),
                          compaction, imager, max_candidates)
-    labels, pack = backend_k(img, record_words(record), prm, r0w, c0w, mr, mc, override)
-    return result_from_pack(labels, pack, ledger)
+    labels, pack = backend_k(img, params, header)
+    return result_from_head(labels, pack, header, ledger)

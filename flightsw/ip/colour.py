@@ -77,6 +77,9 @@ COLOUR_MIX = {
     "fold": {"L": 2 + NSUM, "A": 2 * 9 + 4 * 3, "ST": NSUM, "C": 1, "JC": 2},
 }
 _EVENTS = ("pixel", "on_pixel", "new_colour", "merge", "find_step", "fold")
+#: the event counts' names as indices into :func:`colour_k`'s counts (the order of ``_EVENTS``
+#: and :data:`OP_CYCLES`: the counts are a vector the cycle costs are dotted with)
+EV_PIXEL, EV_ON_PIXEL, EV_NEW_COLOUR, EV_MERGE, EV_FIND_STEP, EV_FOLD = range(len(_EVENTS))
 
 
 def colour_cycles(ops) -> int:
@@ -165,11 +168,11 @@ def _accumulate(psums, k, v, r, c):
 
 
 @njit(cache=True, inline="always")
-def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
+def _flush(psums, k, r, run):
     """Add a run (row r) of colour k to its sums.
 
-    ``psums``: int64 [>= k + 1, NSUM]; ``cnt``, ``sv``, ``svc``, ``svcc``, ``sc``, ``scc``,
-    ``vmax``: the run's count, sum I, sum I c, sum I c^2, sum c, sum c^2 and max I.
+    ``psums``: int64 [>= k + 1, NSUM]; ``run`` = (``cnt``, ``sv``, ``svc``, ``svcc``, ``sc``,
+    ``scc``, ``vmax``): the run's count, sum I, sum I c, sum I c^2, sum c, sum c^2 and max I.
 
     Cases
     -----
@@ -177,6 +180,7 @@ def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
     first-max : the colour's first run sets max I whatever its sign.
     max : a later run replaces max I only when larger.
     """
+    cnt, sv, svc, svcc, sc, scc, vmax = run
     first = psums[k, _N] == 0
     psums[k, _N] += cnt
     psums[k, _S] += sv
@@ -195,11 +199,11 @@ def _flush(psums, k, r, cnt, sv, svc, svcc, sc, scc, vmax):
 
 
 @njit(cache=True)
-def _scan_pixels(img, diagonal, raw, parent, run_r, run_a, run_b):
+def _scan_pixels(img, diagonal, prov, parent, run_r, run_a, run_b):
     """The raster scan, pixel by pixel (any width). Returns (ncol, nrun, n_on, n_merge, n_steps,
     bad) with ``bad`` set when a pixel is outside the 16-bit word range -32768..65535.
 
-    ``img``: integer [H, W]; ``raw``: int32 [H + 1, W + 2] zeroed provisional colours; ``parent``:
+    ``img``: integer [H, W]; ``prov``: int32 [H + 1, W + 2] zeroed provisional colours; ``parent``:
     int32 colour array; ``run_r``, ``run_a``, ``run_b``: int32 run lists (row, first, one past).
 
     Cases
@@ -222,8 +226,8 @@ def _scan_pixels(img, diagonal, raw, parent, run_r, run_a, run_b):
     n_steps = 0
     ncol = 0
     for r in range(H):
-        up_row = raw[r]
-        row = raw[r + 1]
+        up_row = prov[r]
+        row = prov[r + 1]
         src = img[r]
         c = 0
         while c < W:
@@ -320,15 +324,15 @@ def _colour_at(U, S, srow, x):
 
 
 @njit(cache=True)
-def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
+def _scan_masks(img, diagonal, prov, parent, run_r, run_a, run_b):
     """The same raster scan for windows up to 64 columns, a row at a time through its on-pixel
     bitmask: the runs come from the mask (trailing-zero counts), the first pixel of a run gets the
     full case statement, the rest of the run only the merge cases, looked up where the mask of the
     row above says they can occur (diagonal: upper pixel off and upper-right on, n = 9/13; without
     diagonals: upper pixel on, n = 10) -- the same pixels, in the same order, as
     :func:`_scan_pixels` (the host needs fewer unpredictable branches; the events are identical).
-    A run holds one provisional colour (its first pixel's), so ``raw`` keeps it only at the run's
-    first pixel and the row above is read through its masks (:func:`_colour_at`); ``raw`` need not
+    A run holds one provisional colour (its first pixel's), so ``prov`` keeps it only at the run's
+    first pixel and the row above is read through its masks (:func:`_colour_at`); ``prov`` need not
     be cleared (only column 0, the "no run" slot, which this function zeroes).
     Returns (ncol, nrun, n_on, n_merge, n_steps, bad).
 
@@ -350,14 +354,14 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
     one = np.uint64(1)
     U = np.uint64(0)                  # the row above: on mask, run-start mask
     S = np.uint64(0)
-    raw[0, 0] = 0
+    prov[0, 0] = 0
     for r in range(H):
         # most rows of a thresholded window are all off: an OR over the row (vectorised, no row
         # views: their reference counts cost more than the test) finds them, mask 0, no run
         anyon = np.int64(0)
         for c in range(W):
             anyon |= np.int64(img[r, c])
-        raw[r + 1, 0] = 0
+        prov[r + 1, 0] = 0
         if anyon == 0:
             U = np.uint64(0)
             S = np.uint64(0)
@@ -369,8 +373,8 @@ def _scan_masks(img, diagonal, raw, parent, run_r, run_a, run_b):
             M |= np.uint64(v != 0) << np.uint64(c)
             bad |= (v < -32768) | (v > 65535)
         Mrow = M
-        up_row = raw[r]
-        row = raw[r + 1]
+        up_row = prov[r]
+        row = prov[r + 1]
         while M != 0:
             s = np.int64(trailing_zeros(M))
             rest = ~(M >> np.uint64(s))
@@ -474,17 +478,17 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
     H, W = img.shape
     # provisional colours, with a zero border: row 0 above the first row, columns 0 and W + 1
     # beside the first and last columns (the paper's special cases: those neighbours are off)
-    raw = np.empty((H + 1, W + 2), np.int32) if W <= 64 else np.zeros((H + 1, W + 2), np.int32)
+    prov = np.empty((H + 1, W + 2), np.int32) if W <= 64 else np.zeros((H + 1, W + 2), np.int32)
     cap = (H * W + 1) // 2 + 2                   # most colours a window can need (checkerboard)
     rcap = H * ((W + 1) // 2) + 1                # most runs a window can hold
     work = np.empty((4, max(cap, rcap)), np.int32)    # one allocation for:
     parent = work[0]                             # the intermediate colour array
     run_r, run_a, run_b = work[1], work[2], work[3]   # the runs: row, first, one-past-last column
     if W <= 64:
-        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_masks(img, diagonal, raw, parent, run_r,
+        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_masks(img, diagonal, prov, parent, run_r,
                                                               run_a, run_b)
     else:
-        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_pixels(img, diagonal, raw, parent, run_r,
+        ncol, nrun, n_on, n_merge, n_steps, bad = _scan_pixels(img, diagonal, prov, parent, run_r,
                                                                run_a, run_b)
     # ---- end of scan: resolve the colour array, number blobs in order of their first pixel ----
     final = np.zeros(ncol + 1, np.int32)
@@ -498,19 +502,19 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
         else:
             final[k] = final[root]
     ops = np.zeros(6, np.int64)
-    ops[0] = H * W
-    ops[1] = n_on
-    ops[2] = ncol
-    ops[3] = n_merge
-    ops[4] = n_steps
-    ops[5] = ncol
+    ops[EV_PIXEL] = H * W
+    ops[EV_ON_PIXEL] = n_on
+    ops[EV_NEW_COLOUR] = ncol
+    ops[EV_MERGE] = n_merge
+    ops[EV_FIND_STEP] = n_steps
+    ops[EV_FOLD] = ncol
     # ---- the sums and the labels, per run (one final colour each) ----
     sums = np.zeros((nblob + 1, NSUM), np.int64)
     for q in range(nrun):
         r = run_r[q]
         c0 = run_a[q]
         c1 = run_b[q]
-        f = final[raw[r + 1, c0 + 1]]
+        f = final[prov[r + 1, c0 + 1]]
         if want_sums:
             src = img[r]
             sv = np.int64(0)
@@ -529,14 +533,14 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
             # sum c and sum c^2 over c0..c1-1 (closed forms of the same integers)
             sc = (np.int64(c1) * (c1 - 1) - np.int64(c0) * (c0 - 1)) // 2
             scc = (np.int64(c1 - 1) * c1 * (2 * c1 - 1) - np.int64(c0 - 1) * c0 * (2 * c0 - 1)) // 6
-            _flush(sums, f, r, cnt, sv, svc, svcc, sc, scc, vmax)
+            _flush(sums, f, r, (cnt, sv, svc, svcc, sc, scc, vmax))
     # the label image in a loop of its own: its int32 stores inside the sums loop would keep the
     # compiler from holding the sums in registers (they might alias; measured 8.3 vs 4.6 us)
     labels = np.zeros((H, W) if want_labels else (0, 0), np.int32)
     if want_labels:
         for q in range(nrun):
             r = run_r[q]
-            f = final[raw[r + 1, run_a[q] + 1]]
+            f = final[prov[r + 1, run_a[q] + 1]]
             lrow = labels[r]
             for c in range(run_a[q], run_b[q]):
                 lrow[c] = f

@@ -193,6 +193,40 @@ class FFTKernel:
         return int(self.taps.shape[0])
 
 
+#: An FFT filter's constants, one record (:func:`fft_spec`) :func:`fft_correlate_k` reads by
+#: field: the :class:`FFTKernel`'s words and the ground's error model (float64: the bound is a
+#: ground product, not a flight word).
+FFT_SPEC = np.dtype([
+    ("tile", np.int64),      # T, the FFT size (16, 32 or 64)
+    ("size", np.int64),      # k, the odd kernel size
+    ("ek", np.int64),        # the spectrum's exponent: K_exact = Kq * 2**(ek - 15)
+    ("ksum", np.int64),      # sum of the taps (Q1.15 words)
+    ("use_mean", np.int64),  # 1: remove the window's DC level first (step 1)
+    ("kmax", np.float64),    # max |Kq|, words (error model)
+    ("k2mean", np.float64),  # mean |Kq|**2, words**2 (error model)
+    ("dk", np.float64),      # max |Kq - K_exact 2**(15 - ek)|, words (error model)
+    ("dw", np.float64),      # the twiddle table's error, words (error model)
+])
+
+#: One tile's block exponents (:func:`fft_correlate_k`), bits: the result is the tile's
+#: correlation times ``2**D``.
+TILE_INFO = np.dtype([
+    ("forward_shifts", np.int64),   # the forward row and column passes' shifts
+    ("product_shift", np.int64),    # the shift before the product with the spectrum
+    ("inverse_shifts", np.int64),   # the inverse passes' shifts
+    ("D", np.int64),                # the tile's total exponent
+])
+
+
+def fft_spec(kern: "FFTKernel", dw: float, use_mean: bool = True) -> np.ndarray:
+    """:data:`FFT_SPEC` [1] of a prepared kernel, the twiddle table's error ``dw`` and the DC
+    removal's switch."""
+    out = np.zeros(1, FFT_SPEC)
+    out[0] = (kern.tile, kern.size, kern.ek, kern.ksum, bool(use_mean), kern.kmax, kern.k2mean,
+              kern.dk, dw)
+    return out
+
+
 def fft_kernel(taps, tile):
     """Prepare ``taps`` (odd k x k Q1.15 words) for T = ``tile``: the conjugate DFT of the kernel
     zero-padded to T x T (correlation), quantised to Q1.15 words with the smallest exponent ``ek``
@@ -303,15 +337,17 @@ def _rnd15(a):
 
 
 @njit(cache=True)
-def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
+def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     """Radix-2 DIT FFT along axis 1 of rows 0..nv-1 (stage by stage over the whole block, one block
-    exponent). ``bl``: bit length of the block's largest magnitude on entry; ``E``: the L2 error
-    bound, ``Vv``: the statistical error energy (module docstring). Returns (bl, E, Vv, shifts)
-    after the pass; ``log`` [nstages, 3] receives (n, bl, sh) per stage.
+    exponent). ``state`` = (bl, E, Vv): ``bl`` the bit length of the block's largest magnitude on
+    entry, ``E`` the L2 error bound, ``Vv`` the statistical error energy (module docstring).
+    Returns (bl, E, Vv, shifts) after the pass; ``log`` [nstages, 3] receives (n, bl, sh) per
+    stage.
 
     ``re``, ``im``: int64 [T, T] rows of complex words, transformed in place (natural order out);
-    ``brev``: int64 [T] bit-reversal table; ``twc``, ``tws``: int64 [T/2] Q1.15 twiddle words;
-    ``dw``: the twiddle table's error. The result times ``2**shifts`` is the DFT.
+    ``spec``: :data:`FFT_SPEC` [1] (its ``tile`` T and ``dw``, the twiddle table's error);
+    ``tables`` = (``brev`` int64 [T] bit-reversal table, ``twc``, ``tws`` int64 [T/2] Q1.15
+    twiddle words). The result times ``2**shifts`` is the DFT.
 
     Cases
     -----
@@ -321,6 +357,10 @@ def _row_pass(re, im, nv, T, brev, twc, tws, inverse, bl, E, Vv, dw, log):
     block-shift : wider inputs -> each stage shifts by ``bitlen - 13`` (``log`` records it).
     partial-rows : ``nv < T`` -> rows ``nv..`` untouched.
     """
+    sp = spec[0]
+    T, dw = sp.tile, sp.dw
+    brev, twc, tws = tables
+    bl, E, Vv = state
     tmp_r = np.empty(T, np.int64)
     tmp_i = np.empty(T, np.int64)
     for r in range(nv):
@@ -492,16 +532,14 @@ def _store_tile(re, vr, vc, D, mk, out, r0, c0):
 
 
 @njit(cache=True)
-def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, tws, dw,
-                     use_mean):
+def fft_correlate_k(img, spec, kr, ki, brev, twc, tws):
     """The whole frequency path on an int16 window (module docstring). Returns (out int16 [h, w],
-    bounds float64 [nti, ntj], info int64 [nti, ntj, 4] = (forward shifts, product shift, inverse
-    shifts, D), m).
+    bounds float64 [nti, ntj], rms float64 [nti, ntj] (the predicted RMS), info
+    :data:`TILE_INFO` [nti, ntj], m (the DC level removed)).
 
-    ``img``: int16 [h, w] (Q16.0); ``T``: tile size; ``kk``: odd kernel size; ``kr``, ``ki``,
-    ``ek``, ``kmax``, ``k2mean``, ``dk``, ``ksum``: the :class:`FFTKernel` fields; ``brev``,
-    ``twc``, ``tws``, ``dw``: the tables; ``use_mean``: the DC removal. Also returns ``rms
-    float64 [nti, ntj]`` (the predicted RMS) before ``info``.
+    ``img``: int16 [h, w] (Q16.0); ``spec``: :data:`FFT_SPEC` [1], the kernel's constants and the
+    DC removal's switch; ``kr``, ``ki``: int64 [T, T] the spectrum words (:class:`FFTKernel`);
+    ``brev``: int64 [T] bit reversal; ``twc``, ``tws``: int64 [T/2] Q1.15 twiddle words.
 
     Cases
     -----
@@ -517,6 +555,11 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
     fine-exponent : ``D + 15 < 0`` (a kernel of tiny taps) -> ``m sum(k)`` is shifted left to the
         sum's scale instead; still within the bound.
     """
+    sp = spec[0]
+    T, kk, ek, ksum = sp.tile, sp.size, sp.ek, sp.ksum
+    kmax, k2mean, dk = sp.kmax, sp.k2mean, sp.dk
+    use_mean = sp.use_mean != 0
+    tables = (brev, twc, tws)
     h, w = img.shape
     p = kk // 2
     V = T - kk + 1
@@ -532,7 +575,7 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
     out = np.empty((h, w), np.int16)
     bounds = np.zeros((nti, ntj))
     rmsp = np.zeros((nti, ntj))
-    info = np.zeros((nti, ntj, 4), np.int64)
+    info = np.zeros((nti, ntj), TILE_INFO)
     re = np.zeros((T, T), np.int64)
     im = np.zeros((T, T), np.int64)
     mk = m * ksum
@@ -556,11 +599,10 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
             bl = _block_bitlen(re, im, rows_data, T)
             E = 0.0
             Vv = 0.0
-            bl, E, Vv, sf1 = _row_pass(re, im, rows_data, T, brev, twc, tws, False, bl, E, Vv, dw,
-                                        log)
+            bl, E, Vv, sf1 = _row_pass(re, im, rows_data, spec, tables, False, (bl, E, Vv), log)
             re = _transpose(re, T)
             im = _transpose(im, T)
-            bl, E, Vv, sf2 = _row_pass(re, im, T, T, brev, twc, tws, False, bl, E, Vv, dw, log)
+            bl, E, Vv, sf2 = _row_pass(re, im, T, spec, tables, False, (bl, E, Vv), log)
             # ---- product with the kernel spectrum (column-pass layout: kr, ki transposed) ----
             shm = max(0, bl - 14)
             orv = np.int64(0)
@@ -586,18 +628,19 @@ def fft_correlate_k(img, T, kk, kr, ki, ek, kmax, k2mean, dk, ksum, brev, twc, t
             # ---- inverse FFT: all columns, then the valid rows ----
             vr = min(V, h - ti * V)
             vc = min(V, w - tj * V)
-            bl, E, Vv, si1 = _row_pass(re, im, T, T, brev, twc, tws, True, bl, E, Vv, dw, log)
+            bl, E, Vv, si1 = _row_pass(re, im, T, spec, tables, True, (bl, E, Vv), log)
             re = _transpose(re, T)
             im = _transpose(im, T)
-            bl, E, Vv, si2 = _row_pass(re, im, vr, T, brev, twc, tws, True, bl, E, Vv, dw, log)
+            bl, E, Vv, si2 = _row_pass(re, im, vr, spec, tables, True, (bl, E, Vv), log)
             D = sf1 + sf2 + shm + ek + si1 + si2 - 2 * logT
             _store_tile(re, vr, vc, D, mk, out, ti * V, tj * V)
             bounds[ti, tj] = E * 2.0 ** D + 0.5
             rmsp[ti, tj] = math.sqrt(Vv * 4.0 ** D / (2.0 * T * T) + 1.0 / 12.0)
-            info[ti, tj, 0] = sf1 + sf2
-            info[ti, tj, 1] = shm
-            info[ti, tj, 2] = si1 + si2
-            info[ti, tj, 3] = D
+            ti_info = info[ti, tj]
+            ti_info.forward_shifts = sf1 + sf2
+            ti_info.product_shift = shm
+            ti_info.inverse_shifts = si1 + si2
+            ti_info.D = D
     return out, bounds, rmsp, info, m
 
 
@@ -644,9 +687,8 @@ def fft_correlate(img, taps, tile=None, ledger=None, stage=None, return_info=Fal
     T = kern.tile
     k = kern.size
     c, s, dw = twiddles_q15(T)
-    out, bounds, rmsp, info, m = fft_correlate_k(img, T, k, kern.kr, kern.ki, kern.ek, kern.kmax,
-                                                  kern.k2mean, kern.dk, kern.ksum, bitrev(T), c,
-                                                  s, dw, bool(remove_mean))
+    out, bounds, rmsp, info, m = fft_correlate_k(img, fft_spec(kern, dw, remove_mean), kern.kr,
+                                                  kern.ki, bitrev(T), c, s)
     h, w = img.shape
     cyc = fft_filter_cycles(h, w, k, T)
     if ledger is not None:
@@ -659,8 +701,9 @@ def fft_correlate(img, taps, tile=None, ledger=None, stage=None, return_info=Fal
     rms = (bounds - 0.5) / np.sqrt(npx) + 0.5
     return out, {"bounds": bounds, "bound": float(bounds.max()), "rms_bounds": rms,
                  "rms_predicted": rmsp,
-                 "tile": T, "valid": V, "forward_shifts": info[..., 0], "product_shift": info[..., 1],
-                 "inverse_shifts": info[..., 2], "D": info[..., 3], "mean": int(m),
+                 "tile": T, "valid": V, "forward_shifts": info["forward_shifts"],
+                 "product_shift": info["product_shift"], "inverse_shifts": info["inverse_shifts"],
+                 "D": info["D"], "mean": int(m),
                  "ek": kern.ek, "cycles": cyc}
 
 

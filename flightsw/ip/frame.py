@@ -2,6 +2,17 @@
 (:mod:`flightsw.ip.pipeline`): :func:`process_frame` for a frame, :func:`process_window` for a
 window the caller cut. The flight module is :class:`flightsw.ip.ImageProcessor`; the back end alone
 is :func:`flightsw.ip.backend.backend`.
+
+Every way of running a frame runs the same two kernels on a plan's frame header
+(:data:`flightsw.ip.frame_header.FRAME_HEADER`): :func:`flightsw.ip.pipeline.place_window_k`
+places the window about the prediction and :func:`flightsw.ip.pipeline.ip_frame_into_k` runs the
+pipeline. :meth:`flightsw.ip.ImageProcessor.step` calls them inside its one compiled step (with the
+command read, the message and the alpha logic); :func:`process_frame` through
+:meth:`flightsw.ip.pipeline.FramePlan.run` on a kept plan (:func:`flightsw.ip.pipeline.plan_for`:
+no processor is built per call); :func:`process_window` skips the placement (the caller cut the
+window). The ground's full-frame detector (:mod:`hil_harness.detect`) takes its header and the
+back end's parameters from the same plan and runs the same stage kernels, the window union its
+one added step.
 """
 from __future__ import annotations
 
@@ -91,6 +102,9 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
     want_stages : bool
         Keep the stage images (False: only the message; the label image is not formed).
 
+    Its keyword-only options are the reason for its 11 parameters (the message header's values
+    and the ground's overrides; the compiled pipeline takes its inputs as records).
+
     Returns
     -------
     FrameResult (iterates as ``message, stages, ledger``)
@@ -114,16 +128,15 @@ def process_frame(frame, sequence, record, feedback: Feedback | None = None, *,
 
 
 def process_window(sub: Subimage, sequence, record, centroid_mean=None, *,
-                   ledger: Ledger | None = None, imager: str = "wfov_vis", frame_count: int = 0,
-                   time_tag: float = 0.0, alpha_q12: int | None = None, want_stages: bool = True,
-                   max_candidates: int | None = None) -> FrameResult:
+                   imager: str = "wfov_vis", **options) -> FrameResult:
     """The part of :func:`process_frame` after the preprocessor, on a given ``Subimage`` ``sub``
     (the ground's full-frame mode cuts its own windows). ``centroid_mean`` (full-res (row, col))
-    replaces the record's centroid means; None: the window centre."""
+    replaces the record's centroid means; None: the window centre. ``options``: the keywords of
+    :meth:`flightsw.ip.pipeline.FramePlan.run_window` (``alpha_q12``, ``ledger``,
+    ``frame_count``, ``time_tag``, ``want_stages`` (default True here), ``max_candidates``)."""
     _check_objects(sequence, record)
-    check_inputs(alpha_q12, float(time_tag))
+    check_inputs(options.get("alpha_q12"), float(options.get("time_tag", 0.0)))
     if not isinstance(sub, Subimage):
         raise ValueError(f"sub must be a flightsw.ip.preprocess.Subimage, got {type(sub).__name__}")
-    return plan_for(sequence, record, imager).run_window(
-        sub, centroid_mean, alpha_q12=alpha_q12, ledger=ledger, frame_count=frame_count,
-        time_tag=time_tag, want_stages=want_stages, max_candidates=max_candidates)
+    options.setdefault("want_stages", True)
+    return plan_for(sequence, record, imager).run_window(sub, centroid_mean, **options)

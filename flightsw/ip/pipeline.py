@@ -4,23 +4,28 @@ The MSX paper's Image Processing section in order: the preprocessor board compac
 cuts the window about the TP's prediction (step 1); the DSP runs the uplinked sequence's front-end
 steps (spatial or frequency filters, detrenders, the threshold; steps 2-5); the 1750A colours the
 blobs, computes and normalises the features and ranks them against the a priori record (steps 6-8).
-:func:`ip_frame_k` runs all of it in one jitted call. The stage images of the paper's Figure 3
-(the window, every front-end step's output, the colour and rank images) are an output option of the
-same call (``want_stages``), not a second implementation.
+:func:`ip_frame_into_k` runs all of it in one jitted call on the window :func:`place_window_k`
+placed. The stage images of the paper's Figure 3 (the window, every front-end step's output, the
+colour and rank images) are an output option of the same call (stage arrays given or empty), not a
+second implementation.
 
 A :class:`FramePlan` holds what does not change from frame to frame for one (sequence, record,
-imager): the front-end steps as arrays, the back end's parameter words, the record's words, the
-ledger keys and the static cycles. The :class:`flightsw.ip.ImageProcessor` owns its plan and builds
+imager): the front-end steps as arrays, the back end's parameters
+(:data:`flightsw.ip.backend.BACKEND_PARAMS`), the frame header with the plan's fields filled
+(:data:`flightsw.ip.frame_header.FRAME_HEADER`: the kernels place each frame's window in it and
+write the frame's words to it), the ledger keys and the static cycles. The :class:`flightsw.ip.ImageProcessor` owns its plan and builds
 a new one when an uplink changes the sequence or the record; :func:`plan_for` keeps a few plans for
 the one-frame conveniences (:func:`flightsw.ip.process_frame`).
 """
 from __future__ import annotations
 
+import math
 from typing import NamedTuple
 
 import numpy as np
 from numba import njit
 
+from flightsw.arith.m1750_float import encode_k
 from flightsw.budget import IP1750, Ledger
 from flightsw.ip import detrend as dt
 from flightsw.ip import fftfilter as fft
@@ -28,16 +33,17 @@ from flightsw.ip import filters as flt
 from flightsw.ip import threshold as th
 from flightsw.ip.backend import (BACK_KEYS, BackendResult, backend_k, backend_params,
                                  candidate_table, enc32)
-from flightsw.ip.preprocess import Subimage, compact_k, window_origin
+from flightsw.ip.frame_header import FRAME_HEADER, header_of, new_header
+from flightsw.ip.preprocess import Subimage, compact_k, window_origin_k
 from flightsw.ip.rank import record_words
 from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, DetrendParams,
                                   FeatureParams, FilterFFTParams, FilterParams, ProcessingSequence,
                                   RankParams, Stage, ThresholdParams)
 from flightsw.messages import IMAGER_CODES, CandidateMessage
 
-__all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "ip_frame_k",
-           "ip_frame_into_k", "plan_for", "step_words", "OP_FILTER", "OP_HIGHPASS", "OP_NONE",
-           "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
+__all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "place_window_k",
+           "ip_frame_at_k", "ip_frame_into_k", "FRAME_HEADER", "plan_for", "step_words",
+           "OP_FILTER", "OP_HIGHPASS", "OP_NONE", "OP_THRESHOLD", "OP_FFT", "OP_POLY"]
 
 #: front-end op codes (:attr:`FrontOps.ops`)
 OP_FILTER, OP_HIGHPASS, OP_NONE, OP_THRESHOLD, OP_FFT, OP_POLY = 1, 2, 3, 4, 5, 6
@@ -58,8 +64,7 @@ class FrontOps(NamedTuple):
 class FFTTables(NamedTuple):
     """The frequency filters of a sequence (m of them; see :mod:`flightsw.ip.fftfilter`)."""
 
-    ints: np.ndarray    #: int64 [m, 4]: tile T, kernel size k, spectrum exponent ek, sum of taps
-    floats: np.ndarray  #: float64 [m, 4]: kmax, k2mean, dk, dw (the ground's error model)
+    spec: np.ndarray    #: :data:`flightsw.ip.fftfilter.FFT_SPEC` [m], each with the DC removal on
     kr: np.ndarray      #: int64 [m, T*T]: spectrum words, real, transposed and flattened
     ki: np.ndarray      #: int64 [m, T*T]: imaginary
     brev: np.ndarray    #: int64 [m, 64]: bit reversal of T
@@ -113,15 +118,13 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
             out = img
         else:
             j = front.fft[i]
-            T, kk, ek, ksum = ffts.ints[j, 0], ffts.ints[j, 1], ffts.ints[j, 2], ffts.ints[j, 3]
+            spec = ffts.spec[j:j + 1]
+            T = spec[0].tile
             kr = np.ascontiguousarray(ffts.kr[j, :T * T]).reshape((T, T))
             ki = np.ascontiguousarray(ffts.ki[j, :T * T]).reshape((T, T))
-            out = fft.fft_correlate_k(img, T, kk, kr, ki, ek, ffts.floats[j, 0],
-                                      ffts.floats[j, 1], ffts.floats[j, 2], ksum,
-                                      np.ascontiguousarray(ffts.brev[j, :T]),
+            out = fft.fft_correlate_k(img, spec, kr, ki, np.ascontiguousarray(ffts.brev[j, :T]),
                                       np.ascontiguousarray(ffts.twc[j, :T // 2]),
-                                      np.ascontiguousarray(ffts.tws[j, :T // 2]),
-                                      ffts.floats[j, 3], True)[0]
+                                      np.ascontiguousarray(ffts.tws[j, :T // 2]))[0]
     elif op == OP_POLY:
         if poly is None:                    # a plan without the polynomial detrender: not compiled
             out = img
@@ -133,93 +136,114 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
 
 
 @njit(cache=True)
-def ip_frame_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w, mean_row,
-               mean_col, want_stages):
-    """One frame through the image processor (:func:`ip_frame_into_k` with the stage arrays made
-    here).
+def place_window_k(header, pr, pc):
+    """Place the frame's window about the TP's predicted full-resolution pixel (``pr``, ``pc``;
+    NaN: none) in ``header`` (:data:`FRAME_HEADER` [1]): reads the plan's ``rows``, ``cols``,
+    ``win_rows``, ``win_cols``, ``compaction``; writes ``r0``, ``c0`` (compacted pixels), ``o0``,
+    ``o1`` (full resolution), their 1750A words ``r0w``, ``c0w``, and the centroid means
+    ``mean_row``, ``mean_col`` (1750A words of the prediction, or of the window centre without
+    one; ``override`` 1).
+
+    Cases
+    -----
+    prediction : a prediction -> :func:`flightsw.ip.preprocess.window_origin_k`'s origin, the
+        means the prediction.
+    no-prediction : ``pr`` NaN -> the window at the image centre, the means its centre.
+    """
+    hd = header[0]
+    f, h, w = hd.compaction, hd.win_rows, hd.win_cols
+    r0, c0 = window_origin_k(hd.rows, hd.cols, h, w, f, pr, pc)
+    o0, o1 = r0 * f, c0 * f
+    if math.isnan(pr):
+        pr, pc = o0 + h * f / 2.0, o1 + w * f / 2.0
+    hd.r0, hd.c0, hd.o0, hd.o1 = r0, c0, o0, o1
+    hd.r0w = encode_k(float(o0), np.int64(23), True)
+    hd.c0w = encode_k(float(o1), np.int64(23), True)
+    hd.mean_row = encode_k(pr, np.int64(23), True)
+    hd.mean_col = encode_k(pc, np.int64(23), True)
+    hd.override = 1
+
+
+@njit(cache=True)
+def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
+    """:func:`ip_frame_into_k` on the window :func:`place_window_k` places about ``pred``
+    (float64 [2]: the predicted full-resolution row and column, NaN: none): one frame of
+    :meth:`FramePlan.run`.
+
+    Cases
+    -----
+    typical : the window placed as :func:`flightsw.ip.step.ip_step_k` places it, then the same
+        pipeline.
+    """
+    place_window_k(header, pred[0], pred[1])
+    return ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst)
+
+
+@njit(cache=True)
+def ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst):
+    """One frame through the image processor.
 
     Parameters
     ----------
     src : integer [H, W]
-        The frame (12-bit counts; ``f``, ``r0``, ``c0``, ``h``, ``w`` cut the window: compaction
-        factor and window origin and shape in compacted pixels), or a window the caller cut
-        (``f = 1``, origin 0).
+        The frame (12-bit counts; the header's ``compaction``, ``r0``, ``c0``, ``win_rows``,
+        ``win_cols`` cut the window: compaction factor and window origin and shape in compacted
+        pixels), or a window the caller cut (``compaction`` 1, origin 0).
+    header : :data:`FRAME_HEADER` [1]
+        Reads the cut, ``alpha_q12`` and ``mode`` (the threshold's alpha, Q4.12, and mode) and the
+        back end's words (:func:`flightsw.ip.backend.backend_k`); writes the threshold's ``t4``,
+        ``mean4``, ``std4``, ``shift`` (0 without a threshold step) and the back end's counts.
     front, ffts, poly : FrontOps, FFTTables or None, PolyTables or None
         None when the sequence has no such step: numba then prunes (does not compile) the FFT or
         polynomial branch, which keeps a first run's compilation to the kernels the sequence uses
-    aq, mode : the threshold's alpha (Q4.12 word) and mode (``threshold.BINARIZE``/``CLIP``)
-    rec, prm, r0w, c0w, mean_row, mean_col : the back end's words (:func:`backend_k`; the centroid
-        means are always given: the TP's prediction or the window centre)
-    want_stages : bool
-        Also fill the stage images.
+    params : :data:`flightsw.ip.backend.BACKEND_PARAMS` [1]
+    fst, bst : the stage images, written here: int16 [n + 1, h, w] (the window and each front-end
+        step's output) and int32 [2, h, w] (labels, blobs numbered by rank), or both [0, h, w]
+        for none (the caller's arrays: nothing to box on return)
 
     Returns
     -------
-    (window int16 [h, w], pack (:func:`backend_k`), front stages int16 [n + 1, h, w] (the window
-    and each step's output; [0, h, w] without want_stages), back stages int32 [2, h, w] (labels,
-    blobs numbered by rank; [0, h, w] without), count, m, flags, colour, features and rank cycles,
-    the range flag, the threshold's t4, mean4, std4 and shift): a flat tuple, which boxes faster
-    than a header slice.
+    (window int16 [h, w], pack (:func:`flightsw.ip.backend.backend_k`))
 
     Cases
     -----
-    stages : ``want_stages`` -> the window and each front-end step's output are the stage kernels
-        composed in the sequence's order; the colour image is the labels.
-    no-stages : ``want_stages`` off -> empty [0, h, w] stage arrays, the same pack and words.
+    stages : given stage arrays -> the window and each front-end step's output are the stage
+        kernels composed in the sequence's order; the colour image is the labels.
+    no-stages : empty stage arrays -> nothing written, the same pack and header.
     threshold-words : a threshold step -> its t4, mean4, std4 and shift.
     no-threshold : no threshold step -> those words 0.
     no-steps : an empty front end -> the window goes to the back end as it is.
     rank-image : the rank stage numbers each reported blob's pixels by its rank (1 = best), 0
         elsewhere.
-    caller-window : a window the caller cut (``f = 1``, origin 0) -> the window stage is that
-        window, the rest as for a frame.
+    caller-window : a window the caller cut (``compaction`` 1, origin 0) -> the window stage is
+        that window, the rest as for a frame.
     no-blobs : nothing passes the threshold -> count 0, m 0, rank image all 0.
     """
-    n = front.ops.size
-    fst = np.empty((n + 1 if want_stages else 0, h, w), np.int16)
-    bst = np.empty((2 if want_stages else 0, h, w), np.int32)
-    return ip_frame_into_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w,
-                           mean_row, mean_col, fst, bst)
-
-
-@njit(cache=True)
-def ip_frame_into_k(src, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm, r0w, c0w,
-                    mean_row, mean_col, fst, bst):
-    """:func:`ip_frame_k` with the stage images written into the caller's ``fst`` int16
-    [n + 1, h, w] and ``bst`` int32 [2, h, w] (n front-end steps), or none with both empty
-    ([0, h, w]: ``want_stages`` off); returns the same tuple, ``fst`` and ``bst`` in it.
-    :func:`flightsw.ip.step.ip_step_k` passes arrays it was given (no stage arrays to box on
-    return).
-
-    Cases
-    -----
-    into : given stage arrays -> filled with :func:`ip_frame_k`'s stage images, the same pack.
-    empty : empty stage arrays -> nothing written, the same pack.
-    """
+    hd = header[0]
+    h, w = hd.win_rows, hd.win_cols
     want_stages = fst.shape[0] != 0
-    win = compact_k(src, f, r0, c0, h, w)
-    n = front.ops.size
+    win = compact_k(src, hd.compaction, hd.r0, hd.c0, h, w)
+    aq, mode = hd.alpha_q12, hd.mode
     img = win
     if want_stages:
         fst[0] = win
-    t4, m4, d4, sh = np.int64(0), np.int64(0), np.int64(0), np.int64(0)
-    for i in range(n):
+    hd.t4, hd.mean4, hd.std4, hd.shift = 0, 0, 0, 0
+    for i in range(front.ops.size):
         img, is_thr, a, b, c, d = front_step_k(img, i, front, ffts, poly, aq, mode)
         if is_thr:
-            t4, m4, d4, sh = a, b, c, d
+            hd.t4, hd.mean4, hd.std4, hd.shift = a, b, c, d
         if want_stages:
             fst[i + 1] = img
-    labels, pack = backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, np.int64(1))
+    labels, pack = backend_k(img, params, header)
     if want_stages:
         bst[0] = labels
-        lut = np.zeros(pack[0] + 1, np.int32)
-        for q in range(pack[1]):
-            lut[pack[22 + q] + 1] = q + 1                       # pack[22:]: order (PACK_HEAD)
+        lut = np.zeros(hd.count + 1, np.int32)
+        for q in range(hd.m):
+            lut[pack[q] + 1] = q + 1                            # pack[:m]: the order
         for r in range(h):
             for c in range(w):
                 bst[1, r, c] = lut[labels[r, c]]
-    return (win, pack, fst, bst, pack[0], pack[1], pack[2], pack[3], pack[4], pack[5], pack[21],
-            t4, m4, d4, sh)
+    return win, pack
 
 
 # ================================================================================================
@@ -248,20 +272,31 @@ class FrameResult:
     ~2.5 us a frame; the closed loop reads the message and the blob count, and saves the back end,
     context, subimage and stages). A caller's ledger is charged at once; the ledger made when
     none was given is made and charged when first read.
+
+    What it is made of (the fields): ``plan`` (:class:`FramePlan`), ``header``
+    (:class:`flightsw.ip.frame_header.FrameHeader`: the window, the threshold's words, the back
+    end's counts and cycles), ``pack`` (:func:`flightsw.ip.backend.backend_k`), ``fst``, ``bst``
+    (the stage arrays, empty without stages), ``window`` (the window image, its compacted origin,
+    factor and size: :class:`Subimage`'s fields), ``time_tag`` (s), ``front_cycles`` (the DSP's
+    cycles a front-end stage) and ``alpha_cycles`` (the alpha logic's, or None when the frame did
+    not run it).
     """
 
-    __slots__ = ("_plan", "_raw", "_ledger", "_message", "_stages", "_backend", "_subimage",
+    __slots__ = ("plan", "header", "pack", "fst", "bst", "window", "time_tag", "front_cycles",
+                 "alpha_cycles", "_ledger", "_message", "_stages", "_backend", "_subimage",
                  "_context")
 
-    def __init__(self, plan: "FramePlan", raw: tuple, ledger: Ledger | None):
-        #: raw: (pack, fst, bst, (window image, origin, factor, size), full-res origin, aq,
-        #: threshold words, front cycles, frame count, time tag, alpha cycles or None, the pack's
-        #: words 0-5 as ints)
-        self._plan, self._raw = plan, raw
+    def __init__(self, plan: "FramePlan", header, pack, stages: tuple, window: tuple,
+                 time_tag: float, cycles: tuple, ledger: Ledger | None):
+        """``stages``: (fst, bst); ``cycles``: (front cycles, alpha cycles or None)."""
+        self.plan, self.header, self.pack = plan, header, pack
+        self.fst, self.bst = stages
+        self.window, self.time_tag = window, time_tag
+        self.front_cycles, self.alpha_cycles = cycles
         self._message = self._stages = self._backend = self._subimage = self._context = None
         self._ledger = ledger
         if ledger is not None:
-            plan._charge(ledger, raw)
+            plan.charge(ledger, self)
 
     def __iter__(self):                         # message, stages, ledger = process_frame(...)
         return iter((self.message, self.stages, self.ledger))
@@ -270,47 +305,45 @@ class FrameResult:
     def ledger(self) -> Ledger:
         if self._ledger is None:
             self._ledger = Ledger()
-            self._plan._charge(self._ledger, self._raw)
+            self.plan.charge(self._ledger, self)
         return self._ledger
 
     @property
     def backend(self) -> BackendResult:
         be = self._backend
         if be is None:
-            pack, bst = self._raw[0], self._raw[2]
-            count, m, flags, c, fe, rk = self._raw[11]
+            hd, bst = self.header, self.bst
             labels = bst[0] if bst.shape[0] else _NO_LABELS
-            be = self._backend = BackendResult(labels, pack, count, m, flags, (c, fe, rk))
+            be = self._backend = BackendResult(labels, self.pack, hd.count, hd.m, hd.flags,
+                                               (hd.cyc_colour, hd.cyc_features, hd.cyc_rank))
         return be
 
     @property
     def blob_count(self) -> int:
-        return self._raw[11][0]
+        return self.header.count
 
     @property
     def subimage(self) -> Subimage:
         if self._subimage is None:
-            self._subimage = Subimage(*self._raw[3])
+            self._subimage = Subimage(*self.window)
         return self._subimage
 
     @property
     def message(self) -> CandidateMessage:
         if self._message is None:
-            self._message = self._plan._message(self._raw)
+            self._message = self.plan.message_of(self)
         return self._message
 
     @property
     def stages(self) -> list:
         if self._stages is None:
-            fst, bst, thr = self._raw[1], self._raw[2], self._raw[6]
-            self._stages = self._plan._stages(fst, bst, self.backend, thr[0]) if fst.shape[0] \
-                else []
+            self._stages = self.plan.stages_of(self) if self.fst.shape[0] else []
         return self._stages
 
     @property
     def context(self) -> dict:
         if self._context is None:
-            self._context = self._plan._context(self._raw, self.subimage)
+            self._context = self.plan.context_of(self)
         return self._context
 
 
@@ -332,8 +365,7 @@ def backend_steps(sequence: ProcessingSequence):
 
 def _fft_tables(kernels):
     m = len(kernels)
-    ints = np.zeros((m, 4), np.int64)
-    floats = np.zeros((m, 4), np.float64)
+    spec = np.zeros(m, fft.FFT_SPEC)
     kr = np.zeros((m, MAX_TILE * MAX_TILE), np.int64)
     ki = np.zeros_like(kr)
     brev = np.zeros((m, MAX_TILE), np.int64)
@@ -342,14 +374,13 @@ def _fft_tables(kernels):
     for j, kern in enumerate(kernels):
         T = kern.tile
         c, s, dw = fft.twiddles_q15(T)
-        ints[j] = (T, kern.size, kern.ek, kern.ksum)
-        floats[j] = (kern.kmax, kern.k2mean, kern.dk, dw)
+        spec[j] = fft.fft_spec(kern, dw, True)[0]
         kr[j, :T * T] = kern.kr.ravel()
         ki[j, :T * T] = kern.ki.ravel()
         brev[j, :T] = fft.bitrev(T)
         twc[j, :T // 2] = c
         tws[j, :T // 2] = s
-    return FFTTables(ints, floats, kr, ki, brev, twc, tws)
+    return FFTTables(spec, kr, ki, brev, twc, tws)
 
 
 def poly_tables(h: int, w: int, used: bool = True) -> PolyTables | None:
@@ -406,13 +437,11 @@ def _front(sequence: ProcessingSequence):
     return front, kernels, names, costs, thr
 
 
-def step_words(geo, front: FrontOps, recw) -> tuple:
-    """The fixed arrays of a plan packed for :func:`flightsw.ip.step.ip_step_k`: (int64 [8 + 3 n +
-    60]: ``geo`` [8], then the front end's ``ops``, ``size`` and ``fft`` [n] each, then the
-    record's words [5, 12] row by row; int16 [56 n]: the kernels [n, 7, 7] then the taps [n, 7])
-    for a front end of n steps."""
-    ints = np.concatenate([np.asarray(geo, np.int64), front.ops, front.size, front.fft,
-                           np.asarray(recw, np.int64).ravel()]).astype(np.int64)
+def step_words(front: FrontOps) -> tuple:
+    """The front end of a plan packed for :func:`flightsw.ip.step.ip_step_k`: (int64 [3 n]: the
+    ``ops``, ``size`` and ``fft`` [n] each; int16 [56 n]: the kernels [n, 7, 7] then the taps
+    [n, 7]) for a front end of n steps (:func:`flightsw.ip.step.front_of` unpacks them)."""
+    ints = np.concatenate([front.ops, front.size, front.fft]).astype(np.int64)
     i16 = np.concatenate([front.kern.ravel(), front.taps.ravel()]).astype(np.int16)
     return ints, i16
 
@@ -458,27 +487,33 @@ class FramePlan:
         self.flags = (colour_p.diagonal, feat_p.intensity_centroid)
         self.max_candidates = rank_p.max_candidates
         self.recw = record_words(rec)
+        #: the back end's parameters (:data:`flightsw.ip.backend.BACKEND_PARAMS` [1]) without and
+        #: with the label image
         self.prm = {want: backend_params(rec, *self.flags, want, self.f, imager,
                                          self.max_candidates) for want in (False, True)}
         self.keys = (("dsp", "compaction"),) + tuple(("dsp", n) for n in self.step_names) \
             + BACK_KEYS
         self.front_cycles = self.cycles_for(h, w)
-        r0, c0 = window_origin(pre.compacted_shape, self.f, None, pre.window)
-        self.default = (h, w, r0, c0) + _geometry_words(self.f, r0, c0, h, w, None)
         self.msg_imager = imager if imager in IMAGER_CODES else "real"
         self.record_id = rec.record_id
         self.step_keys = self.keys + ((IP1750, "alpha_logic"),)
         self.window_hw = (h, w)
         self.frame_shape = pre.frame_shape
         H, W = pre.compacted_shape
-        #: what :func:`flightsw.ip.step.ip_step_k` needs of the plan besides the pipeline's arrays
-        self.geo = np.array([H, W, h, w, self.f, (IMAGER_CODES[self.msg_imager] << 8) | self.f,
-                             self.record_id, self.threshold_stage is not None], np.int64)
-        fr = self.front
+        #: the frame header (:data:`flightsw.ip.frame_header.FRAME_HEADER` [1]) the kernels place
+        #: each frame's window in and write the frame's words to, the plan's fields filled here;
+        #: ``header_words`` its int64 view (:func:`flightsw.ip.frame_header.header_of`)
+        self.header, self.header_words = new_header()
+        hd = self.header[0]
+        hd["rows"], hd["cols"], hd["win_rows"], hd["win_cols"] = H, W, h, w
+        hd["compaction"] = self.f
+        hd["imager_word"] = (IMAGER_CODES[self.msg_imager] << 8) | self.f
+        hd["record_id"], hd["has_threshold"] = self.record_id, self.threshold_stage is not None
+        hd["mode"], hd["alpha_q12"] = self.mode, self.aq
         #: the plan's arguments of :func:`flightsw.ip.step.ip_step_k`, in its order (one tuple:
-        #: fewer attribute reads on the per-frame path); the fixed arrays packed in two
-        #: (:func:`flightsw.ip.step.step_words`: each array argument costs ~50 ns a call to type)
-        self.step_args = step_words(self.geo, fr, self.recw) + (self.ffts, self.poly, self.mode)
+        #: fewer attribute reads on the per-frame path); the front end packed in two arrays
+        #: (:func:`step_words`: each array argument costs ~50 ns a call to type)
+        self.step_args = (self.header,) + step_words(self.front) + (self.ffts, self.poly)
         #: the stage arrays of a frame without stages (empty: one pair serves every frame)
         self.no_stages = (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
 
@@ -500,19 +535,19 @@ class FramePlan:
         """One checked frame (uint16 [244, 256], C order) through the pipeline; ``pred`` the TP's
         predicted pixel (full resolution) or None (the window is the image centre and the centroid
         means are the window centre)."""
-        if pred is None:
-            h, w, r0, c0, o0, o1, r0w, c0w, mr, mc = self.default
-        else:
-            pre = self.pre
-            h, w = pre.window_shape
-            r0, c0 = window_origin(pre.compacted_shape, self.f, pred, pre.window)
-            o0, o1, r0w, c0w, mr, mc = _geometry_words(self.f, r0, c0, h, w, pred)
-        aq = self.aq if alpha_q12 is None else int(alpha_q12)
-        out = ip_frame_k(frame, self.f, r0, c0, h, w, self.front, self.ffts, self.poly, aq,
-                         self.mode, self.recw, self.prm[bool(want_stages)], r0w, c0w, mr, mc,
-                         bool(want_stages))
-        return self._result(out, (out[0], (r0, c0), self.f, (h, w)), (o0, o1), aq,
-                            self.front_cycles, ledger, frame_count, time_tag)
+        hd = self.header[0]
+        hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
+        hd["frame_count"] = frame_count
+        stages = self.stage_arrays() if want_stages else self.no_stages
+        at = _NO_PREDICTION if pred is None else np.array(pred, np.float64)
+        win, pack = ip_frame_at_k(frame, self.header, at, self.front, self.ffts, self.poly,
+                                  self.prm[bool(want_stages)], *stages)
+        header = header_of(self.header_words)
+        if header.bad:
+            raise ValueError("window holds values outside the 16-bit word range -32768..65535")
+        return FrameResult(self, header, pack, stages, (win, (header.r0, header.c0), self.f,
+                                                      self.window_hw),
+                           time_tag, (self.front_cycles, None), ledger)
 
     def run_window(self, sub: Subimage, centroid_mean=None, *, alpha_q12: int | None = None,
                    ledger: Ledger | None = None, frame_count: int = 0, time_tag: float = 0.0,
@@ -523,88 +558,93 @@ class FramePlan:
         img = np.ascontiguousarray(sub.image, np.int16)
         h, w = img.shape
         f = int(sub.factor)
-        o0, o1, r0w, c0w, mr, mc = _geometry_words(f, int(sub.origin[0]), int(sub.origin[1]), h,
-                                                   w, centroid_mean)
         mc_limit = self.max_candidates if max_candidates is None else max_candidates
-        prm = self.prm[bool(want_stages)]
+        params = self.prm[bool(want_stages)]
         if f != self.f or mc_limit != self.max_candidates:
-            prm = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
-                                 self.imager, mc_limit)
+            params = backend_params(self.rank_record, *self.flags, bool(want_stages), f,
+                                    self.imager, mc_limit)
         poly = self.poly
         if poly is not None and (h, w) != tuple(poly.tables.shape[1:]):
             poly = poly_tables(h, w)
-        aq = self.aq if alpha_q12 is None else int(alpha_q12)
-        out = ip_frame_k(img, 1, 0, 0, h, w, self.front, self.ffts, poly, aq, self.mode,
-                         self.recw, prm, r0w, c0w, mr, mc, bool(want_stages))
-        return self._result(out, (img, tuple(sub.origin), f, (h, w)), (o0, o1), aq,
-                            self.cycles_for(h, w), ledger, frame_count, time_tag)
-
-    def _result(self, out, sub, origin, aq, front_cycles, ledger, frame_count, time_tag):
-        (_, pack, fst, bst, count, m, flags, c, fe, rk, bad, t4, m4, d4, s) = out
-        if bad:
+        header, words = self.window_header(f, sub.origin, (h, w), centroid_mean, alpha_q12,
+                                           frame_count)
+        stages = (np.empty((self.front.ops.size + 1, h, w), np.int16),
+                  np.empty((2, h, w), np.int32)) if want_stages else \
+            (np.empty((0, h, w), np.int16), np.empty((0, h, w), np.int32))
+        _, pack = ip_frame_into_k(img, header, self.front, self.ffts, poly, params, *stages)
+        header = header_of(words)
+        if header.bad:
             raise ValueError("window holds values outside the 16-bit word range -32768..65535")
-        return self.result(pack, fst, bst, sub, origin, aq, (t4, m4, d4, s), front_cycles, ledger,
-                           frame_count, time_tag, None, (count, m, flags, c, fe, rk))
+        return FrameResult(self, header, pack, stages, (img, tuple(sub.origin), f, (h, w)),
+                           time_tag, (self.cycles_for(h, w), None), ledger)
 
-    def result(self, pack, fst, bst, sub, origin, aq, thr, front_cycles, ledger, frame_count,
-               time_tag, alpha_cycles=None, head=None) -> FrameResult:
-        """The :class:`FrameResult` of one pass of :func:`ip_frame_k` (its ``pack``, stage arrays,
-        the window ``sub`` (a Subimage or its fields (image, compacted origin, factor, size)), the
-        window origin ``origin`` in full-resolution pixels, alpha ``aq`` and the threshold words
-        ``thr`` (t4, mean4, std4, shift)), the stages' cycles charged to ``ledger`` (a new one if
-        None) and, with ``alpha_cycles``, the alpha logic's after them. ``head``: the pack's words
-        0-5 as ints when the caller has them (read from ``pack`` if None)."""
-        if head is None:
-            head = pack[:6].tolist()
-        if isinstance(sub, Subimage):
-            sub = (sub.image, sub.origin, sub.factor, sub.size)
-        return FrameResult(self, (pack, fst, bst, sub, origin, aq, thr, front_cycles, frame_count,
-                                  time_tag, alpha_cycles, head), ledger)
+    def window_header(self, f: int, origin, size, centroid_mean=None,
+                      alpha_q12: int | None = None, frame_count: int = 0, cut: int = 1) -> tuple:
+        """A new frame header (:data:`FRAME_HEADER` [1] and its int64 view) for a window the
+        caller places: compaction ``f``, compacted ``origin`` (row, col) and ``size`` (h, w), the
+        centroid means ``centroid_mean`` (full-resolution (row, col); None: the window centre),
+        the plan's threshold (``alpha_q12`` None: the sequence's) and ``cut``, the factor the
+        kernel compacts its input by (1: the caller's window is already compacted; the full
+        frame's kernel compacts the frame itself)."""
+        header, words = new_header()
+        hd = header[0]
+        h, w = size
+        hd["o0"], hd["o1"], hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = \
+            _geometry_words(f, int(origin[0]), int(origin[1]), h, w, centroid_mean)
+        hd["compaction"], hd["win_rows"], hd["win_cols"], hd["override"] = cut, h, w, 1
+        hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
+        hd["mode"], hd["frame_count"] = self.mode, frame_count
+        return header, words
 
-    def _charge(self, ledger: Ledger, raw: tuple) -> None:
-        """Charge a :class:`FrameResult`'s cycles (``raw``: its fields) to ``ledger``."""
-        front_cycles, alpha_cycles = raw[7], raw[10]
-        c, fe, rk = raw[11][3:6]
-        if alpha_cycles is None:
-            keys, charged = self.keys, front_cycles + (c, fe, rk)
+    def charge(self, ledger: Ledger, res: FrameResult) -> None:
+        """Charge a :class:`FrameResult`'s cycles to ``ledger``."""
+        hd = res.header
+        back = (hd.cyc_colour, hd.cyc_features, hd.cyc_rank)
+        if res.alpha_cycles is None:
+            keys, charged = self.keys, res.front_cycles + back
         else:
-            keys, charged = self.step_keys, front_cycles + (c, fe, rk, alpha_cycles)
+            keys, charged = self.step_keys, res.front_cycles + back + (res.alpha_cycles,)
         if "dsp" in ledger.processors and "ip1750" in ledger.processors:
             ledger.charge_block(keys, charged)
         else:                          # the ledger raises its own error for the missing processor
             ledger.charge_many(k + (n,) for k, n in zip(keys, charged))
 
-    def _message(self, raw: tuple) -> CandidateMessage:
-        """The candidate message of a :class:`FrameResult` (``raw``: its fields; the candidates
-        read from the pack without the back end's result, ~0.5 us)."""
-        cand = candidate_table(raw[0], raw[11][0], raw[11][1])
-        sub, origin = raw[3], raw[4]
-        h, w = sub[3]
-        alpha = raw[5] / 4096.0 if self.threshold_stage is not None else 0.0
+    def message_of(self, res: FrameResult) -> CandidateMessage:
+        """The candidate message of a :class:`FrameResult` (the candidates read from the pack
+        without the back end's result, ~0.5 us)."""
+        hd = res.header
+        cand = candidate_table(res.pack, hd.count, hd.m)
+        h, w = res.window[3]
+        alpha = hd.alpha_q12 / 4096.0 if self.threshold_stage is not None else 0.0
         # positional, in the dataclass's field order (a call by keyword costs ~0.35 us more)
-        return CandidateMessage(raw[8], raw[9], self.msg_imager, sub[2], origin[0], origin[1], h,
-                                w, alpha, self.record_id, cand)
+        return CandidateMessage(hd.frame_count, res.time_tag, self.msg_imager, res.window[2],
+                                hd.o0, hd.o1, h, w, alpha, self.record_id, cand)
 
-    def _context(self, raw: tuple, sub: Subimage) -> dict:
-        """The context dict of a :class:`FrameResult` (``raw``: its fields)."""
-        ctx = {"imager": self.imager, "record": self.record, "subimage": sub,
+    def context_of(self, res: FrameResult) -> dict:
+        """The context dict of a :class:`FrameResult`."""
+        ctx = {"imager": self.imager, "record": self.record, "subimage": res.subimage,
                "preprocess": self.pre}
         if self.threshold_stage is not None:
-            t4, m4, d4, s = raw[6]
-            ctx["threshold"] = {"t4": t4, "mean4": m4, "std4": d4, "shift": s, "alpha_q12": raw[5],
+            hd = res.header
+            ctx["threshold"] = {"t4": hd.t4, "mean4": hd.mean4, "std4": hd.std4,
+                                "shift": hd.shift, "alpha_q12": hd.alpha_q12,
                                 "mode": self.mode_name}
         return ctx
 
-    def _stages(self, fst, bst, be, t4):
+    def stages_of(self, res: FrameResult) -> list:
+        """The stage images of a :class:`FrameResult` run with stages."""
+        fst, bst, be = res.fst, res.bst, res.backend
         out = [Stage("window", fst[0])]
         for i, name in enumerate(self.step_names):
-            out.append(Stage(name, fst[i + 1], int(t4) if name == self.threshold_stage else None))
+            out.append(Stage(name, fst[i + 1], res.header.t4 if name == self.threshold_stage
+                             else None))
         out.append(Stage("colour", bst[0], be.count))
         out.append(Stage("rank", bst[1], be.order))
         return out
 
 
 _NO_LABELS = np.zeros((0, 0), np.int32)
+_NO_PREDICTION = np.array([np.nan, np.nan])
 _PLANS: dict = {}
 
 

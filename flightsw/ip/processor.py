@@ -20,12 +20,13 @@ import numpy as np
 
 from flightsw.budget import Ledger
 from flightsw.ip.frame import check_inputs
+from flightsw.ip.frame_header import header_of
 from flightsw.ip.pipeline import FramePlan, FrameResult
 from flightsw.ip.record_table import TABLE_FORMAT_ID, TABLE_TYPES, RecordStore, decode_table
 from flightsw.ip.sequence import ProcessingSequence, SequenceError
 from flightsw.ip.sequence_words import SEQUENCE_FORMAT_ID, sequence_from_words
-from flightsw.ip.step import (CMD_PREDICTION_OUTSIDE, STEP_FRAME_RANGE, STEP_INFO, STEP_OK,
-                              STEP_TIME_TAG, ip_step_k)
+from flightsw.ip.step import (CMD_PREDICTION_OUTSIDE, STEP_FRAME_RANGE, STEP_OK, STEP_TIME_TAG,
+                              ip_step_k)
 from flightsw.ip.threshold import ALPHA_LOGIC_CYCLES, AlphaController, alpha_bounds
 from flightsw.messages import (IMAGER_CODES, MAX_CANDIDATES, OBJECT_TYPE_CODES, TRACK_WORDS,
                                Feedback, MessageError, TrackCommand)
@@ -233,7 +234,6 @@ class ImageProcessor:
         self.uplinks_accepted = 0
         self.uplinks_refused = 0
         self._last_frame_count = -1
-        self._info = np.zeros(STEP_INFO, np.int64)     # ip_step_k's info words, read each frame
 
     def power_on_store(self) -> dict:
         """The records held at power-on and the table, JSON-ready: ``{"names": [...], "records":
@@ -245,7 +245,7 @@ class ImageProcessor:
 
     def _set_alpha(self, controller: AlphaController) -> None:
         self.alpha = controller
-        self._alpha_words = controller.words()
+        self._alpha_logic = controller.logic()
 
     @property
     def feedback(self) -> Feedback:
@@ -341,22 +341,20 @@ class ImageProcessor:
         else:
             fst, bst = plan.no_stages
             prm = plan.prm[False]
-        info = self._info
         verdict, words, win, pack = ip_step_k(frame, check, cmd, fb, ovr, time_tag, fc, aq,
-                                              self._alpha_words, *plan.step_args, prm, fst, bst,
-                                              info)
-        r0, c0, o0, o1, aq_next, t4, m4, d4, sh, cmd_verdict, *head = info.tolist()
+                                              self._alpha_logic, *plan.step_args, prm, fst, bst)
+        hd = header_of(plan.header_words)
         self._fb = fb
-        if cmd_verdict:
+        if hd.command:
             self.rejected_commands += 1
-            if cmd_verdict == CMD_PREDICTION_OUTSIDE:
+            if hd.command == CMD_PREDICTION_OUTSIDE:
                 self.refused_predictions += 1
         if verdict != STEP_OK:
-            self._refuse(verdict, frame, aq, time_tag, int(pack[1]) if pack.size else 0)
-        res = FrameResult(plan, (pack, fst, bst, (win, (r0, c0), plan.f, plan.window_hw),
-                                 (o0, o1), aq, (t4, m4, d4, sh), plan.front_cycles, fc, time_tag,
-                                 ALPHA_LOGIC_CYCLES, head), ledger)
-        self.alpha.set_q12(aq_next)
+            self._refuse(verdict, frame, aq, time_tag, hd.m)
+        res = FrameResult(plan, hd, pack, (fst, bst), (win, (hd.r0, hd.c0), plan.f,
+                                                      plan.window_hw),
+                          time_tag, (plan.front_cycles, ALPHA_LOGIC_CYCLES), ledger)
+        self.alpha.set_q12(hd.alpha_next)
         self.frames += 1
         self._last_frame_count = int(frame_count)
         return IPOutput(words, res, aq, fb if feedback is None else feedback)

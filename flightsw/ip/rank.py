@@ -62,6 +62,10 @@ RANK_MIX = {
 }
 _EVENTS = ("frame", "setup_feature", "setup_feature_q", "term", "term_q", "compare", "move",
            "report", "exp")
+#: the event counts' names as indices into :func:`rank_k`'s counts (the order of ``_EVENTS`` and
+#: :data:`OP_CYCLES`: the counts are a vector the cycle costs are dotted with)
+(EV_FRAME, EV_SETUP_FEATURE, EV_SETUP_FEATURE_Q, EV_TERM, EV_TERM_Q, EV_COMPARE, EV_MOVE,
+ EV_REPORT, EV_EXP) = range(len(_EVENTS))
 OP_CYCLES = np.array([m1750_cycles(RANK_MIX[e]) for e in _EVENTS[:-1]] + [MATH_CYCLES["exp32"]],
                 np.int64)
 
@@ -75,7 +79,7 @@ def rank_cycles(ops) -> int:
 def _sigmoid(x, a2, ops):
     """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
 
-    ``x``, ``a2``: packed 32-bit 1750A floats; ``ops``: int64 [9] event counts (``ops[8]``, the
+    ``x``, ``a2``: packed 32-bit 1750A floats; ``ops``: int64 [9] event counts (``ops[EV_EXP]``, the
     exp, incremented). Returns ``(x', flags)``: packed word in [0, 1] and the OR of the PI flags.
 
     Cases
@@ -91,7 +95,7 @@ def _sigmoid(x, a2, ops):
     t, f = fneg32(t); fl |= f
     e, f = exp32(t)                      # underflow of exp is absorbed (x' -> 1)
     r, f = fs32(ONE32, e); fl |= f
-    ops[8] += 1
+    ops[EV_EXP] += 1
     return r, fl
 
 
@@ -137,15 +141,15 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
             a2[i], f = fd32(_LN2, mid); flags |= f
             mean[i], f = _sigmoid(mean[i], a2[i], ops); flags |= f
             coef[i], f = fm32(w, _TWELVE); flags |= f
-            ops[2] += 1
+            ops[EV_SETUP_FEATURE_Q] += 1
         else:
             s2, f = fm32(rec[1, i], rec[1, i]); flags |= f
             coef[i], f = fd32(w, s2); flags |= f
-            ops[1] += 1
+            ops[EV_SETUP_FEATURE] += 1
     nf, f = flt32(n)
     n2, f = fm32(nf, nf); flags |= f
     kg, f = fd32(_LN2, n2); flags |= f
-    ops[0] += 1
+    ops[EV_FRAME] += 1
     # ---- distances ----
     # Each candidate's d is the same chain of FS, FM, FM, FA over its features in record order; the
     # host runs the chains of all candidates side by side (feature-major loop) so that they overlap
@@ -165,14 +169,14 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
                 t, f = fm32(t, t); flags |= f
                 t, f = fm32(t, ci); flags |= f
                 d[c], f = fa32(d[c], t); flags |= f
-            ops[4] += k
+            ops[EV_TERM_Q] += k
         else:                            # the same four instructions in their lane forms (SIMD)
             flags |= fs32_lanes(col, mi, t1)
             flags |= fm32_lanes(t1, t1, t2)
             flags |= fm32_lanes(t2, ci, t1)
             flags |= fa32_lanes(d, t1, d2)
             d, d2 = d2, d
-        ops[3] += k
+        ops[EV_TERM] += k
     # ---- keep the best max_out by d (insertion into a sorted list; ties keep blob order) ----
     # (each FC on the host as one integer compare of fc32_key, the same outcome)
     key = t1                             # free after the distances
@@ -184,7 +188,7 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
         pos = m
         kc = key[c]
         while pos > 0:
-            ops[5] += 1
+            ops[EV_COMPARE] += 1
             if key[order[pos - 1]] > kc:
                 pos -= 1
             else:
@@ -194,7 +198,7 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
         last = m if m < max_out else max_out - 1
         for q in range(last, pos, -1):
             order[q] = order[q - 1]
-            ops[6] += 1
+            ops[EV_MOVE] += 1
         order[pos] = c
         if m < max_out:
             m += 1
@@ -208,8 +212,8 @@ def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
         t, f = fm32(t, kg); flags |= f
         t, f = fneg32(t); flags |= f
         g, f = exp32(t)                  # underflow -> GOF 0 (absorbed)
-        ops[8] += 1
-        ops[7] += 1
+        ops[EV_EXP] += 1
+        ops[EV_REPORT] += 1
         if fc32(g, thr) < 0:
             continue
         keep[r] = order[q]

@@ -14,15 +14,14 @@ import math
 import numpy as np
 from numba import njit
 
-from flightsw.arith.m1750_float import encode_k
-from flightsw.ip.backend import PACK_HEAD
-from flightsw.ip.pipeline import FrontOps, ip_frame_into_k
+from flightsw.ip.frame_header import FRAME_HEADER
+from flightsw.ip.pipeline import FrontOps, ip_frame_into_k, place_window_k
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import alpha_next_k
 from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
 
-__all__ = ["ip_step_k", "read_command_k", "STEP_OK", "STEP_TIME_TAG", "STEP_FRAME_RANGE",
-           "STEP_MESSAGE", "STEP_INFO", "CMD_PREDICTION_OUTSIDE"]
+__all__ = ["ip_step_k", "read_command_k", "front_of", "STEP_OK", "STEP_TIME_TAG",
+           "STEP_FRAME_RANGE", "STEP_MESSAGE", "CMD_PREDICTION_OUTSIDE", "FRAME_HEADER"]
 
 #: :func:`read_command_k`'s verdict for a well-formed command predicting a pixel outside the frame
 #: (the others are :func:`flightsw.messages.feedback_words_k`'s)
@@ -56,41 +55,63 @@ def read_command_k(cmd, fb, H, W):
 #: message cannot carry the result (the back end's 16-bit range flag cannot be raised here: the
 #: front end hands it int16 words)
 STEP_OK, STEP_TIME_TAG, STEP_FRAME_RANGE, STEP_MESSAGE = 0, 1, 2, 3
-#: words of :func:`ip_step_k`'s ``info``: window origin (compacted), origin (full resolution),
-#: the next alpha (Q4.12), the threshold's t4, mean4, std4, shift, the command's verdict, then the
-#: pack's header words 0-5 (blob count, candidates, flags, colour, features and rank cycles: one
-#: ``tolist`` in Python instead of a second one on the pack)
-STEP_INFO = 16
 
 
 @njit(cache=True)
-def _message_words(pack, t, alpha, head):
+def _message_words(pack, t, header):
     """The candidate-message words (uint16) of the pipeline's ``pack`` (its candidate table,
-    :func:`flightsw.ip.backend.backend_k`) with the header ``head`` (int64 [15]; length and count
-    filled here), or an empty array when the message cannot carry it.
+    :func:`flightsw.ip.backend.backend_k`) with the frame header ``header`` (:data:`FRAME_HEADER`
+    [1]), or an empty array when the message cannot carry it. The message's words are its
+    format: positions here are the codec's (:class:`flightsw.messages.CandidateMessage`).
 
     Cases
     -----
     typical : :func:`candidate_words_k` on the pack's candidate table, m candidates.
     too-many : more than :data:`flightsw.messages.MAX_CANDIDATES` (23) candidates -> empty.
     """
-    count, m = pack[0], pack[1]
+    hd = header[0]
+    count, m = hd.count, hd.m
     if m > MAX_CANDIDATES:
         return np.zeros(0, np.uint16)
-    o = PACK_HEAD + 3 * m + 13 * count                           # the candidate table
+    o = 3 * m + 13 * count                                       # the candidate table
     cand = np.ascontiguousarray(pack[o:o + 15 * m])
-    head[1] = 15 + 29 * m + 1
-    head[14] = m
+    words = np.zeros(15, np.int64)                               # the message header's words
+    words[0], words[1], words[2], words[6] = 0x4950, 15 + 29 * m + 1, hd.frame_count, \
+        hd.imager_word
+    words[7], words[8], words[9], words[10] = hd.o0 & 0xFFFF, hd.o1 & 0xFFFF, hd.win_rows, \
+        hd.win_cols
+    words[13], words[14] = hd.record_id, m
+    alpha = hd.alpha_q12 / 4096.0 if hd.has_threshold else 0.0
     out = np.empty(15 + 29 * m + 1, np.uint16)
-    bad = candidate_words_k(head, t, alpha, cand.reshape((m, 15)),
+    bad = candidate_words_k(words, t, alpha, cand.reshape((m, 15)),
                             cand.view(np.float64).reshape((m, 15)), out)
     return out if bad < 0 else np.zeros(0, np.uint16)
 
 
 @njit(cache=True)
-def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly, mode, prm, fst,
-              bst, info):
+def front_of(ints, i16):
+    """The :class:`FrontOps` of a plan's packed front end (:func:`flightsw.ip.pipeline.step_words`:
+    int64 [3 n], int16 [56 n]).
+
+    Cases
+    -----
+    typical : the ops, kernels, sizes, taps and FFT rows of the plan's n steps, views of the
+        packed arrays.
+    """
+    n = ints.shape[0] // 3
+    return FrontOps(ints[:n], i16[:49 * n].reshape((n, 7, 7)), ints[n:2 * n],
+                    i16[49 * n:56 * n].reshape((n, 7)), ints[2 * n:3 * n])
+
+
+@njit(cache=True)
+def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, logic, header, ints, i16, ffts, poly, params,
+              fst, bst):
     """One frame through the IP as :meth:`flightsw.ip.ImageProcessor.step` runs it.
+
+    It takes the frame's inputs one by one, not in a record or a tuple: this is the compiled
+    per-frame entry point, where numba types each array or scalar argument in ~50 ns while a
+    tuple costs ~0.5 us and a record filled from Python ~1 us a field (the step's budget is
+    ~20 us).
 
     Parameters
     ----------
@@ -100,24 +121,21 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
         accepted command replaces it in place
     ovr : float64 [4] the feedback for this frame instead of ``fb``, or [0] (none)
     t, fc : time tag (s, float64) and frame count (0..65535)
-    aq, ctl : alpha in force (Q4.12 word) and the alpha logic's words, int64 [9]
-        (:meth:`flightsw.ip.threshold.AlphaController.words`, :func:`alpha_next_k`)
-    ints, i16 : the plan's fixed words (:func:`flightsw.ip.pipeline.step_words`): int64 ``geo``
-        [8] (:attr:`flightsw.ip.pipeline.FramePlan.geo`: compacted H, W, window h, w, compaction
-        f, message word 6 (imager << 8 | f), record id, has a threshold step), the
-        :class:`FrontOps` fields ``ops``, ``size``, ``fft`` [n] and the record's words [5, 12];
-        int16 the kernels [n, 7, 7] and taps [n, 7] (packed: each array argument costs ~50 ns a
+    aq, logic : alpha in force (Q4.12 word) and the alpha logic's constants,
+        :data:`flightsw.ip.threshold.ALPHA_LOGIC` [1] (:func:`alpha_next_k`)
+    header : :data:`FRAME_HEADER` [1], the plan's (:attr:`flightsw.ip.pipeline.FramePlan.header`):
+        its fixed fields read, the frame's written (the window, the threshold's and the back
+        end's words, ``alpha_next``, ``command``: the command's verdict)
+    ints, i16 : the plan's front end packed (:func:`front_of`; each array argument costs ~50 ns a
         call to type, a tuple ~0.5 us)
-    ffts, poly, mode, prm : the pipeline's (:func:`ip_frame_into_k`)
+    ffts, poly, params : the pipeline's (:func:`ip_frame_into_k`)
     fst, bst : the stage arrays the pipeline fills (:func:`ip_frame_into_k`: int16 [n + 1, h, w]
         and int32 [2, h, w], or both [0, h, w] for none)
-    info : int64 [STEP_INFO], written here: the caller's buffer (each array returned is one more
-        to box, ~0.2 us)
 
     Returns
     -------
     (verdict (``STEP_*``), message words uint16 [n] (empty unless ``STEP_OK``), window int16
-    [h, w], pack (:func:`ip_frame_into_k`)); ``info``, ``fst``, ``bst`` and an accepted command's
+    [h, w], pack (:func:`ip_frame_into_k`)); ``header``, ``fst``, ``bst`` and an accepted command's
     ``fb`` are written in place
 
     Cases
@@ -126,7 +144,7 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
         :func:`ip_frame_into_k`'s result on the window about the command's prediction, and the
         alpha logic's next word.
     command-refused : a command failing a check, or predicting outside the compacted image ->
-        its verdict in info[9], ``fb`` kept.
+        its verdict in ``command``, ``fb`` kept.
     no-command : ``cmd`` empty -> ``fb`` as it is.
     override : ``ovr`` given -> its prediction and lock instead of ``fb``'s.
     no-prediction : a NaN prediction -> the window at the image centre, the centroid means its
@@ -136,39 +154,21 @@ def ip_step_k(frame, check, cmd, fb, ovr, t, fc, aq, ctl, ints, i16, ffts, poly,
     message : more than 23 candidates -> ``STEP_MESSAGE``.
     """
     bad = frame_over_12bit_k(frame) if check else False
-    info[:] = 0
-    n = (ints.shape[0] - 8 - 60) // 3               # geo [8], 3 words a step, the record [5, 12]
-    geo = ints[:8]
-    H, W, h, w, f = geo[0], geo[1], geo[2], geo[3], geo[4]
+    hd = header[0]
+    hd.command, hd.alpha_next, hd.count, hd.m = 0, aq, 0, 0
+    hd.frame_count, hd.alpha_q12 = fc, aq
     if cmd.shape[0]:
-        info[9] = read_command_k(cmd, fb, H * f, W * f)
+        f = hd.compaction
+        hd.command = read_command_k(cmd, fb, hd.rows * f, hd.cols * f)
     use = ovr if ovr.shape[0] == 4 else fb
     none = np.zeros(0, np.uint16)
     if bad or not math.isfinite(t):
         return (STEP_FRAME_RANGE if math.isfinite(t) else STEP_TIME_TAG, none,
                 np.zeros((0, 0), np.int16), np.zeros(0, np.int64))
-    pr, pc = use[0], use[1]
-    r0, c0 = window_origin_k(H, W, h, w, f, pr, pc)
-    o0, o1 = r0 * f, c0 * f
-    if math.isnan(pr):
-        pr, pc = o0 + h * f / 2.0, o1 + w * f / 2.0
-    front = FrontOps(ints[8:8 + n], i16[:49 * n].reshape((n, 7, 7)), ints[8 + n:8 + 2 * n],
-                     i16[49 * n:56 * n].reshape((n, 7)), ints[8 + 2 * n:8 + 3 * n])
-    rec = ints[8 + 3 * n:8 + 3 * n + 60].reshape((5, 12))
-    out = ip_frame_into_k(frame, f, r0, c0, h, w, front, ffts, poly, aq, mode, rec, prm,
-                          encode_k(float(o0), np.int64(23), True),
-                          encode_k(float(o1), np.int64(23), True),
-                          encode_k(pr, np.int64(23), True), encode_k(pc, np.int64(23), True), fst,
-                          bst)
-    win, pack = out[0], out[1]
-    info[0], info[1], info[2], info[3] = r0, c0, o0, o1
-    info[5], info[6], info[7], info[8] = out[11], out[12], out[13], out[14]
-    info[10:16] = pack[:6]
-    head = np.zeros(15, np.int64)
-    head[0], head[2], head[6] = 0x4950, fc, geo[5]
-    head[7], head[8], head[9], head[10], head[13] = o0 & 0xFFFF, o1 & 0xFFFF, h, w, geo[6]
-    words = _message_words(pack, t, aq / 4096.0 if geo[7] else 0.0, head)
+    place_window_k(header, use[0], use[1])
+    win, pack = ip_frame_into_k(frame, header, front_of(ints, i16), ffts, poly, params, fst, bst)
+    words = _message_words(pack, t, header)
     if words.shape[0] == 0:
         return STEP_MESSAGE, words, win, pack
-    info[4] = alpha_next_k(aq, pack[0], use[3] != 0.0, ctl)
+    hd.alpha_next = alpha_next_k(aq, hd.count, use[3] != 0.0, logic)
     return STEP_OK, words, win, pack

@@ -45,7 +45,7 @@ from flightsw.budget import m1750_cycles
 
 __all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32", "threshold_words",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
-           "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k", "NEAR_COUNT"]
+           "ISQRT_CYCLES", "ALPHA_LOGIC_CYCLES", "alpha_next_k", "NEAR_COUNT", "ALPHA_LOGIC"]
 
 ALPHA_MIN = 0.0
 ALPHA_MAX = 32767 / 4096          # Q4.12 word range (7.99975)
@@ -288,14 +288,29 @@ def threshold_cycles(h, w):
 ALPHA_LOGIC_CYCLES = m1750_cycles({"C": 4, "JC": 4, "A": 1, "ST": 1})
 
 
+#: The alpha logic's constants, one record (:meth:`AlphaController.logic`), the 1750A's words as
+#: :func:`alpha_next_k` reads them by field. Alpha words are Q4.12 (alpha = word / 4096), counts
+#: are blob counts (integers).
+ALPHA_LOGIC = np.dtype([
+    ("near_count", np.int64),    # blobs at which alpha rises (1..100; the paper's "approaches 100")
+    ("step_up", np.int64),       # Q4.12, added when the count reaches near_count
+    ("step_down", np.int64),     # Q4.12, taken off without lock (and on a locked sparse frame)
+    ("alpha_min", np.int64),     # Q4.12, the floor (the sequence's alpha_min, ASSUMED 1.0 default)
+    ("alpha_max", np.int64),     # Q4.12, the ceiling
+    ("sparse_floor", np.int64),  # Q4.12, the floor on an unlocked frame under sparse_count blobs
+    ("sparse_count", np.int64),  # blobs; 0 (default): the sparse floor never applies
+    ("locked_floor", np.int64),  # Q4.12, the floor on a locked frame under locked_count blobs
+    ("locked_count", np.int64),  # blobs; 0 (default): the locked floor never applies
+])
+
+
 @njit(cache=True)
-def alpha_next_k(q12, count, locked, ctl):
+def alpha_next_k(q12, count, locked, logic):
     """The alpha logic's next Q4.12 word (1750A integer code).
 
     ``q12``: alpha in force (Q4.12 word); ``count``: candidates detected this frame; ``locked``:
-    the TP's lock; ``ctl``: int64 [9] (:meth:`AlphaController.words`): near count, step up, step
-    down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count, locked floor (Q4.12
-    word), locked count. Returns int.
+    the TP's lock; ``logic``: :data:`ALPHA_LOGIC` [1] (:meth:`AlphaController.logic`). Returns
+    int.
 
     Cases
     -----
@@ -310,14 +325,15 @@ def alpha_next_k(q12, count, locked, ctl):
     locked : locked, not fewer than the locked count (0, the default, never applies) -> ``q12``
         unchanged.
     """
-    if count >= ctl[0]:
-        return min(q12 + ctl[1], ctl[4])
+    g = logic[0]
+    if count >= g.near_count:
+        return min(q12 + g.step_up, g.alpha_max)
     if not locked:
-        if count < ctl[6]:
-            return max(q12 - ctl[2], ctl[5])
-        return max(q12 - ctl[2], min(ctl[3], q12))
-    if count < ctl[8]:
-        return max(q12 - ctl[2], min(ctl[7], q12))
+        if count < g.sparse_count:
+            return max(q12 - g.step_down, g.sparse_floor)
+        return max(q12 - g.step_down, min(g.alpha_min, q12))
+    if count < g.locked_count:
+        return max(q12 - g.step_down, min(g.locked_floor, q12))
     return q12
 
 
@@ -402,13 +418,17 @@ class AlphaController:
         """Current alpha (host float view of the Q4.12 word)."""
         return self.q12 / 4096
 
+    def logic(self) -> np.ndarray:
+        """The logic's constants as :func:`alpha_next_k` takes them: :data:`ALPHA_LOGIC` [1]."""
+        out = np.zeros(1, ALPHA_LOGIC)
+        out[0] = (self.near_count, self._up, self._down, self._min, self._max, self._sparse,
+                  self.sparse_blobs, self._locked, self.locked_blobs)
+        return out
+
     def words(self) -> np.ndarray:
-        """The logic's constants as :func:`alpha_next_k` takes them: int64 [9] near count, step
-        up, step down, alpha min, alpha max, sparse floor (Q4.12 words), sparse count, locked
-        floor (Q4.12 word), locked count."""
-        return np.array([self.near_count, self._up, self._down, self._min, self._max,
-                         self._sparse, self.sparse_blobs, self._locked, self.locked_blobs],
-                        np.int64)
+        """:meth:`logic`'s fields as int64 [9], in :data:`ALPHA_LOGIC`'s order (a view for
+        reports and tests; the kernels take the record)."""
+        return np.array(self.logic()[0].tolist(), np.int64)
 
     def set_q12(self, q12: int) -> int:
         """Put the Q4.12 word ``q12`` in force (the compiled step's update); returns it."""
@@ -420,7 +440,7 @@ class AlphaController:
         """Apply the logic after a frame (:func:`alpha_next_k`); returns the new Q4.12 alpha
         word."""
         q = alpha_next_k(np.int64(self.q12), np.int64(candidate_count), bool(tp_locked),
-                         self.words())
+                         self.logic())
         if ledger is not None:
             ledger.charge("ip1750", "alpha_logic", ALPHA_LOGIC_CYCLES)
         return self.set_q12(q)

@@ -19,24 +19,24 @@ __all__ = ["fullframe_k"]
 
 
 @njit(cache=True)
-def fullframe_k(src, f, front, ffts, poly, aq, mode, rows, cols, th, tw, rcover, ccover, rec, prm,
-                r0w, c0w, mean_row, mean_col):
+def fullframe_k(src, header, front, ffts, poly, params, rows, cols, th, tw, rcover, ccover):
     """A frame through the full-frame mode.
 
     Parameters
     ----------
     src : integer [H, W], 12-bit counts
-    f : int, compaction factor (1, 2 or 4); the compacted frame is ``H // f`` x ``W // f``
+    header : :data:`flightsw.ip.frame_header.FRAME_HEADER` [1]: ``compaction`` f (1, 2 or 4; the
+        compacted frame is ``H // f`` x ``W // f``), the threshold's ``alpha_q12`` (Q4.12) and
+        ``mode`` (0 binarise, 1 clip), the back end's origin words (0) and centroid means;
+        the back end writes its counts there
     front, ffts, poly : the sequence's front end (:class:`flightsw.ip.pipeline.FrontOps`, then
         None and None: the full-frame mode runs no FFT filter or polynomial detrender, whose
         tables are sized for the flight window; numba then does not compile those branches)
-    aq, mode : the threshold step's alpha (Q4.12 word) and mode (0 binarise, 1 clip)
     rows, cols : int64 [nr], [nc], the overlapping windows' starts (compacted pixels), each
         ``th`` x ``tw``
     rcover, ccover : int64 [H // f, 2], [W // f, 2], the windows covering each row and column
         (:func:`hil_harness.detect.union.cover_ranges`)
-    rec, prm, r0w, c0w, mean_row, mean_col : the back end's words (:func:`flightsw.ip.backend.
-        backend_k`; origin 0 and the centroid means)
+    params : the back end's parameters (:data:`flightsw.ip.backend.BACKEND_PARAMS` [1])
 
     Returns
     -------
@@ -50,6 +50,8 @@ def fullframe_k(src, f, front, ffts, poly, aq, mode, rows, cols, th, tw, rcover,
         end as it is.
     """
     H, W = src.shape
+    hd = header[0]
+    f, aq, mode = hd.compaction, hd.alpha_q12, hd.mode
     img = compact_k(src, f, 0, 0, H // f, W // f)
     for i in range(front.ops.size):
         if front.ops[i] == OP_THRESHOLD:
@@ -57,5 +59,5 @@ def fullframe_k(src, f, front, ffts, poly, aq, mode, rows, cols, th, tw, rcover,
             img = union_threshold_k(img, t4, rcover, ccover, mode)
         else:
             img = front_step_k(img, i, front, ffts, poly, aq, mode)[0]
-    labels, pack = backend_k(img, rec, prm, r0w, c0w, mean_row, mean_col, np.int64(1))
+    labels, pack = backend_k(img, params, header)
     return pack, img

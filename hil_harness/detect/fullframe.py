@@ -218,9 +218,8 @@ def _geometry(ch, cw, th, tw, step):
 
 
 def _compiled(img12, seq, record, f, max_candidates, tile, step):
-    from flightsw.ip.backend import backend_params, enc32, result_from_pack
+    from flightsw.ip.backend import backend_params, result_from_head
     from flightsw.ip.features import words_to_struct
-    from flightsw.ip.rank import record_words
     from hil_harness.detect.frame_k import fullframe_k
     plan = _frame_plan(seq, record, f)
     rec = _ranking_record(plan, record)
@@ -228,12 +227,12 @@ def _compiled(img12, seq, record, f, max_candidates, tile, step):
     ch, cw = H // f, W // f
     th, tw = min(tile, ch), min(tile, cw)
     rows, cols, rcover, ccover = _geometry(ch, cw, th, tw, step)
-    prm = backend_params(rec, *plan.flags, False, f, plan.imager,
-                         max(1, min(max_candidates, 1000)))
-    pack, kept = fullframe_k(np.ascontiguousarray(img12), f, plan.front, None, None, plan.aq,
-                          plan.mode, rows, cols, th, tw, rcover, ccover, record_words(rec), prm,
-                          enc32(0.0), enc32(0.0), enc32(H / 2.0), enc32(W / 2.0))
-    be = result_from_pack(_NO_LABELS, pack)
+    params = backend_params(rec, *plan.flags, False, f, plan.imager,
+                            max(1, min(max_candidates, 1000)))
+    header, _ = plan.window_header(f, (0, 0), (ch, cw), (H / 2.0, W / 2.0), cut=f)
+    pack, kept = fullframe_k(np.ascontiguousarray(img12), header, plan.front, None, None, params,
+                             rows, cols, th, tw, rcover, ccover)
+    be = result_from_head(_NO_LABELS, pack, header)
     cand = be.candidates()
     n_tiles = len(rows) * len(cols)
     return dict(mode=(f"full frame: {n_tiles} overlapping windows of {th}x{tw} compacted pixels "

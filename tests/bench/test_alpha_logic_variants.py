@@ -78,7 +78,7 @@ def test_int_step_raises_to_the_next_whole_count():
 def test_shipped_variant_is_the_flight_update():
     fl = ("alpha_floor_locked", "alpha_floor_sparse")
     ctl = alpha_controller_for(apply_floor_proposals(load_default_sequence("satellite_track"), fl),
-                               fl).words()
+                               fl).logic()
     rng = np.random.default_rng(20)
     rule, q, want = parse_variant("shipped"), 8192, 8192
     for _ in range(2000):

@@ -142,15 +142,15 @@ def _plan(steps, f=1):
 
 
 def _run_frame(plan, frame, f, tile=32, step=8):
-    from flightsw.ip.backend import backend_params, enc32, result_from_pack
+    from flightsw.ip.backend import backend_params, result_from_head
     from hil_harness.detect.frame_k import fullframe_k
     ch, cw = frame.shape[0] // f, frame.shape[1] // f
     rows, cols = _windows((ch, cw), tile, step)
-    prm = backend_params(plan.rank_record, *plan.flags, False, f, plan.imager, 1000)
-    pack, out = fullframe_k(frame, f, plan.front, None, None, plan.aq, plan.mode, rows, cols,
-                            tile, tile, cover_ranges(rows, tile, ch), cover_ranges(cols, tile, cw),
-                            plan.recw, prm, enc32(0.0), enc32(0.0), enc32(50.0), enc32(60.0))
-    return result_from_pack(np.zeros((0, 0), np.int32), pack), out, rows, cols
+    params = backend_params(plan.rank_record, *plan.flags, False, f, plan.imager, 1000)
+    header, _ = plan.window_header(f, (0, 0), (ch, cw), (50.0, 60.0), cut=f)
+    pack, out = fullframe_k(frame, header, plan.front, None, None, params, rows, cols, tile, tile,
+                            cover_ranges(rows, tile, ch), cover_ranges(cols, tile, cw))
+    return result_from_head(np.zeros((0, 0), np.int32), pack, header), out, rows, cols
 
 
 def _frame12(shape=(100, 120), seed=6):

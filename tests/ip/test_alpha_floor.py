@@ -85,15 +85,15 @@ def _ctl(sparse=0.25, few=20):
                    "below-floor", "locked")
 def test_alpha_logic_with_a_sparse_floor_by_hand(q, count, locked, want):
     from flightsw.ip.threshold import alpha_next_k
-    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl().words()) == want
+    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl().logic()) == want
 
 
 def test_without_a_sparse_count_the_logic_is_the_floor_alone():
     from flightsw.ip.threshold import AlphaController, alpha_next_k
-    w = AlphaController(alpha=2.0, alpha_min=0.75).words()
-    assert list(w[5:7]) == [3072, 0]
+    g = AlphaController(alpha=2.0, alpha_min=0.75).logic()
+    assert (g[0]["sparse_floor"], g[0]["sparse_count"]) == (3072, 0)
     for count in (0, 5, 40):
-        assert alpha_next_k(np.int64(3072), np.int64(count), False, w) == 3072
+        assert alpha_next_k(np.int64(3072), np.int64(count), False, g) == 3072
 
 
 @pytest.mark.parametrize("kw, field", [
@@ -178,7 +178,7 @@ def _ctl_locked(**kw):
                    "below-floor", "locked-floor", "locked")
 def test_alpha_logic_with_a_locked_floor_by_hand(q, count, locked, want):
     from flightsw.ip.threshold import alpha_next_k
-    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl_locked().words()) == want
+    assert alpha_next_k(np.int64(q), np.int64(count), locked, _ctl_locked().logic()) == want
 
 
 @pytest.mark.cases("flightsw.ip.threshold.alpha_next_k", "locked")
@@ -187,8 +187,10 @@ def test_without_a_locked_count_a_locked_frame_keeps_alpha():
     w = AlphaController(alpha=2.0, alpha_min=0.75, alpha_min_locked=0.25).words()
     assert w.dtype == np.int64 and w.shape == (9,) and list(w[7:]) == [1024, 0]
     assert list(AlphaController(alpha=2.0, alpha_min=0.75).words()[7:]) == [3072, 0]  # default
+    g = AlphaController(alpha=2.0, alpha_min=0.75, alpha_min_locked=0.25).logic()
+    assert (g[0]["locked_floor"], g[0]["locked_count"]) == (1024, 0)
     for count in (0, 5, 40, 89):
-        assert alpha_next_k(np.int64(4096), np.int64(count), True, w) == 4096
+        assert alpha_next_k(np.int64(4096), np.int64(count), True, g) == 4096
 
 
 def test_the_controller_steps_down_while_locked_and_few():

@@ -366,6 +366,8 @@ def test_block_bitlen_and_transpose():
 def test_row_pass_is_the_dft_within_its_l2_bound():
     T = 16
     c, s, dw = fft.twiddles_q15(T)
+    spec = np.zeros(1, fft.FFT_SPEC)
+    spec["tile"], spec["dw"] = T, dw
     rng = np.random.default_rng(1)
     for inverse in (False, True):
         for amp in (1000, 32767):
@@ -375,8 +377,8 @@ def test_row_pass_is_the_dft_within_its_l2_bound():
             re[:3], im[:3] = x.real, x.imag
             bl = int(max(np.abs(x.real).max(), np.abs(x.imag).max())).bit_length()
             log = np.zeros((4, 3), np.int64)
-            _, E, _, sh = fft._row_pass(re, im, 3, T, fft.bitrev(T), c, s, inverse, bl, 0.0, 0.0,
-                                        dw, log)
+            _, E, _, sh = fft._row_pass(re, im, 3, spec, (fft.bitrev(T), c, s), inverse,
+                                        (bl, 0.0, 0.0), log)
             ref = T * np.fft.ifft(x, axis=1) if inverse else np.fft.fft(x, axis=1)
             got = (re[:3] + 1j * im[:3]) * 2.0 ** sh
             assert np.linalg.norm(got - ref) <= E * 2.0 ** sh

@@ -520,7 +520,7 @@ def test_shipped_sequences_load_and_run_with_stages():
 
 
 @pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "threshold")
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "threshold-words")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "threshold-words")
 def test_sequence_steps_equal_the_kernels():
     seq = ProcessingSequence.from_toml(GOOD)
     sub = pp.preprocess(FRAMES[0], 2)
@@ -653,7 +653,7 @@ SEQUENCES = FUSABLE + [
 
 @pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "filter", "highpass", "threshold", "fft",
                    "poly", "none")
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "stages", "no-stages", "no-steps")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "stages", "no-stages", "no-steps")
 @pytest.mark.parametrize("si", range(len(SEQUENCES)))
 def test_pipeline_stages_are_the_stage_kernels_in_order(si):
     """The pipeline's stage images (one compiled call) equal the single-stage kernels composed in
@@ -681,20 +681,19 @@ def test_pipeline_stages_are_the_stage_kernels_in_order(si):
 
 
 @pytest.mark.cases("flightsw.ip.pipeline.front_step_k", "not-threshold")
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "no-threshold", "no-stages")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "no-threshold", "no-stages")
 def test_pipeline_without_a_threshold_step_returns_zero_words():
-    from flightsw.ip.pipeline import FramePlan, ip_frame_k
+    from flightsw.ip.pipeline import FramePlan
     seq = ProcessingSequence(SEQUENCES[2], {"compaction": 2, "window": 64})    # no threshold
     plan = FramePlan(seq, RECORD)
-    h, w, r0, c0, _, _, r0w, c0w, mr, mc = plan.default
-    out = ip_frame_k(FRAMES[0], plan.f, r0, c0, h, w, plan.front, plan.ffts, plan.poly, 5000,
-                     plan.mode, plan.recw, plan.prm[False], r0w, c0w, mr, mc, False)
-    assert tuple(int(v) for v in out[11:15]) == (0, 0, 0, 0)
-    assert out[2].shape == (0, h, w) and out[3].shape == (0, h, w)
+    res = plan.run(FRAMES[0], alpha_q12=5000)
+    hd = res.header
+    assert (hd.t4, hd.mean4, hd.std4, hd.shift) == (0, 0, 0, 0)
+    assert res.fst.shape == (0,) + plan.window_hw and res.bst.shape == (0,) + plan.window_hw
     assert "threshold" not in run_stages(seq, FRAMES[0]).context
 
 
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "rank-image", "no-blobs")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "rank-image", "no-blobs")
 def test_pipeline_rank_image_numbers_the_reported_blobs_by_rank():
     seq = ProcessingSequence(SEQUENCES[0] + [{"op": "rank", "max_candidates": 3}],
                              {"compaction": 1, "window": 64})
@@ -712,7 +711,7 @@ def test_pipeline_rank_image_numbers_the_reported_blobs_by_rank():
             assert res.backend.count > res.message.count == 3  # some blobs are not reported
 
 
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_k", "caller-window", "stages")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "caller-window", "stages")
 def test_pipeline_on_a_window_the_caller_cut():
     from flightsw.ip.frame import process_window
     for si in (0, len(FUSABLE)):                  # with the polynomial detrender: new tables

@@ -21,8 +21,8 @@ from flightsw.ip.backend import backend_params
 from flightsw.ip.pipeline import step_words
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import AlphaController
-from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_INFO, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG,
-                             ip_step_k)
+from flightsw.ip.frame_header import header_of
+from flightsw.ip.step import (STEP_FRAME_RANGE, STEP_MESSAGE, STEP_OK, STEP_TIME_TAG, ip_step_k)
 from flightsw.messages import (CANDIDATE_DTYPE, CandidateMessage, Feedback, MessageError,
                                TrackCommand, candidate_words_k, feedback_words_k)
 from flightsw.records import load_record
@@ -130,27 +130,32 @@ def _plan(seq="satellite", rec="satellite"):
 
 
 #: the alpha logic's words (near 90, up 0.5, down 0.25, floor 1.0, ceiling 7.0, no sparse floor,
-#: no locked floor), in the layout the kernel reads (:meth:`AlphaController.words`, int64 [9])
-CTL = tuple(AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).words().tolist())
+#: no locked floor), in the record the kernel reads (:meth:`AlphaController.logic`)
+CTL = AlphaController(alpha=4.0, alpha_min=1.0, alpha_max=7.0).logic()
 
 
 def _call(plan, frame, cmd=None, fb=None, ovr=None, t=0.5, fc=3, aq=16384, check=True, prm=None,
           ctl=CTL):
-    """(verdict, words, window, pack, front stages, back stages, info) of one ip_step_k call (no
-    stages; ``info`` starts as garbage: the kernel writes every word)."""
+    """(verdict, words, window, pack, front stages, back stages, frame header) of one ip_step_k
+    call (no stages; the header's per-frame fields start as garbage: the kernel writes them)."""
     fb = np.array([math.nan, math.nan, 0.0, 0.0]) if fb is None else fb
     fst, bst = plan.no_stages
-    info = np.full(STEP_INFO, -7, np.int64)
+    head = plan.header.copy()
+    for name in ("r0", "c0", "o0", "o1", "t4", "count", "m", "alpha_next", "command"):
+        head[name] = -7
     out = ip_step_k(frame, check, np.zeros(0, np.uint16) if cmd is None else cmd, fb,
-                    np.zeros(0) if ovr is None else ovr, t, fc, aq, np.array(ctl, np.int64),
-                    *step_words(plan.geo, plan.front, plan.recw), plan.ffts, plan.poly,
-                    plan.mode, plan.prm[False] if prm is None else prm, fst, bst, info)
-    return out + (fst, bst, info)
+                    np.zeros(0) if ovr is None else ovr, t, fc, aq, ctl, head,
+                    *step_words(plan.front), plan.ffts, plan.poly,
+                    plan.prm[False] if prm is None else prm, fst, bst)
+    return out + (fst, bst, header_of(head.view(np.int64)))
 
 
 @pytest.mark.cases("flightsw.ip.step.ip_step_k", "typical", "no-command", "no-prediction",
                    "override", "command-refused")
 @pytest.mark.cases("flightsw.ip.step._message_words", "typical")
+@pytest.mark.cases("flightsw.ip.step.front_of", "typical")
+@pytest.mark.cases("flightsw.ip.pipeline.place_window_k", "prediction", "no-prediction")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_at_k", "typical")
 def test_step_kernel_words_are_the_pipelines_message():
     """The words equal the message the one-frame convenience builds from the same pipeline and
     the command's prediction; the window sits where the hand-computed origin says."""
@@ -161,31 +166,31 @@ def test_step_kernel_words_are_the_pipelines_message():
                        los_eci=np.array([0.6, 0.8, 0.0])).to_words()
     fb = np.array([math.nan, math.nan, 0.0, 1.0])
     v, words, win, pack, fst, bst, info = _call(plan, frame, cmd=cmd, fb=fb, aq=16384)
-    assert v == STEP_OK and info[9] == 0 and fb[0] == 118.0 and fb[3] == 0.0
-    assert info[:4].tolist() == [86, 99, 86, 99]
+    assert v == STEP_OK and info.command == 0 and fb[0] == 118.0 and fb[3] == 0.0
+    assert (info.r0, info.c0, info.o0, info.o1) == (86, 99, 86, 99)
     want = process_frame(frame, seq, rec, Feedback(118.0, 131.0), frame_count=3, time_tag=0.5,
                          alpha_q12=16384, want_stages=False).message
     assert np.array_equal(words, want.to_words())
     assert CandidateMessage.from_words(words) == want
     assert np.array_equal(win, frame[86:150, 99:163])
-    assert info[4] == 16384 - 1024                  # not locked: alpha down one step
+    assert info.alpha_next == 16384 - 1024          # not locked: alpha down one step
     # no command, no prediction: the image centre, the feedback untouched
     fb0 = np.array([math.nan, math.nan, 0.0, 1.0])
     v, words, *_, info = _call(plan, frame, fb=fb0)
-    assert v == STEP_OK and info[:2].tolist() == [90, 96] and info[4] == 16384
+    assert v == STEP_OK and (info.r0, info.c0) == (90, 96) and info.alpha_next == 16384
     assert np.isnan(fb0[0]) and fb0[3] == 1.0
     want = process_frame(frame, seq, rec, None, frame_count=3, time_tag=0.5, alpha_q12=16384,
                          want_stages=False).message
     assert np.array_equal(words, want.to_words())
     # an override replaces the feedback in force for this frame only
     v, words, *_, info = _call(plan, frame, fb=fb0, ovr=Feedback(40.0, 200.0, locked=True).values())
-    assert info[:2].tolist() == [8, 168] and np.isnan(fb0[0])
+    assert (info.r0, info.c0) == (8, 168) and np.isnan(fb0[0])
     # a refused command: counted, the feedback in force unchanged
     bad = cmd.copy()
     bad[21] ^= 1
     keep = fb.copy()
     v, *_, info = _call(plan, frame, cmd=bad, fb=fb)
-    assert v == STEP_OK and info[9] != 0 and np.array_equal(fb, keep)
+    assert v == STEP_OK and info.command != 0 and np.array_equal(fb, keep)
 
 
 @pytest.mark.cases("flightsw.ip.step.ip_step_k", "bad-time-tag", "frame-range")
@@ -211,12 +216,12 @@ def test_step_kernel_refuses_a_message_it_cannot_carry():
     for i in range(30):                             # 30 point sources inside the window
         frame[92 + 9 * (i // 6), 102 + 9 * (i % 6)] = 4000
     prm = backend_params(plan.rank_record, *plan.flags, False, plan.f, plan.imager, 30)
-    prm[7] = 0                                      # GOF threshold 0: every blob reported
+    prm["gof_threshold"] = 0                        # GOF threshold 0: every blob reported
     out = _call(plan, frame, fb=np.array([118.0, 130.0, 0.0, 1.0]), prm=prm)
-    assert out[3][1] > 23 and out[0] == STEP_MESSAGE and out[1].size == 0
+    assert out[-1].m > 23 and out[0] == STEP_MESSAGE and out[1].size == 0
 
 
-@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "into", "empty")
+@pytest.mark.cases("flightsw.ip.pipeline.ip_frame_into_k", "stages", "no-stages")
 def test_frame_into_the_callers_stage_arrays():
     """Stage arrays the caller gives (garbage in them) come back holding the window cut by hand,
     the single-stage kernels composed in the sequence's order, a colour image that partitions the
@@ -234,10 +239,13 @@ def test_frame_into_the_callers_stage_arrays():
     h, w = plan.window_hw
     fst, bst = plan.stage_arrays()
     fst[:], bst[:] = -3, -3
-    args = (frame, plan.f, 86, 99, h, w, plan.front, plan.ffts, plan.poly, 16384, plan.mode,
-            plan.recw, plan.prm[True], enc32(86), enc32(99), enc32(120), enc32(128))
-    out = ip_frame_into_k(*args, fst, bst)
-    assert out[2] is fst and out[3] is bst
+    head = plan.header.copy()
+    hd = head[0]
+    hd["r0"], hd["c0"], hd["alpha_q12"], hd["override"] = 86, 99, 16384, 1
+    hd["r0w"], hd["c0w"], hd["mean_row"], hd["mean_col"] = enc32(86), enc32(99), enc32(120), \
+        enc32(128)
+    args = (frame, head, plan.front, plan.ffts, plan.poly)
+    out = ip_frame_into_k(*args, plan.prm[True], fst, bst)
     win = frame[86:150, 99:163].astype(np.int16)
     assert np.array_equal(out[0], win) and np.array_equal(fst[0], win)
     img = win
@@ -249,15 +257,16 @@ def test_frame_into_the_callers_stage_arrays():
         assert np.array_equal(fst[i + 1], img), st.op
     ref, n = ndimage.label(img != 0, structure=np.ones((3, 3)))
     pack = out[1]
-    assert n == pack[0] >= 2 and pack[1] >= 1 and np.array_equal(bst[0] != 0, ref != 0)
+    count, m = int(head["count"][0]), int(head["m"][0])
+    assert n == count >= 2 and m >= 1 and np.array_equal(bst[0] != 0, ref != 0)
     pairs = set(zip(bst[0][ref != 0].tolist(), ref[ref != 0].tolist()))
     assert len(pairs) == n                           # one colour per SciPy blob and back
     rank = np.zeros_like(bst[0])
-    for q in range(pack[1]):
-        rank[bst[0] == pack[22 + q] + 1] = q + 1     # pack[22:]: the order, best first
+    for q in range(m):
+        rank[bst[0] == pack[q] + 1] = q + 1          # pack[:m]: the order, best first
     assert np.array_equal(bst[1], rank)
     e0, e1 = plan.no_stages
-    out2 = ip_frame_into_k(*args[:12], plan.prm[False], *args[13:], e0, e1)
+    out2 = ip_frame_into_k(*args, plan.prm[False], e0, e1)
     assert e0.shape == (0, h, w) and e1.shape == (0, h, w)
     assert np.array_equal(out2[0], win) and np.array_equal(out2[1], pack)
 
