@@ -48,13 +48,19 @@ from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 
-__all__ = ["label", "colour", "blob_sums", "ColourResult", "NSUM", "SUM_NAMES", "COLOUR_MIX",
+__all__ = ["label", "colour", "blob_sums", "ColourResult", "NSUM", "SUM_NAMES", "BLOB_SUMS",
+           "COLOUR_MIX",
            "colour_cycles"]
 
 SUM_NAMES = ("n", "s", "s_col", "s_row", "s_colcol", "s_rowrow", "s_rowcol",
              "g_col", "g_row", "g_colcol", "g_rowrow", "g_rowcol", "max")
 NSUM = len(SUM_NAMES)
-_N, _S, _SC, _SR, _SCC, _SRR, _SRC, _GC, _GR, _GCC, _GRR, _GRC, _MAX = range(NSUM)
+#: one blob's sums, a record per blob (all int64: the flight's 32-bit sums, with 64-bit room for
+#: windows larger than the flight's): ``n`` pixels; ``s`` sum I; ``s_col``, ``s_row`` sum I c,
+#: sum I r; ``s_colcol``, ``s_rowrow``, ``s_rowcol`` sum I c^2, I r^2, I r c (intensity moments);
+#: ``g_col`` ... ``g_rowcol`` the same without I (geometric moments); ``max`` the largest I
+#: (c, r 0-based column and row in the window)
+BLOB_SUMS = np.dtype([(name, np.int64) for name in SUM_NAMES])
 
 #: operation mix of each event of the scan, in budget.M1750_PACE_COSTS keys ([ASSUMED] composition:
 #: the flight assembly is not public; counts are those of a straightforward 1750A coding).
@@ -139,7 +145,8 @@ def _merge(parent, x, y):
 def _accumulate(psums, k, v, r, c):
     """Add on pixel (r, c) of intensity v to the sums of colour k.
 
-    ``psums``: int64 [>= k + 1, NSUM] (row k updated); ``v``: pixel word; ``r``, ``c``: 0-based.
+    ``psums``: :data:`BLOB_SUMS` [>= k + 1] (record k updated); ``v``: pixel word; ``r``, ``c``:
+    0-based.
 
     Cases
     -----
@@ -151,27 +158,27 @@ def _accumulate(psums, k, v, r, c):
     vi = np.int64(v)
     vc = vi * c
     vr = vi * r
-    psums[k, _N] += 1
-    psums[k, _S] += vi
-    psums[k, _SC] += vc
-    psums[k, _SR] += vr
-    psums[k, _SCC] += vc * c
-    psums[k, _SRR] += vr * r
-    psums[k, _SRC] += vr * c
-    psums[k, _GC] += c
-    psums[k, _GR] += r
-    psums[k, _GCC] += c * c
-    psums[k, _GRR] += r * r
-    psums[k, _GRC] += r * c
-    if psums[k, _N] == 1 or vi > psums[k, _MAX]:
-        psums[k, _MAX] = vi
+    psums[k].n += 1
+    psums[k].s += vi
+    psums[k].s_col += vc
+    psums[k].s_row += vr
+    psums[k].s_colcol += vc * c
+    psums[k].s_rowrow += vr * r
+    psums[k].s_rowcol += vr * c
+    psums[k].g_col += c
+    psums[k].g_row += r
+    psums[k].g_colcol += c * c
+    psums[k].g_rowrow += r * r
+    psums[k].g_rowcol += r * c
+    if psums[k].n == 1 or vi > psums[k].max:
+        psums[k].max = vi
 
 
 @njit(cache=True, inline="always")
 def _flush(psums, k, r, run):
     """Add a run (row r) of colour k to its sums.
 
-    ``psums``: int64 [>= k + 1, NSUM]; ``run`` = (``cnt``, ``sv``, ``svc``, ``svcc``, ``sc``,
+    ``psums``: :data:`BLOB_SUMS` [>= k + 1]; ``run`` = (``cnt``, ``sv``, ``svc``, ``svcc``, ``sc``,
     ``scc``, ``vmax``): the run's count, sum I, sum I c, sum I c^2, sum c, sum c^2 and max I.
 
     Cases
@@ -181,21 +188,21 @@ def _flush(psums, k, r, run):
     max : a later run replaces max I only when larger.
     """
     cnt, sv, svc, svcc, sc, scc, vmax = run
-    first = psums[k, _N] == 0
-    psums[k, _N] += cnt
-    psums[k, _S] += sv
-    psums[k, _SC] += svc
-    psums[k, _SR] += sv * r
-    psums[k, _SCC] += svcc
-    psums[k, _SRR] += sv * r * r
-    psums[k, _SRC] += svc * r
-    psums[k, _GC] += sc
-    psums[k, _GR] += cnt * r
-    psums[k, _GCC] += scc
-    psums[k, _GRR] += cnt * r * r
-    psums[k, _GRC] += sc * r
-    if first or vmax > psums[k, _MAX]:
-        psums[k, _MAX] = vmax
+    first = psums[k].n == 0
+    psums[k].n += cnt
+    psums[k].s += sv
+    psums[k].s_col += svc
+    psums[k].s_row += sv * r
+    psums[k].s_colcol += svcc
+    psums[k].s_rowrow += sv * r * r
+    psums[k].s_rowcol += svc * r
+    psums[k].g_col += sc
+    psums[k].g_row += cnt * r
+    psums[k].g_colcol += scc
+    psums[k].g_rowrow += cnt * r * r
+    psums[k].g_rowcol += sc * r
+    if first or vmax > psums[k].max:
+        psums[k].max = vmax
 
 
 @njit(cache=True)
@@ -451,7 +458,7 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
     """Raster-scan blob colouring of ``img`` (integer or bool [H, W]; non-zero = on).
 
     Returns (labels int32 [H, W] final colours 1..N (an empty [0, 0] array if not ``want_labels``), N,
-    sums int64 [N + 1, NSUM] (row 0 unused; zeros if not ``want_sums``), ops int64 [6] event counts,
+    sums :data:`BLOB_SUMS` [N + 1] (record 0 unused; zeros if not ``want_sums``), ops int64 [6] event counts,
     bad: a pixel lies outside the 16-bit word range -32768..65535 -- the callers raise).
 
     Host implementation note: the flight accumulates the sums of each pixel's provisional colour
@@ -469,7 +476,7 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
     sums : ``want_sums`` -> row k holds blob k's :data:`SUM_NAMES` integers.
     no-sums : ``want_sums`` false -> sums all zero (labels and N unchanged).
     no-labels : ``want_labels`` false -> labels an empty [0, 0] array (sums unchanged).
-    no-blobs : no on pixel -> N = 0, sums [1, NSUM] zeros, labels all 0.
+    no-blobs : no on pixel -> N = 0, sums [1] zeros, labels all 0.
     narrow : ``W <= 64`` -> the mask scan.
     wide : ``W > 64`` -> the pixel scan, the same labels.
     out-of-range : a word outside -32768..65535 -> ``bad`` true.
@@ -509,7 +516,7 @@ def colour_k(img, diagonal, want_labels, want_sums=True):
     ops[EV_FIND_STEP] = n_steps
     ops[EV_FOLD] = ncol
     # ---- the sums and the labels, per run (one final colour each) ----
-    sums = np.zeros((nblob + 1, NSUM), np.int64)
+    sums = np.zeros(nblob + 1, BLOB_SUMS)
     for q in range(nrun):
         r = run_r[q]
         c0 = run_a[q]
@@ -564,17 +571,17 @@ def _label_kernel(img, diagonal):
 def _sums_from_labels(img, labels, count):
     """Per-blob sums (as :func:`colour_k`) of an image given its labels 1..count.
 
-    ``img``: int32 [H, W]; ``labels``: int32 [H, W]; ``count``: int. Returns int64
-    [count + 1, NSUM].
+    ``img``: int32 [H, W]; ``labels``: int32 [H, W]; ``count``: int. Returns :data:`BLOB_SUMS`
+    [count + 1].
 
     Cases
     -----
-    typical : row k holds the :data:`SUM_NAMES` integers of the pixels labelled k.
+    typical : record k holds the :data:`SUM_NAMES` integers of the pixels labelled k.
     outside-labels : labels ``<= 0`` or ``> count`` are skipped.
-    no-blobs : ``count == 0`` -> one zero row.
+    no-blobs : ``count == 0`` -> one zero record.
     """
     H, W = img.shape
-    sums = np.zeros((count + 1, NSUM), np.int64)
+    sums = np.zeros(count + 1, BLOB_SUMS)
     for r in range(H):
         for c in range(W):
             k = labels[r, c]
@@ -596,9 +603,9 @@ class ColourResult:
         Final colours 1..count (0 = off), numbered in order of each blob's first pixel (raster).
     count : int
         Number of blobs N.
-    sums : ndarray [count + 1, NSUM] int64
-        Per-blob sums accumulated during the scan (row k = blob k; row 0 unused), columns
-        :data:`SUM_NAMES`.
+    sums : ndarray [count + 1] of :data:`BLOB_SUMS`
+        Per-blob sums accumulated during the scan (record k = blob k; record 0 unused), fields
+        :data:`SUM_NAMES` (``sums["s"]``: every blob's sum I).
     ops : ndarray [6] int64
         Event counts (pixel, on_pixel, new_colour, merge, find_step, fold) of the scan.
     cycles : int
@@ -694,8 +701,8 @@ def label(image, diagonal: bool = True):
 
 
 def blob_sums(image, labels, count) -> np.ndarray:
-    """Per-blob sums (columns :data:`SUM_NAMES`) of ``image`` over ``labels`` 1..count ->
-    int64 [count + 1, NSUM]; the same integers the colouring scan accumulates."""
+    """Per-blob sums (fields :data:`SUM_NAMES`) of ``image`` over ``labels`` 1..count ->
+    :data:`BLOB_SUMS` [count + 1]; the same integers the colouring scan accumulates."""
     img = as_int_image(image)
     lab = np.asarray(labels)
     if lab.shape != img.shape:

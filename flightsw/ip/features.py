@@ -85,7 +85,7 @@ from flightsw.arith.m1750_lanes import (
 )
 from flightsw.arith.m1750_math import MATH_CYCLES, atan2_32_lanes, sqrt32_lanes
 from flightsw.budget import IP1750, Ledger, m1750_cycles
-from flightsw.ip.colour import NSUM, blob_sums
+from flightsw.ip.colour import BLOB_SUMS, NSUM, blob_sums
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
 
 __all__ = ["features", "features_words", "normalise_words", "normalise", "FEATURE_DTYPE",
@@ -152,7 +152,8 @@ def _i2f48(v):
 
 @njit(cache=True)
 def _features_kernel(sums, count, intensity):
-    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [count, 12], PI flags OR)
+    """sums :data:`~flightsw.ip.colour.BLOB_SUMS` [count + 1] -> (packed 32-bit words int64
+    [count, 12], PI flags OR)
     (:func:`features_k`, blob-major).
 
     Cases
@@ -166,7 +167,8 @@ def _features_kernel(sums, count, intensity):
 
 @njit(cache=True)
 def features_k(sums, count, intensity):
-    """sums int64 [count + 1, NSUM] -> (packed 32-bit words int64 [12, count], feature-major: row i
+    """sums :data:`~flightsw.ip.colour.BLOB_SUMS` [count + 1] -> (packed 32-bit words int64
+    [12, count], feature-major: row i
     = feature i of every blob; PI flags OR). Every blob runs the flight's per-blob routine; the host
     applies each instruction to all blobs in its lane form (the same words; module docstring).
 
@@ -194,16 +196,16 @@ def features_k(sums, count, intensity):
     wide = False
     for k in range(K):
         s = sums[k + 1]
-        geo = not (intensity and s[1] > 0)       # geometric weights (flag off, or sum I <= 0)
-        iw[k] = s[0] if geo else s[1]
-        ia[k] = s[7] if geo else s[2]
-        ib[k] = s[8] if geo else s[3]
-        ic[k] = s[9] if geo else s[4]
-        idd[k] = s[10] if geo else s[5]
-        ie[k] = s[11] if geo else s[6]
-        o[0, k] = s[0]                           # N, sum I, max I (converted below)
-        o[8, k] = s[1]
-        o[10, k] = s[12]
+        geo = not (intensity and s.s > 0)        # geometric weights (flag off, or sum I <= 0)
+        iw[k] = s.n if geo else s.s
+        ia[k] = s.g_col if geo else s.s_col
+        ib[k] = s.g_row if geo else s.s_row
+        ic[k] = s.g_colcol if geo else s.s_colcol
+        idd[k] = s.g_rowrow if geo else s.s_rowrow
+        ie[k] = s.g_rowcol if geo else s.s_rowcol
+        o[0, k] = s.n                            # N, sum I, max I (converted below)
+        o[8, k] = s.s
+        o[10, k] = s.max
     for r in range(6):
         for k in range(K):
             wide |= (buf[r, k] < -2147483648) | (buf[r, k] > 2147483647)
@@ -352,8 +354,10 @@ def features_words(sums, intensity_centroid: bool = True, ledger: Ledger | None 
 
     Parameters
     ----------
-    sums : ndarray [count + 1, NSUM] int64
-        Per-blob sums (``ColourResult.sums`` or :func:`flightsw.ip.colour.blob_sums`).
+    sums : ndarray [count + 1] of :data:`~flightsw.ip.colour.BLOB_SUMS`
+        Per-blob sums (``ColourResult.sums`` or :func:`flightsw.ip.colour.blob_sums`); an int64
+        array [count + 1, NSUM] whose columns are :data:`~flightsw.ip.colour.SUM_NAMES` is read
+        as those records.
     intensity_centroid : bool
         The uplink intensity flag (True: intensity-weighted centroids and moments).
     ledger : Ledger, optional
@@ -364,8 +368,13 @@ def features_words(sums, intensity_centroid: bool = True, ledger: Ledger | None 
     (words int64 [count, 12], flags int)
     """
     s = np.asarray(sums)
-    if s.ndim != 2 or s.shape[1] != NSUM or s.shape[0] < 1 or s.dtype != np.int64:
-        raise ValueError(f"sums must be an int64 array [count + 1, {NSUM}], got {s.dtype} {s.shape}")
+    if s.dtype != BLOB_SUMS:
+        if s.ndim != 2 or s.shape[1] != NSUM or s.shape[0] < 1 or s.dtype != np.int64:
+            raise ValueError(f"sums must be BLOB_SUMS records [count + 1] or an int64 array "
+                             f"[count + 1, {NSUM}], got {s.dtype} {s.shape}")
+        s = np.ascontiguousarray(s).view(BLOB_SUMS).reshape(-1)
+    if s.ndim != 1 or s.shape[0] < 1:
+        raise ValueError(f"sums must hold at least one record (record 0 unused), got {s.shape}")
     count = s.shape[0] - 1
     words, flags = _features_kernel(s, count, _check_flag("intensity_centroid", intensity_centroid))
     if ledger is not None:

@@ -95,8 +95,8 @@ def test_label_counts_and_cycles():
     # sums accumulated in the scan equal the sums over the labels
     assert np.array_equal(res.sums, blob_sums(im, res.labels, res.count))
     s = res.sums[1]
-    assert s[0] == 2 and s[1] == 3 + 7 and s[12] == 7
-    assert list(res.sums[2, [0, 1, 12]]) == [3, 12, 5]
+    assert s["n"] == 2 and s["s"] == 3 + 7 and s["max"] == 7
+    assert [int(res.sums[2][f]) for f in ("n", "s", "max")] == [3, 12, 5]
     assert set(COLOUR_MIX) == {"pixel", "on_pixel", "new_colour", "merge", "find_step", "fold"}
 
 
