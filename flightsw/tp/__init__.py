@@ -16,7 +16,7 @@ from flightsw.tp.dynamics import NominalTrajectory
 from flightsw.tp.ekf import EKF1750
 from flightsw.tp.geometry import (ImagerGeometry, body_to_pixel, imager_unit_vector, pixel_to_body,
                                   pixel_to_tangent, tangent_to_pixel)
-from flightsw.tp.layout import STAGES
+from flightsw.tp.state import STAGES
 from flightsw.tp.processor import TPInputs, TPOutputs, TrackProcessor
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink, encode_uplink
 

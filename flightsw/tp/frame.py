@@ -34,15 +34,17 @@ from numba import njit
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
-from flightsw.tp.gates import (centre_object_gate, drop_all_gates, gate_half_width, gate_params,
-                               propagate_gates, smooth_gates)
+from flightsw.tp.gates import (
+    centre_object_gate, drop_all_gates, gate_params, propagate_gates,
+    smooth_gates,
+)
 from flightsw.tp.geometry import observations
-from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG,
-                                O_LOCKED, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_SP, O_SV,
-                                O_T, STAGES, begin_frame, evidence, has_nominal, long_gap,
-                                message_header, n_used, opportunity_mode, work_views)
+from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, O_DECF, O_FRAME, O_IMG, O_LOCKED,
+                                O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_SP, O_SV, O_T,
+                                clear_outputs, message_header)
 from flightsw.tp.memory import float_views, int_views, unowned
 from flightsw.tp.opportunity import track_opportunity
+from flightsw.tp.state import MAX_OBS, STAGES, begin_frame
 from flightsw.tp.rules import (apply_rules, apriori_rule, object_observed, reinitialise,
                                report_object, verify_object)
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
@@ -52,14 +54,14 @@ __all__ = ["tp_frame", "run_frame", "step_frame", "command_fields", "STAGES"]
 
 
 @njit(cache=True)
-def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc):
+def tp_frame(st, D, K, IMG, N, E, hdr, att, rows, cols, out):
     """One frame -> status bits (``flightsw.messages`` TC_*).
 
-    ``C`` configuration, ``D`` dynamics table, ``K`` EKF parameters, ``IMG`` imager table rows
-    (int64); state ``S``, ``G``, ``N``, ``E``; per frame ``OBS``, ``PW``, ``W`` (scratch), ``V``
-    (working values); inputs ``hdr`` float64 [H_WORDS] (message header), ``att`` float64 [16]
-    (attitude data), ``rows``/``cols`` float64 [MAX_OBS] (candidate centroids, pixels); outputs
-    ``out`` float64 [O_WORDS] and ``cyc`` int64 [len(STAGES)] (clocks per stage).
+    ``st`` the state record (:data:`flightsw.tp.state.TP_STATE_DTYPE`: configuration, track,
+    gates, observations, working values, scratch, clocks per stage); ``D`` dynamics table, ``K``
+    EKF parameters, ``IMG`` imager table rows (int64); state ``N``, ``E``; inputs ``hdr`` float64
+    [H_WORDS] (message header), ``att`` float64 [16] (attitude data), ``rows``/``cols`` float64
+    [MAX_OBS] (candidate centroids, pixels); outputs ``out`` float64 [O_WORDS].
 
     Cases
     -----
@@ -72,27 +74,29 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
         rule, no empty frame counted.
     opportunity : the alpha-beta opportunity tracker instead of the velocity filter.
     """
-    wk, RM, dR, M, GP, TAKEN = work_views(W)
+    C, S, G, OBS, V, X, cyc = st.config, st.track, st.gates, st.obs, st.work, st.scratch, st.cycles
+    wk, RM, dR, M, GP = X.wk, X.rm, X.dr, X.m, X.gp
     msg_ok, img_idx, t_msg, frame_count, n_obs = message_header(hdr)
-    begin_frame(V, out, cyc)
+    begin_frame(V, cyc)
+    clear_outputs(out)
     frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att)
     if not frame_attitude(C, S, V, att, RM, dR, cyc):
         return no_attitude_frame(S, V, out)
     observations(IMG, V, OBS, rows, cols, n_obs, cyc)
-    opportunity, nominal = opportunity_mode(C), has_nominal(C)
+    opportunity, nominal = C.mode == 1, C.have_nom == 1
     if not opportunity and nominal:
         propagate_nominal(C, D, K, S, N, V, RM, cyc)
     elif not opportunity:
         no_nominal(V)
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
     if not opportunity and nominal:              # velocity filtering (dedicated events)
-        if long_gap(V):
+        if V.long_gap != 0:
             drop_all_gates(S, G, V)
         gate_params(C, IMG, V, GP, cyc)
         propagate_gates(S, G, V, GP, dR, cyc)
         centre_object_gate(S, G, V, cyc)
-        if evidence(V):
-            associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
+        if V.evidence != 0:
+            associate(G, OBS, V.nuse, GP.half, X.pairs, X.taken, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)
             apply_rules(C, S, G, V, GP, cyc)
             apriori_rule(C, S, G, OBS, V, GP, cyc)
@@ -110,19 +114,20 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
 
 
 @njit(cache=True)
-def run_frame(MEM, FIO):
-    """:func:`tp_frame` over the TP's two buffers (:mod:`flightsw.tp.memory`: int64 words ``MEM``,
-    float64 inputs and outputs ``FIO``) -> status bits, on the inputs already in ``FIO``
-    (:func:`step_frame` writes them, then calls this).
+def run_frame(MEM, FIO, ST):
+    """:func:`tp_frame` over the TP's state record ``ST[0]`` and two buffers
+    (:mod:`flightsw.tp.memory`: int64 words ``MEM``, float64 inputs and outputs ``FIO``) ->
+    status bits, on the inputs already in ``FIO`` (:func:`step_frame` writes them, then calls
+    this).
 
     Cases
     -----
     typical : the arrays are the buffers' views; the frame's status, words and outputs are
         :func:`tp_frame`'s on those arrays.
     """
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
+    D, K, IMG, N, E = int_views(unowned(MEM))
     hdr, att, rows, cols, out = float_views(unowned(FIO))
-    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
+    return tp_frame(ST[0], D, K, IMG, N, E, hdr, att, rows, cols, out)
 
 
 @njit(cache=True, inline="always")
@@ -146,7 +151,7 @@ def command_fields(status, out):
 
 
 @njit(cache=True)
-def step_frame(MEM, FIO, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r,
+def step_frame(MEM, FIO, ST, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r,
                v, att_valid):
     """The frame's inputs written into ``FIO`` in the documented layout (:mod:`flightsw.tp.layout`:
     ``hdr``, ``att`` [16], ``rows``, ``cols``), then :func:`run_frame` -> its status bits and the
@@ -196,4 +201,4 @@ def step_frame(MEM, FIO, usable, cand, t_msg, img_idx, frame_count, att_given, a
             att[6 + i] = rate[i]
             att[9 + i] = r[i]
             att[12 + i] = v[i]
-    return command_fields(run_frame(MEM, FIO), out)
+    return command_fields(run_frame(MEM, FIO, ST), out)

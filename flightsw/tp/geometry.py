@@ -34,8 +34,7 @@ from flightsw.arith.m1750 import (FLAG_DOMAIN, encode32, fa32, fd32, fm32, fs32,
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
 from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
-from flightsw.tp.layout import (MAX_OBS, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK, ST_GEOM, V_EVIDENCE,
-                                V_IMG, V_NUSE, V_STATUS)
+from flightsw.tp.state import MAX_OBS
 
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
            "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
@@ -384,43 +383,43 @@ def host_to32(x):
 def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
     """This frame's candidate centroids (``rows``, ``cols`` float64 pixels, best ranked first) in
     body tangent coordinates of the imager in force -> ``OBS`` (int64 [MAX_OBS, OBS_C]: a, b packed
-    32-bit, their 16-bit integers, usable flag) and ``V[V_NUSE]``. *"Each observation is converted
+    32-bit, their 16-bit integers, usable flag) and ``V.nuse``. *"Each observation is converted
     from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
     coordinates."* A frame without evidence (message or attitude bad) uses none and coasts.
 
     Cases
     -----
-    converts : each centroid -> (a, b), their 16-bit integers, usable; ``V_NUSE`` = the count.
-    no-evidence : ``V_EVIDENCE == 0`` -> ``TC_COASTING``, nothing converted, ``V_NUSE`` untouched.
-    empty-message : no candidates -> ``TC_EMPTY_MESSAGE | TC_COASTING``, ``V_NUSE = 0``.
+    converts : each centroid -> (a, b), their 16-bit integers, usable; ``V.nuse`` = the count.
+    no-evidence : ``V.evidence == 0`` -> ``TC_COASTING``, nothing converted, ``V.nuse`` untouched.
+    empty-message : no candidates -> ``TC_EMPTY_MESSAGE | TC_COASTING``, ``V.nuse = 0``.
     capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked) used.
-    not-representable : a centroid that does not encode (NaN, inf) -> unusable (``OBS_OK = 0``).
+    not-representable : a centroid that does not encode (NaN, inf) -> unusable (``OBS.ok = 0``).
     behind : a pixel whose direction is behind the body's tangent plane (``v_x <= 0``) ->
         unusable.
     """
-    if V[V_EVIDENCE] == 0:
-        V[V_STATUS] |= TC_COASTING
+    if V.evidence == 0:
+        V.status |= TC_COASTING
         return
-    img = IMG[V[V_IMG]]
+    img = IMG[V.img]
     nuse = n_obs if n_obs < MAX_OBS else MAX_OBS
     for j in range(nuse):
         r, g1 = enc32(rows[j])
         c, g2 = enc32(cols[j])
-        OBS[j, OBS_OK] = 0
+        OBS[j].ok = 0
         if (g1 | g2) != 0:
             continue
         a, b, vx, g = pix_to_tan(img, r, c)
         if g != 0 or vx == 0 or (vx >> 31) & 1:
             continue
-        OBS[j, OBS_A] = a
-        OBS[j, OBS_B] = b
-        OBS[j, OBS_IA] = tan_int(a)
-        OBS[j, OBS_IB] = tan_int(b)
-        OBS[j, OBS_OK] = 1
-    cyc[ST_GEOM] += nuse * CYC_PIX_TO_TAN
+        OBS[j].a = a
+        OBS[j].b = b
+        OBS[j].ia = tan_int(a)
+        OBS[j].ib = tan_int(b)
+        OBS[j].ok = 1
+    cyc.geometry += nuse * CYC_PIX_TO_TAN
     if nuse == 0:
-        V[V_STATUS] |= TC_EMPTY_MESSAGE | TC_COASTING
-    V[V_NUSE] = nuse
+        V.status |= TC_EMPTY_MESSAGE | TC_COASTING
+    V.nuse = nuse
 
 
 # ------------------------------------------------------------------------------------------------

@@ -26,16 +26,14 @@ from numba.extending import intrinsic
 from flightsw.tp.dynamics import D_WORDS
 from flightsw.tp.ekf import E_WORDS, K_WORDS
 from flightsw.tp.geometry import IMG_WORDS
-from flightsw.tp.layout import (C_WORDS, GC, H_WORDS, MAX_OBS, N_WORDS, NG, O_WORDS, OBS_C, S_WORDS,
-                                STAGES, V_WORDS, W_WORDS)
+from flightsw.tp.layout import H_WORDS, N_WORDS, O_WORDS
+from flightsw.tp.state import MAX_OBS
 
 __all__ = ["ATT_WORDS", "new_memory", "host_views", "int_views", "float_views", "unowned"]
 
 ATT_WORDS = 16
-_SIZES = (C_WORDS, D_WORDS, K_WORDS, S_WORDS, NG * GC, N_WORDS, E_WORDS, MAX_OBS * OBS_C,
-          NG * MAX_OBS * 3, W_WORDS, V_WORDS, len(STAGES))
-(M_C, M_D, M_K, M_S, M_G, M_N, M_E, M_OBS, M_PW, M_W, M_V, M_CYC, M_IMG) = tuple(
-    int(x) for x in np.concatenate([[0], np.cumsum(_SIZES)]))
+_SIZES = (D_WORDS, K_WORDS, N_WORDS, E_WORDS)
+(M_D, M_K, M_N, M_E, M_IMG) = tuple(int(x) for x in np.concatenate([[0], np.cumsum(_SIZES)]))
 F_HDR = 0
 F_ATT = F_HDR + H_WORDS
 F_ROWS = F_ATT + ATT_WORDS
@@ -57,10 +55,7 @@ def host_views(MEM: np.ndarray, FIO: np.ndarray) -> dict:
     :func:`float_views`) -> dict name -> ndarray view."""
     n_img = (MEM.shape[0] - M_IMG) // IMG_WORDS
     return {
-        "C": MEM[M_C:M_D], "D": MEM[M_D:M_K], "K": MEM[M_K:M_S], "S": MEM[M_S:M_G],
-        "G": MEM[M_G:M_N].reshape(NG, GC), "N": MEM[M_N:M_E], "E": MEM[M_E:M_OBS],
-        "OBS": MEM[M_OBS:M_PW].reshape(MAX_OBS, OBS_C), "PW": MEM[M_PW:M_W].reshape(-1, 3),
-        "W": MEM[M_W:M_V], "V": MEM[M_V:M_CYC], "cyc": MEM[M_CYC:M_IMG],
+        "D": MEM[M_D:M_K], "K": MEM[M_K:M_N], "N": MEM[M_N:M_E], "E": MEM[M_E:M_IMG],
         "IMG": MEM[M_IMG:M_IMG + n_img * IMG_WORDS].reshape(n_img, IMG_WORDS),
         "hdr": FIO[F_HDR:F_ATT], "att": FIO[F_ATT:F_ROWS], "rows": FIO[F_ROWS:F_COLS],
         "cols": FIO[F_COLS:F_OUT], "out": FIO[F_OUT:F_WORDS],
@@ -69,8 +64,8 @@ def host_views(MEM: np.ndarray, FIO: np.ndarray) -> dict:
 
 @njit(cache=True, inline="always")
 def int_views(MEM):
-    """The word arrays in ``MEM`` -> (C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc), contiguous
-    views (G [NG, GC], OBS [MAX_OBS, OBS_C], PW [NG * MAX_OBS, 3], IMG [n_img, IMG_WORDS]).
+    """The word arrays in ``MEM`` -> (D, K, IMG, N, E), contiguous views (IMG [n_img,
+    IMG_WORDS]).
 
     Cases
     -----
@@ -78,11 +73,9 @@ def int_views(MEM):
         ``IMG`` takes every whole row after ``M_IMG``.
     """
     n_img = (MEM.shape[0] - M_IMG) // IMG_WORDS
-    return (MEM[M_C:M_D], MEM[M_D:M_K], MEM[M_K:M_S],
-            MEM[M_IMG:M_IMG + n_img * IMG_WORDS].reshape((n_img, IMG_WORDS)), MEM[M_S:M_G],
-            MEM[M_G:M_N].reshape((NG, GC)), MEM[M_N:M_E], MEM[M_E:M_OBS],
-            MEM[M_OBS:M_PW].reshape((MAX_OBS, OBS_C)), MEM[M_PW:M_W].reshape((NG * MAX_OBS, 3)),
-            MEM[M_W:M_V], MEM[M_V:M_CYC], MEM[M_CYC:M_IMG])
+    return (MEM[M_D:M_K], MEM[M_K:M_N],
+            MEM[M_IMG:M_IMG + n_img * IMG_WORDS].reshape((n_img, IMG_WORDS)), MEM[M_N:M_E],
+            MEM[M_E:M_IMG])
 
 
 @njit(cache=True, inline="always")

@@ -29,9 +29,8 @@ from flightsw.messages import (
     CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_CONTENT, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR,
     CandidateMessage, TrackCommand,
 )
-from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
-from flightsw.tp.layout import O_LOS, O_QP, O_R, O_SP, O_SV, O_V
+from flightsw.tp.layout import N_T, N_X, O_LOS, O_QP, O_R, O_SP, O_SV, O_V
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
@@ -40,6 +39,7 @@ from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import step_frame
 from flightsw.tp.geometry import N_COLS, N_ROWS
 from flightsw.tp.memory import host_views, new_memory
+from flightsw.tp.state import CONFIG_DTYPE, STAGES, new_record, new_state
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
 __all__ = ["TrackProcessor", "TPInputs", "TPOutputs", "message_content_fault"]
@@ -148,7 +148,7 @@ _A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
 _A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
 
 
-def _load_step_frame(MEM, FIO) -> None:
+def _load_step_frame(MEM, FIO, ST) -> None:
     """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for one set of argument types --
     int64 / float64 buffers, a :data:`~flightsw.messages.CANDIDATE_DTYPE` array and float64
     attitude arrays of any layout -- and forbid any other: inputs of other types then raise
@@ -157,7 +157,7 @@ def _load_step_frame(MEM, FIO) -> None:
     if _STEP_FRAME_LOADED:
         return
     f8 = types.Array(types.float64, 1, "A")
-    step_frame.compile((typeof(MEM), typeof(FIO), types.boolean,
+    step_frame.compile((typeof(MEM), typeof(FIO), typeof(ST), types.boolean,
                         types.Array(typeof(_NO_CANDIDATES).dtype, 1, "A"), types.float64,
                         types.int64, types.int64, types.boolean, types.float64, f8, f8, f8, f8,
                         types.boolean))
@@ -195,9 +195,14 @@ class TrackProcessor:
         self._img_shape = [(cfg.imagers[k].n_rows, cfg.imagers[k].n_cols) for k in self._img_names]
         self.MEM, self.FIO = new_memory(len(self._img_names))
         views = host_views(self.MEM, self.FIO)
-        (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS, self.PW,
-         self.W, self.V, self.cyc) = (views[k] for k in ("C", "D", "K", "IMG", "S", "G", "N", "E",
-                                                         "OBS", "PW", "W", "V", "cyc"))
+        self.D, self.K, self.IMG, self.N, self.E = (views[k] for k in ("D", "K", "IMG", "N", "E"))
+        #: the state record (:data:`flightsw.tp.state.TP_STATE_DTYPE`): one row, fields as
+        #: attributes; ``_st`` the same memory as a plain array, as the kernel takes it
+        self.state = new_state()
+        self._st = self.state.view(np.ndarray)
+        st = self.state[0]
+        self.C, self.S, self.G, self.OBS, self.V, self.cyc = (
+            st.config, st.track, st.gates, st.obs, st.work, st.cycles)
         self.hdr, self.att, self.rows, self.cols, self.out = (
             views[k] for k in ("hdr", "att", "rows", "cols", "out"))   # rows/cols: centroids
         self.IMG[:] = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
@@ -207,73 +212,82 @@ class TrackProcessor:
                               0.0 if nom is None else nom.t0)
         self.K[:] = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma,
                                cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
-        self.C[:] = self._constants(cfg, nom)
+        self._set_config(self._constants(cfg, nom))
         self.last_error = ""
         self.last_cycles: dict = {}
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
-        _load_step_frame(self.MEM, self.FIO)
+        _load_step_frame(self.MEM, self.FIO, self._st)
         self.reset()
 
     @staticmethod
-    def _constants(cfg: TPConfig, nom) -> np.ndarray:
+    def _constants(cfg: TPConfig, nom):
+        """The configuration record (:data:`flightsw.tp.state.CONFIG_DTYPE`) of ``cfg`` with the
+        nominal ``nom`` (None: none): the one translation from TPConfig's attributes to the
+        flight words."""
         e32 = lambda v: encode32(float(v), rounding="nearest")  # noqa: E731
         e48 = lambda v: encode48(float(v), rounding="nearest")  # noqa: E731
-        C = np.zeros(F.C_WORDS, np.int64)
-        C[F.C_MODE] = 1 if cfg.mode == "opportunity" else 0
-        C[F.C_HAVE_NOM] = 1 if nom is not None else 0
-        C[F.C_ALPHA] = e32(cfg.alpha)
-        C[F.C_BETA] = e32(cfg.beta)
-        C[F.C_GATE_PX] = e32(cfg.gate_px)
-        C[F.C_THR_OBJ] = e32(cfg.residual_threshold_px2)
+        C = new_record(CONFIG_DTYPE)
+        C.mode = 1 if cfg.mode == "opportunity" else 0
+        C.have_nom = 1 if nom is not None else 0
+        C.alpha = e32(cfg.alpha)
+        C.beta = e32(cfg.beta)
+        C.gate_px = e32(cfg.gate_px)
+        C.thr_obj = e32(cfg.residual_threshold_px2)
         thr_s = cfg.residual_threshold_px2 if cfg.residual_threshold_star_px2 is None \
             else cfg.residual_threshold_star_px2
-        C[F.C_THR_STAR] = e32(thr_s)
-        C[F.C_N_EMPTY] = cfg.n_empty
-        C[F.C_N_EMPTY_OBJ] = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
-        C[F.C_N_LOST] = cfg.n_lost
-        C[F.C_N_APRIORI] = cfg.n_apriori
-        C[F.C_AIM_ROW] = e32(cfg.aim_row_px)
-        C[F.C_AIM_COL] = e32(cfg.aim_col_px)
-        C[F.C_SCAN_R] = e32(cfg.aim_scan_px)
-        C[F.C_SCAN_COS] = e32(math.cos(2.0 * math.pi / cfg.aim_scan_frames))
-        C[F.C_SCAN_SIN] = e32(math.sin(2.0 * math.pi / cfg.aim_scan_frames))
-        C[F.C_FRAME_DT] = e48(cfg.frame_dt)
-        C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
-        C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)
-        C[F.C_OPP_ALPHA] = e32(cfg.opp_alpha)
-        C[F.C_OPP_BETA] = e32(cfg.opp_beta)
-        C[F.C_OPP_GATE_PX] = e32(cfg.opp_gate_px)
-        C[F.C_OPP_N_LOST] = cfg.opp_n_lost
-        C[F.C_OPP_STARTUP] = growing_memory_last_k(cfg.opp_alpha, cfg.opp_beta) \
+        C.thr_star = e32(thr_s)
+        C.n_empty = cfg.n_empty
+        C.n_empty_obj = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
+        C.n_lost = cfg.n_lost
+        C.n_apriori = cfg.n_apriori
+        C.aim_row = e32(cfg.aim_row_px)
+        C.aim_col = e32(cfg.aim_col_px)
+        C.scan_r = e32(cfg.aim_scan_px)
+        C.scan_cos = e32(math.cos(2.0 * math.pi / cfg.aim_scan_frames))
+        C.scan_sin = e32(math.sin(2.0 * math.pi / cfg.aim_scan_frames))
+        C.frame_dt = e48(cfg.frame_dt)
+        C.max_coast = e48(cfg.max_coast_s)
+        C.sig_px = e32(cfg.ekf_meas_sigma_px)
+        C.opp_alpha = e32(cfg.opp_alpha)
+        C.opp_beta = e32(cfg.opp_beta)
+        C.opp_gate_px = e32(cfg.opp_gate_px)
+        C.opp_n_lost = cfg.opp_n_lost
+        C.opp_startup = growing_memory_last_k(cfg.opp_alpha, cfg.opp_beta) \
             if cfg.opp_startup and cfg.opp_beta > 0 else 0
-        C[F.C_MAX_RATE2] = e32(cfg.max_rate ** 2)
-        C[F.C_QTOL] = e32(cfg.quat_norm_tol)
-        C[F.C_MAX_SKEW] = e48(cfg.max_time_skew)
-        C[F.C_EKF_MAX_REJ] = cfg.ekf_max_rejects
-        C[F.C_RULE_GUARDS] = 1 if cfg.rule_guards else 0
-        C[F.C_AIM_ON] = 1 if cfg.aim else 0
-        C[F.C_RMIN2] = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
-        C[F.C_RMAX2] = e32(1.0e8 ** 2)
-        C[F.C_VMAX2] = e32(2.0e4 ** 2)            # m/s
-        C[F.C_GAP] = e48(1.5 * cfg.frame_dt)
+        C.max_rate2 = e32(cfg.max_rate ** 2)
+        C.qtol = e32(cfg.quat_norm_tol)
+        C.max_skew = e48(cfg.max_time_skew)
+        C.ekf_max_rej = cfg.ekf_max_rejects
+        C.rule_guards = 1 if cfg.rule_guards else 0
+        C.aim_on = 1 if cfg.aim else 0
+        C.rmin2 = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
+        C.rmax2 = e32(1.0e8 ** 2)
+        C.vmax2 = e32(2.0e4 ** 2)            # m/s
+        C.gap = e48(1.5 * cfg.frame_dt)
         k = 0 if nom is None or nom.accel_coeffs is None else nom.accel_coeffs.shape[1]
-        C[F.C_CYC_RK4] = rk4_step_cycles(cfg.j2, k)
-        C[F.C_CYC_EKF_STEP] = ekf_predict_step_cycles(cfg.j2, k)
+        C.cyc_rk4 = rk4_step_cycles(cfg.j2, k)
+        C.cyc_ekf_step = ekf_predict_step_cycles(cfg.j2, k)
         return C
+
+    def _set_config(self, C) -> None:
+        """The configuration record ``C`` in force (copied into the state)."""
+        self.state["config"] = C
 
     # ---------------------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget every track: no gates, no object, EKF stopped, nominal back at its epoch."""
-        for a in (self.S, self.G, self.N, self.E, self.OBS, self.W, self.V):
+        for a in (self.N, self.E):
             a[...] = 0
-        self.S[F.S_FRAME] = -1
-        self.S[F.S_DEC] = -1
-        self.S[F.S_DEC_FRAME] = -1
+        for name in ("track", "gates", "obs", "work", "scratch"):
+            self.state[name] = 0
+        self.S.frame = -1
+        self.S.dec = -1
+        self.S.dec_frame = -1
         if self._nominal is not None:
-            self.N[F.N_X:F.N_X + 6] = self._nominal.state_words()
-            self.N[F.N_T] = encode48(self._nominal.t0, rounding="nearest")
+            self.N[N_X:N_X + 6] = self._nominal.state_words()
+            self.N[N_T] = encode48(self._nominal.t0, rounding="nearest")
         self.last_error = ""
         self._last_cmd = None
         #: well-formed messages refused for their content, by reason (:func:`message_content_fault`)
@@ -300,7 +314,7 @@ class TrackProcessor:
             return TPOutputs(cmd.to_words(), cmd, int(cmd.status))
         if self._pending is not None:             # an uplink accepted last frame takes effect
             self.config, C = self._pending
-            self.C[:] = C
+            self._set_config(C)
             self._object_type = self.config.object_type
             self._pending = None
         # one body, no helper call per stage of the step (each Python call ~0.06 us a frame)
@@ -349,9 +363,11 @@ class TrackProcessor:
 
     def _charge(self, ledger) -> None:
         """The frame's clocks per stage charged to ``ledger`` on ``"tp1750"``."""
-        for name, c in zip(F.STAGES, self.cyc):
+        cyc = self.cyc
+        for name in STAGES:
+            c = int(cyc[name[3:]])
             if c:
-                ledger.charge(TP1750, name, int(c))
+                ledger.charge(TP1750, name, c)
 
     def _frame_args(self, message, attitude) -> tuple:
         """:func:`~flightsw.tp.frame.step_frame`'s arguments as the inputs came, in one tuple (one
@@ -361,12 +377,12 @@ class TrackProcessor:
         usable, cand, t_msg, idx, fc = self._message_args(message)
         if attitude is not None:
             try:
-                return (self.MEM, self.FIO, usable, cand, t_msg, idx, fc, True, float(attitude.t),
+                return (self.MEM, self.FIO, self._st, usable, cand, t_msg, idx, fc, True, float(attitude.t),
                         attitude.q_body_to_eci, attitude.rate_body, attitude.r_eci,
                         attitude.v_eci, bool(attitude.valid))
             except (AttributeError, TypeError, ValueError):
                 pass
-        return (self.MEM, self.FIO, usable, cand, t_msg, idx, fc, *_NO_ATTITUDE)
+        return (self.MEM, self.FIO, self._st, usable, cand, t_msg, idx, fc, *_NO_ATTITUDE)
 
     def _message_args(self, message) -> tuple:
         """:func:`~flightsw.tp.frame.step_frame`'s message arguments ``(usable, candidates, time
@@ -401,7 +417,7 @@ class TrackProcessor:
         their ``row`` and ``col`` only; without those fields -> the message is unusable); the
         attitude arrays as 1-D float64 (lists, other float types; data that do not convert -> no
         attitude; the kernel also treats arrays of the wrong length as none)."""
-        buffers, m, (given, t, *arrays, valid) = args[:2], args[2:7], args[7:]
+        buffers, m, (given, t, *arrays, valid) = args[:3], args[3:8], args[8:]
         usable, cand = m[:2]
         if usable and cand.dtype != CANDIDATE_DTYPE:
             names = cand.dtype.names
@@ -452,7 +468,7 @@ class TrackProcessor:
     @property
     def cycles(self) -> dict:
         """PACE1750A clocks of the last frame per stage."""
-        return {name: int(c) for name, c in zip(F.STAGES, self.cyc)}
+        return {name: int(self.cyc[name[3:]]) for name in STAGES}
 
     @property
     def ekf_running(self) -> bool:
@@ -479,7 +495,7 @@ class TrackProcessor:
         and returned instead of the dict: the event recorder's path, one compiled call.
         """
         from flightsw.tp import snapshot as P
-        img = int(self.S[F.S_IMG])
+        img = int(self.S.img)
         rec = np.empty(1, P.SNAPSHOT_DTYPE) if out is None else out
         P.snapshot_kernel(self.G, self.S, self.E, self.IMG[img], rec)
         r = rec[0]

@@ -24,6 +24,7 @@ from flightsw.messages import (
     TC_NO_NOMINAL, TC_OBJECT_DECIDED, TC_OBJECT_LOST, TC_REINITIALISED, AttitudeData, CandidateMessage, Feedback,
     TrackCommand,
 )
+from flightsw.tp import state as ST
 from flightsw.tp import (
     STAGES, ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor, alpha_beta_step,
     imager_unit_vector, pixel_to_tangent, step_response_frames, tangent_to_pixel,
@@ -618,13 +619,13 @@ def test_aim_offset_is_the_aim_pixel_through_scale_and_alignment():
     A = dcm(q)
     u = np.array([1.0, 0.004, -0.003])
     u /= np.linalg.norm(u)
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_AIM_ROW], C[L.C_AIM_COL] = encode32(0.8), encode32(-1.5)
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.aim_row, C.aim_col = encode32(0.8), encode32(-1.5)
     v1, v2, f = aim_offset(C, img, encode32(u[1]), encode32(u[2]), encode32(0.25), encode32(-0.5))
     want = u - A @ np.array([0.0, -2.0 * 9e-4, 1.05 * 7.5e-4])
     assert f == 0 and decode32(v1) == pytest.approx(want[1], abs=1e-8)   # 24-bit mantissas
     assert decode32(v2) == pytest.approx(want[2], abs=1e-8)
-    C[L.C_AIM_ROW] = C[L.C_AIM_COL] = 0
+    C.aim_row = C.aim_col = 0
     w1, w2 = encode32(u[1]), encode32(u[2])
     assert aim_offset(C, img, w1, w2, 0, 0) == (w1, w2, 0)
 
@@ -638,12 +639,12 @@ def test_aim_scan_traces_the_circle_of_its_radius_and_period(radius, period):
     from flightsw.arith.m1750 import decode32, encode32
     from flightsw.tp import layout as L
     from flightsw.tp.command import aim_scan
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_SCAN_R] = encode32(radius)
-    C[L.C_SCAN_COS] = encode32(math.cos(2 * math.pi / period))
-    C[L.C_SCAN_SIN] = encode32(math.sin(2 * math.pi / period))
-    S = np.zeros(L.S_WORDS, np.int64)
-    S[L.S_SCAN], S[L.S_SCAN + 1] = encode32(0.3), encode32(0.7)       # left by an earlier hold
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.scan_r = encode32(radius)
+    C.scan_cos = encode32(math.cos(2 * math.pi / period))
+    C.scan_sin = encode32(math.sin(2 * math.pi / period))
+    S = ST.new_record(ST.TRACK_DTYPE)
+    S.scan[0], S.scan[1] = encode32(0.3), encode32(0.7)       # left by an earlier hold
     assert aim_scan(C, S, False) == (0, 0, 0)
     for n in range(3 * period):
         r, c, f = aim_scan(C, S, True)

@@ -16,16 +16,14 @@ from flightsw.messages import CANDIDATE_DTYPE
 from flightsw.tp.frame import run_frame, step_frame, tp_frame
 from flightsw.tp.geometry import IMG_WORDS
 from flightsw.tp.memory import float_views, host_views, int_views, new_memory, unowned
+from flightsw.tp.state import MAX_OBS
 
-INT_ORDER = ("C", "D", "K", "IMG", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc")
+INT_ORDER = ("D", "K", "IMG", "N", "E")
 FLOAT_ORDER = ("hdr", "att", "rows", "cols", "out")
 # the documented order and sizes in the buffers (IMG last in MEM)
-INT_SHAPES = {"C": (L.C_WORDS,), "D": (D_WORDS,), "K": (K_WORDS,), "S": (L.S_WORDS,),
-              "G": (L.NG, L.GC), "N": (L.N_WORDS,), "E": (E_WORDS,), "OBS": (L.MAX_OBS, L.OBS_C),
-              "PW": (L.NG * L.MAX_OBS, 3), "W": (L.W_WORDS,), "V": (L.V_WORDS,),
-              "cyc": (len(L.STAGES),)}
-MEM_ORDER = ("C", "D", "K", "S", "G", "N", "E", "OBS", "PW", "W", "V", "cyc", "IMG")
-FLOAT_SHAPES = {"hdr": (L.H_WORDS,), "att": (16,), "rows": (L.MAX_OBS,), "cols": (L.MAX_OBS,),
+INT_SHAPES = {"D": (D_WORDS,), "K": (K_WORDS,), "N": (L.N_WORDS,), "E": (E_WORDS,)}
+MEM_ORDER = ("D", "K", "N", "E", "IMG")
+FLOAT_SHAPES = {"hdr": (L.H_WORDS,), "att": (16,), "rows": (MAX_OBS,), "cols": (MAX_OBS,),
                 "out": (L.O_WORDS,)}
 
 
@@ -87,16 +85,18 @@ def test_run_frame_is_tp_frame_on_the_buffers_views():
     views = host_views(tp.MEM, tp.FIO)
     before = {k: v.copy() for k, v in views.items()}
     # ... then the same frame's inputs once more, from the same words, both ways
-    args = [before[k].copy() for k in INT_ORDER[:12]] + [before[k].copy() for k in FLOAT_ORDER] \
-        + [before["cyc"].copy()]
-    st_direct = tp_frame(*args)
-    MEM, FIO = tp.MEM.copy(), tp.FIO.copy()
-    st_run = run_frame(MEM, FIO)
+    st0 = tp._st.copy()
+    args = [before[k].copy() for k in INT_ORDER] + [before[k].copy() for k in FLOAT_ORDER]
+    st1 = st0.copy()
+    st_direct = tp_frame(st1[0], *args)
+    MEM, FIO, st2 = tp.MEM.copy(), tp.FIO.copy(), st0.copy()
+    st_run = run_frame(MEM, FIO, st2)
     assert st_run == st_direct
     got = host_views(MEM, FIO)
-    for k, a in zip(INT_ORDER[:12] + FLOAT_ORDER + ("cyc",), args):
+    for k, a in zip(INT_ORDER + FLOAT_ORDER, args):
         np.testing.assert_array_equal(got[k], a, err_msg=k)
-    assert any((got[k] != before[k]).any() for k in ("S", "V", "out"))   # the frame did work
+    assert st2.tobytes() == st1.tobytes()
+    assert st2.tobytes() != st0.tobytes() and (got["out"] != before["out"]).any()   # work done
 
 
 @njit
@@ -116,12 +116,12 @@ def test_unowned_is_the_buffers_memory(dtype):
     np.testing.assert_array_equal(a, seen)                 # the write went to the buffer
 
 
-def _by_hand(MEM, FIO, cand, t, img, fc, att, valid, usable=True):
+def _by_hand(MEM, FIO, ST, cand, t, img, fc, att, valid, usable=True):
     """The documented input layout (flightsw.tp.layout: hdr, att [16], rows, cols) filled with
     numpy, then ``run_frame``: the oracle for ``step_frame``. ``att`` None: no attitude."""
     v = host_views(MEM, FIO)
     if usable:
-        n = min(len(cand), L.MAX_OBS)
+        n = min(len(cand), MAX_OBS)
         v["rows"][:n], v["cols"][:n] = cand["row"][:n], cand["col"][:n]
         v["hdr"][[L.H_OK, L.H_IMG, L.H_T, L.H_FC, L.H_N]] = 1.0, img, t, fc, n
     else:
@@ -130,7 +130,7 @@ def _by_hand(MEM, FIO, cand, t, img, fc, att, valid, usable=True):
     if att is not None:
         v["att"][:15] = np.concatenate([[att.t, float(valid)], att.q_body_to_eci, att.rate_body,
                                         att.r_eci, att.v_eci])
-    return run_frame(MEM, FIO)
+    return run_frame(MEM, FIO, ST)
 
 
 @pytest.mark.cases("flightsw.tp.frame.step_frame", "typical", "capped", "unusable", "not-valid",
@@ -149,22 +149,24 @@ def test_step_frame_writes_the_documented_inputs_then_runs_the_frame():
                                    (msg.candidates, att, False, True),
                                    (msg.candidates, None, False, True)):
         M1, F1, M2, F2 = tp.MEM.copy(), tp.FIO.copy(), tp.MEM.copy(), tp.FIO.copy()
-        want = _by_hand(M1, F1, cand, msg.time_tag, 0, msg.frame_count, a, valid, usable)
+        S1, S2 = tp._st.copy(), tp._st.copy()
+        want = _by_hand(M1, F1, S1, cand, msg.time_tag, 0, msg.frame_count, a, valid, usable)
         given = a is not None
         b = a if given else att                   # arrays step_frame must not read
-        got = step_frame(M2, F2, usable, cand, msg.time_tag, 0, msg.frame_count, given, b.t,
+        got = step_frame(M2, F2, S2, usable, cand, msg.time_tag, 0, msg.frame_count, given, b.t,
                          b.q_body_to_eci, b.rate_body, b.r_eci, b.v_eci, valid)
         assert got[0] == want
         np.testing.assert_array_equal(M2, M1)
         np.testing.assert_array_equal(F2, F1)
         v = host_views(M2, F2)
-        assert v["hdr"][L.H_N] == (min(len(cand), L.MAX_OBS) if usable else 0)
+        assert v["hdr"][L.H_N] == (min(len(cand), MAX_OBS) if usable else 0)
         assert v["att"][1] == float(valid and given)
         if not given:                             # the rest of att as it was
             np.testing.assert_array_equal(v["att"][2:], host_views(tp.MEM, tp.FIO)["att"][2:])
     M1, F1, M2, F2 = tp.MEM.copy(), tp.FIO.copy(), tp.MEM.copy(), tp.FIO.copy()
-    want = _by_hand(M1, F1, msg.candidates, msg.time_tag, 0, msg.frame_count, None, False)
-    got = step_frame(M2, F2, True, msg.candidates, msg.time_tag, 0, msg.frame_count, True, att.t,
+    S1, S2 = tp._st.copy(), tp._st.copy()
+    want = _by_hand(M1, F1, S1, msg.candidates, msg.time_tag, 0, msg.frame_count, None, False)
+    got = step_frame(M2, F2, S2, True, msg.candidates, msg.time_tag, 0, msg.frame_count, True, att.t,
                      att.q_body_to_eci[:3], att.rate_body, att.r_eci, att.v_eci, True)
     assert got[0] == want                         # a 3-element quaternion: as no attitude
     np.testing.assert_array_equal(F2, F1)
@@ -184,7 +186,7 @@ def test_step_frame_returns_the_command_scalars_of_out():
     seen_locked = seen_unlocked = False
     for k in range(40):
         msg, att, _ = s.frame(k)
-        got = step_frame(tp.MEM, tp.FIO, True, msg.candidates, msg.time_tag, 0, msg.frame_count,
+        got = step_frame(tp.MEM, tp.FIO, tp._st, True, msg.candidates, msg.time_tag, 0, msg.frame_count,
                          True, att.t, att.q_body_to_eci, att.rate_body, att.r_eci, att.v_eci, True)
         want = _fields_from_out(got[0], host_views(tp.MEM, tp.FIO)["out"])
         assert len(got) == 13
