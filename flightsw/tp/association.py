@@ -29,7 +29,7 @@ CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 def observation_columns(OBS):
     """The observations' integer coordinates and usable flags as contiguous rows -> int64
     [3, MAX_OBS] (``OBS.ia``, ``OBS.ib``, ``OBS.ok``), so that :func:`gate_mask` runs as vector
-    compares. ``OBS`` int64 [MAX_OBS, OBS_C].
+    compares. ``OBS`` OBSERVATION_DTYPE [MAX_OBS].
 
     Cases
     -----
@@ -73,7 +73,7 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
     ``PW`` (int64 [NG * MAX_OBS, 3]), by gate row then observation index -> their number.
 
-    ``G`` gates (int64 [NG, GC]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
+    ``G`` gates (GATE_DTYPE [NG]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
     MAX_OBS], formed once a frame for both classes); coordinates are the 16-bit integers (LSB
     2**-16 rad), distances their integer squares. Every live gate tests every observation
     (:func:`gate_mask`), as the flight code does and is charged for.

@@ -10,7 +10,7 @@ lost (the TP's clock advances one period). The attitude is "out of range" when
 data are missing) the last good attitude is propagated with its rate and the observations are not
 used.
 
-Every stage here reads and writes the frame's working values ``V`` (:mod:`flightsw.tp.layout`):
+Every stage here reads and writes the frame's working values ``V`` (:mod:`flightsw.tp.state`):
 words are packed 1750A floats (32-bit unless marked 48-bit).
 """
 from __future__ import annotations
@@ -25,7 +25,6 @@ from flightsw.tp.f1750 import (
     qnormalize,
 )
 from flightsw.tp.geometry import DR_MIX, make_dR, neg32
-from flightsw.tp.layout import O_DECF, O_FRAME, O_IMG, O_OBJIDX, O_T
 
 ONE32 = 0x40000001
 HALF32 = 0x40000000
@@ -40,9 +39,10 @@ CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 
 @njit(cache=True)
 def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
-    """The frame's time ``V.t`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit)
-    and gap flags from the message header (``msg_ok`` False: the message was lost) and the last
-    frame's state ``S``; ``att`` float64 [16] the attitude inputs (``att[0]`` its time tag).
+    """The frame's time ``V.t`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit) and
+    gap flags from the message header (``msg_ok`` False: the message was lost) and the last frame's
+    state ``S``; ``att`` the attitude inputs (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`; ``att.t``
+    its time tag).
 
     Cases
     -----
@@ -80,7 +80,7 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
         if have_prev:
             t, g = fa48(tprev, C.frame_dt)
         else:
-            t, g = enc48(att[0])
+            t, g = enc48(att.t)
             if g != 0:
                 t = 0
         frame_count = (S.frame + 1) & 0xFFFF if S.frame >= 0 else 0
@@ -105,13 +105,14 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
 
 @njit(cache=True, inline="always")
 def read_attitude(C, V, att):
-    """Encode and check the attitude inputs ``att`` (float64 [16]: t, valid, q (4), rate (3),
-    r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable.
+    """Encode and check the attitude inputs ``att`` (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`:
+    t, valid, q (4), rate (3), r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc
+    48-bit) -> True if usable.
 
     Cases
     -----
     usable : every check passes -> True; ``V`` holds q (normalised), w, r_sc, v_sc.
-    not-valid : ``att[1] == 0`` (invalid or missing) -> False.
+    not-valid : ``att.valid == 0`` (invalid or missing) -> False.
     not-encodable : a non-finite input (or one outside the 1750A range) -> False.
     quat-norm : ``| |q|^2 - 1 | > quat_norm_tol`` -> False.
     rate : ``|w|^2 > max_rate^2`` -> False.
@@ -120,23 +121,23 @@ def read_attitude(C, V, att):
     skew : ``|t_att - t| > max_time_skew`` (either sign) -> False.
     refused-not-stored : a refused attitude leaves ``V``'s attitude words untouched.
     """
-    if att[1] == 0.0:
+    if att.valid == 0:
         return False
     g = 0
-    q0, h = enc32(att[2]); g |= h
-    q1, h = enc32(att[3]); g |= h
-    q2, h = enc32(att[4]); g |= h
-    q3, h = enc32(att[5]); g |= h
-    w0, h = enc32(att[6]); g |= h
-    w1, h = enc32(att[7]); g |= h
-    w2, h = enc32(att[8]); g |= h
-    rs0, h = enc48(att[9]); g |= h
-    rs1, h = enc48(att[10]); g |= h
-    rs2, h = enc48(att[11]); g |= h
-    vs0, h = enc32(att[12]); g |= h
-    vs1, h = enc32(att[13]); g |= h
-    vs2, h = enc32(att[14]); g |= h
-    ta, h = enc48(att[0]); g |= h
+    q0, h = enc32(att.q[0]); g |= h
+    q1, h = enc32(att.q[1]); g |= h
+    q2, h = enc32(att.q[2]); g |= h
+    q3, h = enc32(att.q[3]); g |= h
+    w0, h = enc32(att.rate[0]); g |= h
+    w1, h = enc32(att.rate[1]); g |= h
+    w2, h = enc32(att.rate[2]); g |= h
+    rs0, h = enc48(att.r[0]); g |= h
+    rs1, h = enc48(att.r[1]); g |= h
+    rs2, h = enc48(att.r[2]); g |= h
+    vs0, h = enc32(att.v[0]); g |= h
+    vs1, h = enc32(att.v[1]); g |= h
+    vs2, h = enc32(att.v[2]); g |= h
+    ta, h = enc48(att.t); g |= h
     if g != 0:
         return False
     ok = True
@@ -287,10 +288,10 @@ def no_attitude_frame(S, V, out):
     S.img = img_idx
     S.nframes += 1
     V.status |= TC_COASTING
-    out[O_T] = dec48(t)
-    out[O_FRAME] = fc
-    out[O_IMG] = img_idx
-    out[O_DECF] = -1.0
-    out[O_OBJIDX] = -1.0
+    out.t = dec48(t)
+    out.frame = fc
+    out.img = img_idx
+    out.decf = -1
+    out.objidx = -1
     S.status = V.status
     return V.status

@@ -6,8 +6,8 @@ from the spacecraft's ``r_sc + v_sc T``, or the opportunity track's ``x + v T``;
 frame ``u``. Predicted pixel: ``u`` turned by the attitude motion over ``T`` at the last interval's
 mean rate (the skew part of ``dR`` over dt; the measured rate when there is no previous attitude),
 through the imager. Pointing: ``q_point = q (x) d``, ``d`` the minimal rotation taking +X to ``u``
-(``d = normalise(1 + u_x, 0, -u_z, u_y)``). Outputs are decoded into ``out`` (float64 [O_WORDS],
-:mod:`flightsw.tp.layout`) for the message.
+(``d = normalise(1 + u_x, 0, -u_z, u_y)``). Outputs are decoded into ``out`` (OUTPUTS_DTYPE,
+:mod:`flightsw.tp.state`) for the message.
 """
 from __future__ import annotations
 
@@ -16,14 +16,10 @@ from numba import njit
 
 from flightsw.arith.m1750 import fa32, fa48, fc32, fd32, fm32, fm48, fs32, fs48, to32, to48
 from flightsw.messages import TC_ARITH_FLAG, TC_EKF_RUNNING
-from flightsw.tp.ekf import E_X, ekf_sigmas
+from flightsw.tp.ekf import ekf_sigmas
 from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, dec32, dec48, mix,
                                mtv3, mv3, qmul, qnormalize, unit3)
-from flightsw.tp.geometry import DR_MIX, IMG_SC, IMG_SR, make_dR, neg32, vec_to_pix
-from flightsw.tp.layout import (
-    O_DECF, O_FRAME, O_IMG, O_LOCKED, O_LOS, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW,
-    O_QP, O_R, O_SP, O_SV, O_T, O_V,
-)
+from flightsw.tp.geometry import DR_MIX, make_dR, neg32, vec_to_pix
 from flightsw.tp.state import NPAIR
 from flightsw.tp.trajectory import PI_FLAGS
 
@@ -39,11 +35,11 @@ CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
 @njit(cache=True, inline="always")
-def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
+def los_from_state(T, x, V, RM):
     """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
     body (u0..u2), range (rho), flags.
 
-    ``T`` the frame interval (packed 48-bit s); ``x0..x5`` r (m), v (m/s) packed 48-bit; the
+    ``T`` the frame interval (packed 48-bit s); ``x`` int64 [6] r (m), v (m/s) packed 48-bit; the
     spacecraft's ``V.rs[0]`` (48-bit m) and ``V.vs[0]`` (32-bit m/s); ``RM`` (int64 [9], packed
     32-bit) body -> ECI. ``l = unit(r + vT - r_sc - v_sc T)`` (32-bit), ``u = RM^T l``.
 
@@ -53,12 +49,12 @@ def los_from_state(T, x0, x1, x2, x3, x4, x5, V, RM):
     coincident : target and spacecraft at one point -> ``rho = 0``, zero vectors, FLAG_DOMAIN.
     """
     fl = 0
-    p, g = fm48(x3, T); fl |= g
-    y0, g = fa48(x0, p); fl |= g
-    p, g = fm48(x4, T); fl |= g
-    y1, g = fa48(x1, p); fl |= g
-    p, g = fm48(x5, T); fl |= g
-    y2, g = fa48(x2, p); fl |= g
+    p, g = fm48(x[3], T); fl |= g
+    y0, g = fa48(x[0], p); fl |= g
+    p, g = fm48(x[4], T); fl |= g
+    y1, g = fa48(x[1], p); fl |= g
+    p, g = fm48(x[5], T); fl |= g
+    y2, g = fa48(x[2], p); fl |= g
     p, g = fm48(to48(V.vs[0]), T); fl |= g
     z0, g = fa48(V.rs[0], p); fl |= g
     p, g = fm48(to48(V.vs[1]), T); fl |= g
@@ -78,7 +74,7 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
     flags); ``have`` False when nothing is tracked or predicted.
 
-    ``N`` nominal state (int64 [N_WORDS]), ``E`` EKF state (int64 [E_WORDS]), ``RM`` body -> ECI
+    ``N`` nominal state (NOMINAL_DTYPE), ``E`` EKF state (EKF_DTYPE), ``RM`` body -> ECI
     (packed 32-bit [9]); ``opportunity``, ``nominal``: the event's mode and whether a nominal is
     held.
 
@@ -94,10 +90,8 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """
     T = C.frame_dt
     if not opportunity and (V.ekf_on != 0 or nominal):
-        src = E if V.ekf_on != 0 else N
-        o = E_X if V.ekf_on != 0 else 0
-        l0, l1, l2, u0, u1, u2, rho, fl = los_from_state(
-            T, src[o], src[o + 1], src[o + 2], src[o + 3], src[o + 4], src[o + 5], V, RM)
+        x = E.x if V.ekf_on != 0 else N.x
+        l0, l1, l2, u0, u1, u2, rho, fl = los_from_state(T, x, V, RM)
         return rho != 0, l0, l1, l2, u0, u1, u2, fl
     if opportunity and S.opp.alive != 0:
         fl = 0
@@ -199,14 +193,14 @@ def aim_offset(C, img, u1, u2, scan_r, scan_c):
     f = 0
     ac, g = fa32(C.aim_col, scan_c); f |= g
     ar, g = fa32(C.aim_row, scan_r); f |= g
-    dx, g = fm32(ac, img[IMG_SC]); f |= g
-    dy, g = fm32(ar, img[IMG_SR]); f |= g
-    t, g = fm32(img[4], dx); f |= g
-    p, g = fm32(img[5], dy); f |= g
+    dx, g = fm32(ac, img.sc); f |= g
+    dy, g = fm32(ar, img.sr); f |= g
+    t, g = fm32(img.a[4], dx); f |= g
+    p, g = fm32(img.a[5], dy); f |= g
     t, g = fa32(t, p); f |= g
     v1, g = fs32(u1, t); f |= g
-    t, g = fm32(img[7], dx); f |= g
-    p, g = fm32(img[8], dy); f |= g
+    t, g = fm32(img.a[7], dx); f |= g
+    p, g = fm32(img.a[8], dy); f |= g
     t, g = fa32(t, p); f |= g
     v2, g = fs32(u2, t); f |= g
     return v1, v2, f
@@ -234,11 +228,13 @@ def pointing(V, u0, u1, u2):
 
 
 @njit(cache=True)
-def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
+def command(C, IMG, S, N, E, V, X, out, cyc):
     """The track command's direction, predicted pixel and pointing into ``out``.
 
-    ``out`` float64 [O_WORDS] (decoded values; NaN where absent); the predicted direction is kept
-    in ``S.pred[0]`` (``S.pred_ok`` says whether there is one).
+    ``X`` the frame's scratch (``rm`` body -> ECI, ``dr`` the body's rotation since the last
+    frame, ``wk``); ``out`` the decoded outputs (:data:`~flightsw.tp.state.OUTPUTS_DTYPE`; NaN
+    where absent); the predicted direction is kept in ``S.pred`` (``S.pred_ok`` says whether there
+    is one). The event's mode and whether a nominal is held come from ``C``.
 
     Cases
     -----
@@ -249,6 +245,8 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         written.
     behind : direction within ~7 deg of -X (``1 + u_x <= 2**-7``) -> pointing NaN as well.
     """
+    opportunity, nominal = C.mode == 1, C.have_nom == 1
+    RM, dR, wk = X.rm, X.dr, X.wk
     have_u, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, opportunity, nominal)
     have_pix = False
     have_q = False
@@ -265,17 +263,17 @@ def command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc):
         have_q, q0, q1, q2, q3, g = pointing(V, u0, u1, u2); fl |= g
         cyc.command += CYC_CMD
     if have_q:
-        out[O_QP], out[O_QP + 1] = dec32(q0), dec32(q1)
-        out[O_QP + 2], out[O_QP + 3] = dec32(q2), dec32(q3)
+        out.qp[0], out.qp[1] = dec32(q0), dec32(q1)
+        out.qp[2], out.qp[3] = dec32(q2), dec32(q3)
     else:
-        out[O_QP] = out[O_QP + 1] = out[O_QP + 2] = out[O_QP + 3] = np.nan
+        out.qp[0] = out.qp[1] = out.qp[2] = out.qp[3] = np.nan
     if have_pix and have_u:
-        out[O_PROW] = dec32(prow)
-        out[O_PCOL] = dec32(pcol)
-        out[O_LOS], out[O_LOS + 1], out[O_LOS + 2] = dec32(l0), dec32(l1), dec32(l2)
+        out.prow = dec32(prow)
+        out.pcol = dec32(pcol)
+        out.los[0], out.los[1], out.los[2] = dec32(l0), dec32(l1), dec32(l2)
     else:
-        out[O_PROW] = out[O_PCOL] = np.nan
-        out[O_LOS] = out[O_LOS + 1] = out[O_LOS + 2] = np.nan
+        out.prow = out.pcol = np.nan
+        out.los[0] = out.los[1] = out.los[2] = np.nan
     V.aflags |= fl
 
 
@@ -285,7 +283,7 @@ def prediction_in(img, S):
     col, ok) packed 32-bit pixels: the prediction in the pixel frame of the imager in force after
     an imager switch, in the TP's arithmetic. Not ok without a prediction or behind the imager.
 
-    ``img`` one imager table row (int64 [IMG_WORDS]).
+    ``img`` one imager table row (:data:`~flightsw.tp.state.IMAGER_DTYPE`).
 
     Cases
     -----
@@ -303,7 +301,7 @@ def prediction_in(img, S):
 def filter_outputs(E, V, out, cyc):
     """The EKF's state and 1-sigma position/velocity into ``out`` (NaN when it is not running).
 
-    ``E`` EKF words (int64 [E_WORDS], 48-bit state and covariance), ``out`` float64 [O_WORDS].
+    ``E`` EKF words (EKF_DTYPE, 48-bit state and covariance), ``out`` OUTPUTS_DTYPE.
 
     Cases
     -----
@@ -315,17 +313,17 @@ def filter_outputs(E, V, out, cyc):
         sp, sv, g = ekf_sigmas(E)
         V.aflags |= g
         for i in range(3):
-            out[O_R + i] = dec48(E[E_X + i])
-            out[O_V + i] = dec48(E[E_X + 3 + i])
-        out[O_SP] = dec32(sp)
-        out[O_SV] = dec32(sv)
+            out.r[i] = dec48(E.x[i])
+            out.v[i] = dec48(E.x[3 + i])
+        out.sp = dec32(sp)
+        out.sv = dec32(sv)
         cyc.command += CYC_SIGMAS
     else:
         for i in range(3):
-            out[O_R + i] = np.nan
-            out[O_V + i] = np.nan
-        out[O_SP] = np.nan
-        out[O_SV] = np.nan
+            out.r[i] = np.nan
+            out.v[i] = np.nan
+        out.sp = np.nan
+        out.sv = np.nan
 
 
 @njit(cache=True)
@@ -337,8 +335,8 @@ def end_frame(S, G, V, out, opportunity):
     -----
     counts : live star gates (even rows) and object gates (odd rows) counted separately.
     arith-flag : a 1750A flag of ``PI_FLAGS`` raised this frame -> ``TC_ARITH_FLAG``.
-    decided : dedicated mode with an object held -> ``O_DECF`` = its decision frame.
-    no-decision : no object held, or opportunity mode -> ``O_DECF = -1``.
+    decided : dedicated mode with an object held -> ``out.decf`` = its decision frame.
+    no-decision : no object held, or opportunity mode -> ``out.decf = -1``.
     remembered : time, frame, imager, attitude and status kept in ``S``; ``S.nframes`` + 1.
     """
     nstar = 0
@@ -348,14 +346,14 @@ def end_frame(S, G, V, out, opportunity):
         nobj += 1 if G[2 * p + 1].alive != 0 else 0
     if (V.aflags & PI_FLAGS) != 0:
         V.status |= TC_ARITH_FLAG
-    out[O_T] = dec48(V.t)
-    out[O_NSTAR] = nstar
-    out[O_NOBJ] = nobj
-    out[O_DECF] = S.dec_frame if (S.dec >= 0 and not opportunity) else -1.0
-    out[O_OBJIDX] = V.obj
-    out[O_LOCKED] = 1.0 if V.locked != 0 else 0.0
-    out[O_FRAME] = V.fc
-    out[O_IMG] = V.img
+    out.t = dec48(V.t)
+    out.nstar = nstar
+    out.nobj = nobj
+    out.decf = S.dec_frame if (S.dec >= 0 and not opportunity) else -1
+    out.objidx = V.obj
+    out.locked = 1 if V.locked != 0 else 0
+    out.frame = V.fc
+    out.img = V.img
     S.have_prev = 1
     S.t = V.t
     S.frame = V.fc

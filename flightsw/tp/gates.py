@@ -32,7 +32,7 @@ squared differences or residuals between the observation and the gate center are
   (``G.miss``), successive populated frames (``G.run``) and populated frames in all (``G.hits``,
   rule 5) count what the rules test.
 
-Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, int64 [NG, GC],
+Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, GATE_DTYPE [NG],
 packed 32-bit coordinates, 16-bit integer copies for the membership tests).
 """
 from __future__ import annotations
@@ -43,7 +43,7 @@ from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
 from flightsw.messages import TC_OBJECT_LOST
 from flightsw.tp.alphabeta import AB_UPDATE_MIX, ab_update
 from flightsw.tp.f1750 import cycles, mix
-from flightsw.tp.geometry import IMG_SC, IMG_SR, rot_tan, tan_int
+from flightsw.tp.geometry import rot_tan, tan_int
 from flightsw.tp.state import NG, NPAIR
 
 _ONE32 = 0x40000001
@@ -63,7 +63,7 @@ CYC_GATE_SETUP = cycles({"FM": 6, "FIX": 2, "L": 6})
 
 @njit(cache=True, inline="always")
 def kill_pair(G, p):
-    """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, int64 [NG, GC]).
+    """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, GATE_DTYPE [NG]).
 
     Cases
     -----
@@ -75,7 +75,7 @@ def kill_pair(G, p):
 
 @njit(cache=True, inline="always")
 def any_gate_alive(G):
-    """True when any gate of ``G`` (int64 [NG, GC]) is alive.
+    """True when any gate of ``G`` (GATE_DTYPE [NG]) is alive.
 
     Cases
     -----
@@ -110,12 +110,12 @@ def drop_all_gates(S, G, V):
 
 @njit(cache=True)
 def gate_params(C, IMG, V, GP, cyc):
-    """This frame's gate constants into ``GP`` (int64 [GP_WORDS]): the gate half-width as a 16-bit
-    integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules' residual
-    thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and ``beta/dt``
-    (packed 32-bit; 0 when dt is 0 or beta is 0).
+    """This frame's gate constants into ``GP`` (a GATE_PARAMS_DTYPE record): the gate half-width
+    as a 16-bit integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules'
+    residual thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and
+    ``beta/dt`` (packed 32-bit; 0 when dt is 0 or beta is 0).
 
-    ``C`` config, ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``V`` frame words, ``cyc``
+    ``C`` config, ``IMG`` imager table (IMAGER_DTYPE records), ``V`` frame words, ``cyc``
     ledger (int64).
 
     Cases
@@ -129,8 +129,8 @@ def gate_params(C, IMG, V, GP, cyc):
     """
     fl = 0
     img = IMG[V.img]
-    sc = img[IMG_SC]
-    sr = img[IMG_SR]
+    sc = img.sc
+    sr = img.sr
     smax = sc if fc32(sc, sr) >= 0 else sr
     gw, g = fm32(C.gate_px, smax); fl |= g
     GP.half = tan_int(gw)
@@ -235,7 +235,7 @@ def smooth_gates(C, G, OBS, V, GP, cyc):
     """Each live gate with an associated observation (``G.obs``) smoothed by the alpha-beta tracker,
     its squared residual accumulated, its populated run counted; the others counted empty.
 
-    ``OBS`` observations (int64 [MAX_OBS, OBS_C], packed 32-bit tangent coordinates, rad).
+    ``OBS`` observations (OBSERVATION_DTYPE [MAX_OBS], packed 32-bit tangent coordinates, rad).
 
     Cases
     -----

@@ -34,11 +34,11 @@ from flightsw.arith.m1750 import (FLAG_DOMAIN, encode32, fa32, fd32, fm32, fs32,
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
 from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
-from flightsw.tp.state import MAX_OBS
+from flightsw.tp.state import IMAGER_DTYPE, MAX_OBS, new_record
 
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
            "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
-           "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
+           "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
            "rot_tan", "los_tan", "los_delta", "neg32", "i16abs", "host_to32",
            "directions_to_pixels", "observations"]
 
@@ -48,9 +48,6 @@ ANGLE_LSB = 2.0 ** -16            # rad per LSB of the integer gate coordinates
 
 # imager table row: A (9, imager->body, row-major), scale_col, scale_row, 1/scale_col, 1/scale_row,
 # COL0, ROW0 (all packed 32-bit)
-IMG_A, IMG_SC, IMG_SR, IMG_ISC, IMG_ISR, IMG_C0, IMG_R0 = 0, 9, 10, 11, 12, 13, 14
-assert IMG_A == 0, "pix_to_tan reads the alignment matrix from the row's first nine words"
-IMG_WORDS = 16
 
 PIX_TO_TAN_MIX = {"FS": 2, "FM": 10, "FA": 6, "FD": 1, "L": 12, "ST": 2}
 INT_COORD_MIX = {"FM": 2, "FIX": 2, "ST": 2}
@@ -106,21 +103,22 @@ class ImagerGeometry:
                 raise ValueError(f"ImagerGeometry.{name}={v!r} must be an int in 1..65535")
             object.__setattr__(self, name, int(v))
 
-    def table_row(self) -> np.ndarray:
-        """The imager's row of the kernels' imager table (packed 32-bit words, see IMG_*)."""
-        row = np.zeros(IMG_WORDS, np.int64)
+    def table_row(self):
+        """The imager's row of the kernels' imager table: a
+        :data:`~flightsw.tp.state.IMAGER_DTYPE` record (packed 32-bit words)."""
+        row = new_record(IMAGER_DTYPE)
         q = [encode32(float(v), rounding="nearest") for v in self.q_imager_to_body]
         R = np.zeros(9, np.int64)
         f = qdcm(q[0], q[1], q[2], q[3], R)
         if f:
             raise ValueError("ImagerGeometry: 1750A flag raised forming the alignment matrix")
-        row[IMG_A:IMG_A + 9] = R
-        row[IMG_SC] = encode32(self.scale_col, rounding="nearest")
-        row[IMG_SR] = encode32(self.scale_row, rounding="nearest")
-        row[IMG_ISC] = encode32(1.0 / self.scale_col, rounding="nearest")   # uplinked constants
-        row[IMG_ISR] = encode32(1.0 / self.scale_row, rounding="nearest")
-        row[IMG_C0] = encode32(COL0)
-        row[IMG_R0] = encode32(ROW0)
+        row.a[:] = R
+        row.sc = encode32(self.scale_col, rounding="nearest")
+        row.sr = encode32(self.scale_row, rounding="nearest")
+        row.isc = encode32(1.0 / self.scale_col, rounding="nearest")   # uplinked constants
+        row.isr = encode32(1.0 / self.scale_row, rounding="nearest")
+        row.c0 = encode32(COL0)
+        row.r0 = encode32(ROW0)
         return row
 
 
@@ -138,11 +136,11 @@ def pix_to_tan(img, row, col):
         the caller's behind-the-imager test.
     """
     f = 0
-    dx, g = fs32(col, img[IMG_C0]); f |= g
-    x, g = fm32(dx, img[IMG_SC]); f |= g
-    dy, g = fs32(row, img[IMG_R0]); f |= g
-    y, g = fm32(dy, img[IMG_SR]); f |= g
-    v0, v1, v2, g = mv1ab(img, x, y); f |= g     # v = A (1, x, y): A is img[0:9] (IMG_A = 0)
+    dx, g = fs32(col, img.c0); f |= g
+    x, g = fm32(dx, img.sc); f |= g
+    dy, g = fs32(row, img.r0); f |= g
+    y, g = fm32(dy, img.sr); f |= g
+    v0, v1, v2, g = mv1ab(img.a, x, y); f |= g     # v = A (1, x, y)
     inv, g = fd32(0x40000001, v0); f |= g
     a, g = fm32(v1, inv); f |= g
     b, g = fm32(v2, inv); f |= g
@@ -191,16 +189,16 @@ def vec_to_pix(img, v0, v1, v2):
     behind : ``p_x <= 0`` (zero included) -> (0, 0, False).
     """
     f = 0
-    p0, p1, p2, g = mtv3(img[0:9], v0, v1, v2); f |= g
+    p0, p1, p2, g = mtv3(img.a, v0, v1, v2); f |= g
     if p0 == 0 or (p0 >> 31) & 1:
         return 0, 0, False, f
     inv, g = fd32(0x40000001, p0); f |= g
     t, g = fm32(p1, inv); f |= g
-    t, g = fm32(t, img[IMG_ISC]); f |= g
-    col, g = fa32(t, img[IMG_C0]); f |= g
+    t, g = fm32(t, img.isc); f |= g
+    col, g = fa32(t, img.c0); f |= g
     t, g = fm32(p2, inv); f |= g
-    t, g = fm32(t, img[IMG_ISR]); f |= g
-    row, g = fa32(t, img[IMG_R0]); f |= g
+    t, g = fm32(t, img.isr); f |= g
+    row, g = fa32(t, img.r0); f |= g
     return row, col, True, f
 
 
@@ -214,10 +212,10 @@ def pix_unit(img, row, col):
     typical : components 2 and 3 of the imager-frame unit vector of the pixel.
     """
     f = 0
-    dx, g = fs32(col, img[IMG_C0]); f |= g
-    x, g = fm32(dx, img[IMG_SC]); f |= g
-    dy, g = fs32(row, img[IMG_R0]); f |= g
-    y, g = fm32(dy, img[IMG_SR]); f |= g
+    dx, g = fs32(col, img.c0); f |= g
+    x, g = fm32(dx, img.sc); f |= g
+    dy, g = fs32(row, img.r0); f |= g
+    y, g = fm32(dy, img.sr); f |= g
     n2, g = fm32(x, x); f |= g
     p, g = fm32(y, y); f |= g
     n2, g = fa32(n2, p); f |= g
@@ -382,9 +380,9 @@ def host_to32(x):
 @njit(cache=True)
 def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
     """This frame's candidate centroids (``rows``, ``cols`` float64 pixels, best ranked first) in
-    body tangent coordinates of the imager in force -> ``OBS`` (int64 [MAX_OBS, OBS_C]: a, b packed
-    32-bit, their 16-bit integers, usable flag) and ``V.nuse``. *"Each observation is converted
-    from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
+    body tangent coordinates of the imager in force -> ``OBS`` (OBSERVATION_DTYPE [MAX_OBS]: a, b
+    packed 32-bit, their 16-bit integers, usable flag) and ``V.nuse``. *"Each observation is
+    converted from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
     coordinates."* A frame without evidence (message or attitude bad) uses none and coasts.
 
     Cases
@@ -425,7 +423,7 @@ def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
 # ------------------------------------------------------------------------------------------------
 # Python surface (decoded floats; for tests, tools and the ground)
 # ------------------------------------------------------------------------------------------------
-def _row(geom: ImagerGeometry) -> np.ndarray:
+def _row(geom: ImagerGeometry):
     if not isinstance(geom, ImagerGeometry):
         raise ValueError(f"expected an ImagerGeometry, got {type(geom).__name__}")
     return geom.table_row()

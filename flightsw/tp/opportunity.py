@@ -24,7 +24,7 @@ from flightsw.tp.alphabeta import AB_PREDICT_MIX, GM_GAINS_MIX, ab_update, growi
 from flightsw.tp.association import CYC_PAIR_TEST
 from flightsw.tp.f1750 import cycles, mix
 from flightsw.tp.gates import CYC_GATE_HIT, GATE_INT_MIX, GATE_PRED_MIX
-from flightsw.tp.geometry import IMG_SC, IMG_SR, i16abs, rot_tan, tan_int
+from flightsw.tp.geometry import i16abs, rot_tan, tan_int
 
 CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, {"FD": 1}))
 CYC_OPP_STARTUP = cycles(GM_GAINS_MIX)
@@ -35,9 +35,10 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
     its index (-1: none) and flags.
 
-    ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``C`` config, ``OBS`` observations (int64
-    [MAX_OBS, OBS_C]), ``V`` frame words; ``a``, ``b`` packed 32-bit tangent coordinates (rad).
-    The half-width is ``FIX(opp_gate_px * max(scale_col, scale_row) * 2**16)``, edges inclusive.
+    ``IMG`` imager table (IMAGER_DTYPE records), ``C`` config, ``OBS`` observations
+    (OBSERVATION_DTYPE [MAX_OBS]), ``V`` frame words; ``a``, ``b`` packed 32-bit tangent coordinates
+    (rad). The half-width is ``FIX(opp_gate_px * max(scale_col, scale_row) * 2**16)``, edges
+    inclusive.
 
     Cases
     -----
@@ -48,8 +49,8 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """
     fl = 0
     img = IMG[V.img]
-    sc = img[IMG_SC]
-    sr = img[IMG_SR]
+    sc = img.sc
+    sr = img.sr
     smax = sc if fc32(sc, sr) >= 0 else sr
     gw, g = fm32(C.opp_gate_px, smax); fl |= g
     gi = tan_int(gw)

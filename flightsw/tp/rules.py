@@ -169,11 +169,15 @@ def rule4(res_s, res_o, ks, thr_s, guards):
 
 
 @njit(cache=True, inline="always")
-def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
-    """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags).
+def pair_conclusion(gs, go, C, GP):
+    """One undecided pair, its star gate ``gs`` and object gate ``go``
+    (:data:`~flightsw.tp.state.GATE_DTYPE` records: successive empty frames ``miss``, populated
+    run ``run``, residual ``res``) -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0,
+    flags).
 
-    Counts are ints, residuals and thresholds packed 32-bit 1750A floats (rad^2); ``guards``: the
-    proposal ``rule_guards`` in force (the cases below are with it on unless they say otherwise).
+    The empty limits n, n' and the proposal ``rule_guards`` come from the configuration ``C``, the
+    residual thresholds (packed 32-bit, rad^2) from the frame's gate constants ``GP`` (the cases
+    below are with the guards on unless they say otherwise).
 
     Cases
     -----
@@ -196,6 +200,9 @@ def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
     star-empty-stale : star gate empty ``4n`` frames without rule 1 -> (DELETE, 0).
     object-empty-stale : object gate empty ``4n'`` frames without rule 2 -> (DELETE, 0).
     """
+    ms, mo, ks, ko, res_s, res_o = gs.miss, go.miss, gs.run, go.run, gs.res, go.res
+    n, n_o, guards = C.n_empty, C.n_empty_obj, C.rule_guards != 0
+    thr_s, thr_o = GP.thr_star, GP.thr_obj
     star_empty = ms >= n
     obj_empty = mo >= n_o
     if star_empty and obj_empty:
@@ -222,8 +229,8 @@ def apply_rules(C, S, G, V, GP, cyc):
     """The four rules on every live pair; the best object conclusion becomes the verified object
     (``S.dec``) when none is held, the others are deleted as spurious.
 
-    ``C`` config, ``S`` state, ``G`` gates (int64 [NG, GC]), ``V`` frame words, ``GP`` gate
-    parameters, ``cyc`` cycle ledger (all int64, :mod:`flightsw.tp.layout`); updated in place.
+    ``C`` config, ``S`` state, ``G`` gates (GATE_DTYPE [NG]), ``V`` frame words, ``GP`` gate
+    parameters, ``cyc`` cycle ledger (all int64, :mod:`flightsw.tp.state`); updated in place.
 
     Cases
     -----
@@ -238,8 +245,6 @@ def apply_rules(C, S, G, V, GP, cyc):
     half-pair-skipped : a pair with one gate deleted (the held object's) is not ruled on.
     """
     fl = 0
-    n, n_o = C.n_empty, C.n_empty_obj
-    thr_s, thr_o = GP.thr_star, GP.thr_obj
     best_p = -1
     best_rule = 0
     for p in range(NPAIR):
@@ -248,9 +253,7 @@ def apply_rules(C, S, G, V, GP, cyc):
         if G[rs].alive == 0 or G[ro].alive == 0:
             continue
         cyc.gates += CYC_RULE
-        concl, rule, g = pair_conclusion(G[rs].miss, G[ro].miss, G[rs].run, G[ro].run,
-                                         G[rs].res, G[ro].res, n, n_o, thr_s, thr_o,
-                                         C.rule_guards != 0)
+        concl, rule, g = pair_conclusion(G[rs], G[ro], C, GP)
         fl |= g
         if rule > 0:
             S.nrule[rule - 1] += 1
@@ -305,7 +308,7 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
     (and within the gate of it) is the object, unless its object gate has accumulated more residual
     than its star gate; the others are stars by position.
 
-    ``OBS`` this frame's observations (int64 [MAX_OBS, OBS_C]; the first ``V.nuse`` in use).
+    ``OBS`` this frame's observations (OBSERVATION_DTYPE [MAX_OBS]; the first ``V.nuse`` in use).
 
     Cases
     -----
@@ -394,7 +397,7 @@ def verify_object(C, S, G, V):
 def place_pairs(G, OBS, nuse, frame_count):
     """A star and an object gate on every usable observation j (pair j) -> pairs placed.
 
-    ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]), ``nuse`` the
+    ``G`` gates (GATE_DTYPE [NG]), ``OBS`` observations (OBSERVATION_DTYPE [MAX_OBS]), ``nuse`` the
     observations to use, ``frame_count`` the seeding frame.
 
     Cases

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from flightsw.tp.ekf import E_P, E_RUN, E_T, E_X, UT
+from flightsw.tp.ekf import UT
 from flightsw.tp.f1750 import dec32, dec48
 from flightsw.tp.geometry import directions_to_pixels
 from flightsw.tp.state import NG
@@ -33,8 +33,6 @@ SNAPSHOT_DTYPE = np.dtype([
     ("ekf_p_diag", np.float64, (6,)), ("ekf_t", np.float64), ("opp_alive", np.int8),
     ("opp_pos", np.float64, (2,)), ("opp_vel", np.float64, (2,)), ("opp_missed", np.int16),
     ("status", np.int32), ("mode", "S64"), ("imager", "S64")])
-#: packed-word index into E of each diagonal element of the EKF covariance (upper triangle)
-EKF_P_DIAG = (E_P + np.diag(UT)).astype(np.int64)
 
 
 @njit(cache=True)
@@ -47,9 +45,9 @@ def snapshot_kernel(G, S, E, img, rec):
         The gates (packed 32-bit floats in columns ``G.a``..``G.res``).
     S : TRACK_DTYPE record
         The TP's scalar state (counters; ``S.opp.x``, ``S.opp.v``: packed 32-bit floats).
-    E : int64[>= E_T + 1]
-        The EKF's packed 48-bit words (run flag, x, P upper triangle, t).
-    img : int64[...]
+    E : EKF_DTYPE record
+        The EKF (run flag; x, P upper triangle, t: packed 48-bit words).
+    img : IMAGER_DTYPE record
         The current imager's table row (for the gates' pixels).
     rec : SNAPSHOT_DTYPE[1] (any alignment: a view inside a wider row is fine)
         Written: gate_alive (0/1), gate_kind (0 star, 1 object: the row's parity), gate_pos
@@ -64,7 +62,7 @@ def snapshot_kernel(G, S, E, img, rec):
     live-gate : a gate with ``G.alive != 0`` -> its words decoded, its pixel through
         ``directions_to_pixels`` of the direction (1, a, b).
     dead-gate : ``G.alive == 0`` -> floats NaN, missed 0, obs -1, seed -1, alive 0.
-    ekf-off : ``E[E_RUN] == 0`` -> ekf_running 0; ekf_x, ekf_p_diag, ekf_t NaN.
+    ekf-off : ``E.run == 0`` -> ekf_running 0; ekf_x, ekf_p_diag, ekf_t NaN.
     ekf-on : ekf_running 1; the EKF's x, the diagonal of P and t decoded from their 48-bit words.
     opp-off : ``S.opp.alive == 0`` -> opp_alive 0; opp_pos, opp_vel NaN.
     opp-on : opp_alive 1; the opportunity track's position and velocity decoded from their words.
@@ -118,12 +116,12 @@ def snapshot_kernel(G, S, E, img, rec):
     r.n_undecided_deleted = np.int32(S.nstale)
     r.opp_missed = np.int16(S.opp.miss)
     r.status = np.int32(S.status)
-    ekf_run = E[E_RUN] != 0
+    ekf_run = E.run != 0
     r.ekf_running = 1 if ekf_run else 0
     for q in range(6):
-        r.ekf_x[q] = dec48(E[E_X + q]) if ekf_run else nan
-        r.ekf_p_diag[q] = dec48(E[EKF_P_DIAG[q]]) if ekf_run else nan
-    r.ekf_t = dec48(E[E_T]) if ekf_run else nan
+        r.ekf_x[q] = dec48(E.x[q]) if ekf_run else nan
+        r.ekf_p_diag[q] = dec48(E.p[UT[q, q]]) if ekf_run else nan
+    r.ekf_t = dec48(E.t) if ekf_run else nan
     opp = S.opp.alive != 0
     r.opp_alive = 1 if opp else 0
     for q in range(2):

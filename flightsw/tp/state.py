@@ -22,21 +22,37 @@ Records (``TP_STATE_DTYPE`` holds one of each; :func:`new_state` allocates it):
 * :data:`SCRATCH_DTYPE` ``scratch``: scratch arrays of one frame (EKF/command work, matrices, gate
   constants :data:`GATE_PARAMS_DTYPE`, association scratch).
 * :data:`CYCLES_DTYPE` ``cycles``: this frame's PACE1750A clocks per stage (:data:`STAGES`).
+* :data:`DYNAMICS_DTYPE` ``dyn``, :data:`EKF_PARAMS_DTYPE` ``ekf_params``: the plant's and the
+  EKF's constants; :data:`IMAGER_DTYPE` ``imagers`` [N_IMAGERS]: the imager table (the first
+  ones configured, in the processor's imager order).
+* :data:`NOMINAL_DTYPE` ``nominal``: the uplinked nominal trajectory's state;
+  :data:`EKF_DTYPE` ``ekf``: the verified object's EKF (state, covariance, line of sight).
+* :data:`MESSAGE_DTYPE` ``msg``, :data:`ATTITUDE_DTYPE` ``att``: the frame's inputs (host floats);
+  :data:`OUTPUTS_DTYPE` ``out``: its decoded outputs (:func:`clear_outputs` each frame).
 """
 from __future__ import annotations
 
 import numpy as np
 from numba import njit
 
-__all__ = ["MAX_OBS", "NPAIR", "NG", "STAGES", "CONFIG_DTYPE", "OPPORTUNITY_DTYPE", "TRACK_DTYPE",
-           "GATE_DTYPE", "OBSERVATION_DTYPE", "WORK_DTYPE", "GATE_PARAMS_DTYPE", "SCRATCH_DTYPE",
-           "CYCLES_DTYPE", "TP_STATE_DTYPE", "new_state", "new_record", "begin_frame"]
+from flightsw.messages import IMAGER_CODES
+
+__all__ = ["MAX_OBS", "NPAIR", "NG", "MAX_FIT_TERMS", "N_IMAGERS", "STAGES", "DYNAMICS_DTYPE",
+           "EKF_PARAMS_DTYPE", "EKF_DTYPE", "NOMINAL_DTYPE", "IMAGER_DTYPE", "MESSAGE_DTYPE",
+           "ATTITUDE_DTYPE", "OUTPUTS_DTYPE", "clear_outputs", "vector_view", "CONFIG_DTYPE",
+           "OPPORTUNITY_DTYPE", "TRACK_DTYPE", "GATE_DTYPE", "OBSERVATION_DTYPE", "WORK_DTYPE",
+           "GATE_PARAMS_DTYPE", "SCRATCH_DTYPE", "CYCLES_DTYPE", "TP_STATE_DTYPE", "new_state",
+           "new_record", "begin_frame"]
 
 #: observations used a frame (the candidate message's first, best ranked)
 MAX_OBS = 23
 #: gate pairs (one per observation slot) and gates
 NPAIR = MAX_OBS
 NG = 2 * NPAIR
+#: terms per axis of the uplinked acceleration curve fit
+MAX_FIT_TERMS = 8
+#: imagers the table holds (one per imager code of the candidate message)
+N_IMAGERS = len(IMAGER_CODES)
 
 _W = np.int64
 
@@ -209,6 +225,101 @@ SCRATCH_DTYPE = _dtype([
     ("pairs", _W, (NG * MAX_OBS, 3), "int: (squared distance, gate row, observation) triples"),
 ])
 
+#: the plant's constants (uplinked tables; :func:`flightsw.tp.dynamics.dyn_table`), ``D``
+DYNAMICS_DTYPE = _dtype([
+    ("poly", _W, "int: 1 an acceleration curve fit is uplinked"),
+    ("j2", _W, "int: 1 the J2 term is in the plant"),
+    ("nmu", _W, "32-bit: -mu, m^3/s^2"),
+    ("kj2", _W, "32-bit: 1.5 J2 Re^2, m^2"),
+    ("t0", _W, "48-bit: the curve fit's epoch, s"),
+    ("k", _W, "int: the curve fit's terms per axis (<= MAX_FIT_TERMS)"),
+    ("five", _W, "32-bit: 5.0"),
+    ("three", _W, "32-bit: 3.0"),
+    ("coef", _W, (3, MAX_FIT_TERMS), "32-bit: the curve fit's coefficients per axis (x, y, z), "
+                                     "highest power first, m/s^2 / s^j"),
+])
+
+#: the EKF's parameters (:func:`flightsw.tp.ekf.ekf_params`), ``K``
+EKF_PARAMS_DTYPE = _dtype([
+    ("q", _W, "48-bit: white-acceleration power spectral density, m^2/s^3"),
+    ("maxstep", _W, "48-bit: longest RK4 / covariance step, s"),
+    ("gate2", _W, "48-bit: innovation gate squared, sigma^2"),
+    ("p0r", _W, "48-bit: initial position variance, m^2"),
+    ("p0v", _W, "48-bit: initial velocity variance, (m/s)^2"),
+])
+
+#: the EKF of the verified object, ``E``
+EKF_DTYPE = _dtype([
+    ("x", _W, (6,), "48-bit: state r (m), v (m/s), ECI"),
+    ("p", _W, (21,), "48-bit: covariance, upper triangle row-major (flightsw.tp.ekf.UT)"),
+    ("t", _W, "48-bit: the state's time, s"),
+    ("run", _W, "int: 1 the filter runs"),
+    ("nrej", _W, "int: successive frames with a component refused"),
+    ("los", _W, (3,), "32-bit: the state's line of sight at t, ECI unit vector"),
+    ("have_los", _W, "int: 1 los held"),
+])
+
+#: the uplinked nominal trajectory's state, ``N``
+NOMINAL_DTYPE = _dtype([
+    ("x", _W, (6,), "48-bit: state r (m), v (m/s), ECI"),
+    ("t", _W, "48-bit: its time, s"),
+])
+
+#: one imager (:meth:`flightsw.tp.geometry.ImagerGeometry.table_row`), ``IMG[i]``
+IMAGER_DTYPE = _dtype([
+    ("a", _W, (9,), "32-bit: alignment matrix imager -> body, row-major"),
+    ("sc", _W, "32-bit: tangent-plane rad per pixel along columns"),
+    ("sr", _W, "32-bit: the same along rows"),
+    ("isc", _W, "32-bit: 1 / sc (uplinked constant)"),
+    ("isr", _W, "32-bit: 1 / sr"),
+    ("c0", _W, "32-bit: boresight column, px"),
+    ("r0", _W, "32-bit: boresight row, px"),
+])
+
+#: the frame's candidate message, as the processor hands it over (host values: the decoded
+#: message's), ``msg``
+MESSAGE_DTYPE = _dtype([
+    ("ok", _W, "int: 1 the message can be used at all (0: lost, the frame coasts)"),
+    ("img", _W, "int: its imager's index in the table"),
+    ("t", np.float64, "float64: its time tag, s"),
+    ("fc", _W, "int: its frame count, 0..65535"),
+    ("n", _W, "int: candidates in rows/cols (<= MAX_OBS)"),
+    ("rows", np.float64, (MAX_OBS,), "float64: candidate centroid rows, full-resolution px, "
+                                     "best ranked first"),
+    ("cols", np.float64, (MAX_OBS,), "float64: the same, columns"),
+])
+
+#: the frame's attitude processor data (host values), ``att``
+ATTITUDE_DTYPE = _dtype([
+    ("t", np.float64, "float64: time tag, s"),
+    ("valid", _W, "int: 1 attitude data came and say they are valid"),
+    ("q", np.float64, (4,), "float64: quaternion body -> ECI, scalar first"),
+    ("rate", np.float64, (3,), "float64: body rate, rad/s"),
+    ("r", np.float64, (3,), "float64: spacecraft position, ECI m"),
+    ("v", np.float64, (3,), "float64: spacecraft velocity, ECI m/s"),
+])
+
+#: the frame's decoded outputs the track command is built from (host values: each the exact
+#: decode of its 1750A word; NaN where absent), ``out``
+OUTPUTS_DTYPE = _dtype([
+    ("t", np.float64, "float64: the frame's time, s"),
+    ("qp", np.float64, (4,), "float64: pointing quaternion body -> ECI (from 32-bit)"),
+    ("los", np.float64, (3,), "float64: predicted line of sight, ECI (from 32-bit)"),
+    ("r", np.float64, (3,), "float64: EKF position, ECI m (from 48-bit)"),
+    ("v", np.float64, (3,), "float64: EKF velocity, ECI m/s (from 48-bit)"),
+    ("prow", np.float64, "float64: predicted row, px (from 32-bit)"),
+    ("pcol", np.float64, "float64: predicted column, px (from 32-bit)"),
+    ("sp", np.float64, "float64: sqrt tr P_rr, m (from 32-bit)"),
+    ("sv", np.float64, "float64: sqrt tr P_vv, m/s (from 32-bit)"),
+    ("nstar", _W, "int: live star gates"),
+    ("nobj", _W, "int: live object gates"),
+    ("decf", _W, "int: the object's decision frame (-1 none)"),
+    ("objidx", _W, "int: the object's candidate index this frame (-1 none)"),
+    ("locked", _W, "int: 1 locked"),
+    ("frame", _W, "int: frame count"),
+    ("img", _W, "int: imager index"),
+])
+
 #: the ledger's stage names, in :data:`CYCLES_DTYPE`'s order
 STAGES = ("tp_input", "tp_geometry", "tp_nominal", "tp_gates", "tp_ekf_predict", "tp_ekf_update",
           "tp_opportunity", "tp_command")
@@ -218,9 +329,11 @@ CYCLES_DTYPE = np.dtype([(s[3:], _W) for s in STAGES])
 
 #: the whole state (one record)
 TP_STATE_DTYPE = np.dtype([
-    ("config", CONFIG_DTYPE), ("track", TRACK_DTYPE), ("gates", GATE_DTYPE, (NG,)),
-    ("obs", OBSERVATION_DTYPE, (MAX_OBS,)), ("work", WORK_DTYPE), ("scratch", SCRATCH_DTYPE),
-    ("cycles", CYCLES_DTYPE),
+    ("config", CONFIG_DTYPE), ("dyn", DYNAMICS_DTYPE), ("ekf_params", EKF_PARAMS_DTYPE),
+    ("imagers", IMAGER_DTYPE, (N_IMAGERS,)), ("track", TRACK_DTYPE), ("gates", GATE_DTYPE, (NG,)),
+    ("nominal", NOMINAL_DTYPE), ("ekf", EKF_DTYPE), ("obs", OBSERVATION_DTYPE, (MAX_OBS,)),
+    ("work", WORK_DTYPE), ("scratch", SCRATCH_DTYPE), ("cycles", CYCLES_DTYPE),
+    ("msg", MESSAGE_DTYPE), ("att", ATTITUDE_DTYPE), ("out", OUTPUTS_DTYPE),
 ])
 
 
@@ -264,3 +377,40 @@ def begin_frame(V, cyc):
     V.ntan_ok = 0
     cyc.input = cyc.geometry = cyc.nominal = cyc.gates = 0
     cyc.ekf_predict = cyc.ekf_update = cyc.opportunity = cyc.command = 0
+
+
+@njit(cache=True)
+def clear_outputs(out):
+    """The frame's decoded outputs ``out`` (:data:`OUTPUTS_DTYPE`) cleared: NaN where a value may
+    be absent.
+
+    Cases
+    -----
+    typical : ``t`` 0; ``qp``, ``los``, ``r``, ``v``, ``prow``, ``pcol``, ``sp``, ``sv`` NaN;
+        every integer field 0.
+    """
+    out.t = 0.0
+    out.qp[:] = np.nan
+    out.los[:] = np.nan
+    out.r[:] = np.nan
+    out.v[:] = np.nan
+    out.prow = out.pcol = out.sp = out.sv = np.nan
+    out.nstar = out.nobj = out.decf = out.objidx = out.locked = out.frame = out.img = 0
+
+
+def vector_view(state: np.ndarray, record: str, first: str, last: str) -> np.ndarray:
+    """A 1-D view of the adjacent fields ``first`` .. ``last`` (inclusive, one base type, float64
+    or int64) of the record field ``record`` of ``state`` (one :data:`TP_STATE_DTYPE` row): a
+    plain array on the host, where a record's field reads are slow (one copy of the outputs'
+    vectors a frame; the clocks per stage in :data:`STAGES` order)."""
+    rec_dtype, rec_off = state.dtype.fields[record][:2]
+    fields, names = rec_dtype.fields, list(rec_dtype.names)
+    base = fields[first][0].base
+    start = rec_off + fields[first][1]
+    size = 0
+    for name in names[names.index(first):names.index(last) + 1]:
+        dt, off = fields[name][:2]
+        if dt.base != base or rec_off + off != start + size:
+            raise ValueError(f"vector_view: {record}.{name} is not a {base} after the last field")
+        size += dt.itemsize
+    return np.ndarray((size // base.itemsize,), base, buffer=state, offset=start)

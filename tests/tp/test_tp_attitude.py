@@ -14,7 +14,6 @@ from flightsw.arith.m1750 import decode32, decode48, encode32, encode48
 from flightsw.messages import (TC_ATTITUDE_INVALID, TC_BAD_MESSAGE, TC_COASTING, TC_FRAME_GAP)
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 from flightsw.tp import state as ST
-from flightsw.tp import layout as L
 from flightsw.tp.attitude import (coast_attitude, frame_attitude, frame_clock, mean_rate,
                                   no_attitude_frame, read_attitude)
 
@@ -40,8 +39,8 @@ def _fresh():
 
 def _clock(S, ok, t, fc, img=0, att_t=0.0):
     V = ST.new_record(ST.WORK_DTYPE)
-    att = np.zeros(16)
-    att[0] = att_t
+    att = ST.new_record(ST.ATTITUDE_DTYPE)
+    att.t = att_t
     frame_clock(C, S, V, ok, img, t, fc, att)
     return V
 
@@ -89,13 +88,15 @@ Q = np.array([0.9, 0.1, -0.2, 0.3]) / np.linalg.norm([0.9, 0.1, -0.2, 0.3])
 T0 = 50.0
 
 
-def _att(t=T0, valid=1.0, q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0),
+def _att(t=T0, valid=1, q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0),
          v=(0.0, 7.5e3, 10.0)):
-    return np.concatenate([[t, valid], q, rate, r, v, [0.0]])
+    att = ST.new_record(ST.ATTITUDE_DTYPE)
+    att.t, att.valid, att.q, att.rate, att.r, att.v = t, int(valid), q, rate, r, v
+    return att
 
 
 @pytest.mark.parametrize("kw, ok", [
-    ({}, True), (dict(valid=0.0), False), (dict(r=(math.nan, 0.0, 0.0)), False),
+    ({}, True), (dict(valid=0), False), (dict(r=(math.nan, 0.0, 0.0)), False),
     (dict(q=Q * 1.002), False), (dict(q=Q * 1.0004), True),   # |q|^2 - 1 = 4.0e-3 / 0.8e-3
     (dict(rate=(0.0, 0.21, 0.0)), False), (dict(rate=(0.0, 0.0, -0.19)), True),
     (dict(r=(6.1e6, 0.0, 0.0)), False), (dict(r=(0.0, 6.3e6, 0.0)), True),
@@ -112,10 +113,10 @@ def test_attitude_checks_each_bound(kw, ok):
     if not ok:
         assert not (V.q.any() or V.w.any() or V.wm.any() or V.rs.any() or V.vs.any())
         return
-    q = att[2:6] / np.linalg.norm(att[2:6])
+    q = att.q / np.linalg.norm(att.q)
     got = [decode32(int(x)) for x in V.q]
     assert got == pytest.approx(q, abs=1e-6)
-    assert [decode48(int(x)) for x in V.rs] == pytest.approx(att[9:12], abs=1e-3)
+    assert [decode48(int(x)) for x in V.rs] == pytest.approx(att.r, abs=1e-3)
 
 
 def _prev_state(q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0), v=(0.0, 7.5e3, 10.0)):
@@ -185,12 +186,12 @@ def test_frame_attitude_rotation_since_the_last_frame():
     K = np.array([[0.0, -th[2], th[1]], [th[2], 0.0, -th[0]], [-th[1], th[0], 0.0]])
     assert ok and V.had_att == 0 and V.evidence == 0
     assert dR == pytest.approx(np.eye(3) - K + K @ K / 2, abs=1e-6)
-    ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att(valid=0.0))
+    ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att(valid=0))
     assert ok and V.status == TC_ATTITUDE_INVALID and V.evidence == 0
     qc = qmul(Q_PREV, [1.0, 0.5e-3 * 0.5, -1e-3 * 0.5, 1.5e-3 * 0.5])      # coasted: w dt / 2
     assert V.att_ok == 0 and RM == pytest.approx(dcm(qc / np.linalg.norm(qc)), abs=1e-6)
     S = _fresh()
-    ok, V, RM, dR = _frame(S, _att(valid=0.0))
+    ok, V, RM, dR = _frame(S, _att(valid=0))
     assert not ok and V.status == TC_ATTITUDE_INVALID
 
 
@@ -199,10 +200,10 @@ def test_a_frame_without_any_attitude_only_advances_the_clock():
     S = _fresh()
     V = ST.new_record(ST.WORK_DTYPE)
     V.t, V.fc, V.img, V.status = w48(12.5), 4, 2, TC_BAD_MESSAGE
-    out = np.zeros(L.O_WORDS)
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
     assert no_attitude_frame(S, V, out) == TC_BAD_MESSAGE | TC_COASTING
     assert (S.have_prev, S.t, S.frame, S.img, S.nframes) == \
         (1, w48(12.5), 4, 2, 1)
     assert S.status == TC_BAD_MESSAGE | TC_COASTING
-    assert (out[L.O_T], out[L.O_FRAME], out[L.O_IMG], out[L.O_DECF], out[L.O_OBJIDX]) == \
+    assert (out.t, out.frame, out.img, out.decf, out.objidx) == \
         (12.5, 4, 2, -1.0, -1.0)

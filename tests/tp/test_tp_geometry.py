@@ -10,7 +10,6 @@ import pytest
 
 from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, encode32, fix32, fm32
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
-from flightsw.tp import layout as L
 from flightsw.tp import state as ST
 from flightsw.tp.geometry import (ImagerGeometry, directions_to_pixels, host_to32, i16abs,
                                   los_delta, los_tan, make_dR, neg32, observations, rot_tan,

@@ -16,7 +16,6 @@ from flightsw.arith.m1750 import decode32, encode32
 from flightsw.budget import M1750_PACE_COSTS
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
 from flightsw.tp import state as ST
-from flightsw.tp import layout as L
 from flightsw.tp.alphabeta import GM_GAINS_MIX, growing_memory_gains, growing_memory_last_k
 from flightsw.tp.geometry import make_dR, tan_int
 from flightsw.tp.opportunity import track_opportunity
@@ -62,7 +61,7 @@ def _kernel_state(startup_k, alpha=0.25, beta=BB_BETA):
     C = ST.new_record(ST.CONFIG_DTYPE)
     C.opp_alpha, C.opp_beta, C.opp_gate_px = w(alpha), w(beta), w(8.0)
     C.opp_n_lost, C.opp_startup = 6, startup_k
-    IMG = ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE).table_row()[None, :]
+    IMG = np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE).table_row()]).view(np.recarray)
     dR = np.zeros(9, np.int64)
     assert make_dR(0, 0, 0, w(DT), dR) == 0
     return C, IMG, ST.new_record(ST.TRACK_DTYPE), dR

@@ -14,7 +14,6 @@ import pytest
 from flightsw.arith.m1750 import decode32, encode32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
-from flightsw.tp import layout as L
 from flightsw.tp import state as ST
 from flightsw.tp.association import (CYC_PAIR_DIST, CYC_PAIR_TEST, associate, gate_mask,
                                      in_gate_pairs, observation_columns, sort_pairs)
@@ -79,6 +78,18 @@ def test_rule4_object_residuals_exceed_star_residuals():
     assert not rule4(w(6e-8), w(1e-8), 1, THR, G)[0]
 
 
+def _conclude(ms, mo, ks, ko, res_s, res_o, guards):
+    """pair_conclusion on a star and an object gate with these empty frames, runs and residuals,
+    the empty limits n = n' = N, thresholds THR, ``guards`` the proposal rule_guards."""
+    g = ST.new_record(ST.GATE_DTYPE, 2)
+    g.miss, g.run, g.res = (ms, mo), (ks, ko), (res_s, res_o)
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.n_empty, C.n_empty_obj, C.rule_guards = N, N, int(guards)
+    GP = ST.new_record(ST.GATE_PARAMS_DTYPE)
+    GP.thr_star, GP.thr_obj = THR, THR
+    return pair_conclusion(g[0], g[1], C, GP)
+
+
 @pytest.mark.parametrize("ms, mo, ks, ko, s_s, s_o, want", [
     (3, 3, 0, 0, 0.0, 0.0, (DELETE, 0)),                # both gates empty n frames
     (3, 0, 0, 3, 9e-8, 1e-8, (OBJECT, 1)),
@@ -97,7 +108,7 @@ def test_rule4_object_residuals_exceed_star_residuals():
                    "star-empty-suspended", "object-empty-suspended", "star-empty-stale",
                    "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
-    concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, G)
+    concl, rule, flags = _conclude(ms, mo, ks, ko, w(s_s), w(s_o), G)
     assert (concl, rule) == want and flags == 0
 
 
@@ -133,7 +144,7 @@ def test_rules_3_4_as_stated_need_no_populated_gate():
 @pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "rule1-unguarded", "rule3-unguarded")
 def test_pair_conclusion_with_and_without_the_guards(ms, mo, ks, ko, s_s, s_o, guarded, stated):
     for guards, want in ((True, guarded), (False, stated)):
-        concl, rule, _ = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, guards)
+        concl, rule, _ = _conclude(ms, mo, ks, ko, w(s_s), w(s_o), guards)
         assert (concl, rule) == want
 
 
@@ -420,7 +431,7 @@ def test_drop_all_gates_after_a_long_gap():
 
 
 def _img(sc, sr):
-    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+    return np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()]).view(np.recarray)
 
 
 @pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2),

@@ -10,7 +10,6 @@ import numpy as np
 import pytest
 
 from flightsw.arith.m1750 import encode32
-from flightsw.tp import layout as F
 from flightsw.tp import state as ST
 from flightsw.tp import snapshot as P
 from hil_harness.event import Event, EventConfig
@@ -86,8 +85,8 @@ def _state():
     """A TP-like state with no gate, no EKF, no opportunity track (all words zero)."""
     G = ST.new_record(ST.GATE_DTYPE, ST.NG)
     S = ST.new_record(ST.TRACK_DTYPE)
-    E = np.zeros(40, np.int64)
-    img = np.zeros(64, np.int64)
+    E = ST.new_record(ST.EKF_DTYPE)
+    img = ST.new_record(ST.IMAGER_DTYPE)
     return G, S, E, img
 
 

@@ -1,7 +1,7 @@
 """Hand-made cases for the track processor's kernels not covered by ``test_tp_rules.py`` (issue 22:
 every listed case of a kernel is reached by a test): the target-of-opportunity tracker, the track
 command (direction, predicted pixel, pointing, outputs, end of frame), the alpha-beta arrays and the
-layout accessors.
+the records cleared each frame.
 
 Inputs are 1750A words built with ``encode32``; the expected outcomes are float64 closed forms (the
 alpha-beta step, the gnomonic projection) or worked by hand from the kernels' specification.
@@ -15,11 +15,9 @@ from flightsw.messages import (TC_ARITH_FLAG, TC_COASTING, TC_EKF_RUNNING, TC_OB
                                TC_OBJECT_LOST, TC_REINITIALISED)
 from flightsw.tp import alpha_beta_step
 from flightsw.tp import state as ST
-from flightsw.tp import layout as L
 from flightsw.tp.alphabeta import ab_update
 from flightsw.tp.command import (command, end_frame, filter_outputs, pointing, predicted_pixel,
                                  prediction_in, target_direction)
-from flightsw.tp.ekf import E_P, E_WORDS, E_X
 from flightsw.tp.geometry import ImagerGeometry, make_dR, tan_int
 from flightsw.tp.opportunity import first_in_gate, track_opportunity
 
@@ -29,7 +27,7 @@ def w(x):
 
 
 def img_table(sc=1e-4, sr=1e-4):
-    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+    return np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()]).view(np.recarray)
 
 
 def obs(points, ok=None):
@@ -181,10 +179,11 @@ def _cmd_state(rm=np.eye(3), q=(1.0, 0.0, 0.0, 0.0)):
     return C, S, V, _packed(rm)
 
 
-def _state48(r, v, E=None, off=0):
-    X = np.zeros(L.N_WORDS if E is None else E, np.int64)
+def _state48(r, v, dtype=ST.NOMINAL_DTYPE):
+    """A nominal (or, ``dtype`` EKF_DTYPE, an EKF) record whose state is (r, v), 48-bit."""
+    X = ST.new_record(dtype)
     for i in range(3):
-        X[off + i], X[off + 3 + i] = w48(r[i]), w48(v[i])
+        X.x[i], X.x[3 + i] = w48(r[i]), w48(v[i])
     return X
 
 
@@ -207,7 +206,7 @@ def test_target_direction_from_the_nominal_the_ekf_or_the_opportunity_track():
     rm = _rz(0.3)
     C, S, V, RM = _cmd_state(rm)
     N = _state48(R_T, V_T)
-    E = _state48(R_E, V_E, E_WORDS, E_X)
+    E = _state48(R_E, V_E, ST.EKF_DTYPE)
     for ekf_on, want in ((0, _los(R_T, V_T)), (1, _los(R_E, V_E))):
         V.ekf_on = ekf_on
         have, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, False, True)
@@ -317,11 +316,14 @@ def test_pointing_is_the_minimal_rotation_onto_the_target(u, ok):
 def test_command_writes_what_it_has_and_nan_for_the_rest(rel, nominal, want):
     C, S, V, RM = _cmd_state()
     N = _state48(RS + T_FRAME * VS + np.asarray(rel) - T_FRAME * VS, VS)   # moves with the s/c
-    out = np.zeros(L.O_WORDS)
-    command(C, img_table(SC, SC), S, N, np.zeros(E_WORDS, np.int64), V, RM, np.zeros(9, np.int64),
-            np.zeros(80, np.int64), out, False, nominal, ST.new_record(ST.CYCLES_DTYPE))
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
+    C.have_nom = 1 if nominal else 0
+    X = ST.new_record(ST.SCRATCH_DTYPE)
+    X.rm[:] = RM
+    command(C, img_table(SC, SC), S, N, ST.new_record(ST.EKF_DTYPE), V, X, out,
+            ST.new_record(ST.CYCLES_DTYPE))
     u = _unit(rel)
-    qp, pix, los = out[L.O_QP:L.O_QP + 4], out[L.O_PROW:L.O_PCOL + 1], out[L.O_LOS:L.O_LOS + 3]
+    qp, pix, los = out.qp, np.array([out.prow, out.pcol]), out.los
     assert S.pred_ok == (want != "nothing")
     if want == "tracked":
         assert pix == pytest.approx(_pix(u), abs=2e-3) and los == pytest.approx(u, abs=1e-6)
@@ -337,19 +339,19 @@ def test_command_writes_what_it_has_and_nan_for_the_rest(rel, nominal, want):
 @pytest.mark.cases("flightsw.tp.ekf.ekf_sigmas", "typical")
 @pytest.mark.cases("flightsw.tp.command.filter_outputs", "running", "off")
 def test_filter_outputs_decode_the_state_and_the_root_traces():
-    E = _state48(R_E, V_E, E_WORDS, E_X)
+    E = _state48(R_E, V_E, ST.EKF_DTYPE)
     for k, var in zip((0, 6, 11, 15, 18, 20), (100.0, 400.0, 900.0, 1.0, 4.0, 4.0)):
-        E[E_P + k] = w48(var)                               # the diagonal of the packed P
+        E.p[k] = w48(var)                               # the diagonal of the packed P
     V = ST.new_record(ST.WORK_DTYPE)
-    out = np.zeros(L.O_WORDS)
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
     filter_outputs(E, V, out, ST.new_record(ST.CYCLES_DTYPE))
-    assert np.isnan(out[L.O_R:L.O_SV + 1]).all() and V.status == 0
+    assert np.isnan([*out.r, *out.v, out.sp, out.sv]).all() and V.status == 0
     V.ekf_on = 1
     filter_outputs(E, V, out, ST.new_record(ST.CYCLES_DTYPE))
-    assert out[L.O_R:L.O_R + 3].tolist() == [decode48(int(x)) for x in E[E_X:E_X + 3]]
-    assert out[L.O_V:L.O_V + 3] == pytest.approx(V_E, abs=1e-6)
-    assert out[L.O_SP] == pytest.approx(np.sqrt(1400.0), rel=1e-6)
-    assert out[L.O_SV] == pytest.approx(3.0, rel=1e-6)
+    assert out.r.tolist() == [decode48(int(x)) for x in E.x[:3]]
+    assert out.v == pytest.approx(V_E, abs=1e-6)
+    assert out.sp == pytest.approx(np.sqrt(1400.0), rel=1e-6)
+    assert out.sv == pytest.approx(3.0, rel=1e-6)
     assert V.status == TC_EKF_RUNNING
 
 
@@ -365,10 +367,10 @@ def test_end_frame_counts_flags_and_remembers():
     V.q = [w(x) for x in Q_ATT]
     V.w = [w(x) for x in W_PREV]
     V.status = TC_OBJECT_DECIDED
-    out = np.zeros(L.O_WORDS)
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
     assert end_frame(S, G, V, out, False) == TC_OBJECT_DECIDED
-    assert (out[L.O_NSTAR], out[L.O_NOBJ], out[L.O_DECF]) == (1, 4, 17)
-    assert (out[L.O_T], out[L.O_OBJIDX], out[L.O_LOCKED], out[L.O_FRAME], out[L.O_IMG]) == \
+    assert (out.nstar, out.nobj, out.decf) == (1, 4, 17)
+    assert (out.t, out.objidx, out.locked, out.frame, out.img) == \
         (12.5, 3, 1.0, 25, 1)
     assert S.have_prev == 1 and S.t == V.t and S.frame == 25
     assert S.img == 1 and S.nframes == 5 and S.status == TC_OBJECT_DECIDED
@@ -376,9 +378,9 @@ def test_end_frame_counts_flags_and_remembers():
     assert (S.w == V.w).all()
     V.aflags = FLAG_DOMAIN
     assert end_frame(S, G, V, out, True) == TC_OBJECT_DECIDED | TC_ARITH_FLAG
-    assert out[L.O_DECF] == -1.0                            # opportunity mode
+    assert out.decf == -1.0                            # opportunity mode
     S.dec, V.aflags, V.status = -1, 0, 0
-    assert end_frame(S, G, V, out, False) == 0 and out[L.O_DECF] == -1.0
+    assert end_frame(S, G, V, out, False) == 0 and out.decf == -1.0
 
 
 # ================================================================================================
@@ -396,26 +398,23 @@ def test_alpha_beta_arrays_keep_the_velocity_without_beta_and_an_exact_hit_chang
 
 
 # ================================================================================================
-# layout accessors
+# clearing the frame's records
 # ================================================================================================
-@pytest.mark.cases("flightsw.tp.layout.message_header", "typical", "unusable")
 @pytest.mark.cases("flightsw.tp.state.begin_frame", "typical")
-@pytest.mark.cases("flightsw.tp.layout.clear_outputs", "typical")
-def test_message_header_and_begin_frame():
-    hdr = np.array([1.0, 2.0, 12.5, 40.0, 5.0])
-    assert L.message_header(hdr) == (True, 2, 12.5, 40, 5)
-    hdr[L.H_OK] = 0.0
-    assert not L.message_header(hdr)[0]
+@pytest.mark.cases("flightsw.tp.state.clear_outputs", "typical")
+def test_begin_frame_and_clear_outputs():
     Va = ST.new_record(ST.WORK_DTYPE, 1)
     Va.view(np.int64)[:] = 9
     V = Va[0]
-    out = np.full(L.O_WORDS, 3.0)
+    outa = ST.new_record(ST.OUTPUTS_DTYPE, 1)
+    outa.t, outa.qp, outa.nstar, outa.img = 3.0, 3.0, 3, 3
     cyca = ST.new_record(ST.CYCLES_DTYPE, 1)
     cyca.view(np.int64)[:] = 4
     ST.begin_frame(V, cyca[0])
-    L.clear_outputs(out)
+    ST.clear_outputs(outa[0])
     words = Va.view(np.int64)
     assert V.obj == -1 and np.count_nonzero(words) == 1 and not cyca.view(np.int64).any()
-    nan = [L.O_QP <= i <= L.O_SV for i in range(L.O_WORDS)]   # pointing .. sigma_vel (1..17)
-    assert np.isnan(out).tolist() == nan and (out[~np.isnan(out)] == 0).all()
-    assert (L.O_QP, L.O_SV) == (1, 17)
+    out = outa[0]
+    floats = ("qp", "los", "r", "v", "prow", "pcol", "sp", "sv")
+    assert all(np.isnan(out[name]).all() for name in floats)
+    assert all(out[name] == 0 for name in ST.OUTPUTS_DTYPE.names if name not in floats)
