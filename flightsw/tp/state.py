@@ -332,8 +332,9 @@ TP_STATE_DTYPE = np.dtype([
     ("config", CONFIG_DTYPE), ("dyn", DYNAMICS_DTYPE), ("ekf_params", EKF_PARAMS_DTYPE),
     ("imagers", IMAGER_DTYPE, (N_IMAGERS,)), ("track", TRACK_DTYPE), ("gates", GATE_DTYPE, (NG,)),
     ("nominal", NOMINAL_DTYPE), ("ekf", EKF_DTYPE), ("obs", OBSERVATION_DTYPE, (MAX_OBS,)),
-    ("work", WORK_DTYPE), ("scratch", SCRATCH_DTYPE), ("cycles", CYCLES_DTYPE),
-    ("msg", MESSAGE_DTYPE), ("att", ATTITUDE_DTYPE), ("out", OUTPUTS_DTYPE),
+    ("work", WORK_DTYPE), ("cycles", CYCLES_DTYPE), ("msg", MESSAGE_DTYPE),
+    ("att", ATTITUDE_DTYPE), ("out", OUTPUTS_DTYPE),
+    ("scratch", SCRATCH_DTYPE),     # last: its 25 KB of association pairs after the hot records
 ])
 
 
