@@ -419,7 +419,7 @@ class TrackProcessor:
         from flightsw.tp import snapshot as P
         img = int(self.S.img)
         rec = np.empty(1, P.SNAPSHOT_DTYPE) if out is None else out
-        P.snapshot_kernel(self.G, self.S, self.E, self.IMG[img], rec)
+        P.snapshot_of_state(self._st, img, rec)
         r = rec[0]
         if out is not None:
             r["mode"], r["imager"] = self._mode.encode(), self._img_names[img].encode()

@@ -127,3 +127,18 @@ def snapshot_kernel(G, S, E, img, rec):
     for q in range(2):
         r.opp_pos[q] = dec32(S.opp.x[q]) if opp else nan
         r.opp_vel[q] = dec32(S.opp.v[q]) if opp else nan
+
+
+@njit(cache=True)
+def snapshot_of_state(ST, img, rec):
+    """:func:`snapshot_kernel` on the state ``ST[0]`` (:data:`~flightsw.tp.state.TP_STATE_DTYPE`
+    [1]) and its imager ``img``: the processor's call, one array argument (its parts as arrays of
+    their own would each cost the dispatcher's slow typing of a structured dtype).
+
+    Cases
+    -----
+    typical : ``rec`` as :func:`snapshot_kernel` fills it from the state's gates, track, EKF and
+        imager table row ``img``.
+    """
+    st = ST[0]
+    snapshot_kernel(st.gates, st.track, st.ekf, st.imagers[img], rec)

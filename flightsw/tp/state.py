@@ -338,10 +338,17 @@ TP_STATE_DTYPE = np.dtype([
 ])
 
 
+#: the state's dtype as the host's record arrays carry it, one object for every processor: numba's
+#: dispatcher types an argument of a structured dtype fast only for the dtype object it first saw
+#: (another, equal one costs ~10 us a call)
+_STATE_RECORD = np.dtype((np.record, TP_STATE_DTYPE))
+
+
 def new_state() -> np.recarray:
     """A zeroed :data:`TP_STATE_DTYPE` record array of one row (``state[0]`` the record; fields
-    readable as attributes on the host, ``state[0].track.dec``)."""
-    return np.zeros(1, TP_STATE_DTYPE).view(np.recarray)
+    readable as attributes on the host, ``state[0].track.dec``); every state has the one dtype
+    object."""
+    return np.zeros(1, _STATE_RECORD).view(np.recarray)
 
 
 def new_record(dtype: np.dtype, n: int | None = None):

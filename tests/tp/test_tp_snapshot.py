@@ -51,6 +51,7 @@ GATE_FIELDS = ("gate_pos", "gate_vel", "gate_resid", "gate_pixel")
 
 @pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "live-gate", "dead-gate", "ekf-off",
                    "ekf-on", "opp-off")
+@pytest.mark.cases("flightsw.tp.snapshot.snapshot_of_state", "typical")
 def test_recorded_rows_unchanged(tmp_path):
     """Frames 0 and 3 (EKF off, two live gates), 20, 90, 180 (EKF on, one live gate): the rows of
     ``tables/tp`` equal, byte for byte, those recorded before the snapshot was compiled, except
