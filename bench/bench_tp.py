@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from flightsw.messages import CANDIDATE_DTYPE, AttitudeData, CandidateMessage
-from flightsw.tp import (EKF1750, ImagerGeometry, NominalTrajectory, TPConfig, TPInputs,
-                         TrackProcessor, alpha_beta_step)
+from flightsw.tp import (EKF1750, ImagerGeometry, NominalTrajectory, TPConfig, TrackProcessor,
+                         alpha_beta_step)
 
 G_STEP = "tp: TrackProcessor.step, 23 candidates, 45 live gates, EKF running"
 G_EKF = "tp: EKF predict + two scalar updates, 6-state RK4 model"
@@ -154,16 +154,6 @@ def test_ours_trackprocessor_step_words_in_words_out(benchmark):
     it = iter(frames)
     benchmark.pedantic(lambda w, a: tp.step(w, a).to_words(), setup=lambda: (next(it), {}),
                        rounds=300, iterations=1)
-    assert tp.snapshot()["gate_alive"].sum() == 45 and tp.ekf_running
-
-
-@pytest.mark.benchmark(group=G_STEP)
-def test_ours_trackprocessor_step_bus_form(benchmark):
-    """``step(TPInputs(words, attitude))`` -> ``TPOutputs`` (command words)."""
-    tp, frames = _warm_stare_tp()
-    it = iter(frames)
-    benchmark.pedantic(tp.step, setup=lambda: ((TPInputs(*next(it)),), {}), rounds=300,
-                       iterations=1)
     assert tp.snapshot()["gate_alive"].sum() == 45 and tp.ekf_running
 
 

@@ -193,13 +193,89 @@ def long_functions():
     return bad
 
 
+# ---- issue 40: named state --------------------------------------------------------------------
+#: the message codecs: the one place where word positions are the format
+CODEC_MODULES = {"flightsw.messages", "flightsw.tp.uplink", "flightsw.ip.sequence_words",
+                 "flightsw.ip.record_table", "flightsw.records"}
+#: a function in flightsw may take 10 or more parameters (self counted) only with its reason here
+WIDE = 10
+ALLOWED_WIDE_FUNCTIONS = {
+    ("flightsw.ip.step", "ip_step_k"): "the IP's per-frame compiled entry: a record or named tuple "
+    "argument costs 0.4-3.6 us against ~50 ns a plain one (measured, its docstring)",
+    ("flightsw.ip.frame", "process_frame"): "a public convenience whose options are keyword-only",
+    ("flightsw.ip.backend", "backend"): "the back end's host surface: its options are keyword-only",
+    ("flightsw.tp.frame", "step_frame"): "the TP's per-frame compiled entry, as ip_step_k",
+}
+#: module-level tables of positions kept, with why (none is a processor's state)
+ALLOWED_SLOT_TABLES = {
+    ("flightsw.ip.colour", "EV_PIXEL"): "blob colouring's event counts, dotted with the cycle-cost "
+    "vector of the same order (_EVENTS names both): the position pairs a count with its cost",
+    ("flightsw.ip.rank", "EV_FRAME"): "the ranking's event counts, as colouring's",
+}
+
+
+def wide_functions() -> set:
+    """(module, qualified name) of every function in flightsw with WIDE or more parameters."""
+    bad = set()
+    for mod, tree in TREES.items():
+        if not mod.startswith("flightsw"):
+            continue
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                a = node.args
+                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None) \
+                    + (a.kwarg is not None)
+                if n >= WIDE:
+                    bad.add((mod, node.name))
+    return bad
+
+
+def _int_table(value) -> bool:
+    if isinstance(value, ast.Call) and isinstance(value.func, ast.Name) and value.func.id == "range":
+        return True
+    return isinstance(value, (ast.Tuple, ast.List)) and all(
+        isinstance(e, ast.Constant) and type(e.value) is int for e in value.elts)
+
+
+def slot_tables() -> set:
+    """(module, first name) of each module-level statement outside the codecs binding three or
+    more upper-case names to integers at once whose names index arrays somewhere in flightsw (a
+    table of slot positions; an enum of codes compared, never indexed with, is not one)."""
+    tables, indexed = {}, set()
+    for mod, tree in TREES.items():
+        if not mod.startswith("flightsw"):
+            continue
+        for node in tree.body:
+            if mod not in CODEC_MODULES and isinstance(node, ast.Assign) and \
+                    _int_table(node.value) and isinstance(node.targets[0], ast.Tuple):
+                names = [e.id for e in node.targets[0].elts if isinstance(e, ast.Name)]
+                if len(names) >= 3 and all(n.isupper() for n in names):
+                    tables[(mod, names[0])] = set(names)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Subscript):
+                indexed |= {n.id for n in ast.walk(node.slice) if isinstance(n, ast.Name)}
+    return {key for key, names in tables.items() if names & indexed}
+
+
+def test_named_state_measures():
+    """Issue 40's measures, counted by tests/code_measures.py (run it to see them listed)."""
+    import code_measures as M
+    assert len(M.slot_constants()) <= 20, M.slot_constants()
+    assert len(M.slot_subscripts()) <= 60, M.slot_subscripts()
+    assert len(M.literal_positions()) <= 10, M.literal_positions()
+    assert len(M.wide_functions()) <= 5, M.wide_functions()
+
+
 @pytest.mark.parametrize("found, allowed, what", [
     (private_imports, ALLOWED_PRIVATE_IMPORTS, "private name imported across modules"),
     (private_accesses, ALLOWED_PRIVATE_ACCESS, "module._name read across modules"),
     (cycles, ALLOWED_CYCLES, "import cycle"),
     (long_functions, ALLOWED_LONG_FUNCTIONS, f"function over {MAX_FUNCTION_LINES} lines"),
     (cli_imports, set(), "library module importing the CLI"),
-], ids=["private-imports", "private-access", "cycles", "long-functions", "cli-imports"])
+    (wide_functions, set(ALLOWED_WIDE_FUNCTIONS), f"function with {WIDE} or more parameters"),
+    (slot_tables, set(ALLOWED_SLOT_TABLES), "module-level table of slot positions"),
+], ids=["private-imports", "private-access", "cycles", "long-functions", "cli-imports",
+        "wide-functions", "slot-tables"])
 def test_code_rule(found, allowed, what):
     got = found()
     new = sorted(got - allowed)
@@ -214,7 +290,11 @@ def test_the_checks_see_what_they_look_for():
     fakes = {"flightsw.fake_mod": tree, "flightsw.fake_a": ast.parse("from flightsw import fake_b"),
              "flightsw.fake_b": ast.parse("def f():\n    import flightsw.fake_a\n"),
              "hil_harness.fake_lib": ast.parse("def f():\n    from hil_harness.cli import main\n"),
-             "hil_harness.cli.fake_cmd": ast.parse("from hil_harness import cli")}
+             "hil_harness.cli.fake_cmd": ast.parse("from hil_harness import cli"),
+             "flightsw.fake_wide": ast.parse("def k(a, b, c, d, e, f, g, h, i, j):\n    pass\n"
+                                             "def n(a, b, c, d, e, f, g, h, i):\n    pass\n"),
+             "flightsw.fake_slots": ast.parse("S_A, S_B, S_C = range(3)\nX, Y, Z = 1, 2, 3\n"
+                                              "def f(s):\n    return s[S_B] + X\n")}
     for m, t in fakes.items():
         MODULES[m] = Path(m + ".py")
         TREES[m] = t
@@ -225,6 +305,11 @@ def test_the_checks_see_what_they_look_for():
         assert ("flightsw.fake_a", "flightsw.fake_b") in cycles()
         assert ("hil_harness.fake_lib", "hil_harness.cli") in cli_imports()
         assert not {found for found in cli_imports() if found[0] == "hil_harness.cli.fake_cmd"}
+        assert {w for w in wide_functions() if w[0] == "flightsw.fake_wide"} == {
+            ("flightsw.fake_wide", "k")}                   # 10 parameters, not 9
+        # the slot table indexes an array; the X, Y, Z constants are read, never indexed with
+        assert {t for t in slot_tables() if t[0] == "flightsw.fake_slots"} == {
+            ("flightsw.fake_slots", "S_A")}
     finally:
         for m in fakes:
             del MODULES[m], TREES[m]

@@ -15,8 +15,7 @@ from numba import njit
 from numba.cpython.unsafe.numbers import trailing_zeros
 
 from flightsw.tp.f1750 import cycles
-from flightsw.tp.layout import (G_ALIVE, G_IA, G_IB, G_OBS, MAX_OBS, NG, OBS_IA, OBS_IB, OBS_OK,
-                                ST_GATES)
+from flightsw.tp.state import MAX_OBS, NG
 
 PAIR_TEST_MIX = {"SR": 2, "CR": 4, "JC": 4}
 PAIR_DIST_MIX = {"MR": 2, "AR": 1, "CR": 1, "JC": 1}
@@ -29,18 +28,18 @@ CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 @njit(cache=True, inline="always")
 def observation_columns(OBS):
     """The observations' integer coordinates and usable flags as contiguous rows -> int64
-    [3, MAX_OBS] (``OBS_IA``, ``OBS_IB``, ``OBS_OK``), so that :func:`gate_mask` runs as vector
-    compares. ``OBS`` int64 [MAX_OBS, OBS_C].
+    [3, MAX_OBS] (``OBS.ia``, ``OBS.ib``, ``OBS.ok``), so that :func:`gate_mask` runs as vector
+    compares. ``OBS`` OBSERVATION_DTYPE [MAX_OBS].
 
     Cases
     -----
-    typical : row 0 is ``OBS[:, OBS_IA]``, row 1 ``OBS[:, OBS_IB]``, row 2 ``OBS[:, OBS_OK]``.
+    typical : row 0 is ``OBS[:].ia``, row 1 ``OBS[:].ib``, row 2 ``OBS[:].ok``.
     """
     OC = np.empty((3, MAX_OBS), np.int64)
     for j in range(MAX_OBS):
-        OC[0, j] = OBS[j, OBS_IA]
-        OC[1, j] = OBS[j, OBS_IB]
-        OC[2, j] = OBS[j, OBS_OK]
+        OC[0, j] = OBS[j].ia
+        OC[1, j] = OBS[j].ib
+        OC[2, j] = OBS[j].ok
     return OC
 
 
@@ -56,7 +55,7 @@ def gate_mask(OC, nuse, ia, ib, half):
     -----
     inside : ``|da| <= half`` and ``|db| <= half`` (edges included) -> bit j set.
     outside : either axis beyond ``half`` -> bit j clear.
-    unusable : ``OBS_OK == 0`` -> bit j clear.
+    unusable : ``OBS.ok == 0`` -> bit j clear.
     beyond-nuse : columns ``j >= nuse`` -> bit j clear, whatever they hold.
     """
     mask = 0
@@ -74,7 +73,7 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
     ``PW`` (int64 [NG * MAX_OBS, 3]), by gate row then observation index -> their number.
 
-    ``G`` gates (int64 [NG, GC]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
+    ``G`` gates (GATE_DTYPE [NG]), ``OC`` the observations' :func:`observation_columns` (int64 [3,
     MAX_OBS], formed once a frame for both classes); coordinates are the 16-bit integers (LSB
     2**-16 rad), distances their integer squares. Every live gate tests every observation
     (:func:`gate_mask`), as the flight code does and is charged for.
@@ -86,15 +85,15 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     outside : ``|da| > half`` or ``|db| > half`` (either axis alone) -> no triple.
     one-class : only rows of parity ``kind`` are tested.
     dead-skipped : dead gates give no triple.
-    unusable-skipped : observations with ``OBS_OK == 0`` give no triple.
+    unusable-skipped : observations with ``OBS.ok == 0`` give no triple.
     no-observations : ``nuse == 0`` -> 0.
     """
     npairs = 0
     for row in range(kind, NG, 2):
-        if G[row, G_ALIVE] == 0:
+        if G[row].alive == 0:
             continue
-        ia = G[row, G_IA]
-        ib = G[row, G_IB]
+        ia = G[row].ia
+        ib = G[row].ib
         mask = gate_mask(OC, nuse, ia, ib, half)
         while mask != 0:                          # the observations inside, by index
             j = np.int64(trailing_zeros(mask))
@@ -105,8 +104,8 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
             PW[npairs, 1] = row
             PW[npairs, 2] = j
             npairs += 1
-        cyc[ST_GATES] += nuse * CYC_PAIR_TEST
-    cyc[ST_GATES] += npairs * CYC_PAIR_DIST
+        cyc.gates += nuse * CYC_PAIR_TEST
+    cyc.gates += npairs * CYC_PAIR_DIST
     return npairs
 
 
@@ -130,12 +129,12 @@ def sort_pairs(PW, npairs, cyc):
             m -= 1
             moves += 1
         PW[m + 1, 0], PW[m + 1, 1], PW[m + 1, 2] = d0_, r0_, j0_
-    cyc[ST_GATES] += moves * CYC_SORT_MOVE
+    cyc.gates += moves * CYC_SORT_MOVE
 
 
 @njit(cache=True)
 def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
-    """Set each live gate's ``G_OBS`` to the observation it is fed this frame (-1: none; the gates
+    """Set each live gate's ``G.obs`` to the observation it is fed this frame (-1: none; the gates
     must have been propagated, which clears it), nearest pairs first within each class.
 
     ``half`` the 16-bit gate half-width; ``PW`` (int64 [NG * MAX_OBS, 3]) and ``TAKEN`` (int64
@@ -148,7 +147,7 @@ def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
     classes-independent : one observation may feed a star gate and an object gate.
     contested-fallback : a gate whose nearest observation went to a nearer gate takes its next
         observation inside.
-    no-pairs : nothing inside any gate -> every ``G_OBS`` stays -1.
+    no-pairs : nothing inside any gate -> every ``G.obs`` stays -1.
     """
     OC = observation_columns(OBS)
     for kind in range(2):
@@ -159,7 +158,7 @@ def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
         for i in range(npairs):
             row = PW[i, 1]
             j = PW[i, 2]
-            cyc[ST_GATES] += CYC_ASSIGN_TEST
-            if G[row, G_OBS] < 0 and TAKEN[j] == 0:
-                G[row, G_OBS] = j
+            cyc.gates += CYC_ASSIGN_TEST
+            if G[row].obs < 0 and TAKEN[j] == 0:
+                G[row].obs = j
                 TAKEN[j] = 1

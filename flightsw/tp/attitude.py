@@ -10,7 +10,7 @@ lost (the TP's clock advances one period). The attitude is "out of range" when
 data are missing) the last good attitude is propagated with its rate and the observations are not
 used.
 
-Every stage here reads and writes the frame's working values ``V`` (:mod:`flightsw.tp.layout`):
+Every stage here reads and writes the frame's working values ``V`` (:mod:`flightsw.tp.state`):
 words are packed 1750A floats (32-bit unless marked 48-bit).
 """
 from __future__ import annotations
@@ -25,12 +25,6 @@ from flightsw.tp.f1750 import (
     qnormalize,
 )
 from flightsw.tp.geometry import DR_MIX, make_dR, neg32
-from flightsw.tp.layout import (
-    C_FRAME_DT, C_GAP, C_MAX_COAST, C_MAX_RATE2, C_MAX_SKEW, C_QTOL, C_RMAX2, C_RMIN2, C_VMAX2,
-    O_DECF, O_FRAME, O_IMG, O_OBJIDX, O_T, S_FRAME, S_HAVE_ATT, S_HAVE_PREV, S_IMG, S_NFRAMES,
-    S_Q, S_RS, S_STATUS, S_T, S_VS, S_W, ST_INPUT, V_ATT_OK, V_DT, V_DT48, V_EVIDENCE, V_FC,
-    V_FLAGS, V_HAD_ATT, V_IMG, V_LONG_GAP, V_OK_MSG, V_Q, V_RS, V_STATUS, V_T, V_VS, V_W, V_WM,
-)
 
 ONE32 = 0x40000001
 HALF32 = 0x40000000
@@ -45,9 +39,10 @@ CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 
 @njit(cache=True)
 def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
-    """The frame's time ``V[V_T]`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit)
-    and gap flags from the message header (``msg_ok`` False: the message was lost) and the last
-    frame's state ``S``; ``att`` float64 [16] the attitude inputs (``att[0]`` its time tag).
+    """The frame's time ``V.t`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit) and
+    gap flags from the message header (``msg_ok`` False: the message was lost) and the last frame's
+    state ``S``; ``att`` the attitude inputs (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`; ``att.t``
+    its time tag).
 
     Cases
     -----
@@ -62,12 +57,12 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     count-gap : a frame count other than the last + 1 (mod 2**16) -> ``TC_FRAME_GAP``.
     count-wrap : count 0 after 0xFFFF is in order.
     time-gap : ``dt > 1.5 frame_dt`` -> ``TC_FRAME_GAP``.
-    long-gap : ``dt > max_coast_s`` -> ``V_LONG_GAP = 1``.
+    long-gap : ``dt > max_coast_s`` -> ``V.long_gap = 1``.
     """
     fl = 0
     st = 0
-    have_prev = S[S_HAVE_PREV] != 0
-    tprev = S[S_T]
+    have_prev = S.have_prev != 0
+    tprev = S.t
     ok_msg = msg_ok
     t = 0
     if ok_msg:
@@ -83,14 +78,14 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
         # takes the attitude's time tag if it has one)
         st |= TC_BAD_MESSAGE
         if have_prev:
-            t, g = fa48(tprev, C[C_FRAME_DT])
+            t, g = fa48(tprev, C.frame_dt)
         else:
-            t, g = enc48(att[0])
+            t, g = enc48(att.t)
             if g != 0:
                 t = 0
-        frame_count = (S[S_FRAME] + 1) & 0xFFFF if S[S_FRAME] >= 0 else 0
-        img_idx = S[S_IMG]
-    if ok_msg and S[S_FRAME] >= 0 and frame_count != ((S[S_FRAME] + 1) & 0xFFFF):
+        frame_count = (S.frame + 1) & 0xFFFF if S.frame >= 0 else 0
+        img_idx = S.img
+    if ok_msg and S.frame >= 0 and frame_count != ((S.frame + 1) & 0xFFFF):
         st |= TC_FRAME_GAP
     dt = 0
     dt48 = 0
@@ -98,25 +93,26 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     if have_prev:
         dt48, g = fs48(t, tprev); fl |= g
         dt = to32(dt48)
-        if fc48(dt48, C[C_GAP]) > 0:
+        if fc48(dt48, C.gap) > 0:
             st |= TC_FRAME_GAP
-        if fc48(dt48, C[C_MAX_COAST]) > 0:
+        if fc48(dt48, C.max_coast) > 0:
             long_gap = True
-    V[V_T], V[V_DT], V[V_DT48], V[V_LONG_GAP] = t, dt, dt48, 1 if long_gap else 0
-    V[V_FC], V[V_IMG], V[V_OK_MSG] = frame_count, img_idx, 1 if ok_msg else 0
-    V[V_STATUS] |= st
-    V[V_FLAGS] |= fl
+    V.t, V.dt, V.dt48, V.long_gap = t, dt, dt48, 1 if long_gap else 0
+    V.fc, V.img, V.ok_msg = frame_count, img_idx, 1 if ok_msg else 0
+    V.status |= st
+    V.aflags |= fl
 
 
 @njit(cache=True, inline="always")
 def read_attitude(C, V, att):
-    """Encode and check the attitude inputs ``att`` (float64 [16]: t, valid, q (4), rate (3),
-    r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc 48-bit) -> True if usable.
+    """Encode and check the attitude inputs ``att`` (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`:
+    t, valid, q (4), rate (3), r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc
+    48-bit) -> True if usable.
 
     Cases
     -----
     usable : every check passes -> True; ``V`` holds q (normalised), w, r_sc, v_sc.
-    not-valid : ``att[1] == 0`` (invalid or missing) -> False.
+    not-valid : ``att.valid == 0`` (invalid or missing) -> False.
     not-encodable : a non-finite input (or one outside the 1750A range) -> False.
     quat-norm : ``| |q|^2 - 1 | > quat_norm_tol`` -> False.
     rate : ``|w|^2 > max_rate^2`` -> False.
@@ -125,51 +121,51 @@ def read_attitude(C, V, att):
     skew : ``|t_att - t| > max_time_skew`` (either sign) -> False.
     refused-not-stored : a refused attitude leaves ``V``'s attitude words untouched.
     """
-    if att[1] == 0.0:
+    if att.valid == 0:
         return False
     g = 0
-    q0, h = enc32(att[2]); g |= h
-    q1, h = enc32(att[3]); g |= h
-    q2, h = enc32(att[4]); g |= h
-    q3, h = enc32(att[5]); g |= h
-    w0, h = enc32(att[6]); g |= h
-    w1, h = enc32(att[7]); g |= h
-    w2, h = enc32(att[8]); g |= h
-    rs0, h = enc48(att[9]); g |= h
-    rs1, h = enc48(att[10]); g |= h
-    rs2, h = enc48(att[11]); g |= h
-    vs0, h = enc32(att[12]); g |= h
-    vs1, h = enc32(att[13]); g |= h
-    vs2, h = enc32(att[14]); g |= h
-    ta, h = enc48(att[0]); g |= h
+    q0, h = enc32(att.q[0]); g |= h
+    q1, h = enc32(att.q[1]); g |= h
+    q2, h = enc32(att.q[2]); g |= h
+    q3, h = enc32(att.q[3]); g |= h
+    w0, h = enc32(att.rate[0]); g |= h
+    w1, h = enc32(att.rate[1]); g |= h
+    w2, h = enc32(att.rate[2]); g |= h
+    rs0, h = enc48(att.r[0]); g |= h
+    rs1, h = enc48(att.r[1]); g |= h
+    rs2, h = enc48(att.r[2]); g |= h
+    vs0, h = enc32(att.v[0]); g |= h
+    vs1, h = enc32(att.v[1]); g |= h
+    vs2, h = enc32(att.v[2]); g |= h
+    ta, h = enc48(att.t); g |= h
     if g != 0:
         return False
     ok = True
     q0, q1, q2, q3, n2, h = qnormalize(q0, q1, q2, q3)
     dn, h2 = fs32(n2, ONE32)
     dn, h3 = fm32(dn, dn)
-    tol2, h4 = fm32(C[C_QTOL], C[C_QTOL])
+    tol2, h4 = fm32(C.qtol, C.qtol)
     if (h | h2 | h3 | h4) != 0 or fc32(dn, tol2) > 0:
         ok = False
     w2n, h = dot3(w0, w1, w2, w0, w1, w2)
-    if h != 0 or fc32(w2n, C[C_MAX_RATE2]) > 0:
+    if h != 0 or fc32(w2n, C.max_rate2) > 0:
         ok = False
     r2n, h = dot3(to32(rs0), to32(rs1), to32(rs2), to32(rs0), to32(rs1), to32(rs2))
-    if h != 0 or fc32(r2n, C[C_RMIN2]) < 0 or fc32(r2n, C[C_RMAX2]) > 0:
+    if h != 0 or fc32(r2n, C.rmin2) < 0 or fc32(r2n, C.rmax2) > 0:
         ok = False
     v2n, h = dot3(vs0, vs1, vs2, vs0, vs1, vs2)
-    if h != 0 or fc32(v2n, C[C_VMAX2]) > 0:
+    if h != 0 or fc32(v2n, C.vmax2) > 0:
         ok = False
-    sk, h = fs48(ta, V[V_T])
+    sk, h = fs48(ta, V.t)
     if sk != 0 and (sk >> 47) & 1:
         sk, h = fs48(0, sk)
-    if fc48(sk, C[C_MAX_SKEW]) > 0:
+    if fc48(sk, C.max_skew) > 0:
         ok = False
     if ok:
-        V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3] = q0, q1, q2, q3
-        V[V_W], V[V_W + 1], V[V_W + 2] = w0, w1, w2
-        V[V_RS], V[V_RS + 1], V[V_RS + 2] = rs0, rs1, rs2
-        V[V_VS], V[V_VS + 1], V[V_VS + 2] = vs0, vs1, vs2
+        V.q[0], V.q[1], V.q[2], V.q[3] = q0, q1, q2, q3
+        V.w[0], V.w[1], V.w[2] = w0, w1, w2
+        V.rs[0], V.rs[1], V.rs[2] = rs0, rs1, rs2
+        V.vs[0], V.vs[1], V.vs[2] = vs0, vs1, vs2
     return ok
 
 
@@ -184,33 +180,33 @@ def coast_attitude(S, V):
         w and v kept, the mean rate = w.
     """
     fl = 0
-    dt, dt48 = V[V_DT], V[V_DT48]
-    w0, w1, w2 = S[S_W], S[S_W + 1], S[S_W + 2]
+    dt, dt48 = V.dt, V.dt48
+    w0, w1, w2 = S.w[0], S.w[1], S.w[2]
     hdt, g = fm32(dt, HALF32); fl |= g
     e1, g = fm32(w0, hdt); fl |= g
     e2, g = fm32(w1, hdt); fl |= g
     e3, g = fm32(w2, hdt); fl |= g
-    q0, q1, q2, q3, g = qmul(S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3], np.int64(ONE32), e1, e2, e3)
+    q0, q1, q2, q3, g = qmul(S.q[0], S.q[1], S.q[2], S.q[3], np.int64(ONE32), e1, e2, e3)
     fl |= g
     q0, q1, q2, q3, n2, g = qnormalize(q0, q1, q2, q3); fl |= g
-    vs0, vs1, vs2 = S[S_VS], S[S_VS + 1], S[S_VS + 2]
+    vs0, vs1, vs2 = S.vs[0], S.vs[1], S.vs[2]
     p, g = fm48(to48(vs0), dt48); fl |= g
-    rs0, g = fa48(S[S_RS], p); fl |= g
+    rs0, g = fa48(S.rs[0], p); fl |= g
     p, g = fm48(to48(vs1), dt48); fl |= g
-    rs1, g = fa48(S[S_RS + 1], p); fl |= g
+    rs1, g = fa48(S.rs[1], p); fl |= g
     p, g = fm48(to48(vs2), dt48); fl |= g
-    rs2, g = fa48(S[S_RS + 2], p); fl |= g
-    V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3] = q0, q1, q2, q3
-    V[V_W], V[V_W + 1], V[V_W + 2] = w0, w1, w2
-    V[V_WM], V[V_WM + 1], V[V_WM + 2] = w0, w1, w2
-    V[V_RS], V[V_RS + 1], V[V_RS + 2] = rs0, rs1, rs2
-    V[V_VS], V[V_VS + 1], V[V_VS + 2] = vs0, vs1, vs2
-    V[V_FLAGS] |= fl
+    rs2, g = fa48(S.rs[2], p); fl |= g
+    V.q[0], V.q[1], V.q[2], V.q[3] = q0, q1, q2, q3
+    V.w[0], V.w[1], V.w[2] = w0, w1, w2
+    V.wm[0], V.wm[1], V.wm[2] = w0, w1, w2
+    V.rs[0], V.rs[1], V.rs[2] = rs0, rs1, rs2
+    V.vs[0], V.vs[1], V.vs[2] = vs0, vs1, vs2
+    V.aflags |= fl
 
 
 @njit(cache=True, inline="always")
 def mean_rate(S, V):
-    """The interval's mean body rate ``(w + w_prev) / 2`` into ``V[V_WM]`` (this frame's rate when
+    """The interval's mean body rate ``(w + w_prev) / 2`` into ``V.wm[0]`` (this frame's rate when
     there is no previous attitude).
 
     Cases
@@ -220,12 +216,12 @@ def mean_rate(S, V):
     """
     fl = 0
     for i in range(3):
-        V[V_WM + i] = V[V_W + i]
-    if S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0:
+        V.wm[i] = V.w[i]
+    if S.have_att != 0 and S.have_prev != 0:
         for i in range(3):
-            s, g = fa32(V[V_W + i], S[S_W + i]); fl |= g
-            V[V_WM + i], g = fm32(s, HALF32); fl |= g
-    V[V_FLAGS] |= fl
+            s, g = fa32(V.w[i], S.w[i]); fl |= g
+            V.wm[i], g = fm32(s, HALF32); fl |= g
+    V.aflags |= fl
 
 
 @njit(cache=True)
@@ -248,31 +244,31 @@ def frame_attitude(C, S, V, att, RM, dR, cyc):
     never : attitude refused and none ever -> ``TC_ATTITUDE_INVALID`` -> False.
     message-lost : usable attitude, message lost -> no evidence.
     """
-    had_att = S[S_HAVE_ATT] != 0 and S[S_HAVE_PREV] != 0   # last frame's (measured or coasted)
+    had_att = S.have_att != 0 and S.have_prev != 0   # last frame's (measured or coasted)
     att_ok = read_attitude(C, V, att)
-    cyc[ST_INPUT] += CYC_INPUT
+    cyc.input += CYC_INPUT
     if att_ok:
         mean_rate(S, V)
-        S[S_HAVE_ATT] = 1
+        S.have_att = 1
     else:
-        V[V_STATUS] |= TC_ATTITUDE_INVALID
-        if S[S_HAVE_ATT] == 0:
+        V.status |= TC_ATTITUDE_INVALID
+        if S.have_att == 0:
             return False
         coast_attitude(S, V)
-        cyc[ST_INPUT] += CYC_ATT_PROP
-    fl = qdcm(V[V_Q], V[V_Q + 1], V[V_Q + 2], V[V_Q + 3], RM)
+        cyc.input += CYC_ATT_PROP
+    fl = qdcm(V.q[0], V.q[1], V.q[2], V.q[3], RM)
     if had_att:
-        e0, e1, e2, e3, g = qmul(V[V_Q], neg32(V[V_Q + 1]), neg32(V[V_Q + 2]), neg32(V[V_Q + 3]),
-                                 S[S_Q], S[S_Q + 1], S[S_Q + 2], S[S_Q + 3]); fl |= g
+        e0, e1, e2, e3, g = qmul(V.q[0], neg32(V.q[1]), neg32(V.q[2]), neg32(V.q[3]),
+                                 S.q[0], S.q[1], S.q[2], S.q[3]); fl |= g
         fl |= qdcm(e0, e1, e2, e3, dR)
-        cyc[ST_INPUT] += CYC_DQ
+        cyc.input += CYC_DQ
     else:
-        fl |= make_dR(V[V_WM], V[V_WM + 1], V[V_WM + 2], V[V_DT], dR)
-        cyc[ST_INPUT] += CYC_DR
-    V[V_ATT_OK] = 1 if att_ok else 0
-    V[V_HAD_ATT] = 1 if had_att else 0
-    V[V_EVIDENCE] = 1 if (att_ok and V[V_OK_MSG] != 0) else 0
-    V[V_FLAGS] |= fl
+        fl |= make_dR(V.wm[0], V.wm[1], V.wm[2], V.dt, dR)
+        cyc.input += CYC_DR
+    V.att_ok = 1 if att_ok else 0
+    V.had_att = 1 if had_att else 0
+    V.evidence = 1 if (att_ok and V.ok_msg != 0) else 0
+    V.aflags |= fl
     return True
 
 
@@ -282,20 +278,20 @@ def no_attitude_frame(S, V, out):
 
     Cases
     -----
-    typical : time, frame count, imager kept in ``S`` (``S_NFRAMES`` + 1), ``TC_COASTING``, the
+    typical : time, frame count, imager kept in ``S`` (``S.nframes`` + 1), ``TC_COASTING``, the
         outputs' time, frame, imager set and no decision or object (-1).
     """
-    t, fc, img_idx = V[V_T], V[V_FC], V[V_IMG]
-    S[S_HAVE_PREV] = 1
-    S[S_T] = t
-    S[S_FRAME] = fc
-    S[S_IMG] = img_idx
-    S[S_NFRAMES] += 1
-    V[V_STATUS] |= TC_COASTING
-    out[O_T] = dec48(t)
-    out[O_FRAME] = fc
-    out[O_IMG] = img_idx
-    out[O_DECF] = -1.0
-    out[O_OBJIDX] = -1.0
-    S[S_STATUS] = V[V_STATUS]
-    return V[V_STATUS]
+    t, fc, img_idx = V.t, V.fc, V.img
+    S.have_prev = 1
+    S.t = t
+    S.frame = fc
+    S.img = img_idx
+    S.nframes += 1
+    V.status |= TC_COASTING
+    out.t = dec48(t)
+    out.frame = fc
+    out.img = img_idx
+    out.decf = -1
+    out.objidx = -1
+    S.status = V.status
+    return V.status

@@ -31,6 +31,7 @@ from flightsw.arith.m1750 import (
     to48,
 )
 from flightsw.tp.f1750 import cycles, dec48, mix
+from flightsw.tp.state import DYNAMICS_DTYPE, MAX_FIT_TERMS, new_record
 
 __all__ = ["NominalTrajectory", "MU_EARTH", "R_EARTH", "J2_EARTH", "dyn_table", "propagate",
            "rk4_step", "accel", "grav_gradient_h", "MAX_FIT_TERMS"]
@@ -38,11 +39,8 @@ __all__ = ["NominalTrajectory", "MU_EARTH", "R_EARTH", "J2_EARTH", "dyn_table", 
 MU_EARTH = 3.986004418e14     # m^3/s^2 (EGM96/WGS-84)
 R_EARTH = 6378137.0           # m
 J2_EARTH = 1.08262668e-3
-MAX_FIT_TERMS = 8
 
 # dynamics table (int64): flags and packed constants
-D_POLY, D_J2, D_NMU, D_KJ2, D_T0, D_K, D_FIVE, D_THREE, D_COEF = 0, 1, 2, 3, 4, 5, 6, 7, 8
-D_WORDS = D_COEF + 3 * MAX_FIT_TERMS
 
 _HALF48 = 0x400000000000
 _ONE32 = 0x40000001
@@ -129,29 +127,30 @@ class NominalTrajectory:
         """(r, v) at ``t`` propagated by the flight RK4 in 1750A arithmetic (decoded, float64)."""
         D = dyn_table(self.accel_coeffs, j2, self.t0)
         X = self.state_words()
-        fl = propagate(D, X, 0, encode48(self.t0, rounding="nearest"),
+        fl = propagate(D, X, encode48(self.t0, rounding="nearest"),
                        encode48(float(t), rounding="nearest"), encode48(float(max_step), rounding="nearest"))
         out = np.array([dec48(x) for x in X])
         return out[:3], out[3:]
 
 
-def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray:
-    """Packed constants of the plant (the uplinked tables), see D_*."""
-    D = np.zeros(D_WORDS, np.int64)
-    D[D_J2] = 1 if j2 else 0
-    D[D_NMU] = encode32(-MU_EARTH, rounding="nearest")
-    D[D_KJ2] = encode32(1.5 * J2_EARTH * R_EARTH ** 2, rounding="nearest")
-    D[D_T0] = encode48(float(t0), rounding="nearest")
-    D[D_FIVE] = encode32(5.0)
-    D[D_THREE] = encode32(3.0)
+def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0):
+    """The plant's constants (the uplinked tables) -> a :data:`~flightsw.tp.state.DYNAMICS_DTYPE`
+    record."""
+    D = new_record(DYNAMICS_DTYPE)
+    D.j2 = 1 if j2 else 0
+    D.nmu = encode32(-MU_EARTH, rounding="nearest")
+    D.kj2 = encode32(1.5 * J2_EARTH * R_EARTH ** 2, rounding="nearest")
+    D.t0 = encode48(float(t0), rounding="nearest")
+    D.five = encode32(5.0)
+    D.three = encode32(3.0)
     if accel_coeffs is not None:
         c = np.asarray(accel_coeffs, dtype=float)
         k = c.shape[1]
-        D[D_POLY] = 1
-        D[D_K] = k
+        D.poly = 1
+        D.k = k
         for i in range(3):
             for j in range(k):
-                D[D_COEF + i * MAX_FIT_TERMS + j] = encode32(float(c[i, j]), rounding="nearest")
+                D.coef[i, j] = encode32(float(c[i, j]), rounding="nearest")
     return D
 
 
@@ -161,7 +160,7 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0) -> np.ndarray
 @njit(cache=True, inline="always")
 def _radius_terms(nmu, r0, r1, r2):
     """The radius terms the gravity routines share, from a position (packed 32-bit, m) and
-    ``nmu`` = -mu (packed 32-bit, ``D[D_NMU]``: a scalar, so the inlined copies take no reference
+    ``nmu`` = -mu (packed 32-bit, ``D.nmu``: a scalar, so the inlined copies take no reference
     on the table): (z^2, 1/r, 1/r^2, -mu/r^3, flags) (FM x3, FA x2, sqrt32, FD, FM x3).
 
     Cases
@@ -197,32 +196,32 @@ def accel(D, r0, r1, r2, tau):
     curve-fit : a fit of K terms -> the polynomial in ``tau`` by Horner's rule added per axis.
     constant-fit : K = 1 -> a constant acceleration added (no multiply by ``tau``).
     """
-    z2, inv, inv2, m3, f = _radius_terms(D[D_NMU], r0, r1, r2)
+    z2, inv, inv2, m3, f = _radius_terms(D.nmu, r0, r1, r2)
     cxy = m3
     cz = m3
-    if D[D_J2] != 0:
+    if D.j2 != 0:
         u, g = fm32(z2, inv2); f |= g           # z^2 / r^2
-        k, g = fm32(D[D_KJ2], inv2); f |= g
-        u5, g = fm32(u, D[D_FIVE]); f |= g
+        k, g = fm32(D.kj2, inv2); f |= g
+        u5, g = fm32(u, D.five); f |= g
         t, g = fs32(_ONE32, u5); f |= g
         t, g = fm32(k, t); f |= g
         t, g = fa32(_ONE32, t); f |= g
         cxy, g = fm32(m3, t); f |= g
-        t, g = fs32(D[D_THREE], u5); f |= g
+        t, g = fs32(D.three, u5); f |= g
         t, g = fm32(k, t); f |= g
         t, g = fa32(_ONE32, t); f |= g
         cz, g = fm32(m3, t); f |= g
     a0, g = fm32(cxy, r0); f |= g
     a1, g = fm32(cxy, r1); f |= g
     a2, g = fm32(cz, r2); f |= g
-    if D[D_POLY] != 0:
-        K = D[D_K]
+    if D.poly != 0:
+        K = D.k
         for ax in range(3):
-            base = D_COEF + ax * MAX_FIT_TERMS
-            acc = D[base]
+            coef = D.coef[ax]
+            acc = coef[0]
             for j in range(1, K):
                 acc, g = fm32(acc, tau); f |= g
-                acc, g = fa32(acc, D[base + j]); f |= g
+                acc, g = fa32(acc, coef[j]); f |= g
             if ax == 0:
                 a0, g = fa32(a0, acc); f |= g
             elif ax == 1:
@@ -241,12 +240,12 @@ def grav_gradient_h(D, r0, r1, r2, h):
     -----
     typical : ``h mu / r^3 (3 u_i u_j - delta_ij)`` for the upper triangle.
     """
-    _, inv, _, c, f = _radius_terms(D[D_NMU], r0, r1, r2)         # c = -mu/r^3
+    _, inv, _, c, f = _radius_terms(D.nmu, r0, r1, r2)         # c = -mu/r^3
     u0, g = fm32(r0, inv); f |= g
     u1, g = fm32(r1, inv); f |= g
     u2, g = fm32(r2, inv); f |= g
     c, g = fm32(c, h); f |= g               # -h mu / r^3
-    c3, g = fm32(c, D[D_THREE]); f |= g     # -3 h mu / r^3
+    c3, g = fm32(c, D.three); f |= g     # -3 h mu / r^3
     # C_ij = h mu/r^3 (3 u_i u_j - d_ij) = -(c3 u_i u_j) + c d_ij ... signs: c < 0
     t, g = fm32(c3, u0); f |= g
     c00, g = fm32(t, u0); f |= g
@@ -268,32 +267,33 @@ def grav_gradient_h(D, r0, r1, r2, h):
 
 
 @njit(cache=True)
-def _stage(r0, r1, r2, v0, v1, v2, c, c32, k0, k1, k2, a0, a1, a2):
+def _stage(r, v, c, c32, k, a):
     """One RK4 intermediate state ``(r + c k_r, v + c k_v)``: position in 48-bit (``c`` packed
     48-bit, ``k`` the previous stage's velocity), velocity increment ``c32 * a`` formed in 32-bit
-    and added in 48-bit -> (s0, s1, s2, w0, w1, w2, flags).
+    and added in 48-bit -> (s0, s1, s2, w0, w1, w2, flags). ``r``, ``v`` (48-bit), ``k``
+    (48-bit), ``a`` (32-bit): 3-tuples of packed words.
 
     Cases
     -----
     typical : ``r + c k`` (48-bit) and ``v + c32 a`` (product 32-bit, sum 48-bit).
     """
     f = 0
-    s0, g = madd48(r0, c, k0); f |= g
-    s1, g = madd48(r1, c, k1); f |= g
-    s2, g = madd48(r2, c, k2); f |= g
-    q, g = fm32(c32, a0); f |= g
-    w0, g = fa48(v0, to48(q)); f |= g
-    q, g = fm32(c32, a1); f |= g
-    w1, g = fa48(v1, to48(q)); f |= g
-    q, g = fm32(c32, a2); f |= g
-    w2, g = fa48(v2, to48(q)); f |= g
+    s0, g = madd48(r[0], c, k[0]); f |= g
+    s1, g = madd48(r[1], c, k[1]); f |= g
+    s2, g = madd48(r[2], c, k[2]); f |= g
+    q, g = fm32(c32, a[0]); f |= g
+    w0, g = fa48(v[0], to48(q)); f |= g
+    q, g = fm32(c32, a[1]); f |= g
+    w1, g = fa48(v[1], to48(q)); f |= g
+    q, g = fm32(c32, a[2]); f |= g
+    w2, g = fa48(v[2], to48(q)); f |= g
     return s0, s1, s2, w0, w1, w2, f
 
 
 @njit(cache=True)
-def rk4_step(D, X, o, t, h):
+def rk4_step(D, X, t, h):
     """One classical RK4 step of ``h`` (packed 48-bit, s) from time ``t`` (packed 48-bit) of the
-    state ``X[o:o+6]`` (r, v; packed 48-bit), in place -> flags.
+    state ``X`` (int64 [6]: r, v; packed 48-bit), in place -> flags.
 
     Cases
     -----
@@ -305,25 +305,25 @@ def rk4_step(D, X, o, t, h):
     h6, g = fd48(h, _SIX48); f |= g
     h2s = to32(h2)
     hs = to32(h)
-    tt, g = fs48(t, D[D_T0]); f |= g
+    tt, g = fs48(t, D.t0); f |= g
     tau1 = to32(tt)
     tt2, g = fa48(tt, h2); f |= g
     tau2 = to32(tt2)
     tt4, g = fa48(tt, h); f |= g
     tau4 = to32(tt4)
-    r0, r1, r2 = X[o], X[o + 1], X[o + 2]
-    v0, v1, v2 = X[o + 3], X[o + 4], X[o + 5]
+    r0, r1, r2 = X[0], X[1], X[2]
+    v0, v1, v2 = X[3], X[4], X[5]
+    r, v = (r0, r1, r2), (v0, v1, v2)
     # stage 1
     a10, a11, a12, g = accel(D, to32(r0), to32(r1), to32(r2), tau1); f |= g
     # stages 2-4: y + h/2 k1, y + h/2 k2, y + h k3
-    s0, s1, s2, w20, w21, w22, g = _stage(r0, r1, r2, v0, v1, v2, h2, h2s, v0, v1, v2,
-                                          a10, a11, a12); f |= g
+    s0, s1, s2, w20, w21, w22, g = _stage(r, v, h2, h2s, v, (a10, a11, a12)); f |= g
     a20, a21, a22, g = accel(D, to32(s0), to32(s1), to32(s2), tau2); f |= g
-    s0, s1, s2, w30, w31, w32, g = _stage(r0, r1, r2, v0, v1, v2, h2, h2s, w20, w21, w22,
-                                          a20, a21, a22); f |= g
+    s0, s1, s2, w30, w31, w32, g = _stage(r, v, h2, h2s, (w20, w21, w22),
+                                          (a20, a21, a22)); f |= g
     a30, a31, a32, g = accel(D, to32(s0), to32(s1), to32(s2), tau2); f |= g
-    s0, s1, s2, w40, w41, w42, g = _stage(r0, r1, r2, v0, v1, v2, h, hs, w30, w31, w32,
-                                          a30, a31, a32); f |= g
+    s0, s1, s2, w40, w41, w42, g = _stage(r, v, h, hs, (w30, w31, w32),
+                                          (a30, a31, a32)); f |= g
     a40, a41, a42, g = accel(D, to32(s0), to32(s1), to32(s2), tau4); f |= g
     # combination: r += h/6 (v + 2 w2 + 2 w3 + w4), v += h/6 (a1 + 2 a2 + 2 a3 + a4)
     for i in range(3):
@@ -340,19 +340,20 @@ def rk4_step(D, X, o, t, h):
         m, g = fa48(m, m); f |= g
         e, g = fa48(va, vd); f |= g
         m, g = fa48(m, e); f |= g
-        X[o + i], g = madd48(X[o + i], h6, m); f |= g
+        X[i], g = madd48(X[i], h6, m); f |= g
         n, g = fa32(ab, ac); f |= g
         n, g = fa32(n, n); f |= g
         e2, g = fa32(aa, ad); f |= g
         n, g = fa32(n, e2); f |= g
-        X[o + 3 + i], g = madd48(X[o + 3 + i], h6, to48(n)); f |= g
+        X[3 + i], g = madd48(X[3 + i], h6, to48(n)); f |= g
     return f
 
 
 @njit(cache=True)
-def propagate(D, X, o, t_from, t_to, max_step):
-    """Integrate ``X[o:o+6]`` from ``t_from`` to ``t_to`` (packed 48-bit) in RK4 steps of at most
-    ``max_step`` -> flags (OR) in the low bits and the number of steps taken << 32.
+def propagate(D, X, t_from, t_to, max_step):
+    """Integrate ``X`` (int64 [6], r, v packed 48-bit) from ``t_from`` to ``t_to`` (packed 48-bit)
+    in RK4 steps of at most ``max_step`` -> flags (OR) in the low bits and the number of steps
+    taken << 32.
 
     Cases
     -----
@@ -370,7 +371,7 @@ def propagate(D, X, o, t_from, t_to, max_step):
         if fc48(rem, _TINY48) <= 0:
             break
         h = max_step if fc48(rem, max_step) > 0 else rem
-        f |= rk4_step(D, X, o, t, h)
+        f |= rk4_step(D, X, t, h)
         t, g = fa48(t, h); f |= g
         n += 1
         if n > 100000:

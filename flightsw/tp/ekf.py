@@ -56,16 +56,11 @@ from flightsw.arith.m1750 import (
 )
 from flightsw.tp.dynamics import CYC_GRAD, dyn_table, grav_gradient_h, rk4_step, rk4_step_cycles
 from flightsw.tp.f1750 import cycles, dec32, dec48, dot3, enc32, enc48, mix, unit3
+from flightsw.tp.state import EKF_DTYPE, EKF_PARAMS_DTYPE, new_record
 
-__all__ = ["EKF1750", "E_WORDS", "ekf_predict", "ekf_update", "ekf_update_los", "ekf_init",
+__all__ = ["EKF1750", "ekf_predict", "ekf_update", "ekf_update_los", "ekf_init",
            "ekf_params", "EKF_UPDATE_MIX", "ekf_predict_step_cycles"]
 
-# E array layout
-E_X, E_P, E_T, E_RUN, E_NREJ, E_LOS, E_HAVE_LOS = 0, 6, 27, 28, 29, 30, 33
-E_WORDS = 34
-# K (parameters) layout, packed 48-bit
-K_Q, K_MAXSTEP, K_GATE2, K_P0R, K_P0V = 0, 1, 2, 3, 4
-K_WORDS = 5
 EKF_FLAG_COV = 0x20000          # software flag: an update refused for the covariance guard
 
 _HALF48 = 0x400000000000
@@ -118,34 +113,36 @@ def ekf_reset_cov(E, p0r, p0v):
         time and counters untouched.
     """
     for k in range(21):
-        E[E_P + k] = 0
+        E.p[k] = 0
     for i in range(3):
-        E[E_P + UT[i, i]] = p0r
-        E[E_P + UT[i + 3, i + 3]] = p0v
+        E.p[UT[i, i]] = p0r
+        E.p[UT[i + 3, i + 3]] = p0v
 
 
 @njit(cache=True)
-def ekf_init(E, r0, r1, r2, v0, v1, v2, t, p0r, p0v):
-    """Start the filter at (r, v) (packed 48-bit) and time t with P = diag(p0r I, p0v I).
+def ekf_init(E, x, t, p0r, p0v):
+    """Start the filter ``E`` (:data:`~flightsw.tp.state.EKF_DTYPE`) at ``x`` = (r, v) (int64 [6],
+    packed 48-bit) and time t with P = diag(p0r I, p0v I).
 
     Cases
     -----
     typical : state and time set, P diagonal, running, no rejections, no line of sight yet.
     """
-    E[E_X], E[E_X + 1], E[E_X + 2] = r0, r1, r2
-    E[E_X + 3], E[E_X + 4], E[E_X + 5] = v0, v1, v2
+    for i in range(6):
+        E.x[i] = x[i]
     ekf_reset_cov(E, p0r, p0v)
-    E[E_T] = t
-    E[E_RUN] = 1
-    E[E_NREJ] = 0
-    E[E_HAVE_LOS] = 0
+    E.t = t
+    E.run = 1
+    E.nrej = 0
+    E.have_los = 0
 
 
 @njit(cache=True)
-def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
-    """P <- Phi P Phi^T + Q for Phi = [[I, hI], [C, I]] (C = h G symmetric, packed 32-bit).
+def _cov_step(E, wk, h, cg, q):
+    """P <- Phi P Phi^T + Q for Phi = [[I, hI], [C, I]] (C = h G symmetric, packed 32-bit: ``cg``
+    its six distinct elements (c00, c01, c02, c11, c12, c22), a tuple).
 
-    ``E`` the filter words (P upper triangle, 48-bit), ``wk`` int64 [>= 54] scratch, ``h`` and
+    ``E`` the filter (P upper triangle, 48-bit), ``wk`` int64 [>= 54] scratch, ``h`` and
     ``q`` packed 48-bit (s, m^2/s^3) -> flags.
 
     Cases
@@ -154,13 +151,13 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
         ``Q = q [[h^3/3 I, h^2/2 I], [h^2/2 I, h I]]``, stored as the upper triangle.
     """
     f = 0
-    P = E_P
+    c00, c01, c02, c11, c12, c22 = cg
     # unpack A (r-r), B (r-v), D (v-v) and C into wk (row-major 3x3, 48-bit)
     for i in range(3):
         for j in range(3):
-            wk[i * 3 + j] = E[P + UT[i, j]]
-            wk[9 + i * 3 + j] = E[P + UT[i, 3 + j]]
-            wk[18 + i * 3 + j] = E[P + UT[3 + i, 3 + j]]
+            wk[i * 3 + j] = E.p[UT[i, j]]
+            wk[9 + i * 3 + j] = E.p[UT[i, 3 + j]]
+            wk[18 + i * 3 + j] = E.p[UT[3 + i, 3 + j]]
     wk[27], wk[28], wk[29] = to48(c00), to48(c01), to48(c02)
     wk[30], wk[31], wk[32] = to48(c01), to48(c11), to48(c12)
     wk[33], wk[34], wk[35] = to48(c02), to48(c12), to48(c22)
@@ -179,14 +176,14 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
     for i in range(3):
         for j in range(i, 3):
             p, g = madd48(wk[9 + i * 3 + j], h, wk[18 + i * 3 + j]); f |= g
-            E[P + UT[i, j]], g = madd48(wk[36 + i * 3 + j], h, p); f |= g
+            E.p[UT[i, j]], g = madd48(wk[36 + i * 3 + j], h, p); f |= g
     # P'rv = M11 C + B + h D
     for i in range(3):
         for j in range(3):
             acc, g = madd48(wk[9 + i * 3 + j], h, wk[18 + i * 3 + j]); f |= g
             for k in range(3):
                 acc, g = madd48(acc, wk[36 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
-            E[P + UT[i, 3 + j]] = acc
+            E.p[UT[i, 3 + j]] = acc
     # P'vv = W C + C B + D                 (upper)
     for i in range(3):
         for j in range(i, 3):
@@ -194,7 +191,7 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
             for k in range(3):
                 acc, g = madd48(acc, wk[45 + i * 3 + k], wk[27 + k * 3 + j]); f |= g
                 acc, g = madd48(acc, wk[27 + i * 3 + k], wk[9 + k * 3 + j]); f |= g
-            E[P + UT[3 + i, 3 + j]] = acc
+            E.p[UT[3 + i, 3 + j]] = acc
     # Q: q h^3/3, q h^2/2, q h
     qh, g = fm48(q, h); f |= g
     qh2, g = fm48(qh, h); f |= g
@@ -202,15 +199,15 @@ def _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, q):
     qrr, g = fm48(qh2, h); f |= g
     qrr, g = fm48(qrr, _THIRD48); f |= g
     for i in range(3):
-        E[P + UT[i, i]], g = fa48(E[P + UT[i, i]], qrr); f |= g
-        E[P + UT[i, 3 + i]], g = fa48(E[P + UT[i, 3 + i]], qrv); f |= g
-        E[P + UT[3 + i, 3 + i]], g = fa48(E[P + UT[3 + i, 3 + i]], qh); f |= g
+        E.p[UT[i, i]], g = fa48(E.p[UT[i, i]], qrr); f |= g
+        E.p[UT[i, 3 + i]], g = fa48(E.p[UT[i, 3 + i]], qrv); f |= g
+        E.p[UT[3 + i, 3 + i]], g = fa48(E.p[UT[3 + i, 3 + i]], qh); f |= g
     return f
 
 
 @njit(cache=True)
 def ekf_predict(E, D, K, wk, t_to):
-    """Propagate state and covariance from E[E_T] to t_to (packed 48-bit) -> (flags, steps).
+    """Propagate state and covariance from E.t to t_to (packed 48-bit) -> (flags, steps).
 
     ``D`` the plant table, ``K`` the filter parameters, ``wk`` scratch (int64 [>= 54]).
 
@@ -220,26 +217,26 @@ def ekf_predict(E, D, K, wk, t_to):
         covariance transition, then the RK4 state.
     last-partial : a remainder below ``max_step`` -> one shorter last step.
     tiny : an interval of at most 1 us, or a backward one -> no step, state, covariance and
-        ``E_T`` unchanged.
+        ``E.t`` unchanged.
     step-cap : more than 100 000 steps needed -> stops after 100 001.
     """
     f = 0
-    t = E[E_T]
+    t = E.t
     n = 0
     while True:
         rem, g = fs48(t_to, t); f |= g
         if fc48(rem, _TINY48) <= 0:
             break
-        h = K[K_MAXSTEP] if fc48(rem, K[K_MAXSTEP]) > 0 else rem
-        c00, c01, c02, c11, c12, c22, g = grav_gradient_h(D, to32(E[E_X]), to32(E[E_X + 1]),
-                                                          to32(E[E_X + 2]), to32(h)); f |= g
-        f |= _cov_step(E, wk, h, c00, c01, c02, c11, c12, c22, K[K_Q])
-        f |= rk4_step(D, E, np.int64(E_X), t, h)
+        h = K.maxstep if fc48(rem, K.maxstep) > 0 else rem
+        c00, c01, c02, c11, c12, c22, g = grav_gradient_h(D, to32(E.x[0]), to32(E.x[1]),
+                                                          to32(E.x[2]), to32(h)); f |= g
+        f |= _cov_step(E, wk, h, (c00, c01, c02, c11, c12, c22), K.q)
+        f |= rk4_step(D, E.x, t, h)
         t, g = fa48(t, h); f |= g
         n += 1
         if n > 100000:
             break
-    E[E_T] = t
+    E.t = t
     return f, n
 
 
@@ -254,20 +251,20 @@ def ekf_los(E, rs0, rs1, rs2):
     coincident : the estimate at the spacecraft -> zeros, ``rho = 0``, FLAG_DOMAIN.
     """
     f = 0
-    d0, g = fs48(E[E_X], rs0); f |= g
-    d1, g = fs48(E[E_X + 1], rs1); f |= g
-    d2, g = fs48(E[E_X + 2], rs2); f |= g
+    d0, g = fs48(E.x[0], rs0); f |= g
+    d1, g = fs48(E.x[1], rs1); f |= g
+    d2, g = fs48(E.x[2], rs2); f |= g
     l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); f |= g
     return l0, l1, l2, rho, f
 
 
 @njit(cache=True)
-def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
+def ekf_update(E, K, wk, comp, z, M, rs, rvar):
     """Sequential scalar update with component ``comp`` (1 or 2) of the imager-frame unit line of
-    sight ``z`` (packed 32-bit), ``M`` the ECI -> imager rotation (int64[9], packed 32-bit),
-    ``r_sc`` packed 48-bit, ``rvar`` the measurement variance (packed 48-bit, rad^2), ``wk`` scratch
-    -> (accepted, nu (packed 32), s (packed 48), flags): :func:`ekf_los` of the state, then
-    :func:`ekf_update_los` (flags OR-ed).
+    sight ``z`` (packed 32-bit), ``M`` the ECI -> imager rotation (int64[9], packed 32-bit), ``rs``
+    = r_sc (3 packed 48-bit words, tuple), ``rvar`` the measurement variance (packed 48-bit, rad^2),
+    ``wk`` scratch -> (accepted, nu (packed 32), s (packed 48), flags): :func:`ekf_los` of the
+    state, then :func:`ekf_update_los` (flags OR-ed).
 
     Cases
     -----
@@ -277,23 +274,24 @@ def ekf_update(E, K, wk, comp, z, M, rs0, rs1, rs2, rvar):
     covariance-guard : an update that would leave a diagonal element of P zero or negative ->
         refused with EKF_FLAG_COV, nothing changed.
     """
-    l0, l1, l2, rho, f = ekf_los(E, rs0, rs1, rs2)
-    ok, nu, s, g = ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar)
+    l0, l1, l2, rho, f = ekf_los(E, rs[0], rs[1], rs[2])
+    ok, nu, s, g = ekf_update_los(E, K, wk, comp, z, M, (l0, l1, l2, rho), rvar)
     return ok, nu, s, f | g
 
 
 @njit(cache=True)
-def ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar):
-    """:func:`ekf_update` given the state's :func:`ekf_los` ``(l0, l1, l2, rho)`` (packed 32-bit),
-    for a caller that already holds it -> (accepted, nu, s, flags), the flags without
-    :func:`ekf_los`'s.
+def ekf_update_los(E, K, wk, comp, z, M, los, rvar):
+    """:func:`ekf_update` given the state's :func:`ekf_los` ``los = (l0, l1, l2, rho)`` (packed
+    32-bit, a tuple), for a caller that already holds it -> (accepted, nu, s, flags), the flags
+    without :func:`ekf_los`'s.
 
     Cases
     -----
-    typical : with ``(l0, l1, l2, rho) = ekf_los(E, r_sc)``, :func:`ekf_update`'s words, state
+    typical : with ``los = ekf_los(E, r_sc)[:4]``, :func:`ekf_update`'s words, state
         and covariance; its flags less those of ``ekf_los``.
     """
     f = 0
+    l0, l1, l2, rho = los
     b = 3 * comp
     hz, g = dot3(M[b], M[b + 1], M[b + 2], l0, l1, l2); f |= g
     nu, g = fs32(z, hz); f |= g
@@ -313,10 +311,10 @@ def ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar):
     # c = P H^T (P symmetric, upper storage)
     c = wk[0:6]
     for j in range(6):
-        p, g = fm48(E[E_P + UT[j, 0]], H0); f |= g
-        q, g = fm48(E[E_P + UT[j, 1]], H1); f |= g
+        p, g = fm48(E.p[UT[j, 0]], H0); f |= g
+        q, g = fm48(E.p[UT[j, 1]], H1); f |= g
         acc, g = fa48(p, q); f |= g
-        p, g = fm48(E[E_P + UT[j, 2]], H2); f |= g
+        p, g = fm48(E.p[UT[j, 2]], H2); f |= g
         c[j], g = fa48(acc, p); f |= g
     p, g = fm48(H0, c[0]); f |= g
     q, g = fm48(H1, c[1]); f |= g
@@ -326,7 +324,7 @@ def ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar):
     s, g = fa48(s, rvar); f |= g
     nu48 = to48(nu)
     n2, g = fm48(nu48, nu48); f |= g
-    lim, g = fm48(K[K_GATE2], s); f |= g
+    lim, g = fm48(K.gate2, s); f |= g
     if fc48(n2, lim) > 0:
         return False, nu, s, f
     inv_s, g = fd48(_ONE48, s); f |= g
@@ -336,16 +334,16 @@ def ekf_update_los(E, K, wk, comp, z, M, l0, l1, l2, rho, rvar):
     # covariance guard first (a refused update leaves state and covariance untouched)
     for i in range(6):
         p, g = fm48(k[i], c[i]); f |= g
-        d, g = fs48(E[E_P + UT[i, i]], p); f |= g
+        d, g = fs48(E.p[UT[i, i]], p); f |= g
         if d == 0 or (d >> 47) & 1:
             return False, nu, s, f | EKF_FLAG_COV
     for i in range(6):
         p, g = fm48(k[i], nu48); f |= g
-        E[E_X + i], g = fa48(E[E_X + i], p); f |= g
+        E.x[i], g = fa48(E.x[i], p); f |= g
     for i in range(6):
         for j in range(i, 6):
             p, g = fm48(k[i], c[j]); f |= g
-            E[E_P + UT[i, j]], g = fs48(E[E_P + UT[i, j]], p); f |= g
+            E.p[UT[i, j]], g = fs48(E.p[UT[i, j]], p); f |= g
     return True, nu, s, f
 
 
@@ -358,10 +356,10 @@ def ekf_sigmas(E):
     typical : root traces of the position and velocity blocks (m, m/s).
     """
     f = 0
-    a, g = fa48(E[E_P + 0], E[E_P + 6]); f |= g
-    a, g = fa48(a, E[E_P + 11]); f |= g
-    b, g = fa48(E[E_P + 15], E[E_P + 18]); f |= g
-    b, g = fa48(b, E[E_P + 20]); f |= g
+    a, g = fa48(E.p[0], E.p[6]); f |= g
+    a, g = fa48(a, E.p[11]); f |= g
+    b, g = fa48(E.p[15], E.p[18]); f |= g
+    b, g = fa48(b, E.p[20]); f |= g
     sp, g = sqrt32(to32(a)); f |= g
     sv, g = sqrt32(to32(b)); f |= g
     return sp, sv, f
@@ -371,14 +369,15 @@ def ekf_sigmas(E):
 # Python surface
 # ------------------------------------------------------------------------------------------------
 def ekf_params(accel_psd: float, max_step: float, gate_sigma: float, sigma_pos0: float,
-               sigma_vel0: float) -> np.ndarray:
-    """The filter's packed parameter words (see K_*)."""
-    K = np.zeros(K_WORDS, np.int64)
-    K[K_Q] = encode48(float(accel_psd), rounding="nearest")
-    K[K_MAXSTEP] = encode48(float(max_step), rounding="nearest")
-    K[K_GATE2] = encode48(float(gate_sigma) ** 2, rounding="nearest")
-    K[K_P0R] = encode48(float(sigma_pos0) ** 2, rounding="nearest")
-    K[K_P0V] = encode48(float(sigma_vel0) ** 2, rounding="nearest")
+               sigma_vel0: float):
+    """The filter's parameters -> a :data:`~flightsw.tp.state.EKF_PARAMS_DTYPE` record (48-bit
+    words)."""
+    K = new_record(EKF_PARAMS_DTYPE)
+    K.q = encode48(float(accel_psd), rounding="nearest")
+    K.maxstep = encode48(float(max_step), rounding="nearest")
+    K.gate2 = encode48(float(gate_sigma) ** 2, rounding="nearest")
+    K.p0r = encode48(float(sigma_pos0) ** 2, rounding="nearest")
+    K.p0v = encode48(float(sigma_vel0) ** 2, rounding="nearest")
     return K
 
 
@@ -395,7 +394,7 @@ def _init_from_floats(E, K, x, t):
     for i in range(6):
         w[i], g = enc48(x[i]); f |= g
     tt, g = enc48(t); f |= g
-    ekf_init(E, w[0], w[1], w[2], w[3], w[4], w[5], tt, K[K_P0R], K[K_P0V])
+    ekf_init(E, w, tt, K.p0r, K.p0v)
     return f
 
 
@@ -433,7 +432,7 @@ def _update_floats(E, K, wk, z, Mf, rsc, rvar, out):
     f |= g0 | g1 | g2 | g3
     for comp in (1, 2):
         zz, g = enc32(z[comp - 1]); f |= g
-        ok, nu, s, g = ekf_update(E, K, wk, comp, zz, M, r0, r1, r2, rv); f |= g
+        ok, nu, s, g = ekf_update(E, K, wk, comp, zz, M, (r0, r1, r2), rv); f |= g
         out[comp - 1, 0] = 1.0 if ok else 0.0
         out[comp - 1, 1] = dec32(nu)
         out[comp - 1, 2] = dec48(s)
@@ -449,9 +448,9 @@ def _decode_state(E, x, P):
     typical : exact decodes; ``P[i, j] == P[j, i]`` from the one stored upper-triangle word.
     """
     for i in range(6):
-        x[i] = dec48(E[E_X + i])
+        x[i] = dec48(E.x[i])
         for j in range(6):
-            P[i, j] = dec48(E[E_P + UT[i, j]])
+            P[i, j] = dec48(E.p[UT[i, j]])
 
 
 class EKF1750:
@@ -487,7 +486,7 @@ class EKF1750:
                 raise ValueError(f"EKF1750: {name}={v!r} must be a finite positive number")
         self.D = dyn_table(accel_coeffs, j2, t0)
         self.K = ekf_params(accel_psd, max_step, gate_sigma, sigma_pos0, sigma_vel0)
-        self.E = np.zeros(E_WORDS, np.int64)
+        self.E = new_record(EKF_DTYPE)
         self.wk = np.zeros(64, np.int64)
         self.flags = 0
         self.last_update = np.zeros((2, 3))
@@ -504,7 +503,7 @@ class EKF1750:
                 raise ValueError("EKF1750.init: P must be a symmetric positive definite (6, 6) array")
             for i in range(6):
                 for j in range(i, 6):
-                    self.E[E_P + UT[i, j]] = encode48(float(P[i, j]), rounding="nearest")
+                    self.E.p[UT[i, j]] = encode48(float(P[i, j]), rounding="nearest")
 
     def predict(self, t: float):
         """Propagate to time t (RK4 + covariance), in steps of at most max_step."""
@@ -521,7 +520,7 @@ class EKF1750:
 
     @property
     def t(self) -> float:
-        return dec48(self.E[E_T])
+        return dec48(self.E.t)
 
     @property
     def x(self) -> np.ndarray:

@@ -1,5 +1,6 @@
 """The track processor's frame: the MSX paper's "Track processing algorithms" as one compiled
-pipeline of named stages over the TP's memory (packed 1750A words, :mod:`flightsw.tp.layout`).
+pipeline of named stages over the TP's state (named records of packed 1750A words,
+:mod:`flightsw.tp.state`).
 
 Each frame: the inputs (message header, attitude: :mod:`~flightsw.tp.attitude`); the observations
 in body angles from boresight (:mod:`~flightsw.tp.geometry`); the a priori object motion from the
@@ -17,11 +18,11 @@ Arithmetic: 32-bit 1750A float for the attitude, rotation matrices, body rates, 
 coordinates, residual sums, lines of sight and pointing; 48-bit extended float for time tags and
 inertial positions (spacecraft, nominal, EKF state: 32-bit would quantise 7e6 m to 0.8 m) and the
 EKF covariance; 16-bit integers for the gate-membership tests. Every stage adds its PACE1750A
-clocks to its counter in ``cyc`` (:data:`STAGES`); the processor charges them to the frame's
-ledger on ``"tp1750"``.
+clocks to its counter in ``cyc`` (:data:`~flightsw.tp.state.CYCLES_DTYPE`); the processor charges
+them to the frame's ledger on ``"tp1750"``.
 
 Editing a stage: numba's cache keys each compiled function on its own source file only, so after
-changing a stage module (or the 1750A arithmetic) the cached :func:`run_frame` and
+changing a stage module (or the 1750A arithmetic) the cached :func:`step_frame` and
 :func:`tp_frame` still run the old code until ``frame.py`` changes too (its content: numba keys
 the cache on a hash of the source, so touching the file does not help). Clear the cache
 (``find flightsw -name '*.nb[ic]' -delete``, or an empty ``NUMBA_CACHE_DIR``) before trusting the
@@ -34,32 +35,24 @@ from numba import njit
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
-from flightsw.tp.gates import (centre_object_gate, drop_all_gates, gate_half_width, gate_params,
-                               propagate_gates, smooth_gates)
+from flightsw.tp.gates import (centre_object_gate, drop_all_gates, gate_params, propagate_gates,
+                               smooth_gates)
 from flightsw.tp.geometry import observations
-from flightsw.tp.layout import (H_FC, H_IMG, H_N, H_OK, H_T, MAX_OBS, O_DECF, O_FRAME, O_IMG,
-                                O_LOCKED, O_NOBJ, O_NSTAR, O_OBJIDX, O_PCOL, O_PROW, O_SP, O_SV,
-                                O_T, STAGES, begin_frame, evidence, has_nominal, long_gap,
-                                message_header, n_used, opportunity_mode, work_views)
-from flightsw.tp.memory import float_views, int_views, unowned
 from flightsw.tp.opportunity import track_opportunity
 from flightsw.tp.rules import (apply_rules, apriori_rule, object_observed, reinitialise,
                                report_object, verify_object)
+from flightsw.tp.state import MAX_OBS, begin_frame, clear_outputs
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
 
-__all__ = ["tp_frame", "run_frame", "step_frame", "command_fields", "STAGES"]
+__all__ = ["tp_frame", "step_frame", "command_fields"]
 
 
 @njit(cache=True)
-def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc):
-    """One frame -> status bits (``flightsw.messages`` TC_*).
-
-    ``C`` configuration, ``D`` dynamics table, ``K`` EKF parameters, ``IMG`` imager table rows
-    (int64); state ``S``, ``G``, ``N``, ``E``; per frame ``OBS``, ``PW``, ``W`` (scratch), ``V``
-    (working values); inputs ``hdr`` float64 [H_WORDS] (message header), ``att`` float64 [16]
-    (attitude data), ``rows``/``cols`` float64 [MAX_OBS] (candidate centroids, pixels); outputs
-    ``out`` float64 [O_WORDS] and ``cyc`` int64 [len(STAGES)] (clocks per stage).
+def tp_frame(st):
+    """One frame on the state record ``st`` (:data:`flightsw.tp.state.TP_STATE_DTYPE`: the
+    frame's inputs ``msg``, ``att`` already written) -> status bits (``flightsw.messages`` TC_*);
+    the decoded outputs in ``st.out``, the clocks per stage in ``st.cycles``.
 
     Cases
     -----
@@ -72,27 +65,30 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
         rule, no empty frame counted.
     opportunity : the alpha-beta opportunity tracker instead of the velocity filter.
     """
-    wk, RM, dR, M, GP, TAKEN = work_views(W)
-    msg_ok, img_idx, t_msg, frame_count, n_obs = message_header(hdr)
-    begin_frame(V, out, cyc)
-    frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att)
-    if not frame_attitude(C, S, V, att, RM, dR, cyc):
+    C, S, G, OBS, V, X, cyc = st.config, st.track, st.gates, st.obs, st.work, st.scratch, st.cycles
+    D, K, IMG, N, E = st.dyn, st.ekf_params, st.imagers, st.nominal, st.ekf
+    msg, att, out = st.msg, st.att, st.out
+    begin_frame(V, cyc)
+    clear_outputs(out)
+    frame_clock(C, S, V, msg.ok != 0, msg.img, msg.t, msg.fc, att)
+    if not frame_attitude(C, S, V, att, X.rm, X.dr, cyc):
         return no_attitude_frame(S, V, out)
-    observations(IMG, V, OBS, rows, cols, n_obs, cyc)
-    opportunity, nominal = opportunity_mode(C), has_nominal(C)
+    observations(IMG, V, OBS, msg.rows, msg.cols, msg.n, cyc)
+    opportunity, nominal = C.mode == 1, C.have_nom == 1
     if not opportunity and nominal:
-        propagate_nominal(C, D, K, S, N, V, RM, cyc)
+        propagate_nominal(C, D, K, S, N, V, X.rm, cyc)
     elif not opportunity:
         no_nominal(V)
-    predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
+    predict_ekf(C, D, K, S, E, V, X.wk, X.rm, cyc)
     if not opportunity and nominal:              # velocity filtering (dedicated events)
-        if long_gap(V):
+        if V.long_gap != 0:
             drop_all_gates(S, G, V)
+        GP = X.gp
         gate_params(C, IMG, V, GP, cyc)
-        propagate_gates(S, G, V, GP, dR, cyc)
+        propagate_gates(S, G, V, GP, X.dr, cyc)
         centre_object_gate(S, G, V, cyc)
-        if evidence(V):
-            associate(G, OBS, n_used(V), gate_half_width(GP), PW, TAKEN, cyc)
+        if V.evidence != 0:
+            associate(G, OBS, V.nuse, GP.half, X.pairs, X.taken, cyc)
             smooth_gates(C, G, OBS, V, GP, cyc)
             apply_rules(C, S, G, V, GP, cyc)
             apriori_rule(C, S, G, OBS, V, GP, cyc)
@@ -101,99 +97,87 @@ def tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out,
         reinitialise(S, G, OBS, V, cyc)
         report_object(S, V)
         if ekf_running(E) and object_observed(S, V):
-            update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc)
+            update_ekf(C, K, IMG, E, V, X, msg.rows, msg.cols, cyc)
     if opportunity:
-        track_opportunity(C, IMG, S, OBS, V, dR, cyc)
-    command(C, IMG, S, N, E, V, RM, dR, wk, out, opportunity, nominal, cyc)
+        track_opportunity(C, IMG, S, OBS, V, X.dr, cyc)
+    command(C, IMG, S, N, E, V, X, out, cyc)
     filter_outputs(E, V, out, cyc)
     return end_frame(S, G, V, out, opportunity)
 
 
-@njit(cache=True)
-def run_frame(MEM, FIO):
-    """:func:`tp_frame` over the TP's two buffers (:mod:`flightsw.tp.memory`: int64 words ``MEM``,
-    float64 inputs and outputs ``FIO``) -> status bits, on the inputs already in ``FIO``
-    (:func:`step_frame` writes them, then calls this).
-
-    Cases
-    -----
-    typical : the arrays are the buffers' views; the frame's status, words and outputs are
-        :func:`tp_frame`'s on those arrays.
-    """
-    C, D, K, IMG, S, G, N, E, OBS, PW, W, V, cyc = int_views(unowned(MEM))
-    hdr, att, rows, cols, out = float_views(unowned(FIO))
-    return tp_frame(C, D, K, IMG, S, G, N, E, OBS, PW, W, V, hdr, att, rows, cols, out, cyc)
-
-
 @njit(cache=True, inline="always")
 def command_fields(status, out):
-    """The track command's scalars from the frame's status and ``out`` (float64 [O_WORDS]) ->
-    ``(status, frame_count, imager index, n_star_gates, n_object_gates, decided_frame,
-    object_index, locked, time_tag, predicted_row, predicted_col, sigma_pos, sigma_vel)``: seven
-    int64, a bool, five float64 -- typed as the command's fields, so that the call that runs the
-    frame hands them to Python without a second pass over ``out``.
+    """The track command's scalars from the frame's status and its decoded outputs ``out``
+    (:data:`~flightsw.tp.state.OUTPUTS_DTYPE`) -> ``(status, frame_count, imager index,
+    n_star_gates, n_object_gates, decided_frame, object_index, locked, time_tag, predicted_row,
+    predicted_col, sigma_pos, sigma_vel)``: seven int64, a bool, five float64 -- typed as the
+    command's fields, so that the call that runs the frame hands them to Python without a second
+    pass over ``out``.
 
     Cases
     -----
-    typical : each value is its ``out`` word (``O_FRAME``, ``O_IMG``, ``O_NSTAR``, ``O_NOBJ``,
-        ``O_DECF``, ``O_OBJIDX``; ``O_T``, ``O_PROW``, ``O_PCOL``, ``O_SP``, ``O_SV`` as they are,
-        NaN included), the integer words as int64.
-    locked : ``locked`` is ``out[O_LOCKED] != 0``.
+    typical : each value is its ``out`` field (``frame``, ``img``, ``nstar``, ``nobj``, ``decf``,
+        ``objidx``; ``t``, ``prow``, ``pcol``, ``sp``, ``sv`` as they are, NaN included), the
+        integer fields as int64.
+    locked : ``locked`` is ``out.locked != 0``.
     """
-    return (status, int(out[O_FRAME]), int(out[O_IMG]), int(out[O_NSTAR]), int(out[O_NOBJ]),
-            int(out[O_DECF]), int(out[O_OBJIDX]), out[O_LOCKED] != 0.0, out[O_T], out[O_PROW],
-            out[O_PCOL], out[O_SP], out[O_SV])
+    return (status, int(out.frame), int(out.img), int(out.nstar), int(out.nobj),
+            int(out.decf), int(out.objidx), out.locked != 0, out.t, out.prow,
+            out.pcol, out.sp, out.sv)
 
 
 @njit(cache=True)
-def step_frame(MEM, FIO, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r,
-               v, att_valid):
-    """The frame's inputs written into ``FIO`` in the documented layout (:mod:`flightsw.tp.layout`:
-    ``hdr``, ``att`` [16], ``rows``, ``cols``), then :func:`run_frame` -> its status bits and the
-    command's scalars (:func:`command_fields`): the processor's one compiled call a frame (filling
-    the views from Python cost ~2.6 us a frame, reading the scalars from ``out`` ~0.6 us).
+def step_frame(ST, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r, v,
+               att_valid):
+    """The frame's inputs written into the state ``ST[0]`` (``msg``, ``att``), then
+    :func:`tp_frame` -> its status bits and the command's scalars (:func:`command_fields`): the
+    processor's one compiled call a frame. Its thirteen parameters are the frame's inputs as they
+    come off the bus, flat: the cheapest form to hand over from Python (a tuple or a record
+    filled on the host costs microseconds a frame).
 
-    ``usable`` whether the message can be used at all; ``cand`` its candidates
-    (:data:`~flightsw.messages.CANDIDATE_DTYPE` array, float64 ``row``, ``col``: full-resolution
-    pixels, best ranked first); ``t_msg`` its time tag (s), ``img_idx`` the imager's index in the
-    processor's table, ``frame_count`` 0..65535. ``att_given`` whether attitude data came;
-    ``att_t`` (s), ``q`` (4,) body -> ECI, ``rate`` (3,) rad/s, ``r`` (3,) m, ``v`` (3,) m/s
-    (float64), ``att_valid`` their validity flag.
+    ``ST`` the state (:data:`~flightsw.tp.state.TP_STATE_DTYPE` [1]); ``usable`` whether the
+    message can be used at all; ``cand`` its candidates (:data:`~flightsw.messages.CANDIDATE_DTYPE`
+    array, float64 ``row``, ``col``: full-resolution pixels, best ranked first); ``t_msg`` its
+    time tag (s), ``img_idx`` the imager's index in the processor's table, ``frame_count``
+    0..65535. ``att_given`` whether attitude data came; ``att_t`` (s), ``q`` (4,) body -> ECI,
+    ``rate`` (3,) rad/s, ``r`` (3,) m, ``v`` (3,) m/s (float64), ``att_valid`` their validity flag.
 
     Cases
     -----
-    typical : header ``(usable, imager, time tag, frame count, n)``, the centroids and the attitude
-        in ``FIO``'s views; the status is :func:`run_frame`'s on those buffers, the other values
-        :func:`command_fields` of its ``out``.
+    typical : ``msg`` = ``(usable, imager, time tag, frame count, n)`` and the centroids, ``att``
+        the attitude; the status is :func:`tp_frame`'s, the other values :func:`command_fields`
+        of its ``out``.
     capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked).
-    unusable : ``usable`` False -> the header all zero (the frame is lost and coasts), no centroid
+    unusable : ``usable`` False -> ``msg``'s header all zero (the frame is lost and coasts), no
+        centroid written.
+    not-valid : ``att_valid`` False -> ``att.valid = 0`` (no attitude this frame), the values
         written.
-    not-valid : ``att_valid`` False -> ``att[1] = 0`` (no attitude this frame), the values written.
-    no-attitude : ``att_given`` False -> ``att[1] = 0``, the rest of ``att`` untouched.
+    no-attitude : ``att_given`` False -> ``att.valid = 0``, the rest of ``att`` untouched.
     bad-length : attitude arrays of other lengths -> as no attitude.
     """
-    hdr, att, rows, cols, out = float_views(unowned(FIO))
+    st = ST[0]
+    msg, att = st.msg, st.att
     if usable:
         n = min(cand.shape[0], MAX_OBS)
         for j in range(n):
-            rows[j] = cand[j].row
-            cols[j] = cand[j].col
-        hdr[H_T] = t_msg
-        hdr[H_OK] = 1.0
-        hdr[H_IMG] = img_idx
-        hdr[H_FC] = frame_count
-        hdr[H_N] = n
+            msg.rows[j] = cand[j].row
+            msg.cols[j] = cand[j].col
+        msg.t = t_msg
+        msg.ok = 1
+        msg.img = img_idx
+        msg.fc = frame_count
+        msg.n = n
     else:
-        for i in range(hdr.shape[0]):
-            hdr[i] = 0.0
-    att[1] = 0.0
+        msg.ok = msg.img = msg.fc = msg.n = 0
+        msg.t = 0.0
+    att.valid = 0
     if att_given and q.shape[0] == 4 and rate.shape[0] == 3 and r.shape[0] == 3 and v.shape[0] == 3:
-        att[0] = att_t
-        att[1] = 1.0 if att_valid else 0.0
+        att.t = att_t
+        att.valid = 1 if att_valid else 0
         for i in range(4):
-            att[2 + i] = q[i]
+            att.q[i] = q[i]
         for i in range(3):
-            att[6 + i] = rate[i]
-            att[9 + i] = r[i]
-            att[12 + i] = v[i]
-    return command_fields(run_frame(MEM, FIO), out)
+            att.rate[i] = rate[i]
+            att.r[i] = r[i]
+            att.v[i] = v[i]
+    return command_fields(tp_frame(st), st.out)

@@ -13,12 +13,12 @@ squared differences or residuals between the observation and the gate center are
 * Star gate prediction: an inertially fixed direction moves in body axes by the attitude change
   since the last frame, ``(a, b) <- T(dR (1, a, b))``, ``T(v) = (v_y/v_x, v_z/v_x)``
   (:func:`flightsw.tp.attitude.frame_attitude` forms ``dR``).
-* Object gate prediction: the star prediction plus the a priori object motion ``V[V_DN]`` (the
-  nominal's) or, for the verified object with the EKF running, ``V[V_DE]``
+* Object gate prediction: the star prediction plus the a priori object motion ``V.dn[0]`` (the
+  nominal's) or, for the verified object with the EKF running, ``V.de[0]``
   (:mod:`flightsw.tp.trajectory`).
 * The verified object's gate, once the EKF runs, is put on the EKF's predicted line of sight before
   the association (:func:`centre_object_gate`; its tangent coordinates come from
-  :func:`flightsw.tp.trajectory.predict_ekf`, which forms them for ``V[V_DE]`` anyway). ASSUMED:
+  :func:`flightsw.tp.trajectory.predict_ekf`, which forms them for ``V.de[0]`` anyway). ASSUMED:
   the paper does not say how the verified object's gate moves once the EKF runs. Left to its own
   smoothing it follows whatever falls in it: a star crossing a faint target that the IP missed for
   a frame or two took the gate with it, the EKF refused the star's centroids (one axis rejected a
@@ -29,10 +29,10 @@ squared differences or residuals between the observation and the gate center are
   velocity for the recording.
 * Smoothing: :func:`flightsw.tp.alphabeta.ab_update` with the associated observation; the squared
   residual ``r_a^2 + r_b^2`` (rad^2) is accumulated per gate; the gate's successive empty frames
-  (``G_MISS``), successive populated frames (``G_RUN``) and populated frames in all (``G_HITS``,
+  (``G.miss``), successive populated frames (``G.run``) and populated frames in all (``G.hits``,
   rule 5) count what the rules test.
 
-Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, int64 [NG, GC],
+Gate rows: ``2p`` is the star gate and ``2p + 1`` the object gate of pair p (``G``, GATE_DTYPE [NG],
 packed 32-bit coordinates, 16-bit integer copies for the membership tests).
 """
 from __future__ import annotations
@@ -43,12 +43,8 @@ from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
 from flightsw.messages import TC_OBJECT_LOST
 from flightsw.tp.alphabeta import AB_UPDATE_MIX, ab_update
 from flightsw.tp.f1750 import cycles, mix
-from flightsw.tp.geometry import IMG_SC, IMG_SR, rot_tan, tan_int
-from flightsw.tp.layout import (
-    C_ALPHA, C_BETA, C_GATE_PX, C_THR_OBJ, C_THR_STAR, G_A, G_ALIVE, G_B, G_DVA, G_DVB, G_HITS,
-    G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_VA, G_VB, NG, NPAIR, OBS_A, OBS_B, S_DEC, S_NLOST,
-    ST_GATES, V_DE, V_DN, V_DT, V_EKF_ON, V_ETAN, V_ETAN_OK, V_FLAGS, V_IMG, V_STATUS,
-)
+from flightsw.tp.geometry import rot_tan, tan_int
+from flightsw.tp.state import NG, NPAIR
 
 _ONE32 = 0x40000001
 GATE_PRED_MIX = {"FM": 8, "FA": 6, "FD": 1, "L": 6, "ST": 4}
@@ -63,37 +59,23 @@ CYC_GATE_HIT = cycles(GATE_HIT_MIX)
 CYC_GATE_MISS = cycles(GATE_MISS_MIX)
 CYC_GATE_SETUP = cycles({"FM": 6, "FIX": 2, "L": 6})
 
-# gate_params() slots
-GP_HALF, GP_THR_OBJ, GP_THR_STAR, GP_INV_DT, GP_GAIN_V = range(5)
-GP_WORDS = 5
-
-
-@njit(cache=True, inline="always")
-def gate_half_width(GP):
-    """This frame's gate half-width, 16-bit integer (LSB 2**-16 rad), from :func:`gate_params`.
-
-    Cases
-    -----
-    typical : returns ``GP[GP_HALF]`` as stored.
-    """
-    return GP[GP_HALF]
 
 
 @njit(cache=True, inline="always")
 def kill_pair(G, p):
-    """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, int64 [NG, GC]).
+    """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, GATE_DTYPE [NG]).
 
     Cases
     -----
     typical : both gates of pair p dead, every other row untouched.
     """
-    G[2 * p, G_ALIVE] = 0
-    G[2 * p + 1, G_ALIVE] = 0
+    G[2 * p].alive = 0
+    G[2 * p + 1].alive = 0
 
 
 @njit(cache=True, inline="always")
 def any_gate_alive(G):
-    """True when any gate of ``G`` (int64 [NG, GC]) is alive.
+    """True when any gate of ``G`` (GATE_DTYPE [NG]) is alive.
 
     Cases
     -----
@@ -101,7 +83,7 @@ def any_gate_alive(G):
     last-row-alive : only the last row (``NG - 1``) alive -> True (the scan reaches the table end).
     """
     for row in range(NG):
-        if G[row, G_ALIVE] != 0:
+        if G[row].alive != 0:
             return True
     return False
 
@@ -114,26 +96,26 @@ def drop_all_gates(S, G, V):
     Cases
     -----
     gates-deleted : every live gate deleted, half-dead pairs included.
-    object-held-lost : an object held -> ``S_DEC = -1``, ``S_NLOST`` counted, ``TC_OBJECT_LOST``.
+    object-held-lost : an object held -> ``S.dec = -1``, ``S.nlost`` counted, ``TC_OBJECT_LOST``.
     no-object : none held -> no status bit, no count.
     """
     for p in range(NPAIR):
-        if G[2 * p, G_ALIVE] != 0 or G[2 * p + 1, G_ALIVE] != 0:
+        if G[2 * p].alive != 0 or G[2 * p + 1].alive != 0:
             kill_pair(G, p)
-    if S[S_DEC] >= 0:
-        V[V_STATUS] |= TC_OBJECT_LOST
-        S[S_DEC] = -1
-        S[S_NLOST] += 1
+    if S.dec >= 0:
+        V.status |= TC_OBJECT_LOST
+        S.dec = -1
+        S.nlost += 1
 
 
 @njit(cache=True)
 def gate_params(C, IMG, V, GP, cyc):
-    """This frame's gate constants into ``GP`` (int64 [GP_WORDS]): the gate half-width as a 16-bit
-    integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules' residual
-    thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and ``beta/dt``
-    (packed 32-bit; 0 when dt is 0 or beta is 0).
+    """This frame's gate constants into ``GP`` (a GATE_PARAMS_DTYPE record): the gate half-width
+    as a 16-bit integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules'
+    residual thresholds in rad^2 (pixel^2 thresholds times scale_col * scale_row), ``1/dt`` and
+    ``beta/dt`` (packed 32-bit; 0 when dt is 0 or beta is 0).
 
-    ``C`` config, ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``V`` frame words, ``cyc``
+    ``C`` config, ``IMG`` imager table (IMAGER_DTYPE records), ``V`` frame words, ``cyc``
     ledger (int64).
 
     Cases
@@ -142,28 +124,28 @@ def gate_params(C, IMG, V, GP, cyc):
     row-scale-larger : ``scale_row > scale_col`` -> half-width from ``scale_row``.
     thresholds : residual thresholds ``thr_px2 * scale_col * scale_row`` (rad^2).
     beta : dt and beta non-zero -> ``1/dt`` and ``beta/dt``.
-    beta-zero : beta 0 -> ``GP_GAIN_V = 0`` (``1/dt`` still formed).
-    dt-zero : dt 0 (first frame) -> ``GP_INV_DT = GP_GAIN_V = 0``, no division.
+    beta-zero : beta 0 -> ``GP.gain_v = 0`` (``1/dt`` still formed).
+    dt-zero : dt 0 (first frame) -> ``GP.inv_dt = GP.gain_v = 0``, no division.
     """
     fl = 0
-    img = IMG[V[V_IMG]]
-    sc = img[IMG_SC]
-    sr = img[IMG_SR]
+    img = IMG[V.img]
+    sc = img.sc
+    sr = img.sr
     smax = sc if fc32(sc, sr) >= 0 else sr
-    gw, g = fm32(C[C_GATE_PX], smax); fl |= g
-    GP[GP_HALF] = tan_int(gw)
+    gw, g = fm32(C.gate_px, smax); fl |= g
+    GP.half = tan_int(gw)
     s2, g = fm32(sc, sr); fl |= g
-    GP[GP_THR_OBJ], g = fm32(C[C_THR_OBJ], s2); fl |= g
-    GP[GP_THR_STAR], g = fm32(C[C_THR_STAR], s2); fl |= g
-    GP[GP_INV_DT] = 0
-    GP[GP_GAIN_V] = 0
-    dt = V[V_DT]
+    GP.thr_obj, g = fm32(C.thr_obj, s2); fl |= g
+    GP.thr_star, g = fm32(C.thr_star, s2); fl |= g
+    GP.inv_dt = 0
+    GP.gain_v = 0
+    dt = V.dt
     if dt != 0:
-        GP[GP_INV_DT], g = fd32(_ONE32, dt); fl |= g
-        if C[C_BETA] != 0:
-            GP[GP_GAIN_V], g = fm32(C[C_BETA], GP[GP_INV_DT]); fl |= g
-    cyc[ST_GATES] += CYC_GATE_SETUP
-    V[V_FLAGS] |= fl
+        GP.inv_dt, g = fd32(_ONE32, dt); fl |= g
+        if C.beta != 0:
+            GP.gain_v, g = fm32(C.beta, GP.inv_dt); fl |= g
+    cyc.gates += CYC_GATE_SETUP
+    V.aflags |= fl
 
 
 @njit(cache=True)
@@ -176,49 +158,49 @@ def propagate_gates(S, G, V, GP, dR, cyc):
     Cases
     -----
     star-gate : even row moved by the attitude change only, ``(a, b) <- T(dR (1, a, b))``.
-    object-gate-nominal : odd row moved by the attitude change plus the nominal's ``V_DN``.
-    object-gate-ekf : the verified object's gate with the EKF running moves by ``V_DE``; the other
-        object gates still by ``V_DN``.
-    learned-velocity : a gate with ``(G_DVA, G_DVB) != 0`` also moves by ``v dt``.
-    velocity-kept : ``(G_VA, G_VB) = (new - old) / dt`` when ``1/dt`` is known.
-    dt-zero : ``GP_INV_DT == 0`` -> ``G_VA``, ``G_VB`` left as they were.
-    dead-skipped : dead rows untouched (``G_OBS`` not cleared).
+    object-gate-nominal : odd row moved by the attitude change plus the nominal's ``V.dn``.
+    object-gate-ekf : the verified object's gate with the EKF running moves by ``V.de``; the other
+        object gates still by ``V.dn``.
+    learned-velocity : a gate with ``(G.dva, G.dvb) != 0`` also moves by ``v dt``.
+    velocity-kept : ``(G.va, G.vb) = (new - old) / dt`` when ``1/dt`` is known.
+    dt-zero : ``GP.inv_dt == 0`` -> ``G.va``, ``G.vb`` left as they were.
+    dead-skipped : dead rows untouched (``G.obs`` not cleared).
     """
     fl = 0
-    dt = V[V_DT]
-    inv_dt = GP[GP_INV_DT]
-    obj_row = 2 * S[S_DEC] + 1
-    ekf_dir = V[V_EKF_ON] != 0
+    dt = V.dt
+    inv_dt = GP.inv_dt
+    obj_row = 2 * S.dec + 1
+    ekf_dir = V.ekf_on != 0
     ngl = 0
     for row in range(NG):
-        if G[row, G_ALIVE] == 0:
+        if G[row].alive == 0:
             continue
         ngl += 1
-        a0 = G[row, G_A]
-        b0 = G[row, G_B]
+        a0 = G[row].a
+        b0 = G[row].b
         a, b, g = rot_tan(dR, a0, b0); fl |= g
         if row & 1:                                     # object gate: a priori motion
-            m = V_DE if (row == obj_row and ekf_dir) else V_DN
-            a, g = fa32(a, V[m]); fl |= g
-            b, g = fa32(b, V[m + 1]); fl |= g
-            cyc[ST_GATES] += CYC_GATE_OBJ
-        if G[row, G_DVA] != 0 or G[row, G_DVB] != 0:  # learned velocity (beta > 0)
-            p, g = fm32(G[row, G_DVA], dt); fl |= g
+            m = V.de if (row == obj_row and ekf_dir) else V.dn
+            a, g = fa32(a, m[0]); fl |= g
+            b, g = fa32(b, m[1]); fl |= g
+            cyc.gates += CYC_GATE_OBJ
+        if G[row].dva != 0 or G[row].dvb != 0:  # learned velocity (beta > 0)
+            p, g = fm32(G[row].dva, dt); fl |= g
             a, g = fa32(a, p); fl |= g
-            p, g = fm32(G[row, G_DVB], dt); fl |= g
+            p, g = fm32(G[row].dvb, dt); fl |= g
             b, g = fa32(b, p); fl |= g
         if inv_dt != 0:
             p, g = fs32(a, a0); fl |= g
-            G[row, G_VA], g = fm32(p, inv_dt); fl |= g
+            G[row].va, g = fm32(p, inv_dt); fl |= g
             p, g = fs32(b, b0); fl |= g
-            G[row, G_VB], g = fm32(p, inv_dt); fl |= g
-        G[row, G_OBS] = -1
-        G[row, G_A] = a
-        G[row, G_B] = b
-        G[row, G_IA] = tan_int(a)
-        G[row, G_IB] = tan_int(b)
-    cyc[ST_GATES] += ngl * CYC_GATE_PRED
-    V[V_FLAGS] |= fl
+            G[row].vb, g = fm32(p, inv_dt); fl |= g
+        G[row].obs = -1
+        G[row].a = a
+        G[row].b = b
+        G[row].ia = tan_int(a)
+        G[row].ib = tan_int(b)
+    cyc.gates += ngl * CYC_GATE_PRED
+    V.aflags |= fl
 
 
 CYC_CENTRE = cycles({"L": 3, "ST": 4})
@@ -227,67 +209,67 @@ CYC_CENTRE = cycles({"L": 3, "ST": 4})
 @njit(cache=True)
 def centre_object_gate(S, G, V, cyc):
     """The verified object's gate put on the running EKF's predicted line of sight, whose body
-    tangent coordinates :func:`flightsw.tp.trajectory.predict_ekf` left in ``V[V_ETAN]``.
+    tangent coordinates :func:`flightsw.tp.trajectory.predict_ekf` left in ``V.etan[0]``.
 
     Cases
     -----
-    centred : a verified object, its gate alive, ``V_ETAN_OK`` -> ``G_A``, ``G_B`` (and the integer
-        coordinates) = ``V[V_ETAN]``.
+    centred : a verified object, its gate alive, ``V.etan_ok`` -> ``G.a``, ``G.b`` (and the integer
+        coordinates) = ``V.etan[0]``.
     otherwise : nothing changed.
     """
-    if S[S_DEC] < 0 or V[V_ETAN_OK] == 0:
+    if S.dec < 0 or V.etan_ok == 0:
         return
-    row = 2 * S[S_DEC] + 1
-    if G[row, G_ALIVE] == 0:
+    row = 2 * S.dec + 1
+    if G[row].alive == 0:
         return
-    a, b = V[V_ETAN], V[V_ETAN + 1]
-    G[row, G_A] = a
-    G[row, G_B] = b
-    G[row, G_IA] = tan_int(a)
-    G[row, G_IB] = tan_int(b)
-    cyc[ST_GATES] += CYC_CENTRE
+    a, b = V.etan[0], V.etan[1]
+    G[row].a = a
+    G[row].b = b
+    G[row].ia = tan_int(a)
+    G[row].ib = tan_int(b)
+    cyc.gates += CYC_CENTRE
 
 
 @njit(cache=True)
 def smooth_gates(C, G, OBS, V, GP, cyc):
-    """Each live gate with an associated observation (``G_OBS``) smoothed by the alpha-beta tracker,
+    """Each live gate with an associated observation (``G.obs``) smoothed by the alpha-beta tracker,
     its squared residual accumulated, its populated run counted; the others counted empty.
 
-    ``OBS`` observations (int64 [MAX_OBS, OBS_C], packed 32-bit tangent coordinates, rad).
+    ``OBS`` observations (OBSERVATION_DTYPE [MAX_OBS], packed 32-bit tangent coordinates, rad).
 
     Cases
     -----
-    fed : ``x <- x_p + alpha (z - x_p)`` per axis, ``G_RES += r_a^2 + r_b^2``, ``G_MISS = 0``,
-        ``G_RUN``, ``G_HITS`` + 1; velocity unchanged with ``gain_v == 0``.
+    fed : ``x <- x_p + alpha (z - x_p)`` per axis, ``G.res += r_a^2 + r_b^2``, ``G.miss = 0``,
+        ``G.run``, ``G.hits`` + 1; velocity unchanged with ``gain_v == 0``.
     fed-with-beta : ``gain_v = beta/dt != 0`` -> velocity ``v + gain_v r`` per axis.
-    empty : no observation -> ``G_MISS`` + 1, ``G_RUN = 0``, position unchanged.
+    empty : no observation -> ``G.miss`` + 1, ``G.run = 0``, position unchanged.
     dead-skipped : dead rows untouched.
     """
     fl = 0
-    gain_v = GP[GP_GAIN_V]
+    gain_v = GP.gain_v
     for row in range(NG):
-        if G[row, G_ALIVE] == 0:
+        if G[row].alive == 0:
             continue
-        j = G[row, G_OBS]
+        j = G[row].obs
         if j >= 0:
-            a, va, ra, g = ab_update(G[row, G_A], G[row, G_DVA], OBS[j, OBS_A], C[C_ALPHA], gain_v)
+            a, va, ra, g = ab_update(G[row].a, G[row].dva, OBS[j].a, C.alpha, gain_v)
             fl |= g
-            b, vb, rb, g = ab_update(G[row, G_B], G[row, G_DVB], OBS[j, OBS_B], C[C_ALPHA], gain_v)
+            b, vb, rb, g = ab_update(G[row].b, G[row].dvb, OBS[j].b, C.alpha, gain_v)
             fl |= g
-            G[row, G_A] = a
-            G[row, G_B] = b
-            G[row, G_DVA] = va
-            G[row, G_DVB] = vb
+            G[row].a = a
+            G[row].b = b
+            G[row].dva = va
+            G[row].dvb = vb
             p, g = fm32(ra, ra); fl |= g
-            res, g = fa32(G[row, G_RES], p); fl |= g
+            res, g = fa32(G[row].res, p); fl |= g
             p, g = fm32(rb, rb); fl |= g
-            G[row, G_RES], g = fa32(res, p); fl |= g
-            G[row, G_MISS] = 0
-            G[row, G_RUN] += 1
-            G[row, G_HITS] += 1
-            cyc[ST_GATES] += CYC_GATE_HIT
+            G[row].res, g = fa32(res, p); fl |= g
+            G[row].miss = 0
+            G[row].run += 1
+            G[row].hits += 1
+            cyc.gates += CYC_GATE_HIT
         else:
-            G[row, G_MISS] += 1
-            G[row, G_RUN] = 0
-            cyc[ST_GATES] += CYC_GATE_MISS
-    V[V_FLAGS] |= fl
+            G[row].miss += 1
+            G[row].run = 0
+            cyc.gates += CYC_GATE_MISS
+    V.aflags |= fl

@@ -34,12 +34,11 @@ from flightsw.arith.m1750 import (FLAG_DOMAIN, encode32, fa32, fd32, fm32, fs32,
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
 from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
-from flightsw.tp.layout import (MAX_OBS, OBS_A, OBS_B, OBS_IA, OBS_IB, OBS_OK, ST_GEOM, V_EVIDENCE,
-                                V_IMG, V_NUSE, V_STATUS)
+from flightsw.tp.state import IMAGER_DTYPE, MAX_OBS, new_record
 
 __all__ = ["ImagerGeometry", "COL0", "ROW0", "N_ROWS", "N_COLS", "pixel_to_tangent",
            "tangent_to_pixel", "pixel_to_body", "body_to_pixel", "imager_unit_vector",
-           "IMG_WORDS", "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
+           "PIX_TO_TAN_MIX", "TAN_TO_PIX_MIX", "IMG_UNIT_MIX", "DR_MIX", "make_dR",
            "rot_tan", "los_tan", "los_delta", "neg32", "i16abs", "host_to32",
            "directions_to_pixels", "observations"]
 
@@ -49,9 +48,6 @@ ANGLE_LSB = 2.0 ** -16            # rad per LSB of the integer gate coordinates
 
 # imager table row: A (9, imager->body, row-major), scale_col, scale_row, 1/scale_col, 1/scale_row,
 # COL0, ROW0 (all packed 32-bit)
-IMG_A, IMG_SC, IMG_SR, IMG_ISC, IMG_ISR, IMG_C0, IMG_R0 = 0, 9, 10, 11, 12, 13, 14
-assert IMG_A == 0, "pix_to_tan reads the alignment matrix from the row's first nine words"
-IMG_WORDS = 16
 
 PIX_TO_TAN_MIX = {"FS": 2, "FM": 10, "FA": 6, "FD": 1, "L": 12, "ST": 2}
 INT_COORD_MIX = {"FM": 2, "FIX": 2, "ST": 2}
@@ -107,21 +103,22 @@ class ImagerGeometry:
                 raise ValueError(f"ImagerGeometry.{name}={v!r} must be an int in 1..65535")
             object.__setattr__(self, name, int(v))
 
-    def table_row(self) -> np.ndarray:
-        """The imager's row of the kernels' imager table (packed 32-bit words, see IMG_*)."""
-        row = np.zeros(IMG_WORDS, np.int64)
+    def table_row(self):
+        """The imager's row of the kernels' imager table: a
+        :data:`~flightsw.tp.state.IMAGER_DTYPE` record (packed 32-bit words)."""
+        row = new_record(IMAGER_DTYPE)
         q = [encode32(float(v), rounding="nearest") for v in self.q_imager_to_body]
         R = np.zeros(9, np.int64)
         f = qdcm(q[0], q[1], q[2], q[3], R)
         if f:
             raise ValueError("ImagerGeometry: 1750A flag raised forming the alignment matrix")
-        row[IMG_A:IMG_A + 9] = R
-        row[IMG_SC] = encode32(self.scale_col, rounding="nearest")
-        row[IMG_SR] = encode32(self.scale_row, rounding="nearest")
-        row[IMG_ISC] = encode32(1.0 / self.scale_col, rounding="nearest")   # uplinked constants
-        row[IMG_ISR] = encode32(1.0 / self.scale_row, rounding="nearest")
-        row[IMG_C0] = encode32(COL0)
-        row[IMG_R0] = encode32(ROW0)
+        row.a[:] = R
+        row.sc = encode32(self.scale_col, rounding="nearest")
+        row.sr = encode32(self.scale_row, rounding="nearest")
+        row.isc = encode32(1.0 / self.scale_col, rounding="nearest")   # uplinked constants
+        row.isr = encode32(1.0 / self.scale_row, rounding="nearest")
+        row.c0 = encode32(COL0)
+        row.r0 = encode32(ROW0)
         return row
 
 
@@ -139,11 +136,11 @@ def pix_to_tan(img, row, col):
         the caller's behind-the-imager test.
     """
     f = 0
-    dx, g = fs32(col, img[IMG_C0]); f |= g
-    x, g = fm32(dx, img[IMG_SC]); f |= g
-    dy, g = fs32(row, img[IMG_R0]); f |= g
-    y, g = fm32(dy, img[IMG_SR]); f |= g
-    v0, v1, v2, g = mv1ab(img, x, y); f |= g     # v = A (1, x, y): A is img[0:9] (IMG_A = 0)
+    dx, g = fs32(col, img.c0); f |= g
+    x, g = fm32(dx, img.sc); f |= g
+    dy, g = fs32(row, img.r0); f |= g
+    y, g = fm32(dy, img.sr); f |= g
+    v0, v1, v2, g = mv1ab(img.a, x, y); f |= g     # v = A (1, x, y)
     inv, g = fd32(0x40000001, v0); f |= g
     a, g = fm32(v1, inv); f |= g
     b, g = fm32(v2, inv); f |= g
@@ -192,16 +189,16 @@ def vec_to_pix(img, v0, v1, v2):
     behind : ``p_x <= 0`` (zero included) -> (0, 0, False).
     """
     f = 0
-    p0, p1, p2, g = mtv3(img[0:9], v0, v1, v2); f |= g
+    p0, p1, p2, g = mtv3(img.a, v0, v1, v2); f |= g
     if p0 == 0 or (p0 >> 31) & 1:
         return 0, 0, False, f
     inv, g = fd32(0x40000001, p0); f |= g
     t, g = fm32(p1, inv); f |= g
-    t, g = fm32(t, img[IMG_ISC]); f |= g
-    col, g = fa32(t, img[IMG_C0]); f |= g
+    t, g = fm32(t, img.isc); f |= g
+    col, g = fa32(t, img.c0); f |= g
     t, g = fm32(p2, inv); f |= g
-    t, g = fm32(t, img[IMG_ISR]); f |= g
-    row, g = fa32(t, img[IMG_R0]); f |= g
+    t, g = fm32(t, img.isr); f |= g
+    row, g = fa32(t, img.r0); f |= g
     return row, col, True, f
 
 
@@ -215,10 +212,10 @@ def pix_unit(img, row, col):
     typical : components 2 and 3 of the imager-frame unit vector of the pixel.
     """
     f = 0
-    dx, g = fs32(col, img[IMG_C0]); f |= g
-    x, g = fm32(dx, img[IMG_SC]); f |= g
-    dy, g = fs32(row, img[IMG_R0]); f |= g
-    y, g = fm32(dy, img[IMG_SR]); f |= g
+    dx, g = fs32(col, img.c0); f |= g
+    x, g = fm32(dx, img.sc); f |= g
+    dy, g = fs32(row, img.r0); f |= g
+    y, g = fm32(dy, img.sr); f |= g
     n2, g = fm32(x, x); f |= g
     p, g = fm32(y, y); f |= g
     n2, g = fa32(n2, p); f |= g
@@ -383,50 +380,50 @@ def host_to32(x):
 @njit(cache=True)
 def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
     """This frame's candidate centroids (``rows``, ``cols`` float64 pixels, best ranked first) in
-    body tangent coordinates of the imager in force -> ``OBS`` (int64 [MAX_OBS, OBS_C]: a, b packed
-    32-bit, their 16-bit integers, usable flag) and ``V[V_NUSE]``. *"Each observation is converted
-    from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
+    body tangent coordinates of the imager in force -> ``OBS`` (OBSERVATION_DTYPE [MAX_OBS]: a, b
+    packed 32-bit, their 16-bit integers, usable flag) and ``V.nuse``. *"Each observation is
+    converted from UVISI imager pixel centroids to two angles from boresight in the spacecraft body
     coordinates."* A frame without evidence (message or attitude bad) uses none and coasts.
 
     Cases
     -----
-    converts : each centroid -> (a, b), their 16-bit integers, usable; ``V_NUSE`` = the count.
-    no-evidence : ``V_EVIDENCE == 0`` -> ``TC_COASTING``, nothing converted, ``V_NUSE`` untouched.
-    empty-message : no candidates -> ``TC_EMPTY_MESSAGE | TC_COASTING``, ``V_NUSE = 0``.
+    converts : each centroid -> (a, b), their 16-bit integers, usable; ``V.nuse`` = the count.
+    no-evidence : ``V.evidence == 0`` -> ``TC_COASTING``, nothing converted, ``V.nuse`` untouched.
+    empty-message : no candidates -> ``TC_EMPTY_MESSAGE | TC_COASTING``, ``V.nuse = 0``.
     capped : more than ``MAX_OBS`` candidates -> the first ``MAX_OBS`` (best ranked) used.
-    not-representable : a centroid that does not encode (NaN, inf) -> unusable (``OBS_OK = 0``).
+    not-representable : a centroid that does not encode (NaN, inf) -> unusable (``OBS.ok = 0``).
     behind : a pixel whose direction is behind the body's tangent plane (``v_x <= 0``) ->
         unusable.
     """
-    if V[V_EVIDENCE] == 0:
-        V[V_STATUS] |= TC_COASTING
+    if V.evidence == 0:
+        V.status |= TC_COASTING
         return
-    img = IMG[V[V_IMG]]
+    img = IMG[V.img]
     nuse = n_obs if n_obs < MAX_OBS else MAX_OBS
     for j in range(nuse):
         r, g1 = enc32(rows[j])
         c, g2 = enc32(cols[j])
-        OBS[j, OBS_OK] = 0
+        OBS[j].ok = 0
         if (g1 | g2) != 0:
             continue
         a, b, vx, g = pix_to_tan(img, r, c)
         if g != 0 or vx == 0 or (vx >> 31) & 1:
             continue
-        OBS[j, OBS_A] = a
-        OBS[j, OBS_B] = b
-        OBS[j, OBS_IA] = tan_int(a)
-        OBS[j, OBS_IB] = tan_int(b)
-        OBS[j, OBS_OK] = 1
-    cyc[ST_GEOM] += nuse * CYC_PIX_TO_TAN
+        OBS[j].a = a
+        OBS[j].b = b
+        OBS[j].ia = tan_int(a)
+        OBS[j].ib = tan_int(b)
+        OBS[j].ok = 1
+    cyc.geometry += nuse * CYC_PIX_TO_TAN
     if nuse == 0:
-        V[V_STATUS] |= TC_EMPTY_MESSAGE | TC_COASTING
-    V[V_NUSE] = nuse
+        V.status |= TC_EMPTY_MESSAGE | TC_COASTING
+    V.nuse = nuse
 
 
 # ------------------------------------------------------------------------------------------------
 # Python surface (decoded floats; for tests, tools and the ground)
 # ------------------------------------------------------------------------------------------------
-def _row(geom: ImagerGeometry) -> np.ndarray:
+def _row(geom: ImagerGeometry):
     if not isinstance(geom, ImagerGeometry):
         raise ValueError(f"expected an ImagerGeometry, got {type(geom).__name__}")
     return geom.table_row()

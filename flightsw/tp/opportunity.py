@@ -9,7 +9,7 @@ highest-ranked candidate of the first usable frame (and after a loss); ``opp_n_l
 
 Start-up: a track acquired with zero velocity and fed with the steady gains lags a moving spot by
 about ``v dt / alpha`` and settles over tens of frames. With ``opp_startup`` (config word
-``C_OPP_STARTUP`` = the last observation count k that uses them, 0: off) the k-th observation is
+``C.opp_startup`` = the last observation count k that uses them, 0: off) the k-th observation is
 weighed with the growing-memory gains (:func:`flightsw.tp.alphabeta.growing_memory_gains`: k = 2
 takes the two-point velocity, and up to k the state is the least-squares line through the k
 observations), each gain floored at its steady value.
@@ -24,13 +24,7 @@ from flightsw.tp.alphabeta import AB_PREDICT_MIX, GM_GAINS_MIX, ab_update, growi
 from flightsw.tp.association import CYC_PAIR_TEST
 from flightsw.tp.f1750 import cycles, mix
 from flightsw.tp.gates import CYC_GATE_HIT, GATE_INT_MIX, GATE_PRED_MIX
-from flightsw.tp.geometry import IMG_SC, IMG_SR, i16abs, rot_tan, tan_int
-from flightsw.tp.layout import (
-    C_OPP_ALPHA, C_OPP_BETA, C_OPP_GATE_PX, C_OPP_N_LOST, C_OPP_STARTUP, OBS_A, OBS_B, OBS_IA,
-    OBS_IB, OBS_OK, S_NLOST, S_NREINIT, S_OPP_ALIVE, S_OPP_HITS, S_OPP_MISS, S_OPP_OBS, S_OPP_V,
-    S_OPP_X, ST_OPP,
-    V_DT, V_EVIDENCE, V_FLAGS, V_IMG, V_LOCKED, V_LONG_GAP, V_NUSE, V_OBJ, V_STATUS,
-)
+from flightsw.tp.geometry import i16abs, rot_tan, tan_int
 
 CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, {"FD": 1}))
 CYC_OPP_STARTUP = cycles(GM_GAINS_MIX)
@@ -41,9 +35,10 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
     its index (-1: none) and flags.
 
-    ``IMG`` imager table (int64 [n_img, IMG_WORDS]), ``C`` config, ``OBS`` observations (int64
-    [MAX_OBS, OBS_C]), ``V`` frame words; ``a``, ``b`` packed 32-bit tangent coordinates (rad).
-    The half-width is ``FIX(opp_gate_px * max(scale_col, scale_row) * 2**16)``, edges inclusive.
+    ``IMG`` imager table (IMAGER_DTYPE records), ``C`` config, ``OBS`` observations
+    (OBSERVATION_DTYPE [MAX_OBS]), ``V`` frame words; ``a``, ``b`` packed 32-bit tangent coordinates
+    (rad). The half-width is ``FIX(opp_gate_px * max(scale_col, scale_row) * 2**16)``, edges
+    inclusive.
 
     Cases
     -----
@@ -53,19 +48,19 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     none-inside : nothing inside -> -1.
     """
     fl = 0
-    img = IMG[V[V_IMG]]
-    sc = img[IMG_SC]
-    sr = img[IMG_SR]
+    img = IMG[V.img]
+    sc = img.sc
+    sr = img.sr
     smax = sc if fc32(sc, sr) >= 0 else sr
-    gw, g = fm32(C[C_OPP_GATE_PX], smax); fl |= g
+    gw, g = fm32(C.opp_gate_px, smax); fl |= g
     gi = tan_int(gw)
     ia = tan_int(a)
     ib = tan_int(b)
-    for j in range(V[V_NUSE]):                        # highest ranked first
-        if OBS[j, OBS_OK] == 0:
+    for j in range(V.nuse):                        # highest ranked first
+        if OBS[j].ok == 0:
             continue
-        cyc[ST_OPP] += CYC_PAIR_TEST
-        if i16abs(OBS[j, OBS_IA] - ia) <= gi and i16abs(OBS[j, OBS_IB] - ib) <= gi:
+        cyc.opportunity += CYC_PAIR_TEST
+        if i16abs(OBS[j].ia - ia) <= gi and i16abs(OBS[j].ib - ib) <= gi:
             return j, fl
     return -1, fl
 
@@ -75,62 +70,62 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     """The live opportunity track predicted to this frame and smoothed with the observation in
     its gate (or counted empty, and lost after ``opp_n_lost`` empty frames).
 
-    State in ``S`` (``S_OPP_X``, ``S_OPP_V``: packed 32-bit rad, rad/s); ``dR`` (int64 [9]) the
+    State in ``S`` (``S.opp.x``, ``S.opp.v``: packed 32-bit rad, rad/s); ``dR`` (int64 [9]) the
     body's rotation since the last frame.
 
     Cases
     -----
     predicted : position ``T(dR (1, x)) + v dt`` whatever the evidence.
     fed : an observation in the gate -> alpha-beta update (velocity by ``opp_beta / dt`` times the
-        residual), ``S_OPP_MISS = 0``, ``S_OPP_HITS`` + 1, ``V_OBJ`` = the observation.
+        residual), ``S.opp.miss = 0``, ``S.opp.hits`` + 1, ``V.obj`` = the observation.
     fed-beta-zero : ``opp_beta == 0`` -> the velocity is kept.
-    startup : the k-th observation (``S_OPP_HITS`` + 1) with k <= ``C_OPP_STARTUP`` -> gains
+    startup : the k-th observation (``S.opp.hits`` + 1) with k <= ``C.opp_startup`` -> gains
         ``max(alpha_k, opp_alpha)``, ``max(beta_k, opp_beta)`` (k = 2: position and velocity of
-        the two observations); beyond it, or ``C_OPP_STARTUP == 0``, the steady gains.
-    empty : evidence but nothing in the gate -> ``S_OPP_MISS`` + 1, position the prediction.
-    lost : ``S_OPP_MISS`` reaches ``opp_n_lost`` -> ``S_OPP_ALIVE = 0``, ``S_NLOST`` counted,
+        the two observations); beyond it, or ``C.opp_startup == 0``, the steady gains.
+    empty : evidence but nothing in the gate -> ``S.opp.miss`` + 1, position the prediction.
+    lost : ``S.opp.miss`` reaches ``opp_n_lost`` -> ``S.opp.alive = 0``, ``S.nlost`` counted,
         ``TC_OBJECT_LOST``.
     no-evidence : frame not usable -> prediction only, no empty frame counted.
     """
     fl = 0
-    dt = V[V_DT]
-    a, b, g = rot_tan(dR, S[S_OPP_X], S[S_OPP_X + 1]); fl |= g
-    p, g = fm32(S[S_OPP_V], dt); fl |= g
+    dt = V.dt
+    a, b, g = rot_tan(dR, S.opp.x[0], S.opp.x[1]); fl |= g
+    p, g = fm32(S.opp.v[0], dt); fl |= g
     a, g = fa32(a, p); fl |= g
-    p, g = fm32(S[S_OPP_V + 1], dt); fl |= g
+    p, g = fm32(S.opp.v[1], dt); fl |= g
     b, g = fa32(b, p); fl |= g
-    cyc[ST_OPP] += CYC_OPP
-    if V[V_EVIDENCE] != 0:
+    cyc.opportunity += CYC_OPP
+    if V.evidence != 0:
         hit, g = first_in_gate(IMG, C, OBS, V, a, b, cyc); fl |= g
         if hit >= 0:
-            alpha = C[C_OPP_ALPHA]
-            beta = C[C_OPP_BETA]
-            k = S[S_OPP_HITS] + 1
-            if k <= C[C_OPP_STARTUP]:
+            alpha = C.opp_alpha
+            beta = C.opp_beta
+            k = S.opp.hits + 1
+            if k <= C.opp_startup:
                 alpha, beta, g = growing_memory_gains(k, alpha, beta); fl |= g
-                cyc[ST_OPP] += CYC_OPP_STARTUP
+                cyc.opportunity += CYC_OPP_STARTUP
             gain_v = 0
             if dt != 0 and beta != 0:
                 gain_v, g = fd32(beta, dt); fl |= g
-            a, va, ra, g = ab_update(a, S[S_OPP_V], OBS[hit, OBS_A], alpha, gain_v)
+            a, va, ra, g = ab_update(a, S.opp.v[0], OBS[hit].a, alpha, gain_v)
             fl |= g
-            b, vb, rb, g = ab_update(b, S[S_OPP_V + 1], OBS[hit, OBS_B], alpha, gain_v)
+            b, vb, rb, g = ab_update(b, S.opp.v[1], OBS[hit].b, alpha, gain_v)
             fl |= g
-            S[S_OPP_V] = va
-            S[S_OPP_V + 1] = vb
-            S[S_OPP_MISS] = 0
-            S[S_OPP_HITS] += 1
-            V[V_OBJ] = hit
-            cyc[ST_OPP] += CYC_GATE_HIT
+            S.opp.v[0] = va
+            S.opp.v[1] = vb
+            S.opp.miss = 0
+            S.opp.hits += 1
+            V.obj = hit
+            cyc.opportunity += CYC_GATE_HIT
         else:
-            S[S_OPP_MISS] += 1
-            if S[S_OPP_MISS] >= C[C_OPP_N_LOST]:
-                S[S_OPP_ALIVE] = 0
-                V[V_STATUS] |= TC_OBJECT_LOST
-                S[S_NLOST] += 1
-    S[S_OPP_X] = a
-    S[S_OPP_X + 1] = b
-    V[V_FLAGS] |= fl
+            S.opp.miss += 1
+            if S.opp.miss >= C.opp_n_lost:
+                S.opp.alive = 0
+                V.status |= TC_OBJECT_LOST
+                S.nlost += 1
+    S.opp.x[0] = a
+    S.opp.x[1] = b
+    V.aflags |= fl
 
 
 @njit(cache=True, inline="always")
@@ -140,23 +135,23 @@ def acquire_track(S, OBS, V):
     Cases
     -----
     first-usable : the track starts at the first usable observation (velocity 0, one hit,
-        ``S_NREINIT`` counted, ``TC_REINITIALISED``, ``V_OBJ`` = its index).
+        ``S.nreinit`` counted, ``TC_REINITIALISED``, ``V.obj`` = its index).
     unusable-skipped : unusable observations ranked higher are passed over.
     nothing-usable : no usable observation -> no track, nothing set.
     """
-    for j in range(V[V_NUSE]):
-        if OBS[j, OBS_OK] == 0:
+    for j in range(V.nuse):
+        if OBS[j].ok == 0:
             continue
-        S[S_OPP_ALIVE] = 1
-        S[S_OPP_X] = OBS[j, OBS_A]
-        S[S_OPP_X + 1] = OBS[j, OBS_B]
-        S[S_OPP_V] = 0
-        S[S_OPP_V + 1] = 0
-        S[S_OPP_MISS] = 0
-        S[S_OPP_HITS] = 1
-        S[S_NREINIT] += 1
-        V[V_OBJ] = j
-        V[V_STATUS] |= TC_REINITIALISED
+        S.opp.alive = 1
+        S.opp.x[0] = OBS[j].a
+        S.opp.x[1] = OBS[j].b
+        S.opp.v[0] = 0
+        S.opp.v[1] = 0
+        S.opp.miss = 0
+        S.opp.hits = 1
+        S.nreinit += 1
+        V.obj = j
+        V.status |= TC_REINITIALISED
         return
 
 
@@ -168,22 +163,22 @@ def track_opportunity(C, IMG, S, OBS, V, dR, cyc):
     -----
     acquire : no track and evidence -> a track started; ``TC_OBJECT_DECIDED``, not locked (one
         hit).
-    follow-locked : a track fed this frame with two hits or more -> ``V_LOCKED = 1``.
+    follow-locked : a track fed this frame with two hits or more -> ``V.locked = 1``.
     coasting : a track not fed this frame -> ``TC_OBJECT_DECIDED | TC_COASTING``, not locked.
     lost-reacquired : the track lost on this frame is restarted on the frame's observations.
     long-gap : after a long gap the track is dropped (not counted lost) and reacquired.
-    no-track : no track and no evidence -> no status bit; ``S_OPP_OBS = -1``.
+    no-track : no track and no evidence -> no status bit; ``S.opp.obs = -1``.
     """
-    if V[V_LONG_GAP] != 0:
-        S[S_OPP_ALIVE] = 0
-    if S[S_OPP_ALIVE] != 0:
+    if V.long_gap != 0:
+        S.opp.alive = 0
+    if S.opp.alive != 0:
         follow_track(C, IMG, S, OBS, V, dR, cyc)
-    if S[S_OPP_ALIVE] == 0 and V[V_EVIDENCE] != 0:
+    if S.opp.alive == 0 and V.evidence != 0:
         acquire_track(S, OBS, V)
-    if S[S_OPP_ALIVE] != 0:
-        V[V_STATUS] |= TC_OBJECT_DECIDED
-        if S[S_OPP_MISS] == 0 and V[V_OBJ] >= 0:
-            V[V_LOCKED] = 1 if S[S_OPP_HITS] >= 2 else 0
+    if S.opp.alive != 0:
+        V.status |= TC_OBJECT_DECIDED
+        if S.opp.miss == 0 and V.obj >= 0:
+            V.locked = 1 if S.opp.hits >= 2 else 0
         else:
-            V[V_STATUS] |= TC_COASTING
-    S[S_OPP_OBS] = V[V_OBJ]
+            V.status |= TC_COASTING
+    S.opp.obs = V.obj

@@ -1,24 +1,23 @@
 """The MSX track processor (TP) as a flight module: ``reset()`` and ``step(message, attitude)``.
 
-The object owns the TP's memory (packed 1750A words in one int64 buffer, host floats in one float64
-buffer, each array a named view: :mod:`flightsw.tp.memory`), turns its inputs into the kernel's
-arguments (the types :func:`flightsw.tp.frame.step_frame` is compiled for: other forms of the
-same inputs are converted, unusable ones flagged), runs the frame in that one compiled call,
-charges the emulated cycles to the frame's :class:`~flightsw.budget.Ledger` (processor
-``"tp1750"``, stages :data:`flightsw.tp.layout.STAGES`) and builds the
+The object owns the TP's state (one :data:`flightsw.tp.state.TP_STATE_DTYPE` record: named
+records of packed 1750A words and the frame's host-float inputs and outputs), turns its inputs into
+the kernel's arguments (the types :func:`flightsw.tp.frame.step_frame` is compiled for: other
+forms of the same inputs are converted, unusable ones flagged), runs the frame in that one compiled
+call, charges the emulated cycles to the frame's :class:`~flightsw.budget.Ledger` (processor
+``"tp1750"``, stages :data:`flightsw.tp.state.STAGES`) and builds the
 :class:`~flightsw.messages.TrackCommand`.
 
-Bad input never raises out of :meth:`TrackProcessor.step`: a message that does not decode (bad
+Bad input is answered as the flight code answers it: a message that does not decode (bad
 checksum, wrong length, unknown or unconfigured imager), a time tag not after the last frame's, a
 frame-count jump, missing or out-of-range attitude data, an empty candidate list, an innovation far
-outside the EKF's gate -- each coasts on prediction and sets its status bit. An unexpected exception
-inside ``step`` is caught too (status ``TC_INTERNAL_ERROR``, :attr:`TrackProcessor.last_error`).
+outside the EKF's gate -- each coasts on prediction and sets its status bit. A programming error
+raises.
 """
 from __future__ import annotations
 
 import dataclasses
 import math
-from dataclasses import dataclass
 
 import numpy as np
 from numba import njit, typeof, types
@@ -26,23 +25,20 @@ from numba import njit, typeof, types
 from flightsw.arith.m1750 import encode32, encode48
 from flightsw.budget import TP1750
 from flightsw.messages import (
-    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_CONTENT, TC_BAD_MESSAGE, TC_COASTING, TC_INTERNAL_ERROR,
-    CandidateMessage, TrackCommand,
+    CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_CONTENT, CandidateMessage, TrackCommand,
 )
-from flightsw.tp import layout as F
 from flightsw.tp.alphabeta import growing_memory_last_k
-from flightsw.tp.layout import O_LOS, O_QP, O_R, O_SP, O_SV, O_V
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
 from flightsw.tp.dynamics import dyn_table, rk4_step_cycles
-from flightsw.tp.ekf import E_RUN, ekf_params, ekf_predict_step_cycles
+from flightsw.tp.ekf import ekf_params, ekf_predict_step_cycles
 from flightsw.tp.f1750 import dec32
 from flightsw.tp.frame import step_frame
 from flightsw.tp.geometry import N_COLS, N_ROWS
-from flightsw.tp.memory import host_views, new_memory
+from flightsw.tp.state import CONFIG_DTYPE, STAGES, new_record, new_state, vector_view
 from flightsw.tp.uplink import UplinkVerdict, decode_uplink
 
-__all__ = ["TrackProcessor", "TPInputs", "TPOutputs", "message_content_fault"]
+__all__ = ["TrackProcessor", "message_content_fault"]
 
 
 def message_content_fault(msg: CandidateMessage, n_rows: int = N_ROWS, n_cols: int = N_COLS) -> str:
@@ -108,26 +104,6 @@ def candidates_fault_k(cand, n_rows, n_cols):
     return 0
 
 
-@dataclass
-class TPInputs:
-    """One frame of the TP's bus inputs: the candidate message's words (uint16, CRC included) and
-    the attitude processor's data (:class:`flightsw.messages.AttitudeData`, None: none this frame);
-    ``ledger`` (optional) is charged with the frame's emulated cycles."""
-
-    message_words: object
-    attitude: object = None
-    ledger: object = None
-
-
-@dataclass
-class TPOutputs:
-    """One frame of the TP's bus outputs: the track-command words (uint16, CRC included), the
-    command they encode (:class:`flightsw.messages.TrackCommand`), and its status bits."""
-
-    command_words: np.ndarray
-    command: TrackCommand
-    status: int
-
 _IMAGER_ORDER = sorted(IMAGER_CODES, key=IMAGER_CODES.get)
 _INTS = (int, np.integer)
 _F8 = np.dtype(np.float64)
@@ -136,28 +112,18 @@ _NO_CANDIDATES = np.zeros(0, CANDIDATE_DTYPE)
 _NO_Q, _NO_V3 = np.zeros(4), np.zeros(3)
 _NO_ATTITUDE = (False, 0.0, _NO_Q, _NO_V3, _NO_V3, _NO_V3, False)
 _NO_MESSAGE = (False, _NO_CANDIDATES, 0.0, 0, 0)
-# TrackCommand is built positionally (keywords cost ~0.8 us a frame): its field order, checked here
-_TC_FIELDS = ("frame_count", "time_tag", "q_point", "predicted_row", "predicted_col", "imager",
-              "object_type", "locked", "status", "n_star_gates", "n_object_gates", "decided_frame",
-              "object_index", "mode", "los_eci", "r_est", "v_est", "sigma_pos", "sigma_vel")
-if tuple(f.name for f in dataclasses.fields(TrackCommand)) != _TC_FIELDS:
-    raise ImportError("flightsw.tp.processor: TrackCommand's fields changed; update _TC_FIELDS and "
-                      "TrackProcessor.step")
-# the command's arrays as slices of its copy of out[O_QP:O_SV]
-_A_QP, _A_LOS = slice(0, 4), slice(O_LOS - O_QP, O_R - O_QP)
-_A_R, _A_V = slice(O_R - O_QP, O_V - O_QP), slice(O_V - O_QP, O_SP - O_QP)
 
 
-def _load_step_frame(MEM, FIO) -> None:
+def _load_step_frame(ST) -> None:
     """Load (or compile) :func:`~flightsw.tp.frame.step_frame` for one set of argument types --
-    int64 / float64 buffers, a :data:`~flightsw.messages.CANDIDATE_DTYPE` array and float64
-    attitude arrays of any layout -- and forbid any other: inputs of other types then raise
-    TypeError at the call and :meth:`TrackProcessor.step` converts them (a variant compiled by
-    accident would cost seconds at some frame)."""
+    the state, a :data:`~flightsw.messages.CANDIDATE_DTYPE` array and float64 attitude arrays of
+    any layout -- and forbid any other (a variant compiled by accident would cost seconds at some
+    frame): :meth:`TrackProcessor.step` converts other forms of the inputs first, and a call with
+    other types raises TypeError."""
     if _STEP_FRAME_LOADED:
         return
     f8 = types.Array(types.float64, 1, "A")
-    step_frame.compile((typeof(MEM), typeof(FIO), types.boolean,
+    step_frame.compile((typeof(ST), types.boolean,
                         types.Array(typeof(_NO_CANDIDATES).dtype, 1, "A"), types.float64,
                         types.int64, types.int64, types.boolean, types.float64, f8, f8, f8, f8,
                         types.boolean))
@@ -181,7 +147,7 @@ class TrackProcessor:
         tp.reset()
         cmd = tp.step(candidate_message_or_words, attitude_data, ledger=None)
         cmd.feedback()        # for the IP's next frame
-        out = tp.step(TPInputs(message_words, attitude_data))   # bus form: words in, words out
+        words = cmd.to_words()                  # the bus form
         verdict = tp.uplink(encode_uplink(gate_px=3.0))         # takes effect next frame
     """
 
@@ -193,141 +159,137 @@ class TrackProcessor:
         self._img_names = [k for k in _IMAGER_ORDER if k in cfg.imagers]
         self._img_index = {k: i for i, k in enumerate(self._img_names)}
         self._img_shape = [(cfg.imagers[k].n_rows, cfg.imagers[k].n_cols) for k in self._img_names]
-        self.MEM, self.FIO = new_memory(len(self._img_names))
-        views = host_views(self.MEM, self.FIO)
-        (self.C, self.D, self.K, self.IMG, self.S, self.G, self.N, self.E, self.OBS, self.PW,
-         self.W, self.V, self.cyc) = (views[k] for k in ("C", "D", "K", "IMG", "S", "G", "N", "E",
-                                                         "OBS", "PW", "W", "V", "cyc"))
-        self.hdr, self.att, self.rows, self.cols, self.out = (
-            views[k] for k in ("hdr", "att", "rows", "cols", "out"))   # rows/cols: centroids
-        self.IMG[:] = np.stack([cfg.imagers[k].table_row() for k in self._img_names])
+        #: the state record (:data:`flightsw.tp.state.TP_STATE_DTYPE`): one row, fields as
+        #: attributes; ``_st`` the same memory as a plain array, as the kernel takes it
+        self.state = new_state()
+        self._st = self.state.view(np.ndarray)
+        st = self.state[0]
+        # named parts of it (views): configuration, plant, EKF parameters, imager table, track,
+        # gates, nominal, EKF, observations, working values, clocks, decoded outputs
+        self.C, self.D, self.K, self.IMG = st.config, st.dyn, st.ekf_params, self.state.imagers[0]
+        self.S, self.G, self.N, self.E = st.track, self.state.gates[0], st.nominal, st.ekf
+        self.OBS, self.V, self.cyc, self.out = self.state.obs[0], st.work, st.cycles, st.out
+        #: the command's arrays (q_point, los_eci, r_est, v_est) as one float64 view of ``out``
+        self._out_vectors = vector_view(self._st, "out", "qp", "v")
+        self._cyc_words = vector_view(self._st, "cycles", "input", "command")   # STAGES' order
+        for i, k in enumerate(self._img_names):
+            self.IMG[i] = cfg.imagers[k].table_row()
         nom = cfg.nominal if cfg.mode == "dedicated" else None
         self._nominal = nom
-        self.D[:] = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
-                              0.0 if nom is None else nom.t0)
-        self.K[:] = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma,
-                               cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
-        self.C[:] = self._constants(cfg, nom)
-        self.last_error = ""
+        self.state["dyn"] = dyn_table(None if nom is None else nom.accel_coeffs, cfg.j2,
+                                      0.0 if nom is None else nom.t0)
+        self.state["ekf_params"] = ekf_params(cfg.ekf_accel_psd, cfg.max_step, cfg.ekf_gate_sigma,
+                                              cfg.ekf_sigma_pos0, cfg.ekf_sigma_vel0)
+        self._set_config(self._constants(cfg, nom))
         self.last_cycles: dict = {}
         self._pending = None                      # an accepted uplink: (config, C) for next frame
         self._object_type = cfg.object_type
         self._mode = cfg.mode
-        _load_step_frame(self.MEM, self.FIO)
+        _load_step_frame(self._st)
         self.reset()
 
     @staticmethod
-    def _constants(cfg: TPConfig, nom) -> np.ndarray:
+    def _constants(cfg: TPConfig, nom):
+        """The configuration record (:data:`flightsw.tp.state.CONFIG_DTYPE`) of ``cfg`` with the
+        nominal ``nom`` (None: none): the one translation from TPConfig's attributes to the
+        flight words."""
         e32 = lambda v: encode32(float(v), rounding="nearest")  # noqa: E731
         e48 = lambda v: encode48(float(v), rounding="nearest")  # noqa: E731
-        C = np.zeros(F.C_WORDS, np.int64)
-        C[F.C_MODE] = 1 if cfg.mode == "opportunity" else 0
-        C[F.C_HAVE_NOM] = 1 if nom is not None else 0
-        C[F.C_ALPHA] = e32(cfg.alpha)
-        C[F.C_BETA] = e32(cfg.beta)
-        C[F.C_GATE_PX] = e32(cfg.gate_px)
-        C[F.C_THR_OBJ] = e32(cfg.residual_threshold_px2)
+        C = new_record(CONFIG_DTYPE)
+        C.mode = 1 if cfg.mode == "opportunity" else 0
+        C.have_nom = 1 if nom is not None else 0
+        C.alpha = e32(cfg.alpha)
+        C.beta = e32(cfg.beta)
+        C.gate_px = e32(cfg.gate_px)
+        C.thr_obj = e32(cfg.residual_threshold_px2)
         thr_s = cfg.residual_threshold_px2 if cfg.residual_threshold_star_px2 is None \
             else cfg.residual_threshold_star_px2
-        C[F.C_THR_STAR] = e32(thr_s)
-        C[F.C_N_EMPTY] = cfg.n_empty
-        C[F.C_N_EMPTY_OBJ] = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
-        C[F.C_N_LOST] = cfg.n_lost
-        C[F.C_N_APRIORI] = cfg.n_apriori
-        C[F.C_AIM_ROW] = e32(cfg.aim_row_px)
-        C[F.C_AIM_COL] = e32(cfg.aim_col_px)
-        C[F.C_SCAN_R] = e32(cfg.aim_scan_px)
-        C[F.C_SCAN_COS] = e32(math.cos(2.0 * math.pi / cfg.aim_scan_frames))
-        C[F.C_SCAN_SIN] = e32(math.sin(2.0 * math.pi / cfg.aim_scan_frames))
-        C[F.C_FRAME_DT] = e48(cfg.frame_dt)
-        C[F.C_MAX_COAST] = e48(cfg.max_coast_s)
-        C[F.C_SIG_PX] = e32(cfg.ekf_meas_sigma_px)
-        C[F.C_OPP_ALPHA] = e32(cfg.opp_alpha)
-        C[F.C_OPP_BETA] = e32(cfg.opp_beta)
-        C[F.C_OPP_GATE_PX] = e32(cfg.opp_gate_px)
-        C[F.C_OPP_N_LOST] = cfg.opp_n_lost
-        C[F.C_OPP_STARTUP] = growing_memory_last_k(cfg.opp_alpha, cfg.opp_beta) \
+        C.thr_star = e32(thr_s)
+        C.n_empty = cfg.n_empty
+        C.n_empty_obj = cfg.n_empty if cfg.n_empty_object is None else cfg.n_empty_object
+        C.n_lost = cfg.n_lost
+        C.n_apriori = cfg.n_apriori
+        C.aim_row = e32(cfg.aim_row_px)
+        C.aim_col = e32(cfg.aim_col_px)
+        C.scan_r = e32(cfg.aim_scan_px)
+        C.scan_cos = e32(math.cos(2.0 * math.pi / cfg.aim_scan_frames))
+        C.scan_sin = e32(math.sin(2.0 * math.pi / cfg.aim_scan_frames))
+        C.frame_dt = e48(cfg.frame_dt)
+        C.max_coast = e48(cfg.max_coast_s)
+        C.sig_px = e32(cfg.ekf_meas_sigma_px)
+        C.opp_alpha = e32(cfg.opp_alpha)
+        C.opp_beta = e32(cfg.opp_beta)
+        C.opp_gate_px = e32(cfg.opp_gate_px)
+        C.opp_n_lost = cfg.opp_n_lost
+        C.opp_startup = growing_memory_last_k(cfg.opp_alpha, cfg.opp_beta) \
             if cfg.opp_startup and cfg.opp_beta > 0 else 0
-        C[F.C_MAX_RATE2] = e32(cfg.max_rate ** 2)
-        C[F.C_QTOL] = e32(cfg.quat_norm_tol)
-        C[F.C_MAX_SKEW] = e48(cfg.max_time_skew)
-        C[F.C_EKF_MAX_REJ] = cfg.ekf_max_rejects
-        C[F.C_RULE_GUARDS] = 1 if cfg.rule_guards else 0
-        C[F.C_AIM_ON] = 1 if cfg.aim_on else 0
-        C[F.C_RMIN2] = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
-        C[F.C_RMAX2] = e32(1.0e8 ** 2)
-        C[F.C_VMAX2] = e32(2.0e4 ** 2)            # m/s
-        C[F.C_GAP] = e48(1.5 * cfg.frame_dt)
+        C.max_rate2 = e32(cfg.max_rate ** 2)
+        C.qtol = e32(cfg.quat_norm_tol)
+        C.max_skew = e48(cfg.max_time_skew)
+        C.ekf_max_rej = cfg.ekf_max_rejects
+        C.rule_guards = 1 if cfg.rule_guards else 0
+        C.aim_on = 1 if cfg.aim_on else 0
+        C.rmin2 = e32(6.2e6 ** 2)            # spacecraft position plausibility, m
+        C.rmax2 = e32(1.0e8 ** 2)
+        C.vmax2 = e32(2.0e4 ** 2)            # m/s
+        C.gap = e48(1.5 * cfg.frame_dt)
         k = 0 if nom is None or nom.accel_coeffs is None else nom.accel_coeffs.shape[1]
-        C[F.C_CYC_RK4] = rk4_step_cycles(cfg.j2, k)
-        C[F.C_CYC_EKF_STEP] = ekf_predict_step_cycles(cfg.j2, k)
+        C.cyc_rk4 = rk4_step_cycles(cfg.j2, k)
+        C.cyc_ekf_step = ekf_predict_step_cycles(cfg.j2, k)
         return C
+
+    def _set_config(self, C) -> None:
+        """The configuration record ``C`` in force (copied into the state)."""
+        self.state["config"] = C
 
     # ---------------------------------------------------------------------------------------------
     def reset(self) -> None:
         """Forget every track: no gates, no object, EKF stopped, nominal back at its epoch."""
-        for a in (self.S, self.G, self.N, self.E, self.OBS, self.W, self.V):
-            a[...] = 0
-        self.S[F.S_FRAME] = -1
-        self.S[F.S_DEC] = -1
-        self.S[F.S_DEC_FRAME] = -1
+        for name in ("track", "gates", "nominal", "ekf", "obs", "work", "scratch"):
+            self.state[name] = 0
+        self.S.frame = -1
+        self.S.dec = -1
+        self.S.dec_frame = -1
         if self._nominal is not None:
-            self.N[F.N_X:F.N_X + 6] = self._nominal.state_words()
-            self.N[F.N_T] = encode48(self._nominal.t0, rounding="nearest")
-        self.last_error = ""
-        self._last_cmd = None
+            self.N.x[:] = self._nominal.state_words()
+            self.N.t = encode48(self._nominal.t0, rounding="nearest")
         #: well-formed messages refused for their content, by reason (:func:`message_content_fault`)
         self.content_refusals: dict[str, int] = {}
         self._content_refused = False
 
     # ---------------------------------------------------------------------------------------------
-    def step(self, message, attitude=None, ledger=None):
-        """Process one frame. Never raises.
-
-        ``step(TPInputs(words, attitude, ledger))`` -> :class:`TPOutputs` (the bus form: the
-        track-command words); ``step(message, attitude, ledger=None)`` ->
-        :class:`~flightsw.messages.TrackCommand`.
+    def step(self, message, attitude=None, ledger=None) -> TrackCommand:
+        """Process one frame -> :class:`~flightsw.messages.TrackCommand` (``to_words()``: its bus
+        form). Bad inputs are answered in the command's status (the frame coasts).
 
         Parameters
         ----------
-        message : TPInputs, CandidateMessage or array of uint16 words (its :meth:`to_words` form)
+        message : CandidateMessage or array of uint16 words (its :meth:`to_words` form)
         attitude : AttitudeData (or None: no attitude this frame)
         ledger : flightsw.budget.Ledger, optional
             Charged with the frame's emulated PACE1750A cycles per stage on ``"tp1750"``.
         """
-        if isinstance(message, TPInputs):
-            cmd = self.step(message.message_words, message.attitude, message.ledger)
-            return TPOutputs(cmd.to_words(), cmd, int(cmd.status))
         if self._pending is not None:             # an uplink accepted last frame takes effect
             self.config, C = self._pending
-            self.C[:] = C
+            self._set_config(C)
             self._object_type = self.config.object_type
             self._pending = None
         # one body, no helper call per stage of the step (each Python call ~0.06 us a frame)
         self._content_refused = False
-        try:
-            args = self._frame_args(message, attitude)
-            try:                                  # the inputs as they came ...
-                fields = step_frame(*args)
-            except TypeError:                     # ... or converted to step_frame's types
-                fields = step_frame(*self._converted(args))
-            if ledger is not None:
-                self._charge(ledger)
-            # the command (positional, see _TC_FIELDS): step_frame's scalars, arrays as views of
-            # one copy of out[O_QP:O_SV]
-            status, fc, img, n_star, n_obj, decf, obj, locked, t, row, col, sp, sv = fields
-            if self._content_refused:
-                status |= TC_BAD_CONTENT
-                self._content_refused = False
-            a = self.out[O_QP:O_SV].copy()
-            cmd = self._last_cmd = TrackCommand(
-                fc, t, a[_A_QP], row, col, self._img_names[img], self._object_type, locked,
-                status, n_star, n_obj, decf, obj, self._mode, a[_A_LOS], a[_A_R], a[_A_V], sp,
-                sv)
-            return cmd
-        except Exception as exc:  # never raise out of step: coast and say so
-            self.last_error = f"{type(exc).__name__}: {exc}"
-            return self._error_command()
+        status, fc, img, n_star, n_obj, decf, obj, locked, t, row, col, sp, sv = step_frame(
+            self._st, *self._message_args(message), *self._attitude_args(attitude))
+        if ledger is not None:
+            self._charge(ledger)
+        if self._content_refused:
+            status |= TC_BAD_CONTENT
+            self._content_refused = False
+        a = self._out_vectors.copy()              # q_point, los_eci, r_est, v_est: one copy
+        return TrackCommand(
+            frame_count=fc, time_tag=t, q_point=a[0:4], predicted_row=row, predicted_col=col,
+            imager=self._img_names[img], object_type=self._object_type, locked=locked,
+            status=status, n_star_gates=n_star, n_object_gates=n_obj, decided_frame=decf,
+            object_index=obj, mode=self._mode, los_eci=a[4:7], r_est=a[7:10], v_est=a[10:13],
+            sigma_pos=sp, sigma_vel=sv)
 
     def uplink(self, words) -> UplinkVerdict:
         """Ground-commanded parameter changes (:mod:`flightsw.tp.uplink` word format) ->
@@ -349,30 +311,34 @@ class TrackProcessor:
 
     def _charge(self, ledger) -> None:
         """The frame's clocks per stage charged to ``ledger`` on ``"tp1750"``."""
-        for name, c in zip(F.STAGES, self.cyc):
+        for name, c in zip(STAGES, self._cyc_words):
             if c:
                 ledger.charge(TP1750, name, int(c))
 
-    def _frame_args(self, message, attitude) -> tuple:
-        """:func:`~flightsw.tp.frame.step_frame`'s arguments as the inputs came, in one tuple (one
-        call with it costs ~0.2 us less than one spliced from parts): the buffers, the message's
-        (:meth:`_message_args`) and the attitude's ``(given, t, q, rate, r, v, valid)`` (None, or
-        missing fields -> no attitude)."""
-        usable, cand, t_msg, idx, fc = self._message_args(message)
-        if attitude is not None:
-            try:
-                return (self.MEM, self.FIO, usable, cand, t_msg, idx, fc, True, float(attitude.t),
-                        attitude.q_body_to_eci, attitude.rate_body, attitude.r_eci,
-                        attitude.v_eci, bool(attitude.valid))
-            except (AttributeError, TypeError, ValueError):
-                pass
-        return (self.MEM, self.FIO, usable, cand, t_msg, idx, fc, *_NO_ATTITUDE)
+    def _attitude_args(self, attitude) -> tuple:
+        """:func:`~flightsw.tp.frame.step_frame`'s attitude arguments ``(given, t, q, rate, r, v,
+        valid)`` of an :class:`~flightsw.messages.AttitudeData` (None, missing fields or data that
+        are not numbers -> no attitude), the arrays as 1-D float64 (converted when they came in
+        another form; the kernel treats arrays of the wrong length as no attitude)."""
+        if attitude is None:
+            return _NO_ATTITUDE
+        try:
+            arrays = [attitude.q_body_to_eci, attitude.rate_body, attitude.r_eci, attitude.v_eci]
+            for i, x in enumerate(arrays):
+                if type(x) is not np.ndarray or x.dtype != _F8 or x.ndim != 1:
+                    arrays[i] = np.ascontiguousarray(x, dtype=_F8).reshape(-1)
+            return (True, float(attitude.t), *arrays, bool(attitude.valid))
+        except (AttributeError, TypeError, ValueError):
+            return _NO_ATTITUDE
 
     def _message_args(self, message) -> tuple:
         """:func:`~flightsw.tp.frame.step_frame`'s message arguments ``(usable, candidates, time
         tag, imager index, frame count)`` of a :class:`~flightsw.messages.CandidateMessage` or its
-        words, the candidates as they came; a message the TP cannot use (none, words that do not
-        decode, unconfigured imager, no candidate array) -> usable False."""
+        words; candidates of another record type copied into a
+        :data:`~flightsw.messages.CANDIDATE_DTYPE` array (the TP reads their ``row`` and ``col``
+        only); a message the TP cannot use (none, words that do not decode, unconfigured imager,
+        no 1-D candidate array with ``row`` and ``col``, a time tag that is not a number) ->
+        usable False."""
         if isinstance(message, CandidateMessage):
             msg = message
         elif message is None or isinstance(message, (str, bytes)):
@@ -391,49 +357,21 @@ class TrackProcessor:
                 self.content_refusals[fault] = self.content_refusals.get(fault, 0) + 1
                 self._content_refused = True
                 return _NO_MESSAGE
-            return True, cand, float(msg.time_tag), idx, int(fc) & 0xFFFF
-        return _NO_MESSAGE
-
-    @staticmethod
-    def _converted(args: tuple) -> tuple:
-        """:meth:`_frame_args`' tuple converted to step_frame's types: candidates of another
-        record type copied into a :data:`~flightsw.messages.CANDIDATE_DTYPE` array (the TP reads
-        their ``row`` and ``col`` only; without those fields -> the message is unusable); the
-        attitude arrays as 1-D float64 (lists, other float types; data that do not convert -> no
-        attitude; the kernel also treats arrays of the wrong length as none)."""
-        buffers, m, (given, t, *arrays, valid) = args[:2], args[2:7], args[7:]
-        usable, cand = m[:2]
-        if usable and cand.dtype != CANDIDATE_DTYPE:
-            names = cand.dtype.names
-            if names is None or "row" not in names or "col" not in names:
-                m = _NO_MESSAGE
-            else:
+            if cand.dtype != CANDIDATE_DTYPE:
+                names = cand.dtype.names
+                if names is None or "row" not in names or "col" not in names or cand.ndim != 1:
+                    return _NO_MESSAGE
                 c = np.zeros(len(cand), CANDIDATE_DTYPE)
                 c["row"], c["col"] = cand["row"], cand["col"]
-                m = (True, c, *m[2:])
-        att = _NO_ATTITUDE
-        if given:
+                cand = c
+            elif cand.ndim != 1:
+                return _NO_MESSAGE
             try:
-                arrays = [np.ascontiguousarray(x, dtype=_F8).reshape(-1) for x in arrays]
-                att = (True, t, *arrays, valid)
+                t = float(msg.time_tag)
             except (TypeError, ValueError):
-                pass
-        return (*buffers, *m, *att)
-
-    def _error_command(self) -> TrackCommand:
-        last = self._last_cmd
-        if last is None:
-            return TrackCommand(imager=self._img_names[0], object_type=self._object_type,
-                                status=TC_INTERNAL_ERROR | TC_COASTING | TC_BAD_MESSAGE, mode=self._mode)
-        return TrackCommand(
-            frame_count=last.frame_count, time_tag=last.time_tag, q_point=last.q_point.copy(),
-            predicted_row=last.predicted_row, predicted_col=last.predicted_col, imager=last.imager,
-            object_type=last.object_type, locked=False,
-            status=(last.status & ~0x00A0) | TC_INTERNAL_ERROR | TC_COASTING,
-            n_star_gates=last.n_star_gates, n_object_gates=last.n_object_gates,
-            decided_frame=last.decided_frame, object_index=-1, mode=last.mode,
-            los_eci=last.los_eci.copy(), r_est=last.r_est.copy(), v_est=last.v_est.copy(),
-            sigma_pos=last.sigma_pos, sigma_vel=last.sigma_vel)
+                return _NO_MESSAGE
+            return True, cand, t, idx, int(fc) & 0xFFFF
+        return _NO_MESSAGE
 
     def predicted_pixel(self, imager: str) -> tuple[float, float]:
         """The last frame's prediction (for the next frame) in full-resolution pixels of
@@ -452,11 +390,11 @@ class TrackProcessor:
     @property
     def cycles(self) -> dict:
         """PACE1750A clocks of the last frame per stage."""
-        return {name: int(c) for name, c in zip(F.STAGES, self.cyc)}
+        return {name: int(c) for name, c in zip(STAGES, self._cyc_words)}
 
     @property
     def ekf_running(self) -> bool:
-        return bool(self.E[E_RUN])
+        return bool(self.E.run)
 
     def snapshot(self, out: np.ndarray | None = None) -> dict | np.ndarray:
         """The TP's state after the last frame, for the recording: fixed-size arrays and scalars
@@ -479,9 +417,9 @@ class TrackProcessor:
         and returned instead of the dict: the event recorder's path, one compiled call.
         """
         from flightsw.tp import snapshot as P
-        img = int(self.S[F.S_IMG])
+        img = int(self.S.img)
         rec = np.empty(1, P.SNAPSHOT_DTYPE) if out is None else out
-        P.snapshot_kernel(self.G, self.S, self.E, self.IMG[img], rec)
+        P.snapshot_of_state(self._st, img, rec)
         r = rec[0]
         if out is not None:
             r["mode"], r["imager"] = self._mode.encode(), self._img_names[img].encode()

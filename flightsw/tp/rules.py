@@ -36,7 +36,7 @@ the pair is deleted without a conclusion when the empty gate reaches 4n frames (
 n frames: deleted at once), so that reinitialisation, which needs every gate gone, can happen.
 
 Rule 5, the proposal ``rule5`` (off by default; :func:`apriori_rule`, ``TPConfig.n_apriori``): when
-no object is held, a pair whose gates have both been populated on ``n_apriori`` frames (``G_HITS``;
+no object is held, a pair whose gates have both been populated on ``n_apriori`` frames (``G.hits``;
 not necessarily successive: a gate empty ``n_empty`` frames running is deleted anyway) is decided by
 position: it is the object when its object gate holds the observation nearest where the nominal
 trajectory puts the object (and lies within the gate of it) and has accumulated no more residual
@@ -68,16 +68,9 @@ from flightsw.arith.m1750 import fc32, fs32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
 from flightsw.tp.f1750 import cycles
-from flightsw.tp.gates import GP_HALF, GP_THR_OBJ, GP_THR_STAR, any_gate_alive, kill_pair
+from flightsw.tp.gates import any_gate_alive, kill_pair
 from flightsw.tp.geometry import tan_int
-from flightsw.tp.layout import (
-    C_N_APRIORI, C_N_EMPTY, C_N_EMPTY_OBJ, C_N_LOST, C_RULE_GUARDS, G_A, G_ALIVE, G_B, G_DVA,
-    G_DVB, G_HITS, G_IA, G_IB, G_MISS, G_OBS, G_RES, G_RUN, G_SEED, G_SEEDF, G_VA, G_VB, NPAIR,
-    OBS_A, OBS_B,
-    OBS_IA, OBS_IB, OBS_OK, S_DEC,
-    S_DEC_FRAME, S_NDEC, S_NLOST, S_NREINIT, S_NRULE, S_NSPURIOUS, S_NSTALE, S_RULE, ST_GATES,
-    V_EVIDENCE, V_FC, V_FLAGS, V_LOCKED, V_NTAN, V_NTAN_OK, V_NUSE, V_OBJ, V_STATUS,
-)
+from flightsw.tp.state import NPAIR
 
 #: a pair's conclusion
 UNDECIDED, OBJECT, STAR, DELETE = 0, 1, 2, 3
@@ -176,11 +169,15 @@ def rule4(res_s, res_o, ks, thr_s, guards):
 
 
 @njit(cache=True, inline="always")
-def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
-    """One undecided pair -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0, flags).
+def pair_conclusion(gs, go, C, GP):
+    """One undecided pair, its star gate ``gs`` and object gate ``go``
+    (:data:`~flightsw.tp.state.GATE_DTYPE` records: successive empty frames ``miss``, populated
+    run ``run``, residual ``res``) -> (conclusion UNDECIDED/OBJECT/STAR/DELETE, rule 1-4 or 0,
+    flags).
 
-    Counts are ints, residuals and thresholds packed 32-bit 1750A floats (rad^2); ``guards``: the
-    proposal ``rule_guards`` in force (the cases below are with it on unless they say otherwise).
+    The empty limits n, n' and the proposal ``rule_guards`` come from the configuration ``C``, the
+    residual thresholds (packed 32-bit, rad^2) from the frame's gate constants ``GP`` (the cases
+    below are with the guards on unless they say otherwise).
 
     Cases
     -----
@@ -203,6 +200,9 @@ def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
     star-empty-stale : star gate empty ``4n`` frames without rule 1 -> (DELETE, 0).
     object-empty-stale : object gate empty ``4n'`` frames without rule 2 -> (DELETE, 0).
     """
+    ms, mo, ks, ko, res_s, res_o = gs.miss, go.miss, gs.run, go.run, gs.res, go.res
+    n, n_o, guards = C.n_empty, C.n_empty_obj, C.rule_guards != 0
+    thr_s, thr_o = GP.thr_star, GP.thr_obj
     star_empty = ms >= n
     obj_empty = mo >= n_o
     if star_empty and obj_empty:
@@ -227,75 +227,71 @@ def pair_conclusion(ms, mo, ks, ko, res_s, res_o, n, n_o, thr_s, thr_o, guards):
 @njit(cache=True)
 def apply_rules(C, S, G, V, GP, cyc):
     """The four rules on every live pair; the best object conclusion becomes the verified object
-    (``S[S_DEC]``) when none is held, the others are deleted as spurious.
+    (``S.dec``) when none is held, the others are deleted as spurious.
 
-    ``C`` config, ``S`` state, ``G`` gates (int64 [NG, GC]), ``V`` frame words, ``GP`` gate
-    parameters, ``cyc`` cycle ledger (all int64, :mod:`flightsw.tp.layout`); updated in place.
+    ``C`` config, ``S`` state, ``G`` gates (GATE_DTYPE [NG]), ``V`` frame words, ``GP`` gate
+    parameters, ``cyc`` cycle ledger (all int64, :mod:`flightsw.tp.state`); updated in place.
 
     Cases
     -----
-    object-decided : one OBJECT conclusion, none held -> ``S[S_DEC]`` = the pair, its star gate
-        deleted, ``S_DEC_FRAME``, ``S_RULE``, ``S_NDEC`` set, ``TC_NEW_DECISION`` raised.
+    object-decided : one OBJECT conclusion, none held -> ``S.dec`` = the pair, its star gate
+        deleted, ``S.dec_frame``, ``S.rule``, ``S.ndec`` set, ``TC_NEW_DECISION`` raised.
     star-deleted : a STAR conclusion deletes both gates and counts its rule (no decision).
-    stale-deleted : a DELETE conclusion without a rule deletes both gates and counts ``S_NSTALE``.
+    stale-deleted : a DELETE conclusion without a rule deletes both gates and counts ``S.nstale``.
     undecided-kept : an UNDECIDED pair keeps both gates.
     best-of-several : several OBJECT conclusions on one frame: the smallest object residual wins,
-        the others are deleted and counted ``S_NSPURIOUS``.
+        the others are deleted and counted ``S.nspurious``.
     object-while-held : an OBJECT conclusion while an object is held is deleted as spurious.
     half-pair-skipped : a pair with one gate deleted (the held object's) is not ruled on.
     """
     fl = 0
-    n, n_o = C[C_N_EMPTY], C[C_N_EMPTY_OBJ]
-    thr_s, thr_o = GP[GP_THR_STAR], GP[GP_THR_OBJ]
     best_p = -1
     best_rule = 0
     for p in range(NPAIR):
         rs = 2 * p
         ro = 2 * p + 1
-        if G[rs, G_ALIVE] == 0 or G[ro, G_ALIVE] == 0:
+        if G[rs].alive == 0 or G[ro].alive == 0:
             continue
-        cyc[ST_GATES] += CYC_RULE
-        concl, rule, g = pair_conclusion(G[rs, G_MISS], G[ro, G_MISS], G[rs, G_RUN], G[ro, G_RUN],
-                                         G[rs, G_RES], G[ro, G_RES], n, n_o, thr_s, thr_o,
-                                         C[C_RULE_GUARDS] != 0)
+        cyc.gates += CYC_RULE
+        concl, rule, g = pair_conclusion(G[rs], G[ro], C, GP)
         fl |= g
         if rule > 0:
-            S[S_NRULE + rule - 1] += 1
+            S.nrule[rule - 1] += 1
         elif concl == DELETE:
-            S[S_NSTALE] += 1
+            S.nstale += 1
         if concl == OBJECT:
             # object conclusions of this frame: the most consistent object gate wins
-            if S[S_DEC] < 0 and (best_p < 0 or fc32(G[ro, G_RES], G[2 * best_p + 1, G_RES]) < 0):
+            if S.dec < 0 and (best_p < 0 or fc32(G[ro].res, G[2 * best_p + 1].res) < 0):
                 if best_p >= 0:
                     kill_pair(G, best_p)
-                    S[S_NSPURIOUS] += 1
+                    S.nspurious += 1
                 best_p = p
                 best_rule = rule
             else:
                 kill_pair(G, p)
-                S[S_NSPURIOUS] += 1
+                S.nspurious += 1
         elif concl == STAR or concl == DELETE:
             kill_pair(G, p)
     if best_p >= 0:
         decide_pair(S, G, V, best_p, best_rule)
-    V[V_FLAGS] |= fl
+    V.aflags |= fl
 
 
 @njit(cache=True, inline="always")
 def decide_pair(S, G, V, p, rule):
-    """Pair ``p`` becomes the verified object by ``rule``: its star gate deleted, ``S_DEC``,
-    ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE`` set, ``TC_NEW_DECISION`` raised.
+    """Pair ``p`` becomes the verified object by ``rule``: its star gate deleted, ``S.dec``,
+    ``S.dec_frame``, ``S.ndec``, ``S.rule`` set, ``TC_NEW_DECISION`` raised.
 
     Cases
     -----
     typical : as above; the object gate and every other pair untouched.
     """
-    G[2 * p, G_ALIVE] = 0
-    S[S_DEC] = p
-    S[S_DEC_FRAME] = V[V_FC]
-    S[S_NDEC] += 1
-    S[S_RULE] = rule
-    V[V_STATUS] |= TC_NEW_DECISION
+    G[2 * p].alive = 0
+    S.dec = p
+    S.dec_frame = V.fc
+    S.ndec += 1
+    S.rule = rule
+    V.status |= TC_NEW_DECISION
 
 
 APRIORI_RULE = 5
@@ -312,88 +308,88 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
     (and within the gate of it) is the object, unless its object gate has accumulated more residual
     than its star gate; the others are stars by position.
 
-    ``OBS`` this frame's observations (int64 [MAX_OBS, OBS_C]; the first ``V[V_NUSE]`` in use).
+    ``OBS`` this frame's observations (OBSERVATION_DTYPE [MAX_OBS]; the first ``V.nuse`` in use).
 
     Cases
     -----
     decided : no object held, ``n_apriori > 0``, the nominal's line of sight in front, a live pair
-        with both gates populated on ``n_apriori`` frames (``G_HITS``), its object gate fed by the
+        with both gates populated on ``n_apriori`` frames (``G.hits``), its object gate fed by the
         usable observation nearest the nominal's tangent coordinates (integer squared distance;
         the first of equals) and within the gate half-width of them, its object gate's
         accumulated residual not above its star gate's -> it is the object (star gate deleted,
-        ``S_DEC``, ``S_DEC_FRAME``, ``S_NDEC``, ``S_RULE = 5``, ``TC_NEW_DECISION``).
+        ``S.dec``, ``S.dec_frame``, ``S.ndec``, ``S.rule = 5``, ``TC_NEW_DECISION``).
     star-by-residual : that pair, but its object gate's residual above its star gate's (the
         observation moves with the stars: a star passing where the nominal puts the object) ->
-        both gates deleted, counted ``S_NSTALE``.
+        both gates deleted, counted ``S.nstale``.
     star-by-position : such a long-undecided pair not fed by that observation, or beyond the gate
-        -> both gates deleted, counted ``S_NSTALE`` (so that reinitialisation can place pairs on
+        -> both gates deleted, counted ``S.nstale`` (so that reinitialisation can place pairs on
         the observations no gate holds).
     none : no such pair, an object held, ``n_apriori = 0`` or no nominal line of sight ->
         nothing.
     """
-    m = C[C_N_APRIORI]
-    if m <= 0 or S[S_DEC] >= 0 or V[V_NTAN_OK] == 0:
+    m = C.n_apriori
+    if m <= 0 or S.dec >= 0 or V.ntan_ok == 0:
         return
-    cyc[ST_GATES] += CYC_APRIORI
-    na = tan_int(V[V_NTAN])
-    nb = tan_int(V[V_NTAN + 1])
-    half = GP[GP_HALF]
+    cyc.gates += CYC_APRIORI
+    na = tan_int(V.ntan[0])
+    nb = tan_int(V.ntan[1])
+    half = GP.half
     nearest = -1
     dmin = 0
-    for j in range(V[V_NUSE]):
-        if OBS[j, OBS_OK] == 0:
+    for j in range(V.nuse):
+        if OBS[j].ok == 0:
             continue
-        da = OBS[j, OBS_IA] - na
-        db = OBS[j, OBS_IB] - nb
+        da = OBS[j].ia - na
+        db = OBS[j].ib - nb
         d = da * da + db * db
         if nearest < 0 or d < dmin:
             nearest = j
             dmin = d
-    cyc[ST_GATES] += V[V_NUSE] * CYC_APRIORI_OBS
+    cyc.gates += V.nuse * CYC_APRIORI_OBS
     for p in range(NPAIR):
         rs = 2 * p
         ro = 2 * p + 1
-        if G[rs, G_ALIVE] == 0 or G[ro, G_ALIVE] == 0:
+        if G[rs].alive == 0 or G[ro].alive == 0:
             continue
-        cyc[ST_GATES] += CYC_APRIORI_PAIR
-        if G[rs, G_HITS] < m or G[ro, G_HITS] < m:
+        cyc.gates += CYC_APRIORI_PAIR
+        if G[rs].hits < m or G[ro].hits < m:
             continue
         # an observation feeds one object gate at most (association), so one pair at most
-        if G[ro, G_OBS] == nearest and abs(G[ro, G_IA] - na) <= half \
-                and abs(G[ro, G_IB] - nb) <= half:
-            cyc[ST_GATES] += CYC_APRIORI_RES
-            if fc32(G[ro, G_RES], G[rs, G_RES]) <= 0:
+        if G[ro].obs == nearest and abs(G[ro].ia - na) <= half \
+                and abs(G[ro].ib - nb) <= half:
+            cyc.gates += CYC_APRIORI_RES
+            if fc32(G[ro].res, G[rs].res) <= 0:
                 decide_pair(S, G, V, p, APRIORI_RULE)
                 continue
         kill_pair(G, p)
-        S[S_NSTALE] += 1
+        S.nstale += 1
 
 
 @njit(cache=True)
 def verify_object(C, S, G, V):
     """The verified object's gate: lost when deleted or empty ``n_lost`` frames; else its
-    observation this frame becomes the object (``V[V_OBJ]``, -1 none) -> True while it is held.
+    observation this frame becomes the object (``V.obj``, -1 none) -> True while it is held.
 
     Cases
     -----
-    none-held : ``S[S_DEC] < 0`` -> False, nothing changed.
-    held-fed : the object gate alive and fed -> True, ``V[V_OBJ]`` = its observation.
-    held-coasting : alive, empty fewer than ``n_lost`` frames -> True, ``V[V_OBJ] = -1``.
-    lost-empty : empty ``n_lost`` frames -> gate deleted, ``S_DEC = -1``, ``S_NLOST`` counted,
+    none-held : ``S.dec < 0`` -> False, nothing changed.
+    held-fed : the object gate alive and fed -> True, ``V.obj`` = its observation.
+    held-coasting : alive, empty fewer than ``n_lost`` frames -> True, ``V.obj = -1``.
+    lost-empty : empty ``n_lost`` frames -> gate deleted, ``S.dec = -1``, ``S.nlost`` counted,
         ``TC_OBJECT_LOST`` raised -> False.
     lost-deleted : the object gate already deleted -> lost as above -> False.
     """
-    dec = S[S_DEC]
+    dec = S.dec
     if dec < 0:
         return False
     ro = 2 * dec + 1
-    if G[ro, G_ALIVE] == 0 or G[ro, G_MISS] >= C[C_N_LOST]:
-        G[ro, G_ALIVE] = 0
-        S[S_DEC] = -1
-        S[S_NLOST] += 1
-        V[V_STATUS] |= TC_OBJECT_LOST
+    if G[ro].alive == 0 or G[ro].miss >= C.n_lost:
+        G[ro].alive = 0
+        S.dec = -1
+        S.nlost += 1
+        V.status |= TC_OBJECT_LOST
         return False
-    V[V_OBJ] = G[ro, G_OBS]
+    V.obj = G[ro].obs
     return True
 
 
@@ -401,36 +397,36 @@ def verify_object(C, S, G, V):
 def place_pairs(G, OBS, nuse, frame_count):
     """A star and an object gate on every usable observation j (pair j) -> pairs placed.
 
-    ``G`` gates (int64 [NG, GC]), ``OBS`` observations (int64 [MAX_OBS, OBS_C]), ``nuse`` the
+    ``G`` gates (GATE_DTYPE [NG]), ``OBS`` observations (OBSERVATION_DTYPE [MAX_OBS]), ``nuse`` the
     observations to use, ``frame_count`` the seeding frame.
 
     Cases
     -----
     every-usable : rows ``2j`` (star) and ``2j + 1`` (object) alive at observation j's position,
         velocity and residual zero, one hit, seeded by j on this frame.
-    unusable-skipped : an observation with ``OBS_OK == 0`` gets no pair (its rows untouched).
+    unusable-skipped : an observation with ``OBS.ok == 0`` gets no pair (its rows untouched).
     no-observations : ``nuse == 0`` -> 0 pairs.
     """
     placed = 0
     for j in range(nuse):
-        if OBS[j, OBS_OK] == 0:
+        if OBS[j].ok == 0:
             continue
         for k in range(2):
             row = 2 * j + k
-            G[row, G_ALIVE] = 1
-            G[row, G_A] = OBS[j, OBS_A]
-            G[row, G_B] = OBS[j, OBS_B]
-            G[row, G_VA] = 0
-            G[row, G_VB] = 0
-            G[row, G_DVA] = 0
-            G[row, G_DVB] = 0
-            G[row, G_RES] = 0
-            G[row, G_MISS] = 0
-            G[row, G_OBS] = j
-            G[row, G_HITS] = 1
-            G[row, G_RUN] = 1
-            G[row, G_SEED] = j
-            G[row, G_SEEDF] = frame_count
+            G[row].alive = 1
+            G[row].a = OBS[j].a
+            G[row].b = OBS[j].b
+            G[row].va = 0
+            G[row].vb = 0
+            G[row].dva = 0
+            G[row].dvb = 0
+            G[row].res = 0
+            G[row].miss = 0
+            G[row].obs = j
+            G[row].hits = 1
+            G[row].run = 1
+            G[row].seed = j
+            G[row].seedf = frame_count
         placed += 1
     return placed
 
@@ -443,19 +439,19 @@ def reinitialise(S, G, OBS, V, cyc):
     Cases
     -----
     places : no gate alive, none held, evidence -> pairs placed, ``TC_REINITIALISED`` raised,
-        ``S_NREINIT`` counted.
+        ``S.nreinit`` counted.
     gates-alive : a gate alive -> 0, nothing changed.
     object-held : an object held -> 0.
-    no-evidence : the frame's observations unusable (``V_EVIDENCE == 0``) -> 0.
+    no-evidence : the frame's observations unusable (``V.evidence == 0``) -> 0.
     nothing-usable : evidence but no usable observation -> 0, no flag, not counted.
     """
-    if V[V_EVIDENCE] == 0 or S[S_DEC] >= 0 or any_gate_alive(G):
+    if V.evidence == 0 or S.dec >= 0 or any_gate_alive(G):
         return 0
-    placed = place_pairs(G, OBS, V[V_NUSE], V[V_FC])
-    cyc[ST_GATES] += placed * CYC_NEW_PAIR
+    placed = place_pairs(G, OBS, V.nuse, V.fc)
+    cyc.gates += placed * CYC_NEW_PAIR
     if placed > 0:
-        V[V_STATUS] |= TC_REINITIALISED
-        S[S_NREINIT] += 1
+        V.status |= TC_REINITIALISED
+        S.nreinit += 1
     return placed
 
 
@@ -467,15 +463,15 @@ def report_object(S, V):
     Cases
     -----
     none-held : no object -> status untouched.
-    locked : held and fed this frame -> ``TC_OBJECT_DECIDED``, ``V_LOCKED = 1``.
+    locked : held and fed this frame -> ``TC_OBJECT_DECIDED``, ``V.locked = 1``.
     coasting : held, not fed -> ``TC_OBJECT_DECIDED | TC_COASTING``, not locked.
     """
-    if S[S_DEC] >= 0:
-        V[V_STATUS] |= TC_OBJECT_DECIDED
-        if V[V_OBJ] >= 0:
-            V[V_LOCKED] = 1
+    if S.dec >= 0:
+        V.status |= TC_OBJECT_DECIDED
+        if V.obj >= 0:
+            V.locked = 1
         else:
-            V[V_STATUS] |= TC_COASTING
+            V.status |= TC_COASTING
 
 
 @njit(cache=True, inline="always")
@@ -485,8 +481,8 @@ def object_observed(S, V):
     Cases
     -----
     observed : held, fed and the evidence usable -> True.
-    none-held : ``S[S_DEC] < 0`` -> False.
-    not-fed : ``V[V_OBJ] < 0`` -> False.
-    no-evidence : ``V[V_EVIDENCE] == 0`` -> False.
+    none-held : ``S.dec < 0`` -> False.
+    not-fed : ``V.obj < 0`` -> False.
+    no-evidence : ``V.evidence == 0`` -> False.
     """
-    return S[S_DEC] >= 0 and V[V_OBJ] >= 0 and V[V_EVIDENCE] != 0
+    return S.dec >= 0 and V.obj >= 0 and V.evidence != 0

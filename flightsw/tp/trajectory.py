@@ -7,7 +7,7 @@ the attitude at t), or, for the verified object with the EKF running, the EKF's.
 verified the 6-state EKF starts on the nominal state and is updated with the object's centroid
 (two sequential scalar updates, :mod:`flightsw.tp.ekf`).
 
-Stages read and write the frame's working values ``V`` (:mod:`flightsw.tp.layout`).
+Stages read and write the frame's working values ``V`` (:mod:`flightsw.tp.state`).
 """
 from __future__ import annotations
 
@@ -18,16 +18,10 @@ from flightsw.arith.m1750 import FLAG_DOMAIN, fm32, fm48, fs48, to32, to48
 from flightsw.messages import (TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMINAL)
 from flightsw.tp.dynamics import propagate
 from flightsw.tp.ekf import (
-    CYC_EKF_UPDATE, E_HAVE_LOS, E_LOS, E_NREJ, E_RUN, K_MAXSTEP, K_P0R, K_P0V, ekf_init, ekf_los,
-    ekf_predict, ekf_reset_cov, ekf_update_los,
+    CYC_EKF_UPDATE, ekf_init, ekf_los, ekf_predict, ekf_reset_cov, ekf_update_los,
 )
 from flightsw.tp.f1750 import MV3_MIX, UNIT3_MIX, cycles, dot3, mix, unit3
-from flightsw.tp.geometry import CYC_IMG_UNIT, IMG_SC, IMG_SR, host_to32, los_delta, pix_unit
-from flightsw.tp.layout import (
-    C_CYC_EKF_STEP, C_CYC_RK4, C_EKF_MAX_REJ, C_SIG_PX, N_T, N_X, S_HAVE_PREV, S_NL, S_NL_OK,
-    ST_EKF_PRED, ST_EKF_UPD, ST_NOM, V_DE, V_DN, V_EKF_ON, V_ELOS, V_ERHO, V_ETAN, V_ETAN_OK,
-    V_FLAGS, V_IMG, V_NTAN, V_NTAN_OK, V_OBJ, V_RS, V_STATUS, V_T,
-)
+from flightsw.tp.geometry import CYC_IMG_UNIT, host_to32, los_delta, pix_unit
 
 #: arithmetic-exception flags that mark the command (the EKF's covariance guard is not one)
 PI_FLAGS = 0x8000 >> 3 | 0x8000 >> 4 | 0x8000 >> 6 | FLAG_DOMAIN
@@ -42,49 +36,49 @@ def ekf_running(E):
 
     Cases
     -----
-    typical : ``E[E_RUN]`` non-zero -> True; 0 -> False.
+    typical : ``E.run`` non-zero -> True; 0 -> False.
     """
-    return E[E_RUN] != 0
+    return E.run != 0
 
 
 @njit(cache=True)
 def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     """The nominal state to this frame's time (RK4, 48-bit) and the change of its line of sight
-    seen in this frame's attitude -> ``V[V_DN]`` (da, db; 0 on the first frame); the line of
-    sight's body tangent coordinates -> ``V[V_NTAN]`` (``V_NTAN_OK = 1``; not when it is behind).
+    seen in this frame's attitude -> ``V.dn[0]`` (da, db; 0 on the first frame); the line of
+    sight's body tangent coordinates -> ``V.ntan[0]`` (``V.ntan_ok = 1``; not when it is behind).
 
-    ``N`` the nominal (int64 [N_WORDS], 48-bit state and time), ``RM`` body -> ECI (packed 32-bit
-    [9]); the line of sight is kept in ``S[S_NL]`` for the next frame.
+    ``N`` the nominal (NOMINAL_DTYPE: 48-bit state and time), ``RM`` body -> ECI (packed 32-bit
+    [9]); the line of sight is kept in ``S.nl[0]`` for the next frame.
 
     Cases
     -----
-    first-frame : no previous line of sight -> ``V[V_DN]`` left 0; this one kept, its tangent
-        coordinates in ``V[V_NTAN]``.
-    motion : a previous line of sight -> ``V[V_DN] = T(RM^T l) - T(RM^T l_prev)``, ``V[V_NTAN] =
+    first-frame : no previous line of sight -> ``V.dn[0]`` left 0; this one kept, its tangent
+        coordinates in ``V.ntan[0]``.
+    motion : a previous line of sight -> ``V.dn[0] = T(RM^T l) - T(RM^T l_prev)``, ``V.ntan[0] =
         T(RM^T l)``.
-    propagated : the nominal state integrated to this frame's time, ``N[N_T]`` = that time.
+    propagated : the nominal state integrated to this frame's time, ``N.t`` = that time.
     """
     fl = 0
-    t = V[V_T]
-    r = propagate(D, N, np.int64(N_X), N[N_T], t, K[K_MAXSTEP])
+    t = V.t
+    r = propagate(D, N.x, N.t, t, K.maxstep)
     fl |= r & 0xFFFFFFFF
     nsteps = r >> 32
-    N[N_T] = t
-    cyc[ST_NOM] += nsteps * C[C_CYC_RK4]
-    d0, g = fs48(N[N_X], V[V_RS]); fl |= g
-    d1, g = fs48(N[N_X + 1], V[V_RS + 1]); fl |= g
-    d2, g = fs48(N[N_X + 2], V[V_RS + 2]); fl |= g
+    N.t = t
+    cyc.nominal += nsteps * C.cyc_rk4
+    d0, g = fs48(N.x[0], V.rs[0]); fl |= g
+    d1, g = fs48(N.x[1], V.rs[1]); fl |= g
+    d2, g = fs48(N.x[2], V.rs[2]); fl |= g
     l0, l1, l2, rho, g = unit3(to32(d0), to32(d1), to32(d2)); fl |= g
-    V[V_DN], V[V_DN + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, S[S_NL], S[S_NL + 1],
-                                                  S[S_NL + 2],
-                                                  S[S_NL_OK] != 0 and S[S_HAVE_PREV] != 0)
+    V.dn[0], V.dn[1], a, b, ok, g = los_delta(RM, l0, l1, l2, S.nl[0], S.nl[1],
+                                                  S.nl[2],
+                                                  S.nl_ok != 0 and S.have_prev != 0)
     fl |= g
     if ok:                           # where the nominal puts the object (apriori_rule)
-        V[V_NTAN], V[V_NTAN + 1], V[V_NTAN_OK] = a, b, 1
-    S[S_NL], S[S_NL + 1], S[S_NL + 2] = l0, l1, l2
-    S[S_NL_OK] = 1
-    cyc[ST_NOM] += CYC_LOS_DELTA
-    V[V_FLAGS] |= fl
+        V.ntan[0], V.ntan[1], V.ntan_ok = a, b, 1
+    S.nl[0], S.nl[1], S.nl[2] = l0, l1, l2
+    S.nl_ok = 1
+    cyc.nominal += CYC_LOS_DELTA
+    V.aflags |= fl
 
 
 @njit(cache=True, inline="always")
@@ -95,41 +89,41 @@ def no_nominal(V):
     -----
     typical : ``TC_NO_NOMINAL`` raised, nothing else changed.
     """
-    V[V_STATUS] |= TC_NO_NOMINAL
+    V.status |= TC_NO_NOMINAL
 
 
 @njit(cache=True)
 def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
-    """A running EKF to this frame's time and the change of its line of sight -> ``V[V_DE]``; the
-    line of sight's body tangent coordinates -> ``V[V_ETAN]`` (``V_ETAN_OK = 1``).
+    """A running EKF to this frame's time and the change of its line of sight -> ``V.de[0]``; the
+    line of sight's body tangent coordinates -> ``V.etan[0]`` (``V.etan_ok = 1``).
 
     Cases
     -----
-    not-running : EKF not started -> nothing changed (``V_EKF_ON`` stays 0).
-    first : no previous line of sight -> predicted, ``V[V_DE]`` left 0, the line of sight kept,
-        its tangent coordinates in ``V[V_ETAN]``.
-    motion : a previous line of sight -> ``V[V_DE]`` = its change seen in this frame's attitude,
-        ``V[V_ETAN]`` the new one's coordinates.
-    behind : the line of sight behind the body's tangent plane -> ``V_ETAN_OK`` stays 0.
+    not-running : EKF not started -> nothing changed (``V.ekf_on`` stays 0).
+    first : no previous line of sight -> predicted, ``V.de[0]`` left 0, the line of sight kept,
+        its tangent coordinates in ``V.etan[0]``.
+    motion : a previous line of sight -> ``V.de[0]`` = its change seen in this frame's attitude,
+        ``V.etan[0]`` the new one's coordinates.
+    behind : the line of sight behind the body's tangent plane -> ``V.etan_ok`` stays 0.
     """
-    if E[E_RUN] == 0:
+    if E.run == 0:
         return
     fl = 0
-    V[V_EKF_ON] = 1
-    g, nsteps = ekf_predict(E, D, K, wk, V[V_T]); fl |= g
-    cyc[ST_EKF_PRED] += nsteps * C[C_CYC_EKF_STEP]
-    l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2]); fl |= g
-    V[V_DE], V[V_DE + 1], a, b, ok, g = los_delta(RM, l0, l1, l2, E[E_LOS], E[E_LOS + 1],
-                                                  E[E_LOS + 2],
-                                                  E[E_HAVE_LOS] != 0 and S[S_HAVE_PREV] != 0)
+    V.ekf_on = 1
+    g, nsteps = ekf_predict(E, D, K, wk, V.t); fl |= g
+    cyc.ekf_predict += nsteps * C.cyc_ekf_step
+    l0, l1, l2, rho, g = ekf_los(E, V.rs[0], V.rs[1], V.rs[2]); fl |= g
+    V.de[0], V.de[1], a, b, ok, g = los_delta(RM, l0, l1, l2, E.los[0], E.los[1],
+                                                  E.los[2],
+                                                  E.have_los != 0 and S.have_prev != 0)
     fl |= g
     if ok:                           # the verified object's gate goes there (centre_object_gate)
-        V[V_ETAN], V[V_ETAN + 1], V[V_ETAN_OK] = a, b, 1
-    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
-    V[V_ERHO], V[V_ELOS] = rho, 1
-    E[E_HAVE_LOS] = 1
-    cyc[ST_EKF_PRED] += CYC_LOS_DELTA
-    V[V_FLAGS] |= fl
+        V.etan[0], V.etan[1], V.etan_ok = a, b, 1
+    E.los[0], E.los[1], E.los[2] = l0, l1, l2
+    V.erho, V.elos = rho, 1
+    E.have_los = 1
+    cyc.ekf_predict += CYC_LOS_DELTA
+    V.aflags |= fl
 
 
 @njit(cache=True)
@@ -138,48 +132,49 @@ def start_ekf(K, N, E, V):
 
     Cases
     -----
-    typical : state = the nominal's words, time ``V[V_T]``, P diagonal from ``K``, the line of
-        sight to it kept, ``V_EKF_ON = 1``.
+    typical : state = the nominal's words, time ``V.t``, P diagonal from ``K``, the line of
+        sight to it kept, ``V.ekf_on = 1``.
     """
-    ekf_init(E, N[N_X], N[N_X + 1], N[N_X + 2], N[N_X + 3], N[N_X + 4], N[N_X + 5],
-             V[V_T], K[K_P0R], K[K_P0V])
-    V[V_EKF_ON] = 1
-    l0, l1, l2, rho, g = ekf_los(E, V[V_RS], V[V_RS + 1], V[V_RS + 2])
-    V[V_FLAGS] |= g
-    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
-    V[V_ERHO], V[V_ELOS] = rho, 1
-    E[E_HAVE_LOS] = 1
+    ekf_init(E, N.x, V.t, K.p0r, K.p0v)
+    V.ekf_on = 1
+    l0, l1, l2, rho, g = ekf_los(E, V.rs[0], V.rs[1], V.rs[2])
+    V.aflags |= g
+    E.los[0], E.los[1], E.los[2] = l0, l1, l2
+    V.erho, V.elos = rho, 1
+    E.have_los = 1
 
 
 @njit(cache=True)
-def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
+def update_ekf(C, K, IMG, E, V, X, rows, cols, cyc):
     """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
-    updates of the EKF; with the proposal ``ekf_reset``, a component refused ``ekf_max_rejects``
-    frames running -> covariance reset.
+    updates of the EKF (``X`` the frame's scratch: its ``wk``, ``rm`` body -> ECI, ``m``); with the
+    proposal ``ekf_reset``, a component refused ``ekf_max_rejects`` frames running -> covariance
+    reset.
 
     Measurement matrix ``M = (RM A)^T`` (``A`` the imager alignment), measurement the pixel's
     imager unit vector components, variances ``(ekf_meas_sigma_px * scale)^2`` per axis. The
-    state's line of sight and range are formed once per state: taken from ``E[E_LOS]``,
-    ``V[V_ERHO]`` when ``V[V_ELOS]`` says this frame's :func:`predict_ekf` or :func:`start_ekf`
+    state's line of sight and range are formed once per state: taken from ``E.los[0]``,
+    ``V.erho`` when ``V.elos`` says this frame's :func:`predict_ekf` or :func:`start_ekf`
     left them, again only after an accepted update.
 
     Cases
     -----
-    both-accepted : both components incorporated -> ``E_NREJ = 0``, no status bit.
-    one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
-    both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E_NREJ`` + 1.
+    both-accepted : both components incorporated -> ``E.nrej = 0``, no status bit.
+    one-rejected : one component refused -> ``TC_INNOVATION_REJECTED``, ``E.nrej`` + 1.
+    both-rejected : both refused -> ``TC_INNOVATION_REJECTED``, ``E.nrej`` + 1.
     reset : a component refused for the ``ekf_max_rejects``-th frame running (the proposal
-        ``ekf_reset``) -> P reset to its initial diagonal, ``E_NREJ = 0``, ``TC_EKF_RESET``.
-    reset-off : ``ekf_max_rejects = 0`` (the paper's EKF) -> never reset, ``E_NREJ`` counts on.
-    los-held : ``V[V_ELOS] = 1`` -> the held line of sight is used; words and flags as when it
+        ``ekf_reset``) -> P reset to its initial diagonal, ``E.nrej = 0``, ``TC_EKF_RESET``.
+    reset-off : ``ekf_max_rejects = 0`` (the paper's EKF) -> never reset, ``E.nrej`` counts on.
+    los-held : ``V.elos = 1`` -> the held line of sight is used; words and flags as when it
         is formed here.
-    los-formed : ``V[V_ELOS] = 0`` -> formed from the state first.
+    los-formed : ``V.elos = 0`` -> formed from the state first.
     """
     fl = 0
-    img = IMG[V[V_IMG]]
-    j_obj = V[V_OBJ]
-    rs0, rs1, rs2 = V[V_RS], V[V_RS + 1], V[V_RS + 2]
-    A = img[0:9]
+    wk, RM, M = X.wk, X.rm, X.m
+    img = IMG[V.img]
+    j_obj = V.obj
+    rs0, rs1, rs2 = V.rs[0], V.rs[1], V.rs[2]
+    A = img.a
     # M = (R A)^T: M[i, j] = (R A)[j, i] = sum_k R[j, k] A[k, i]
     for i in range(3):
         for j in range(3):
@@ -187,36 +182,36 @@ def update_ekf(C, K, IMG, E, V, wk, RM, M, rows, cols, cyc):
             fl |= g
             M[i * 3 + j] = acc
     e1, e2, g = pix_unit(img, host_to32(rows[j_obj]), host_to32(cols[j_obj])); fl |= g
-    sgx, g = fm32(C[C_SIG_PX], img[IMG_SC]); fl |= g
-    sgy, g = fm32(C[C_SIG_PX], img[IMG_SR]); fl |= g
+    sgx, g = fm32(C.sig_px, img.sc); fl |= g
+    sgy, g = fm32(C.sig_px, img.sr); fl |= g
     rv1, g = fm48(to48(sgx), to48(sgx)); fl |= g
     rv2, g = fm48(to48(sgy), to48(sgy)); fl |= g
     # the state's line of sight: predict_ekf's or start_ekf's this frame (their flags are in
-    # V_FLAGS already), formed again only after an accepted update changed the state
-    if V[V_ELOS] != 0:
-        l0, l1, l2, rho, lg = E[E_LOS], E[E_LOS + 1], E[E_LOS + 2], V[V_ERHO], 0
+    # V.aflags already), formed again only after an accepted update changed the state
+    if V.elos != 0:
+        l0, l1, l2, rho, lg = E.los[0], E.los[1], E.los[2], V.erho, 0
     else:
         l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
-    ok1, nu1, s1, g = ekf_update_los(E, K, wk, np.int64(1), e1, M, l0, l1, l2, rho, rv1)
+    ok1, nu1, s1, g = ekf_update_los(E, K, wk, np.int64(1), e1, M, (l0, l1, l2, rho), rv1)
     fl |= (g | lg) & PI_FLAGS
     if ok1:
         l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
-    ok2, nu2, s2, g = ekf_update_los(E, K, wk, np.int64(2), e2, M, l0, l1, l2, rho, rv2)
+    ok2, nu2, s2, g = ekf_update_los(E, K, wk, np.int64(2), e2, M, (l0, l1, l2, rho), rv2)
     fl |= (g | lg) & PI_FLAGS
     if ok2:
         l0, l1, l2, rho, lg = ekf_los(E, rs0, rs1, rs2)
-    cyc[ST_EKF_UPD] += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
+    cyc.ekf_update += CYC_EKF_MEAS + CYC_IMG_UNIT + 2 * CYC_EKF_UPDATE
     # either component refused counts towards the reset: a one-axis refusal can hold an offset
     if not (ok1 and ok2):
-        V[V_STATUS] |= TC_INNOVATION_REJECTED
-        E[E_NREJ] += 1
-        if C[C_EKF_MAX_REJ] > 0 and E[E_NREJ] >= C[C_EKF_MAX_REJ]:
-            ekf_reset_cov(E, K[K_P0R], K[K_P0V])
-            E[E_NREJ] = 0
-            V[V_STATUS] |= TC_EKF_RESET
+        V.status |= TC_INNOVATION_REJECTED
+        E.nrej += 1
+        if C.ekf_max_rej > 0 and E.nrej >= C.ekf_max_rej:
+            ekf_reset_cov(E, K.p0r, K.p0v)
+            E.nrej = 0
+            V.status |= TC_EKF_RESET
     else:
-        E[E_NREJ] = 0
+        E.nrej = 0
     fl |= lg
-    E[E_LOS], E[E_LOS + 1], E[E_LOS + 2] = l0, l1, l2
-    V[V_ERHO], V[V_ELOS] = rho, 1
-    V[V_FLAGS] |= fl
+    E.los[0], E.los[1], E.los[2] = l0, l1, l2
+    V.erho, V.elos = rho, 1
+    V.aflags |= fl

@@ -38,7 +38,7 @@ from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
 from flightsw.messages import (CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES, TC_STATUS_NAMES,
                                TrackCommand)
-from flightsw.tp.ekf import E_P, E_RUN, UT
+from flightsw.tp.ekf import UT
 from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
@@ -294,17 +294,17 @@ class EventWriter:
         r.host((o.k, *[h.get(k, np.nan) for k in _HOST_STAGES]), HOST_DTYPE)
 
 
-#: packed-word index into the EKF state of each element of the position covariance (3, 3)
-_EKF_P_POS = E_P + UT[:3, :3]
+#: index into the EKF's covariance words (``E.p``) of each element of the position covariance
+_EKF_P_POS = UT[:3, :3]
 
 
 def _ekf_position_cov(tp) -> np.ndarray:
     """The TP's EKF position covariance (3, 3), m^2, decoded from its 1750A words (NaN when the
     EKF does not run): the snapshot keeps its diagonal only, the viewer draws the ellipse."""
     e = getattr(tp, "E", None)
-    if e is None or not e[E_RUN]:
+    if e is None or not e.run:
         return np.full((3, 3), np.nan)
-    return decode48_array(e[_EKF_P_POS])
+    return decode48_array(e.p[_EKF_P_POS])
 
 
 class _TPRows:

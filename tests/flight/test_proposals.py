@@ -19,7 +19,6 @@ import pytest
 from flightsw.messages import TC_EKF_RESET
 from flightsw.proposals import ALL, PROPOSALS, check_applicable, expand, flight_profile
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
-from flightsw.tp import layout as L
 from flightsw.tp.uplink import encode_uplink
 from groundsim.scenario import SCENARIO_DIR, ScenarioError, Scenario
 from hil_harness.cli import main
@@ -29,14 +28,15 @@ GEOM = {"wfov_vis": ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 1e-4, 1e-4)}
 NAMES = ("aim_offset", "aim_scan", "alpha_floor_locked", "alpha_floor_sparse", "ekf_reset",
          "opp_startup", "rule5", "rule_guards")
 #: the configuration words each TP proposal alone changes
-TP_WORDS = {"rule_guards": {L.C_RULE_GUARDS}, "rule5": {L.C_N_APRIORI},
-            "ekf_reset": {L.C_EKF_MAX_REJ}, "opp_startup": {L.C_OPP_STARTUP},
-            "aim_offset": {L.C_AIM_ROW, L.C_AIM_COL, L.C_AIM_ON},
-            "aim_scan": {L.C_SCAN_R, L.C_AIM_ON}}
+TP_WORDS = {"rule_guards": {"rule_guards"}, "rule5": {"n_apriori"},
+            "ekf_reset": {"ekf_max_rej"}, "opp_startup": {"opp_startup"},
+            "aim_offset": {"aim_row", "aim_col", "aim_on"},
+            "aim_scan": {"scan_r", "aim_on"}}
 
 
 def _words(proposals=(), mode="opportunity"):
-    return TrackProcessor(TPConfig(imagers=GEOM, mode=mode, proposals=proposals)).C.copy()
+    tp = TrackProcessor(TPConfig(imagers=GEOM, mode=mode, proposals=proposals))
+    return tp.state.config.copy()[0]
 
 
 def test_the_eight_public_names_each_with_summary_carrier_and_evidence(capsys):
@@ -67,24 +67,24 @@ def test_names_expand_sorted_and_bad_ones_are_named():
 @pytest.mark.parametrize("mode", ["dedicated", "opportunity"])
 def test_paper_configuration_words_are_every_proposals_off_value(mode):
     C = _words(mode=mode)
-    assert C[L.C_RULE_GUARDS] == C[L.C_N_APRIORI] == C[L.C_EKF_MAX_REJ] == 0
-    assert C[L.C_OPP_STARTUP] == C[L.C_AIM_ON] == C[L.C_AIM_ROW] == C[L.C_AIM_COL] == 0
-    assert C[L.C_SCAN_R] == 0
+    assert C.rule_guards == C.n_apriori == C.ekf_max_rej == 0
+    assert C.opp_startup == C.aim_on == C.aim_row == C.aim_col == 0
+    assert C.scan_r == 0
 
 
 @pytest.mark.parametrize("name", sorted(TP_WORDS))
 def test_each_tp_proposal_alone_changes_its_words_and_nothing_else(name):
     paper, on = _words(), _words((name,))
-    changed = set(np.flatnonzero(paper != on).tolist())
+    changed = {name for name in paper.dtype.names if paper[name] != on[name]}
     assert changed == TP_WORDS[name]
-    assert _words(("rule5",))[L.C_N_APRIORI] == 40 and _words(("ekf_reset",))[L.C_EKF_MAX_REJ] == 12
+    assert _words(("rule5",)).n_apriori == 40 and _words(("ekf_reset",)).ekf_max_rej == 12
 
 
 def test_all_proposals_give_the_configuration_words_of_97ad4aa():
     """Today's configuration, all eight, is what the TP ran with before they were proposals (the
     behaviour fixtures check its outputs bit for bit against the hashes recorded then)."""
     C = _words(ALL)
-    assert (C[L.C_N_APRIORI], C[L.C_EKF_MAX_REJ], C[L.C_OPP_STARTUP], C[L.C_RULE_GUARDS]) == \
+    assert (C.n_apriori, C.ekf_max_rej, C.opp_startup, C.rule_guards) == \
         (40, 12, 14, 1)
 
 
@@ -117,8 +117,8 @@ def test_default_event_is_the_paper_system_and_no_proposal_acts(paper_event):
     from hil_harness.event.io import summarise
     fl = summarise(ev)["flight"]
     assert (fl["profile"], fl["with"], fl["records_used"]) == ("paper", [], ["satellite"])
-    assert ev.tp.S[L.S_SCAN] == ev.tp.S[L.S_SCAN + 1] == 0
-    assert ev.tp.S[L.S_RULE] != 5
+    assert ev.tp.S.scan[0] == ev.tp.S.scan[1] == 0
+    assert ev.tp.S.rule != 5
     words = ev.ip.alpha.words()
     assert words[6] == 0 and words[8] == 0                     # sparse and locked counts
     decided = False

@@ -123,7 +123,7 @@ def test_no_accepted_tp_uplink_stops_the_tp():
                 for _ in range(2):
                     cmd = tp.step(msg(k), None)
                     k += 1
-                    assert not cmd.status & TC_INTERNAL_ERROR, (name, v, tp.last_error)
+                    assert not cmd.status & TC_INTERNAL_ERROR, (name, v)
                 assert tp.uplink(encode_uplink(n_lost=6)).accepted
 
 

@@ -13,7 +13,7 @@ import pytest
 from flightsw.arith.m1750 import decode32, decode48, encode32, encode48
 from flightsw.messages import (TC_ATTITUDE_INVALID, TC_BAD_MESSAGE, TC_COASTING, TC_FRAME_GAP)
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.attitude import (coast_attitude, frame_attitude, frame_clock, mean_rate,
                                   no_attitude_frame, read_attitude)
 
@@ -32,21 +32,21 @@ def w48(x):
 
 
 def _fresh():
-    S = np.zeros(L.S_WORDS, np.int64)
-    S[L.S_FRAME], S[L.S_DEC] = -1, -1
+    S = ST.new_record(ST.TRACK_DTYPE)
+    S.frame, S.dec = -1, -1
     return S
 
 
 def _clock(S, ok, t, fc, img=0, att_t=0.0):
-    V = np.zeros(L.V_WORDS, np.int64)
-    att = np.zeros(16)
-    att[0] = att_t
+    V = ST.new_record(ST.WORK_DTYPE)
+    att = ST.new_record(ST.ATTITUDE_DTYPE)
+    att.t = att_t
     frame_clock(C, S, V, ok, img, t, fc, att)
     return V
 
 
 def _remember(S, V):
-    S[L.S_HAVE_PREV], S[L.S_T], S[L.S_FRAME], S[L.S_IMG] = 1, V[L.V_T], V[L.V_FC], V[L.V_IMG]
+    S.have_prev, S.t, S.frame, S.img = 1, V.t, V.fc, V.img
 
 
 @pytest.mark.cases("flightsw.tp.attitude.frame_clock", "first-frame", "in-order", "count-gap",
@@ -55,46 +55,48 @@ def _remember(S, V):
 def test_frame_clock_sequence():
     S = _fresh()
     V = _clock(S, True, 100.0, 7, img=1)
-    assert (V[L.V_T], V[L.V_DT], V[L.V_DT48], V[L.V_STATUS]) == (w48(100.0), 0, 0, 0)
-    assert (V[L.V_FC], V[L.V_IMG], V[L.V_OK_MSG], V[L.V_LONG_GAP]) == (7, 1, 1, 0)
+    assert (V.t, V.dt, V.dt48, V.status) == (w48(100.0), 0, 0, 0)
+    assert (V.fc, V.img, V.ok_msg, V.long_gap) == (7, 1, 1, 0)
     _remember(S, V)
     V = _clock(S, True, 100.5, 8, img=1)
-    assert (V[L.V_DT], V[L.V_DT48], V[L.V_STATUS]) == (w(0.5), w48(0.5), 0)
+    assert (V.dt, V.dt48, V.status) == (w(0.5), w48(0.5), 0)
     _remember(S, V)
     V = _clock(S, True, 101.0, 10, img=1)                 # frame 9 never arrived
-    assert V[L.V_STATUS] == TC_FRAME_GAP and V[L.V_LONG_GAP] == 0
+    assert V.status == TC_FRAME_GAP and V.long_gap == 0
     V = _clock(S, True, 101.5, 9, img=1)                  # count in order, 1 s > 1.5 frame_dt
-    assert V[L.V_STATUS] == TC_FRAME_GAP and V[L.V_LONG_GAP] == 0
+    assert V.status == TC_FRAME_GAP and V.long_gap == 0
     V = _clock(S, True, 100.5 + 10.25, 9, img=1)          # over max_coast_s
-    assert V[L.V_STATUS] == TC_FRAME_GAP and V[L.V_LONG_GAP] == 1
+    assert V.status == TC_FRAME_GAP and V.long_gap == 1
     V = _clock(S, True, 100.5 + 9.75, 9, img=1)
-    assert V[L.V_LONG_GAP] == 0
+    assert V.long_gap == 0
     for ok, t in ((False, 200.0), (True, 100.5), (True, 99.0), (True, math.nan)):
         V = _clock(S, ok, t, 3, img=0)                    # lost, not after (equal, earlier), NaN
-        assert V[L.V_STATUS] == TC_BAD_MESSAGE and V[L.V_OK_MSG] == 0
-        assert (V[L.V_T], V[L.V_FC], V[L.V_IMG], V[L.V_DT]) == (w48(101.0), 9, 1, w(0.5))
-    S[L.S_FRAME] = 0xFFFF
-    assert _clock(S, True, 101.0, 0)[L.V_STATUS] == 0
+        assert V.status == TC_BAD_MESSAGE and V.ok_msg == 0
+        assert (V.t, V.fc, V.img, V.dt) == (w48(101.0), 9, 1, w(0.5))
+    S.frame = 0xFFFF
+    assert _clock(S, True, 101.0, 0).status == 0
 
 
 @pytest.mark.cases("flightsw.tp.attitude.frame_clock", "lost-first-frame")
 def test_a_lost_first_frame_takes_the_attitude_time():
     V = _clock(_fresh(), False, 0.0, 5, att_t=42.0)
-    assert (V[L.V_T], V[L.V_FC], V[L.V_DT], V[L.V_STATUS]) == (w48(42.0), 0, 0, TC_BAD_MESSAGE)
-    assert _clock(_fresh(), False, 0.0, 5, att_t=math.nan)[L.V_T] == 0
+    assert (V.t, V.fc, V.dt, V.status) == (w48(42.0), 0, 0, TC_BAD_MESSAGE)
+    assert _clock(_fresh(), False, 0.0, 5, att_t=math.nan).t == 0
 
 
 Q = np.array([0.9, 0.1, -0.2, 0.3]) / np.linalg.norm([0.9, 0.1, -0.2, 0.3])
 T0 = 50.0
 
 
-def _att(t=T0, valid=1.0, q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0),
+def _att(t=T0, valid=1, q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0),
          v=(0.0, 7.5e3, 10.0)):
-    return np.concatenate([[t, valid], q, rate, r, v, [0.0]])
+    att = ST.new_record(ST.ATTITUDE_DTYPE)
+    att.t, att.valid, att.q, att.rate, att.r, att.v = t, int(valid), q, rate, r, v
+    return att
 
 
 @pytest.mark.parametrize("kw, ok", [
-    ({}, True), (dict(valid=0.0), False), (dict(r=(math.nan, 0.0, 0.0)), False),
+    ({}, True), (dict(valid=0), False), (dict(r=(math.nan, 0.0, 0.0)), False),
     (dict(q=Q * 1.002), False), (dict(q=Q * 1.0004), True),   # |q|^2 - 1 = 4.0e-3 / 0.8e-3
     (dict(rate=(0.0, 0.21, 0.0)), False), (dict(rate=(0.0, 0.0, -0.19)), True),
     (dict(r=(6.1e6, 0.0, 0.0)), False), (dict(r=(0.0, 6.3e6, 0.0)), True),
@@ -104,26 +106,26 @@ def _att(t=T0, valid=1.0, q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0),
 @pytest.mark.cases("flightsw.tp.attitude.read_attitude", "usable", "not-valid", "not-encodable",
                    "quat-norm", "rate", "radius", "speed", "skew", "refused-not-stored")
 def test_attitude_checks_each_bound(kw, ok):
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_T] = w48(T0)
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.t = w48(T0)
     att = _att(**kw)
     assert read_attitude(C, V, att) == ok
     if not ok:
-        assert not V[L.V_Q:L.V_VS + 3].any()
+        assert not (V.q.any() or V.w.any() or V.wm.any() or V.rs.any() or V.vs.any())
         return
-    q = att[2:6] / np.linalg.norm(att[2:6])
-    got = [decode32(int(x)) for x in V[L.V_Q:L.V_Q + 4]]
+    q = att.q / np.linalg.norm(att.q)
+    got = [decode32(int(x)) for x in V.q]
     assert got == pytest.approx(q, abs=1e-6)
-    assert [decode48(int(x)) for x in V[L.V_RS:L.V_RS + 3]] == pytest.approx(att[9:12], abs=1e-3)
+    assert [decode48(int(x)) for x in V.rs] == pytest.approx(att.r, abs=1e-3)
 
 
 def _prev_state(q=Q, rate=(1e-3, -2e-3, 3e-3), r=(7.0e6, 1.0e5, 0.0), v=(0.0, 7.5e3, 10.0)):
     S = _fresh()
-    S[L.S_HAVE_PREV], S[L.S_HAVE_ATT], S[L.S_T], S[L.S_FRAME] = 1, 1, w48(T0 - 0.5), 3
-    S[L.S_Q:L.S_Q + 4] = [w(x) for x in q]
-    S[L.S_W:L.S_W + 3] = [w(x) for x in rate]
-    S[L.S_RS:L.S_RS + 3] = [w48(x) for x in r]
-    S[L.S_VS:L.S_VS + 3] = [w(x) for x in v]
+    S.have_prev, S.have_att, S.t, S.frame = 1, 1, w48(T0 - 0.5), 3
+    S.q = [w(x) for x in q]
+    S.w = [w(x) for x in rate]
+    S.rs = [w48(x) for x in r]
+    S.vs = [w(x) for x in v]
     return S
 
 
@@ -135,35 +137,35 @@ def _dec(words):
 def test_coasting_propagates_the_last_attitude_with_its_rate():
     rate, dt = np.array([0.02, -0.01, 0.03]), 0.5
     S = _prev_state(rate=rate)
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_DT], V[L.V_DT48] = w(dt), w48(dt)
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.dt, V.dt48 = w(dt), w48(dt)
     coast_attitude(S, V)
     q = qmul(Q, np.concatenate([[1.0], rate * dt / 2]))
-    assert _dec(V[L.V_Q:L.V_Q + 4]) == pytest.approx(q / np.linalg.norm(q), abs=1e-6)
+    assert _dec(V.q) == pytest.approx(q / np.linalg.norm(q), abs=1e-6)
     r = np.array([7.0e6, 1.0e5, 0.0]) + dt * np.array([0.0, 7.5e3, 10.0])
-    assert [decode48(int(x)) for x in V[L.V_RS:L.V_RS + 3]] == pytest.approx(r, abs=1e-3)
-    assert (V[L.V_W:L.V_W + 3] == S[L.S_W:L.S_W + 3]).all()
-    assert (V[L.V_WM:L.V_WM + 3] == S[L.S_W:L.S_W + 3]).all()
-    assert (V[L.V_VS:L.V_VS + 3] == S[L.S_VS:L.S_VS + 3]).all()
+    assert [decode48(int(x)) for x in V.rs] == pytest.approx(r, abs=1e-3)
+    assert (V.w == S.w).all()
+    assert (V.wm == S.w).all()
+    assert (V.vs == S.vs).all()
 
 
 @pytest.mark.cases("flightsw.tp.attitude.mean_rate", "mean", "first")
 def test_mean_rate_over_the_interval():
     S = _prev_state(rate=(0.01, 0.02, -0.03))
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_W:L.V_W + 3] = [w(0.03), w(-0.02), w(-0.01)]
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.w = [w(0.03), w(-0.02), w(-0.01)]
     mean_rate(S, V)
-    assert _dec(V[L.V_WM:L.V_WM + 3]) == pytest.approx([0.02, 0.0, -0.02], abs=1e-8)
-    S[L.S_HAVE_ATT] = 0
+    assert _dec(V.wm) == pytest.approx([0.02, 0.0, -0.02], abs=1e-8)
+    S.have_att = 0
     mean_rate(S, V)
-    assert (V[L.V_WM:L.V_WM + 3] == V[L.V_W:L.V_W + 3]).all()
+    assert (V.wm == V.w).all()
 
 
 def _frame(S, att, msg_ok=1, dt=0.5):
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_T], V[L.V_DT], V[L.V_DT48], V[L.V_OK_MSG] = w48(T0), w(dt), w48(dt), msg_ok
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.t, V.dt, V.dt48, V.ok_msg = w48(T0), w(dt), w48(dt), msg_ok
     RM, dR = np.zeros(9, np.int64), np.zeros(9, np.int64)
-    ok = frame_attitude(C, S, V, att, RM, dR, np.zeros(8, np.int64))
+    ok = frame_attitude(C, S, V, att, RM, dR, ST.new_record(ST.CYCLES_DTYPE))
     return ok, V, _dec(RM).reshape(3, 3), _dec(dR).reshape(3, 3)
 
 
@@ -174,34 +176,34 @@ Q_PREV = np.array([0.91, 0.09, -0.19, 0.31]) / np.linalg.norm([0.91, 0.09, -0.19
                    "measured-first", "coasted", "never", "message-lost")
 def test_frame_attitude_rotation_since_the_last_frame():
     ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att())
-    assert ok and V[L.V_EVIDENCE] == 1 and V[L.V_HAD_ATT] == 1 and V[L.V_ATT_OK] == 1
+    assert ok and V.evidence == 1 and V.had_att == 1 and V.att_ok == 1
     assert RM == pytest.approx(dcm(Q), abs=1e-6)
     assert dR == pytest.approx(dcm(Q).T @ dcm(Q_PREV), abs=1e-6)      # R_t^T R_prev
     S = _prev_state(q=Q_PREV)
-    S[L.S_HAVE_ATT] = 0                                   # frames before had no attitude
+    S.have_att = 0                                   # frames before had no attitude
     ok, V, RM, dR = _frame(S, _att(rate=(0.02, -0.01, 0.03)), msg_ok=0)
     th = np.array([0.02, -0.01, 0.03]) * 0.5
     K = np.array([[0.0, -th[2], th[1]], [th[2], 0.0, -th[0]], [-th[1], th[0], 0.0]])
-    assert ok and V[L.V_HAD_ATT] == 0 and V[L.V_EVIDENCE] == 0
+    assert ok and V.had_att == 0 and V.evidence == 0
     assert dR == pytest.approx(np.eye(3) - K + K @ K / 2, abs=1e-6)
-    ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att(valid=0.0))
-    assert ok and V[L.V_STATUS] == TC_ATTITUDE_INVALID and V[L.V_EVIDENCE] == 0
+    ok, V, RM, dR = _frame(_prev_state(q=Q_PREV), _att(valid=0))
+    assert ok and V.status == TC_ATTITUDE_INVALID and V.evidence == 0
     qc = qmul(Q_PREV, [1.0, 0.5e-3 * 0.5, -1e-3 * 0.5, 1.5e-3 * 0.5])      # coasted: w dt / 2
-    assert V[L.V_ATT_OK] == 0 and RM == pytest.approx(dcm(qc / np.linalg.norm(qc)), abs=1e-6)
+    assert V.att_ok == 0 and RM == pytest.approx(dcm(qc / np.linalg.norm(qc)), abs=1e-6)
     S = _fresh()
-    ok, V, RM, dR = _frame(S, _att(valid=0.0))
-    assert not ok and V[L.V_STATUS] == TC_ATTITUDE_INVALID
+    ok, V, RM, dR = _frame(S, _att(valid=0))
+    assert not ok and V.status == TC_ATTITUDE_INVALID
 
 
 @pytest.mark.cases("flightsw.tp.attitude.no_attitude_frame", "typical")
 def test_a_frame_without_any_attitude_only_advances_the_clock():
     S = _fresh()
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_T], V[L.V_FC], V[L.V_IMG], V[L.V_STATUS] = w48(12.5), 4, 2, TC_BAD_MESSAGE
-    out = np.zeros(L.O_WORDS)
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.t, V.fc, V.img, V.status = w48(12.5), 4, 2, TC_BAD_MESSAGE
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
     assert no_attitude_frame(S, V, out) == TC_BAD_MESSAGE | TC_COASTING
-    assert (S[L.S_HAVE_PREV], S[L.S_T], S[L.S_FRAME], S[L.S_IMG], S[L.S_NFRAMES]) == \
+    assert (S.have_prev, S.t, S.frame, S.img, S.nframes) == \
         (1, w48(12.5), 4, 2, 1)
-    assert S[L.S_STATUS] == TC_BAD_MESSAGE | TC_COASTING
-    assert (out[L.O_T], out[L.O_FRAME], out[L.O_IMG], out[L.O_DECF], out[L.O_OBJIDX]) == \
+    assert S.status == TC_BAD_MESSAGE | TC_COASTING
+    assert (out.t, out.frame, out.img, out.decf, out.objidx) == \
         (12.5, 4, 2, -1.0, -1.0)

@@ -20,10 +20,9 @@ from scipy.integrate import solve_ivp
 from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, decode48, encode32, encode48
 from flightsw.messages import TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMINAL
 from flightsw.tp import EKF1750, ImagerGeometry, NominalTrajectory
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.dynamics import J2_EARTH, MU_EARTH, R_EARTH, dyn_table
-from flightsw.tp.ekf import (E_HAVE_LOS, E_LOS, E_NREJ, E_P, E_RUN, E_T, E_WORDS, E_X,
-                             EKF_FLAG_COV, K_P0R, K_P0V, UT, ekf_init, ekf_los, ekf_params,
+from flightsw.tp.ekf import (EKF_FLAG_COV, UT, ekf_init, ekf_los, ekf_params,
                              ekf_predict, ekf_reset_cov, ekf_update)
 from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propagate_nominal,
                                     start_ekf, update_ekf)
@@ -270,13 +269,13 @@ def test_default_start_and_covariance_reset_are_diagonal_and_keep_the_state():
     f.init(5.0, R0, V0)
     assert np.array_equal(f.P, np.diag([1e6] * 3 + [100.0] * 3)) and f.t == 5.0
     assert f.x == pytest.approx(np.concatenate([R0, V0]), abs=1e-6)
-    assert (f.E[E_RUN], f.E[E_NREJ], f.E[E_HAVE_LOS]) == (1, 0, 0)
-    f.E[E_P:E_P + 21] = _w48(3.0)
-    x_words = f.E[E_X:E_X + 6].copy()
-    f.E[E_NREJ] = 2
+    assert (f.E.run, f.E.nrej, f.E.have_los) == (1, 0, 0)
+    f.E.p = _w48(3.0)
+    x_words = f.E.x.copy()
+    f.E.nrej = 2
     ekf_reset_cov(f.E, _w48(4.0), _w48(0.25))
     assert np.array_equal(f.P, np.diag([4.0] * 3 + [0.25] * 3))
-    assert np.array_equal(f.E[E_X:E_X + 6], x_words) and f.E[E_NREJ] == 2 and f.t == 5.0
+    assert np.array_equal(f.E.x, x_words) and f.E.nrej == 2 and f.t == 5.0
 
 
 @pytest.mark.cases("flightsw.tp.ekf.ekf_predict", "last-partial", "tiny", "step-cap")
@@ -292,10 +291,10 @@ def test_prediction_steps_match_float64_rk4_and_first_order_covariance():
         x = rk4(x, h)
     assert f.x[:3] == pytest.approx(x[:3], abs=1e-3) and f.x[3:] == pytest.approx(x[3:], abs=1e-5)
     assert np.abs(f.P - P).max() / np.abs(P).max() < 1e-6
-    words = f.E.copy()
+    words = f.E.tobytes()
     assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.3 + 5e-7))[1] == 0
     assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(1.0))[1] == 0
-    assert np.array_equal(f.E, words)
+    assert f.E.tobytes() == words
     f = EKF1750(j2=False, max_step=1e-3)
     f.init(0.0, R0, V0)
     assert ekf_predict(f.E, f.D, f.K, f.wk, _w48(200.0))[1] == 100001
@@ -305,7 +304,7 @@ def test_prediction_steps_match_float64_rk4_and_first_order_covariance():
 def test_line_of_sight_from_the_spacecraft_to_itself():
     f = EKF1750()
     f.init(0.0, R0, V0)
-    assert ekf_los(f.E, *f.E[E_X:E_X + 3]) == (0, 0, 0, 0, FLAG_DOMAIN)
+    assert ekf_los(f.E, *f.E.x[:3]) == (0, 0, 0, 0, FLAG_DOMAIN)
 
 
 def _m_words(M):
@@ -329,12 +328,12 @@ def test_updates_refused_by_the_innovation_gate_or_the_covariance_guard():
     # a covariance that is not positive definite: P_vx,vx = 0 with P_x,vx = 500 -> the update
     # would leave P_vx,vx = -c^2/s < 0
     E = f.E
-    E[E_P + UT[3, 3]] = 0
-    E[E_P + UT[0, 3]] = _w48(500.0)
-    words = E.copy()
+    E.p[UT[3, 3]] = 0
+    E.p[UT[0, 3]] = _w48(500.0)
+    words = E.tobytes()
     ok, nu, s_, fl = ekf_update(E, f.K, f.wk, 1, encode32(float(l_[1]), rounding="nearest"),
-                                _m_words(np.eye(3)), *[_w48(v) for v in rsc], _w48(1e-10))
-    assert not ok and fl & EKF_FLAG_COV and np.array_equal(E, words)
+                                _m_words(np.eye(3)), tuple(_w48(v) for v in rsc), _w48(1e-10))
+    assert not ok and fl & EKF_FLAG_COV and E.tobytes() == words
 
 
 # ------------------------------------------------------------------------------------------------
@@ -346,16 +345,16 @@ ONE32 = 0x40000001
 
 
 def _traj_arrays():
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_SIG_PX] = encode32(0.5, rounding="nearest")
-    C[L.C_EKF_MAX_REJ] = 3
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.sig_px = encode32(0.5, rounding="nearest")
+    C.ekf_max_rej = 3
     D = dyn_table(None, False, 0.0)
     K = ekf_params(Q_PSD, 0.5, 5.0, 100.0, 1.0)
-    S = np.zeros(L.S_WORDS, np.int64)
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_RS:L.V_RS + 3] = [_w48(x) for x in RSC]
+    S = ST.new_record(ST.TRACK_DTYPE)
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.rs = [_w48(x) for x in RSC]
     RM = np.array([ONE32, 0, 0, 0, ONE32, 0, 0, 0, ONE32], np.int64)    # body = ECI
-    return C, D, K, S, V, RM, np.zeros(8, np.int64)
+    return C, D, K, S, V, RM, ST.new_record(ST.CYCLES_DTYPE)
 
 
 def _tan(r):
@@ -371,23 +370,23 @@ def _f2b(x):
                    "propagated")
 def test_nominal_line_of_sight_change_over_a_frame():
     C, D, K, S, V, RM, cyc = _traj_arrays()
-    N = np.zeros(L.N_WORDS, np.int64)
-    N[L.N_X:L.N_X + 6] = [_w48(x) for x in (*RT, *VT)]
+    N = ST.new_record(ST.NOMINAL_DTYPE)
+    N.x = [_w48(x) for x in (*RT, *VT)]
     propagate_nominal(C, D, K, S, N, V, RM, cyc)               # t = 0: no step, no change
-    assert V[L.V_DN] == 0 and V[L.V_DN + 1] == 0 and S[L.S_NL_OK] == 1
-    first = [decode32(int(v)) for v in V[L.V_NTAN:L.V_NTAN + 2]]
-    assert V[L.V_NTAN_OK] == 1 and first == pytest.approx(_tan(RT), abs=3e-7)
-    S[L.S_HAVE_PREV] = 1
-    V[L.V_T] = _w48(0.5)
+    assert V.dn[0] == 0 and V.dn[1] == 0 and S.nl_ok == 1
+    first = [decode32(int(v)) for v in V.ntan]
+    assert V.ntan_ok == 1 and first == pytest.approx(_tan(RT), abs=3e-7)
+    S.have_prev = 1
+    V.t = _w48(0.5)
     propagate_nominal(C, D, K, S, N, V, RM, cyc)
     x = rk4(np.concatenate([RT, VT]), 0.5)        # two-body; the module's rk4 has no J2 by default
-    assert decode48(int(N[L.N_T])) == 0.5
-    assert [decode48(int(v)) for v in N[:3]] == pytest.approx(x[:3], abs=1e-3)
-    dn = [decode32(int(v)) for v in V[L.V_DN:L.V_DN + 2]]
+    assert decode48(int(N.t)) == 0.5
+    assert [decode48(int(v)) for v in N.x[:3]] == pytest.approx(x[:3], abs=1e-3)
+    dn = [decode32(int(v)) for v in V.dn]
     assert dn == pytest.approx(_tan(x[:3]) - _tan(RT), abs=3e-7)
     assert abs(dn[0]) > 1e-3                                    # a real change (7 mrad)
-    ntan = [decode32(int(v)) for v in V[L.V_NTAN:L.V_NTAN + 2]]
-    assert V[L.V_NTAN_OK] == 1 and ntan == pytest.approx(_tan(x[:3]), abs=3e-7)
+    ntan = [decode32(int(v)) for v in V.ntan]
+    assert V.ntan_ok == 1 and ntan == pytest.approx(_tan(x[:3]), abs=3e-7)
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.predict_ekf", "not-running", "first", "motion",
@@ -396,73 +395,76 @@ def test_nominal_line_of_sight_change_over_a_frame():
 @pytest.mark.cases("flightsw.tp.trajectory.ekf_running", "typical")
 def test_ekf_start_and_prediction_of_its_line_of_sight():
     C, D, K, S, V, RM, cyc = _traj_arrays()
-    N = np.zeros(L.N_WORDS, np.int64)
-    N[L.N_X:L.N_X + 6] = [_w48(x) for x in (*RT, *VT)]
-    E = np.zeros(E_WORDS, np.int64)
+    N = ST.new_record(ST.NOMINAL_DTYPE)
+    N.x = [_w48(x) for x in (*RT, *VT)]
+    E = ST.new_record(ST.EKF_DTYPE)
     wk = np.zeros(80, np.int64)
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
-    assert not ekf_running(E) and V[L.V_EKF_ON] == 0 and not E.any()
-    V[L.V_T] = _w48(2.0)
+    assert not ekf_running(E) and V.ekf_on == 0 and not any(E.tobytes())
+    V.t = _w48(2.0)
     start_ekf(K, N, E, V)
-    assert ekf_running(E) and V[L.V_EKF_ON] == 1 and decode48(int(E[E_T])) == 2.0
-    assert np.array_equal(E[E_X:E_X + 6], N[L.N_X:L.N_X + 6])
-    P = np.array([[decode48(int(E[E_P + UT[i, j]])) for j in range(6)] for i in range(6)])
+    assert ekf_running(E) and V.ekf_on == 1 and decode48(int(E.t)) == 2.0
+    assert np.array_equal(E.x, N.x)
+    P = np.array([[decode48(int(E.p[UT[i, j]])) for j in range(6)] for i in range(6)])
     assert np.array_equal(P, np.diag([1e4] * 3 + [1.0] * 3))
     l_ = (RT - RSC) / np.linalg.norm(RT - RSC)
-    assert [decode32(int(v)) for v in E[E_LOS:E_LOS + 3]] == pytest.approx(l_, abs=2e-7)
-    V[L.V_T], V[L.V_EKF_ON] = _w48(2.5), 0                      # next frame; S: no previous
+    assert [decode32(int(v)) for v in E.los] == pytest.approx(l_, abs=2e-7)
+    V.t, V.ekf_on = _w48(2.5), 0                      # next frame; S: no previous
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
-    assert V[L.V_EKF_ON] == 1 and V[L.V_DE] == 0 and decode48(int(E[E_T])) == 2.5
+    assert V.ekf_on == 1 and V.de[0] == 0 and decode48(int(E.t)) == 2.5
     x1 = rk4(np.concatenate([RT, VT]), 0.5)
-    etan = lambda: [decode32(int(v)) for v in V[L.V_ETAN:L.V_ETAN + 2]]    # noqa: E731
-    assert V[L.V_ETAN_OK] == 1 and etan() == pytest.approx(_tan(x1[:3]), abs=3e-7)
-    S[L.S_HAVE_PREV] = 1
-    V[L.V_T] = _w48(3.0)
+    etan = lambda: [decode32(int(v)) for v in V.etan]    # noqa: E731
+    assert V.etan_ok == 1 and etan() == pytest.approx(_tan(x1[:3]), abs=3e-7)
+    S.have_prev = 1
+    V.t = _w48(3.0)
     predict_ekf(C, D, K, S, E, V, wk, RM, cyc)
     x2 = rk4(x1, 0.5)
-    de = [decode32(int(v)) for v in V[L.V_DE:L.V_DE + 2]]
+    de = [decode32(int(v)) for v in V.de]
     assert de == pytest.approx(_tan(x2[:3]) - _tan(x1[:3]), abs=3e-7) and abs(de[0]) > 1e-3
-    assert V[L.V_ETAN_OK] == 1 and etan() == pytest.approx(_tan(x2[:3]), abs=3e-7)
+    assert V.etan_ok == 1 and etan() == pytest.approx(_tan(x2[:3]), abs=3e-7)
     # the body turned half round about z: the line of sight is behind the tangent plane
-    V[L.V_T], V[L.V_ETAN_OK], V[L.V_ETAN], V[L.V_ETAN + 1] = _w48(3.5), 0, 0, 0
+    V.t, V.etan_ok, V.etan[0], V.etan[1] = _w48(3.5), 0, 0, 0
     M1 = encode32(-1.0, rounding="nearest")
     predict_ekf(C, D, K, S, E, V, wk, np.array([M1, 0, 0, 0, M1, 0, 0, 0, ONE32], np.int64), cyc)
-    assert V[L.V_ETAN_OK] == 0 and V[L.V_DE] == 0 and V[L.V_ETAN] == 0
+    assert V.etan_ok == 0 and V.de[0] == 0 and V.etan[0] == 0
 
 
 def _update_case(dx, dy, nrej=0, held=False, max_rejects=None):
     """An EKF 1 Mm ahead with P = diag(1e4 m^2, 1 (m/s)^2), one candidate (dx, dy) rad off the
     estimate's line of sight (aligned imager, body = ECI, 1e-4 rad/px, sigma 0.5 px); ``held``:
-    its line of sight and range left in E_LOS, V_ERHO as predict_ekf leaves them; ``max_rejects``
+    its line of sight and range left in ``E.los``, ``V.erho`` as predict_ekf leaves them; ``max_rejects``
     the proposal ekf_reset's count (None: the arrays' own)."""
     C, D, K, S, V, RM, cyc = _traj_arrays()
     if max_rejects is not None:
-        C[L.C_EKF_MAX_REJ] = max_rejects
-    E = np.zeros(E_WORDS, np.int64)
-    ekf_init(E, *[_w48(x) for x in (*(RSC + [1.0e6, 50.0, -30.0]), *VT)], 0, K[K_P0R], K[K_P0V])
-    E[E_NREJ] = nrej
+        C.ekf_max_rej = max_rejects
+    E = ST.new_record(ST.EKF_DTYPE)
+    ekf_init(E, np.array([_w48(x) for x in (*(RSC + [1.0e6, 50.0, -30.0]), *VT)], np.int64), 0,
+             K.p0r, K.p0v)
+    E.nrej = nrej
     if held:
-        l0, l1, l2, rho, _ = ekf_los(E, *V[L.V_RS:L.V_RS + 3])
-        E[E_LOS:E_LOS + 3], V[L.V_ERHO], V[L.V_ELOS] = (l0, l1, l2), rho, 1
-    IMG = ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 1e-4, 1e-4).table_row()[None, :]
+        l0, l1, l2, rho, _ = ekf_los(E, *V.rs)
+        E.los, V.erho, V.elos = (l0, l1, l2), rho, 1
+    IMG = np.array([ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), 1e-4, 1e-4).table_row()])
     x, y = 5e-5 + dx, -3e-5 + dy
-    rows, cols = np.zeros(L.MAX_OBS), np.zeros(L.MAX_OBS)
+    rows, cols = np.zeros(ST.MAX_OBS), np.zeros(ST.MAX_OBS)
     rows[0], cols[0] = 122.0 + y / 1e-4, 128.0 + x / 1e-4
-    V[L.V_OBJ] = 0
-    update_ekf(C, K, IMG, E, V, np.zeros(80, np.int64), RM, np.zeros(9, np.int64), rows, cols, cyc)
+    V.obj = 0
+    X = ST.new_record(ST.SCRATCH_DTYPE)
+    X.rm[:] = RM
+    update_ekf(C, K, IMG, E, V, X, rows, cols, cyc)
     return E, V, np.array([x, y]) / math.sqrt(1 + x * x + y * y)
 
 
 def _decoded(E):
-    x = np.array([decode48(int(E[E_X + i])) for i in range(6)])
-    P = np.array([[decode48(int(E[E_P + UT[i, j]])) for j in range(6)] for i in range(6)])
+    x = np.array([decode48(int(E.x[i])) for i in range(6)])
+    P = np.array([[decode48(int(E.p[UT[i, j]])) for j in range(6)] for i in range(6)])
     return x, P
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "both-accepted")
 def test_update_ekf_is_two_sequential_scalar_updates():
     E, V, z = _update_case(1e-5, -2e-5)
-    assert V[L.V_STATUS] == 0 and E[E_NREJ] == 0
+    assert V.status == 0 and E.nrej == 0
     x = np.concatenate([RSC + [1.0e6, 50.0, -30.0], VT])
     P = np.diag([1e4] * 3 + [1.0] * 3)
     for comp, R in ((1, (0.5e-4) ** 2), (2, (0.5e-4) ** 2)):       # float64 reference update
@@ -484,27 +486,27 @@ def test_update_ekf_held_line_of_sight_changes_nothing():
     for args in ((1e-5, -2e-5), (0.0, 5e-3, 2), (5e-3, 5e-3, 1), (5e-3, 5e-3, 2), (5e-3, 0.0)):
         E0, V0, _ = _update_case(*args)
         E1, V1, _ = _update_case(*args, held=True)
-        assert np.array_equal(E0, E1) and np.array_equal(V0, V1), args
-        l0, l1, l2, rho, _ = ekf_los(E1, *V1[L.V_RS:L.V_RS + 3])
-        assert (*E1[E_LOS:E_LOS + 3], V1[L.V_ERHO], V1[L.V_ELOS]) == (l0, l1, l2, rho, 1)
+        assert E0.tobytes() == E1.tobytes() and V0.tobytes() == V1.tobytes(), args
+        l0, l1, l2, rho, _ = ekf_los(E1, *V1.rs)
+        assert (*E1.los, V1.erho, V1.elos) == (l0, l1, l2, rho, 1)
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.update_ekf", "one-rejected", "both-rejected", "reset")
 def test_update_ekf_rejections_counted_and_the_covariance_reset():
     E, V, z = _update_case(0.0, 5e-3, nrej=1)                 # y 100 sigma off, x on: counted
-    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 2
+    assert V.status == TC_INNOVATION_REJECTED and E.nrej == 2
     assert not np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))  # x incorporated
     E, V, z = _update_case(0.0, 5e-3, nrej=2)                 # one axis, the third frame: reset
-    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED | TC_EKF_RESET and E[E_NREJ] == 0
+    assert V.status == TC_INNOVATION_REJECTED | TC_EKF_RESET and E.nrej == 0
     assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
     E, V, z = _update_case(1e-5, -2e-5, nrej=2)               # both accepted: the count restarts
-    assert V[L.V_STATUS] == 0 and E[E_NREJ] == 0
+    assert V.status == 0 and E.nrej == 0
     E, V, z = _update_case(5e-3, 5e-3, nrej=1)
-    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == 2
+    assert V.status == TC_INNOVATION_REJECTED and E.nrej == 2
     x0, P0_ = _decoded(E)
     assert np.array_equal(P0_, np.diag([1e4] * 3 + [1.0] * 3))  # refused: P untouched
     E, V, z = _update_case(5e-3, 5e-3, nrej=2)                # the third frame running: reset
-    assert V[L.V_STATUS] == TC_INNOVATION_REJECTED | TC_EKF_RESET and E[E_NREJ] == 0
+    assert V.status == TC_INNOVATION_REJECTED | TC_EKF_RESET and E.nrej == 0
     assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
 
 
@@ -515,15 +517,15 @@ def test_without_the_ekf_reset_proposal_the_covariance_is_never_reset():
     it on the third frame running, as the test above shows."""
     for nrej in (2, 11, 500):
         E, V, z = _update_case(5e-3, 5e-3, nrej=nrej, max_rejects=0)
-        assert V[L.V_STATUS] == TC_INNOVATION_REJECTED and E[E_NREJ] == nrej + 1
+        assert V.status == TC_INNOVATION_REJECTED and E.nrej == nrej + 1
         assert np.array_equal(_decoded(E)[1], np.diag([1e4] * 3 + [1.0] * 3))
     E, V, z = _update_case(5e-3, 5e-3, nrej=2, max_rejects=3)
-    assert V[L.V_STATUS] & TC_EKF_RESET and E[E_NREJ] == 0
+    assert V.status & TC_EKF_RESET and E.nrej == 0
 
 
 @pytest.mark.cases("flightsw.tp.trajectory.no_nominal", "typical")
 def test_no_nominal_says_so_and_nothing_else():
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_STATUS] = TC_EKF_RESET
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.status = TC_EKF_RESET
     no_nominal(V)
-    assert V[L.V_STATUS] == TC_EKF_RESET | TC_NO_NOMINAL and np.count_nonzero(V) == 1
+    assert V.status == TC_EKF_RESET | TC_NO_NOMINAL and np.count_nonzero(V) == 1

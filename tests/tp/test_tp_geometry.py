@@ -10,7 +10,7 @@ import pytest
 
 from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, encode32, fix32, fm32
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.geometry import (ImagerGeometry, directions_to_pixels, host_to32, i16abs,
                                   los_delta, los_tan, make_dR, neg32, observations, rot_tan,
                                   tan_int, vec_to_pix)
@@ -127,13 +127,13 @@ def test_los_tangent_coordinates_and_their_change():
 
 def _obs_stage(img_rows, rows, cols, evidence=1):
     IMG = np.array(img_rows)
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_EVIDENCE], V[L.V_NUSE] = evidence, -5
-    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
-    r = np.zeros(max(len(rows), L.MAX_OBS))
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.evidence, V.nuse = evidence, -5
+    OBS = ST.new_record(ST.OBSERVATION_DTYPE, ST.MAX_OBS)
+    r = np.zeros(max(len(rows), ST.MAX_OBS))
     c = np.zeros_like(r)
     r[:len(rows)], c[:len(cols)] = rows, cols
-    observations(IMG, V, OBS, r, c, len(rows), np.zeros(8, np.int64))
+    observations(IMG, V, OBS, r, c, len(rows), ST.new_record(ST.CYCLES_DTYPE))
     return V, OBS
 
 
@@ -142,18 +142,18 @@ def _obs_stage(img_rows, rows, cols, evidence=1):
 def test_observation_stage_branches():
     sc = 1e-4
     V, OBS = _obs_stage([_img(sc=sc)], [100.0, 130.5, math.nan], [140.0, 60.25, 10.0])
-    assert V[L.V_NUSE] == 3 and OBS[:3, L.OBS_OK].tolist() == [1, 1, 0]
+    assert V.nuse == 3 and OBS.ok[:3].tolist() == [1, 1, 0]
     for j, (r, c) in enumerate([(100.0, 140.0), (130.5, 60.25)]):
         a, b = (c - 128.0) * sc, (r - 122.0) * sc                     # aligned imager: gnomonic
-        assert (decode32(OBS[j, L.OBS_A]), decode32(OBS[j, L.OBS_B])) == pytest.approx((a, b),
+        assert (decode32(OBS.a[j]), decode32(OBS.b[j])) == pytest.approx((a, b),
                                                                                       abs=1e-8)
-        assert (OBS[j, L.OBS_IA], OBS[j, L.OBS_IB]) == (int(a / LSB), int(b / LSB))
+        assert (OBS.ia[j], OBS.ib[j]) == (int(a / LSB), int(b / LSB))
     # an imager turned 89.9 deg about +Z: columns right of ~111 look behind the body's tangent plane
     V, OBS = _obs_stage([_img(math.radians(89.9))], [122.0, 122.0], [0.0, 255.0])
-    assert OBS[:2, L.OBS_OK].tolist() == [1, 0]
+    assert OBS.ok[:2].tolist() == [1, 0]
     V, OBS = _obs_stage([_img()], [122.0] * 30, [128.0] * 30)
-    assert V[L.V_NUSE] == L.MAX_OBS == 23 and OBS[:, L.OBS_OK].all()
+    assert V.nuse == ST.MAX_OBS == 23 and OBS.ok[:].all()
     V, OBS = _obs_stage([_img()], [], [])
-    assert V[L.V_NUSE] == 0 and V[L.V_STATUS] == TC_EMPTY_MESSAGE | TC_COASTING
+    assert V.nuse == 0 and V.status == TC_EMPTY_MESSAGE | TC_COASTING
     V, OBS = _obs_stage([_img()], [100.0], [100.0], evidence=0)
-    assert V[L.V_NUSE] == -5 and V[L.V_STATUS] == TC_COASTING and not OBS.any()
+    assert V.nuse == -5 and V.status == TC_COASTING and not OBS.view(np.int64).any()

@@ -15,7 +15,7 @@ import pytest
 from flightsw.arith.m1750 import decode32, encode32
 from flightsw.budget import M1750_PACE_COSTS
 from flightsw.tp import ImagerGeometry, TPConfig, TrackProcessor
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.alphabeta import GM_GAINS_MIX, growing_memory_gains, growing_memory_last_k
 from flightsw.tp.geometry import make_dR, tan_int
 from flightsw.tp.opportunity import track_opportunity
@@ -58,31 +58,31 @@ def test_last_startup_count_is_the_root_of_the_alpha_quadratic():
 
 
 def _kernel_state(startup_k, alpha=0.25, beta=BB_BETA):
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_OPP_ALPHA], C[L.C_OPP_BETA], C[L.C_OPP_GATE_PX] = w(alpha), w(beta), w(8.0)
-    C[L.C_OPP_N_LOST], C[L.C_OPP_STARTUP] = 6, startup_k
-    IMG = ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE).table_row()[None, :]
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.opp_alpha, C.opp_beta, C.opp_gate_px = w(alpha), w(beta), w(8.0)
+    C.opp_n_lost, C.opp_startup = 6, startup_k
+    IMG = np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE).table_row()]).view(np.recarray)
     dR = np.zeros(9, np.int64)
     assert make_dR(0, 0, 0, w(DT), dR) == 0
-    return C, IMG, np.zeros(L.S_WORDS, np.int64), dR
+    return C, IMG, ST.new_record(ST.TRACK_DTYPE), dR
 
 
 def _feed(C, IMG, S, dR, a, b):
     """One frame with the single observation (a, b) rad -> (x_a, x_b, v_a, v_b, predicted a, b,
     opportunity cycles) decoded."""
-    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
-    OBS[0, L.OBS_A], OBS[0, L.OBS_B] = w(a), w(b)
-    OBS[0, L.OBS_IA], OBS[0, L.OBS_IB] = tan_int(w(a)), tan_int(w(b))
-    OBS[0, L.OBS_OK] = 1
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_OBJ], V[L.V_DT], V[L.V_NUSE], V[L.V_EVIDENCE] = -1, w(DT), 1, 1
-    pred = (dec(S[L.S_OPP_X]) + dec(S[L.S_OPP_V]) * DT,
-            dec(S[L.S_OPP_X + 1]) + dec(S[L.S_OPP_V + 1]) * DT)
-    cyc = np.zeros(8, np.int64)
+    OBS = ST.new_record(ST.OBSERVATION_DTYPE, ST.MAX_OBS)
+    OBS.a[0], OBS.b[0] = w(a), w(b)
+    OBS.ia[0], OBS.ib[0] = tan_int(w(a)), tan_int(w(b))
+    OBS.ok[0] = 1
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.obj, V.dt, V.nuse, V.evidence = -1, w(DT), 1, 1
+    pred = (dec(S.opp.x[0]) + dec(S.opp.v[0]) * DT,
+            dec(S.opp.x[1]) + dec(S.opp.v[1]) * DT)
+    cyc = ST.new_record(ST.CYCLES_DTYPE)
     track_opportunity(C, IMG, S, OBS, V, dR, cyc)
-    assert V[L.V_OBJ] == 0 and V[L.V_FLAGS] == 0
-    return (dec(S[L.S_OPP_X]), dec(S[L.S_OPP_X + 1]), dec(S[L.S_OPP_V]), dec(S[L.S_OPP_V + 1]),
-            pred, int(cyc[L.ST_OPP]))
+    assert V.obj == 0 and V.aflags == 0
+    return (dec(S.opp.x[0]), dec(S.opp.x[1]), dec(S.opp.v[0]), dec(S.opp.v[1]),
+            pred, int(cyc.opportunity))
 
 
 @pytest.mark.cases("flightsw.tp.opportunity.follow_track", "startup")
@@ -136,15 +136,15 @@ def test_config_word_follows_the_opp_startup_proposal():
     the word to the last start-up count; the parameter without the proposal is refused."""
     g = {"wfov_uv": ImagerGeometry(np.array([1.0, 0, 0, 0]), SCALE, SCALE)}
     paper = TrackProcessor(TPConfig(imagers=g, mode="opportunity"))
-    assert paper.C[L.C_OPP_STARTUP] == 0 and paper.config.opp_startup is False
+    assert paper.C.opp_startup == 0 and paper.config.opp_startup is False
     on = TrackProcessor(TPConfig(imagers=g, mode="opportunity", proposals=("opp_startup",)))
-    assert on.C[L.C_OPP_STARTUP] == 14
-    assert np.array_equal(np.delete(on.C, L.C_OPP_STARTUP), np.delete(paper.C, L.C_OPP_STARTUP))
+    assert on.C.opp_startup == 14
+    assert [n for n in ST.CONFIG_DTYPE.names if on.C[n] != paper.C[n]] == ["opp_startup"]
     off = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_startup=False,
                                   proposals=("opp_startup",)))
     no_beta = TrackProcessor(TPConfig(imagers=g, mode="opportunity", opp_beta=0.0,
                                       proposals=("opp_startup",)))
-    assert off.C[L.C_OPP_STARTUP] == 0 and no_beta.C[L.C_OPP_STARTUP] == 0
+    assert off.C.opp_startup == 0 and no_beta.C.opp_startup == 0
     with pytest.raises(ValueError, match="TPConfig.opp_startup"):
         TPConfig(imagers=g, opp_startup=1, proposals=("opp_startup",))
     with pytest.raises(ValueError, match="TPConfig.opp_startup=True.*'opp_startup'.*off"):

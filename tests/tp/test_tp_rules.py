@@ -14,13 +14,11 @@ import pytest
 from flightsw.arith.m1750 import decode32, encode32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.association import (CYC_PAIR_DIST, CYC_PAIR_TEST, associate, gate_mask,
                                      in_gate_pairs, observation_columns, sort_pairs)
-from flightsw.tp.gates import (GP_GAIN_V, GP_HALF, GP_INV_DT, GP_THR_OBJ, GP_THR_STAR, GP_WORDS,
-                               any_gate_alive, centre_object_gate, drop_all_gates,
-                               gate_half_width, gate_params, kill_pair, propagate_gates,
-                               smooth_gates)
+from flightsw.tp.gates import (any_gate_alive, centre_object_gate, drop_all_gates, gate_params,
+                               kill_pair, propagate_gates, smooth_gates)
 from flightsw.tp.geometry import ImagerGeometry
 from flightsw.tp.geometry import make_dR, tan_int
 from flightsw.tp.rules import (DELETE, OBJECT, STAR, UNDECIDED, apply_rules, apriori_rule,
@@ -80,6 +78,18 @@ def test_rule4_object_residuals_exceed_star_residuals():
     assert not rule4(w(6e-8), w(1e-8), 1, THR, G)[0]
 
 
+def _conclude(ms, mo, ks, ko, res_s, res_o, guards):
+    """pair_conclusion on a star and an object gate with these empty frames, runs and residuals,
+    the empty limits n = n' = N, thresholds THR, ``guards`` the proposal rule_guards."""
+    g = ST.new_record(ST.GATE_DTYPE, 2)
+    g.miss, g.run, g.res = (ms, mo), (ks, ko), (res_s, res_o)
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.n_empty, C.n_empty_obj, C.rule_guards = N, N, int(guards)
+    GP = ST.new_record(ST.GATE_PARAMS_DTYPE)
+    GP.thr_star, GP.thr_obj = THR, THR
+    return pair_conclusion(g[0], g[1], C, GP)
+
+
 @pytest.mark.parametrize("ms, mo, ks, ko, s_s, s_o, want", [
     (3, 3, 0, 0, 0.0, 0.0, (DELETE, 0)),                # both gates empty n frames
     (3, 0, 0, 3, 9e-8, 1e-8, (OBJECT, 1)),
@@ -98,7 +108,7 @@ def test_rule4_object_residuals_exceed_star_residuals():
                    "star-empty-suspended", "object-empty-suspended", "star-empty-stale",
                    "object-empty-stale")
 def test_pair_conclusion_table(ms, mo, ks, ko, s_s, s_o, want):
-    concl, rule, flags = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, G)
+    concl, rule, flags = _conclude(ms, mo, ks, ko, w(s_s), w(s_o), G)
     assert (concl, rule) == want and flags == 0
 
 
@@ -134,38 +144,38 @@ def test_rules_3_4_as_stated_need_no_populated_gate():
 @pytest.mark.cases("flightsw.tp.rules.pair_conclusion", "rule1-unguarded", "rule3-unguarded")
 def test_pair_conclusion_with_and_without_the_guards(ms, mo, ks, ko, s_s, s_o, guarded, stated):
     for guards, want in ((True, guarded), (False, stated)):
-        concl, rule, _ = pair_conclusion(ms, mo, ks, ko, w(s_s), w(s_o), N, N, THR, THR, guards)
+        concl, rule, _ = _conclude(ms, mo, ks, ko, w(s_s), w(s_o), guards)
         assert (concl, rule) == want
 
 
 # ---- stage arrays --------------------------------------------------------------------------------
 def _state(dt=0.5):
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_RULE_GUARDS] = 1
-    C[L.C_ALPHA] = w(0.5)
-    C[L.C_N_EMPTY] = C[L.C_N_EMPTY_OBJ] = 1
-    C[L.C_N_LOST] = 3
-    S = np.zeros(L.S_WORDS, np.int64)
-    S[L.S_DEC] = -1
-    G = np.zeros((L.NG, L.GC), np.int64)
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_OBJ] = -1
-    V[L.V_EVIDENCE] = 1
-    V[L.V_DT] = w(dt)
-    GP = np.zeros(GP_WORDS, np.int64)
-    GP[GP_HALF] = 66                                      # ~1 mrad (LSB 2**-16 rad)
-    GP[GP_THR_OBJ] = GP[GP_THR_STAR] = THR
-    GP[GP_INV_DT] = w(1 / dt)
-    GP[GP_GAIN_V] = 0
-    return C, S, G, V, GP, np.zeros(8, np.int64)
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.rule_guards = 1
+    C.alpha = w(0.5)
+    C.n_empty = C.n_empty_obj = 1
+    C.n_lost = 3
+    S = ST.new_record(ST.TRACK_DTYPE)
+    S.dec = -1
+    G = ST.new_record(ST.GATE_DTYPE, ST.NG)
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.obj = -1
+    V.evidence = 1
+    V.dt = w(dt)
+    GP = ST.new_record(ST.GATE_PARAMS_DTYPE)
+    GP.half = 66                                      # ~1 mrad (LSB 2**-16 rad)
+    GP.thr_obj = GP.thr_star = THR
+    GP.inv_dt = w(1 / dt)
+    GP.gain_v = 0
+    return C, S, G, V, GP, ST.new_record(ST.CYCLES_DTYPE)
 
 
 def _obs(points):
-    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    OBS = ST.new_record(ST.OBSERVATION_DTYPE, ST.MAX_OBS)
     for j, (a, b) in enumerate(points):
-        OBS[j, L.OBS_A], OBS[j, L.OBS_B] = w(a), w(b)
-        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB] = tan_int(w(a)), tan_int(w(b))
-        OBS[j, L.OBS_OK] = 1
+        OBS.a[j], OBS.b[j] = w(a), w(b)
+        OBS.ia[j], OBS.ib[j] = tan_int(w(a)), tan_int(w(b))
+        OBS.ok[j] = 1
     return OBS
 
 
@@ -175,24 +185,24 @@ def _obs(points):
 def test_reinitialisation_places_a_pair_on_every_usable_observation_only_when_all_gates_are_gone():
     C, S, G, V, GP, cyc = _state()
     OBS = _obs([(0.01, 0.02), (-0.03, 0.0), (0.0, 0.04)])
-    OBS[1, L.OBS_OK] = 0                                   # unusable: no pair
-    V[L.V_NUSE], V[L.V_FC] = 3, 17
+    OBS.ok[1] = 0                                   # unusable: no pair
+    V.nuse, V.fc = 3, 17
     assert reinitialise(S, G, OBS, V, cyc) == 2
-    alive = np.flatnonzero(G[:, L.G_ALIVE])
+    alive = np.flatnonzero(G.alive[:])
     assert alive.tolist() == [0, 1, 4, 5]                  # pairs 0 and 2: star row 2p, object 2p+1
-    assert G[4, L.G_A] == OBS[2, L.OBS_A] and G[5, L.G_B] == OBS[2, L.OBS_B]
-    assert G[5, L.G_SEED] == 2 and G[5, L.G_SEEDF] == 17 and G[5, L.G_OBS] == 2
-    assert V[L.V_STATUS] & TC_REINITIALISED and S[L.S_NREINIT] == 1
+    assert G.a[4] == OBS.a[2] and G.b[5] == OBS.b[2]
+    assert G.seed[5] == 2 and G.seedf[5] == 17 and G.obs[5] == 2
+    assert V.status & TC_REINITIALISED and S.nreinit == 1
     # "if, and only if, all gates have been deleted and no valid object is found"
-    V[L.V_STATUS] = 0
+    V.status = 0
     assert reinitialise(S, G, OBS, V, cyc) == 0            # gates alive
-    G[:, L.G_ALIVE] = 0
-    S[L.S_DEC] = 0
+    G.alive[:] = 0
+    S.dec = 0
     assert reinitialise(S, G, OBS, V, cyc) == 0            # an object is held
-    S[L.S_DEC] = -1
-    V[L.V_EVIDENCE] = 0
+    S.dec = -1
+    V.evidence = 0
     assert reinitialise(S, G, OBS, V, cyc) == 0            # no usable observations this frame
-    assert V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 1
+    assert V.status == 0 and S.nreinit == 1
 
 
 def _tan(v):
@@ -208,11 +218,11 @@ def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     C, S, G, V, GP, cyc = _state()
     a0, b0 = 0.02, -0.01
     for row in (0, 1):
-        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B] = 1, w(a0), w(b0)
-    G[3, L.G_ALIVE], G[3, L.G_A], G[3, L.G_B] = 1, w(a0), w(b0)
-    G[3, L.G_DVA], G[3, L.G_DVB] = w(1e-3), w(-2e-3)       # a learned velocity, rad/s
+        G.alive[row], G.a[row], G.b[row] = 1, w(a0), w(b0)
+    G.alive[3], G.a[3], G.b[3] = 1, w(a0), w(b0)
+    G.dva[3], G.dvb[3] = w(1e-3), w(-2e-3)       # a learned velocity, rad/s
     dn = (3e-4, -1e-4)
-    V[L.V_DN], V[L.V_DN + 1] = w(dn[0]), w(dn[1])
+    V.dn[0], V.dn[1] = w(dn[0]), w(dn[1])
     wz, dt = 4e-3, 0.5                                    # body turning about +Z at 4 mrad/s
     dR = np.zeros(9, np.int64)
     assert make_dR(0, 0, w(wz), w(dt), dR) == 0
@@ -220,14 +230,14 @@ def test_gate_propagation_star_by_attitude_change_object_plus_a_priori_motion():
     th = wz * dt                                      # a fixed direction seen from the turned body
     R = np.array([[1 - th * th / 2, th, 0], [-th, 1 - th * th / 2, 0], [0, 0, 1]])
     sa, sb = _tan(R @ np.array([1.0, a0, b0]))
-    got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731
+    got = lambda row: (decode32(G.a[row]), decode32(G.b[row]))   # noqa: E731
     assert got(0) == pytest.approx((sa, sb), abs=2e-8)            # star gate
     assert got(1) == pytest.approx((sa + dn[0], sb + dn[1]), abs=2e-8)      # object gate
     assert got(3) == pytest.approx((sa + dn[0] + 1e-3 * dt, sb + dn[1] - 2e-3 * dt), abs=2e-8)
     assert sa - a0 == pytest.approx(-th * (1 + a0 * a0), rel=1e-3)         # the star moved ~2 mrad
-    assert decode32(G[0, L.G_VA]) == pytest.approx((sa - a0) / dt, rel=1e-5)
-    assert (G[[0, 1, 3], L.G_OBS] == -1).all() and G[2, L.G_ALIVE] == 0
-    assert G[0, L.G_IA] == tan_int(G[0, L.G_A])
+    assert decode32(G.va[0]) == pytest.approx((sa - a0) / dt, rel=1e-5)
+    assert (G.obs[[0, 1, 3]] == -1).all() and G.alive[2] == 0
+    assert G.ia[0] == tan_int(G.a[0])
 
 
 def _two_frames(obs_motion, nominal_motion):
@@ -235,16 +245,16 @@ def _two_frames(obs_motion, nominal_motion):
     and the nominal's a priori motion ``nominal_motion`` (rad), the body still -> the stages'
     outcome (n = 1 empty frame for rules 1 and 2, gate half-width ~1 mrad)."""
     C, S, G, V, GP, cyc = _state()
-    V[L.V_NUSE], V[L.V_FC] = 1, 1
+    V.nuse, V.fc = 1, 1
     reinitialise(S, G, _obs([(0.01, 0.02)]), V, cyc)
-    V[L.V_STATUS], V[L.V_FC] = 0, 2
-    V[L.V_DN], V[L.V_DN + 1] = w(nominal_motion[0]), w(nominal_motion[1])
+    V.status, V.fc = 0, 2
+    V.dn[0], V.dn[1] = w(nominal_motion[0]), w(nominal_motion[1])
     OBS = _obs([(0.01 + obs_motion[0], 0.02 + obs_motion[1])])
     dR = np.zeros(9, np.int64)
     make_dR(0, 0, 0, w(0.5), dR)
-    PW, TAKEN = np.zeros((L.NG * L.MAX_OBS, 3), np.int64), np.zeros(L.MAX_OBS, np.int64)
+    PW, TAKEN = np.zeros((ST.NG * ST.MAX_OBS, 3), np.int64), np.zeros(ST.MAX_OBS, np.int64)
     propagate_gates(S, G, V, GP, dR, cyc)
-    associate(G, OBS, 1, GP[GP_HALF], PW, TAKEN, cyc)
+    associate(G, OBS, 1, GP.half, PW, TAKEN, cyc)
     smooth_gates(C, G, OBS, V, GP, cyc)
     apply_rules(C, S, G, V, GP, cyc)
     return C, S, G, V
@@ -255,27 +265,27 @@ def _two_frames(obs_motion, nominal_motion):
 @pytest.mark.cases("flightsw.tp.gates.smooth_gates", "empty")
 def test_two_frames_observation_moving_as_the_nominal_is_the_object_by_rule_1():
     C, S, G, V = _two_frames((3e-3, 0.0), (3e-3, 0.0))   # 3 mrad: out of the star gate
-    assert G[0, L.G_MISS] == 1 and G[1, L.G_MISS] == 0 and G[1, L.G_RUN] == 2
-    assert S[L.S_DEC] == 0 and S[L.S_RULE] == 1 and S[L.S_DEC_FRAME] == 2
-    assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1   # the star gate deleted
-    assert V[L.V_STATUS] & TC_NEW_DECISION and S[L.S_NRULE:L.S_NRULE + 4].tolist() == [1, 0, 0, 0]
-    assert verify_object(C, S, G, V) and V[L.V_OBJ] == 0
+    assert G.miss[0] == 1 and G.miss[1] == 0 and G.run[1] == 2
+    assert S.dec == 0 and S.rule == 1 and S.dec_frame == 2
+    assert G.alive[0] == 0 and G.alive[1] == 1   # the star gate deleted
+    assert V.status & TC_NEW_DECISION and S.nrule.tolist() == [1, 0, 0, 0]
+    assert verify_object(C, S, G, V) and V.obj == 0
 
 
 @pytest.mark.cases("flightsw.tp.rules.apply_rules", "star-deleted")
 def test_two_frames_fixed_observation_against_a_moving_nominal_is_a_star_by_rule_2():
     C, S, G, V = _two_frames((0.0, 0.0), (3e-3, 0.0))
-    assert G[1, L.G_MISS] == 1 and G[0, L.G_RUN] == 2
-    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 1, 0, 0] and S[L.S_DEC] == -1
-    assert not G[:, L.G_ALIVE].any()                        # a star: both gates deleted
-    assert not V[L.V_STATUS] & TC_NEW_DECISION
+    assert G.miss[1] == 1 and G.run[0] == 2
+    assert S.nrule.tolist() == [0, 1, 0, 0] and S.dec == -1
+    assert not G.alive[:].any()                        # a star: both gates deleted
+    assert not V.status & TC_NEW_DECISION
 
 
 @pytest.mark.cases("flightsw.tp.rules.apply_rules", "undecided-kept")
 def test_two_frames_both_gates_fed_and_consistent_stay_undecided():
     C, S, G, V = _two_frames((0.0, 0.0), (0.0, 0.0))
-    assert G[0, L.G_RUN] == 2 and G[1, L.G_RUN] == 2 and G[:2, L.G_ALIVE].all()
-    assert S[L.S_DEC] == -1 and not S[L.S_NRULE:L.S_NRULE + 4].any()
+    assert G.run[0] == 2 and G.run[1] == 2 and G.alive[:2].all()
+    assert S.dec == -1 and not S.nrule.any()
 
 
 def test_rules_3_and_4_decide_on_accumulated_residuals_of_populated_gates():
@@ -283,36 +293,36 @@ def test_rules_3_and_4_decide_on_accumulated_residuals_of_populated_gates():
     for p, (s_s, s_o) in enumerate([(9e-8, 1e-8), (1e-8, 9e-8), (3e-8, 1e-8)]):
         for k, res in enumerate((s_s, s_o)):
             row = 2 * p + k
-            G[row, L.G_ALIVE], G[row, L.G_RES], G[row, L.G_RUN] = 1, w(res), 2
-    V[L.V_FC] = 5
+            G.alive[row], G.res[row], G.run[row] = 1, w(res), 2
+    V.fc = 5
     apply_rules(C, S, G, V, GP, cyc)
-    assert S[L.S_DEC] == 0 and S[L.S_RULE] == 3               # pair 0: rule 3, object
-    assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1
-    assert G[2, L.G_ALIVE] == 0 and G[3, L.G_ALIVE] == 0      # pair 1: rule 4, star
-    assert G[4, L.G_ALIVE] == 1 and G[5, L.G_ALIVE] == 1      # pair 2: within the threshold
-    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 1]
+    assert S.dec == 0 and S.rule == 3               # pair 0: rule 3, object
+    assert G.alive[0] == 0 and G.alive[1] == 1
+    assert G.alive[2] == 0 and G.alive[3] == 0      # pair 1: rule 4, star
+    assert G.alive[4] == 1 and G.alive[5] == 1      # pair 2: within the threshold
+    assert S.nrule.tolist() == [0, 0, 1, 1]
 
 
 @pytest.mark.cases("flightsw.tp.rules.apply_rules", "best-of-several")
 def test_two_object_conclusions_keep_the_more_consistent_and_count_the_other_spurious():
     C, S, G, V, GP, cyc = _state()
     for p, s_o in enumerate([2e-8, 1e-8]):
-        G[2 * p, L.G_ALIVE], G[2 * p, L.G_RES], G[2 * p, L.G_RUN] = 1, w(9e-8), 2
-        G[2 * p + 1, L.G_ALIVE], G[2 * p + 1, L.G_RES], G[2 * p + 1, L.G_RUN] = 1, w(s_o), 2
+        G.alive[2 * p], G.res[2 * p], G.run[2 * p] = 1, w(9e-8), 2
+        G.alive[2 * p + 1], G.res[2 * p + 1], G.run[2 * p + 1] = 1, w(s_o), 2
     apply_rules(C, S, G, V, GP, cyc)
-    assert S[L.S_DEC] == 1 and S[L.S_NSPURIOUS] == 1 and not G[0:2, L.G_ALIVE].any()
+    assert S.dec == 1 and S.nspurious == 1 and not G.alive[0:2].any()
 
 
 @pytest.mark.cases("flightsw.tp.rules.verify_object", "held-coasting", "lost-empty")
 def test_verified_object_lost_after_n_lost_empty_frames():
     C, S, G, V, GP, cyc = _state()
-    S[L.S_DEC] = 4
-    G[9, L.G_ALIVE], G[9, L.G_MISS], G[9, L.G_OBS] = 1, 2, -1
-    assert verify_object(C, S, G, V) and V[L.V_OBJ] == -1   # 2 empty frames < n_lost = 3
-    G[9, L.G_MISS] = 3
+    S.dec = 4
+    G.alive[9], G.miss[9], G.obs[9] = 1, 2, -1
+    assert verify_object(C, S, G, V) and V.obj == -1   # 2 empty frames < n_lost = 3
+    G.miss[9] = 3
     assert not verify_object(C, S, G, V)
-    assert S[L.S_DEC] == -1 and G[9, L.G_ALIVE] == 0 and V[L.V_STATUS] & TC_OBJECT_LOST
-    assert S[L.S_NLOST] == 1
+    assert S.dec == -1 and G.alive[9] == 0 and V.status & TC_OBJECT_LOST
+    assert S.nlost == 1
 
 
 # ---- the remaining branches of the rules stage (issue 22: each kernel's listed cases) -----------
@@ -328,27 +338,27 @@ def test_rules_1_2_threshold_is_inclusive_and_at_most_2n_populated_frames_are_as
                    "half-pair-skipped")
 def test_apply_rules_stale_pairs_counted_objects_while_held_spurious_and_the_held_pair_skipped():
     C, S, G, V, GP, cyc = _state()                      # n = n' = 1 empty frame
-    S[L.S_DEC] = 0
-    G[1, L.G_ALIVE], G[1, L.G_MISS] = 1, 9              # held object: star gate gone, not ruled on
-    G[2, L.G_ALIVE], G[2, L.G_MISS] = 1, 4              # pair 1: star gate empty 4n, object
-    G[3, L.G_ALIVE], G[3, L.G_RES] = 1, w(9e-8)         #   gate never populated -> stale
+    S.dec = 0
+    G.alive[1], G.miss[1] = 1, 9              # held object: star gate gone, not ruled on
+    G.alive[2], G.miss[2] = 1, 4              # pair 1: star gate empty 4n, object
+    G.alive[3], G.res[3] = 1, w(9e-8)         #   gate never populated -> stale
     for row, res in ((4, 9e-8), (5, 1e-8)):             # pair 2: rule 3 says object
-        G[row, L.G_ALIVE], G[row, L.G_RES], G[row, L.G_RUN] = 1, w(res), 2
+        G.alive[row], G.res[row], G.run[row] = 1, w(res), 2
     apply_rules(C, S, G, V, GP, cyc)
-    assert S[L.S_NSTALE] == 1 and not G[2:4, L.G_ALIVE].any()
-    assert S[L.S_NSPURIOUS] == 1 and not G[4:6, L.G_ALIVE].any()
-    assert S[L.S_DEC] == 0 and G[1, L.G_ALIVE] == 1 and S[L.S_NDEC] == 0
-    assert S[L.S_NRULE:L.S_NRULE + 4].tolist() == [0, 0, 1, 0]
-    assert not V[L.V_STATUS] & TC_NEW_DECISION
+    assert S.nstale == 1 and not G.alive[2:4].any()
+    assert S.nspurious == 1 and not G.alive[4:6].any()
+    assert S.dec == 0 and G.alive[1] == 1 and S.ndec == 0
+    assert S.nrule.tolist() == [0, 0, 1, 0]
+    assert not V.status & TC_NEW_DECISION
 
 
 @pytest.mark.cases("flightsw.tp.rules.verify_object", "none-held", "lost-deleted")
 def test_verify_object_without_an_object_and_with_its_gate_deleted():
     C, S, G, V, GP, cyc = _state()
-    assert not verify_object(C, S, G, V) and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
-    S[L.S_DEC] = 2                                      # gate row 5 never alive
+    assert not verify_object(C, S, G, V) and V.status == 0 and S.nlost == 0
+    S.dec = 2                                      # gate row 5 never alive
     assert not verify_object(C, S, G, V)
-    assert S[L.S_DEC] == -1 and S[L.S_NLOST] == 1 and V[L.V_STATUS] & TC_OBJECT_LOST
+    assert S.dec == -1 and S.nlost == 1 and V.status & TC_OBJECT_LOST
 
 
 @pytest.mark.cases("flightsw.tp.rules.reinitialise", "nothing-usable")
@@ -356,73 +366,72 @@ def test_verify_object_without_an_object_and_with_its_gate_deleted():
 def test_reinitialise_without_usable_observations_places_nothing_and_says_nothing():
     C, S, G, V, GP, cyc = _state()
     OBS = _obs([(0.01, 0.02)])
-    OBS[0, L.OBS_OK] = 0
-    V[L.V_NUSE] = 1
+    OBS.ok[0] = 0
+    V.nuse = 1
     assert reinitialise(S, G, OBS, V, cyc) == 0
-    V[L.V_NUSE] = 0
-    OBS[0, L.OBS_OK] = 1
+    V.nuse = 0
+    OBS.ok[0] = 1
     assert reinitialise(S, G, OBS, V, cyc) == 0
-    assert V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 0 and not G[:, L.G_ALIVE].any()
-    assert cyc.sum() == 0
+    assert V.status == 0 and S.nreinit == 0 and not G.alive[:].any()
+    assert sum(cyc.tolist()) == 0
 
 
 @pytest.mark.cases("flightsw.tp.rules.report_object", "none-held", "locked", "coasting")
 def test_report_object_status_words():
     C, S, G, V, GP, cyc = _state()
     report_object(S, V)
-    assert V[L.V_STATUS] == 0 and V[L.V_LOCKED] == 0
-    S[L.S_DEC], V[L.V_OBJ] = 3, 0
+    assert V.status == 0 and V.locked == 0
+    S.dec, V.obj = 3, 0
     report_object(S, V)
-    assert V[L.V_STATUS] == TC_OBJECT_DECIDED and V[L.V_LOCKED] == 1
-    V[L.V_STATUS], V[L.V_LOCKED], V[L.V_OBJ] = 0, 0, -1
+    assert V.status == TC_OBJECT_DECIDED and V.locked == 1
+    V.status, V.locked, V.obj = 0, 0, -1
     report_object(S, V)
-    assert V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_COASTING and V[L.V_LOCKED] == 0
+    assert V.status == TC_OBJECT_DECIDED | TC_COASTING and V.locked == 0
 
 
 @pytest.mark.cases("flightsw.tp.rules.object_observed", "observed", "none-held", "not-fed",
                    "no-evidence")
 def test_object_observed_needs_a_held_fed_object_and_usable_evidence():
     C, S, G, V, GP, cyc = _state()
-    S[L.S_DEC], V[L.V_OBJ] = 1, 2
+    S.dec, V.obj = 1, 2
     assert object_observed(S, V)
-    V[L.V_EVIDENCE] = 0
+    V.evidence = 0
     assert not object_observed(S, V)
-    V[L.V_EVIDENCE], V[L.V_OBJ] = 1, -1
+    V.evidence, V.obj = 1, -1
     assert not object_observed(S, V)
-    S[L.S_DEC], V[L.V_OBJ] = -1, 2
+    S.dec, V.obj = -1, 2
     assert not object_observed(S, V)
 
 
 # ---- gates: the remaining branches ---------------------------------------------------------------
 @pytest.mark.cases("flightsw.tp.gates.kill_pair", "typical")
 @pytest.mark.cases("flightsw.tp.gates.any_gate_alive", "none-alive", "last-row-alive")
-@pytest.mark.cases("flightsw.tp.gates.gate_half_width", "typical")
 def test_kill_pair_any_gate_alive_and_the_half_width_word():
     C, S, G, V, GP, cyc = _state()
-    assert not any_gate_alive(G) and gate_half_width(GP) == 66
-    G[L.NG - 1, L.G_ALIVE] = 1
+    assert not any_gate_alive(G) and GP.half == 66
+    G.alive[ST.NG - 1] = 1
     assert any_gate_alive(G)
-    G[:, L.G_ALIVE] = 1
+    G.alive[:] = 1
     kill_pair(G, 3)
-    assert np.flatnonzero(G[:, L.G_ALIVE] == 0).tolist() == [6, 7]
+    assert np.flatnonzero(G.alive[:] == 0).tolist() == [6, 7]
 
 
 @pytest.mark.cases("flightsw.tp.gates.drop_all_gates", "gates-deleted", "object-held-lost",
                    "no-object")
 def test_drop_all_gates_after_a_long_gap():
     C, S, G, V, GP, cyc = _state()
-    G[[1, 4, 5, L.NG - 2], L.G_ALIVE] = 1               # half-dead pair, a pair, last star gate
+    G.alive[[1, 4, 5, ST.NG - 2]] = 1               # half-dead pair, a pair, last star gate
     drop_all_gates(S, G, V)
-    assert not G[:, L.G_ALIVE].any() and V[L.V_STATUS] == 0 and S[L.S_NLOST] == 0
-    S[L.S_DEC] = 0
-    G[1, L.G_ALIVE] = 1
+    assert not G.alive[:].any() and V.status == 0 and S.nlost == 0
+    S.dec = 0
+    G.alive[1] = 1
     drop_all_gates(S, G, V)
-    assert not G[:, L.G_ALIVE].any() and S[L.S_DEC] == -1 and S[L.S_NLOST] == 1
-    assert V[L.V_STATUS] & TC_OBJECT_LOST
+    assert not G.alive[:].any() and S.dec == -1 and S.nlost == 1
+    assert V.status & TC_OBJECT_LOST
 
 
 def _img(sc, sr):
-    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+    return np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()]).view(np.recarray)
 
 
 @pytest.mark.parametrize("sc, sr, dt, beta", [(1.0e-4, 0.6e-4, 0.5, 0.2),
@@ -432,38 +441,38 @@ def _img(sc, sr):
                    "thresholds", "beta", "beta-zero", "dt-zero")
 def test_gate_params_from_pixels_to_radians(sc, sr, dt, beta):
     C, S, G, V, GP, cyc = _state()
-    C[L.C_GATE_PX], C[L.C_THR_OBJ], C[L.C_THR_STAR], C[L.C_BETA] = w(7.3), w(2.0), w(3.0), w(beta)
-    V[L.V_DT] = w(dt) if dt else 0
+    C.gate_px, C.thr_obj, C.thr_star, C.beta = w(7.3), w(2.0), w(3.0), w(beta)
+    V.dt = w(dt) if dt else 0
     gate_params(C, _img(sc, sr), V, GP, cyc)
-    assert GP[GP_HALF] == int(7.3 * max(sc, sr) * 2 ** 16)     # 47: FIX truncates, far from a tie
-    assert decode32(GP[GP_THR_OBJ]) == pytest.approx(2.0 * sc * sr, rel=1e-6)
-    assert decode32(GP[GP_THR_STAR]) == pytest.approx(3.0 * sc * sr, rel=1e-6)
+    assert GP.half == int(7.3 * max(sc, sr) * 2 ** 16)     # 47: FIX truncates, far from a tie
+    assert decode32(GP.thr_obj) == pytest.approx(2.0 * sc * sr, rel=1e-6)
+    assert decode32(GP.thr_star) == pytest.approx(3.0 * sc * sr, rel=1e-6)
     if dt == 0:
-        assert GP[GP_INV_DT] == 0 and GP[GP_GAIN_V] == 0
+        assert GP.inv_dt == 0 and GP.gain_v == 0
     else:
-        assert decode32(GP[GP_INV_DT]) == pytest.approx(1 / dt, rel=1e-6)
-        gain = decode32(GP[GP_GAIN_V]) if GP[GP_GAIN_V] else 0.0
+        assert decode32(GP.inv_dt) == pytest.approx(1 / dt, rel=1e-6)
+        gain = decode32(GP.gain_v) if GP.gain_v else 0.0
         assert gain == pytest.approx(beta / dt, rel=1e-6)
-    assert V[L.V_FLAGS] == 0
+    assert V.aflags == 0
 
 
 @pytest.mark.cases("flightsw.tp.gates.propagate_gates", "object-gate-ekf", "dt-zero")
 def test_the_verified_object_gate_moves_by_the_ekf_motion_and_dt_zero_keeps_the_velocity():
     C, S, G, V, GP, cyc = _state()
-    S[L.S_DEC] = 1                                      # pair 1: rows 2, 3
+    S.dec = 1                                      # pair 1: rows 2, 3
     for row in (1, 3):
-        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B], G[row, L.G_VA] = 1, w(0.01), w(0.02), 77
-    V[L.V_EKF_ON] = 1
-    V[L.V_DN], V[L.V_DN + 1] = w(1e-3), w(2e-3)
-    V[L.V_DE], V[L.V_DE + 1] = w(-3e-3), w(4e-3)
-    GP[GP_INV_DT] = 0
+        G.alive[row], G.a[row], G.b[row], G.va[row] = 1, w(0.01), w(0.02), 77
+    V.ekf_on = 1
+    V.dn[0], V.dn[1] = w(1e-3), w(2e-3)
+    V.de[0], V.de[1] = w(-3e-3), w(4e-3)
+    GP.inv_dt = 0
     dR = np.zeros(9, np.int64)
     make_dR(0, 0, 0, w(0.5), dR)                        # body still: dR = I
     propagate_gates(S, G, V, GP, dR, cyc)
-    got = lambda row: (decode32(G[row, L.G_A]), decode32(G[row, L.G_B]))   # noqa: E731
+    got = lambda row: (decode32(G.a[row]), decode32(G.b[row]))   # noqa: E731
     assert got(1) == pytest.approx((0.011, 0.022), abs=1e-8)               # nominal motion
     assert got(3) == pytest.approx((0.007, 0.024), abs=1e-8)               # the EKF's motion
-    assert G[1, L.G_VA] == 77 and G[3, L.G_VA] == 77                        # not re-formed
+    assert G.va[1] == 77 and G.va[3] == 77                        # not re-formed
 
 
 def _apriori_case(m=40):
@@ -472,17 +481,17 @@ def _apriori_case(m=40):
     them successive (``G_HITS`` 50, ``G_RUN`` 3); the
     nominal at (0.0102, 0.0199); rule 5 after ``m`` frames; gate half-width 66 LSB (~1 mrad)."""
     C, S, G, V, GP, cyc = _state()
-    C[L.C_N_APRIORI] = m
+    C.n_apriori = m
     pts = [(0.010, 0.020), (0.030, -0.010)]
     for j, (p, (a, b)) in enumerate(zip((0, 2), pts)):
         for row in (2 * p, 2 * p + 1):
-            G[row, L.G_ALIVE], G[row, L.G_HITS], G[row, L.G_RUN], G[row, L.G_OBS] = 1, 50, 3, j
-            G[row, L.G_A], G[row, L.G_B] = w(a), w(b)
-            G[row, L.G_IA], G[row, L.G_IB] = tan_int(w(a)), tan_int(w(b))
+            G.alive[row], G.hits[row], G.run[row], G.obs[row] = 1, 50, 3, j
+            G.a[row], G.b[row] = w(a), w(b)
+            G.ia[row], G.ib[row] = tan_int(w(a)), tan_int(w(b))
     OBS = _obs(pts)
-    V[L.V_NUSE] = 2
-    V[L.V_NTAN], V[L.V_NTAN + 1], V[L.V_NTAN_OK] = w(0.0102), w(0.0199), 1
-    V[L.V_FC] = 77
+    V.nuse = 2
+    V.ntan[0], V.ntan[1], V.ntan_ok = w(0.0102), w(0.0199), 1
+    V.fc = 77
     return C, S, G, OBS, V, GP, cyc
 
 
@@ -491,42 +500,42 @@ def _apriori_case(m=40):
 def test_rule5_takes_the_long_undecided_pair_nearest_the_nominal_and_drops_the_others():
     C, S, G, OBS, V, GP, cyc = _apriori_case()
     apriori_rule(C, S, G, OBS, V, GP, cyc)
-    assert S[L.S_DEC] == 0 and S[L.S_RULE] == 5 and S[L.S_DEC_FRAME] == 77 and S[L.S_NDEC] == 1
-    assert G[0, L.G_ALIVE] == 0 and G[1, L.G_ALIVE] == 1          # its star gate deleted
-    assert G[4, L.G_ALIVE] == G[5, L.G_ALIVE] == 0                 # the other: a star by position
-    assert S[L.S_NSTALE] == 1
-    assert V[L.V_STATUS] & TC_NEW_DECISION and cyc[L.ST_GATES] > 0
+    assert S.dec == 0 and S.rule == 5 and S.dec_frame == 77 and S.ndec == 1
+    assert G.alive[0] == 0 and G.alive[1] == 1          # its star gate deleted
+    assert G.alive[4] == G.alive[5] == 0                 # the other: a star by position
+    assert S.nstale == 1
+    assert V.status & TC_NEW_DECISION and cyc.gates > 0
     # star-by-position: an observation no gate holds lies nearer the nominal (0.0101, 0.0199)
     C, S, G, OBS, V, GP, cyc = _apriori_case()
     OBS[:3] = _obs([(0.010, 0.020), (0.030, -0.010), (0.0101, 0.0199)])[:3]
-    V[L.V_NUSE] = 3
+    V.nuse = 3
     apriori_rule(C, S, G, OBS, V, GP, cyc)
-    assert S[L.S_DEC] == -1 and S[L.S_NSTALE] == 2 and not G[:6, L.G_ALIVE].any()
-    assert not V[L.V_STATUS] & TC_NEW_DECISION
+    assert S.dec == -1 and S.nstale == 2 and not G.alive[:6].any()
+    assert not V.status & TC_NEW_DECISION
     # the nearest, but 1.2 mrad from the nominal (beyond the 66-LSB gate): a star as well
     C, S, G, OBS, V, GP, cyc = _apriori_case()
-    V[L.V_NTAN] = w(0.0112)
+    V.ntan[0] = w(0.0112)
     apriori_rule(C, S, G, OBS, V, GP, cyc)
-    assert S[L.S_DEC] == -1 and S[L.S_NSTALE] == 2
+    assert S.dec == -1 and S.nstale == 2
     # none: one gate populated on one frame too few (that pair is left alone, however long its
     # run); rule off; an object held; no nominal line of sight
     C, S, G, OBS, V, GP, cyc = _apriori_case()
-    G[0, L.G_HITS], G[0, L.G_RUN] = 39, 39
+    G.hits[0], G.run[0] = 39, 39
     apriori_rule(C, S, G, OBS, V, GP, cyc)
-    assert S[L.S_DEC] == -1 and G[0, L.G_ALIVE] == G[1, L.G_ALIVE] == 1 and S[L.S_NSTALE] == 1
+    assert S.dec == -1 and G.alive[0] == G.alive[1] == 1 and S.nstale == 1
     for undo in ("off", "held", "no-nominal"):
         C, S, G, OBS, V, GP, cyc = _apriori_case()
         if undo == "off":
-            C[L.C_N_APRIORI] = 0
+            C.n_apriori = 0
         elif undo == "held":
-            S[L.S_DEC] = 2
-            G[4, L.G_ALIVE] = 0
+            S.dec = 2
+            G.alive[4] = 0
         else:
-            V[L.V_NTAN_OK] = 0
+            V.ntan_ok = 0
         before = G.copy()
         apriori_rule(C, S, G, OBS, V, GP, cyc)
-        assert np.array_equal(G, before) and S[L.S_RULE] == 0 and S[L.S_NSTALE] == 0, undo
-        assert S[L.S_DEC] == (2 if undo == "held" else -1), undo
+        assert np.array_equal(G, before) and S.rule == 0 and S.nstale == 0, undo
+        assert S.dec == (2 if undo == "held" else -1), undo
 
 
 @pytest.mark.cases("flightsw.tp.rules.apriori_rule", "star-by-residual")
@@ -536,26 +545,26 @@ def test_rule5_refuses_the_nearest_pair_when_its_star_gate_fits_better():
     for res_star, res_obj, decided in ((2e-7, 1e-7, True), (2e-7, 2e-7, True), (1e-7, 3e-7, False),
                                        (0.0, 1e-9, False)):
         C, S, G, OBS, V, GP, cyc = _apriori_case()
-        G[0, L.G_RES] = w(res_star) if res_star else 0
-        G[1, L.G_RES] = w(res_obj)
+        G.res[0] = w(res_star) if res_star else 0
+        G.res[1] = w(res_obj)
         apriori_rule(C, S, G, OBS, V, GP, cyc)
         if decided:
-            assert S[L.S_DEC] == 0 and S[L.S_RULE] == 5 and S[L.S_NSTALE] == 1
-            assert G[1, L.G_ALIVE] == 1
+            assert S.dec == 0 and S.rule == 5 and S.nstale == 1
+            assert G.alive[1] == 1
         else:                                          # both pairs dropped, nothing decided
-            assert S[L.S_DEC] == -1 and S[L.S_RULE] == 0 and S[L.S_NSTALE] == 2
-            assert not G[:6, L.G_ALIVE].any() and not V[L.V_STATUS] & TC_NEW_DECISION
+            assert S.dec == -1 and S.rule == 0 and S.nstale == 2
+            assert not G.alive[:6].any() and not V.status & TC_NEW_DECISION
 
 
 def _ekf_case():
     """A verified pair 1 (gates 2, 3 alive at (0.01, 0.02)) and the EKF's line of sight this frame
     at (-0.004, 0.003) in body tangent coordinates (``V_ETAN``, as predict_ekf leaves it)."""
     C, S, G, V, GP, cyc = _state()
-    S[L.S_DEC] = 1
+    S.dec = 1
     for row in (2, 3):
-        G[row, L.G_ALIVE], G[row, L.G_A], G[row, L.G_B] = 1, w(0.01), w(0.02)
-    V[L.V_EKF_ON], V[L.V_ETAN_OK] = 1, 1
-    V[L.V_ETAN], V[L.V_ETAN + 1] = w(-0.004), w(0.003)
+        G.alive[row], G.a[row], G.b[row] = 1, w(0.01), w(0.02)
+    V.ekf_on, V.etan_ok = 1, 1
+    V.etan[0], V.etan[1] = w(-0.004), w(0.003)
     return S, G, V, cyc
 
 
@@ -564,76 +573,76 @@ def test_the_verified_object_gate_is_put_on_the_ekf_line_of_sight():
     S, G, V, cyc = _ekf_case()
     before = G.copy()
     centre_object_gate(S, G, V, cyc)
-    assert (G[3, L.G_A], G[3, L.G_B]) == (w(-0.004), w(0.003))
+    assert (G.a[3], G.b[3]) == (w(-0.004), w(0.003))
     # the integer copies: FIX (toward zero) of 2**16 times the words, -262.1 and 196.6
-    assert (G[3, L.G_IA], G[3, L.G_IB]) == (-262, 196)
+    assert (G.ia[3], G.ib[3]) == (-262, 196)
     assert np.array_equal(G[2], before[2])                  # the star gate is not moved
-    assert cyc[L.ST_GATES] > 0 and V[L.V_FLAGS] == 0
+    assert cyc.gates > 0 and V.aflags == 0
     for undo in ("no-decision", "no-line-of-sight", "dead-gate"):
         S, G, V, cyc = _ekf_case()
         if undo == "no-decision":
-            S[L.S_DEC] = -1
+            S.dec = -1
         elif undo == "no-line-of-sight":
-            V[L.V_ETAN_OK] = 0
+            V.etan_ok = 0
         else:
-            G[3, L.G_ALIVE] = 0
+            G.alive[3] = 0
         before = G.copy()
         centre_object_gate(S, G, V, cyc)
-        assert np.array_equal(G, before) and cyc[L.ST_GATES] == 0, undo
+        assert np.array_equal(G, before) and cyc.gates == 0, undo
 
 
 @pytest.mark.parametrize("beta", [0.0, 0.2])
 @pytest.mark.cases("flightsw.tp.gates.smooth_gates", "fed", "fed-with-beta", "dead-skipped")
 def test_smoothing_a_fed_gate_is_the_alpha_beta_step_and_accumulates_squared_residuals(beta):
     C, S, G, V, GP, cyc = _state()                      # alpha 0.5, dt 0.5
-    GP[GP_GAIN_V] = w(beta / 0.5) if beta else 0
+    GP.gain_v = w(beta / 0.5) if beta else 0
     a0, b0, va, vb, res0 = 0.01, 0.02, 1e-3, -2e-3, 3e-8
-    G[1, L.G_ALIVE], G[1, L.G_A], G[1, L.G_B], G[1, L.G_OBS] = 1, w(a0), w(b0), 0
-    G[1, L.G_DVA], G[1, L.G_DVB], G[1, L.G_RES], G[1, L.G_RUN], G[1, L.G_HITS] = \
+    G.alive[1], G.a[1], G.b[1], G.obs[1] = 1, w(a0), w(b0), 0
+    G.dva[1], G.dvb[1], G.res[1], G.run[1], G.hits[1] = \
         w(va), w(vb), w(res0), 2, 3
-    G[1, L.G_MISS] = 0
-    G[3, L.G_OBS] = 0                                   # dead row: left alone
+    G.miss[1] = 0
+    G.obs[3] = 0                                   # dead row: left alone
     za, zb = 0.0103, 0.0196
     smooth_gates(C, G, _obs([(za, zb)]), V, GP, cyc)
     ra, rb = za - a0, zb - b0
-    assert decode32(G[1, L.G_A]) == pytest.approx(a0 + 0.5 * ra, abs=2e-9)
-    assert decode32(G[1, L.G_B]) == pytest.approx(b0 + 0.5 * rb, abs=2e-9)
-    assert decode32(G[1, L.G_DVA]) == pytest.approx(va + beta / 0.5 * ra, rel=1e-5)
-    assert decode32(G[1, L.G_DVB]) == pytest.approx(vb + beta / 0.5 * rb, rel=1e-5)
-    assert decode32(G[1, L.G_RES]) == pytest.approx(res0 + ra * ra + rb * rb, rel=1e-4)
-    assert (G[1, L.G_RUN], G[1, L.G_HITS], G[1, L.G_MISS]) == (3, 4, 0)
-    assert G[3].tolist() == [0] * L.GC
+    assert decode32(G.a[1]) == pytest.approx(a0 + 0.5 * ra, abs=2e-9)
+    assert decode32(G.b[1]) == pytest.approx(b0 + 0.5 * rb, abs=2e-9)
+    assert decode32(G.dva[1]) == pytest.approx(va + beta / 0.5 * ra, rel=1e-5)
+    assert decode32(G.dvb[1]) == pytest.approx(vb + beta / 0.5 * rb, rel=1e-5)
+    assert decode32(G.res[1]) == pytest.approx(res0 + ra * ra + rb * rb, rel=1e-4)
+    assert (G.run[1], G.hits[1], G.miss[1]) == (3, 4, 0)
+    assert G[3].tolist() == (0,) * len(ST.GATE_DTYPE.names)
 
 
 # ---- association, on the 16-bit integer coordinates (LSB 2**-16 rad) -----------------------------
 def _int_gates(rows):
     """{row: (ia, ib)} -> live gates at those integer coordinates."""
-    G = np.zeros((L.NG, L.GC), np.int64)
-    G[:, L.G_OBS] = -1
+    G = ST.new_record(ST.GATE_DTYPE, ST.NG)
+    G.obs[:] = -1
     for row, (ia, ib) in rows.items():
-        G[row, L.G_ALIVE], G[row, L.G_IA], G[row, L.G_IB] = 1, ia, ib
+        G.alive[row], G.ia[row], G.ib[row] = 1, ia, ib
     return G
 
 
 def _int_obs(points):
-    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    OBS = ST.new_record(ST.OBSERVATION_DTYPE, ST.MAX_OBS)
     for j, (ia, ib) in enumerate(points):
-        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB], OBS[j, L.OBS_OK] = ia, ib, 1
+        OBS.ia[j], OBS.ib[j], OBS.ok[j] = ia, ib, 1
     return OBS
 
 
 def _scratch():
-    return np.zeros((L.NG * L.MAX_OBS, 3), np.int64), np.zeros(L.MAX_OBS, np.int64), \
-        np.zeros(8, np.int64)
+    return np.zeros((ST.NG * ST.MAX_OBS, 3), np.int64), np.zeros(ST.MAX_OBS, np.int64), \
+        ST.new_record(ST.CYCLES_DTYPE)
 
 
 @pytest.mark.cases("flightsw.tp.association.in_gate_pairs", "inside", "edge-inclusive", "outside",
                    "one-class", "dead-skipped", "unusable-skipped", "no-observations")
 def test_in_gate_pairs_square_gate_on_integer_coordinates():
     G = _int_gates({0: (100, -50), 1: (100, -50), 2: (0, 0)})
-    G[2, L.G_ALIVE] = 0                                  # dead star gate at the origin
+    G.alive[2] = 0                                  # dead star gate at the origin
     OBS = _int_obs([(110, -45), (90, -60), (111, -50), (100, -39), (0, 0), (105, -50)])
-    OBS[5, L.OBS_OK] = 0                                  # unusable, though inside
+    OBS.ok[5] = 0                                  # unusable, though inside
     PW, TAKEN, cyc = _scratch()
     OC = observation_columns(OBS)
     n = in_gate_pairs(G, OC, 6, 0, 10, PW, cyc)           # star class, half-width 10
@@ -650,13 +659,13 @@ def _brute_pairs(G, OBS, nuse, kind, half):
     """The in-gate triples by the definition: every live gate of the class against every usable
     observation, by gate row then observation index (plain Python)."""
     out = []
-    for row in range(kind, L.NG, 2):
-        if not G[row, L.G_ALIVE]:
+    for row in range(kind, ST.NG, 2):
+        if not G.alive[row]:
             continue
         for j in range(nuse):
-            da = int(OBS[j, L.OBS_IA] - G[row, L.G_IA])
-            db = int(OBS[j, L.OBS_IB] - G[row, L.G_IB])
-            if OBS[j, L.OBS_OK] and abs(da) <= half and abs(db) <= half:
+            da = int(OBS.ia[j] - G.ia[row])
+            db = int(OBS.ib[j] - G.ib[row])
+            if OBS.ok[j] and abs(da) <= half and abs(db) <= half:
                 out.append([da * da + db * db, row, j])
     return out
 
@@ -665,11 +674,11 @@ def _crowded(rng):
     """Live gates and observations crowded into a few gate widths (ties in ``OBS_IA`` included),
     some gates dead, some observations unusable."""
     G = _int_gates({r: (int(rng.integers(-40, 40)), int(rng.integers(-40, 40)))
-                    for r in range(L.NG)})
-    G[rng.random(L.NG) < 0.2, L.G_ALIVE] = 0
+                    for r in range(ST.NG)})
+    G.alive[rng.random(ST.NG) < 0.2] = 0
     OBS = _int_obs([(int(rng.integers(-45, 45)) // 3 * 3, int(rng.integers(-45, 45)))
-                    for _ in range(L.MAX_OBS)])
-    OBS[rng.random(L.MAX_OBS) < 0.15, L.OBS_OK] = 0
+                    for _ in range(ST.MAX_OBS)])
+    OBS.ok[rng.random(ST.MAX_OBS) < 0.15] = 0
     return G, OBS
 
 
@@ -682,18 +691,18 @@ def test_in_gate_pairs_equals_every_pair_tested():
     rng = np.random.default_rng(23)
     for _ in range(40):
         G, OBS = _crowded(rng)
-        nuse, half = int(rng.integers(0, L.MAX_OBS + 1)), int(rng.integers(0, 12))
+        nuse, half = int(rng.integers(0, ST.MAX_OBS + 1)), int(rng.integers(0, 12))
         for kind in range(2):
             PW, TAKEN, cyc = _scratch()
             n = in_gate_pairs(G, observation_columns(OBS), nuse, kind, half, PW, cyc)
             want = _brute_pairs(G, OBS, nuse, kind, half)
             assert PW[:n].tolist() == want
-            live = int(G[kind::2, L.G_ALIVE].sum())
-            assert cyc[L.ST_GATES] == live * nuse * CYC_PAIR_TEST + len(want) * CYC_PAIR_DIST
+            live = int(G.alive[kind::2].sum())
+            assert cyc.gates == live * nuse * CYC_PAIR_TEST + len(want) * CYC_PAIR_DIST
     OBS = _int_obs([(0, 0), (10, -10), (11, 0), (0, 11), (3, 3), (1, 1)])
-    OBS[4, L.OBS_OK] = 0
+    OBS.ok[4] = 0
     OC = observation_columns(OBS)
-    assert OC.tolist() == OBS[:, [L.OBS_IA, L.OBS_IB, L.OBS_OK]].T.tolist()
+    assert OC.tolist() == [OBS.ia.tolist(), OBS.ib.tolist(), OBS.ok.tolist()]
     assert gate_mask(OC, 5, 0, 0, 10) == 0b00011        # edges in, beyond out, unusable, row 5
     assert gate_mask(OC, 6, 0, 0, 10) == 0b100011
 
@@ -704,7 +713,7 @@ def test_associate_is_greedy_nearest_first():
     rng = np.random.default_rng(7)
     for _ in range(40):
         G, OBS = _crowded(rng)
-        nuse, half = int(rng.integers(0, L.MAX_OBS + 1)), int(rng.integers(0, 12))
+        nuse, half = int(rng.integers(0, ST.MAX_OBS + 1)), int(rng.integers(0, 12))
         want = {}
         for kind in range(2):
             taken = set()
@@ -714,7 +723,7 @@ def test_associate_is_greedy_nearest_first():
                     taken.add(j)
         PW, TAKEN, cyc = _scratch()
         associate(G, OBS, nuse, half, PW, TAKEN, cyc)
-        got = {r: int(G[r, L.G_OBS]) for r in range(L.NG) if G[r, L.G_OBS] >= 0}
+        got = {r: int(G.obs[r]) for r in range(ST.NG) if G.obs[r] >= 0}
         assert got == want
 
 
@@ -745,7 +754,7 @@ def test_associate_greedy_nearest_neighbour_per_class():
     OBS = _int_obs([(3, 0), (6, 0)])
     PW, TAKEN, cyc = _scratch()
     associate(G, OBS, 2, 10, PW, TAKEN, cyc)
-    assert (G[0, L.G_OBS], G[2, L.G_OBS], G[1, L.G_OBS]) == (1, 0, 1)
+    assert (G.obs[0], G.obs[2], G.obs[1]) == (1, 0, 1)
     G = _int_gates({0: (0, 0), 1: (0, 0)})
     associate(G, _int_obs([(40, 0), (0, -11)]), 2, 10, PW, TAKEN, cyc)
-    assert (G[:, L.G_OBS] == -1).all()
+    assert (G.obs[:] == -1).all()

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from flightsw.arith.m1750 import encode32
-from flightsw.tp import layout as F
+from flightsw.tp import state as ST
 from flightsw.tp import snapshot as P
 from hil_harness.event import Event, EventConfig
 
@@ -51,6 +51,7 @@ GATE_FIELDS = ("gate_pos", "gate_vel", "gate_resid", "gate_pixel")
 
 @pytest.mark.cases("flightsw.tp.snapshot.snapshot_kernel", "live-gate", "dead-gate", "ekf-off",
                    "ekf-on", "opp-off")
+@pytest.mark.cases("flightsw.tp.snapshot.snapshot_of_state", "typical")
 def test_recorded_rows_unchanged(tmp_path):
     """Frames 0 and 3 (EKF off, two live gates), 20, 90, 180 (EKF on, one live gate): the rows of
     ``tables/tp`` equal, byte for byte, those recorded before the snapshot was compiled, except
@@ -83,10 +84,10 @@ def test_recorded_rows_unchanged(tmp_path):
 
 def _state():
     """A TP-like state with no gate, no EKF, no opportunity track (all words zero)."""
-    G = np.zeros((F.NG, F.GC), np.int64)
-    S = np.zeros(F.S_WORDS, np.int64)
-    E = np.zeros(40, np.int64)
-    img = np.zeros(64, np.int64)
+    G = ST.new_record(ST.GATE_DTYPE, ST.NG)
+    S = ST.new_record(ST.TRACK_DTYPE)
+    E = ST.new_record(ST.EKF_DTYPE)
+    img = ST.new_record(ST.IMAGER_DTYPE)
     return G, S, E, img
 
 
@@ -94,9 +95,9 @@ def _state():
                    "undecided")
 def test_no_state_is_nan_and_sentinels():
     G, S, E, img = _state()
-    G[:, F.G_MISS], G[:, F.G_OBS], G[:, F.G_SEED] = 7, 3, 5        # ignored: the gates are dead
-    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_NLOST] = -1, 42, 70000     # no pair; 70000 fits int32
-    S[F.S_OPP_MISS] = 70000                                        # cut to int16, as numpy cuts
+    G.miss[:], G.obs[:], G.seed[:] = 7, 3, 5        # ignored: the gates are dead
+    S.dec, S.dec_frame, S.nlost = -1, 42, 70000     # no pair; 70000 fits int32
+    S.opp.miss = 70000                                        # cut to int16, as numpy cuts
     rec = np.frombuffer(b"\x5a" * P.SNAPSHOT_DTYPE.itemsize, P.SNAPSHOT_DTYPE).copy()
     P.snapshot_kernel(G, S, E, img, rec)
     r = rec[0]
@@ -105,7 +106,7 @@ def test_no_state_is_nan_and_sentinels():
         assert np.isnan(r[name]).all(), name
     assert (r["gate_missed"] == 0).all() and (r["gate_obs"] == -1).all()
     assert (r["gate_seed"] == -1).all() and (r["gate_alive"] == 0).all()
-    assert r["gate_kind"].tolist() == [i % 2 for i in range(F.NG)]
+    assert r["gate_kind"].tolist() == [i % 2 for i in range(ST.NG)]
     assert r["object_pair"] == -1 and r["decided_frame"] == -1 and r["n_lost"] == 70000
     assert r["ekf_running"] == 0 and r["opp_alive"] == 0
     assert r["opp_missed"] == np.array([70000]).astype(np.int16)[0] == 70000 - 65536
@@ -115,10 +116,10 @@ def test_no_state_is_nan_and_sentinels():
 def test_opportunity_track_decoded_exactly():
     """Powers of two are exact in the 1750A 32-bit float: the decoded values are known."""
     G, S, E, img = _state()
-    S[F.S_OPP_ALIVE] = 1
-    S[F.S_OPP_X], S[F.S_OPP_X + 1] = encode32(0.5), encode32(-0.25)
-    S[F.S_OPP_V], S[F.S_OPP_V + 1] = encode32(2.0 ** -10), encode32(-3.0)
-    S[F.S_DEC], S[F.S_DEC_FRAME], S[F.S_OPP_MISS] = 3, 17, 2
+    S.opp.alive = 1
+    S.opp.x[0], S.opp.x[1] = encode32(0.5), encode32(-0.25)
+    S.opp.v[0], S.opp.v[1] = encode32(2.0 ** -10), encode32(-3.0)
+    S.dec, S.dec_frame, S.opp.miss = 3, 17, 2
     rec = np.zeros(1, P.SNAPSHOT_DTYPE)
     P.snapshot_kernel(G, S, E, img, rec)
     r = rec[0]

@@ -1,7 +1,7 @@
 """Hand-made cases for the track processor's kernels not covered by ``test_tp_rules.py`` (issue 22:
 every listed case of a kernel is reached by a test): the target-of-opportunity tracker, the track
 command (direction, predicted pixel, pointing, outputs, end of frame), the alpha-beta arrays and the
-layout accessors.
+the records cleared each frame.
 
 Inputs are 1750A words built with ``encode32``; the expected outcomes are float64 closed forms (the
 alpha-beta step, the gnomonic projection) or worked by hand from the kernels' specification.
@@ -14,11 +14,10 @@ from flightsw.arith.m1750 import FLAG_DOMAIN, decode32, decode48, encode32, enco
 from flightsw.messages import (TC_ARITH_FLAG, TC_COASTING, TC_EKF_RUNNING, TC_OBJECT_DECIDED,
                                TC_OBJECT_LOST, TC_REINITIALISED)
 from flightsw.tp import alpha_beta_step
-from flightsw.tp import layout as L
+from flightsw.tp import state as ST
 from flightsw.tp.alphabeta import ab_update
 from flightsw.tp.command import (command, end_frame, filter_outputs, pointing, predicted_pixel,
                                  prediction_in, target_direction)
-from flightsw.tp.ekf import E_P, E_WORDS, E_X
 from flightsw.tp.geometry import ImagerGeometry, make_dR, tan_int
 from flightsw.tp.opportunity import first_in_gate, track_opportunity
 
@@ -28,15 +27,15 @@ def w(x):
 
 
 def img_table(sc=1e-4, sr=1e-4):
-    return ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()[None, :]
+    return np.array([ImagerGeometry(np.array([1.0, 0, 0, 0]), sc, sr).table_row()]).view(np.recarray)
 
 
 def obs(points, ok=None):
-    OBS = np.zeros((L.MAX_OBS, L.OBS_C), np.int64)
+    OBS = ST.new_record(ST.OBSERVATION_DTYPE, ST.MAX_OBS)
     for j, (a, b) in enumerate(points):
-        OBS[j, L.OBS_A], OBS[j, L.OBS_B] = w(a), w(b)
-        OBS[j, L.OBS_IA], OBS[j, L.OBS_IB] = tan_int(w(a)), tan_int(w(b))
-        OBS[j, L.OBS_OK] = 1 if ok is None else ok[j]
+        OBS.a[j], OBS.b[j] = w(a), w(b)
+        OBS.ia[j], OBS.ib[j] = tan_int(w(a)), tan_int(w(b))
+        OBS.ok[j] = 1 if ok is None else ok[j]
     return OBS
 
 
@@ -53,23 +52,23 @@ DT, ALPHA, BETA = 0.5, 0.5, 0.2
 
 
 def _opp_state(beta=BETA):
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_OPP_ALPHA], C[L.C_OPP_GATE_PX], C[L.C_OPP_N_LOST] = w(ALPHA), w(5.0), 2
-    C[L.C_OPP_BETA] = w(beta) if beta else 0
-    S = np.zeros(L.S_WORDS, np.int64)
-    return C, S, np.zeros(L.V_WORDS, np.int64), np.zeros(8, np.int64)
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.opp_alpha, C.opp_gate_px, C.opp_n_lost = w(ALPHA), w(5.0), 2
+    C.opp_beta = w(beta) if beta else 0
+    S = ST.new_record(ST.TRACK_DTYPE)
+    return C, S, ST.new_record(ST.WORK_DTYPE), ST.new_record(ST.CYCLES_DTYPE)
 
 
 def _opp_frame(C, S, V, OBS, nuse, evidence=1, long_gap=0):
-    V[:] = 0
-    V[L.V_OBJ], V[L.V_DT], V[L.V_NUSE], V[L.V_EVIDENCE], V[L.V_LONG_GAP] = \
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.obj, V.dt, V.nuse, V.evidence, V.long_gap = \
         -1, w(DT), nuse, evidence, long_gap
-    track_opportunity(C, img_table(), S, OBS, V, identity_dR(DT), np.zeros(8, np.int64))
+    track_opportunity(C, img_table(), S, OBS, V, identity_dR(DT), ST.new_record(ST.CYCLES_DTYPE))
     return V
 
 
 def _x(S):
-    return decode32(S[L.S_OPP_X]), decode32(S[L.S_OPP_X + 1])
+    return decode32(S.opp.x[0]), decode32(S.opp.x[1])
 
 
 @pytest.mark.parametrize("beta", [BETA, 0.0])
@@ -83,36 +82,36 @@ def test_opportunity_track_frame_by_frame(beta):
     C, S, V, cyc = _opp_state(beta)
     # frame 0: acquisition on the only candidate
     V = _opp_frame(C, S, V, obs([(0.01, 0.02)]), 1)
-    assert S[L.S_OPP_ALIVE] == 1 and _x(S) == (decode32(w(0.01)), decode32(w(0.02)))
-    assert V[L.V_OBJ] == 0 and V[L.V_LOCKED] == 0 and S[L.S_NREINIT] == 1
-    assert V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_REINITIALISED
+    assert S.opp.alive == 1 and _x(S) == (decode32(w(0.01)), decode32(w(0.02)))
+    assert V.obj == 0 and V.locked == 0 and S.nreinit == 1
+    assert V.status == TC_OBJECT_DECIDED | TC_REINITIALISED
     # frame 1: a decoy far away ranked first, then two candidates in the 5e-4 rad gate: the higher
     # ranked (1, 2e-4 off) feeds the track, not the nearer (2, 1e-4 off)
     z = (0.0102, 0.0198)
     V = _opp_frame(C, S, V, obs([(0.05, 0.05), z, (0.0101, 0.02)]), 3)
-    assert V[L.V_OBJ] == 1 and V[L.V_LOCKED] == 1 and V[L.V_STATUS] == TC_OBJECT_DECIDED
+    assert V.obj == 1 and V.locked == 1 and V.status == TC_OBJECT_DECIDED
     ra, rb = z[0] - 0.01, z[1] - 0.02                  # velocity 0 after acquisition: x_p = x
     assert _x(S) == pytest.approx((0.01 + ALPHA * ra, 0.02 + ALPHA * rb), abs=1e-8)
-    va = decode32(S[L.S_OPP_V]) if S[L.S_OPP_V] else 0.0
-    vb = decode32(S[L.S_OPP_V + 1]) if S[L.S_OPP_V + 1] else 0.0
+    va = decode32(S.opp.v[0]) if S.opp.v[0] else 0.0
+    vb = decode32(S.opp.v[1]) if S.opp.v[1] else 0.0
     assert (va, vb) == pytest.approx((beta / DT * ra, beta / DT * rb), rel=1e-5, abs=1e-12)
     x1 = _x(S)
     # frame 2: no usable evidence: predicted by v dt, no empty frame counted, coasting
     V = _opp_frame(C, S, V, obs([x1]), 1, evidence=0)
     assert _x(S) == pytest.approx((x1[0] + va * DT, x1[1] + vb * DT), abs=1e-8)
-    assert S[L.S_OPP_MISS] == 0 and V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_COASTING
+    assert S.opp.miss == 0 and V.status == TC_OBJECT_DECIDED | TC_COASTING
     # frame 3: evidence, nothing in the gate: one empty frame, still coasting
     x2 = _x(S)
     V = _opp_frame(C, S, V, obs([(0.05, 0.05)]), 1)
-    assert S[L.S_OPP_MISS] == 1 and S[L.S_OPP_ALIVE] == 1 and V[L.V_LOCKED] == 0
+    assert S.opp.miss == 1 and S.opp.alive == 1 and V.locked == 0
     assert _x(S) == pytest.approx((x2[0] + va * DT, x2[1] + vb * DT), abs=1e-8)
-    assert V[L.V_STATUS] == TC_OBJECT_DECIDED | TC_COASTING
+    assert V.status == TC_OBJECT_DECIDED | TC_COASTING
     # frame 4: second empty frame = opp_n_lost: lost, and reacquired on the first usable candidate
     V = _opp_frame(C, S, V, obs([(0.05, 0.05), (-0.03, 0.04)], ok=[0, 1]), 2)
-    assert S[L.S_NLOST] == 1 and V[L.V_STATUS] & TC_OBJECT_LOST
-    assert S[L.S_OPP_ALIVE] == 1 and V[L.V_OBJ] == 1 and S[L.S_OPP_OBS] == 1
-    assert _x(S) == (decode32(w(-0.03)), decode32(w(0.04))) and S[L.S_OPP_HITS] == 1
-    assert S[L.S_OPP_V] == 0 and S[L.S_OPP_V + 1] == 0 and S[L.S_NREINIT] == 2
+    assert S.nlost == 1 and V.status & TC_OBJECT_LOST
+    assert S.opp.alive == 1 and V.obj == 1 and S.opp.obs == 1
+    assert _x(S) == (decode32(w(-0.03)), decode32(w(0.04))) and S.opp.hits == 1
+    assert S.opp.v[0] == 0 and S.opp.v[1] == 0 and S.nreinit == 2
 
 
 @pytest.mark.cases("flightsw.tp.opportunity.track_opportunity", "long-gap", "no-track")
@@ -121,18 +120,18 @@ def test_opportunity_long_gap_drops_the_track_and_no_evidence_starts_none():
     C, S, V, cyc = _opp_state()
     _opp_frame(C, S, V, obs([(0.01, 0.02)]), 1)
     V = _opp_frame(C, S, V, obs([(0.2, 0.1)]), 1, long_gap=1)
-    assert S[L.S_OPP_ALIVE] == 1 and _x(S) == (decode32(w(0.2)), decode32(w(0.1)))
-    assert S[L.S_NLOST] == 0 and S[L.S_NREINIT] == 2 and V[L.V_STATUS] & TC_REINITIALISED
+    assert S.opp.alive == 1 and _x(S) == (decode32(w(0.2)), decode32(w(0.1)))
+    assert S.nlost == 0 and S.nreinit == 2 and V.status & TC_REINITIALISED
     V = _opp_frame(C, S, V, obs([(0.2, 0.1)]), 1, evidence=0, long_gap=1)
-    assert S[L.S_OPP_ALIVE] == 0 and V[L.V_STATUS] == 0 and S[L.S_OPP_OBS] == -1
+    assert S.opp.alive == 0 and V.status == 0 and S.opp.obs == -1
     V = _opp_frame(C, S, V, obs([(0.2, 0.1)], ok=[0]), 1)      # evidence, nothing usable
-    assert S[L.S_OPP_ALIVE] == 0 and V[L.V_STATUS] == 0 and S[L.S_NREINIT] == 2
+    assert S.opp.alive == 0 and V.status == 0 and S.nreinit == 2
 
 
 @pytest.mark.cases("flightsw.tp.opportunity.first_in_gate", "row-scale-larger", "unusable-skipped")
 def test_opportunity_gate_is_sized_by_the_larger_pixel_scale():
     C, S, V, cyc = _opp_state()
-    V[L.V_NUSE] = 3
+    V.nuse = 3
     OBS = obs([(0.0104, 0.02), (0.0108, 0.02), (0.0112, 0.02)], ok=[0, 1, 1])
     # 5 px x 2e-4 rad = 1e-3 rad = 65 LSB: 0.8 mrad (52 LSB) inside; with 1e-4 rad/px it is not
     j, fl = first_in_gate(img_table(1e-4, 2e-4), C, OBS, V, w(0.01), w(0.02), cyc)
@@ -167,23 +166,24 @@ T_FRAME = 0.5
 
 
 def _cmd_state(rm=np.eye(3), q=(1.0, 0.0, 0.0, 0.0)):
-    C = np.zeros(L.C_WORDS, np.int64)
-    C[L.C_FRAME_DT] = w48(T_FRAME)
-    S = np.zeros(L.S_WORDS, np.int64)
-    S[L.S_DEC] = -1
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_OBJ] = -1
+    C = ST.new_record(ST.CONFIG_DTYPE)
+    C.frame_dt = w48(T_FRAME)
+    S = ST.new_record(ST.TRACK_DTYPE)
+    S.dec = -1
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.obj = -1
     for i in range(3):
-        V[L.V_RS + i], V[L.V_VS + i] = w48(RS[i]), w(VS[i])
+        V.rs[i], V.vs[i] = w48(RS[i]), w(VS[i])
     for i in range(4):
-        V[L.V_Q + i] = w(q[i])
+        V.q[i] = w(q[i])
     return C, S, V, _packed(rm)
 
 
-def _state48(r, v, E=None, off=0):
-    X = np.zeros(L.N_WORDS if E is None else E, np.int64)
+def _state48(r, v, dtype=ST.NOMINAL_DTYPE):
+    """A nominal (or, ``dtype`` EKF_DTYPE, an EKF) record whose state is (r, v), 48-bit."""
+    X = ST.new_record(dtype)
     for i in range(3):
-        X[off + i], X[off + 3 + i] = w48(r[i]), w48(v[i])
+        X.x[i], X.x[3 + i] = w48(r[i]), w48(v[i])
     return X
 
 
@@ -206,24 +206,24 @@ def test_target_direction_from_the_nominal_the_ekf_or_the_opportunity_track():
     rm = _rz(0.3)
     C, S, V, RM = _cmd_state(rm)
     N = _state48(R_T, V_T)
-    E = _state48(R_E, V_E, E_WORDS, E_X)
+    E = _state48(R_E, V_E, ST.EKF_DTYPE)
     for ekf_on, want in ((0, _los(R_T, V_T)), (1, _los(R_E, V_E))):
-        V[L.V_EKF_ON] = ekf_on
+        V.ekf_on = ekf_on
         have, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, False, True)
         assert have and fl == 0
         assert _dec(l0, l1, l2) == pytest.approx(want, abs=1e-6)
         assert _dec(u0, u1, u2) == pytest.approx(rm.T @ want, abs=1e-6)
-    V[L.V_EKF_ON] = 0
+    V.ekf_on = 0
     assert not target_direction(C, S, N, E, V, RM, False, False)[0]
     N0 = _state48(RS, VS)                                  # the nominal at the spacecraft itself
     have, *_, fl = target_direction(C, S, N0, E, V, RM, False, True)
     assert not have and fl & FLAG_DOMAIN
     # opportunity: the track's tangent coordinates advanced by v T
     assert not target_direction(C, S, N, E, V, RM, True, True)[0]
-    S[L.S_OPP_ALIVE] = 1
-    S[L.S_OPP_X], S[L.S_OPP_X + 1], S[L.S_OPP_V], S[L.S_OPP_V + 1] = \
+    S.opp.alive = 1
+    S.opp.x[0], S.opp.x[1], S.opp.v[0], S.opp.v[1] = \
         w(0.01), w(-0.02), w(1e-3), w(2e-3)
-    V[L.V_EKF_ON] = 1                                      # ignored in opportunity mode
+    V.ekf_on = 1                                      # ignored in opportunity mode
     have, l0, l1, l2, u0, u1, u2, fl = target_direction(C, S, N, E, V, RM, True, True)
     u = _unit([1.0, 0.01 + 1e-3 * T_FRAME, -0.02 + 2e-3 * T_FRAME])
     assert have and _dec(u0, u1, u2) == pytest.approx(u, abs=1e-6)
@@ -252,15 +252,15 @@ W_NOW = np.array([0.05, 0.0, 0.0])                         # sampled rate, delib
 def test_predicted_pixel_turns_the_direction_at_the_mean_rate_else_the_sampled_rate(had_att, dt,
                                                                                     gap, rate):
     C, S, V, RM = _cmd_state()
-    V[L.V_HAD_ATT], V[L.V_DT], V[L.V_LONG_GAP] = had_att, w(dt) if dt else 0, gap
+    V.had_att, V.dt, V.long_gap = had_att, w(dt) if dt else 0, gap
     for i in range(3):
-        V[L.V_W + i] = w(W_NOW[i]) if W_NOW[i] else 0
+        V.w[i] = w(W_NOW[i]) if W_NOW[i] else 0
     dR = np.zeros(9, np.int64)
     assert make_dR(w(W_PREV[0]), w(W_PREV[1]), w(W_PREV[2]), w(0.5), dR) == 0
     u = _unit([1.0, 2e-3, -3e-3])
     wk = np.zeros(80, np.int64)
     prow, pcol, ok, n0, n1, n2, fl = predicted_pixel(C, img_table(SC, SC), V, dR, wk,
-                                                     *[w(x) for x in u], np.zeros(8, np.int64))
+                                                     *[w(x) for x in u], ST.new_record(ST.CYCLES_DTYPE))
     K = _skew(rate * T_FRAME)                              # second order, as the flight dR
     n = (np.eye(3) - K + K @ K / 2) @ u
     assert ok and fl == 0
@@ -275,14 +275,14 @@ def test_prediction_through_an_imager_and_behind_it():
     dR = np.zeros(9, np.int64)
     back = [w(-1.0), 0, 0]
     ok = predicted_pixel(C, img_table(SC, SC), V, dR, np.zeros(80, np.int64), *back,
-                         np.zeros(8, np.int64))[2]
+                         ST.new_record(ST.CYCLES_DTYPE))[2]
     assert not ok
     assert prediction_in(img_table(SC, SC)[0], S) == (0, 0, False)
-    S[L.S_PRED_OK] = 1
-    S[L.S_PRED:L.S_PRED + 3] = [w(1.0), w(1e-3), w(-2e-3)]
+    S.pred_ok = 1
+    S.pred = [w(1.0), w(1e-3), w(-2e-3)]
     row, col, ok = prediction_in(img_table(SC, 2 * SC)[0], S)
     assert ok and (decode32(row), decode32(col)) == pytest.approx((122.0 - 10.0, 138.0), abs=1e-4)
-    S[L.S_PRED:L.S_PRED + 3] = back
+    S.pred = back
     assert not prediction_in(img_table(SC, SC)[0], S)[2]
 
 
@@ -316,12 +316,15 @@ def test_pointing_is_the_minimal_rotation_onto_the_target(u, ok):
 def test_command_writes_what_it_has_and_nan_for_the_rest(rel, nominal, want):
     C, S, V, RM = _cmd_state()
     N = _state48(RS + T_FRAME * VS + np.asarray(rel) - T_FRAME * VS, VS)   # moves with the s/c
-    out = np.zeros(L.O_WORDS)
-    command(C, img_table(SC, SC), S, N, np.zeros(E_WORDS, np.int64), V, RM, np.zeros(9, np.int64),
-            np.zeros(80, np.int64), out, False, nominal, np.zeros(8, np.int64))
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
+    C.have_nom = 1 if nominal else 0
+    X = ST.new_record(ST.SCRATCH_DTYPE)
+    X.rm[:] = RM
+    command(C, img_table(SC, SC), S, N, ST.new_record(ST.EKF_DTYPE), V, X, out,
+            ST.new_record(ST.CYCLES_DTYPE))
     u = _unit(rel)
-    qp, pix, los = out[L.O_QP:L.O_QP + 4], out[L.O_PROW:L.O_PCOL + 1], out[L.O_LOS:L.O_LOS + 3]
-    assert S[L.S_PRED_OK] == (want != "nothing")
+    qp, pix, los = out.qp, np.array([out.prow, out.pcol]), out.los
+    assert S.pred_ok == (want != "nothing")
     if want == "tracked":
         assert pix == pytest.approx(_pix(u), abs=2e-3) and los == pytest.approx(u, abs=1e-6)
         assert qp == pytest.approx(_unit([1 + u[0], 0.0, -u[2], u[1]]), abs=1e-6)
@@ -336,48 +339,48 @@ def test_command_writes_what_it_has_and_nan_for_the_rest(rel, nominal, want):
 @pytest.mark.cases("flightsw.tp.ekf.ekf_sigmas", "typical")
 @pytest.mark.cases("flightsw.tp.command.filter_outputs", "running", "off")
 def test_filter_outputs_decode_the_state_and_the_root_traces():
-    E = _state48(R_E, V_E, E_WORDS, E_X)
+    E = _state48(R_E, V_E, ST.EKF_DTYPE)
     for k, var in zip((0, 6, 11, 15, 18, 20), (100.0, 400.0, 900.0, 1.0, 4.0, 4.0)):
-        E[E_P + k] = w48(var)                               # the diagonal of the packed P
-    V = np.zeros(L.V_WORDS, np.int64)
-    out = np.zeros(L.O_WORDS)
-    filter_outputs(E, V, out, np.zeros(8, np.int64))
-    assert np.isnan(out[L.O_R:L.O_SV + 1]).all() and V[L.V_STATUS] == 0
-    V[L.V_EKF_ON] = 1
-    filter_outputs(E, V, out, np.zeros(8, np.int64))
-    assert out[L.O_R:L.O_R + 3].tolist() == [decode48(int(x)) for x in E[E_X:E_X + 3]]
-    assert out[L.O_V:L.O_V + 3] == pytest.approx(V_E, abs=1e-6)
-    assert out[L.O_SP] == pytest.approx(np.sqrt(1400.0), rel=1e-6)
-    assert out[L.O_SV] == pytest.approx(3.0, rel=1e-6)
-    assert V[L.V_STATUS] == TC_EKF_RUNNING
+        E.p[k] = w48(var)                               # the diagonal of the packed P
+    V = ST.new_record(ST.WORK_DTYPE)
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
+    filter_outputs(E, V, out, ST.new_record(ST.CYCLES_DTYPE))
+    assert np.isnan([*out.r, *out.v, out.sp, out.sv]).all() and V.status == 0
+    V.ekf_on = 1
+    filter_outputs(E, V, out, ST.new_record(ST.CYCLES_DTYPE))
+    assert out.r.tolist() == [decode48(int(x)) for x in E.x[:3]]
+    assert out.v == pytest.approx(V_E, abs=1e-6)
+    assert out.sp == pytest.approx(np.sqrt(1400.0), rel=1e-6)
+    assert out.sv == pytest.approx(3.0, rel=1e-6)
+    assert V.status == TC_EKF_RUNNING
 
 
 @pytest.mark.cases("flightsw.tp.command.end_frame", "counts", "arith-flag", "decided",
                    "no-decision", "remembered")
 def test_end_frame_counts_flags_and_remembers():
-    S = np.zeros(L.S_WORDS, np.int64)
-    S[L.S_DEC], S[L.S_DEC_FRAME], S[L.S_NFRAMES] = 2, 17, 4
-    G = np.zeros((L.NG, L.GC), np.int64)
-    G[[0, 1, 3, 5, L.NG - 1], L.G_ALIVE] = 1
-    V = np.zeros(L.V_WORDS, np.int64)
-    V[L.V_T], V[L.V_FC], V[L.V_IMG], V[L.V_OBJ], V[L.V_LOCKED] = w48(12.5), 25, 1, 3, 1
-    V[L.V_Q:L.V_Q + 4] = [w(x) for x in Q_ATT]
-    V[L.V_W:L.V_W + 3] = [w(x) for x in W_PREV]
-    V[L.V_STATUS] = TC_OBJECT_DECIDED
-    out = np.zeros(L.O_WORDS)
+    S = ST.new_record(ST.TRACK_DTYPE)
+    S.dec, S.dec_frame, S.nframes = 2, 17, 4
+    G = ST.new_record(ST.GATE_DTYPE, ST.NG)
+    G.alive[[0, 1, 3, 5, ST.NG - 1]] = 1
+    V = ST.new_record(ST.WORK_DTYPE)
+    V.t, V.fc, V.img, V.obj, V.locked = w48(12.5), 25, 1, 3, 1
+    V.q = [w(x) for x in Q_ATT]
+    V.w = [w(x) for x in W_PREV]
+    V.status = TC_OBJECT_DECIDED
+    out = ST.new_record(ST.OUTPUTS_DTYPE)
     assert end_frame(S, G, V, out, False) == TC_OBJECT_DECIDED
-    assert (out[L.O_NSTAR], out[L.O_NOBJ], out[L.O_DECF]) == (1, 4, 17)
-    assert (out[L.O_T], out[L.O_OBJIDX], out[L.O_LOCKED], out[L.O_FRAME], out[L.O_IMG]) == \
+    assert (out.nstar, out.nobj, out.decf) == (1, 4, 17)
+    assert (out.t, out.objidx, out.locked, out.frame, out.img) == \
         (12.5, 3, 1.0, 25, 1)
-    assert S[L.S_HAVE_PREV] == 1 and S[L.S_T] == V[L.V_T] and S[L.S_FRAME] == 25
-    assert S[L.S_IMG] == 1 and S[L.S_NFRAMES] == 5 and S[L.S_STATUS] == TC_OBJECT_DECIDED
-    assert (S[L.S_Q:L.S_Q + 4] == V[L.V_Q:L.V_Q + 4]).all()
-    assert (S[L.S_W:L.S_W + 3] == V[L.V_W:L.V_W + 3]).all()
-    V[L.V_FLAGS] = FLAG_DOMAIN
+    assert S.have_prev == 1 and S.t == V.t and S.frame == 25
+    assert S.img == 1 and S.nframes == 5 and S.status == TC_OBJECT_DECIDED
+    assert (S.q == V.q).all()
+    assert (S.w == V.w).all()
+    V.aflags = FLAG_DOMAIN
     assert end_frame(S, G, V, out, True) == TC_OBJECT_DECIDED | TC_ARITH_FLAG
-    assert out[L.O_DECF] == -1.0                            # opportunity mode
-    S[L.S_DEC], V[L.V_FLAGS], V[L.V_STATUS] = -1, 0, 0
-    assert end_frame(S, G, V, out, False) == 0 and out[L.O_DECF] == -1.0
+    assert out.decf == -1.0                            # opportunity mode
+    S.dec, V.aflags, V.status = -1, 0, 0
+    assert end_frame(S, G, V, out, False) == 0 and out.decf == -1.0
 
 
 # ================================================================================================
@@ -395,45 +398,23 @@ def test_alpha_beta_arrays_keep_the_velocity_without_beta_and_an_exact_hit_chang
 
 
 # ================================================================================================
-# layout accessors
+# clearing the frame's records
 # ================================================================================================
-@pytest.mark.cases("flightsw.tp.layout.opportunity_mode", "typical")
-@pytest.mark.cases("flightsw.tp.layout.has_nominal", "typical")
-@pytest.mark.cases("flightsw.tp.layout.evidence", "typical")
-@pytest.mark.cases("flightsw.tp.layout.long_gap", "typical")
-@pytest.mark.cases("flightsw.tp.layout.n_used", "typical")
-def test_layout_flag_accessors_read_their_words():
-    C = np.zeros(L.C_WORDS, np.int64)
-    V = np.zeros(L.V_WORDS, np.int64)
-    assert not (L.opportunity_mode(C) or L.has_nominal(C) or L.evidence(V) or L.long_gap(V))
-    C[L.C_MODE], C[L.C_HAVE_NOM], V[L.V_EVIDENCE], V[L.V_LONG_GAP], V[L.V_NUSE] = 1, 1, 1, 1, 7
-    assert L.opportunity_mode(C) and L.has_nominal(C) and L.evidence(V) and L.long_gap(V)
-    assert L.n_used(V) == 7
-
-
-@pytest.mark.cases("flightsw.tp.layout.work_views", "typical")
-def test_work_views_tile_the_scratch_words():
-    W = np.zeros(L.W_WORDS, np.int64)
-    views = L.work_views(W)
-    assert [len(v) for v in views] == [80, 9, 9, 9, 8, L.MAX_OBS]
-    assert sum(len(v) for v in views) == L.W_WORDS
-    for k, v in enumerate(views):
-        v[:] = k + 1
-    assert W.tolist() == sum(([k + 1] * len(v) for k, v in enumerate(views)), [])
-
-
-@pytest.mark.cases("flightsw.tp.layout.message_header", "typical", "unusable")
-@pytest.mark.cases("flightsw.tp.layout.begin_frame", "typical")
-def test_message_header_and_begin_frame():
-    hdr = np.array([1.0, 2.0, 12.5, 40.0, 5.0])
-    assert L.message_header(hdr) == (True, 2, 12.5, 40, 5)
-    hdr[L.H_OK] = 0.0
-    assert not L.message_header(hdr)[0]
-    V = np.full(L.V_WORDS, 9, np.int64)
-    out = np.full(L.O_WORDS, 3.0)
-    cyc = np.full(8, 4, np.int64)
-    L.begin_frame(V, out, cyc)
-    assert V[L.V_OBJ] == -1 and np.count_nonzero(V) == 1 and not cyc.any()
-    nan = [L.O_QP <= i <= L.O_SV for i in range(L.O_WORDS)]   # pointing .. sigma_vel (1..17)
-    assert np.isnan(out).tolist() == nan and (out[~np.isnan(out)] == 0).all()
-    assert (L.O_QP, L.O_SV) == (1, 17)
+@pytest.mark.cases("flightsw.tp.state.begin_frame", "typical")
+@pytest.mark.cases("flightsw.tp.state.clear_outputs", "typical")
+def test_begin_frame_and_clear_outputs():
+    Va = ST.new_record(ST.WORK_DTYPE, 1)
+    Va.view(np.int64)[:] = 9
+    V = Va[0]
+    outa = ST.new_record(ST.OUTPUTS_DTYPE, 1)
+    outa.t, outa.qp, outa.nstar, outa.img = 3.0, 3.0, 3, 3
+    cyca = ST.new_record(ST.CYCLES_DTYPE, 1)
+    cyca.view(np.int64)[:] = 4
+    ST.begin_frame(V, cyca[0])
+    ST.clear_outputs(outa[0])
+    words = Va.view(np.int64)
+    assert V.obj == -1 and np.count_nonzero(words) == 1 and not cyca.view(np.int64).any()
+    out = outa[0]
+    floats = ("qp", "los", "r", "v", "prow", "pcol", "sp", "sv")
+    assert all(np.isnan(out[name]).all() for name in floats)
+    assert all(out[name] == 0 for name in ST.OUTPUTS_DTYPE.names if name not in floats)
