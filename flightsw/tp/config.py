@@ -46,16 +46,22 @@ PROPOSAL_OFF = {"n_apriori": 0, "ekf_max_rejects": 0, "opp_startup": False, "aim
                 "aim_col_px": 0.0, "aim_scan_px": 0.0}
 
 
-def param(default, unit: str, cls: str, doc: str, kind: str = "num", lo=None, hi=None,
-          lo_open: bool = False, hi_open: bool = False, optional: bool = False):
+#: a parameter's check (the keywords of :func:`param` after its doc) and their defaults
+CHECK_DEFAULTS = {"kind": "num", "lo": None, "hi": None, "lo_open": False, "hi_open": False,
+                  "optional": False}
+
+
+def param(default, unit: str, cls: str, doc: str, **check):
     """A declared parameter: a dataclass field whose metadata holds its doc, unit, class and check
-    (``kind`` "num", "int" or "bool"; bounds ``lo``/``hi``, open or closed; ``optional``: None is
-    accepted, meaning what the doc says)."""
+    (``kind`` "num", "int" or "bool"; bounds ``lo``/``hi``, ``lo_open``/``hi_open`` for open
+    ones; ``optional``: None is accepted, meaning what the doc says)."""
     if cls not in CLASSES:
         raise ValueError(f"parameter class {cls!r} must be one of {CLASSES}")
-    return field(default=default, metadata={"unit": unit, "class": cls, "doc": doc, "kind": kind,
-                                            "lo": lo, "hi": hi, "lo_open": lo_open,
-                                            "hi_open": hi_open, "optional": optional})
+    unknown = set(check) - set(CHECK_DEFAULTS)
+    if unknown:
+        raise ValueError(f"param: unknown check {sorted(unknown)}")
+    return field(default=default, metadata={"unit": unit, "class": cls, "doc": doc,
+                                            **CHECK_DEFAULTS, **check})
 
 
 def check_value(name: str, v, meta: dict):
