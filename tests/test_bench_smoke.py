@@ -26,3 +26,15 @@ def test_report_renders_from_results(tmp_path):
         {"name": "test_peer", "median_s": 8e-6, "rounds": 10}]}}
     text = report.render(groups, "a machine", "2026-01-01")
     assert "| **ours x** | 2.0 us | 1.00 |" in text and "| peer | 8.0 us | 4.00 |" in text
+
+
+def test_regenerating_the_report_keeps_the_dated_ab_records():
+    """make bench rewrites BENCHMARKS.md from the suites; the hand-measured A/B sections (their
+    heading says "(A/B with COMMIT)") are kept, in order, above the suites' tables."""
+    from bench.report import ab_sections
+    text = ("# Benchmarks\n\nintro\n\n## 2026-01-02: x (A/B with abc1234)\n\nrow 1\n\n"
+            "## IP back end\n\ntable\n\n## 2026-01-01: y (A/B with def5678)\n\nrow 2\n")
+    kept = ab_sections(text)
+    assert [k.split("\n")[1] for k in kept] == ["## 2026-01-02: x (A/B with abc1234)",
+                                                "## 2026-01-01: y (A/B with def5678)"]
+    assert "row 1" in kept[0] and "table" not in "".join(kept)
