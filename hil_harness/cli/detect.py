@@ -117,7 +117,7 @@ def register(sub) -> None:
     p.add_argument("--plot", default=None,
                    help="PNG with candidates marked and numbered by rank (one per image: "
                         "_<i> is added when there are several)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def add_input_options(p) -> None:

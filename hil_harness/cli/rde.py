@@ -40,6 +40,7 @@ def register(sub) -> None:
                        description=__doc__)
     rsub = p.add_subparsers(dest="rde_command", metavar="RDE_COMMAND")
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
+    ps.set_defaults(outputs={"out": "folder"})
     ps.add_argument("--out", default=None,
                     help="output directory (default: ./rde_study; ./rde_sensitivity with --sensitivity)")
     ps.add_argument("--realisations", type=int, default=None,
@@ -53,6 +54,7 @@ def register(sub) -> None:
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
                     "event recording (.h5)")
+    pr.set_defaults(outputs={"out": "folder"})
     pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
     pr.add_argument("--iterations", type=int, default=3, help="linearisation passes (default 3)")
     pr.add_argument("--min-significance", type=float, default=3.0,

@@ -81,7 +81,7 @@ def register(sub) -> None:
     add_with_option(p)
     from hil_harness.cli.detect import add_input_options
     add_input_options(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def sequence_field(frames, mask=None, circle=None):

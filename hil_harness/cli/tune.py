@@ -53,7 +53,7 @@ def register(sub) -> None:
     q = ts.add_parser("set", help="build and save a labelled training set")
     common(q)
     q.add_argument("-o", "--out", required=True, help="output .npz")
-    q.set_defaults(func=_set)
+    q.set_defaults(func=_set, outputs={"out": "file"})
 
     q = ts.add_parser("fit", help="means, sigmas and quantisation thresholds from a set")
     common(q)
@@ -62,7 +62,7 @@ def register(sub) -> None:
                    help="record giving weights, type, id (shipped name or TOML; default aurora)")
     _naming(q)
     q.add_argument("--save-set", default=None, help="also save the built set (.npz)")
-    q.set_defaults(func=_fit)
+    q.set_defaults(func=_fit, outputs={"out": "file"})
 
     q = ts.add_parser("optimise", aliases=["optimize"],
                       help="fit + optimise weights (cross-validated) + GOF threshold")
@@ -96,7 +96,7 @@ def register(sub) -> None:
     q.add_argument("--json", default=None, help="write the optimisation summary (JSON)")
     _naming(q)
     add_with_option(q)
-    q.set_defaults(func=_optimise)
+    q.set_defaults(func=_optimise, outputs={"out": "file", "words": "file", "json": "file"})
 
     q = ts.add_parser("validate", help="identification rates and report on a held-out set")
     common(q)
@@ -111,7 +111,7 @@ def register(sub) -> None:
                    help="directory keeping the rendered events (read back when present; keyed "
                         "by scenario entry and seed: empty it when the renderer changes)")
     add_with_option(q)
-    q.set_defaults(func=_validate)
+    q.set_defaults(func=_validate, outputs={"report": "folder"})
     p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
 
 

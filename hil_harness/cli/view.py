@@ -32,7 +32,7 @@ def register(sub) -> None:
     from hil_harness.cli.checks import add_ignore_checksums, add_no_size_check
     add_ignore_checksums(p)
     add_no_size_check(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"out": "file"})
 
 
 def run(args) -> int:
@@ -51,8 +51,6 @@ def run(args) -> int:
         out = Path(args.out) if args.out else Path(args.recording).parent / "view.html"
         if out.is_dir():
             raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
-        if not out.parent.is_dir():
-            raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
         check(page_cost(f"page of {path}", frames, out), lift_cap=args.no_size_check)
     verify_recording(path, args, "view")
     args.checksums = "ignore" if args.ignore_checksums else "verify"

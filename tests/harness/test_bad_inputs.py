@@ -111,3 +111,59 @@ def test_record_check_reports_every_file_and_survives_a_folder(tmp_path, capsys)
                str(ROOT / "flightsw/data/record_aurora.toml")])
     out = capsys.readouterr().out
     assert rc == 1 and "folder" in out and "record_aurora.toml" in out and "1 of 2" in out
+
+
+#: every command that writes, with the option that names what it writes ({out}: the unwritable
+#: folder); none must get as far as reading its inputs
+WRITERS = [
+    "detect {real} --json {out}/o.json", "detect {real} --plot {out}/o.png",
+    "track {real} --record aurora --json {out}/t.json", "view x.h5 -o {out}/v.html",
+    "campaign x.toml --out {out}/c", "rde study --out {out}/r", "rde reconstruct x.npz --out {out}/r",
+    "inr synthetic --out {out}/i", "inr report x.csv --out {out}/i", "budget --plot {out}/b.png",
+    "tune set x.toml -o {out}/s.npz", "tune validate x.toml --record aurora --report {out}/r",
+    "record export aurora --toml {out}/a.toml", "record export aurora --words {out}/a.words",
+    "event satellite_over_stars --out {out}/e", "compare x.toml --json {out}/c.json",
+]
+
+
+@pytest.mark.parametrize("line", WRITERS)
+def test_an_unwritable_output_is_one_line_naming_it(line, tmp_path, monkeypatch, capsys):
+    """A folder that takes no new file (read-only, or full: simulated, as root writes anywhere)
+    is refused before any work, naming the option and the user's path, exit 2."""
+    import tempfile
+    out = tmp_path / "ro"
+    out.mkdir()
+    real = tempfile.mkstemp
+
+    def refusing(*a, dir=None, **k):
+        if dir is not None and str(dir).startswith(str(out)):
+            raise PermissionError(13, "Permission denied", f"{dir}/.tmp123")
+        return real(*a, dir=dir, **k)
+
+    monkeypatch.setattr(tempfile, "mkstemp", refusing)
+    argv = line.format(out=out, real=KINDS["image"][1]).split()
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"{out}/" in err[0] and "Permission denied" in err[0], err
+    assert ".tmp123" not in err[0] and "Traceback" not in err[0]
+
+
+def test_an_output_that_is_a_file_or_folder_is_named(tmp_path, capsys):
+    (tmp_path / "f").write_text("x")
+    assert main(["detect", str(KINDS["image"][1]), "--json", str(tmp_path)]) == 2
+    assert "is a folder, not a file" in capsys.readouterr().err
+    assert main(["inr", "synthetic", "--out", str(tmp_path / "f")]) == 2
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert main(["inr", "synthetic", "--out", str(tmp_path / "f" / "sub")]) == 2
+    assert f"{tmp_path / 'f'} is a file" in capsys.readouterr().err
+
+
+def test_a_closed_pipe_ends_quietly_with_141(tmp_path):
+    """``uvisi scenarios --all | head -1``: exit 141 (128 + SIGPIPE), nothing on stderr."""
+    import subprocess
+    import sys
+    q = subprocess.run(f"{sys.executable} -m hil_harness.cli scenarios --all | head -1; "
+                       f"exit ${{PIPESTATUS[0]}}", shell=True, capture_output=True, text=True,
+                       cwd=ROOT, executable="/bin/bash")
+    assert q.stdout.count("\n") == 1
+    assert q.returncode == 141 and q.stderr == ""
