@@ -45,6 +45,8 @@ from .target_params import Arc, AuroraParams, LaunchParams
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 FRAME_DT = 0.5
+#: the largest seed (a signed 64-bit integer: recordings keep it as one)
+MAX_SEED = 2 ** 63 - 1
 
 
 class ScenarioError(ValueError):
@@ -101,7 +103,7 @@ class _Table:
             raise self.err(k, f"must be <= {hi}, got {v!r}")
         return float(v)
 
-    def int_(self, k, default=None, choices=None, lo=None):
+    def int_(self, k, default=None, choices=None, lo=None, hi=None):
         self.used.add(k)
         if k not in self.d:
             if default is None:
@@ -114,6 +116,8 @@ class _Table:
             raise self.err(k, f"must be one of {list(choices)}, got {v!r}")
         if lo is not None and v < lo:
             raise self.err(k, f"must be >= {lo}, got {v!r}")
+        if hi is not None and v > hi:
+            raise self.err(k, f"must be <= {hi}, got {v!r}")
         return v
 
     def str_(self, k, default=None, choices=None):
@@ -279,11 +283,13 @@ class Scenario:
         except (TypeError, ValueError) as e:
             raise sc.err("epoch", f"expected an ISO-8601 UTC time such as '1997-03-15T03:20:00Z' ({e})") from None
         duration = sc.num("duration", positive=True)
-        fseed = sc.int_("seed", default=0, lo=0)
+        fseed = sc.int_("seed", default=0, lo=0, hi=MAX_SEED)
         imager = sc.str_("imager", default="wfov_vis", choices=IMAGER_IDS)
         compaction = sc.int_("compaction", default=2, choices=(1, 2, 4))
         sc.done()
 
+        if seed is not None and not (isinstance(seed, (int, np.integer)) and 0 <= seed <= MAX_SEED):
+            raise ScenarioError(path, "seed", f"the seed {seed!r} must be an integer in 0..{MAX_SEED}")
         spc = _parse_spacecraft(top.sub("spacecraft", {}))
         pnt = _parse_pointing(top.sub("pointing", {"mode": "inertial", "ra_deg": 0.0, "dec_deg": 0.0}))
         tgt = _parse_target(top.sub("target", {"type": "none"}))

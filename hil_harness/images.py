@@ -362,8 +362,13 @@ def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tupl
         if new_med == med and new_sig == sig:
             break
         med, sig = new_med, new_sig
-    if sig <= 0:
-        sig = float(np.std(v[np.abs(v - med) <= 5 * np.std(v)])) if v.size > 1 else 0.0
+    if sig <= 0 and v.size > 1:
+        big = float(np.max(np.abs(v)))
+        unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0   # no overflow
+        w, m = v * unit, med * unit
+        sig = float(np.std(w[np.abs(w - m) <= 5 * np.std(w)])) / unit
+    elif sig <= 0:
+        sig = 0.0
     return med, sig
 
 
@@ -572,6 +577,12 @@ def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
                                               "sky_counts": SKY_COUNTS,
                                               "noise_counts": NOISE_COUNTS,
                                               "clipped_low": 0.0, "clipped_high": 0.0}
+    # values near the float range (1e300) would overflow the statistics' squares: the map is
+    # linear, so it is found on the frame scaled by an exact power of two and stated unscaled
+    big = float(np.max(np.abs(x[inside])))
+    unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0
+    if unit != 1.0:
+        x = x * unit
     bkg, noise = robust_stats(x[inside])
     dn = noise_sigma(x, mask)
     if dn > 0:
@@ -595,9 +606,9 @@ def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
     y = np.rint(y)
     lo, hi = float(np.mean(y < 0)), float(np.mean(y > _MAX12))
     counts = np.clip(y, 0, _MAX12).astype(np.uint16)
-    return counts, {"method": "robust", "background": bkg, "noise": noise, "offset": offset,
-                    "gain": gain, "sky_counts": SKY_COUNTS, "noise_counts": gain * noise,
-                    "clipped_low": lo, "clipped_high": hi}
+    return counts, {"method": "robust", "background": bkg / unit, "noise": noise / unit,
+                    "offset": offset, "gain": gain * unit, "sky_counts": SKY_COUNTS,
+                    "noise_counts": gain * noise, "clipped_low": lo, "clipped_high": hi}
 
 
 def _fit_gain(v, bkg, low):

@@ -192,7 +192,8 @@ def read_csv(path) -> MeasurementTable:
     """Read a CSV table in schema ``uvisi-inr-landmarks/1`` (see the module doc).
 
     Raises ``FileNotFoundError`` for a missing file and ``ValueError`` naming the column (and file line)
-    for a missing required column, a non-numeric cell or a factor outside [0, 1].
+    for a missing required column, a non-numeric or non-finite cell (``nan``, ``inf``: an absent value
+    is an empty cell) or a factor outside [0, 1].
     """
     path = Path(path)
     if not path.exists():
@@ -236,6 +237,9 @@ def read_csv(path) -> MeasurementTable:
             except ValueError:
                 raise ValueError(f"{path}: line {linenos[r + 1]}: column {name!r}: {s!r} is not a number") \
                     from None
+            if not math.isfinite(out[r]):
+                raise ValueError(f"{path}: line {linenos[r + 1]}: column {name!r}: {s!r} is not a finite "
+                                 f"number (leave the cell empty for no measurement)")
         return out
 
     def text(name):
@@ -265,4 +269,4 @@ def read_csv(path) -> MeasurementTable:
         m = re.search(r"row (\d+) has", msg)
         if m:
             msg = msg.replace(f"row {m.group(1)} has", f"line {linenos[int(m.group(1)) + 1]} has")
-        raise ValueError(f"{path}: {msg}") from None
+        raise ValueError(msg if msg.startswith(f"{path}: ") else f"{path}: {msg}") from None

@@ -80,6 +80,10 @@ class PlainParser(argparse.ArgumentParser):
     def __init__(self, *args, description=None, epilog=None, **kw):
         super().__init__(*args, description=plain(description), epilog=plain(epilog), **kw)
 
+    def error(self, message):
+        """A usage error in one line naming the option, exit 2 (the usage is a ``--help`` away)."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
     def add_argument(self, *args, **kw):
         if isinstance(kw.get("help"), str):
             kw["help"] = plain(kw["help"])

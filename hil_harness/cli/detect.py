@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.cli.options import number
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
                                 to_counts, unusable)
 
@@ -110,7 +111,7 @@ def register(sub) -> None:
     add_input_options(p)
     p.add_argument("--max-candidates", type=int, default=23,
                    help="candidates reported per image, 1..1000 (default 23, the flight limit)")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=number(1, integer=True), default=1,
                    help="processes for the frames (default 1; 0: one per core when there are 16 "
                         "frames or more)")
     p.add_argument("--json", default=None, help="output JSON file (default: a table on stdout)")

@@ -87,7 +87,7 @@ def _terminate(signum, frame):
 
 
 def run(args) -> int:
-    from groundsim.scenario import Scenario
+    from groundsim.scenario import MAX_SEED, Scenario
     from hil_harness.event.io import EventInterrupted, run_event, summary_table
     from hil_harness.event.selection import SelectionParams
     name = args.scenario
@@ -96,8 +96,8 @@ def run(args) -> int:
                          f"nor a file")
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames {args.frames}: must be >= 1")
-    if args.seed is not None and args.seed < 0:
-        raise ValueError(f"--seed {args.seed}: must be >= 0")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise ValueError(f"--seed {args.seed}: must be in 0..{MAX_SEED}")
     if args.hypothesis is not None:
         from hil_harness.cli.budget import check_hypothesis
         check_hypothesis(args.hypothesis)

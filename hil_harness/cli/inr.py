@@ -20,6 +20,8 @@ from __future__ import annotations
 import os
 import sys
 
+from hil_harness.cli.options import MAX_SEED, number
+
 
 def _report_options(p) -> None:
     """The assessment options every ``inr`` subcommand takes (defaults: ``REPORT_DEFAULTS``)."""
@@ -53,7 +55,7 @@ def register(sub) -> None:
     pe.set_defaults(outputs={"out": "folder"})
     pe.add_argument("--out", default="inr_event", help="output directory (default ./inr_event)")
     pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
-    pe.add_argument("--gate", type=float, default=3.0, help="star association gate [px] (default 3)")
+    pe.add_argument("--gate", type=number(0, lo_open=True), default=3.0, help="star association gate [px] (default 3)")
     pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
     from hil_harness.cli.checks import add_ignore_checksums
     add_ignore_checksums(pe)
@@ -61,8 +63,8 @@ def register(sub) -> None:
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
     ps.set_defaults(outputs={"out": "folder"})
     ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
-    ps.add_argument("--seed", type=int, default=0)
-    ps.add_argument("--excursion", type=float, default=0.0,
+    ps.add_argument("--seed", type=number(0, MAX_SEED, integer=True), default=0)
+    ps.add_argument("--excursion", type=number(), default=0.0,
                     help="inject a real system excursion of this many urad (EW) for one hour")
     ps.add_argument("--outliers", type=int, default=6, metavar="N",
                     help="invalid (type-II) absolute measurements injected into the population "
@@ -152,6 +154,7 @@ def _report(args, table=None, title=None, cfg=None) -> int:
         if not os.path.isfile(args.csv):
             raise ValueError(f"{args.csv}: no such file")
         table = read_csv(args.csv)
+        usable_rows(table, args.csv)
     a = assess(table, cfg)
     paths = write_report(a, args.out, title=title or
                          f"INR 3-sigma assessment of {os.path.basename(args.csv)}")
@@ -164,13 +167,33 @@ def _report(args, table=None, title=None, cfg=None) -> int:
     return 0
 
 
+def usable_rows(table, path) -> int:
+    """The rows with an absolute measurement (both ``ew_err_urad`` and ``ns_err_urad``); the rows
+    with only one of the two are said (they are not used as absolute measurements); none at all
+    is an error naming the file (a report of nothing would read as "meets")."""
+    import numpy as np
+    fin = np.isfinite(table.abs_err)
+    both, one = int(np.sum(fin.all(axis=1))), int(np.sum(fin.any(axis=1) & ~fin.all(axis=1)))
+    if both == 0:
+        raise ValueError(f"{path}: no row has both ew_err_urad and ns_err_urad: nothing to assess")
+    if one:
+        print(f"uvisi inr: note: {path}: {one} of {len(table)} rows have only one of ew_err_urad / "
+              f"ns_err_urad: not used as absolute measurements", file=sys.stderr)
+    return both
+
+
 def _synthetic(args) -> int:
     from groundsim.assess.inr import synthetic_population, write_csv
     if args.outliers < 0:
         raise ValueError(f"--outliers {args.outliers}: must be >= 0")
     cfg = config_from_args(args, synthetic=True)
-    table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion,
-                                    n_invalid_abs=args.outliers)
+    try:
+        table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion,
+                                        n_invalid_abs=args.outliers)
+    except ValueError as exc:
+        if "n_invalid_abs" not in str(exc):
+            raise
+        raise ValueError(f"--outliers {args.outliers}: {str(exc).split(': ', 1)[1]}") from None
     if args.csv:
         os.makedirs(args.out, exist_ok=True)
         print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_synthetic.csv'))}")

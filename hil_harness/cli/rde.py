@@ -34,6 +34,8 @@ from __future__ import annotations
 import json
 import os
 
+from hil_harness.cli.options import MAX_SEED, number
+
 
 def register(sub) -> None:
     p = sub.add_parser("rde", help="recursive distortion estimator: Landsat study, pointing reconstruction",
@@ -56,8 +58,8 @@ def register(sub) -> None:
                     "event recording (.h5)")
     pr.set_defaults(outputs={"out": "folder"})
     pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
-    pr.add_argument("--iterations", type=int, default=3, help="linearisation passes (default 3)")
-    pr.add_argument("--min-significance", type=float, default=3.0,
+    pr.add_argument("--iterations", type=number(1, integer=True), default=3, help="linearisation passes (default 3)")
+    pr.add_argument("--min-significance", type=number(0), default=3.0,
                     help="apply the correction about an imager axis only if its mean is at least this "
                     "many sigma from zero (default 3; 0 applies it everywhere)")
     pr.add_argument("--flight-centroids", action="store_true",
@@ -68,8 +70,8 @@ def register(sub) -> None:
     add_ignore_checksums(pr)
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
     pn.add_argument("output", help="output .npz")
-    pn.add_argument("--seed", type=int, default=0)
-    pn.add_argument("--duration", type=float, default=90.0, help="event length [s]")
+    pn.add_argument("--seed", type=number(0, MAX_SEED, integer=True), default=0)
+    pn.add_argument("--duration", type=number(0, lo_open=True), default=90.0, help="event length [s]")
     p.set_defaults(func=run, _rde_parser=p)
 
 

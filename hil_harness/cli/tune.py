@@ -31,7 +31,7 @@ import json
 import time
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option, with_names
+from hil_harness.cli.options import add_with_option, number, with_names
 
 
 def register(sub) -> None:
@@ -41,7 +41,7 @@ def register(sub) -> None:
 
     def common(q):
         q.add_argument("set", help="set spec (.toml) or saved set (.npz)")
-        q.add_argument("--workers", type=int, default=None,
+        q.add_argument("--workers", type=number(1, integer=True), default=None,
                        help="processes used to build a set from a spec (default: the spec's)")
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
         from hil_harness.cli.checks import add_no_size_check
@@ -105,7 +105,7 @@ def register(sub) -> None:
                    help="records reported beside it on the same frames (default: aurora, Table 1)")
     q.add_argument("--report", required=True, help="output directory")
     q.add_argument("--title", default=None)
-    q.add_argument("--require-top1", type=float, default=None,
+    q.add_argument("--require-top1", type=number(0, 1), default=None,
                    help="exit status 1 if the record's closed-loop top-1 rate is below this")
     q.add_argument("--events", default=None,
                    help="directory keeping the rendered events (read back when present; keyed "
