@@ -88,7 +88,8 @@ def _terminate(signum, frame):
 
 def run(args) -> int:
     from groundsim.scenario import MAX_SEED, Scenario
-    from hil_harness.event.io import EventInterrupted, run_event, summary_table
+    from hil_harness.event.io import (EventInterrupted, FiguresInterrupted, run_event,
+                                      summary_table)
     from hil_harness.event.selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
@@ -119,6 +120,11 @@ def run(args) -> int:
                       selection=SelectionParams(handover=args.handover), force=replace,
                       hypothesis=args.hypothesis, proposals=args.with_,
                       proposals_where="--with")
+    except FiguresInterrupted as exc:
+        print(f"uvisi event: interrupted while writing the figures: the recording and summary.json "
+              f"in {exc.out} are complete; the figures are missing (uvisi view "
+              f"{exc.out}/recording.h5 writes the viewer page)", file=sys.stderr)
+        return 130
     except EventInterrupted as exc:
         how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
         print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "

@@ -220,3 +220,24 @@ def test_bad_input_matrix(line, expect, tmp_path, capsys):
         return
     assert rc == 2, (line, err)
     assert len(err) == 1 and expect in err[0] and "Traceback" not in err[0], err
+
+
+def test_sigint_while_the_figures_are_written_leaves_a_complete_run(tmp_path, monkeypatch,
+                                                                     capsys):
+    """The recording and summary.json are complete before the first figure; an interrupt there
+    leaves them, and the summary says the figures are missing."""
+    import json
+
+    import hil_harness.event.io as io
+
+    def interrupted(*a, **k):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(io, "event_figures", interrupted)
+    out = tmp_path / "ev"
+    assert main(["event", "satellite_over_stars", "--frames", "3", "--out", str(out)]) == 130
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "figures are missing" in err[0], err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["figures"] == io.FIGURES_PENDING and s["frames"] == 3
+    assert (out / "recording.h5").exists() and not (out / "recording.partial.h5").exists()
