@@ -250,10 +250,12 @@ class Scenario:
         if not p.suffix and not p.exists():
             p = SCENARIO_DIR / f"{name_or_path}.toml"
         if not p.exists():
-            shipped = ", ".join(sorted(x.stem for x in SCENARIO_DIR.glob("*.toml")))
+            import difflib
+            close = difflib.get_close_matches(str(name_or_path), cls.shipped(), n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
             where = name_or_path if p.parent == SCENARIO_DIR else p
-            raise ScenarioError(where, "-", f"no such scenario: not a shipped one ({shipped}) nor "
-                                            f"a file")
+            raise ScenarioError(where, "-", f"no such scenario: not a shipped one nor a file{hint} "
+                                            f"(uvisi scenarios lists them)")
         try:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as e:
@@ -417,7 +419,7 @@ def _parse_target(t: _Table) -> dict:
             k.done()
         else:
             k = t.sub("relative")
-            out["orbit"] = ("relative", dict(d_alt_km=k.num("d_alt_km", 0.0), d_phase_deg=k.num("d_phase_deg", 0.0),
+            out["orbit"] = ("relative", dict(d_alt_km=k.num("d_alt_km", 0.0, lo=-800.0, hi=40000.0), d_phase_deg=k.num("d_phase_deg", 0.0),
                                              d_inc_deg=k.num("d_inc_deg", 0.0), d_raan_deg=k.num("d_raan_deg", 0.0)))
             k.done()
         out["mag_at_1000km"] = t.num("mag_at_1000km", 6.0)

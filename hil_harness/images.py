@@ -126,7 +126,8 @@ def read_images(paths, channel: str = "l") -> list[InputFrame]:
 
 #: leading bytes of each format read here (content first, the extension only when none matches)
 MAGIC = ((b"SIMPLE  ", "fits"), (b"II*\x00", "tiff"), (b"MM\x00*", "tiff"), (b"\x89PNG", "png"),
-         (b"\xff\xd8\xff", "png"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"))
+         (b"\xff\xd8\xff", "png"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"),
+         (b"PK\x05\x06", "npz"))                        # the last: an archive with no member
 _KIND_OF_SUFFIX = {".fits": "fits", ".fit": "fits", ".fts": "fits", ".tif": "tiff", ".tiff": "tiff",
                    ".png": "png", ".jpg": "png", ".jpeg": "png", ".bmp": "png", ".gif": "png",
                    ".npy": "npy", ".npz": "npz"}
@@ -203,7 +204,22 @@ def _palette_is_grey(im) -> bool:
 
 
 def _read_fits(p: Path, channel: str = "l") -> list[InputFrame]:
+    import warnings
+
     from astropy.io import fits
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        try:
+            return _fits_frames(fits, p, channel)
+        except (TypeError, ValueError, OSError) as exc:
+            short = [str(w.message) for w in said if "truncated" in str(w.message)]
+            if short:                       # astropy's "File may have been truncated: ..."
+                raise ImageError(f"{p}: a truncated FITS file ({short[0].split(': ', 1)[-1]})") \
+                    from None
+            raise ImageError(f"{p}: cannot read the FITS file: {exc}") from None
+
+
+def _fits_frames(fits, p: Path, channel: str) -> list[InputFrame]:
     out = []
     with fits.open(p) as hdul:
         images = [(i, h) for i, h in enumerate(hdul)
@@ -248,6 +264,8 @@ def _read_npz(p: Path, channel: str = "l") -> list[InputFrame]:
                 continue
             label = str(p) if k == "img" or len(keys) == 1 else f"{p}[{k}]"
             out += _planes(a, label, times, channel)
+        if not z.files:
+            raise ImageError(f"{p}: an NPZ archive with no array in it")
     return out
 
 

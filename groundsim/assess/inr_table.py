@@ -198,8 +198,14 @@ def read_csv(path) -> MeasurementTable:
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no such landmark CSV: {path}")
-    with open(path, newline="") as fh:
-        lines = [(i + 1, ln) for i, ln in enumerate(fh.read().splitlines())]
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a landmark CSV file")
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            lines = [(i + 1, ln) for i, ln in enumerate(fh.read().splitlines())]
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8 text)") \
+            from None
     body = [(no, ln) for no, ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
         raise ValueError(f"{path}: no header line")

@@ -387,9 +387,9 @@ def _write_json(path, entries):
 # the command
 # ------------------------------------------------------------------------------------------------
 def _setup(args):
-    from flightsw.records import load_record
     from hil_harness.detect.jobs import default_sequence_name, resolve_sequence
-    record = load_record(args.record)
+    from hil_harness.tuning.export import record_from
+    record = record_from(args.record)
     seq = resolve_sequence(args.sequence or default_sequence_name(record))
     f = args.compaction if args.compaction is not None else seq.preprocess.compaction
     if not 1 <= args.max_candidates <= 1000:
@@ -424,8 +424,11 @@ def _frame_job(args, record, seq, f, gate, user_mask=None):
             kind = "unusable" if unusable(flags) else "warning only"
             msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
                         f"the IP's answer is still given)")
-        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
-                         field=field.mask, trails=record.name == "streak")
+        try:
+            out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
+                             field=field.mask, trails=record.name == "streak")
+        except ValueError as exc:           # e.g. a frame too small for the compaction
+            raise ImageError(f"{fr.name}: {exc}") from None
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
                  "flags": flags, "scale": scale, "field": field.to_json(), "compaction": f,
                  "mode": out["mode"],

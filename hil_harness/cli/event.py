@@ -23,7 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option
+from hil_harness.cli.options import add_with_option, did_you_mean
 from hil_harness.console import progress_enabled
 
 
@@ -93,8 +93,8 @@ def run(args) -> int:
     from hil_harness.event.selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
-        raise ValueError(f"scenario {name!r}: not a shipped scenario ({', '.join(Scenario.shipped())}) "
-                         f"nor a file")
+        raise ValueError(f"scenario {name!r}: not a shipped scenario nor a file"
+                         f"{did_you_mean(name, Scenario.shipped())} (uvisi scenarios lists them)")
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames {args.frames}: must be >= 1")
     if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
@@ -109,6 +109,10 @@ def run(args) -> int:
             raise ValueError(f"--uplink-dir {args.uplink_dir}: not a folder")
         scenario = Scenario.load(name, seed=args.seed, uplink_dir=args.uplink_dir)
     check_event_size(name, args, out)
+    record = args.record
+    if record is not None and Path(record).is_file() and Path(record).suffix.lower() != ".toml":
+        from hil_harness.tuning.export import record_from
+        record = record_from(record)                   # an uplink image (words file)
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
     main_thread = threading.current_thread() is threading.main_thread()
@@ -116,7 +120,7 @@ def run(args) -> int:
     try:
         s = run_event(scenario, seed=args.seed, frames=args.frames, out=out,
                       record_frames=not args.no_frames, figures=not args.no_figures,
-                      progress=progress_enabled(), sequence=args.sequence, record=args.record,
+                      progress=progress_enabled(), sequence=args.sequence, record=record,
                       selection=SelectionParams(handover=args.handover), force=replace,
                       hypothesis=args.hypothesis, proposals=args.with_,
                       proposals_where="--with")

@@ -45,7 +45,7 @@ def _check(args) -> int:
 
 
 def _export(args) -> int:
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     from hil_harness.tuning.export import export_record
     if not args.toml and not args.words:
         raise ValueError("give --toml and/or --words")

@@ -196,8 +196,8 @@ def _write_json(path, obj):
 
 
 def run(args) -> int:
-    from flightsw.records import load_record
-    record = load_record(args.record)
+    from hil_harness.tuning.export import record_from
+    record = record_from(args.record)
     if args.fov is not None and not 0.0 < args.fov < 90.0:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
     from hil_harness.cli.detect import read_mask

@@ -171,7 +171,7 @@ def _with_channel(p: Path, channel):
 
 
 def _names(args):
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     base = load_record(args.base)
     name = args.name or f"{base.name}_tuned"
     rid = base.record_id if args.id is None else args.id
@@ -276,7 +276,7 @@ def _optimise(args) -> int:
 
 
 def _validate(args) -> int:
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     from hil_harness.tuning.closed import validate_closed_loop
     rec = load_record(args.record)
     records = {rec.name: rec}

@@ -193,6 +193,14 @@ MATRIX = [
     ("tune optimise x.toml -o {tmp}/o.toml --workers 0", "--workers"),
     ("view x.h5 --serve --port 70000", "--port"),
     ("frobnicate", "invalid choice"),
+    ("event satelite_over_stars", "did you mean satellite_over_stars"),
+    ("inr report {tmp}/bin.csv --out {tmp}/r", "bin.csv: not a text CSV file"),
+    ("inr report {tmp} --out {tmp}/r", "is a folder, not a landmark CSV"),
+    ("detect {tmp}/empty.npz", "empty.npz: an NPZ archive with no array"),
+    ("detect {tmp}/tiny.npy", "tiny.npy: image 2x2 is too small"),
+    ("detect {tmp}/trunc.fits", "trunc.fits: a truncated FITS file"),
+    ("tune fit {tmp}/text.npz -o {tmp}/f.toml", "text.npz: not a training-set .npz"),
+    ("detect {real} --record {tmp}/x.words", "x.words: not a record uplink image"),
 ]
 
 
@@ -201,6 +209,13 @@ def _matrix_files(tmp: Path) -> dict:
     head = "time,landmark_id,imager,ew_err_urad,ns_err_urad,qm\n"
     (tmp / "allnan.csv").write_text(head + "0,a,wfov_vis,,,1\n10,a,wfov_vis,,,1\n")
     (tmp / "nan.csv").write_text(head + "0,a,wfov_vis,1,2,1\n10,a,wfov_vis,nan,2,1\n")
+    (tmp / "bin.csv").write_bytes(bytes(range(256)) * 4)
+    np.savez(tmp / "empty.npz")
+    np.save(tmp / "tiny.npy", np.ones((2, 2)))
+    (tmp / "trunc.fits").write_bytes((ROOT / "tests/data/faint_beside_saturated.fits")
+                                     .read_bytes()[:5000])
+    (tmp / "text.npz").write_text("hello\n")
+    (tmp / "x.words").write_text("0 1 2\n")
     from groundsim.assess.rde_reconstruct import save_control_points, synthetic_control_points
     cp = tmp / "cp.npz"
     save_control_points(cp, synthetic_control_points(0, duration=2.0))
