@@ -131,7 +131,10 @@ def export_record(record: Record, toml_path=None, words_path=None, comment: str 
     out = {}
     words = record.to_words()
     if toml_path is not None:
-        _atomic_write(toml_path, record.to_toml(comment).encode())
+        text = record.to_toml(comment)
+        if Record.from_toml(text, source=str(toml_path)) != record:     # checked before writing
+            raise ValueError(f"{toml_path}: the record's TOML does not read back to the record")
+        _atomic_write(toml_path, text.encode())
         out["toml"] = str(toml_path)
     if words_path is not None:
         write_words(words_path, words, f"uplink image of record {record.name!r} id "
