@@ -583,10 +583,9 @@ def rescore_recording(path, h: Hypothesis, checksums: str = "verify") -> dict:
     ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
     from pathlib import Path
 
-    from scipy.stats import binomtest
-
     from flightsw.ip import ProcessingSequence
     from hil_harness.event.recording import Recording
+    from hil_harness.rates import wilson_interval
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
@@ -618,9 +617,8 @@ def rescore_recording(path, h: Hypothesis, checksums: str = "verify") -> dict:
             if v > worst[p]:
                 worst[p], worst_k[p] = v, k
     n = len(frames)
-    ci = binomtest(over, n).proportion_ci(0.95, method="wilson") if n else None
     return {"hypothesis": h.name, "frames": n, "overruns": over, "overruns_recorded": over_rec,
-            "overrun_ci95": None if ci is None else (float(ci.low), float(ci.high)),
+            "overrun_ci95": wilson_interval(over, n) if n else None,
             "worst_ms": worst, "worst_frame": worst_k}
 
 
