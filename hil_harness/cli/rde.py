@@ -35,6 +35,7 @@ import json
 import os
 
 from hil_harness.cli.options import MAX_SEED, number
+from hil_harness.console import Heartbeat
 
 
 def register(sub) -> None:
@@ -83,7 +84,7 @@ def _with_progress(base_map):
     def mapped(fn, tasks):
         tasks = list(tasks)
         if not progress_enabled():
-            return base_map(fn, tasks)
+            return _with_heartbeat(base_map(fn, tasks), len(tasks))
         from tqdm import tqdm
         return tqdm(base_map(fn, tasks), total=len(tasks), desc="rde study", unit="task",
                     leave=False)
@@ -119,6 +120,9 @@ def _sensitivity(args) -> int:
 
     def progress(done, total):
         if not progress_enabled():
+            if "beat" not in bar:
+                bar["beat"] = Heartbeat(total, "uvisi rde: sensitivity", "models")
+            bar["beat"].update(done - bar["beat"].n)
             return
         if "bar" not in bar:
             from tqdm import tqdm
@@ -142,6 +146,15 @@ def _sensitivity(args) -> int:
     print(f"wrote {os.path.join(args.out, 'rde_sensitivity.md')}, rde_sensitivity.csv, "
           "rde_sensitivity.json, rde_sensitivity.png")
     return 0
+
+
+def _with_heartbeat(results, total: int):
+    """``results`` passed through, a heartbeat line every few seconds (no terminal: no bar)."""
+    beat = Heartbeat(total, "uvisi rde: study", "tasks")
+    for r in results:
+        beat.update(1)
+        yield r
+    beat.close()
 
 
 def _study(args) -> int:

@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 from hil_harness.cli.options import add_with_option, number, with_names
+from hil_harness.console import progress_enabled
 
 
 def register(sub) -> None:
@@ -131,8 +132,8 @@ def _get_set(args):
         from hil_harness.tuning.data import SetSpec
         check_render_size(SetSpec.load(p), args)
     t0 = time.perf_counter()
-    ts = build_set(_with_channel(p, args.channel), progress=not args.no_progress,
-                   workers=args.workers)
+    ts = build_set(_with_channel(p, args.channel), workers=args.workers,
+                   progress=progress_enabled() and not args.no_progress)
     print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
           f"({time.perf_counter() - t0:.1f} s)")
     return ts
@@ -217,7 +218,7 @@ def _replayer(args):
     check_render_size(spec, args)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,
-                       progress=not args.no_progress)
+                       progress=progress_enabled() and not args.no_progress)
     nobj = sum(int(e.has_object.sum()) for e in evs)
     print(f"[tune] set {spec.name}: {len(evs)} events, {sum(e.n_frames for e in evs)} frames "
           f"({nobj} with the object) ({time.perf_counter() - t0:.1f} s)")
@@ -245,7 +246,7 @@ def _optimise(args) -> int:
     kw = dict(base=base, frr=args.frr, quantize=args.quantize, maxiter=args.maxiter,
               popsize=args.popsize, centroid_penalty=args.centroid_penalty)
     t0 = time.perf_counter()
-    kw["progress"] = not args.no_progress
+    kw["progress"] = progress_enabled() and not args.no_progress
     cv = (cross_validate_closed(rp, args.folds, seed=args.seed, by=args.cv_groups, **kw)
           if args.folds > 1 else {})
     res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver,
