@@ -12,13 +12,13 @@ $(STAMP_RUN): pyproject.toml
 	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --progress-bar on -e . | grep -E --line-buffered '^(Collecting|Successfully)' || true
+	$(BIN)/python -m pip install --progress-bar on --no-input -e .
 	@$(BIN)/python -c "import hil_harness.event.io" || (echo "make: the install failed" >&2; exit 1)
 	@touch $(STAMP_RUN)
 
 $(STAMP): $(STAMP_RUN)
-	@echo "make: installing the test and benchmark extras (first run only)..."
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	@echo "make: installing the test, benchmark and viewer-test extras (first run only)..."
+	$(BIN)/python -m pip install --progress-bar on --no-input -e '.[test,bench,view]'
 	@touch $(STAMP)
 
 install: $(STAMP)

@@ -477,4 +477,7 @@ def run(args) -> int:
         for i, (img, cands, title) in enumerate(plots):
             p = base if len(plots) == 1 else base.with_name(f"{base.stem}_{i}{base.suffix}")
             _plot(p, img, cands, title)
+        first, last = (base.with_name(f"{base.stem}_{i}{base.suffix}") for i in (0, len(plots) - 1))
+        print(f"plot: {base}" if len(plots) == 1 else
+              f"plots: {len(plots)} files, one per image, {first} .. {last}")
     return 0
