@@ -39,8 +39,9 @@ coverage: $(STAMP)
 		printf '%s branch coverage: ' $$p; \
 		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
 
-# every command and Python example of README.md and docs/*.md, run and its output checked (~17 min);
-# one document: make docs-check DOCS=README.md (the README's command blocks: a few minutes)
+# every command and Python example of README.md and docs/*.md, run and its output checked (~25 min,
+# CI runs it; make test runs the fast documents: api, budget, cli, design, fidelity, formats);
+# one document: make docs-check DOCS=README.md (the README's command blocks: ~2 min)
 docs-check: $(STAMP)
 	$(BIN)/python docs/check_commands.py $(DOCS)
 
