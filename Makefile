@@ -12,13 +12,13 @@ $(STAMP_RUN): pyproject.toml
 	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --progress-bar on -e . | grep -E --line-buffered '^(Collecting|Successfully)' || true
+	$(BIN)/python -m pip install --progress-bar on --no-input -e .
 	@$(BIN)/python -c "import hil_harness.event.io" || (echo "make: the install failed" >&2; exit 1)
 	@touch $(STAMP_RUN)
 
 $(STAMP): $(STAMP_RUN)
-	@echo "make: installing the test and benchmark extras (first run only)..."
-	$(BIN)/python -m pip install --quiet -e '.[test,bench]'
+	@echo "make: installing the test, benchmark and viewer-test extras (first run only)..."
+	$(BIN)/python -m pip install --progress-bar on --no-input -e '.[test,bench,view]'
 	@touch $(STAMP)
 
 install: $(STAMP)
@@ -39,8 +39,9 @@ coverage: $(STAMP)
 		printf '%s branch coverage: ' $$p; \
 		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
 
-# every command and Python example of README.md and docs/*.md, run and its output checked (~17 min);
-# one document: make docs-check DOCS=README.md (the README's command blocks: a few minutes)
+# every command and Python example of README.md and docs/*.md, run and its output checked (~25 min,
+# CI runs it; make test runs the fast documents: api, budget, cli, design, fidelity, formats);
+# one document: make docs-check DOCS=README.md (the README's command blocks: ~2 min)
 docs-check: $(STAMP)
 	$(BIN)/python docs/check_commands.py $(DOCS)
 

@@ -37,7 +37,7 @@ COPIED = ("data", "campaigns", "flightsw/data", "groundsim/scenarios", "tests/da
 FENCE = re.compile(r"^```(\w*)\s*$")
 #: the lines of a command block that are run: uvisi, python -m and make (listed only), and the file
 #: commands a reader types beside them
-FILE_COMMANDS = ("mkdir ", "cp ", "sed ")
+FILE_COMMANDS = ("mkdir ", "cp ", "sed ", "cmp ")
 RUN_PREFIXES = ("uvisi ", "make ", "python -m ") + FILE_COMMANDS
 
 

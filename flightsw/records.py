@@ -89,6 +89,13 @@ def _q32(where: str, v) -> float:
     return decode32(encode32(v, rounding="nearest"))
 
 
+def _comment_text(line: str) -> str:
+    """A line as TOML allows it in a comment: control characters (other than tab) written as
+    ``\\xNN``."""
+    return "".join(ch if ch == "\t" or (" " <= ch and ch != "\x7f") else f"\\x{ord(ch):02x}"
+                   for ch in line)
+
+
 def _short(v: float) -> str:
     """Shortest decimal that encodes (nearest) to the same 1750A word, TOML float syntax."""
     target = encode32(v, rounding="nearest")
@@ -320,18 +327,20 @@ class Record:
                    description=str(head.get("description", "")), **cols)
 
     def to_toml(self, comment: str = "") -> str:
-        """The TOML form; numbers written as the shortest decimals of their 1750A values."""
-        lines = [f"# {ln}".rstrip() for ln in comment.splitlines()] if comment else []
-        lines += ["[record]", f'name = "{self.name}"', f"id = {self.record_id}",
-                  f"version = {self.version}", f'object_type = "{self.object_type}"',
-                  f"gof_threshold = {_short(self.gof_threshold)}",
-                  f"quantize = {'true' if self.quantize else 'false'}"]
+        """The TOML form, written by a TOML library (``tomli_w``: any name or description, quotes
+        and backslashes included, reads back as given); numbers as the shortest decimals of their
+        1750A values; ``comment`` as ``#`` lines first."""
+        import tomli_w
+        head = {"name": self.name, "id": int(self.record_id), "version": int(self.version),
+                "object_type": self.object_type, "gof_threshold": float(_short(self.gof_threshold)),
+                "quantize": bool(self.quantize)}
         if self.description:
-            lines.append('description = """' + self.description.replace('"""', "'''") + '"""')
-        for i, fname in enumerate(FEATURE_NAMES):
-            lines += ["", f"[feature.{fname}]"]
-            lines += [f"{col} = {_short(getattr(self, col)[i])}" for col in COLUMNS]
-        return "\n".join(lines) + "\n"
+            head["description"] = self.description
+        doc = {"record": head, "feature": {
+            fname: {col: float(_short(getattr(self, col)[i])) for col in COLUMNS}
+            for i, fname in enumerate(FEATURE_NAMES)}}
+        lines = [f"# {_comment_text(ln)}".rstrip() for ln in comment.splitlines()] if comment else []
+        return "".join(f"{ln}\n" for ln in lines) + tomli_w.dumps(doc)
 
 
 # ------------------------------------------------------------------------------------------------

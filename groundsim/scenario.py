@@ -45,6 +45,8 @@ from .target_params import Arc, AuroraParams, LaunchParams
 
 SCENARIO_DIR = Path(__file__).resolve().parent / "scenarios"
 FRAME_DT = 0.5
+#: the largest seed (a signed 64-bit integer: recordings keep it as one)
+MAX_SEED = 2 ** 63 - 1
 
 
 class ScenarioError(ValueError):
@@ -101,7 +103,7 @@ class _Table:
             raise self.err(k, f"must be <= {hi}, got {v!r}")
         return float(v)
 
-    def int_(self, k, default=None, choices=None, lo=None):
+    def int_(self, k, default=None, choices=None, lo=None, hi=None):
         self.used.add(k)
         if k not in self.d:
             if default is None:
@@ -114,6 +116,8 @@ class _Table:
             raise self.err(k, f"must be one of {list(choices)}, got {v!r}")
         if lo is not None and v < lo:
             raise self.err(k, f"must be >= {lo}, got {v!r}")
+        if hi is not None and v > hi:
+            raise self.err(k, f"must be <= {hi}, got {v!r}")
         return v
 
     def str_(self, k, default=None, choices=None):
@@ -246,10 +250,12 @@ class Scenario:
         if not p.suffix and not p.exists():
             p = SCENARIO_DIR / f"{name_or_path}.toml"
         if not p.exists():
-            shipped = ", ".join(sorted(x.stem for x in SCENARIO_DIR.glob("*.toml")))
+            import difflib
+            close = difflib.get_close_matches(str(name_or_path), cls.shipped(), n=3, cutoff=0.6)
+            hint = f"; did you mean {', '.join(close)}?" if close else ""
             where = name_or_path if p.parent == SCENARIO_DIR else p
-            raise ScenarioError(where, "-", f"no such scenario: not a shipped one ({shipped}) nor "
-                                            f"a file")
+            raise ScenarioError(where, "-", f"no such scenario: not a shipped one nor a file{hint} "
+                                            f"(uvisi scenarios lists them)")
         try:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as e:
@@ -279,11 +285,13 @@ class Scenario:
         except (TypeError, ValueError) as e:
             raise sc.err("epoch", f"expected an ISO-8601 UTC time such as '1997-03-15T03:20:00Z' ({e})") from None
         duration = sc.num("duration", positive=True)
-        fseed = sc.int_("seed", default=0, lo=0)
+        fseed = sc.int_("seed", default=0, lo=0, hi=MAX_SEED)
         imager = sc.str_("imager", default="wfov_vis", choices=IMAGER_IDS)
         compaction = sc.int_("compaction", default=2, choices=(1, 2, 4))
         sc.done()
 
+        if seed is not None and not (isinstance(seed, (int, np.integer)) and 0 <= seed <= MAX_SEED):
+            raise ScenarioError(path, "seed", f"the seed {seed!r} must be an integer in 0..{MAX_SEED}")
         spc = _parse_spacecraft(top.sub("spacecraft", {}))
         pnt = _parse_pointing(top.sub("pointing", {"mode": "inertial", "ra_deg": 0.0, "dec_deg": 0.0}))
         tgt = _parse_target(top.sub("target", {"type": "none"}))
@@ -411,7 +419,7 @@ def _parse_target(t: _Table) -> dict:
             k.done()
         else:
             k = t.sub("relative")
-            out["orbit"] = ("relative", dict(d_alt_km=k.num("d_alt_km", 0.0), d_phase_deg=k.num("d_phase_deg", 0.0),
+            out["orbit"] = ("relative", dict(d_alt_km=k.num("d_alt_km", 0.0, lo=-800.0, hi=40000.0), d_phase_deg=k.num("d_phase_deg", 0.0),
                                              d_inc_deg=k.num("d_inc_deg", 0.0), d_raan_deg=k.num("d_raan_deg", 0.0)))
             k.done()
         out["mag_at_1000km"] = t.num("mag_at_1000km", 6.0)

@@ -10,7 +10,7 @@ import os
 import sys
 
 __all__ = ["QUIET", "NORMAL", "VERBOSE", "set_level", "level", "progress_enabled", "note", "debug",
-           "watch_compilation", "compile_seconds"]
+           "watch_compilation", "compile_seconds", "Heartbeat"]
 
 QUIET, NORMAL, VERBOSE = 0, 1, 2
 _state = {"level": NORMAL}
@@ -48,6 +48,35 @@ def debug(message: str) -> None:
     """A detail on stderr, shown only with ``--verbose``."""
     if _state["level"] >= VERBOSE:
         print(message, file=sys.stderr, flush=True)
+
+
+class Heartbeat:
+    """Progress where no bar is drawn (stderr not a terminal: a log, CI, a pipe): a line
+    ``"<desc>: k/total <unit> (s s)"`` on stderr when ``HEARTBEAT_S`` seconds have passed since the
+    start or the last line, and once at the end if any line was said; silent with ``--quiet``.
+    ``update(k)`` adds ``k`` done."""
+
+    HEARTBEAT_S = 10.0
+
+    def __init__(self, total: int, desc: str, unit: str = ""):
+        import time
+        self.total, self.desc, self.unit = int(total), desc, unit
+        self.n, self.t0 = 0, time.monotonic()
+        self.last, self.said = self.t0, False
+
+    def update(self, k: int = 1) -> None:
+        import time
+        self.n += int(k)
+        now = time.monotonic()
+        if now - self.last >= self.HEARTBEAT_S:
+            self.last, self.said = now, True
+            note(f"{self.desc}: {self.n}/{self.total} {self.unit} ({now - self.t0:.0f} s)")
+
+    def close(self) -> None:
+        import time
+        if self.said:
+            note(f"{self.desc}: {self.n}/{self.total} {self.unit} done "
+                 f"({time.monotonic() - self.t0:.0f} s)")
 
 
 # ------------------------------------------------------------------------------------------------

@@ -113,7 +113,7 @@ def centroid_track(t, rows, cols, path, truth_rows=None, truth_cols=None,
     t, rows, cols = (np.asarray(x, float) for x in (t, rows, cols))
     has_truth = truth_rows is not None and np.isfinite(np.asarray(truth_rows, float)).any()
     fig, axes = plt.subplots(1, 2 if has_truth else 1, figsize=(11 if has_truth else 6, 5),
-                             squeeze=False)
+                             squeeze=False, layout="constrained")   # labels never overlap
     ax = axes[0, 0]
     sc = ax.scatter(cols, rows, c=t, cmap="viridis", s=14, marker="+")
     ax.plot([], [], "+", color="tab:green", label="tracked centroid (colour: time)")
@@ -229,6 +229,24 @@ def gate_history(t, n_star, n_object, path, decision_t=None) -> Path:
     return _save(fig, path)
 
 
+#: a colour map per processor: each processor's stages are shades of its own hue
+PROCESSOR_CMAPS = {"dsp": "Blues", "ip1750": "Oranges", "tp1750": "Greens"}
+
+
+def stage_colours(names: list[str]) -> dict:
+    """A distinct colour for each ``"processor/stage"`` name: shades of the processor's hue
+    (:data:`PROCESSOR_CMAPS`; others grey), darkest first, so no two stages share a colour."""
+    groups: dict[str, list] = {}
+    for n in names:
+        groups.setdefault(n.split("/", 1)[0], []).append(n)
+    out = {}
+    for proc, members in groups.items():
+        cmap = plt.get_cmap(PROCESSOR_CMAPS.get(proc, "Greys"))
+        for i, n in enumerate(members):
+            out[n] = cmap(0.9 - 0.6 * i / max(1, len(members) - 1))
+    return out
+
+
 def budget(frames, per_stage_ms: dict[str, np.ndarray], path, title: str = "",
            period_ms: float = FRAME_PERIOD_MS) -> Path:
     """Per-frame budget use stacked by stage against the 500 ms line.
@@ -238,9 +256,11 @@ def budget(frames, per_stage_ms: dict[str, np.ndarray], path, title: str = "",
     frames = np.asarray(frames)
     fig, ax = plt.subplots(figsize=(8, 4))
     bottom = np.zeros(len(frames))
+    colours = stage_colours(list(per_stage_ms))
     for name, ms in per_stage_ms.items():
         ms = np.asarray(ms, float)
-        ax.bar(frames, ms, bottom=bottom, width=1.0, label=name, linewidth=0)
+        ax.bar(frames, ms, bottom=bottom, width=1.0, label=name, linewidth=0,
+               color=colours[name])
         bottom += ms
     ax.axhline(period_ms, color="tab:red", lw=1.5, label=f"{period_ms:.0f} ms frame")
     ax.set_xlabel("frame")

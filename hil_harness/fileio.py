@@ -9,7 +9,7 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["file_mode", "temp_beside", "FolderLock", "LOCK_NAME"]
+__all__ = ["file_mode", "temp_beside", "FolderLock", "LOCK_NAME", "check_output", "OutputError"]
 
 #: the lock file a command holds in its output folder while it writes there
 LOCK_NAME = ".uvisi.lock"
@@ -22,15 +22,57 @@ def file_mode() -> int:
     return 0o666 & ~mask
 
 
+class OutputError(ValueError):
+    """An output path that cannot be written: one line naming the user's path and why."""
+
+
+def _why(exc: OSError) -> str:
+    return exc.strerror or type(exc).__name__
+
+
 def temp_beside(path, prefix: str | None = None, suffix: str = ".tmp") -> tuple[int, str]:
     """``(fd, name)`` of a new temp file in ``path``'s folder (created if missing) with the mode of
-    :func:`file_mode`, to be renamed over ``path`` with :func:`os.replace` once written."""
+    :func:`file_mode`, to be renamed over ``path`` with :func:`os.replace` once written.
+    :class:`OutputError` names ``path`` (not the temp file) when the folder cannot be made or
+    written."""
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=prefix if prefix is not None else
-                               "." + path.name + ".", suffix=suffix)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=prefix if prefix is not None else
+                                   "." + path.name + ".", suffix=suffix)
+    except (FileExistsError, NotADirectoryError) as exc:
+        raise OutputError(f"{path}: cannot write it: {exc.filename or path.parent} is not a "
+                          f"folder") from None
+    except OSError as exc:
+        raise OutputError(f"{path}: cannot write in {path.parent} ({_why(exc)})") from None
     os.fchmod(fd, file_mode())
     return fd, tmp
+
+
+def check_output(path, kind: str = "file", option: str = "") -> None:
+    """Refuse, before any work, an output that could not be written: ``kind`` "file" (its folder,
+    created by the writer if missing) or "folder" (the folder itself). The deepest existing folder
+    on the way must be a folder and take a new file (probed with a temp file, removed at once: an
+    answer that holds for root and read-only file systems alike). :class:`OutputError` names the
+    option and the user's path."""
+    p = Path(path)
+    name = f"{option} {p}" if option else str(p)
+    if kind == "file" and p.is_dir():
+        raise OutputError(f"{name}: is a folder, not a file")
+    if kind == "folder" and p.exists() and not p.is_dir():
+        raise OutputError(f"{name}: is a file, not a folder")
+    base = p.parent if kind == "file" else p
+    base = base.absolute()
+    while not base.exists():
+        base = base.parent
+    if not base.is_dir():
+        raise OutputError(f"{name}: cannot be made: {base} is a file, not a folder")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=base, prefix=".uvisi-probe.")
+    except OSError as exc:
+        raise OutputError(f"{name}: cannot write in {base} ({_why(exc)})") from None
+    os.close(fd)
+    os.unlink(tmp)
 
 
 class FolderLock:

@@ -126,7 +126,8 @@ def read_images(paths, channel: str = "l") -> list[InputFrame]:
 
 #: leading bytes of each format read here (content first, the extension only when none matches)
 MAGIC = ((b"SIMPLE  ", "fits"), (b"II*\x00", "tiff"), (b"MM\x00*", "tiff"), (b"\x89PNG", "png"),
-         (b"\xff\xd8\xff", "png"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"))
+         (b"\xff\xd8\xff", "png"), (b"\x93NUMPY", "npy"), (b"PK\x03\x04", "npz"),
+         (b"PK\x05\x06", "npz"))                        # the last: an archive with no member
 _KIND_OF_SUFFIX = {".fits": "fits", ".fit": "fits", ".fts": "fits", ".tif": "tiff", ".tiff": "tiff",
                    ".png": "png", ".jpg": "png", ".jpeg": "png", ".bmp": "png", ".gif": "png",
                    ".npy": "npy", ".npz": "npz"}
@@ -203,7 +204,22 @@ def _palette_is_grey(im) -> bool:
 
 
 def _read_fits(p: Path, channel: str = "l") -> list[InputFrame]:
+    import warnings
+
     from astropy.io import fits
+    with warnings.catch_warnings(record=True) as said:
+        warnings.simplefilter("always")
+        try:
+            return _fits_frames(fits, p, channel)
+        except (TypeError, ValueError, OSError) as exc:
+            short = [str(w.message) for w in said if "truncated" in str(w.message)]
+            if short:                       # astropy's "File may have been truncated: ..."
+                raise ImageError(f"{p}: a truncated FITS file ({short[0].split(': ', 1)[-1]})") \
+                    from None
+            raise ImageError(f"{p}: cannot read the FITS file: {exc}") from None
+
+
+def _fits_frames(fits, p: Path, channel: str) -> list[InputFrame]:
     out = []
     with fits.open(p) as hdul:
         images = [(i, h) for i, h in enumerate(hdul)
@@ -248,6 +264,8 @@ def _read_npz(p: Path, channel: str = "l") -> list[InputFrame]:
                 continue
             label = str(p) if k == "img" or len(keys) == 1 else f"{p}[{k}]"
             out += _planes(a, label, times, channel)
+        if not z.files:
+            raise ImageError(f"{p}: an NPZ archive with no array in it")
     return out
 
 
@@ -362,8 +380,13 @@ def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tupl
         if new_med == med and new_sig == sig:
             break
         med, sig = new_med, new_sig
-    if sig <= 0:
-        sig = float(np.std(v[np.abs(v - med) <= 5 * np.std(v)])) if v.size > 1 else 0.0
+    if sig <= 0 and v.size > 1:
+        big = float(np.max(np.abs(v)))
+        unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0   # no overflow
+        w, m = v * unit, med * unit
+        sig = float(np.std(w[np.abs(w - m) <= 5 * np.std(w)])) / unit
+    elif sig <= 0:
+        sig = 0.0
     return med, sig
 
 
@@ -572,6 +595,12 @@ def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
                                               "sky_counts": SKY_COUNTS,
                                               "noise_counts": NOISE_COUNTS,
                                               "clipped_low": 0.0, "clipped_high": 0.0}
+    # values near the float range (1e300) would overflow the statistics' squares: the map is
+    # linear, so it is found on the frame scaled by an exact power of two and stated unscaled
+    big = float(np.max(np.abs(x[inside])))
+    unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0
+    if unit != 1.0:
+        x = x * unit
     bkg, noise = robust_stats(x[inside])
     dn = noise_sigma(x, mask)
     if dn > 0:
@@ -595,9 +624,9 @@ def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
     y = np.rint(y)
     lo, hi = float(np.mean(y < 0)), float(np.mean(y > _MAX12))
     counts = np.clip(y, 0, _MAX12).astype(np.uint16)
-    return counts, {"method": "robust", "background": bkg, "noise": noise, "offset": offset,
-                    "gain": gain, "sky_counts": SKY_COUNTS, "noise_counts": gain * noise,
-                    "clipped_low": lo, "clipped_high": hi}
+    return counts, {"method": "robust", "background": bkg / unit, "noise": noise / unit,
+                    "offset": offset, "gain": gain * unit, "sky_counts": SKY_COUNTS,
+                    "noise_counts": gain * noise, "clipped_low": lo, "clipped_high": hi}
 
 
 def _fit_gain(v, bkg, low):

@@ -245,3 +245,26 @@ def test_scenarios_lists_the_products_and_the_families_in_a_screen(capsys):
     assert main(["scenarios", "--all"]) == 0
     assert len(capsys.readouterr().out.splitlines()) == len(Scenario.shipped())
     assert main(["scenarios", "--family", "nope"]) == 2
+
+
+def test_heartbeat_lines_without_a_terminal_and_silent_when_quiet(capsys, monkeypatch):
+    from hil_harness import console
+    monkeypatch.setattr(console.Heartbeat, "HEARTBEAT_S", 0.0)
+    before = console.level()
+    try:
+        console.set_level(console.NORMAL)
+        beat = console.Heartbeat(3, "uvisi rde: study", "tasks")
+        for _ in range(3):
+            beat.update(1)
+        beat.close()
+        err = capsys.readouterr().err.splitlines()
+        assert [e.split(" (")[0] for e in err] == [
+            "uvisi rde: study: 1/3 tasks", "uvisi rde: study: 2/3 tasks",
+            "uvisi rde: study: 3/3 tasks", "uvisi rde: study: 3/3 tasks done"]
+        console.set_level(console.QUIET)
+        beat = console.Heartbeat(2, "x", "y")
+        beat.update(2)
+        beat.close()
+        assert capsys.readouterr().err == ""
+    finally:
+        console.set_level(before)

@@ -52,3 +52,42 @@ def test_readme_is_a_manual_of_at_most_450_lines():
     for job in ("## Job 1", "## Job 2", "## Job 3", "## Job 4"):
         section = text[text.index(job):].split("\n## ", 1)[0]
         assert "\n```\nmkdir -p scratch\nuvisi " in section or "\nuvisi " in section, job
+
+
+#: the documents whose examples run in seconds: make test runs them as written (make docs-check
+#: adds README.md and docs/validation.md, minutes, on CI)
+FAST_DOCS = ("api.md", "budget.md", "cli.md", "design.md", "fidelity.md", "formats.md")
+
+
+def test_the_fast_documents_run_as_written(capsys):
+    """Every command and Python example of the fast documents runs and prints what they show."""
+    fails = []
+    for name in FAST_DOCS:
+        fails += C.check(C.ROOT / "docs" / name, timeout=600, dry=False)
+    capsys.readouterr()
+    assert fails == [], "\n".join(fails)
+
+
+def test_the_record_example_in_formats_is_a_record():
+    """docs/formats.md's record example parses as a record, and its comment lists the features
+    by their names in flightsw.messages.FEATURE_NAMES' order."""
+    import re
+
+    from flightsw.messages import FEATURE_NAMES
+    from flightsw.records import Record
+    text = C.ROOT.joinpath("docs", "formats.md").read_text()
+    block = next(lines for lang, lines, _ in C.blocks(C.ROOT / "docs" / "formats.md")
+                 if lang == "toml" and "[record]" in lines)
+    body = "\n".join(block)
+    listed = re.findall(r"#\s*(.*)", body[body.index("[feature.size]"):])
+    names = [n.split("(")[0].strip() for ln in listed for n in ln.split(",") if n.strip()]
+    start = names.index("size")
+    assert names[start:start + len(FEATURE_NAMES)] == list(FEATURE_NAMES), names
+    # the example with the other eleven features filled in as it shows the first is a record
+    feat = body[body.index("[feature.size]"):]
+    one = "\n".join(ln.split("#")[0].rstrip() for ln in feat.splitlines()[1:])
+    full = body[:body.index("[feature.size]")] + "".join(
+        f"\n[feature.{n}]\n{one}\n" for n in FEATURE_NAMES)
+    rec = Record.from_toml(full)
+    assert rec.name == "aurora" and len(rec.mean) == len(FEATURE_NAMES)
+    assert "sigma > 0" in text

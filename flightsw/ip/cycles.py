@@ -8,7 +8,7 @@ under a :class:`CycleModel`:
 ``cycles = ceil(code_factor * instr) + dm_wait * dm + pm_misses + (port conflicts if strict)``
 
 * ``instr``: one cycle an instruction, a ``DO ... UNTIL`` set-up one cycle, nothing per iteration
-  (``shared/reference/processors.md`` A, "Timing" [A3]);
+  (``docs/processors.md`` A, "Timing" [A3]);
 * ``dm_wait``: wait states of the DM bus (DMACK stretches every DM cycle [A3]; the UVISI board's
   memory speed is not public: a parameter);
 * PM-data misses, ``pm_rule``: ``"ideal"`` none (today's model); ``"cache"`` the documented rule: an
@@ -52,7 +52,7 @@ __all__ = ["Line", "Listing", "CycleModel", "TODAY", "DOCUMENTED", "PM_RULES", "
            "format_cycle_table"]
 
 PM_RULES = ("ideal", "cache", "nocache")
-CACHE_WORDS = 16          # ADSP-2100 instruction cache (processors.md A [A3])
+CACHE_WORDS = 16          # ADSP-2100 instruction cache (docs/processors.md A [A3])
 
 
 @dataclass(frozen=True)

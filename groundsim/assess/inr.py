@@ -698,7 +698,11 @@ def synthetic_population(seed: int = 0, n_valid: int = 1781, n_sites: int = 153,
     vis = np.flatnonzero(cat["im"] == "VIS")
     good_vis = vis[cat["cont"][vis] < 0.05]
     # type-II errors: invalid absolute measurements with a passing (two with a gold) QM
-    inv = rng.choice(good_vis[~cat["exc"][good_vis]], n_invalid_abs, replace=False)
+    pool = good_vis[~cat["exc"][good_vis]]
+    if not 0 <= n_invalid_abs <= pool.size:
+        raise ValueError(f"n_invalid_abs={n_invalid_abs}: the population has {pool.size} valid "
+                         f"absolute measurements to corrupt (0..{pool.size})")
+    inv = rng.choice(pool, n_invalid_abs, replace=False)
     cat["A"][inv] = rng.uniform(-D_urad, D_urad, (inv.size, 2))
     cat["fit"][inv[:2]] = 1.0
     cat["con"][inv[:2]] = 1.0

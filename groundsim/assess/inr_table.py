@@ -192,13 +192,20 @@ def read_csv(path) -> MeasurementTable:
     """Read a CSV table in schema ``uvisi-inr-landmarks/1`` (see the module doc).
 
     Raises ``FileNotFoundError`` for a missing file and ``ValueError`` naming the column (and file line)
-    for a missing required column, a non-numeric cell or a factor outside [0, 1].
+    for a missing required column, a non-numeric or non-finite cell (``nan``, ``inf``: an absent value
+    is an empty cell) or a factor outside [0, 1].
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"no such landmark CSV: {path}")
-    with open(path, newline="") as fh:
-        lines = [(i + 1, ln) for i, ln in enumerate(fh.read().splitlines())]
+    if path.is_dir():
+        raise ValueError(f"{path}: is a folder, not a landmark CSV file")
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            lines = [(i + 1, ln) for i, ln in enumerate(fh.read().splitlines())]
+    except UnicodeDecodeError as exc:
+        raise ValueError(f"{path}: not a text CSV file (byte {exc.start} is not UTF-8 text)") \
+            from None
     body = [(no, ln) for no, ln in lines if ln.strip() and not ln.lstrip().startswith("#")]
     if not body:
         raise ValueError(f"{path}: no header line")
@@ -236,6 +243,9 @@ def read_csv(path) -> MeasurementTable:
             except ValueError:
                 raise ValueError(f"{path}: line {linenos[r + 1]}: column {name!r}: {s!r} is not a number") \
                     from None
+            if not math.isfinite(out[r]):
+                raise ValueError(f"{path}: line {linenos[r + 1]}: column {name!r}: {s!r} is not a finite "
+                                 f"number (leave the cell empty for no measurement)")
         return out
 
     def text(name):
@@ -265,4 +275,4 @@ def read_csv(path) -> MeasurementTable:
         m = re.search(r"row (\d+) has", msg)
         if m:
             msg = msg.replace(f"row {m.group(1)} has", f"line {linenos[int(m.group(1)) + 1]} has")
-        raise ValueError(f"{path}: {msg}") from None
+        raise ValueError(msg if msg.startswith(f"{path}: ") else f"{path}: {msg}") from None

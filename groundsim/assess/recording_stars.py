@@ -427,5 +427,10 @@ def inr_table_from_recording(path, imager: str | None = None, gate_px: float = 3
     meas[m["m_frame"], col] = m["pix"]
     pred[m["m_frame"], col] = m["pred"]
     scale = 1e6 * m["scale"]                     # urad per pixel (row, col)
-    return measurements_from_arrays(m["t"], [f"HIP{h}" for h in hips], meas, pred, scale,
-                                    imager=m["imager"].upper(), frames=m["frames"], **kw)
+    table = measurements_from_arrays(m["t"], [f"HIP{h}" for h in hips], meas, pred, scale,
+                                     imager=m["imager"].upper(), frames=m["frames"], **kw)
+    #: what the measurements can resolve: the imager pixel (urad, row and col) and the IP's
+    #: compaction (its centroids are quantised to processed pixels of compaction x imager pixels)
+    table.resolution = {"pixel_urad": [float(scale[0]), float(scale[1])],
+                        "compaction": int(m["compaction"])}
+    return table

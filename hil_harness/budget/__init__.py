@@ -8,7 +8,7 @@ required 2-Hz throughput rate". Two resources bound the window on the ADSP-2100 
   against the 500 ms frame (the DSP, the IP's 1750A and the TP's 1750A run in parallel, each must fit:
   the Ledger's rule);
 * **data memory**: the ADSP-2100 has no on-chip memory; its external data memory is 16K x 16-bit words
-  (``shared/reference/processors.md``, [A3]). The front end keeps whole window-sized images in it: the
+  (``docs/processors.md``, [A3]). The front end keeps whole window-sized images in it: the
   window the preprocessor delivers and the output of the step being computed (ping-pong); the
   high-pass detrender needs three at its peak (the original, the separable row-pass intermediate and
   the low-pass background; the difference is then written over the intermediate). Coefficients, the threshold statistics, variables and
@@ -32,7 +32,7 @@ import numpy as np
 
 from flightsw.budget import DSP, FRAME_PERIOD_S, IP1750, TP1750, Ledger
 
-#: ADSP-2100 external data memory, 16-bit words (processors.md [A3]: "DM 16K x 16").
+#: ADSP-2100 external data memory, 16-bit words (docs/processors.md [A3]: "DM 16K x 16").
 DM_WORDS = 16384
 #: [ASSUMED] data-memory words not available to images: kernel coefficients (<= 3 x 49), threshold
 #: and detrend accumulators, the polynomial basis, DMA descriptors, variables and the stack. A named

@@ -43,7 +43,7 @@ __all__ = ["Hypothesis", "HypothesisResult", "HYPOTHESES", "WORST_SEQUENCES", "G
 #: window sides evaluated (compacted pixels) and the power-of-two subset
 GRID = tuple(range(16, 129, 8))
 POW2 = (16, 32, 64, 128)
-DM_WORDS = 16384          # ADSP-2100 external DM, 16K x 16 (processors.md A [A3])
+DM_WORDS = 16384          # ADSP-2100 external DM, 16K x 16 (docs/processors.md A [A3])
 
 
 #: sequences a hypothesis may evaluate instead of the one under test: the costliest spatial toolbox
@@ -108,7 +108,7 @@ class Hypothesis:
     key_range: tuple = (1.0, 1000.0)
 
 
-_A3 = "processors.md A [A3]"
+_A3 = "docs/processors.md A [A3]"
 _XGC = ("XGC M1750 Ada Technical Summary, Table 5-2: interrupt latency 1500 clocks on a 1750A "
         "(a 2000s compiler: an optimistic figure for 1990)")
 _LAWLIS = ("Lawlis & Elam, TRI-Ada '92, 'Ada Outperforms Assembly': compiled Ada ran at about the "
@@ -200,7 +200,7 @@ HYPOTHESES = (
         "ranking, interrupts and housekeeping, on the scene's blobs",
         ipc=True, ada_factor=1.0, ip1750_housekeeping=0.10, ip1750_interrupts=4,
         ip1750_interrupt_clocks=1500,
-        sources=(("1750A", "PACE1750A 20 MHz, 1 wait state", "processors.md B [S2], C [M1]"),
+        sources=(("1750A", "PACE1750A 20 MHz, 1 wait state", "docs/processors.md B [S2], C [M1]"),
                  ("window read", "L + ST = 30 clocks a word", "assumed: a board-interface read "
                   "priced as a memory load"),
                  ("Ada factor", "1.0", _LAWLIS), ("interrupts", "4 x 1500 clocks", "assumed count "
@@ -583,10 +583,9 @@ def rescore_recording(path, h: Hypothesis, checksums: str = "verify") -> dict:
     ``FileNotFoundError`` / ``ValueError`` name the file when it is missing or holds no ledger."""
     from pathlib import Path
 
-    from scipy.stats import binomtest
-
     from flightsw.ip import ProcessingSequence
     from hil_harness.event.recording import Recording
+    from hil_harness.rates import wilson_interval
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(f"{path}: no such recording")
@@ -618,9 +617,8 @@ def rescore_recording(path, h: Hypothesis, checksums: str = "verify") -> dict:
             if v > worst[p]:
                 worst[p], worst_k[p] = v, k
     n = len(frames)
-    ci = binomtest(over, n).proportion_ci(0.95, method="wilson") if n else None
     return {"hypothesis": h.name, "frames": n, "overruns": over, "overruns_recorded": over_rec,
-            "overrun_ci95": None if ci is None else (float(ci.low), float(ci.high)),
+            "overrun_ci95": wilson_interval(over, n) if n else None,
             "worst_ms": worst, "worst_frame": worst_k}
 
 

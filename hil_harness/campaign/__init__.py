@@ -623,8 +623,15 @@ def failure_reasons(out_dir, run_ids=None) -> dict:
     return dict(sorted(counts.items(), key=lambda kv: (-kv[1], kv[0])))
 
 
+#: the results a campaign's summary table shows first when its runs have them (an event's lock,
+#: held fraction and tracking error; an identification run's rates), then the other numeric ones
+KEY_COLUMNS = ("lock_frame", "held_fraction_after_lock", "track_error_urad.median",
+               "track_error_processed_px.median", "top1_rate", "false_lock_rate")
+
+
 def _numeric_columns(rows, skip) -> list:
-    cols = []
+    cols = [k for k in KEY_COLUMNS if any(isinstance(r.get(k), (int, float)) and
+                                          not isinstance(r.get(k), bool) for r in rows)]
     for r in rows:
         for k, v in r.items():
             if k in skip or k in cols:

@@ -42,6 +42,8 @@ SUBCOMMAND_MODULES = (
 
 
 EXIT_OK, EXIT_FAILED, EXIT_BAD_INPUT, EXIT_INTERNAL, EXIT_INTERRUPTED = 0, 1, 2, 3, 130
+#: the reader of standard output went away (128 + SIGPIPE, as a Unix tool killed by the signal)
+EXIT_CLOSED_PIPE = 141
 
 
 class UvisiError(Exception):
@@ -77,6 +79,10 @@ class PlainParser(argparse.ArgumentParser):
 
     def __init__(self, *args, description=None, epilog=None, **kw):
         super().__init__(*args, description=plain(description), epilog=plain(epilog), **kw)
+
+    def error(self, message):
+        """A usage error in one line naming the option, exit 2 (the usage is a ``--help`` away)."""
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
 
     def add_argument(self, *args, **kw):
         if isinstance(kw.get("help"), str):
@@ -151,7 +157,10 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return EXIT_OK
     try:
+        check_outputs(args)
         return int(args.func(args) or 0)
+    except BrokenPipeError:                 # the reader went away (``| head``): as Unix tools do
+        return closed_pipe()
     except (UvisiError, ValueError, FileNotFoundError, KeyError, IsADirectoryError,
             NotADirectoryError, PermissionError) as exc:
         if args.debug:
@@ -169,6 +178,16 @@ def main(argv: list[str] | None = None) -> int:
         return _internal_error(args.command, args.debug)
 
 
+def check_outputs(args) -> None:
+    """Every output path the command was given (its ``outputs`` default: option dest -> "file" or
+    "folder") checked before any work (:func:`hil_harness.fileio.check_output`)."""
+    from hil_harness.fileio import check_output
+    for dest, kind in (getattr(args, "outputs", None) or {}).items():
+        v = getattr(args, dest, None)
+        if isinstance(v, (str, os.PathLike)) and str(v):
+            check_output(v, kind, "--" + dest.replace("_", "-"))
+
+
 def run() -> None:
     """The ``uvisi`` console script (and ``python -m hil_harness.cli``): :func:`main` on the
     command line, then exit with its code.
@@ -179,6 +198,24 @@ def run() -> None:
     of a 1.4 s warm ``uvisi event`` (every file is closed and flushed by then; atexit handlers
     still run)."""
     rc = main()
+    try:
+        sys.stdout.flush()
+    except BrokenPipeError:
+        rc = closed_pipe()
     gc.freeze()
     sys.exit(rc)
+
+
+def closed_pipe() -> int:
+    """The reader of standard output went away (``uvisi scenarios | head``): nothing more is
+    written, nothing is said, and the exit status is 141 (128 + SIGPIPE), as a Unix tool killed by
+    the signal reports it. Standard output is pointed at ``/dev/null`` so that the interpreter's
+    last flush does not fail again."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):
+        pass
+    return EXIT_CLOSED_PIPE
 

@@ -46,7 +46,7 @@ def register(sub) -> None:
     p.add_argument("--sensitivity", default=None,
                    help="PNG: largest window vs code overhead factor and DSP clock")
     p.add_argument("--json", default=None, help="write the numbers as JSON")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def _sources(results) -> str:

@@ -39,7 +39,7 @@ def register(sub) -> None:
     add_with_option(p)
     from hil_harness.cli.checks import add_no_size_check
     add_no_size_check(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"out": "folder", "json": "file"})
 
 
 def run(args) -> int:

@@ -32,7 +32,7 @@ def register(sub) -> None:
                         "process, no Dask)")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="address of an existing Dask scheduler, e.g. tcp://host:8786")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def run(args) -> int:

@@ -26,7 +26,7 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true", help="replace another run found in --out")
     p.add_argument("--arith", action="store_true", help="flight-arithmetic self-report instead")
     add_with_option(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"out": "folder"})
 
 
 def _adsp_report() -> list[tuple[str, str, bool]]:

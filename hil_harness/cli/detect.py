@@ -34,6 +34,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.cli.options import number
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
                                 to_counts, unusable)
 
@@ -110,14 +111,14 @@ def register(sub) -> None:
     add_input_options(p)
     p.add_argument("--max-candidates", type=int, default=23,
                    help="candidates reported per image, 1..1000 (default 23, the flight limit)")
-    p.add_argument("--workers", type=int, default=1,
+    p.add_argument("--workers", type=number(1, integer=True), default=1,
                    help="processes for the frames (default 1; 0: one per core when there are 16 "
                         "frames or more)")
     p.add_argument("--json", default=None, help="output JSON file (default: a table on stdout)")
     p.add_argument("--plot", default=None,
                    help="PNG with candidates marked and numbered by rank (one per image: "
                         "_<i> is added when there are several)")
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def add_input_options(p) -> None:
@@ -386,9 +387,9 @@ def _write_json(path, entries):
 # the command
 # ------------------------------------------------------------------------------------------------
 def _setup(args):
-    from flightsw.records import load_record
     from hil_harness.detect.jobs import default_sequence_name, resolve_sequence
-    record = load_record(args.record)
+    from hil_harness.tuning.export import record_from
+    record = record_from(args.record)
     seq = resolve_sequence(args.sequence or default_sequence_name(record))
     f = args.compaction if args.compaction is not None else seq.preprocess.compaction
     if not 1 <= args.max_candidates <= 1000:
@@ -423,8 +424,11 @@ def _frame_job(args, record, seq, f, gate, user_mask=None):
             kind = "unusable" if unusable(flags) else "warning only"
             msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
                         f"the IP's answer is still given)")
-        out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
-                         field=field.mask, trails=record.name == "streak")
+        try:
+            out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
+                             field=field.mask, trails=record.name == "streak")
+        except ValueError as exc:           # e.g. a frame too small for the compaction
+            raise ImageError(f"{fr.name}: {exc}") from None
         entry = {"path": fr.name, "time_utc": fr.time_utc, "shape": list(img.shape),
                  "flags": flags, "scale": scale, "field": field.to_json(), "compaction": f,
                  "mode": out["mode"],
@@ -473,4 +477,7 @@ def run(args) -> int:
         for i, (img, cands, title) in enumerate(plots):
             p = base if len(plots) == 1 else base.with_name(f"{base.stem}_{i}{base.suffix}")
             _plot(p, img, cands, title)
+        first, last = (base.with_name(f"{base.stem}_{i}{base.suffix}") for i in (0, len(plots) - 1))
+        print(f"plot: {base}" if len(plots) == 1 else
+              f"plots: {len(plots)} files, one per image, {first} .. {last}")
     return 0

@@ -23,7 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option
+from hil_harness.cli.options import add_with_option, did_you_mean
 from hil_harness.console import progress_enabled
 
 
@@ -55,7 +55,7 @@ def register(sub) -> None:
     add_with_option(p)
     from hil_harness.cli.checks import add_no_size_check
     add_no_size_check(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"out": "folder"})
 
 
 _TERMINATED = []
@@ -87,17 +87,18 @@ def _terminate(signum, frame):
 
 
 def run(args) -> int:
-    from groundsim.scenario import Scenario
-    from hil_harness.event.io import EventInterrupted, run_event, summary_table
+    from groundsim.scenario import MAX_SEED, Scenario
+    from hil_harness.event.io import (EventInterrupted, FiguresInterrupted, run_event,
+                                      summary_table)
     from hil_harness.event.selection import SelectionParams
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
-        raise ValueError(f"scenario {name!r}: not a shipped scenario ({', '.join(Scenario.shipped())}) "
-                         f"nor a file")
+        raise ValueError(f"scenario {name!r}: not a shipped scenario nor a file"
+                         f"{did_you_mean(name, Scenario.shipped())} (uvisi scenarios lists them)")
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames {args.frames}: must be >= 1")
-    if args.seed is not None and args.seed < 0:
-        raise ValueError(f"--seed {args.seed}: must be >= 0")
+    if args.seed is not None and not 0 <= args.seed <= MAX_SEED:
+        raise ValueError(f"--seed {args.seed}: must be in 0..{MAX_SEED}")
     if args.hypothesis is not None:
         from hil_harness.cli.budget import check_hypothesis
         check_hypothesis(args.hypothesis)
@@ -108,6 +109,10 @@ def run(args) -> int:
             raise ValueError(f"--uplink-dir {args.uplink_dir}: not a folder")
         scenario = Scenario.load(name, seed=args.seed, uplink_dir=args.uplink_dir)
     check_event_size(name, args, out)
+    record = args.record
+    if record is not None and Path(record).is_file() and Path(record).suffix.lower() != ".toml":
+        from hil_harness.tuning.export import record_from
+        record = record_from(record)                   # an uplink image (words file)
     replace = bool(getattr(args, "force", False)) or not args.out
     _TERMINATED.clear()
     main_thread = threading.current_thread() is threading.main_thread()
@@ -115,10 +120,15 @@ def run(args) -> int:
     try:
         s = run_event(scenario, seed=args.seed, frames=args.frames, out=out,
                       record_frames=not args.no_frames, figures=not args.no_figures,
-                      progress=progress_enabled(), sequence=args.sequence, record=args.record,
+                      progress=progress_enabled(), sequence=args.sequence, record=record,
                       selection=SelectionParams(handover=args.handover), force=replace,
                       hypothesis=args.hypothesis, proposals=args.with_,
                       proposals_where="--with")
+    except FiguresInterrupted as exc:
+        print(f"uvisi event: interrupted while writing the figures: the recording and summary.json "
+              f"in {exc.out} are complete; the figures are missing (uvisi view "
+              f"{exc.out}/recording.h5 writes the viewer page)", file=sys.stderr)
+        return 130
     except EventInterrupted as exc:
         how = "terminated (SIGTERM)" if _TERMINATED else "interrupted"
         print(f"uvisi event: {how}: partial recording kept: {exc.recording} ({exc.frames} frames, "

@@ -20,6 +20,8 @@ from __future__ import annotations
 import os
 import sys
 
+from hil_harness.cli.options import MAX_SEED, number
+
 
 def _report_options(p) -> None:
     """The assessment options every ``inr`` subcommand takes (defaults: ``REPORT_DEFAULTS``)."""
@@ -45,21 +47,24 @@ def register(sub) -> None:
     isub = p.add_subparsers(dest="inr_command", metavar="INR_COMMAND")
     pr = isub.add_parser("report", help="assess a landmark-measurement CSV")
     pr.add_argument("csv", help="landmark CSV (schema uvisi-inr-landmarks/1)")
+    pr.set_defaults(outputs={"out": "folder"})
     pr.add_argument("--out", default="inr_report", help="output directory (default ./inr_report)")
     _report_options(pr)
     pe = isub.add_parser("event", help="assess the star landmarks of an event recording")
     pe.add_argument("recording", help="recording.h5 written by uvisi event")
+    pe.set_defaults(outputs={"out": "folder"})
     pe.add_argument("--out", default="inr_event", help="output directory (default ./inr_event)")
     pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
-    pe.add_argument("--gate", type=float, default=3.0, help="star association gate [px] (default 3)")
+    pe.add_argument("--gate", type=number(0, lo_open=True), default=3.0, help="star association gate [px] (default 3)")
     pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
     from hil_harness.cli.checks import add_ignore_checksums
     add_ignore_checksums(pe)
     _report_options(pe)
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
+    ps.set_defaults(outputs={"out": "folder"})
     ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
-    ps.add_argument("--seed", type=int, default=0)
-    ps.add_argument("--excursion", type=float, default=0.0,
+    ps.add_argument("--seed", type=number(0, MAX_SEED, integer=True), default=0)
+    ps.add_argument("--excursion", type=number(), default=0.0,
                     help="inject a real system excursion of this many urad (EW) for one hour")
     ps.add_argument("--outliers", type=int, default=6, metavar="N",
                     help="invalid (type-II) absolute measurements injected into the population "
@@ -146,9 +151,12 @@ def _report(args, table=None, title=None, cfg=None) -> int:
     from groundsim.assess.inr_report import write_report
     cfg = cfg or config_from_args(args)
     if table is None:
+        if os.path.isdir(args.csv):
+            raise ValueError(f"{args.csv}: is a folder, not a landmark CSV file")
         if not os.path.isfile(args.csv):
             raise ValueError(f"{args.csv}: no such file")
         table = read_csv(args.csv)
+        usable_rows(table, args.csv)
     a = assess(table, cfg)
     paths = write_report(a, args.out, title=title or
                          f"INR 3-sigma assessment of {os.path.basename(args.csv)}")
@@ -161,13 +169,33 @@ def _report(args, table=None, title=None, cfg=None) -> int:
     return 0
 
 
+def usable_rows(table, path) -> int:
+    """The rows with an absolute measurement (both ``ew_err_urad`` and ``ns_err_urad``); the rows
+    with only one of the two are said (they are not used as absolute measurements); none at all
+    is an error naming the file (a report of nothing would read as "meets")."""
+    import numpy as np
+    fin = np.isfinite(table.abs_err)
+    both, one = int(np.sum(fin.all(axis=1))), int(np.sum(fin.any(axis=1) & ~fin.all(axis=1)))
+    if both == 0:
+        raise ValueError(f"{path}: no row has both ew_err_urad and ns_err_urad: nothing to assess")
+    if one:
+        print(f"uvisi inr: note: {path}: {one} of {len(table)} rows have only one of ew_err_urad / "
+              f"ns_err_urad: not used as absolute measurements", file=sys.stderr)
+    return both
+
+
 def _synthetic(args) -> int:
     from groundsim.assess.inr import synthetic_population, write_csv
     if args.outliers < 0:
         raise ValueError(f"--outliers {args.outliers}: must be >= 0")
     cfg = config_from_args(args, synthetic=True)
-    table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion,
-                                    n_invalid_abs=args.outliers)
+    try:
+        table, _ = synthetic_population(seed=args.seed, excursion_urad=args.excursion,
+                                        n_invalid_abs=args.outliers)
+    except ValueError as exc:
+        if "n_invalid_abs" not in str(exc):
+            raise
+        raise ValueError(f"--outliers {args.outliers}: {str(exc).split(': ', 1)[1]}") from None
     if args.csv:
         os.makedirs(args.out, exist_ok=True)
         print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_synthetic.csv'))}")
@@ -191,7 +219,27 @@ def _event(args) -> int:
     if args.csv:
         os.makedirs(args.out, exist_ok=True)
         print(f"wrote {write_csv(table, os.path.join(args.out, 'inr_event.csv'))}")
-    return _report(args, table, f"INR 3-sigma assessment of {os.path.basename(args.recording)}", cfg)
+    rc = _report(args, table, f"INR 3-sigma assessment of {os.path.basename(args.recording)}", cfg)
+    if rc:
+        print(resolution_note(table, cfg), file=sys.stderr)
+    return rc
+
+
+def resolution_note(table, cfg) -> str:
+    """Why star landmarks from an event fail the verdicts: their 99.7th-percentile errors against
+    the imager pixel and the IP's processed pixel, beside the NAV threshold."""
+    import numpy as np
+    res = getattr(table, "resolution", None) or {}
+    px = res.get("pixel_urad", [float("nan")] * 2)
+    comp = res.get("compaction", 1)
+    err = np.abs(table.abs_err[np.all(np.isfinite(table.abs_err), axis=1)])
+    p_ns, p_ew = (float(np.percentile(err[:, i], 99.7)) if len(err) else float("nan")
+                  for i in (1, 0))
+    return (f"uvisi inr: why: these landmarks are the flight IP's star centroids, quantised to "
+            f"processed pixels of {comp} x {px[1]:.0f} urad (EW) by {comp} x {px[0]:.0f} urad (NS); "
+            f"their 99.7th-percentile errors are {p_ew:.0f} urad EW, {p_ns:.0f} urad NS, against a "
+            f"NAV threshold of {cfg.theta_nav_urad:.0f} urad made for sub-pixel landmark "
+            f"measurements: the verdicts measure the centroids' resolution, not the pointing")
 
 
 def run(args) -> int:

@@ -34,12 +34,16 @@ from __future__ import annotations
 import json
 import os
 
+from hil_harness.cli.options import MAX_SEED, number
+from hil_harness.console import Heartbeat
+
 
 def register(sub) -> None:
     p = sub.add_parser("rde", help="recursive distortion estimator: Landsat study, pointing reconstruction",
                        description=__doc__)
     rsub = p.add_subparsers(dest="rde_command", metavar="RDE_COMMAND")
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
+    ps.set_defaults(outputs={"out": "folder"})
     ps.add_argument("--out", default=None,
                     help="output directory (default: ./rde_study; ./rde_sensitivity with --sensitivity)")
     ps.add_argument("--realisations", type=int, default=None,
@@ -53,9 +57,10 @@ def register(sub) -> None:
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
                     "event recording (.h5)")
+    pr.set_defaults(outputs={"out": "folder"})
     pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
-    pr.add_argument("--iterations", type=int, default=3, help="linearisation passes (default 3)")
-    pr.add_argument("--min-significance", type=float, default=3.0,
+    pr.add_argument("--iterations", type=number(1, integer=True), default=3, help="linearisation passes (default 3)")
+    pr.add_argument("--min-significance", type=number(0), default=3.0,
                     help="apply the correction about an imager axis only if its mean is at least this "
                     "many sigma from zero (default 3; 0 applies it everywhere)")
     pr.add_argument("--flight-centroids", action="store_true",
@@ -66,8 +71,8 @@ def register(sub) -> None:
     add_ignore_checksums(pr)
     pn = rsub.add_parser("synth", help="write a synthetic control-point file")
     pn.add_argument("output", help="output .npz")
-    pn.add_argument("--seed", type=int, default=0)
-    pn.add_argument("--duration", type=float, default=90.0, help="event length [s]")
+    pn.add_argument("--seed", type=number(0, MAX_SEED, integer=True), default=0)
+    pn.add_argument("--duration", type=number(0, lo_open=True), default=90.0, help="event length [s]")
     p.set_defaults(func=run, _rde_parser=p)
 
 
@@ -79,7 +84,7 @@ def _with_progress(base_map):
     def mapped(fn, tasks):
         tasks = list(tasks)
         if not progress_enabled():
-            return base_map(fn, tasks)
+            return _with_heartbeat(base_map(fn, tasks), len(tasks))
         from tqdm import tqdm
         return tqdm(base_map(fn, tasks), total=len(tasks), desc="rde study", unit="task",
                     leave=False)
@@ -115,6 +120,9 @@ def _sensitivity(args) -> int:
 
     def progress(done, total):
         if not progress_enabled():
+            if "beat" not in bar:
+                bar["beat"] = Heartbeat(total, "uvisi rde: sensitivity", "models")
+            bar["beat"].update(done - bar["beat"].n)
             return
         if "bar" not in bar:
             from tqdm import tqdm
@@ -138,6 +146,15 @@ def _sensitivity(args) -> int:
     print(f"wrote {os.path.join(args.out, 'rde_sensitivity.md')}, rde_sensitivity.csv, "
           "rde_sensitivity.json, rde_sensitivity.png")
     return 0
+
+
+def _with_heartbeat(results, total: int):
+    """``results`` passed through, a heartbeat line every few seconds (no terminal: no bar)."""
+    beat = Heartbeat(total, "uvisi rde: study", "tasks")
+    for r in results:
+        beat.update(1)
+        yield r
+    beat.close()
 
 
 def _study(args) -> int:

@@ -26,7 +26,7 @@ def register(sub) -> None:
     q.add_argument("record", help="shipped record name or TOML file")
     q.add_argument("--toml", default=None, help="output TOML")
     q.add_argument("--words", default=None, help="output uplink image (.words text, .bin binary)")
-    q.set_defaults(func=_export)
+    q.set_defaults(func=_export, outputs={"toml": "file", "words": "file"})
     p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
 
 
@@ -45,7 +45,7 @@ def _check(args) -> int:
 
 
 def _export(args) -> int:
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     from hil_harness.tuning.export import export_record
     if not args.toml and not args.words:
         raise ValueError("give --toml and/or --words")

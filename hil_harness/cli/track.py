@@ -81,7 +81,7 @@ def register(sub) -> None:
     add_with_option(p)
     from hil_harness.cli.detect import add_input_options
     add_input_options(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
 def sequence_field(frames, mask=None, circle=None):
@@ -196,8 +196,8 @@ def _write_json(path, obj):
 
 
 def run(args) -> int:
-    from flightsw.records import load_record
-    record = load_record(args.record)
+    from hil_harness.tuning.export import record_from
+    record = record_from(args.record)
     if args.fov is not None and not 0.0 < args.fov < 90.0:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
     from hil_harness.cli.detect import read_mask

@@ -31,7 +31,8 @@ import json
 import time
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option, with_names
+from hil_harness.cli.options import add_with_option, number, with_names
+from hil_harness.console import progress_enabled
 
 
 def register(sub) -> None:
@@ -41,7 +42,7 @@ def register(sub) -> None:
 
     def common(q):
         q.add_argument("set", help="set spec (.toml) or saved set (.npz)")
-        q.add_argument("--workers", type=int, default=None,
+        q.add_argument("--workers", type=number(1, integer=True), default=None,
                        help="processes used to build a set from a spec (default: the spec's)")
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
         from hil_harness.cli.checks import add_no_size_check
@@ -53,7 +54,7 @@ def register(sub) -> None:
     q = ts.add_parser("set", help="build and save a labelled training set")
     common(q)
     q.add_argument("-o", "--out", required=True, help="output .npz")
-    q.set_defaults(func=_set)
+    q.set_defaults(func=_set, outputs={"out": "file"})
 
     q = ts.add_parser("fit", help="means, sigmas and quantisation thresholds from a set")
     common(q)
@@ -62,7 +63,7 @@ def register(sub) -> None:
                    help="record giving weights, type, id (shipped name or TOML; default aurora)")
     _naming(q)
     q.add_argument("--save-set", default=None, help="also save the built set (.npz)")
-    q.set_defaults(func=_fit)
+    q.set_defaults(func=_fit, outputs={"out": "file"})
 
     q = ts.add_parser("optimise", aliases=["optimize"],
                       help="fit + optimise weights (cross-validated) + GOF threshold")
@@ -96,7 +97,7 @@ def register(sub) -> None:
     q.add_argument("--json", default=None, help="write the optimisation summary (JSON)")
     _naming(q)
     add_with_option(q)
-    q.set_defaults(func=_optimise)
+    q.set_defaults(func=_optimise, outputs={"out": "file", "words": "file", "json": "file"})
 
     q = ts.add_parser("validate", help="identification rates and report on a held-out set")
     common(q)
@@ -105,13 +106,13 @@ def register(sub) -> None:
                    help="records reported beside it on the same frames (default: aurora, Table 1)")
     q.add_argument("--report", required=True, help="output directory")
     q.add_argument("--title", default=None)
-    q.add_argument("--require-top1", type=float, default=None,
+    q.add_argument("--require-top1", type=number(0, 1), default=None,
                    help="exit status 1 if the record's closed-loop top-1 rate is below this")
     q.add_argument("--events", default=None,
                    help="directory keeping the rendered events (read back when present; keyed "
                         "by scenario entry and seed: empty it when the renderer changes)")
     add_with_option(q)
-    q.set_defaults(func=_validate)
+    q.set_defaults(func=_validate, outputs={"report": "folder"})
     p.set_defaults(func=lambda a: (p.print_help(), 0)[1])
 
 
@@ -131,8 +132,8 @@ def _get_set(args):
         from hil_harness.tuning.data import SetSpec
         check_render_size(SetSpec.load(p), args)
     t0 = time.perf_counter()
-    ts = build_set(_with_channel(p, args.channel), progress=not args.no_progress,
-                   workers=args.workers)
+    ts = build_set(_with_channel(p, args.channel), workers=args.workers,
+                   progress=progress_enabled() and not args.no_progress)
     print(f"[tune] set {ts.meta.get('name', p.stem)}: {ts.summary()} "
           f"({time.perf_counter() - t0:.1f} s)")
     return ts
@@ -171,7 +172,7 @@ def _with_channel(p: Path, channel):
 
 
 def _names(args):
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     base = load_record(args.base)
     name = args.name or f"{base.name}_tuned"
     rid = base.record_id if args.id is None else args.id
@@ -217,7 +218,7 @@ def _replayer(args):
     check_render_size(spec, args)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,
-                       progress=not args.no_progress)
+                       progress=progress_enabled() and not args.no_progress)
     nobj = sum(int(e.has_object.sum()) for e in evs)
     print(f"[tune] set {spec.name}: {len(evs)} events, {sum(e.n_frames for e in evs)} frames "
           f"({nobj} with the object) ({time.perf_counter() - t0:.1f} s)")
@@ -245,7 +246,7 @@ def _optimise(args) -> int:
     kw = dict(base=base, frr=args.frr, quantize=args.quantize, maxiter=args.maxiter,
               popsize=args.popsize, centroid_penalty=args.centroid_penalty)
     t0 = time.perf_counter()
-    kw["progress"] = not args.no_progress
+    kw["progress"] = progress_enabled() and not args.no_progress
     cv = (cross_validate_closed(rp, args.folds, seed=args.seed, by=args.cv_groups, **kw)
           if args.folds > 1 else {})
     res = optimise_closed_loop(rp, seed=args.seed, name=name, record_id=rid, version=ver,
@@ -276,7 +277,7 @@ def _optimise(args) -> int:
 
 
 def _validate(args) -> int:
-    from flightsw.records import load_record
+    from hil_harness.tuning.export import record_from as load_record
     from hil_harness.tuning.closed import validate_closed_loop
     rec = load_record(args.record)
     records = {rec.name: rec}

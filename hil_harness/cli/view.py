@@ -18,6 +18,8 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from hil_harness.cli.options import number
+
 
 def register(sub) -> None:
     p = sub.add_parser("view", help="look at a recorded event frame by frame (an HTML page)",
@@ -27,12 +29,12 @@ def register(sub) -> None:
                    help="the page to write (default: view.html beside the recording)")
     p.add_argument("--serve", action="store_true",
                    help="serve the recording on 127.0.0.1 instead of writing a page")
-    p.add_argument("--port", type=int, default=None,
+    p.add_argument("--port", type=number(0, 65535, integer=True), default=None,
                    help="port of --serve (default 8765; 0 picks a free one)")
     from hil_harness.cli.checks import add_ignore_checksums, add_no_size_check
     add_ignore_checksums(p)
     add_no_size_check(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, outputs={"out": "file"})
 
 
 def run(args) -> int:
@@ -51,8 +53,6 @@ def run(args) -> int:
         out = Path(args.out) if args.out else Path(args.recording).parent / "view.html"
         if out.is_dir():
             raise IsADirectoryError(f"{out}: is a folder; -o names the page file")
-        if not out.parent.is_dir():
-            raise FileNotFoundError(f"{out.parent}: no such folder (for -o {out})")
         check(page_cost(f"page of {path}", frames, out), lift_cap=args.no_size_check)
     verify_recording(path, args, "view")
     args.checksums = "ignore" if args.ignore_checksums else "verify"

@@ -681,6 +681,27 @@ class EventInterrupted(KeyboardInterrupt):
         self.frames = frames
 
 
+class FiguresInterrupted(KeyboardInterrupt):
+    """SIGINT while the figures were written: the recording and ``summary.json`` in ``out`` are
+    complete (the summary's ``"figures"`` says the figures are missing)."""
+
+    def __init__(self, out: Path):
+        super().__init__(f"interrupted while writing the figures in {out}")
+        self.out = out
+
+
+#: ``summary.json``'s ``"figures"`` while the figures are being written (kept if interrupted)
+FIGURES_PENDING = "not written: the run was interrupted while writing them"
+
+
+def write_summary(out: Path, s: dict) -> Path:
+    """``out/summary.json`` written atomically."""
+    tmp = out / "summary.json.tmp"
+    tmp.write_text(json.dumps(s, indent=2, default=_json_default))
+    tmp.replace(out / "summary.json")
+    return out / "summary.json"
+
+
 def _kill_hook() -> int | None:
     v = os.environ.get(KILL_HOOK_ENV)
     if v is None or v == "":
@@ -794,11 +815,14 @@ def _run_recorded(ev: Event, out: Path, record_frames: bool, figures: bool, prog
         rec.set_attr("stage_frame", writer.stage_frame)
     path = rec.close()
     s["recording"] = str(path)
-    if figures:
-        s["figures"] = [str(p) for p in event_figures(ev, out)] + [str(_view_page(path, progress))]
-    tmp = out / "summary.json.tmp"
-    tmp.write_text(json.dumps(s, indent=2, default=_json_default))
-    tmp.replace(out / "summary.json")
+    if figures:                    # the run is complete: its summary first, then the figures
+        write_summary(out, dict(s, figures=FIGURES_PENDING))
+        try:
+            s["figures"] = ([str(p) for p in event_figures(ev, out)]
+                            + [str(_view_page(path, progress))])
+        except KeyboardInterrupt:
+            raise FiguresInterrupted(out) from None
+    write_summary(out, s)
     return s
 
 

@@ -62,6 +62,9 @@ DEFAULT_EVENT_SEQUENCE = {"aurora": "aurora_track", "satellite": "satellite_trac
 #: longest candidate message (23 candidates): recorded padded to this many words
 MAX_MESSAGE_WORDS = 15 + 29 * 23 + 1
 
+#: the event bar before its first frame without compilation: counts, no rate or time left
+NO_ESTIMATE = "{desc}: {percentage:3.0f}%|{bar}| {n_fmt}/{total_fmt} [{elapsed}, compiling first]"
+
 SKIP_NONE, SKIP_DROPPED, SKIP_OVERRUN = 0, 1, 2
 SKIP_REASONS = {SKIP_NONE: "", SKIP_DROPPED: "frame dropped", SKIP_OVERRUN: "IP busy (overrun)"}
 
@@ -644,8 +647,10 @@ class Event:
         bar = None
         if progress:
             from tqdm import tqdm
+            # no time estimate until a frame ran without compiling: the first frames carry the
+            # first run's compilation, which would read as hours left
             bar = tqdm(total=self.n_frames, desc=f"event {self.scenario.name}", unit="frame",
-                       leave=False)
+                       leave=False, bar_format=NO_ESTIMATE)
         try:
             for _ in it:
                 if self.done:
@@ -658,6 +663,9 @@ class Event:
                 if not self.keep_outcomes:
                     self.outcomes[-1] = FrameRecord(o)
                 if bar is not None:
+                    if bar.bar_format == NO_ESTIMATE and not o.host_us.get("compile"):
+                        bar.bar_format, bar.initial = None, bar.n     # rate from here on
+                        bar.start_t = bar._time()
                     bar.update(1)
         finally:
             if bar is not None:

@@ -220,10 +220,20 @@ def load_set(path) -> TrainingSet:
     p = Path(path)
     if not p.exists():
         raise FileNotFoundError(f"{p}: no such training set")
+    if p.is_dir():
+        raise ValueError(f"{p}: is a folder, not a training-set .npz")
+    with open(p, "rb") as fh:
+        head = fh.read(4)
+    if head[:2] != b"PK":                        # every .npz is a zip archive
+        raise ValueError(f"{p}: not a training-set .npz (not a zip archive: `uvisi tune set` "
+                         f"writes one)")
     try:
         z = np.load(p, allow_pickle=False)
-    except Exception as exc:
-        raise ValueError(f"{p}: not a training-set .npz ({exc})") from None
+    except Exception as exc:                    # noqa: BLE001 -- a damaged archive: one line
+        first = str(exc).splitlines()[0] if str(exc) else type(exc).__name__
+        if "pickle" in first:
+            first = "it holds Python objects, which are never loaded"
+        raise ValueError(f"{p}: not a training-set .npz ({first})") from None
     with z:
         if "schema" not in z.files or str(z["schema"]) != SET_SCHEMA:
             raise ValueError(f"{p}: not a training set (schema {SET_SCHEMA} expected)")

@@ -34,7 +34,7 @@ from flightsw.messages import FEATURE_NAMES
 from flightsw.records import RECORD_WORDS, Record
 from hil_harness.fileio import temp_beside
 
-__all__ = ["export_record", "write_words", "read_words", "check_record_file", "check_record",
+__all__ = ["export_record", "write_words", "read_words", "record_from", "check_record_file", "check_record",
            "unit_problems", "CheckResult", "BINARY_SUFFIXES"]
 
 BINARY_SUFFIXES = (".bin", ".uplink", ".dat")
@@ -109,12 +109,32 @@ def read_words(path) -> np.ndarray:
     return np.array(out, np.int64)
 
 
+def record_from(spec) -> Record:
+    """The record a ``--record`` option names: a shipped name, a record TOML, or an uplink image
+    (a words file, text or binary, as scenario uplinks take; ``.words``, ``.bin``...). Errors
+    name the file."""
+    from flightsw.records import RecordError, load_record
+    p = Path(str(spec))
+    if isinstance(spec, Record) or p.suffix.lower() == ".toml" or not p.is_file():
+        return load_record(spec)
+    data = p.read_bytes()
+    if _looks_like_toml(data):
+        return load_record(p)
+    try:
+        return Record.from_words(read_words(p), name=p.stem)
+    except RecordError as exc:
+        raise ValueError(f"{p}: not a record uplink image: {exc}") from None
+
+
 def export_record(record: Record, toml_path=None, words_path=None, comment: str = "") -> dict:
     """Write the TOML form and/or the uplink words (both atomically); returns the paths and CRC."""
     out = {}
     words = record.to_words()
     if toml_path is not None:
-        _atomic_write(toml_path, record.to_toml(comment).encode())
+        text = record.to_toml(comment)
+        if Record.from_toml(text, source=str(toml_path)) != record:     # checked before writing
+            raise ValueError(f"{toml_path}: the record's TOML does not read back to the record")
+        _atomic_write(toml_path, text.encode())
         out["toml"] = str(toml_path)
     if words_path is not None:
         write_words(words_path, words, f"uplink image of record {record.name!r} id "

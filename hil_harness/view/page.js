@@ -141,7 +141,10 @@ async function drawFrame() {
   const stars = $("show-stars").checked ? await starsOf(k) : [];
   if (k !== state.k) return;
   cv.width = D.image_shape[1] * S; cv.height = D.image_shape[0] * S;
+  ctx.setTransform(1, 0, 0, 1, 0, 0);
   ctx.fillStyle = "#000"; ctx.fillRect(0, 0, cv.width, cv.height);
+  const v = state.view = zoomView(k, cv);
+  ctx.setTransform(v.z, 0, 0, v.z, v.tx, v.ty);
   if (img) {
     if (state.lo === null) autoContrast(img);
     toCanvas(img, state.lo, state.hi, off);
@@ -153,7 +156,22 @@ async function drawFrame() {
                  "recorded with --no-frames: no images", 20, 30);
   }
   state.img = img;
-  overlays(ctx, k, stars);
+  overlays(ctx, k, stars, v.z);
+  ctx.setTransform(1, 0, 0, 1, 0, 0);
+}
+// the zoom: magnification z about the TP's prediction for the frame (else the window's centre,
+// else the image centre), kept inside the image; canvas px = z * (imager px * S) + (tx, ty)
+function zoomView(k, cv) {
+  const z = Number($("zoom").value) || 1;
+  if (z <= 1) return { z: 1, tx: 0, ty: 0 };
+  const w = F.window, comp = w.compaction[k] || 1;
+  let r = F.pred_row[k], c = F.pred_col[k];
+  if (r === null && w.row0[k] !== null) { r = w.row0[k] + w.rows[k] * comp / 2; c = w.col0[k] + w.cols[k] * comp / 2; }
+  if (r === null) { r = D.image_shape[0] / 2; c = D.image_shape[1] / 2; }
+  const clamp = (v, lo, hi) => Math.min(hi, Math.max(lo, v));
+  const tx = clamp(cv.width / 2 - z * c * S, cv.width * (1 - z), 0);
+  const ty = clamp(cv.height / 2 - z * r * S, cv.height * (1 - z), 0);
+  return { z, tx, ty };
 }
 function box(ctx, r0, c0, h, w, color, dash) {
   ctx.strokeStyle = color; ctx.setLineDash(dash || []);
@@ -164,8 +182,8 @@ function cross(ctx, r, c, color, size) {
   ctx.strokeStyle = color; ctx.beginPath();
   ctx.moveTo(x - s, y); ctx.lineTo(x + s, y); ctx.moveTo(x, y - s); ctx.lineTo(x, y + s); ctx.stroke();
 }
-function overlays(ctx, k, stars) {
-  ctx.lineWidth = 1.5; ctx.font = "11px sans-serif";
+function overlays(ctx, k, stars, z) {
+  ctx.lineWidth = 1.5 / (z || 1); ctx.font = `${11 / (z || 1)}px sans-serif`;
   const w = F.window, comp = w.compaction[k] || 1;
   if (w.row0[k] !== null) box(ctx, w.row0[k], w.col0[k], w.rows[k] * comp, w.cols[k] * comp, COLORS.window);
   ctx.strokeStyle = COLORS.stars;
@@ -438,11 +456,12 @@ function init() {
   $("auto").addEventListener("click", () => { if (state.img) { autoContrast(state.img); drawFrame(); } });
   $("show-stars").addEventListener("change", drawFrame);
   $("show-gates").addEventListener("change", drawFrame);
+  $("zoom").addEventListener("change", drawFrame);
   if (!D.stars) { $("show-stars").disabled = true; $("show-stars").parentElement.title = "not recorded"; }
   $("frame").addEventListener("mousemove", (ev) => {
-    const b = $("frame").getBoundingClientRect();
-    const c = Math.floor((ev.clientX - b.left) / b.width * D.image_shape[1]);
-    const rr = Math.floor((ev.clientY - b.top) / b.height * D.image_shape[0]);
+    const cv = $("frame"), b = cv.getBoundingClientRect(), vw = state.view || { z: 1, tx: 0, ty: 0 };
+    const x = (ev.clientX - b.left) / b.width * cv.width, y = (ev.clientY - b.top) / b.height * cv.height;
+    const c = Math.floor((x - vw.tx) / vw.z / S), rr = Math.floor((y - vw.ty) / vw.z / S);
     const v = pixelAt(rr, c);
     $("pixel-readout").textContent = v === null ? "" : `pixel row ${rr}, col ${c}: ${v} counts`;
   });
@@ -453,6 +472,11 @@ function init() {
     else if (ev.key === "Home") go(0);
     else if (ev.key === "End") go(N - 1);
     else if (ev.key === " ") { play(); ev.preventDefault(); }
+    else if (ev.key === "+" || ev.key === "-") {
+      const zs = [...$("zoom").options].map((o) => o.value), i = zs.indexOf($("zoom").value);
+      $("zoom").value = zs[Math.max(0, Math.min(zs.length - 1, i + (ev.key === "+" ? 1 : -1)))];
+      drawFrame();
+    }
   });
   window.addEventListener("hashchange", () => go(fromHash()));
   legend(); eventList();
@@ -462,6 +486,6 @@ function init() {
 // for tests and the console: the frame shown, a pixel's stored value, a promise of the current draw
 // (firstFrameMs: performance.now() when the first frame was drawn, the load time bench/ measures)
 window.uvisiView = { go, get frame() { return state.k; }, pixel: pixelAt, stagePixel, shown: () => shown, data: D,
-                     firstFrameMs: null };
+                     firstFrameMs: null, get view() { return state.view; } };
 init();
 })();

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.fileio import temp_beside
+
 from .codec import pack
 from .data import extract
 from .stages import recorded_stages, stage_entries, stage_note, stages_by_frame
@@ -103,14 +105,17 @@ def inline_images(rec, data: dict, stages: dict, progress: bool = False) -> dict
 
 
 def write_atomic(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file (nothing half-written on failure)."""
+    """Write ``text`` to ``path`` through a temporary file beside it (its folder made if missing;
+    nothing half-written on failure)."""
     path = Path(path)
-    tmp = path.with_name(path.name + ".tmp")
+    fd, tmp = temp_beside(path)
     try:
-        tmp.write_text(text, encoding="utf-8")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
         os.replace(tmp, path)
     finally:
-        tmp.unlink(missing_ok=True)
+        if os.path.exists(tmp):
+            os.unlink(tmp)
     return path
 
 

@@ -63,7 +63,7 @@ def test_crc_check_value_and_stdlib_oracle():
         crc16_ccitt([0x10000])
 
 
-# MIL-STD-1750A Tables III/IV (shared/reference/processors.md): value, words
+# MIL-STD-1750A Tables III/IV (docs/processors.md): value, words
 STANDARD_32 = [(0.9999998 * 2.0 ** 127, 0x7FFF, 0xFF7F, (0x7FFFFF, 127)),
                (0.5 * 2.0 ** 127, 0x4000, 0x007F, (0x400000, 127)),
                (10.0, 0x5000, 0x0004, (0x500000, 4)), (1.0, 0x4000, 0x0001, (0x400000, 1)),

@@ -220,7 +220,11 @@ def test_cli_entries(rich, tmp_path, capsys):
     # a star event at GOES thresholds: verdicts fail, which is exit status 1 (not an error)
     assert main(["inr", "event", str(path), "--out", str(tmp_path / "inr")]) == 1
     assert (tmp_path / "inr" / "inr_report.md").exists()
-    assert "verdict(s) FAIL" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert "verdict(s) FAIL" in err
+    # ... and says why: the centroids' resolution against the threshold, in numbers
+    why = next(x for x in err.splitlines() if x.startswith("uvisi inr: why:"))
+    assert "processed pixels of 2 x" in why and "NAV threshold of 65 urad" in why
     assert main(["rde", "reconstruct", str(path)]) == 0
     out = capsys.readouterr().out
     assert "control points" in out and "normalised innovations" in out and "applied about y, z" in out

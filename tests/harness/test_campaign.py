@@ -385,3 +385,31 @@ out = "{out}"
     assert [f.name for f in (tmp_path / "log").iterdir()] == [f"seed0.{os.getpid()}"]  # ran once
     assert main(["campaign", str(spec), "--out", str(out), "--resume", "--serial",
                  "--no-progress"]) == 0                      # the lock went with the first
+
+
+def event_like_job(params: dict) -> dict:
+    """An event job's result keys, made up (the summary table's first columns)."""
+    s = int(params["seed"])
+    return {"frames": 20, "duration_s": 10.0, "frames_processed": 20, "attitude_invalid_frames": 0,
+            "lock_frame": 4 + s, "held_fraction_after_lock": 0.5 + 0.1 * s,
+            "track_error_urad.median": 10.0 * (s + 1), "budget.dsp_ms": 7.0}
+
+
+def test_the_summary_table_leads_with_lock_held_and_error(tmp_path, capsys):
+    spec = tmp_path / "ev.toml"
+    spec.write_text(f"""
+[campaign]
+name = "evlike"
+job = "{__name__}:event_like_job"
+seeds = [0, 1, 2]
+""")
+    out = tmp_path / "o"
+    assert main(["campaign", str(spec), "--serial", "--no-progress", "--out", str(out)]) == 0
+    capsys.readouterr()
+    assert main(["campaign", "--show", str(out)]) == 0
+    shown = capsys.readouterr().out.splitlines()
+    head = next(x for x in shown if "runs" in x.split())
+    assert head.split()[:4] == ["runs", "lock_frame", "held_fraction_after_lock",
+                                "track_error_urad.median"]
+    row = shown[shown.index(head) + 1].split()
+    assert row[:4] == ["3", "5", "0.6", "20"]          # means over the three seeds

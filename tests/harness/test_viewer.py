@@ -204,12 +204,16 @@ def test_cli_errors_are_one_line(tmp_path, capsys, event):
     cases = [([str(tmp_path / "none.h5")], "no such recording"), ([str(bad)], "not a uvisi recording"),
              ([str(tmp_path / "junk.h5")], "not a readable HDF5"), ([str(tmp_path)], "is a folder"),
              ([str(event / "recording.h5"), "--port", "9"], "--port is for --serve"),
-             ([str(event / "recording.h5"), "-o", str(tmp_path / "no" / "p.html")], "no such folder")]
+             ([str(event / "recording.h5"), "-o", str(tmp_path / "junk.h5" / "p.html")],
+              "junk.h5 is a file, not a folder")]
     for argv, msg in cases:
         assert cli(["view"] + argv) == 2, argv
         err = capsys.readouterr().err.strip()
         assert err.startswith("uvisi view: error:") and msg in err and "\n" not in err, err
     assert not list(tmp_path.glob("*.tmp"))
+    # a missing folder is made, as every writer does
+    assert cli(["view", str(event / "recording.h5"), "-o", str(tmp_path / "no" / "p.html")]) == 0
+    assert (tmp_path / "no" / "p.html").stat().st_size > 1000
 
 
 def _get(url):

@@ -16,6 +16,7 @@ fails instead (``.ci/run`` installs both).
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import threading
@@ -178,6 +179,17 @@ def test_page_in_chromium(browser, event):
         wait_frame(page2, K)
         check_frame(page2, f, K)
         page2.screenshot(path=str(art / "viewer.png"), full_page=True)
+        # zoom 4x about the TP's prediction: the canvas centre is the predicted pixel
+        page2.select_option("#zoom", "4")
+        wait_until(page2, "window.uvisiView.view && window.uvisiView.view.z === 4")
+        pr, pc = page2.evaluate(f"[window.uvisiView.data.frames.pred_row[{K}], "
+                                f"window.uvisiView.data.frames.pred_col[{K}]]")
+        fb = page2.query_selector("#frame").bounding_box()
+        page2.mouse.move(fb["x"] + fb["width"] / 2, fb["y"] + fb["height"] / 2)
+        assert page2.inner_text("#pixel-readout").startswith(
+            f"pixel row {math.floor(pr)}, col {math.floor(pc)}:")
+        page2.keyboard.press("-")                         # keys step the zoom
+        wait_until(page2, "window.uvisiView.view.z === 2")
     assert errors == [] and errors2 == []
 
 

@@ -1,4 +1,4 @@
-"""The budget model against the timing facts processors.md quotes, and the Ledger's bookkeeping."""
+"""The budget model against the timing facts docs/processors.md quotes, and the Ledger's bookkeeping."""
 import numpy as np
 import pytest
 
@@ -7,14 +7,14 @@ from flightsw.budget import ADSP2100, ADSP2100A, PACE1750A, Ledger
 
 
 def test_pace_1750a_times_match_the_quoted_microseconds():
-    # processors.md: PACE at 20 MHz: FA 2.15 us, FM 2.9 us, FD 4.9 us
+    # docs/processors.md: PACE at 20 MHz: FA 2.15 us, FM 2.9 us, FD 4.9 us
     assert PACE1750A.seconds(PACE1750A.cost("FA")) == pytest.approx(2.15e-6)
     assert PACE1750A.seconds(PACE1750A.cost("FM")) == pytest.approx(2.90e-6)
     assert PACE1750A.seconds(PACE1750A.cost("FD")) == pytest.approx(4.90e-6)
 
 
 def test_adsp_cycles_per_frame_at_2_hz():
-    # processors.md: 6.25 M cycles/frame at 12.5 MHz; 4.10 M at 8.192 MHz
+    # docs/processors.md: 6.25 M cycles/frame at 12.5 MHz; 4.10 M at 8.192 MHz
     assert ADSP2100A.clock_hz * budget.FRAME_PERIOD_S == pytest.approx(6.25e6)
     assert ADSP2100.clock_hz * budget.FRAME_PERIOD_S == pytest.approx(4.096e6)
 

@@ -174,3 +174,23 @@ def test_record_words_round_trip_for_every_valid_record(rec):
     back = Record.from_words(w, name="prop")
     assert back == rec and np.array_equal(back.to_words(), w)
     assert Record.from_toml(rec.to_toml()) == rec
+
+
+@settings(max_examples=80, deadline=None)
+@given(st.text(min_size=1, max_size=40), st.text(max_size=200))
+def test_any_name_and_description_round_trip_through_toml_and_words(name, description):
+    """The TOML is written by a library: quotes, backslashes, triple quotes, newlines and control
+    characters in a name or description read back as given (the words carry the numbers)."""
+    import tomllib
+    rec = load_record("aurora").replace(name=name, description=description)
+    text = rec.to_toml(comment=f"made by a test\n{name}")
+    assert tomllib.loads(text)["record"]["name"] == name
+    back = Record.from_toml(text)
+    assert back.name == name and back.description == description and back == rec
+    assert Record.from_words(rec.to_words(), name=name) == back.replace(description="")
+
+
+def test_the_issue_record_named_aurora_v2():
+    rec = load_record("aurora").replace(name='aurora "v2"', description="C:\\records\\v2")
+    back = Record.from_toml(rec.to_toml())
+    assert (back.name, back.description) == ('aurora "v2"', "C:\\records\\v2") and back == rec
