@@ -4,7 +4,7 @@ The UVISI image processor is an ADSP-2100 board (vector work) plus a 1750A (non-
 track processor is a second 1750A. Every flight step charges the cycles its processor would spend to a
 :class:`Ledger`, which sums a frame against the 500 ms frame period.
 
-Where the numbers come from (``shared/reference/processors.md``):
+Where the numbers come from (``docs/processors.md``):
 
 * ADSP-2100: every instruction is one cycle when the next instruction is in the 16-word cache, a
   ``DO ... UNTIL`` loop costs one set-up cycle and nothing per iteration, a PM-data access that misses
@@ -51,7 +51,7 @@ class Processor:
         return cycles / self.clock_hz
 
 
-# ADSP-2100: single-cycle instructions (processors.md section A, "Timing").
+# ADSP-2100: single-cycle instructions (docs/processors.md section A, "Timing").
 ADSP_COSTS = {
     "instr": 1,        # any single instruction (ALU, MAC, shifter, move, multifunction)
     "mac": 1,          # MR = MR + X*Y with two parallel data fetches
@@ -67,7 +67,7 @@ ADSP_COSTS = {
     "call": 2,         # CALL/RTS pair overhead [ASSUMED: 1 cycle each]
 }
 
-# PACE1750A with one wait state, clocks (sim1750 stime.h via processors.md section B).
+# PACE1750A with one wait state, clocks (sim1750 stime.h via docs/processors.md section B).
 M1750_PACE_COSTS = {
     "AR": 5, "A": 15,          # integer add, register / memory
     "SR": 5, "S": 15,

@@ -2,10 +2,10 @@
 
 Registers travel as their bit patterns: 16-bit words as ints ``0..0xFFFF``, the 40-bit MAC result
 register MR (= MR2:MR1:MR0) as an int ``0..2**40-1``, the shifter result SR (= SR1:SR0) as an int
-``0..2**32-1``. Sources are ``shared/reference/processors.md`` section A (the 1995 ADSP-2100 Family
+``0..2**32-1``. Sources are ``docs/processors.md`` section A (the 1995 ADSP-2100 Family
 User's Manual [A1], MAME's ``2100ops.hxx`` [A2], and the adsp-2100_sv research notes [A3]).
 
-Decisions where sources conflict (each follows the manual, as processors.md asks):
+Decisions where sources conflict (each follows the manual, as docs/processors.md asks):
 
 * **Fractional mode is always on** (the 2100 has no integer-multiply mode): the 32-bit product is
   sign-extended to 40 bits *then* shifted left one bit. Hence ``0x8000 * 0x8000 (SS)`` gives
@@ -17,7 +17,7 @@ Decisions where sources conflict (each follows the manual, as processors.md asks
   if the unrounded low word was exactly 0x8000 clear bit 16. MR0 keeps ``old + 0x8000`` (Example 1
   of [A1]).
 * Unsigned operands (SU/US/UU) form the true product, which the multiplier then *treats as signed*
-  32 bits (processors.md: "the product is treated as signed"): a UU product with bit 31 set comes
+  32 bits (docs/processors.md: "the product is treated as signed"): a UU product with bit 31 set comes
   out negative, as on the hardware and in MAME.
 
 Every scalar primitive is a plain Python function that validates its operands (``ValueError`` naming
@@ -35,7 +35,7 @@ from flightsw.budget import ADSP_COSTS
 DECISION_8000_SQUARED = "manual"
 DECISION_RND_MIDPOINT = "full_sum"
 
-#: instruction cycles of each primitive (every ADSP-2100 instruction is one cycle, processors.md A)
+#: instruction cycles of each primitive (every ADSP-2100 instruction is one cycle, docs/processors.md A)
 CYCLES = {"mac": ADSP_COSTS["mac"], "sat_mr": ADSP_COSTS["sat"], "rnd_mr": ADSP_COSTS["rnd"],
           "alu_add": ADSP_COSTS["alu"], "alu_sub": ADSP_COSTS["alu"], "ashift": ADSP_COSTS["shift"],
           "lshift": ADSP_COSTS["shift"], "norm": ADSP_COSTS["shift"], "exp": ADSP_COSTS["shift"],

@@ -44,9 +44,9 @@ L = ``0x8000 >> L``) so it can be OR-ed into an emulated PI register:
 :data:`FLAG_FLOAT_UNDERFLOW` (level 6). ``fc32/fc48`` return only the comparison (-1, 0, 1): FC
 never interrupts.
 
-Decisions (where the RTL is silent, ambiguous or [UNCERTAIN] in processors.md)
+Decisions (where the RTL is silent, ambiguous or [UNCERTAIN] in docs/processors.md)
 -----------------------------------------------------------------------------
-* **FA/FS have no guard bits** (processors.md B marks real-chip guard bits [UNCERTAIN]): following
+* **FA/FS have no guard bits** (docs/processors.md B marks real-chip guard bits [UNCERTAIN]): following
   the RTL of 5.60/5.61/5.68/5.69 literally, the mantissa with the smaller exponent is shifted right
   arithmetic (bits shifted out are lost, i.e. truncated toward minus infinity) *before* the add.
   The result is therefore never above the exact sum and is below it by less than one unit of the

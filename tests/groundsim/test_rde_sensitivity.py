@@ -142,7 +142,7 @@ def test_cli_sensitivity_writes_table_with_progress(tmp_path, capsys, monkeypatc
 @pytest.mark.parametrize("argv, needle", [
     (["--realisations", "1"], "--realisations 1"),
     (["--workers", "0"], "--workers 0"),
-    (["--out", "FILE"], "not a directory"),
+    (["--out", "FILE"], "is a file, not a folder"),
 ])
 def test_cli_sensitivity_bad_options_are_one_line_errors(tmp_path, capsys, argv, needle):
     from hil_harness.cli import main
