@@ -665,7 +665,7 @@ class Event:
                 if bar is not None:
                     if bar.bar_format == NO_ESTIMATE and not o.host_us.get("compile"):
                         bar.bar_format, bar.initial = None, bar.n     # rate from here on
-                        bar.start_t = bar._time()
+                        bar.start_t = time.time()          # tqdm's clock
                     bar.update(1)
         finally:
             if bar is not None:
