@@ -23,6 +23,7 @@ Three position priors (:data:`PRIOR_MODES`):
 """
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass, field
 
@@ -110,6 +111,12 @@ class FrameSequence:
     @property
     def n_frames(self) -> int:
         return int(self.frames.shape[0])
+
+    @functools.cached_property
+    def top(self) -> int:
+        """The largest count in the frames (read once: a tuning run replays the same sequence for
+        every record it tries)."""
+        return int(self.frames.max()) if self.frames.size else 0
 
     @property
     def has_object(self) -> np.ndarray:
@@ -208,10 +215,9 @@ class SequenceScenario:
         self.seq = seq
         self.name = self.path = seq.name
         self.imager = seq.imager
-        top = int(seq.frames.max()) if seq.frames.size else 0
         self.imagers = {seq.imager: _SequenceImager(np.asarray(g.q_imager_to_body, float),
                                                     float(g.scale_col), float(g.scale_row),
-                                                    top, int(g.n_rows), int(g.n_cols))}
+                                                    seq.top, int(g.n_rows), int(g.n_cols))}
         self.target_type = seq.object_type
         self.n_frames = seq.n_frames
         self.duration = float(seq.t[-1] - seq.t[0]) + seq.nominal_dt() if seq.n_frames else 0.0
