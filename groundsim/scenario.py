@@ -242,6 +242,14 @@ class Scenario:
 
     # ------------------------------------------------------------------------------------------------
     @classmethod
+    def nearest(cls, name) -> str:
+        """``"; did you mean a, b?"`` for the shipped scenario names closest to ``name`` (empty
+        when none is close): the hint of every "no such scenario" message."""
+        import difflib
+        close = difflib.get_close_matches(str(name), cls.shipped(), n=3, cutoff=0.6)
+        return f"; did you mean {', '.join(close)}?" if close else ""
+
+    @classmethod
     def load(cls, name_or_path, seed=None, uplink_dir=None) -> "Scenario":
         """Load a shipped scenario by name (``groundsim/scenarios/<name>.toml``) or a TOML file by path;
         ``seed`` overrides the file's seed; ``uplink_dir`` replaces the scenario's folder as the one
@@ -250,12 +258,9 @@ class Scenario:
         if not p.suffix and not p.exists():
             p = SCENARIO_DIR / f"{name_or_path}.toml"
         if not p.exists():
-            import difflib
-            close = difflib.get_close_matches(str(name_or_path), cls.shipped(), n=3, cutoff=0.6)
-            hint = f"; did you mean {', '.join(close)}?" if close else ""
             where = name_or_path if p.parent == SCENARIO_DIR else p
-            raise ScenarioError(where, "-", f"no such scenario: not a shipped one nor a file{hint} "
-                                            f"(uvisi scenarios lists them)")
+            raise ScenarioError(where, "-", f"no such scenario: not a shipped one nor a file"
+                                            f"{cls.nearest(name_or_path)} (uvisi scenarios lists them)")
         try:
             data = tomllib.loads(p.read_text())
         except tomllib.TOMLDecodeError as e:

@@ -29,7 +29,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["InputFrame", "ImageError", "read_images", "sniff", "to_counts", "scale_note", "frame_flags",
-           "unusable", "colour_plane", "CHANNELS", "LUMA_BT601", "robust_stats", "noise_sigma", "pixel_noise", "MIN_LINE", "UNUSABLE", "WARNINGS",
+           "unusable", "colour_plane", "CHANNELS", "LUMA_BT601", "robust_stats", "safe_unit", "noise_sigma", "pixel_noise", "MIN_LINE", "UNUSABLE", "WARNINGS",
            "SKY_COUNTS", "NOISE_COUNTS", "MIN_NOISE_COUNTS", "HEADROOM_PERCENTILE",
            "LOW_PERCENTILE", "LOW_MARGIN_SIGMA", "MISSING_FRACTION", "SATURATED_FRACTION",
            "BLANK_MARGIN_SIGMA", "FLAG_NAMES"]
@@ -356,6 +356,14 @@ def _shifted_reading(a: np.ndarray) -> tuple[int, int]:
     return 0, 0
 
 
+def safe_unit(v: np.ndarray) -> float:
+    """An exact power of two to multiply ``v`` (finite float64 values) by so that squares of it
+    cannot overflow (1.0 unless some value exceeds 1e100): statistics are then taken on the scaled
+    values and divided back, bit for bit the same for any ordinary image."""
+    big = float(np.max(np.abs(v)))
+    return 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0
+
+
 def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tuple[float, float]:
     """Background (median) and noise (1.4826 MAD) of the finite values, kappa-sigma clipped.
 
@@ -381,8 +389,7 @@ def robust_stats(values: np.ndarray, kappa: float = 3.0, iters: int = 5) -> tupl
             break
         med, sig = new_med, new_sig
     if sig <= 0 and v.size > 1:
-        big = float(np.max(np.abs(v)))
-        unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0   # no overflow
+        unit = safe_unit(v)
         w, m = v * unit, med * unit
         sig = float(np.std(w[np.abs(w - m) <= 5 * np.std(w)])) / unit
     elif sig <= 0:
@@ -597,8 +604,7 @@ def _robust_map(a: np.ndarray, mask=None) -> tuple[np.ndarray, dict]:
                                               "clipped_low": 0.0, "clipped_high": 0.0}
     # values near the float range (1e300) would overflow the statistics' squares: the map is
     # linear, so it is found on the frame scaled by an exact power of two and stated unscaled
-    big = float(np.max(np.abs(x[inside])))
-    unit = 2.0 ** -math.ceil(math.log2(big)) if big > 1e100 else 1.0
+    unit = safe_unit(x[inside])
     if unit != 1.0:
         x = x * unit
     bkg, noise = robust_stats(x[inside])

@@ -103,17 +103,20 @@ def literal_positions(sub: str = "flightsw/ip") -> list[str]:
     return out
 
 
+def n_params(fn) -> int:
+    """Parameters of a function node (``self``, ``*args`` and ``**kw`` counted)."""
+    a = fn.args
+    return (len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs) + (a.vararg is not None)
+            + (a.kwarg is not None))
+
+
 def wide_functions(sub: str = "flightsw") -> list[str]:
     """Functions with ``WIDE`` or more parameters -> ``path:name(n)`` list."""
     out = []
     for p, tree in _trees(sub):
         for node in ast.walk(tree):
-            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                a = node.args
-                n = len(a.posonlyargs) + len(a.args) + len(a.kwonlyargs)
-                n += (a.vararg is not None) + (a.kwarg is not None)
-                if n >= WIDE:
-                    out.append(f"{p.relative_to(ROOT)}:{node.name}({n})")
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and n_params(node) >= WIDE:
+                out.append(f"{p.relative_to(ROOT)}:{node.name}({n_params(node)})")
     return out
 
 

@@ -617,6 +617,15 @@ def synthetic_config(**overrides) -> InrConfig:
     return report_config(**base)
 
 
+def _draw(rng, pool, n: int, name: str, what: str) -> np.ndarray:
+    """``n`` distinct entries of ``pool`` (``rng.choice`` without replacement); ``ValueError``
+    naming the parameter when the pool holds fewer."""
+    if not 0 <= n <= pool.size:
+        raise ValueError(f"{name}={n}: the population has {pool.size} valid {what} measurements "
+                         f"to corrupt (0..{pool.size})")
+    return rng.choice(pool, n, replace=False)
+
+
 def synthetic_population(seed: int = 0, n_valid: int = 1781, n_sites: int = 153, n_invalid_abs: int = 6,
                          n_invalid_rel: int = 2, D_urad: float = 300.0, second_imager: bool = True,
                          excursion_urad: float = 0.0, excursion_window_s: tuple = (40000.0, 43600.0),
@@ -698,11 +707,7 @@ def synthetic_population(seed: int = 0, n_valid: int = 1781, n_sites: int = 153,
     vis = np.flatnonzero(cat["im"] == "VIS")
     good_vis = vis[cat["cont"][vis] < 0.05]
     # type-II errors: invalid absolute measurements with a passing (two with a gold) QM
-    pool = good_vis[~cat["exc"][good_vis]]
-    if not 0 <= n_invalid_abs <= pool.size:
-        raise ValueError(f"n_invalid_abs={n_invalid_abs}: the population has {pool.size} valid "
-                         f"absolute measurements to corrupt (0..{pool.size})")
-    inv = rng.choice(pool, n_invalid_abs, replace=False)
+    inv = _draw(rng, good_vis[~cat["exc"][good_vis]], n_invalid_abs, "n_invalid_abs", "absolute")
     cat["A"][inv] = rng.uniform(-D_urad, D_urad, (inv.size, 2))
     cat["fit"][inv[:2]] = 1.0
     cat["con"][inv[:2]] = 1.0
@@ -711,7 +716,7 @@ def synthetic_population(seed: int = 0, n_valid: int = 1781, n_sites: int = 153,
     inv_rel = []
     for sp in (900.0, 5400.0):
         cand = good_vis[(cat["dt"][good_vis] == sp) & ~np.isin(good_vis, inv) & ~cat["exc"][good_vis]]
-        pick = rng.choice(cand, n_invalid_rel, replace=False)
+        pick = _draw(rng, cand, n_invalid_rel, "n_invalid_rel", f"{sp:g}-s relative")
         cat["R"][pick] = rng.uniform(-D_urad, D_urad, (pick.size, 2))
         inv_rel.extend(pick.tolist())
     ir_exc = []

@@ -23,7 +23,7 @@ import sys
 import threading
 from pathlib import Path
 
-from hil_harness.cli.options import add_with_option, did_you_mean
+from hil_harness.cli.options import add_with_option
 from hil_harness.console import progress_enabled
 
 
@@ -94,7 +94,7 @@ def run(args) -> int:
     name = args.scenario
     if name not in Scenario.shipped() and not Path(name).exists():
         raise ValueError(f"scenario {name!r}: not a shipped scenario nor a file"
-                         f"{did_you_mean(name, Scenario.shipped())} (uvisi scenarios lists them)")
+                         f"{Scenario.nearest(name)} (uvisi scenarios lists them)")
     if args.frames is not None and args.frames < 1:
         raise ValueError(f"--frames {args.frames}: must be >= 1")
     if args.seed is not None and not 0 <= args.seed <= MAX_SEED:

@@ -151,9 +151,7 @@ def _report(args, table=None, title=None, cfg=None) -> int:
     from groundsim.assess.inr_report import write_report
     cfg = cfg or config_from_args(args)
     if table is None:
-        if os.path.isdir(args.csv):
-            raise ValueError(f"{args.csv}: is a folder, not a landmark CSV file")
-        if not os.path.isfile(args.csv):
+        if not os.path.exists(args.csv):             # a folder: read_csv names it
             raise ValueError(f"{args.csv}: no such file")
         table = read_csv(args.csv)
         usable_rows(table, args.csv)

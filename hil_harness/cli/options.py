@@ -57,10 +57,3 @@ def number(lo=None, hi=None, *, integer: bool = False, lo_open: bool = False,
 
     read.__name__ = "integer" if integer else "number"
     return read
-
-
-def did_you_mean(name: str, choices) -> str:
-    """``"; did you mean a, b?"`` for the names closest to ``name`` (empty when none is close)."""
-    import difflib
-    close = difflib.get_close_matches(str(name), list(choices), n=3, cutoff=0.6)
-    return f"; did you mean {', '.join(close)}?" if close else ""
