@@ -2,6 +2,9 @@
 PYTHON ?= $(shell command -v python3.11 2>/dev/null || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
+# setuptools prints an information box on every editable install ("be careful with folders named
+# like your package": the package is uvisi, no folder is): nothing a user can act on, so not shown
+PIP    := PYTHONWARNINGS="ignore:Editable installation" $(BIN)/python -m pip
 # the demo needs the package alone; the tests and benchmarks need their extras as well
 STAMP_RUN := $(VENV)/.uvisi-installed-run
 STAMP     := $(VENV)/.uvisi-installed
@@ -12,13 +15,13 @@ $(STAMP_RUN): pyproject.toml
 	@echo "make: setting up $(VENV) (first run only): installing uvisi and its dependencies..."
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --progress-bar on --no-input -e .
+	$(PIP) install --progress-bar on --no-input -e .
 	@$(BIN)/python -c "import hil_harness.event.io" || (echo "make: the install failed" >&2; exit 1)
 	@touch $(STAMP_RUN)
 
 $(STAMP): $(STAMP_RUN)
 	@echo "make: installing the test, benchmark and viewer-test extras (first run only)..."
-	$(BIN)/python -m pip install --progress-bar on --no-input -e '.[test,bench,view]'
+	$(PIP) install --progress-bar on --no-input -e '.[test,bench,view]'
 	@touch $(STAMP)
 
 install: $(STAMP)
