@@ -83,7 +83,7 @@ def _flag(name, v):
 # --------------------------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def s16(w):
     """Sign-extend a 16-bit pattern to a Python/numba int.
 
@@ -97,7 +97,7 @@ def s16(w):
     return w - 0x10000 if w & 0x8000 else w
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def s40(mr):
     """Sign-extend a 40-bit MR pattern.
 
@@ -111,7 +111,7 @@ def s40(mr):
     return mr - 0x10000000000 if mr & 0x8000000000 else mr
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def mv_of(mr):
     """MV condition: MR bits 39..31 not all equal (the value does not fit 32-bit MR1:MR0).
 
@@ -125,7 +125,7 @@ def mv_of(mr):
     return 1 if (top != 0 and top != 0x1FF) else 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def product40(x, y, x_signed, y_signed):
     """The multiplier's contribution to MR: 16x16 product, taken as signed 32 bits, sign-extended to
     40 bits and shifted left one bit (fractional mode). Returns the signed value (no masking).
@@ -147,7 +147,7 @@ def product40(x, y, x_signed, y_signed):
     return p << 1
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rnd40(res, lo_unrounded):
     """Unbiased rounding at the MR0/MR1 boundary of a 40-bit value (both as patterns): add 0x8000; if
     the unrounded low word ``lo_unrounded`` was exactly 0x8000, clear bit 16. MR0 keeps
@@ -746,7 +746,7 @@ def block_bitlen(img):
     return bitlen(m)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def bitlen(v):
     """Number of significant bits of a non-negative integer (0 for 0).
 

@@ -138,9 +138,9 @@ ZERO = 0
 
 
 # ================================================================================================
-# unpack / pack / normalise (inline kernels, W = fraction bits: 23 or 39)
+# unpack / pack / normalise (small kernels LLVM inlines, W = fraction bits: 23 or 39)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def unpack32(p):
     """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent).
 
@@ -157,7 +157,7 @@ def unpack32(p):
     return m - 0x800000, e - 0x80
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def unpack48(p):
     """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent).
 
@@ -174,7 +174,7 @@ def unpack48(p):
     return m - 0x8000000000, e - 0x80
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pack32(m, e):
     """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks).
 
@@ -187,7 +187,7 @@ def pack32(m, e):
     return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pack48(m, e):
     """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks).
 
@@ -200,7 +200,7 @@ def pack48(m, e):
     return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def unpack_w(p, W):
     """:func:`unpack32` (W = 23) or :func:`unpack48` (W = 39) of packed word ``p``.
 
@@ -214,7 +214,7 @@ def unpack_w(p, W):
     return unpack48(p)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pack_w(m, e, W):
     """:func:`pack32` (W = 23) or :func:`pack48` (W = 39) of ``(m, e)`` (no checks).
 
@@ -228,7 +228,7 @@ def pack_w(m, e, W):
     return pack48(m, e)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def norm_shift(m, W):
     """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
     bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift). ``m`` must
@@ -245,7 +245,7 @@ def norm_shift(m, W):
     return leading_zeros(m ^ (m >> 63)) - (64 - W)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def overflow_word(neg, W):
     """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
     negative.
@@ -262,7 +262,7 @@ def overflow_word(neg, W):
     return MIN48 if neg else MAX48
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _overflow(neg, W):
     """Standard overflow result and its PI flag.
 
@@ -274,7 +274,7 @@ def _overflow(neg, W):
     return overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _finish(m, e, W):
     """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags).
 
@@ -303,7 +303,7 @@ def _finish(m, e, W):
 # ================================================================================================
 # FA / FS (5.60, 5.61, 5.68, 5.69)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_core(a, b, W, subtract):
     """FA/FS on packed words of W fraction bits -> (p, flags) (see the module docstring: no guard
     bits, FS negates the subtrahend exactly before aligning it).
@@ -401,7 +401,7 @@ def _fs48_k(a, b):
 # ================================================================================================
 # FM (5.74, 5.75)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mul_exp_checks(ma, mo, n, W):
     """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags).
 
@@ -460,7 +460,7 @@ def _fm32_k(a, b):
     return pack32((P << s) >> 23, n), 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def prod80(A, B):
     """A * B for 0 <= A, B <= 2**39 as (H, L) with A * B = H * 2**40 + L, 0 <= L < 2**40: the
     80-bit product from 20-bit limbs (no intermediate exceeds 63 bits). Branch-free, so the lane
@@ -495,7 +495,7 @@ def _prod_shr38(typingctx, a, b):
     return types.int64(types.int64, types.int64), codegen
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mul48_core(a, b):
     """EFM's body, compiled into :func:`_fm48_k` and :func:`madd48` (its cases are
     :func:`_fm48_k`'s).
@@ -560,7 +560,7 @@ def _fm48_k(a, b):
     return _mul48_core(a, b)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def madd48(acc, a, b):
     """EFM then EFA, ``acc + a * b`` -> (p, flags): exactly ``fa48(acc, fm48(a, b))`` (two
     truncations, the flags of both OR'ed), compiled into its caller (no call) -- for the
@@ -580,7 +580,7 @@ def madd48(acc, a, b):
 # ================================================================================================
 # FD (5.79, 5.80)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _quotient_floor(A, B, W):
     """(floor(A * 2**(W+1) / B), remainder != 0) for 0 < A, B <= 2**W, W = 23 or 39.
 
@@ -621,7 +621,7 @@ def _quotient_floor(A, B, W):
     return Q, r != 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _div_core(a, b, W):
     """FD/EFD on packed words of W fraction bits -> (p, flags); the quotient truncated toward minus
     infinity (see the module docstring for the reading of "|MQ| >= 1.0").
@@ -703,7 +703,7 @@ def _fd48_k(a, b):
 # ================================================================================================
 # FABS (5.62), FNEG (5.70)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fabs_core(a, W):
     """FABS on a packed word of W fraction bits -> (p, flags).
 
@@ -725,7 +725,7 @@ def _fabs_core(a, W):
     return pack_w(-m, e, W), 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fneg_core(a, W):
     """FNEG on a packed word of W fraction bits -> (p, flags).
 
@@ -880,7 +880,7 @@ def _flt48_k(i):
 # ================================================================================================
 # FC / EFC (5.94, 5.95)
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _fc_core(a, b, W):
     """FC/EFC on packed words of W fraction bits -> -1 (a < b), 0 (a = b), 1 (a > b).
 
@@ -931,7 +931,7 @@ def _fc48_k(a, b):
     return _fc_core(a, b, 39)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def to48(p):
     """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact.
 
@@ -942,7 +942,7 @@ def to48(p):
     return (p & 0xFFFFFFFF) << 16
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def to32(p):
     """48-bit float -> 32-bit float by dropping ``w2``: the 40-bit 2's complement mantissa is cut to
     24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised.
@@ -1096,7 +1096,7 @@ def decode48(p) -> float:
     return math.ldexp(float(m), e - 39)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def enc_mantissa(x, W, nearest):
     """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
     32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.

@@ -35,7 +35,7 @@ __all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32
            "mul16", "mul16x32", "mul32", "div16", "div32_16", "div32", "INT_OP_MIX"]
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s16(w):
     """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
 
@@ -47,7 +47,7 @@ def _s16(w):
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s32(w):
     """The low 32 bits of ``w`` (int) read as a two's complement integer.
 
@@ -230,7 +230,7 @@ def _mul32_k(a, b):
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _tdivmod(x, y):
     """Truncating division (toward zero), remainder with the dividend's sign.
 

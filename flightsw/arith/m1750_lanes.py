@@ -26,7 +26,9 @@ Two host details differ from the scalar forms without changing a result:
   the full form. The feature routine's divisions (moments by the weight sum, r^2 by N^2, totals by
   N) are of the first kind.
 
-Every function is ``inline="always"``: it is meant to be the body of a caller's loop.
+Each function is meant to be the body of a caller's loop: a plain compiled function, which LLVM
+inlines into that loop (numba's own IR-level ``inline="always"`` gave the same speed, and cost a first
+run about a quarter of its compile time: ``docs/validation.md``, first run).
 """
 from __future__ import annotations
 
@@ -49,7 +51,7 @@ _FOV = FLAG_FLOAT_OVERFLOW
 _FUN = FLAG_FLOAT_UNDERFLOW
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _finish_v(m, e, W):
     """m1750_float._finish without branches: normalise (m, e), underflow/overflow, pack.
 
@@ -79,7 +81,7 @@ def _finish_v(m, e, W):
     return p, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _add_v(a, b, W, subtract):
     """FA/FS (5.60, 5.61, 5.68, 5.69; m1750_float._add_core).
 
@@ -114,7 +116,7 @@ def _add_v(a, b, W, subtract):
     return _finish_v(s, e, W)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fa32_v(a, b):
     """FA (5.60), branch-free.
 
@@ -133,7 +135,7 @@ def fa32_v(a, b):
     return _add_v(a, b, 23, False)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fs32_v(a, b):
     """FS (5.68), branch-free.
 
@@ -152,7 +154,7 @@ def fs32_v(a, b):
     return _add_v(a, b, 23, True)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fa48_v(a, b):
     """EFA (5.61), branch-free.
 
@@ -171,7 +173,7 @@ def fa48_v(a, b):
     return _add_v(a, b, 39, False)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fs48_v(a, b):
     """EFS (5.69), branch-free.
 
@@ -190,7 +192,7 @@ def fs48_v(a, b):
     return _add_v(a, b, 39, True)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _mul_pre_v(p, f, ma, mo, n, W):
     """The RTL's checks before the multiply, applied over (p, f): n overflow/underflow, then a zero
     operand (the highest precedence).
@@ -212,7 +214,7 @@ def _mul_pre_v(p, f, ma, mo, n, W):
     return p, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fm32_v(a, b):
     """FM (5.74), branch-free (m1750_float._fm32_k).
 
@@ -245,7 +247,7 @@ def fm32_v(a, b):
     return _mul_pre_v(p, f, ma, mo, n, 23)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fm48_v(a, b):
     """EFM (5.75), branch-free (m1750_float._fm48_k: the 80-bit product from 20-bit limbs).
 
@@ -289,7 +291,7 @@ def fm48_v(a, b):
     return _mul_pre_v(p, f, ma, mo, n, 39)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _div_v(a, b, W):
     """FD/EFD (5.79, 5.80; m1750_float._div_core).
 
@@ -351,7 +353,7 @@ def _div_v(a, b, W):
     return p, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fd32_v(a, b):
     """FD (5.79), branch-free.
 
@@ -368,7 +370,7 @@ def fd32_v(a, b):
     return _div_v(a, b, 23)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fd32_pos_v(a, b):
     """FD of two words with *positive* mantissas whose exponent difference is within -128..126
     (the caller guarantees it: the Heron steps of sqrt32, ``g`` in [1/4, 1) over ``y`` near 1).
@@ -390,7 +392,7 @@ def fd32_pos_v(a, b):
     return pack32(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fd48_pos_v(a, b):
     """EFD of two words with positive mantissas whose exponent difference is within -128..126:
     :func:`_div_v`'s 40-bit quotient with its exact remainder fix-up and nothing else (as
@@ -411,7 +413,7 @@ def fd48_pos_v(a, b):
     return pack48(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _nn_domain(ma, ea, mo, eo):
     """True where FD/EFD reduces to the positive form or zero: dividend >= 0, divisor > 0, and a
     non-zero dividend's exponent difference within -128..126 (none of the RTL's checks fires).
@@ -427,7 +429,7 @@ def _nn_domain(ma, ea, mo, eo):
     return (ma >= 0) & (mo > 0) & ((ma == 0) | ((n >= -128) & (n <= 126)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fd48_v(a, b):
     """EFD (5.80), branch-free.
 
@@ -443,7 +445,7 @@ def fd48_v(a, b):
     return _div_v(a, b, 39)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def flt48_v(i):
     """EFLT (5.88) of a 32-bit pattern, branch-free.
 
@@ -457,7 +459,7 @@ def flt48_v(i):
     return _finish_v(v << 8, 31, 39)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fc32_v(a, b):
     """FC (5.94) -> -1, 0, 1, branch-free.
 
@@ -481,7 +483,7 @@ def fc32_v(a, b):
     return (np.int64(sa > so) - np.int64(sa < so)) if sa != so else same
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fc32_key(a):
     """int64 key of a normalised 32-bit word (or zero) whose integer order is FC's order:
     ``sign(fc32_key(a) - fc32_key(b)) == fc32(a, b)``. ``|key| = (e + 128) 2**24 + |m|`` orders
@@ -500,7 +502,7 @@ def fc32_key(a):
     return 0 if m == 0 else (-mag if m < 0 else mag)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fabs32_v(a):
     """FABS (5.62), branch-free.
 
@@ -519,7 +521,7 @@ def fabs32_v(a):
     return p, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fneg32_v(a):
     """FNEG (5.70), branch-free.
 
@@ -545,7 +547,7 @@ def fneg32_v(a):
     return p, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def fix32_v(a):
     """FIX (5.85) -> 16-bit pattern, branch-free (overflow: 0 and the fixed-overflow flag).
 
@@ -563,7 +565,7 @@ def fix32_v(a):
     return (0 if e > 15 else r & 0xFFFF), (FLAG_FIXED_OVERFLOW if e > 15 else 0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def scale32_v(p, k):
     """p * 2**k by exponent edit with the standard's overflow/underflow results, branch-free
     (m1750_math._scale32).
@@ -659,7 +661,7 @@ def fm32_lanes(a, b, out):
     return fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _all_nn(a, b, n, W):
     """:func:`_nn_domain` holds for all ``n`` lanes of ``a / b`` (W-bit mantissas).
 

@@ -124,7 +124,7 @@ EXP32 = (0x40000000, 0x555555fe, 0x555555fc, 0x444424fa, 0x5b069ef7, 0x6868eaf4,
 # ------------------------------------------------------------------------------------------------
 # word-level helpers (1750A integer/logical instructions on the exponent field)
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _set_exp32(p, e):
     """Replace the exponent byte of packed 32-bit float ``p`` (int) with ``e`` (int, -128..127); the
     mantissa bits are kept (a 1750A integer/logical edit, no float operation, no checks).
@@ -137,7 +137,7 @@ def _set_exp32(p, e):
     return (p & 0xFFFFFF00) | (e & 0xFF)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _set_exp48(p, e):
     """Replace the exponent byte (bits 16..23) of packed 48-bit float ``p`` (int) with ``e`` (int,
     -128..127); the 40 mantissa bits (``w0``, the high byte of ``w1``, ``w2``) are kept. No checks.
@@ -150,7 +150,7 @@ def _set_exp48(p, e):
     return (p & 0xFFFFFF00FFFF) | ((e & 0xFF) << 16)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _scale32(p, k):
     """p * 2**k by exponent edit, with the standard's overflow/underflow results.
 
@@ -174,7 +174,7 @@ def _scale32(p, k):
     return _set_exp32(p, e), 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _scale48(p, k):
     """``p * 2**k`` for a packed 48-bit float ``p`` by exponent edit, with the standard's
     overflow/underflow results -> ``(word, flags)`` (the 48-bit form of :func:`_scale32`).
@@ -199,7 +199,7 @@ def _scale48(p, k):
     return _set_exp48(p, e), 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s16(w):
     """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
 
@@ -211,7 +211,7 @@ def _s16(w):
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _s32(w):
     """The low 32 bits of ``w`` (int) read as a two's complement integer.
 
@@ -457,7 +457,7 @@ def _ln32_k(x):
 # ================================================================================================
 # sin, cos
 # ================================================================================================
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _reduce_n(x48):
     """n = round(x * 2/pi) (48-bit FM, FA +-0.5, EFIX) -> (n signed, n as 48-bit float).
 
@@ -474,7 +474,7 @@ def _reduce_n(x48):
     return _s32(nw), nf
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _reduce48(x):
     """r = x - n*pi/2 in 48-bit, exact up to the C2/C3 terms. x is a 48-bit float, |x| < 2**15.
 
@@ -501,7 +501,7 @@ def _reduce48(x):
     return n, r
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sin_poly32(r):
     """``sin r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``r + r z P(z)``, ``z = r*r``
     (FM/FA).
@@ -523,7 +523,7 @@ def _sin_poly32(r):
     return s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cos_poly32(r):
     """``cos r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``1 + z (-1/2 + z Q(z))``, ``z =
     r*r``.
@@ -545,7 +545,7 @@ def _cos_poly32(r):
     return c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sin_poly48(r):
     """``sin r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``P``, EFM/EFA).
 
@@ -565,7 +565,7 @@ def _sin_poly48(r):
     return s
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _cos_poly48(r):
     """``cos r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``Q``, EFM/EFA).
 
@@ -586,7 +586,7 @@ def _cos_poly48(r):
     return c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _trig32(x, quad_shift):
     """``sin x`` (``quad_shift = 0``) or ``cos x`` (``quad_shift = 1``, ``cos x = sin(x + pi/2)``)
     of a packed 32-bit float ``x`` -> ``(word, flags)``: 48-bit reduction, quadrant
@@ -618,7 +618,7 @@ def _trig32(x, quad_shift):
     return v, 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _trig48(x, quad_shift):
     """``sin x`` / ``cos x`` (``quad_shift`` 0 / 1) of a packed 48-bit float ``x`` -> ``(word,
     flags)``, as :func:`_trig32` with the 48-bit polynomials.

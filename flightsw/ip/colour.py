@@ -103,7 +103,7 @@ OP_CYCLES = np.array([m1750_cycles(COLOUR_MIX[e]) for e in _EVENTS], np.int64)
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _find(parent, k):
     """Root of colour k along the colour array (path halving); returns (root, steps).
 
@@ -123,7 +123,7 @@ def _find(parent, k):
     return k, steps
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _merge(parent, x, y):
     """Link the colours of x and y (the larger root to the smaller); returns the find steps.
 
@@ -141,7 +141,7 @@ def _merge(parent, x, y):
     return s1 + s2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _accumulate(psums, k, v, r, c):
     """Add on pixel (r, c) of intensity v to the sums of colour k.
 
@@ -174,7 +174,7 @@ def _accumulate(psums, k, v, r, c):
         psums[k].max = vi
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _flush(psums, k, r, run):
     """Add a run (row r) of colour k to its sums.
 
@@ -297,7 +297,7 @@ def _scan_pixels(img, diagonal, prov, parent, run_r, run_a, run_b):
 _ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _low(n):
     """uint64 with bits 0..n-1 set (0 <= n <= 64).
 
@@ -311,7 +311,7 @@ def _low(n):
     return (np.uint64(1) << np.uint64(n)) - np.uint64(1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _colour_at(U, S, srow, x):
     """Provisional colour of pixel ``x`` (-1 <= x <= 64) of the row above, from its on mask ``U``,
     its run-start mask ``S`` and its run-start colours ``srow`` (``srow[p + 1]`` = colour of the run
@@ -440,7 +440,7 @@ def _scan_masks(img, diagonal, prov, parent, run_r, run_a, run_b):
     return ncol, nrun, n_on, n_merge, n_steps, bad
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _run_end(U, c):
     """One past the last pixel of the run of mask ``U`` that contains pixel ``c``.
 

@@ -124,7 +124,7 @@ def features_cycles(count: int, normalise: bool = True) -> int:
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _i2f48(v):
     """int64 sum -> 48-bit float: EFLT when it fits 32 bits, else hi * 2**31 + lo (EFLT, EFM,
     EFLT, EFA), as a multiword flight routine would.

@@ -318,7 +318,7 @@ def fft_dm_words(h, w, tile):
 # ------------------------------------------------------------------------------------------------
 # the fixed-point kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _rnd15(a):
     """MR (RND) read from MR1 for MR = 2a: round half to even of a / 2**15.
 
@@ -425,7 +425,7 @@ def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     return bl, E, Vv, shifts
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _floor_m2(sh):
     """Second moment of the floor error of ``>> sh`` on uniformly distributed low bits.
 
@@ -475,7 +475,7 @@ def _transpose(a, T):
     return out
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _dc_mean(img, use_mean):
     """The DC level the frequency path removes from an int16 [h, w] window: ``m = round_half_up(
     mean)`` when ``use_mean``, else 0; 0 too when some ``x - m`` would not fit 16 bits.
@@ -503,7 +503,7 @@ def _dc_mean(img, use_mean):
     return m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _store_tile(re, vr, vc, D, mk, out, r0, c0):
     """One tile's output: ``out[r0 + u, c0 + v]`` = one RND/SAT of ``(Y 2**(D+15) + m sum k) /
     2**15`` for the valid ``vr x vc`` corner of the inverse transform ``re`` (int64 [T, T]);

@@ -134,7 +134,7 @@ def validate_kernel(coefficients, name="coefficients"):
 # ---------------------------------------------------------------------------------------------
 # kernels
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _finish(a):
     """MR1 after (RND) and IF MV SAT MR, from the exact sum ``a = sum x*k`` (MR = 2a, 40 bits).
 

@@ -75,7 +75,7 @@ def rank_cycles(ops) -> int:
     return int(np.dot(OP_CYCLES, np.asarray(ops, np.int64)))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _sigmoid(x, a2, ops):
     """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
 

@@ -69,7 +69,7 @@ def ab_predict(x, v, dt):
     return xp, f | g
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def ab_update(xp, v, z, alpha, gain_v):
     """Correct a predicted position with observation z: ``r = z - x_p``, ``x = x_p + alpha r``,
     ``v = v + gain_v r`` (``gain_v = beta / dt``; 0 leaves v unchanged) -> (x, v, r, flags).

@@ -25,7 +25,7 @@ CYC_SORT_MOVE = cycles({"C": 1, "JC": 1, "L": 3, "ST": 3})
 CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def observation_columns(OBS):
     """The observations' integer coordinates and usable flags as contiguous rows -> int64
     [3, MAX_OBS] (``OBS.ia``, ``OBS.ib``, ``OBS.ok``), so that :func:`gate_mask` runs as vector
@@ -43,7 +43,7 @@ def observation_columns(OBS):
     return OC
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def gate_mask(OC, nuse, ia, ib, half):
     """Which of the first ``nuse`` observations lie inside the gate centred at ``(ia, ib)`` (16-bit
     integers, half-width ``half``) -> int64 bit mask (bit j: observation j usable and inside).
@@ -67,7 +67,7 @@ def gate_mask(OC, nuse, ia, ib, half):
     return mask & ((np.int64(1) << nuse) - 1)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
@@ -109,7 +109,7 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     return npairs
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def sort_pairs(PW, npairs, cyc):
     """Insertion sort of the first ``npairs`` rows of ``PW`` (int64 [>= npairs, 3]) by distance
     (column 0; stable; ~1 per gate), in place.

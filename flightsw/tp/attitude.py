@@ -103,7 +103,7 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     V.aflags |= fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def read_attitude(C, V, att):
     """Encode and check the attitude inputs ``att`` (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`:
     t, valid, q (4), rate (3), r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc
@@ -169,7 +169,7 @@ def read_attitude(C, V, att):
     return ok
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def coast_attitude(S, V):
     """No usable attitude this frame: the last one propagated with its rate,
     ``q <- q (x) (1, w dt / 2)``, ``r += v dt``.
@@ -204,7 +204,7 @@ def coast_attitude(S, V):
     V.aflags |= fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def mean_rate(S, V):
     """The interval's mean body rate ``(w + w_prev) / 2`` into ``V.wm[0]`` (this frame's rate when
     there is no previous attitude).

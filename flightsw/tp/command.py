@@ -34,7 +34,7 @@ CYC_SCAN = cycles({"FM": 4, "FA": 1, "FS": 1, "L": 6, "ST": 2, "C": 1, "JC": 1})
 CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def los_from_state(T, x, V, RM):
     """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
     body (u0..u2), range (rho), flags.
@@ -69,7 +69,7 @@ def los_from_state(T, x, V, RM):
     return l0, l1, l2, u0, u1, u2, rho, fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
     flags); ``have`` False when nothing is tracked or predicted.
@@ -106,7 +106,7 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     return False, 0, 0, 0, 0, 0, 0, 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
     (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
@@ -142,7 +142,7 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     return prow, pcol, ok, n0, n1, n2, fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def aim_scan(C, S, held):
     """This frame's offset of the aim scan -> (rows, cols, flags), packed 32-bit imager pixels;
     the kept offset turned by ``2 pi / aim_scan_frames`` for the next frame:
@@ -173,7 +173,7 @@ def aim_scan(C, S, held):
     return r, c, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def aim_offset(C, img, u1, u2, scan_r, scan_c):
     """The direction to point +X body at so that the target falls ``aim_row_px + scan_r``,
     ``aim_col_px + scan_c`` imager pixels off the pixel +X falls on -> (u1', u2', flags):
@@ -206,7 +206,7 @@ def aim_offset(C, img, u1, u2, scan_r, scan_c):
     return v1, v2, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pointing(V, u0, u1, u2):
     """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
     target is behind (``1 + u_x <= 2**-7``).

@@ -157,7 +157,7 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0):
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _radius_terms(nmu, r0, r1, r2):
     """The radius terms the gravity routines share, from a position (packed 32-bit, m) and
     ``nmu`` = -mu (packed 32-bit, ``D.nmu``: a scalar, so the inlined copies take no reference

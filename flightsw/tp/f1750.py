@@ -54,7 +54,7 @@ def cycles(m: dict) -> int:
 # ------------------------------------------------------------------------------------------------
 # boundary: host float64 <-> packed words (nearest, ties to even; as encode32/48(rounding="nearest"))
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _enc(x, W):
     """float64 ``x`` -> (nearest packed 1750A float with ``W`` fraction bits: 23 for 32-bit, 39 for
     48-bit, flags).
@@ -167,7 +167,7 @@ def mtv3(R, x0, x1, x2):
     return y0, y1, y2, f0 | f1 | f2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def mv1ab(R, a, b):
     """R @ (1, a, b) for R int64[9] row-major (no multiply by the leading 1): v_i = R[i,0] +
     R[i,1] a + R[i,2] b -> (v0, v1, v2, flags).

@@ -105,7 +105,7 @@ def tp_frame(st):
     return end_frame(S, G, V, out, opportunity)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def command_fields(status, out):
     """The track command's scalars from the frame's status and its decoded outputs ``out``
     (:data:`~flightsw.tp.state.OUTPUTS_DTYPE`) -> ``(status, frame_count, imager index,

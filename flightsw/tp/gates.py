@@ -61,7 +61,7 @@ CYC_GATE_SETUP = cycles({"FM": 6, "FIX": 2, "L": 6})
 
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def kill_pair(G, p):
     """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, GATE_DTYPE [NG]).
 
@@ -73,7 +73,7 @@ def kill_pair(G, p):
     G[2 * p + 1].alive = 0
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def any_gate_alive(G):
     """True when any gate of ``G`` (GATE_DTYPE [NG]) is alive.
 

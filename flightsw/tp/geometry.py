@@ -235,7 +235,7 @@ _ONE32 = 0x40000001
 _HALF32 = 0x40000000
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def neg32(p):
     """-p (packed 32-bit).
 
@@ -248,7 +248,7 @@ def neg32(p):
     return r
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def i16abs(x):
     """|x| of a 16-bit gate coordinate difference (int).
 
@@ -302,7 +302,7 @@ def make_dR(w0, w1, w2, dt, R):
     return f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rot_tan(R, a, b):
     """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0.
 
@@ -340,7 +340,7 @@ def los_tan(RM, l0, l1, l2):
     return a, b, True, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def los_delta(RM, l0, l1, l2, p0, p1, p2, have_p):
     """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
     both seen in the current attitude RM -> (da, db, an, bn, okn, flags), ``(an, bn)`` the tangent
@@ -364,7 +364,7 @@ def los_delta(RM, l0, l1, l2, p0, p1, p2, have_p):
     return da, db, an, bn, okn, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def host_to32(x):
     """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest).
 

@@ -30,7 +30,7 @@ CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, 
 CYC_OPP_STARTUP = cycles(GM_GAINS_MIX)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
     its index (-1: none) and flags.
@@ -65,7 +65,7 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     return -1, fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def follow_track(C, IMG, S, OBS, V, dR, cyc):
     """The live opportunity track predicted to this frame and smoothed with the observation in
     its gate (or counted empty, and lost after ``opp_n_lost`` empty frames).
@@ -128,7 +128,7 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     V.aflags |= fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def acquire_track(S, OBS, V):
     """No live track: start one on the highest-ranked usable observation.
 

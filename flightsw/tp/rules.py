@@ -80,7 +80,7 @@ CYC_RULE = cycles(RULE_MIX)
 CYC_NEW_PAIR = cycles({"L": 4, "ST": 22})
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rule1(ms, ko, res_o, n, thr_o, guards):
     """Star gate empty ``n`` frames, object gate populated since -> moving object; with the
     proposal ``rule_guards`` its residual must be within the threshold as well.
@@ -101,7 +101,7 @@ def rule1(ms, ko, res_o, n, thr_o, guards):
     return ms >= n and ko >= min(ms, 2 * n) and (not guards or fc32(res_o, thr_o) <= 0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rule2(mo, ks, res_s, n_o, thr_s, guards):
     """Object gate empty ``n'`` frames, star gate populated since -> star; with the proposal
     ``rule_guards`` its residual must be within the threshold as well.
@@ -122,7 +122,7 @@ def rule2(mo, ks, res_s, n_o, thr_s, guards):
     return mo >= n_o and ks >= min(mo, 2 * n_o) and (not guards or fc32(res_s, thr_s) <= 0)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rule3(res_s, res_o, ko, thr_o, n, guards):
     """Star gate's residuals exceed the object gate's by more than ``thr`` -> (moving object,
     flags); with the proposal ``rule_guards``, only while the object gate has been populated ``n``
@@ -145,7 +145,7 @@ def rule3(res_s, res_o, ko, thr_o, n, guards):
     return (not guards or ko >= n) and fc32(d, thr_o) > 0, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def rule4(res_s, res_o, ks, thr_s, guards):
     """Object gate's residuals exceed the star gate's by more than ``thr'`` -> (star, flags); with
     the proposal ``rule_guards``, only while the star gate is populated.
@@ -168,7 +168,7 @@ def rule4(res_s, res_o, ks, thr_s, guards):
     return fc32(d, thr_s) > 0, f
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def pair_conclusion(gs, go, C, GP):
     """One undecided pair, its star gate ``gs`` and object gate ``go``
     (:data:`~flightsw.tp.state.GATE_DTYPE` records: successive empty frames ``miss``, populated
@@ -277,7 +277,7 @@ def apply_rules(C, S, G, V, GP, cyc):
     V.aflags |= fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def decide_pair(S, G, V, p, rule):
     """Pair ``p`` becomes the verified object by ``rule``: its star gate deleted, ``S.dec``,
     ``S.dec_frame``, ``S.ndec``, ``S.rule`` set, ``TC_NEW_DECISION`` raised.
@@ -393,7 +393,7 @@ def verify_object(C, S, G, V):
     return True
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def place_pairs(G, OBS, nuse, frame_count):
     """A star and an object gate on every usable observation j (pair j) -> pairs placed.
 
@@ -474,7 +474,7 @@ def report_object(S, V):
             V.status |= TC_COASTING
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def object_observed(S, V):
     """The verified object was fed an observation this frame (usable evidence).
 

@@ -30,7 +30,7 @@ CYC_LOS_DELTA = cycles(mix({"EFS": 3, "DL": 3}, UNIT3_MIX, MV3_MIX, MV3_MIX,
 CYC_EKF_MEAS = cycles(mix({"FM": 27, "FA": 18, "ST": 9}, {"FM": 4, "EFM": 2}))
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def ekf_running(E):
     """True once the EKF has been started (on the verified object).
 
@@ -81,7 +81,7 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     V.aflags |= fl
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def no_nominal(V):
     """A dedicated event without a nominal trajectory: said in the status.
 
