@@ -87,9 +87,14 @@ COMPILE_NOTE = ("compiling the flight code with numba: first run only, the compi
 
 
 class _CompileWatch:
-    """A numba event listener: on the first compilation one line says what is happening; with
-    progress on, a bar counts the kernels compiled and names the current one. Also sums the wall
-    time spent compiling (:func:`compile_seconds`), so host timings can leave it out."""
+    """A numba event listener: on the first compilation one line says what is happening, then a
+    bar (a terminal) or a heartbeat line every ``Heartbeat.HEARTBEAT_S`` (a log) counts the
+    project's kernels compiled against those still to compile (:mod:`hil_harness.compile_plan`:
+    each kernel numba starts at the top brings the uncached kernels its code reaches into the
+    total) and names the current one; no time estimate (the kernels' costs differ by 1000x). Also
+    sums the wall time spent compiling (:func:`compile_seconds`), so host timings can leave it out."""
+
+    BAR_FORMAT = "{desc}: {n}/{total} kernels [{elapsed}]{postfix}"
 
     def __init__(self):
         self.count = 0
@@ -97,32 +102,60 @@ class _CompileWatch:
         self.seconds = 0.0
         self.t0 = 0.0
         self.bar = None
+        self.beat = None
         self.noted = False
+        self.planned: set = set()
+        self.done: set = set()
 
-    def on_start(self, name: str) -> None:
+    def _plan(self, dispatcher) -> None:
+        """Add the uncached kernels ``dispatcher`` reaches to the total."""
+        if dispatcher is None:
+            return
+        from hil_harness.compile_plan import uncached_kernels
+        new = {id(k) for k in uncached_kernels(dispatcher)} - self.planned
+        self.planned |= new
+        total = len(self.planned)
+        if self.bar is not None:
+            self.bar.total = total
+            self.bar.refresh()
+        if self.beat is not None:
+            self.beat.total = total
+
+    def _first(self) -> None:
+        self.noted = True
+        from hil_harness.warmup import start
+        start()                             # the track processor compiles on the other core
+        note(f"uvisi: {COMPILE_NOTE} ...")
+        if progress_enabled():
+            from tqdm import tqdm
+            self.bar = tqdm(desc="compiling (first run only, cached after)", total=0,
+                            bar_format=self.BAR_FORMAT, file=sys.stderr, leave=False,
+                            dynamic_ncols=True)
+        else:
+            self.beat = Heartbeat(0, "compiling", "kernels")
+
+    def on_start(self, name: str, dispatcher=None) -> None:
         import time
         if self.depth == 0:
             self.t0 = time.perf_counter()
             if not self.noted:
-                self.noted = True
-                from hil_harness.warmup import start
-                start()                     # the track processor compiles on the other core
-                if progress_enabled():
-                    from tqdm import tqdm
-                    self.bar = tqdm(desc="compiling (first run only, cached after)", unit=" kernel",
-                                    file=sys.stderr, leave=False, dynamic_ncols=True)
-                else:
-                    note(f"uvisi: {COMPILE_NOTE} ...")
+                self._first()
+            self._plan(dispatcher)
         self.depth += 1
         if self.bar is not None:
             self.bar.set_postfix_str(name, refresh=False)
 
-    def on_end(self) -> None:
+    def on_end(self, dispatcher=None) -> None:
         import time
         self.depth = max(0, self.depth - 1)
         self.count += 1
-        if self.bar is not None:
-            self.bar.update(1)
+        key = id(dispatcher)
+        if dispatcher is not None and key in self.planned and key not in self.done:
+            self.done.add(key)
+            if self.bar is not None:
+                self.bar.update(1)
+            if self.beat is not None:
+                self.beat.update(1)
         if self.depth == 0:
             self.seconds += time.perf_counter() - self.t0
 
@@ -130,6 +163,9 @@ class _CompileWatch:
         if self.bar is not None:
             self.bar.close()
             self.bar = None
+        if self.beat is not None:
+            self.beat.close()
+            self.beat = None
 
 
 _watch: dict = {}
@@ -149,10 +185,10 @@ def watch_compilation() -> None:
         def on_start(self, event):
             d = event.data.get("dispatcher") if isinstance(event.data, dict) else None
             name = getattr(getattr(d, "py_func", None), "__qualname__", "kernel")
-            w.on_start(name)
+            w.on_start(name, d)
 
         def on_end(self, event):
-            w.on_end()
+            w.on_end(event.data.get("dispatcher") if isinstance(event.data, dict) else None)
 
     numba_event.register("numba:compile", Listener())
     _watch["w"] = w

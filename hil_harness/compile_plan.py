@@ -1,0 +1,98 @@
+"""What a first run has left to compile: the project's numba kernels a kernel reaches and the cache
+does not hold yet (the compile bar's total).
+
+numba compiles a kernel on its first call, and with it every kernel its code calls. The kernels a
+compiled kernel reaches are read from its code: the global names it uses (and the attributes it
+takes of a module), followed through other kernels and through plain Python functions of the
+project (a 1750A operation's public function, whose numba overload calls the kernel its Python
+body calls). A kernel whose cache index exists is counted as compiled already.
+
+This reads the code, not numba's typing: the set can hold a kernel the call never compiles (a
+branch of Python code it does not take); the compile bar then closes below its total. The test
+holds it against the kernels numba compiles on an empty cache.
+"""
+from __future__ import annotations
+
+import os
+import types as pytypes
+
+__all__ = ["PROJECT_PACKAGES", "reachable_kernels", "is_cached", "uncached_kernels"]
+
+#: the packages whose kernels the compile bar counts (numba's own are not counted)
+PROJECT_PACKAGES = ("flightsw", "groundsim", "hil_harness")
+
+
+def _is_project(obj) -> bool:
+    mod = getattr(obj, "__module__", None) or ""
+    return mod.split(".")[0] in PROJECT_PACKAGES
+
+
+def _dispatcher_type():
+    from numba.core.dispatcher import Dispatcher
+    return Dispatcher
+
+
+def _names(code) -> set:
+    """The global and attribute names ``code`` and the functions nested in it use."""
+    out = set(code.co_names)
+    for c in code.co_consts:
+        if isinstance(c, pytypes.CodeType):
+            out |= _names(c)
+    return out
+
+
+def _referenced(func) -> list:
+    """The objects ``func``'s code names: its globals, its closure's cells, and the attributes it
+    takes of a module it names."""
+    code = func.__code__
+    g = func.__globals__
+    names = _names(code)
+    found = []
+    for name in names:
+        obj = g.get(name)
+        if isinstance(obj, pytypes.ModuleType):
+            found.extend(getattr(obj, a) for a in names if hasattr(obj, a))
+        elif obj is not None:
+            found.append(obj)
+    for cell in func.__closure__ or ():
+        try:
+            found.append(cell.cell_contents)
+        except ValueError:              # an empty cell
+            pass
+    return found
+
+
+def reachable_kernels(root) -> list:
+    """The project's kernels (numba dispatchers) ``root`` reaches through its code, ``root``
+    included if it is one, in the order found. ``root``: a dispatcher or a Python function."""
+    dispatcher = _dispatcher_type()
+    seen_funcs, kernels, seen = set(), [], set()
+    stack = [root]
+    while stack:
+        obj = stack.pop()
+        if isinstance(obj, dispatcher):
+            if id(obj) in seen or not _is_project(obj.py_func):
+                continue
+            seen.add(id(obj))
+            kernels.append(obj)
+            stack.extend(_referenced(obj.py_func))
+        elif isinstance(obj, pytypes.FunctionType) and _is_project(obj):
+            if id(obj) in seen_funcs:
+                continue
+            seen_funcs.add(id(obj))
+            stack.extend(_referenced(obj))
+    return kernels
+
+
+def is_cached(kernel) -> bool:
+    """Whether numba's cache holds an index for ``kernel`` (it then loads, not compiles, the
+    argument types the index lists)."""
+    cache = getattr(kernel, "_cache", None)
+    impl = getattr(cache, "_cache_file", None)
+    path = getattr(impl, "_index_path", None)
+    return bool(path) and os.path.exists(path)
+
+
+def uncached_kernels(root) -> list:
+    """:func:`reachable_kernels` of ``root`` that the cache does not hold."""
+    return [k for k in reachable_kernels(root) if not is_cached(k)]

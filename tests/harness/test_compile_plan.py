@@ -1,0 +1,63 @@
+"""The compile bar's total (:mod:`hil_harness.compile_plan`) against what numba compiles: on an
+empty cache, every project kernel numba compiles for a call is in the set read from the code, and
+the bar counts them against that set, with no time estimate."""
+import json
+import os
+import subprocess
+import sys
+
+SCRIPT = r"""
+import json
+import numpy as np
+from numba.core import event
+from hil_harness import console
+from hil_harness.compile_plan import PROJECT_PACKAGES, reachable_kernels, uncached_kernels
+import flightsw.tp.f1750 as f
+from flightsw.arith.m1750 import encode32
+
+compiled = []
+class Seen(event.Listener):
+    def on_start(self, e):
+        pass
+    def on_end(self, e):
+        compiled.append(e.data["dispatcher"].py_func)
+event.register("numba:compile", Seen())
+console.watch_compilation()
+name = lambda fn: fn.__module__ + "." + fn.__qualname__
+planned = [name(k.py_func) for k in reachable_kernels(f.qdcm)]
+assert len(uncached_kernels(f.qdcm)) == len(planned)          # an empty cache
+R = np.zeros(9, np.int64)
+half = encode32(0.5)
+f.qdcm(half, half, half, half, R)
+# the overloads' implementations numba makes (``<locals>``) are not kernels of their own
+project = sorted({name(fn) for fn in compiled
+                  if fn.__module__.split(".")[0] in PROJECT_PACKAGES and "<locals>" not in name(fn)})
+print(json.dumps({"planned": planned, "compiled": project,
+                  "cached_after": len(uncached_kernels(f.qdcm))}))
+"""
+
+
+def _run(tmp_path, progress):
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "numba"), UVISI_PROGRESS=progress)
+    res = subprocess.run([sys.executable, "-c", SCRIPT], capture_output=True, text=True,
+                         timeout=300, env=env)
+    assert res.returncode == 0, res.stderr
+    return json.loads(res.stdout), res.stderr
+
+
+def test_the_bar_counts_what_numba_compiles_against_the_code_s_total(tmp_path):
+    out, err = _run(tmp_path, "1")
+    planned, compiled = set(out["planned"]), set(out["compiled"])
+    assert "flightsw.tp.f1750.qdcm" in compiled and len(compiled) >= 5
+    assert compiled <= planned, sorted(compiled - planned)
+    # the bar's last state: every kernel compiled, of the total read from the code
+    assert f"{len(compiled)}/{len(planned)} kernels" in err
+    assert "compiling (first run only, cached after)" in err
+    assert "<" not in err and "?" not in err             # no time estimate, no rate
+    assert out["cached_after"] == len(planned) - len(compiled)
+
+
+def test_without_a_terminal_one_line_says_it(tmp_path):
+    from hil_harness.console import COMPILE_NOTE
+    _, err = _run(tmp_path, "0")
+    assert err.count(COMPILE_NOTE) == 1 and "kernels [" not in err
