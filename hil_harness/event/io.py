@@ -758,13 +758,15 @@ def run_event(scenario="satellite_over_stars", *, seed: int | None = None, frame
     n = scenario.n_frames if frames is None else min(int(frames), scenario.n_frames)
     check(event_cost(f"scenario {scenario.name}", n, out, record_frames, figures), lift_cap=True)
     cfg = EventConfig(scenario=scenario, seed=seed, frames=frames, **config)
-    # without figures nothing reads a frame's whole outcome after the recorder: keep it slim
-    ev = Event(cfg, keep_frames=bool(out) and figures, keep_outcomes=bool(out) and figures)
     if out is None:
+        ev = Event(cfg, keep_frames=False, keep_outcomes=False)
         ev.run(progress=progress)
         return summarise(ev)
     kill_at = _kill_hook()
+    # the folder first: one held by another run is refused before a first run's compilation
     with RunFolder(out, replace=force):
+        # without figures nothing reads a frame's whole outcome after the recorder: keep it slim
+        ev = Event(cfg, keep_frames=figures, keep_outcomes=figures)
         return _run_recorded(ev, Path(out), record_frames, figures, progress, flush_every, kill_at)
 
 
