@@ -6,7 +6,7 @@ Reference ("ours") is the satellite frame, so the ratio column of the aurora row
 satellite. Target (issue 45): an event's aurora frame <= 3x a satellite frame (``host.median_frame_us``,
 2.0x measured); a render alone is a larger share of the aurora frame, so its ratio is higher (4.0x;
 ~30x before, when the extended image took ~5.5 ms).
-Run: ``.venv/bin/python -m pytest bench/test_bench_aurora.py --benchmark-enable -q``.
+Run: ``.venv/bin/python -m pytest bench/bench_aurora.py --benchmark-enable -q``.
 """
 import numpy as np
 import pytest
