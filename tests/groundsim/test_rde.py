@@ -42,9 +42,9 @@ def filterpy_run(x0, P0, F, Q, Hs, Rs, zs):
 
 
 # ------------------------------------------------------------------ estimator vs filterpy
-# state dimensions the package uses (12, 18) and two small ones; the kernels compile once per
-# dimension, so the other tests reuse these
-@pytest.mark.parametrize("seed,n,N", [(0, 2, 30), (1, 5, 60), (2, 12, 40), (3, 18, 50)])
+# state dimensions the package uses (12, 18) and a small one whose rows are padded (5 -> 8); the
+# kernels compile once per dimension (~25 s each on a first run), so the other tests reuse these
+@pytest.mark.parametrize("seed,n,N", [(1, 5, 60), (2, 12, 40), (3, 18, 50)])
 def test_filter_and_smoother_equal_filterpy(seed, n, N):
     rng = np.random.default_rng(seed)
     x0, P0, F, Q, Hs, Rs, zs = random_system(rng, n, N)
