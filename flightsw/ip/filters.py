@@ -203,12 +203,12 @@ def _maxabs(img):
     return m
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _finish32(acc, out):
-    """Vectorised :func:`_finish` over int32 sums (no overflow: the caller's bound).
+    """Vectorised :func:`_finish` over a row of int32 sums (no overflow: the caller's bound).
 
-    ``acc``: int32 [h, w] sums (Q.15), ``|acc| < 2**31 - 2**14``; ``out``: int16 [h, w] written
-    in place (Q16.0).
+    ``acc``: int32 [w] sums (Q.15), ``|acc| < 2**31 - 2**14``; ``out``: int16 [w] written in place
+    (Q16.0).
 
     Cases
     -----
@@ -218,16 +218,14 @@ def _finish32(acc, out):
         kernel gain ~2).
     sat-low : below -32768 -> -32768.
     """
-    a1 = acc.ravel()
-    o1 = out.ravel()
-    for n in range(a1.size):
-        a = a1[n]
+    for n in range(acc.size):
+        a = acc[n]
         q = (a + np.int32(0x4000)) >> np.int32(15)
         t = np.int32((a & np.int32(0x7FFF)) == np.int32(0x4000))
         q = q & ~t
         q = min(q, np.int32(32767))
         q = max(q, np.int32(-32768))
-        o1[n] = np.int16(q)
+        out[n] = np.int16(q)
 
 
 @njit(cache=True)
@@ -237,7 +235,9 @@ def _correlate_k32(pad, kern, h, w):
     ``pad``: int16 [h + 2p, w + 2p] replicate-padded image; ``kern``: int16 [k, k] Q1.15. Returns
     int16 [h, w] (Q16.0). Host speed-up for 3x3 kernels: each output word's nine products summed
     in a register and finished at once (the same integer sum: addition is associative and no
-    partial sum leaves the bound); other sizes add one tap at a time into an int32 image.
+    partial sum leaves the bound); other sizes add one tap at a time into an int32 row, one output
+    row at a time (a whole-frame int32 image passed 25 times fell out of the cache on large
+    frames).
 
     Cases
     -----
@@ -263,18 +263,19 @@ def _correlate_k32(pad, kern, h, w):
                 q = q & ~np.int32((s & np.int32(0x7FFF)) == np.int32(0x4000))
                 o[c] = np.int16(max(min(q, np.int32(32767)), np.int32(-32768)))
         return out
-    acc = np.zeros((h, w), np.int32)
-    for i in range(kh):
-        for j in range(kw):
-            kij = np.int32(kern[i, j])
-            if kij == 0:
-                continue
-            for r in range(h):
-                src = pad[r + i, j:j + w]
-                dst = acc[r]
+    acc = np.empty(w, np.int32)                # one output row's sums: in cache on any frame
+    for r in range(h):
+        for c in range(w):
+            acc[c] = 0
+        for i in range(kh):
+            src = pad[r + i]
+            for j in range(kw):
+                kij = np.int32(kern[i, j])
+                if kij == 0:
+                    continue
                 for c in range(w):
-                    dst[c] += np.int32(src[c]) * kij
-    _finish32(acc, out)
+                    acc[c] += np.int32(src[c + j]) * kij
+        _finish32(acc, out[r])
     return out
 
 
