@@ -361,6 +361,22 @@ def test_highpass_signed_full_range_saturates():
     assert np.abs(lp - ref).max() <= 1.0
 
 
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "strips")
+@pytest.mark.parametrize("h", [dt.STRIP - 1, dt.STRIP + 1, 2 * dt.STRIP + 1, 2 * dt.STRIP + 3,
+                               3 * dt.STRIP + 8])
+def test_highpass_by_strips_is_the_one_pass_words(h):
+    """A frame taller than a strip: the words of x - lowpass over the whole frame at once (the
+    low pass's own one-pass form), the last strip 1 to 8 rows high."""
+    rng = np.random.default_rng(h)
+    img = rng.normal(0, 300, (h, 150))
+    img[h // 2, 40] += 30000                              # a headroom below 3 for the whole frame
+    img = np.clip(np.rint(img), -32768, 32767).astype(np.int16)
+    for taps in (dt.default_taps(), dt.default_taps(3.0)):
+        lp = dt.lowpass_q15(img, taps)
+        exact = np.clip(img.astype(np.int64) - lp, -32768, 32767)
+        assert np.array_equal(dt.detrend_highpass(img, taps), exact)
+
+
 def test_highpass_cycles_charged():
     led = Ledger()
     dt.detrend_highpass(WINDOWS[0], ledger=led)
