@@ -2,7 +2,8 @@
 of the NumPy forms they replaced.
 
 Oracles: :func:`hil_harness.images.noise_sigma` (the pixel noise, the same float), ``np.median``
-(the histogram medians).
+(the histogram medians), and the NumPy aperture photometry ``uvisi detect`` used before
+(:func:`_aperture_flux_numpy`, kept here as it was) on the same points.
 """
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ import numpy as np
 import pytest
 
 from hil_harness.detect.noise import MAX_DIFFERENCES, frame_noise
+from hil_harness.detect.photometry import ANNULUS, MAX_RADIUS, MIN_RADIUS, RADIUS_PER_AXIS, \
+    aperture_flux
 from hil_harness.images import noise_sigma
 
 
@@ -71,3 +74,60 @@ def test_histogram_medians_are_numpys():
             d[:] = 7.0
         med = np.median(d)
         assert _median_mad(d) == (med, np.median(np.abs(d - med)))
+
+
+# ------------------------------------------------------------------------------------------------
+# aperture photometry
+# ------------------------------------------------------------------------------------------------
+def _aperture_flux_numpy(img, rows, cols, semimajor, noise, mask=None):
+    """The NumPy aperture photometry ``uvisi detect`` used until issue 45 (one point at a time)."""
+    a = np.asarray(img, np.float64)
+    H, W = a.shape
+    rad = np.clip(RADIUS_PER_AXIS * np.asarray(semimajor, float), MIN_RADIUS, MAX_RADIUS)
+    m = np.ones(a.shape, bool) if mask is None else np.asarray(mask, bool)
+    flux = np.full(rows.size, np.nan)
+    snr = np.full(rows.size, np.nan)
+    for i in range(rows.size):
+        r_out = rad[i] + ANNULUS[1]
+        r0, r1 = max(0, int(rows[i] - r_out)), min(H, int(rows[i] + r_out) + 2)
+        c0, c1 = max(0, int(cols[i] - r_out)), min(W, int(cols[i] + r_out) + 2)
+        if r0 >= r1 or c0 >= c1:
+            continue
+        yy, xx = np.mgrid[r0:r1, c0:c1]
+        d = np.hypot(yy + 0.5 - rows[i], xx + 0.5 - cols[i])
+        cut, ok = a[r0:r1, c0:c1], m[r0:r1, c0:c1]
+        ap = ok & (d <= rad[i])
+        ring = ok & (d >= rad[i] + ANNULUS[0]) & (d <= r_out)
+        if not ap.any():
+            continue
+        bkg = float(np.median(cut[ring])) if ring.sum() >= 8 else float(np.median(cut[ok]))
+        flux[i] = float(np.sum(cut[ap] - bkg))
+        snr[i] = flux[i] / (max(noise, 1e-9) * math.sqrt(int(ap.sum())))
+    return flux, snr
+
+
+@pytest.mark.cases("hil_harness.detect.photometry._apertures_k", "typical", "outside", "mask",
+                   "thin-ring")
+def test_aperture_flux_is_the_numpy_form():
+    rng = np.random.default_rng(7)
+    shape = (400, 530)
+    img = rng.poisson(200.0, shape).astype(np.float64)
+    for _ in range(60):
+        r, c = rng.uniform(0, shape[0]), rng.uniform(0, shape[1])
+        yy, xx = np.mgrid[:shape[0], :shape[1]]
+        img += rng.uniform(50, 3000) * np.exp(-((yy + 0.5 - r) ** 2 + (xx + 0.5 - c) ** 2) / 3.0)
+    img = np.clip(np.rint(img), 0, 4095).astype(np.uint16)
+    n = 400
+    rows = np.r_[rng.uniform(-25, shape[0] + 25, n), 0.0, shape[0] - 0.01, 100.5, -40.0, 500.0]
+    cols = np.r_[rng.uniform(-25, shape[1] + 25, n), 0.0, shape[1] - 0.01, 100.5, 10.0, 700.0]
+    semi = np.r_[rng.uniform(0.3, 7.0, n), 1.0, 1.0, 1.0, 1.0, 1.0]
+    field = _disc(shape, 200.0, 265.0, 190.0)
+    tiny = _disc(shape, 100.5, 100.5, 5.0)             # the aperture only: no annulus pixel
+    for mask in (None, field, tiny):
+        want = _aperture_flux_numpy(img, rows, cols, semi, 8.3, mask)
+        got = aperture_flux(img, rows, cols, semi, 8.3, mask)
+        assert np.array_equal(want[0], got[0], equal_nan=True)
+        assert np.array_equal(want[1], got[1], equal_nan=True)
+    # the points off the frame; about (100.5, 100.5) ``tiny`` (radius 5) holds no annulus pixel
+    # (6..11 px): the background is the median of the box's pixels in the field
+    assert np.isnan(got[0][-2:]).all() and np.isfinite(got[0][-3])
