@@ -296,11 +296,16 @@ def _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates, 
     keep = np.arange(len(out["feats"]))
     if mask is not None and keep.size:
         keep = keep[inside(mask, out["feats"]["row"], out["feats"]["col"])]
-    cands = []
-    for i, ft in zip(keep[:max_candidates], out["feats"][keep[:max_candidates]]):
-        cands.append({"rank": len(cands) + 1, "row": float(ft["row"]), "col": float(ft["col"]),
-                      "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
-                      "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
+    keep = keep[:max_candidates]
+    ft = out["feats"][keep]
+    # Python floats column by column (tolist), not a NumPy scalar per feature and candidate
+    cols = [ft[n].astype(float).tolist() for n in FEATURE_NAMES]
+    dist = np.asarray(out["distance"], float)[keep].tolist()
+    gof = np.asarray(out["gof"], float)[keep].tolist()
+    row, col = ft["row"].astype(float).tolist(), ft["col"].astype(float).tolist()
+    cands = [{"rank": k + 1, "row": row[k], "col": col[k], "distance": dist[k], "gof": gof[k],
+              "features": dict(zip(FEATURE_NAMES, vals))}
+             for k, vals in enumerate(zip(*cols))]
     return out, cands
 
 

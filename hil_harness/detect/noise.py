@@ -88,14 +88,25 @@ def _pick_dense(x, step, out):
     H, W = x.shape
     wh = max(W - 2, 0)
     nh = H * wh
-    for j in range(out.size):
-        k = j * step
-        if k < nh:
-            r, c = k // wh, k % wh
-            out[j] = np.float64(x[r, c]) - 2.0 * np.float64(x[r, c + 1]) + np.float64(x[r, c + 2])
-        else:
-            r, c = (k - nh) // W, (k - nh) % W
-            out[j] = np.float64(x[r, c]) - 2.0 * np.float64(x[r + 1, c]) + np.float64(x[r + 2, c])
+    j = 0
+    k = 0                                       # index of difference j: row r, column c
+    r, c = 0, 0
+    while j < out.size and k < nh:              # horizontal
+        out[j] = np.float64(x[r, c]) - 2.0 * np.float64(x[r, c + 1]) + np.float64(x[r, c + 2])
+        j += 1
+        k += step
+        c += step
+        while c >= wh and r < H:
+            c -= wh
+            r += 1
+    r, c = (k - nh) // W, (k - nh) % W
+    while j < out.size:                         # vertical
+        out[j] = np.float64(x[r, c]) - 2.0 * np.float64(x[r + 1, c]) + np.float64(x[r + 2, c])
+        j += 1
+        c += step
+        while c >= W:
+            c -= W
+            r += 1
 
 
 @njit(cache=True)

@@ -18,6 +18,7 @@ Public: :func:`aperture_flux`, :func:`order_stars` and their constants.
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
 from numba import njit
@@ -130,6 +131,16 @@ FILL_PEAK_SIGMA = 1.0
 SAME_STAR_PX = 2.0
 
 
+_BIG = sys.float_info.max
+
+
+def _brightest_first(c) -> float:
+    """Sort key of a measured candidate: ``-np.nan_to_num(flux, nan=-inf)`` (NaN last, infinities
+    as the largest floats) without a NumPy call per candidate."""
+    f = c["flux"]
+    return math.inf if f != f else -min(max(f, -_BIG), _BIG)
+
+
 def order_stars(img12, gated: list, below: list, noise: float, max_candidates: int,
                 mask=None) -> list:
     """The star job's ground ordering of ``uvisi detect``'s candidates (the flight ranking is not
@@ -155,7 +166,7 @@ def order_stars(img12, gated: list, below: list, noise: float, max_candidates: i
                 for c, f, s in zip(cands, flux, snr)]
 
     first = measured(gated, True)
-    first.sort(key=lambda c: -np.nan_to_num(c["flux"], nan=-np.inf))
+    first.sort(key=_brightest_first)
     rest = []
     if len(first) < max_candidates and below:
         pos = np.array([[c["row"], c["col"]] for c in first]).reshape(-1, 2)
