@@ -147,6 +147,21 @@ def test_filter_against_scipy_correlate_nearest(ki):
         assert np.array_equal(ours, correlate_valid_q15(flt.pad_nearest(img, k.shape[0] // 2), k))
 
 
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "rows")
+@pytest.mark.parametrize("shape", [(150, 130), (129, 129), (40, 700)])
+def test_filter_of_a_frame_by_rows_is_the_exact_sum(shape):
+    """Above SMALL_WORDS words (a frame, not a window) the 5x5 and 7x7 sums go a row at a time:
+    the MR emulation's words, and within 1/2 of the float64 correlation."""
+    assert shape[0] * shape[1] > flt.SMALL_WORDS
+    rng = np.random.default_rng(shape[1])
+    img = rng.integers(-4096, 4096, shape).astype(np.int16)
+    for k in (flt.smoothing_kernel(5), flt.smoothing_kernel(7), flt.matched_kernel(5)):
+        ours = flt.correlate_q15(img, k)
+        assert np.array_equal(ours, correlate_valid_q15(flt.pad_nearest(img, k.shape[0] // 2), k))
+        ref = ndi.correlate(img.astype(np.float64), k.astype(np.float64) / 32768, mode="nearest")
+        assert np.abs(ours - ref).max() <= 0.5
+
+
 def test_filter_against_ideal_gaussian_kernel():
     """Against the real-valued 7x7 binomial: add max|x| * sum|k_q - K| (here 0: exact in Q1.15)."""
     b = np.array([1, 6, 15, 20, 15, 6, 1], float) / 64
