@@ -50,7 +50,9 @@ def test_frame_noise_is_noise_sigma():
               (rng.integers(-500, 500, (40, 61)).astype(np.int16), None),
               (np.full((50, 60), 7, np.uint16), None)]
     for data, mask in frames:
-        a, b = noise_sigma(data, mask), frame_noise(data, mask)
+        with np.errstate(invalid="ignore"):                       # inf - 2 inf in the oracle
+            a = noise_sigma(data, mask)
+        b = frame_noise(data, mask)
         assert _same(a, b), (data.dtype, data.shape, mask is None, a, b)
 
 
