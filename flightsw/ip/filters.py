@@ -203,7 +203,7 @@ def _maxabs(img):
     return m
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _finish32(acc, out):
     """Vectorised :func:`_finish` over a row of int32 sums (no overflow: the caller's bound).
 
