@@ -205,10 +205,10 @@ def _maxabs(img):
 
 @njit(cache=True)
 def _finish32(acc, out):
-    """Vectorised :func:`_finish` over int32 sums (no overflow: the caller's bound).
+    """Vectorised :func:`_finish` over a row of int32 sums (no overflow: the caller's bound).
 
-    ``acc``: int32 [h, w] sums (Q.15), ``|acc| < 2**31 - 2**14``; ``out``: int16 [h, w] written
-    in place (Q16.0).
+    ``acc``: int32 [w] sums (Q.15), ``|acc| < 2**31 - 2**14``; ``out``: int16 [w] written in place
+    (Q16.0).
 
     Cases
     -----
@@ -218,16 +218,19 @@ def _finish32(acc, out):
         kernel gain ~2).
     sat-low : below -32768 -> -32768.
     """
-    a1 = acc.ravel()
-    o1 = out.ravel()
-    for n in range(a1.size):
-        a = a1[n]
+    for n in range(acc.size):
+        a = acc[n]
         q = (a + np.int32(0x4000)) >> np.int32(15)
         t = np.int32((a & np.int32(0x7FFF)) == np.int32(0x4000))
         q = q & ~t
         q = min(q, np.int32(32767))
         q = max(q, np.int32(-32768))
-        o1[n] = np.int16(q)
+        out[n] = np.int16(q)
+
+
+#: the most words of an image whose k x k (k > 3) sums go through one int32 image (a flight
+#: window's stay in cache; a larger frame is summed one output row at a time)
+SMALL_WORDS = 128 * 128
 
 
 @njit(cache=True)
@@ -237,13 +240,16 @@ def _correlate_k32(pad, kern, h, w):
     ``pad``: int16 [h + 2p, w + 2p] replicate-padded image; ``kern``: int16 [k, k] Q1.15. Returns
     int16 [h, w] (Q16.0). Host speed-up for 3x3 kernels: each output word's nine products summed
     in a register and finished at once (the same integer sum: addition is associative and no
-    partial sum leaves the bound); other sizes add one tap at a time into an int32 image.
+    partial sum leaves the bound); other sizes add one tap at a time into an int32 image (up to
+    :data:`SMALL_WORDS` words), or for a larger frame into an int32 row, one output row at a time
+    (a whole-frame int32 image passed 25 times fell out of the cache on large frames).
 
     Cases
     -----
     typical : the exact sum rounded as :func:`_finish32` (``scipy.ndimage.correlate`` within 1/2).
     zero-taps : taps equal to 0 add nothing (skipped on the tap-at-a-time path).
     three : a 3x3 kernel -> the register path, the same words.
+    rows : more than ``SMALL_WORDS`` words and k > 3 -> one output row at a time, the same words.
     """
     kh, kw = kern.shape
     out = np.empty((h, w), np.int16)
@@ -263,18 +269,33 @@ def _correlate_k32(pad, kern, h, w):
                 q = q & ~np.int32((s & np.int32(0x7FFF)) == np.int32(0x4000))
                 o[c] = np.int16(max(min(q, np.int32(32767)), np.int32(-32768)))
         return out
-    acc = np.zeros((h, w), np.int32)
-    for i in range(kh):
-        for j in range(kw):
-            kij = np.int32(kern[i, j])
-            if kij == 0:
-                continue
-            for r in range(h):
-                src = pad[r + i, j:j + w]
-                dst = acc[r]
+    if h * w <= SMALL_WORDS:                   # a window: tap by tap into its int32 image
+        acc2 = np.zeros((h, w), np.int32)
+        for i in range(kh):
+            for j in range(kw):
+                kij = np.int32(kern[i, j])
+                if kij == 0:
+                    continue
+                for r in range(h):
+                    src = pad[r + i, j:j + w]
+                    dst = acc2[r]
+                    for c in range(w):
+                        dst[c] += np.int32(src[c]) * kij
+        _finish32(acc2.ravel(), out.ravel())
+        return out
+    acc = np.empty(w, np.int32)                # a frame: one output row's sums at a time
+    for r in range(h):
+        for c in range(w):
+            acc[c] = 0
+        for i in range(kh):
+            src = pad[r + i]
+            for j in range(kw):
+                kij = np.int32(kern[i, j])
+                if kij == 0:
+                    continue
                 for c in range(w):
-                    dst[c] += np.int32(src[c]) * kij
-    _finish32(acc, out)
+                    acc[c] += np.int32(src[c + j]) * kij
+        _finish32(acc, out[r])
     return out
 
 

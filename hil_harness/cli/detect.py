@@ -221,8 +221,8 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     ``max_candidates`` remain). ``trails``: the streak job: each candidate gets ``"trail"``
     (:func:`add_trails`)."""
     from flightsw.ip.preprocess import compact
+    from hil_harness.detect.noise import frame_noise
     from hil_harness.field import compact_mask
-    from hil_harness.images import noise_sigma
     whole = field is None or bool(np.all(field))
     mask = None if whole else np.asarray(field, bool)
     tile = tile_for_seq(seq) if tile is None else tile
@@ -236,8 +236,9 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     from hil_harness.detect.jobs import GATE_TOP, peak_gate_record
     from hil_harness.detect.photometry import FILL_PEAK_SIGMA, order_stars
     comp = compact(img12, compaction) if compaction > 1 else img12
-    noise = noise_sigma(comp, None if mask is None else compact_mask(mask, compaction))
-    noise = noise if math.isfinite(noise) and noise > 0.5 else 0.5   # noiseless: half a count
+    # the pixel noise (hil_harness.images.noise_sigma, compiled: the same number)
+    raw_noise = frame_noise(comp, None if mask is None else compact_mask(mask, compaction))
+    noise = raw_noise if math.isfinite(raw_noise) and raw_noise > 0.5 else 0.5  # noiseless: 1/2
     # a high-contrast frame (a 1-bit image, a checkerboard) has no sky noise to speak of: its
     # pixel-to-pixel "noise" would put the gate above full scale; cap it just below
     noise = min(noise, 0.999 * GATE_TOP / gate_sigma)
@@ -249,7 +250,7 @@ def detect_one(img12, seq, record, compaction, window_mode="full", max_candidate
     if len(gated) < max_candidates:
         below = _ip_candidates(img12, seq, peak_gate_record(record, noise, FILL_PEAK_SIGMA),
                                compaction, window_mode, 1000, tile, mask)[1]
-    pix_noise = noise_sigma(img12, mask)
+    pix_noise = raw_noise if compaction == 1 else frame_noise(img12, mask)
     cands = order_stars(img12, gated, below, pix_noise if pix_noise > 0 else 0.5,
                         max_candidates, mask)
     return {"mode": out["mode"], "windows": out["windows"], "gate": gate, "candidates": cands}
@@ -295,11 +296,16 @@ def _ip_candidates(img12, seq, record, compaction, window_mode, max_candidates, 
     keep = np.arange(len(out["feats"]))
     if mask is not None and keep.size:
         keep = keep[inside(mask, out["feats"]["row"], out["feats"]["col"])]
-    cands = []
-    for i, ft in zip(keep[:max_candidates], out["feats"][keep[:max_candidates]]):
-        cands.append({"rank": len(cands) + 1, "row": float(ft["row"]), "col": float(ft["col"]),
-                      "distance": float(out["distance"][i]), "gof": float(out["gof"][i]),
-                      "features": {n: float(ft[n]) for n in FEATURE_NAMES}})
+    keep = keep[:max_candidates]
+    ft = out["feats"][keep]
+    # Python floats column by column (tolist), not a NumPy scalar per feature and candidate
+    cols = [ft[n].astype(float).tolist() for n in FEATURE_NAMES]
+    dist = np.asarray(out["distance"], float)[keep].tolist()
+    gof = np.asarray(out["gof"], float)[keep].tolist()
+    row, col = ft["row"].astype(float).tolist(), ft["col"].astype(float).tolist()
+    cands = [{"rank": k + 1, "row": row[k], "col": col[k], "distance": dist[k], "gof": gof[k],
+              "features": dict(zip(FEATURE_NAMES, vals))}
+             for k, vals in enumerate(zip(*cols))]
     return out, cands
 
 
@@ -404,11 +410,17 @@ def _setup(args):
 def _frame_job(args, record, seq, f, gate, user_mask=None):
     """The work of one frame, as a function of the frame alone (run here or in a worker):
     ``InputFrame -> (entry, counts or None (no --plot), messages for stderr)``."""
-    from hil_harness.field import resolve_field
+    from hil_harness.detect.noise import frame_noise
+    from hil_harness.field import find_field, resolve_field
+
+    def field_of(data):
+        if user_mask is None and args.field_circle is None:    # found in the frame: its noise
+            return find_field(data, frame_noise(data))         # compiled, the same number
+        return resolve_field(data, user_mask, args.field_circle)
 
     def one(fr):
         try:
-            field = resolve_field(fr.data, user_mask, args.field_circle)
+            field = field_of(fr.data)
         except ValueError as exc:
             opt = f"--mask {args.mask}" if args.mask else "--field-circle"
             raise ImageError(f"{fr.name}: {opt}: {exc}") from None

@@ -18,8 +18,10 @@ Public: :func:`aperture_flux`, :func:`order_stars` and their constants.
 from __future__ import annotations
 
 import math
+import sys
 
 import numpy as np
+from numba import njit
 
 __all__ = ["aperture_flux", "order_stars", "MIN_RADIUS", "MAX_RADIUS", "RADIUS_PER_AXIS",
            "ANNULUS", "FILL_SNR", "FILL_PEAK_SIGMA", "SAME_STAR_PX"]
@@ -44,32 +46,79 @@ def aperture_flux(img, rows, cols, semimajor, noise: float, mask=None):
 
     Returns ``(flux, snr)``: float64 [n] each, ``flux`` in counts (sum over the aperture of pixel
     minus background), ``snr = flux / (noise * sqrt(pixels in the aperture))`` (the background-
-    limited signal-to-noise; NaN where the aperture holds no pixel).
+    limited signal-to-noise; NaN where the aperture holds no pixel). All the points in one
+    compiled call (:func:`_apertures_k`).
     """
-    a = np.asarray(img, np.float64)
-    H, W = a.shape
-    rows = np.asarray(rows, float)
-    cols = np.asarray(cols, float)
+    a = np.asarray(img)
+    if a.dtype not in (np.uint16, np.float64):
+        a = a.astype(np.float64)
+    a = np.ascontiguousarray(a)
+    rows = np.ascontiguousarray(rows, float)
+    cols = np.ascontiguousarray(cols, float)
     rad = np.clip(RADIUS_PER_AXIS * np.asarray(semimajor, float), MIN_RADIUS, MAX_RADIUS)
-    m = np.ones(a.shape, bool) if mask is None else np.asarray(mask, bool)
-    flux = np.full(rows.size, np.nan)
-    snr = np.full(rows.size, np.nan)
-    for i in range(rows.size):
-        r_out = rad[i] + ANNULUS[1]
+    if mask is None:
+        m, use = np.ones((1, 1), np.bool_), False
+    else:
+        m, use = np.ascontiguousarray(mask, np.bool_), True
+    return _apertures_k(a, rows, cols, np.ascontiguousarray(rad), float(noise), m, use,
+                        float(ANNULUS[0]), float(ANNULUS[1]))
+
+
+@njit(cache=True)
+def _apertures_k(a, rows, cols, rad, noise, m, use_mask, ann0, ann1):
+    """:func:`aperture_flux` of every point: ``a`` (uint16 or float64 [H, W]), ``rows``, ``cols``,
+    ``rad`` (float [n]: the aperture radii), the pixel noise, the mask ``m`` (bool [H, W], read when
+    ``use_mask``) and the annulus ``r + ann0 .. r + ann1``. Returns ``(flux, snr)`` float64 [n].
+
+    The same numbers as the NumPy form it replaced: the pixel centre's distance by ``np.hypot``,
+    the medians of the same values (an even count: the mean of the two middle ones), the flux the
+    sum of ``pixel - background`` (exact for counts: integers and a half-integer background).
+
+    Cases
+    -----
+    typical : the median of the annulus pixels is the background; the flux sums the aperture.
+    thin-ring : fewer than 8 annulus pixels (the frame's edge, a mask) -> the median of every
+        pixel inside the box about the point (and the field) instead.
+    outside : a point whose box misses the frame, or whose aperture holds no pixel -> NaN, NaN.
+    mask : ``use_mask`` -> pixels outside ``m`` take no part in the aperture, annulus or box.
+    """
+    H, W = a.shape
+    n = rows.size
+    flux = np.full(n, np.nan)
+    snr = np.full(n, np.nan)
+    size = 2 * (int(rad.max() + ann1) + 2) + 2 if n else 0
+    ring = np.empty(size * size, np.float64)          # the box's annulus pixels
+    box = np.empty(size * size, np.float64)           # ... every pixel in the field
+    ap = np.empty(size * size, np.float64)            # ... the aperture's
+    for i in range(n):
+        r_out = rad[i] + ann1
         r0, r1 = max(0, int(rows[i] - r_out)), min(H, int(rows[i] + r_out) + 2)
         c0, c1 = max(0, int(cols[i] - r_out)), min(W, int(cols[i] + r_out) + 2)
         if r0 >= r1 or c0 >= c1:
             continue
-        yy, xx = np.mgrid[r0:r1, c0:c1]
-        d = np.hypot(yy + 0.5 - rows[i], xx + 0.5 - cols[i])
-        cut, ok = a[r0:r1, c0:c1], m[r0:r1, c0:c1]
-        ap = ok & (d <= rad[i])
-        ring = ok & (d >= rad[i] + ANNULUS[0]) & (d <= r_out)
-        if not ap.any():
+        nap, nring, nbox = 0, 0, 0
+        for r in range(r0, r1):
+            for c in range(c0, c1):
+                if use_mask and not m[r, c]:
+                    continue
+                v = np.float64(a[r, c])
+                box[nbox] = v
+                nbox += 1
+                d = np.hypot(r + 0.5 - rows[i], c + 0.5 - cols[i])
+                if d <= rad[i]:
+                    ap[nap] = v
+                    nap += 1
+                if d >= rad[i] + ann0 and d <= r_out:
+                    ring[nring] = v
+                    nring += 1
+        if nap == 0:
             continue
-        bkg = float(np.median(cut[ring])) if ring.sum() >= 8 else float(np.median(cut[ok]))
-        flux[i] = float(np.sum(cut[ap] - bkg))
-        snr[i] = flux[i] / (max(noise, 1e-9) * math.sqrt(int(ap.sum())))
+        bkg = np.median(ring[:nring]) if nring >= 8 else np.median(box[:nbox])
+        s = 0.0
+        for k in range(nap):
+            s += ap[k] - bkg
+        flux[i] = s
+        snr[i] = s / (max(noise, 1e-9) * math.sqrt(nap))
     return flux, snr
 
 
@@ -80,6 +129,16 @@ FILL_SNR = 5.0
 FILL_PEAK_SIGMA = 1.0
 #: a fill candidate within this distance (pixels) of a gated one is the same star
 SAME_STAR_PX = 2.0
+
+
+_BIG = sys.float_info.max
+
+
+def _brightest_first(c) -> float:
+    """Sort key of a measured candidate: ``-np.nan_to_num(flux, nan=-inf)`` (NaN last, infinities
+    as the largest floats) without a NumPy call per candidate."""
+    f = c["flux"]
+    return math.inf if f != f else -min(max(f, -_BIG), _BIG)
 
 
 def order_stars(img12, gated: list, below: list, noise: float, max_candidates: int,
@@ -107,7 +166,7 @@ def order_stars(img12, gated: list, below: list, noise: float, max_candidates: i
                 for c, f, s in zip(cands, flux, snr)]
 
     first = measured(gated, True)
-    first.sort(key=lambda c: -np.nan_to_num(c["flux"], nan=-np.inf))
+    first.sort(key=_brightest_first)
     rest = []
     if len(first) < max_candidates and below:
         pos = np.array([[c["row"], c["col"]] for c in first]).reshape(-1, 2)

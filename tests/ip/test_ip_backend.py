@@ -145,6 +145,28 @@ def test_label_wide_windows_and_input_dtypes():
         backend(np.full((4, 4), -40000, np.int64), load_record("star"))
 
 
+@pytest.mark.cases("flightsw.ip.colour._scan_pixels", "off-blocks")
+def test_label_sparse_wide_frames():
+    """A wide frame mostly off (the full-frame mode's thresholded image): runs that start, end or
+    cross at multiples of 32 columns, at the last column, and rows all off: the labels of scipy
+    and the sums over them."""
+    rng = np.random.default_rng(45)
+    for shape in [(40, 65), (33, 96), (64, 257), (7, 1000)]:
+        im = np.zeros(shape, np.int16)
+        for _ in range(shape[0] * shape[1] // 300):
+            r, c = rng.integers(0, shape[0]), rng.integers(0, shape[1])
+            im[r:r + rng.integers(1, 4), c:c + rng.integers(1, 6)] = rng.integers(1, 4000)
+        for c in range(0, shape[1], 32):                       # runs about the block edges
+            im[rng.integers(0, shape[0]), max(c - 1, 0):c + 1] = 9
+        im[:, -1][rng.random(shape[0]) < 0.3] = 5
+        im[shape[0] // 2] = 0
+        for diagonal in (True, False):
+            ref, n = ndimage.label(im != 0, structure=S8 if diagonal else None)
+            res = colour(im, diagonal, None)
+            assert res.count == n and np.array_equal(res.labels, ref)
+            assert np.array_equal(res.sums, blob_sums(im, res.labels, res.count))
+
+
 @pytest.mark.cases("flightsw.ip.colour._scan_masks", "out-of-range")
 @pytest.mark.cases("flightsw.ip.colour._label_kernel", "out-of-range")
 def test_label_validation():

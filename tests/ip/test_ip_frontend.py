@@ -147,6 +147,21 @@ def test_filter_against_scipy_correlate_nearest(ki):
         assert np.array_equal(ours, correlate_valid_q15(flt.pad_nearest(img, k.shape[0] // 2), k))
 
 
+@pytest.mark.cases("flightsw.ip.filters._correlate_k32", "rows")
+@pytest.mark.parametrize("shape", [(150, 130), (129, 129), (40, 700)])
+def test_filter_of_a_frame_by_rows_is_the_exact_sum(shape):
+    """Above SMALL_WORDS words (a frame, not a window) the 5x5 and 7x7 sums go a row at a time:
+    the MR emulation's words, and within 1/2 of the float64 correlation."""
+    assert shape[0] * shape[1] > flt.SMALL_WORDS
+    rng = np.random.default_rng(shape[1])
+    img = rng.integers(-4096, 4096, shape).astype(np.int16)
+    for k in (flt.smoothing_kernel(5), flt.smoothing_kernel(7), flt.matched_kernel(5)):
+        ours = flt.correlate_q15(img, k)
+        assert np.array_equal(ours, correlate_valid_q15(flt.pad_nearest(img, k.shape[0] // 2), k))
+        ref = ndi.correlate(img.astype(np.float64), k.astype(np.float64) / 32768, mode="nearest")
+        assert np.abs(ours - ref).max() <= 0.5
+
+
 def test_filter_against_ideal_gaussian_kernel():
     """Against the real-valued 7x7 binomial: add max|x| * sum|k_q - K| (here 0: exact in Q1.15)."""
     b = np.array([1, 6, 15, 20, 15, 6, 1], float) / 64
@@ -359,6 +374,22 @@ def test_highpass_signed_full_range_saturates():
     t = dt.default_taps().astype(float) / 32768
     ref = ndi.correlate(img.astype(float), np.outer(t, t), mode="nearest")
     assert np.abs(lp - ref).max() <= 1.0
+
+
+@pytest.mark.cases("flightsw.ip.detrend.highpass_k", "strips")
+@pytest.mark.parametrize("h", [dt.STRIP - 1, dt.STRIP + 1, 2 * dt.STRIP + 1, 2 * dt.STRIP + 3,
+                               3 * dt.STRIP + 8])
+def test_highpass_by_strips_is_the_one_pass_words(h):
+    """A frame taller than a strip: the words of x - lowpass over the whole frame at once (the
+    low pass's own one-pass form), the last strip 1 to 8 rows high."""
+    rng = np.random.default_rng(h)
+    img = rng.normal(0, 300, (h, 150))
+    img[h // 2, 40] += 30000                              # a headroom below 3 for the whole frame
+    img = np.clip(np.rint(img), -32768, 32767).astype(np.int16)
+    for taps in (dt.default_taps(), dt.default_taps(3.0)):
+        lp = dt.lowpass_q15(img, taps)
+        exact = np.clip(img.astype(np.int64) - lp, -32768, 32767)
+        assert np.array_equal(dt.detrend_highpass(img, taps), exact)
 
 
 def test_highpass_cycles_charged():
