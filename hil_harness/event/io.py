@@ -339,7 +339,7 @@ class EventWriter:
             ks.append(k)
             counts.append(len(keys))
             cycles += cyc
-        out = _joined_bytes(names).view(LEDGER_DTYPE).reshape(-1)
+        out = _joined(names, LEDGER_DTYPE)
         out["k"] = np.repeat(ks, counts)
         out["cycles"] = cycles
         return out
@@ -375,19 +375,19 @@ def _candidate_rows(frames: list) -> np.ndarray:
     rows["rank"] = np.arange(1, n + 1) - np.repeat(firsts, counts)
     cs = [c for _, c in frames]
     if _CANDIDATES_AS_BYTES and all(c.dtype == CANDIDATE_DTYPE for c in cs):
-        # the message's fields follow k and rank in its own layout: copied in as bytes (and
-        # joined as bytes: numpy joins structured arrays field by field, ~10 us an array)
-        rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = _joined_bytes(cs)
+        # the message's fields follow k and rank in its own layout: copied in as bytes
+        rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = \
+            _joined(cs, np.uint8).reshape(n, -1)
     else:
         for i0, c in zip(firsts, cs):               # field by field, by position
             rows[i0:i0 + len(c)][_CANDIDATE_FIELDS] = c
     return rows
 
 
-def _joined_bytes(arrays: list) -> np.ndarray:
-    """uint8[sum of the rows, row size]: the rows of ``arrays`` (one dtype), as bytes, joined."""
-    return np.concatenate([np.ascontiguousarray(a).view(np.uint8).reshape(len(a), -1)
-                           for a in arrays])
+def _joined(arrays: list, dtype: np.dtype) -> np.ndarray:
+    """The rows of ``arrays`` (1-D, each of ``dtype``) in one new array, joined as bytes: numpy
+    joins structured arrays field by field (~270 us for 20 small arrays against ~3 us)."""
+    return np.frombuffer(bytearray(b"".join([a.tobytes() for a in arrays])), dtype)
 
 
 def _star_rows(frames: list) -> np.ndarray:
@@ -398,7 +398,7 @@ def _star_rows(frames: list) -> np.ndarray:
     ss = [s for _, s in frames]
     dt = getattr(ss[0], "dtype", None)
     if dt is not None and dt.names is not None and all(s.dtype == dt for s in ss):
-        ss = _joined_bytes(ss).view(dt).reshape(-1)          # one array, then field by field
+        ss = _joined(ss, dt)                        # one array, then field by field
         for name in ("hip", "row", "col", "mag"):
             out[name] = ss[name]
     else:
