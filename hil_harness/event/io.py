@@ -126,14 +126,16 @@ class EventWriter:
     """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
     ``on_frame`` hook).
 
-    A frame's outcome is held until its block is due and its rows are built then, the block's
-    frames one after the other (:meth:`drain`): the recorder's Python runs in one burst a block
-    instead of between every two frames, so neither evicts the other's working set from the caches
-    every frame (a recorded frame took 30-45 us less CPU, measured on the shared 2-core host). An
-    outcome does not change after its frame; what does is taken at once: the TP's state (its
-    snapshot row) and the frame array (the loop drops its reference). :meth:`Recorder.close` and
-    :meth:`Recorder.keep` drain the frames held first, so an interrupted event keeps every frame
-    handed over.
+    A frame's outcome is held until its block is due and its rows are built then (:meth:`drain`):
+    the recorder's Python runs in one burst a block instead of between every two frames, so
+    neither evicts the other's working set from the caches every frame (a recorded frame took
+    30-45 us less CPU, measured on the shared 2-core host), and the tables with several rows a
+    frame are built for the block's frames at once. An outcome does not change after its frame;
+    what does is taken at once, with as little code as can be (code run right after the loop's
+    step runs cold): the TP's snapshot and its EKF's covariance words (the TP's state changes),
+    the frame array (the loop drops its reference) and its Adler-32 (the frame is still in the
+    caches). :meth:`Recorder.close` and :meth:`Recorder.keep` drain the frames held first, so an
+    interrupted event keeps every frame handed over.
     """
 
     def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True,
@@ -159,10 +161,12 @@ class EventWriter:
 
     @property
     def mean_record_us(self) -> float | None:
-        """Mean host time per frame spent recording (us): every moment of the loop's thread in
-        this writer (its call for each frame, the drains: the rows, the block writes, the
-        closing drain). The recorder runs no other thread, so this is all the host time the
-        recording costs."""
+        """Mean host time per frame spent recording (us, wall clock): every moment of the loop's
+        thread in this writer, its call for each frame (the TP's snapshot, the frame's Adler-32)
+        and its drains (the rows, the block writes; the closing drain included). Not counted:
+        the recorder's opening and closing (:meth:`Recorder.close`: the last part-block's write,
+        the seal, the rename), once a run. The recorder runs no thread of its own: this is all
+        the host time it costs the run in between."""
         return 1e6 * self.record_s / self.frames if self.frames else None
 
     def __call__(self, o: FrameOutcome) -> None:
