@@ -30,6 +30,7 @@ import time
 import uuid
 from collections import deque
 from dataclasses import asdict
+from itertools import accumulate
 from pathlib import Path
 
 import numpy as np
@@ -375,7 +376,7 @@ def _candidate_rows(frames: list) -> np.ndarray:
     n = sum(counts)
     rows = np.empty(n, CANDIDATE_ROW_DTYPE)
     rows["k"] = np.repeat([k for k, _ in frames], counts)
-    firsts = np.cumsum(counts) - counts
+    firsts = list(accumulate(counts, initial=0))[:-1]     # each frame's first row
     rows["rank"] = np.arange(1, n + 1) - np.repeat(firsts, counts)
     cs = [c for _, c in frames]
     if _CANDIDATES_AS_BYTES and all(c.dtype == CANDIDATE_DTYPE for c in cs):

@@ -32,9 +32,11 @@ checks every row it returns against its checksum (:meth:`Recording.check_rows`);
 from __future__ import annotations
 
 import json
+import math
 import os
 import signal
 from contextlib import contextmanager
+from itertools import accumulate
 from pathlib import Path
 
 import h5py
@@ -87,8 +89,10 @@ def checksum_records(written: list) -> np.ndarray:
     total = sum(counts)
     out = np.empty(total, CHECKSUM_DTYPE)
     out["dataset"] = np.repeat([cid for cid, _, _ in written], counts)
-    starts = np.cumsum(counts) - counts                     # each dataset's first record
-    out["row"] = np.arange(total) + np.repeat([n0 for _, n0, _ in written] - starts, counts)
+    # a record's row: its index plus its dataset's first row less the dataset's first record
+    # (the offsets in Python: numpy's cumulative sum, run cold once a block, took ~45 us)
+    offsets = [n0 - i for (_, n0, _), i in zip(written, accumulate(counts, initial=0))]
+    out["row"] = np.arange(total) + np.repeat(offsets, counts)
     out["adler32"] = np.concatenate([np.asarray(c, np.uint32) for _, _, c in written])
     return out
 
@@ -439,7 +443,7 @@ class Recorder:
         entry = self._ds.get(key)
         if entry is not None:
             return entry
-        row_bytes = dtype.itemsize * int(np.prod(row_shape, dtype=np.int64))
+        row_bytes = dtype.itemsize * math.prod(row_shape)
         comp = self.compression if len(row_shape) >= 2 else None
         if per_frame and comp is None and row_bytes < ROW_CHUNK_BYTES:
             rows = max(1, min(self.flush_every, CHUNK_MAX_BYTES // max(row_bytes, 1)))
