@@ -30,19 +30,20 @@ import time
 import uuid
 from collections import deque
 from dataclasses import asdict
+from itertools import accumulate
 from pathlib import Path
 
 import numpy as np
 
 from flightsw.arith.m1750 import decode48_array
 from flightsw.budget import DSP, IP1750, TP1750
-from flightsw.messages import (CANDIDATE_DTYPE, IMAGER_CODES, MAX_CANDIDATES, TC_STATUS_NAMES,
-                               TrackCommand)
+from flightsw.messages import CANDIDATE_DTYPE, IMAGER_CODES, TC_STATUS_NAMES, TrackCommand
 from flightsw.tp.ekf import UT
 from flightsw.tp.snapshot import SNAPSHOT_DTYPE
 
 from .loop import (FRAME_DT, MAX_MESSAGE_WORDS, SKIP_DROPPED, SKIP_NONE, SKIP_OVERRUN, Event,
                    EventConfig, FrameOutcome, FrameRecord, flight_profile)
+from .checksum import adler32_rows
 from .recording import Recorder, open_checked, row_dtype, signals_deferred
 from .replay import ReplayEvent, predates_proposals, replay_config
 from .run_folder import RunFolder
@@ -82,7 +83,6 @@ _CANDIDATE_AT = CANDIDATE_ROW_DTYPE.itemsize - CANDIDATE_DTYPE.itemsize
 _CANDIDATES_AS_BYTES = all(
     CANDIDATE_ROW_DTYPE.fields[n][1] == _CANDIDATE_AT + CANDIDATE_DTYPE.fields[n][1]
     for n in _CANDIDATE_FIELDS)
-_RANKS = np.arange(1, MAX_CANDIDATES + 1, dtype=np.int16)       # ranks of a message's candidates
 #: host/timing: the loop's stages whose wall time (us) is recorded per frame
 _HOST_STAGES = ("render", "ip", "tp", "world", "total")
 #: host/timing: k and the wall time of each of _HOST_STAGES (us)
@@ -116,16 +116,6 @@ def _config_dict(ev: Event) -> dict:
                 for k, p in c.processors.items()}}
 
 
-def _pad(words, n) -> np.ndarray:
-    out = np.zeros(n, np.uint16)
-    if words is not None:
-        w = np.asarray(words, np.uint16)
-        if len(w) > n:
-            raise ValueError(f"message of {len(w)} words exceeds the recorded maximum {n}")
-        out[:len(w)] = w
-    return out
-
-
 def _f(x) -> float:
     try:
         return float(x)
@@ -137,14 +127,16 @@ class EventWriter:
     """Writes each :class:`FrameOutcome` into a :class:`Recorder` (``__call__`` is the loop's
     ``on_frame`` hook).
 
-    A frame's outcome is held until its block is due and its rows are built then, the block's
-    frames one after the other (:meth:`drain`): the recorder's Python runs in one burst a block
-    instead of between every two frames, so neither evicts the other's working set from the caches
-    every frame (a recorded frame took 30-45 us less CPU, measured on the shared 2-core host). An
-    outcome does not change after its frame; what does is taken at once: the TP's state (its
-    snapshot row) and the frame array (the loop drops its reference). :meth:`Recorder.close` and
-    :meth:`Recorder.keep` drain the frames held first, so an interrupted event keeps every frame
-    handed over.
+    A frame's outcome is held until its block is due and its rows are built then (:meth:`drain`):
+    the recorder's Python runs in one burst a block instead of between every two frames, so
+    neither evicts the other's working set from the caches every frame (a recorded frame took
+    30-45 us less CPU, measured on the shared 2-core host), and the tables with several rows a
+    frame are built for the block's frames at once. An outcome does not change after its frame;
+    what does is taken at once, with as little code as can be (code run right after the loop's
+    step runs cold): the TP's snapshot and its EKF's covariance words (the TP's state changes),
+    the frame array (the loop drops its reference) and its Adler-32 (the frame is still in the
+    caches). :meth:`Recorder.close` and :meth:`Recorder.keep` drain the frames held first, so an
+    interrupted event keeps every frame handed over.
     """
 
     def __init__(self, recorder: Recorder, event: Event, record_frames: bool = True,
@@ -155,8 +147,9 @@ class EventWriter:
         self.kill_at = kill_at
         self._tp = _TPRows()
         self._ledger_names: dict = {}
-        self._cands = np.empty(0, CANDIDATE_ROW_DTYPE)     # rows of the frame's candidates
-        self._held: deque = deque()       # (outcome, frame, TP row) of frames not yet appended
+        # (outcome, frame, frame's Adler-32, TP row) of frames not yet appended
+        self._held: deque = deque()
+        self._placed: set = set()     # datasets of the block tables given their place
         recorder.before_close(self.drain)
         self.stage_frame = None
         self.record_s = 0.0           # host time spent here (rows and block writes)
@@ -169,13 +162,21 @@ class EventWriter:
 
     @property
     def mean_record_us(self) -> float | None:
-        """Mean host time per frame spent recording (us), block writes included."""
+        """Mean host time per frame spent recording (us, wall clock): every moment of the loop's
+        thread in this writer, its call for each frame (the TP's snapshot, the frame's Adler-32)
+        and its drains (the rows, the block writes; the closing drain included). Not counted:
+        the recorder's opening and closing (:meth:`Recorder.close`: the last part-block's write,
+        the seal, the rename), once a run. The recorder runs no thread of its own: this is all
+        the host time it costs the run in between."""
         return 1e6 * self.record_s / self.frames if self.frames else None
 
     def __call__(self, o: FrameOutcome) -> None:
         t0 = time.perf_counter()
         frame = o.frame if self.record_frames else None
-        self._held.append((o, frame, self._tp.row(self.ev.tp, o.k)))
+        # the frame's checksum now, while the render has just left it in the CPU's caches: at
+        # the block's drain, 20 frames (2.5 MB) later, it is read back from memory
+        fsum = None if frame is None else adler32_rows(frame[None])[0]
+        self._held.append((o, frame, fsum, self._tp.row(self.ev.tp, o.k)))
         self.record_s += time.perf_counter() - t0
         if self.rec.frames + len(self._held) - self.rec.frames_written >= self.rec.flush_every:
             self.drain()
@@ -186,58 +187,60 @@ class EventWriter:
     def drain(self) -> None:
         """Append the rows of the frames held, in order, ending each (the recorder writes a block
         when one is due). SIGINT and SIGTERM wait until every frame held is in; after a frame
-        whose rows fail, the later ones are dropped (the recording ends before it)."""
+        whose rows fail, the later ones are dropped (the recording ends before it).
+
+        The frames go in as the recorder's blocks cut them (a block's frames at a time): first
+        each frame's own rows (``frames``, ``attitude``, ``truth``, ``switches``, the frame array,
+        stage images; ``tp`` from a TP that does not fill its rows in place), then the tables
+        whose rows are built for all of them at once, a few numpy calls each instead of a few
+        per frame (``candidates``, ``ledger``, ``stars``, ``tp``, ``message_words``,
+        ``command_words``, ``host/timing``), then the frames are ended."""
         t0 = time.perf_counter()
         try:
             with signals_deferred():
+                r = self.rec
                 while self._held:
-                    o, frame, tp_row = self._held.popleft()
-                    try:
-                        self._append(o, frame, tp_row)
-                    except BaseException:
-                        self._held.clear()
-                        raise
-                    self.rec.end_frame()
+                    room = max(1, r.flush_every - (r.frames - r.frames_written))
+                    part = [self._held.popleft() for _ in range(min(room, len(self._held)))]
+                    self._append_frames(part)
         finally:
             self.record_s += time.perf_counter() - t0     # the closing drain counts too
 
-    def _ledger_rows(self, k: int, stages: dict) -> np.ndarray | None:
-        """The frame's ledger (``{processor: {stage: cycles}}``) as ``LEDGER_DTYPE`` rows
-        (processor, stage in charge order); valid until the next call."""
-        keys, cycles = [], []
-        for p, st in stages.items():
-            keys += [(p, s) for s in st]
-            cycles += st.values()
-        if not keys:
-            return None
-        names = self._ledger_names.get(tuple(keys))
-        if names is None:       # the (processor, stage) columns, encoded once per distinct list
-            names = np.zeros(len(keys), LEDGER_DTYPE)
-            names["processor"] = [p.encode() for p, _ in keys]
-            names["stage"] = [s.encode() for _, s in keys]
-            self._ledger_names[tuple(keys)] = names
-        names["k"] = k                # the caller copies the rows into its block at once
-        names["cycles"] = cycles
-        return names
+    def _append_frames(self, part: list) -> None:
+        """Append and end the frames of ``part`` (no block boundary inside it). A frame whose
+        rows fail is not ended (:meth:`Recorder.keep` drops its rows), nor are the later ones;
+        the frames before it are appended whole and ended, then the error is raised."""
+        notes = []
+        try:
+            for o, frame, fsum, tp_row in part:
+                notes.append(self._append(o, frame, fsum, tp_row))
+        except BaseException:
+            self._held.clear()
+            try:
+                self._append_block(notes)
+                for _ in notes:
+                    self.rec.end_frame()
+            finally:
+                self._tp.drop()             # the rows of the frames dropped
+            raise
+        self._append_block(notes)
+        for _ in notes:
+            self.rec.end_frame()
 
-    def _candidate_rows(self, k: int, c: np.ndarray) -> np.ndarray:
-        """The message's candidates ``c`` (``CANDIDATE_DTYPE[n]``) as ``CANDIDATE_ROW_DTYPE`` rows
-        of frame ``k``, ranked 1..n; valid until the next call."""
-        n = len(c)
-        if len(self._cands) < n:
-            self._cands = np.empty(n, CANDIDATE_ROW_DTYPE)
-        rows = self._cands[:n]
-        rows["k"] = k
-        rows["rank"] = _RANKS[:n] if n <= len(_RANKS) else np.arange(1, n + 1)
-        if _CANDIDATES_AS_BYTES and c.dtype == CANDIDATE_DTYPE and c.flags.c_contiguous:
-            rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = c.view(np.uint8).reshape(n, -1)
-        else:
-            rows[_CANDIDATE_FIELDS] = c               # field by field, by position (one call)
-        return rows
+    def _place(self, path: str, per_frame: bool = False) -> None:
+        """Reserve a block table's dataset where a row-by-row writer would have met it first
+        (:meth:`Recorder.reserve`: the datasets' numbering stays as it was)."""
+        if path not in self._placed:
+            self._placed.add(path)
+            self.rec.reserve(path, per_frame)
 
-    def _append(self, o: FrameOutcome, frame: np.ndarray | None, tp_row: tuple | None) -> None:
-        """Append the rows of one frame: ``o``, its ``frame`` array (if frames are recorded) and
-        ``tp_row`` (:meth:`_TPRows.row` taken at the frame; None: a TP without snapshots)."""
+    def _append(self, o: FrameOutcome, frame: np.ndarray | None, fsum, tp_row) -> tuple:
+        """Append one frame's own rows: ``o``, its ``frame`` array (if frames are recorded; its
+        Adler-32 ``fsum``) and ``tp_row`` (:meth:`_TPRows.row` taken at the frame; None: a TP
+        without snapshots, True: filled in place). Returns what the block tables take of it
+        (:meth:`_append_block`): ``(k, candidates or None, (ledger keys, cycles) or None, stars or
+        None, whether its TP row was filled in place, message words, command words, host
+        timings)``."""
         r, L = self.rec, o.ledger
         stages = {p: L.stages(p) for p in L.processors} if L is not None else {}
         cyc = [sum(stages[p].values()) if p in stages else 0 for p in (DSP, IP1750, TP1750)]
@@ -262,36 +265,151 @@ class EventWriter:
                                   bool(tg.get("in_field", False)), tg.get("los_eci", _NAN3),
                                   _f(tg.get("range_m")), truth.get("q_imager_to_eci", _NAN4),
                                   len(truth.get("stars", ()))), TRUTH_DTYPE, per_frame=True)
-        if o.message is not None and o.message.count:
-            r.append_rows("candidates", self._candidate_rows(o.k, o.message.candidates))
+        cands = None
+        if msg is not None and msg.count:
+            cands = msg.candidates
+            self._place("tables/candidates")
+        led = None
         if L is not None:
-            led = self._ledger_rows(o.k, stages)
-            if led is not None:
-                r.append_rows("ledger", led)
+            keys, cycles = [], []
+            for p, st in stages.items():
+                keys += [(p, s) for s in st]
+                cycles += st.values()
+            if keys:
+                led = (tuple(keys), cycles)
+                self._place("tables/ledger")
         for sw in o.switches:
             r.append("switches", {"k": np.int32(sw.frame), "t": np.float64(sw.t), "kind": sw.kind,
                                   "old": sw.old, "new": sw.new, "reason": sw.reason[:64]})
-        stars = (o.truth or {}).get("stars")
+        stars = truth.get("stars")
         if stars is not None and len(stars):
-            st = np.empty(len(stars), STARS_DTYPE)
-            st["k"] = o.k
-            for name in ("hip", "row", "col", "mag"):
-                st[name] = stars[name]
-            r.append_rows("stars", st)
-        if isinstance(tp_row, np.ndarray):
-            r.append_rows("tp", tp_row, per_frame=True)
+            self._place("tables/stars")
+        else:
+            stars = None
+        if tp_row is True:                      # filled in place: taken with the block
+            self._place("tables/tp", True)
         elif tp_row is not None:
             r.append_values("tp", tp_row, self._tp.dtype, per_frame=True)
-        r.append_array("message_words", _pad(o.message_words, MAX_MESSAGE_WORDS), per_frame=True)
-        r.append_array("command_words", _pad(o.command_words, MAX_COMMAND_WORDS), per_frame=True)
+        mw = _words(o.message_words, MAX_MESSAGE_WORDS, "message")
+        cw = _words(o.command_words, MAX_COMMAND_WORDS, "track command")
+        self._place("arrays/message_words", True)
+        self._place("arrays/command_words", True)
         if self.record_frames:
-            r.append_array("frames", frame, per_frame=True, borrow=True)
+            r.append_array("frames", frame, per_frame=True, borrow=True, checksum=fsum)
         if o.stages:
             for name, img in o.stages:
                 r.append_array(f"stage_{name.replace('/', '_')}", np.asarray(img))
             self.stage_frame = int(o.k)          # an attribute, set when the recording closes
         h = o.host_us
-        r.host((o.k, *[h.get(k, np.nan) for k in _HOST_STAGES]), HOST_DTYPE)
+        self._place("host/timing", True)
+        return (o.k, cands, led, stars, tp_row is True, mw, cw,
+                (o.k, *[h.get(k, np.nan) for k in _HOST_STAGES]))
+
+    def _append_block(self, notes: list) -> None:
+        """Append the block tables' rows of the frames ``notes`` (what :meth:`_append` returned
+        for each), built for all of them at once; the same rows, in the same order, as frame by
+        frame."""
+        if not notes:
+            return
+        r = self.rec
+        ks, cands, leds, stars, tps, mws, cws, hosts = zip(*notes)
+        c = [(k, x) for k, x in zip(ks, cands) if x is not None]
+        if c:
+            r.append_rows("candidates", _candidate_rows(c))
+        led = [(k, x) for k, x in zip(ks, leds) if x is not None]
+        if led:
+            r.append_rows("ledger", self._ledger_rows(led))
+        st = [(k, x) for k, x in zip(ks, stars) if x is not None]
+        if st:
+            r.append_rows("stars", _star_rows(st))
+        n_tp = sum(tps)
+        if n_tp:
+            r.append_rows("tp", self._tp.take(n_tp), per_frame=True)
+        r.append_arrays("message_words", _padded(mws, MAX_MESSAGE_WORDS), per_frame=True)
+        r.append_arrays("command_words", _padded(cws, MAX_COMMAND_WORDS), per_frame=True)
+        r.host(np.array(list(hosts), HOST_DTYPE))
+
+    def _ledger_rows(self, frames: list) -> np.ndarray:
+        """``LEDGER_DTYPE`` rows of ``frames``: ``(k, (keys, cycles))`` each, ``keys`` the frame's
+        (processor, stage) pairs in charge order and ``cycles`` theirs."""
+        names, ks, counts, cycles = [], [], [], []
+        for k, (keys, cyc) in frames:
+            rows = self._ledger_names.get(keys)
+            if rows is None:    # the (processor, stage) columns, encoded once per distinct list
+                rows = np.zeros(len(keys), LEDGER_DTYPE)
+                rows["processor"] = [p.encode() for p, _ in keys]
+                rows["stage"] = [s.encode() for _, s in keys]
+                self._ledger_names[keys] = rows
+            names.append(rows)
+            ks.append(k)
+            counts.append(len(keys))
+            cycles += cyc
+        out = _joined(names, LEDGER_DTYPE)
+        out["k"] = np.repeat(ks, counts)
+        out["cycles"] = cycles
+        return out
+
+
+def _words(words, n: int, what: str) -> np.ndarray | None:
+    """A message's words as stored (uint16), checked to fit the ``n`` recorded (None: none)."""
+    if words is None:
+        return None
+    w = np.asarray(words, np.uint16)
+    if len(w) > n:
+        raise ValueError(f"{what} of {len(w)} words exceeds the recorded maximum {n}")
+    return w
+
+
+def _padded(words: tuple, n: int) -> np.ndarray:
+    """uint16[len(words), n]: each frame's words (:func:`_words`), zero-padded."""
+    out = np.zeros((len(words), n), np.uint16)
+    for i, w in enumerate(words):
+        if w is not None:
+            out[i, :len(w)] = w
+    return out
+
+
+def _candidate_rows(frames: list) -> np.ndarray:
+    """``CANDIDATE_ROW_DTYPE`` rows of ``frames``: ``(k, candidates)`` each (the message's
+    ``CANDIDATE_DTYPE[n]``), ranked 1..n within each frame."""
+    counts = [len(c) for _, c in frames]
+    n = sum(counts)
+    rows = np.empty(n, CANDIDATE_ROW_DTYPE)
+    rows["k"] = np.repeat([k for k, _ in frames], counts)
+    firsts = list(accumulate(counts, initial=0))[:-1]     # each frame's first row
+    rows["rank"] = np.arange(1, n + 1) - np.repeat(firsts, counts)
+    cs = [c for _, c in frames]
+    if _CANDIDATES_AS_BYTES and all(c.dtype == CANDIDATE_DTYPE for c in cs):
+        # the message's fields follow k and rank in its own layout: copied in as bytes
+        rows.view(np.uint8).reshape(n, -1)[:, _CANDIDATE_AT:] = \
+            _joined(cs, np.uint8).reshape(n, -1)
+    else:
+        for i0, c in zip(firsts, cs):               # field by field, by position
+            rows[i0:i0 + len(c)][_CANDIDATE_FIELDS] = c
+    return rows
+
+
+def _joined(arrays: list, dtype: np.dtype) -> np.ndarray:
+    """The rows of ``arrays`` (1-D, each of ``dtype``) in one new array, joined as bytes: numpy
+    joins structured arrays field by field (~270 us for 20 small arrays against ~3 us)."""
+    return np.frombuffer(bytearray(b"".join([a.tobytes() for a in arrays])), dtype)
+
+
+def _star_rows(frames: list) -> np.ndarray:
+    """``STARS_DTYPE`` rows of ``frames``: ``(k, stars)`` each (the truth's catalogued stars)."""
+    counts = [len(s) for _, s in frames]
+    out = np.empty(sum(counts), STARS_DTYPE)
+    out["k"] = np.repeat([k for k, _ in frames], counts)
+    ss = [s for _, s in frames]
+    dt = getattr(ss[0], "dtype", None)
+    if dt is not None and dt.names is not None and all(s.dtype == dt for s in ss):
+        ss = _joined(ss, dt)                        # one array, then field by field
+        for name in ("hip", "row", "col", "mag"):
+            out[name] = ss[name]
+    else:
+        for name in ("hip", "row", "col", "mag"):
+            out[name] = np.concatenate([s[name] for s in ss])
+    return out
 
 
 #: index into the EKF's covariance words (``E.p``) of each element of the position covariance
@@ -313,9 +431,13 @@ class _TPRows:
     The fields and the dtype are fixed by the first snapshot.
 
     When that layout is ``k``, :data:`flightsw.tp.snapshot.SNAPSHOT_DTYPE` and ``ekf_p_pos`` (the
-    :class:`~flightsw.tp.processor.TrackProcessor`'s), a row is an array the TP fills in place
+    :class:`~flightsw.tp.processor.TrackProcessor`'s), the TP fills its snapshot in place
     (``snapshot(out=...)``: ~3 us a frame against ~13 us for the dict, the tuple and numpy's
-    conversion of it); the first frame's row is made both ways and must be the same bytes."""
+    conversion of it) and the EKF's 21 covariance words and run flag are copied beside it; the
+    rest of the row (``k``, the decoded position covariance) is made when the block's rows are
+    taken (:meth:`take`), for all of them at once: decoding the words at the frame cost ~30 us
+    of the loop's thread, most of it running the decoder's Python cold right after the TP's step.
+    The first frame's row is made both ways and must be the same bytes."""
 
     def __init__(self):
         self.fields = None            # [(key, is_string)] of the snapshot's stored keys
@@ -324,6 +446,8 @@ class _TPRows:
         self.checked = False          # whether the TP can fill rows was asked
         self.in_place = False         # rows filled by snapshot(out=...)
         self._pool, self._next = None, 0
+        self._pending: deque = deque()    # (pool, index, k) of in-place rows not yet taken
+        self._state = self._words = self._run = None    # the TP's state and views of its EKF
 
     def _layout(self, snap: dict, k: int, ekf: np.ndarray) -> None:
         row, self.fields = {"k": np.int32(k)}, []
@@ -337,14 +461,15 @@ class _TPRows:
         row["ekf_p_pos"] = ekf
         self.n_keys, self.dtype = len(snap), row_dtype(row)
 
-    def row(self, tp, k: int) -> tuple | np.ndarray | None:
-        """The frame's row: a one-row array of :attr:`dtype`, or a tuple in its field order
-        (None: a TP without snapshots)."""
+    def row(self, tp, k: int) -> tuple | bool | None:
+        """The frame's row: a tuple in :attr:`dtype`'s field order, or True when it was filled in
+        place (:meth:`take` returns it, in order); None: a TP without snapshots."""
         snap = getattr(tp, "snapshot", None)
         if snap is None:
             return None
         if self.in_place:
-            return self._filled(tp, k)
+            self._pending.append(self._fill(tp, k))
+            return True
         values = self._values(tp, snap(), k)
         if not self.checked:                    # the first frame: can the TP fill its rows?
             self.checked = True
@@ -352,13 +477,23 @@ class _TPRows:
                 want = np.zeros(1, self.dtype)
                 want[0] = values
                 try:
-                    got = self._filled(tp, k)
-                except TypeError:               # a snapshot method without ``out``
-                    got = None
-                self.in_place = got is not None and got.tobytes() == want.tobytes()
+                    got = self._fill(tp, k)
+                except (TypeError, AttributeError, KeyError, ValueError):
+                    got = None                  # no snapshot(out=...), no state record, no EKF
+                self.in_place = got is not None and \
+                    self._rows([got]).tobytes() == want.tobytes()
                 if self.in_place:
-                    return got
+                    self._pending.append(got)
+                    return True
         return values
+
+    def take(self, n: int) -> np.ndarray:
+        """The next ``n`` rows filled in place, in the order :meth:`row` filled them."""
+        return self._rows([self._pending.popleft() for _ in range(n)])
+
+    def drop(self) -> None:
+        """Forget the rows filled in place and not taken (frames dropped from the recording)."""
+        self._pending.clear()
 
     def _values(self, tp, snap: dict, k: int) -> tuple:
         ekf = _ekf_position_cov(tp)
@@ -370,21 +505,57 @@ class _TPRows:
         return (k, *[str(snap[key])[:64].encode() if string else snap[key]
                      for key, string in self.fields], ekf)
 
-    def _filled(self, tp, k: int) -> np.ndarray:
-        """A row the TP fills in place: the next of a pool of rows (a new pool when it is used
-        up; a row is never handed out twice, so a row held until its block stays as it was)."""
-        i = self._next
-        if self._pool is None or i == len(self._pool):
-            self._pool = np.zeros(_TP_POOL_ROWS, self.dtype)
-            u8 = self._pool.view(np.uint8).reshape(_TP_POOL_ROWS, -1)
-            self._snaps = u8[:, _SNAPSHOT_AT].view(SNAPSHOT_DTYPE)      # (rows, 1) records
-            self._ks, self._ekf = self._pool["k"], self._pool["ekf_p_pos"]
+    def _fill(self, tp, k: int) -> tuple:
+        """Fill the next row of a pool (a new pool when it is used up; a row is never handed out
+        twice, so a row held until its block stays as it was) with the TP's snapshot, and copy
+        its EKF words and run flag beside it (through views of the TP's state record, made once);
+        returns ``(pool, index, k)``."""
+        if tp.state is not self._state:
+            ekf = tp.state["ekf"]
+            self._state, self._words, self._run = tp.state, ekf["p"][0], ekf["run"]
+        i, pool = self._next, self._pool
+        if pool is None or i == _TP_POOL_ROWS:
+            pool = self._pool = _TPPool(self.dtype, self._words.shape)
             i = 0
         self._next = i + 1
-        tp.snapshot(out=self._snaps[i])
-        self._ks[i] = k
-        self._ekf[i] = _ekf_position_cov(tp)
-        return self._pool[i:i + 1]
+        tp.snapshot(out=pool.snaps[i])
+        pool.words[i] = self._words
+        pool.run[i] = self._run[0]
+        return pool, i, k
+
+    def _rows(self, held: list) -> np.ndarray:
+        """The rows ``held`` (``(pool, index, k)`` each, as :meth:`_fill` returned them), whole:
+        their snapshots, ``k`` and the EKF position covariance (NaN when the EKF did not run)."""
+        n = len(held)
+        out = np.empty(n, self.dtype)
+        words = np.empty((n,) + held[0][0].words.shape[1:], np.int64)
+        run = np.empty(n, np.int64)
+        u8 = out.view(np.uint8).reshape(n, -1)
+        for j, (pool, i, _) in enumerate(held):
+            u8[j] = pool.bytes[i]
+            words[j], run[j] = pool.words[i], pool.run[i]
+        out["k"] = [k for _, _, k in held]
+        cov = decode48_array(words[:, _EKF_P_POS])
+        cov[run == 0] = np.nan
+        out["ekf_p_pos"] = cov
+        return out
+
+
+class _TPPool:
+    """Rows filled in place by the TP (:class:`_TPRows`), with the EKF's words and run flag of
+    each: ``rows`` (zeros, the rows' dtype), ``bytes`` (their bytes), ``snaps`` (each row's
+    snapshot part, a one-record ``SNAPSHOT_DTYPE`` view, ready for ``snapshot(out=...)``),
+    ``words`` int64[rows, 21] and ``run`` int64[rows]."""
+
+    __slots__ = ("rows", "bytes", "snaps", "words", "run")
+
+    def __init__(self, dtype: np.dtype, words_shape: tuple):
+        self.rows = np.zeros(_TP_POOL_ROWS, dtype)
+        self.bytes = self.rows.view(np.uint8).reshape(_TP_POOL_ROWS, -1)
+        snaps = self.bytes[:, _SNAPSHOT_AT].view(SNAPSHOT_DTYPE)      # (rows, 1) records
+        self.snaps = list(snaps)
+        self.words = np.zeros((_TP_POOL_ROWS,) + words_shape, np.int64)
+        self.run = np.zeros(_TP_POOL_ROWS, np.int64)
 
 
 #: ``tables/tp`` as :class:`~flightsw.tp.processor.TrackProcessor` snapshots make it

@@ -1,0 +1,205 @@
+"""A recorded frame's host cost under load: ``python -m bench.record_under_load [options]``.
+
+Runs ``uvisi event satellite_over_stars --no-figures`` (frames recorded, 20-frame blocks: the
+command's defaults) ROUNDS times in fresh processes, each beside BUSY busy loops (``while 1:
+pass``, started before the event and ended by their process id after it, at the niceness of this
+command), and prints, per run, the figures of the run's ``summary.json`` ``host``:
+
+- ``median``: ``median_frame_us``, the closed loop's median frame (render + IP + TP + spacecraft);
+- ``record``: ``mean_record_us``, the mean host time a frame the recorder took on the loop's
+  thread (the event writer's call for each frame and its drains: the rows and the block writes,
+  the closing drain included; not the recorder's opening, nor its closing: the last part-block's
+  write, the seal, the rename). The recorder runs no other thread: this is all it costs the run
+  between its opening and its closing;
+- ``sum``: their sum, the figure issue #45 holds to (<= 500 us on a quiet machine, <= 700 us at
+  load 2);
+- ``loop mean``: the loop's mean frame (``loop_s`` / frames): preemption and stalls the median
+  leaves out;
+- ``load``: the 1-minute load average before and after the run (the machine's other users
+  included).
+
+``--cpu`` measures the recorder's CPU instead, less sensitive to the machine's other users: the
+event's frames are stepped in one process with the event writer called after each, as ``uvisi
+event`` calls it, and the thread CPU time (``time.thread_time``) of the writer's calls and of the
+loop's steps is summed over one event after a warm-up one (the figures of that process: ``record
+cpu``, ``loop cpu``, us a frame; ``record`` and ``median`` as above, from the wall clock).
+
+With several ``--tree`` checkouts (``--tree /path/to/a --tree /path/to/b``, each one's root on
+``PYTHONPATH`` for its runs) the trees take turns within each round, so that an A/B sees the same
+load; the last lines give each tree's median of each figure. On a 2-core machine ``--busy 2``
+gives load ~2 (plus whatever else runs), ``--busy 1`` load ~1. Run it niced like anything else on a
+shared machine (``nice -n 5 python -m bench.record_under_load``): the busy loops get the same
+niceness, so the event competes with them as with equals. ``--json``: one JSON object per run.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+BUSY = "while 1: pass"
+FIGURES = ("median_frame_us", "mean_record_us", "sum_us", "loop_mean_us")
+
+
+def _busy(n: int) -> list[subprocess.Popen]:
+    return [subprocess.Popen([sys.executable, "-c", BUSY]) for _ in range(n)]
+
+
+def _stop(procs: list[subprocess.Popen]) -> None:
+    for p in procs:
+        p.kill()                  # this command's own children, by their process id
+    for p in procs:
+        p.wait()
+
+
+def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0) -> dict:
+    """One event of ``tree``'s code in a fresh process beside ``busy`` busy loops: its
+    ``summary.json`` figures (us a frame) and the load average before and after."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    procs = _busy(busy)
+    try:
+        time.sleep(settle_s if busy else 0.0)
+        load0 = os.getloadavg()[0]
+        p = subprocess.run([sys.executable, "-m", "hil_harness.cli", "-q", "event",
+                            "satellite_over_stars", "--no-figures", "--out", str(out), "--force"],
+                           cwd=tree, env=env, capture_output=True, text=True)
+        load1 = os.getloadavg()[0]
+    finally:
+        _stop(procs)
+    if p.returncode != 0:
+        raise SystemExit(f"{tree}: the event failed:\n{p.stderr[-2000:]}")
+    s = json.loads((out / "summary.json").read_text())
+    h, n = s["host"], s["frames"]
+    return {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
+            "median_frame_us": h["median_frame_us"], "mean_record_us": h["mean_record_us"],
+            "sum_us": h["median_frame_us"] + h["mean_record_us"],
+            "loop_mean_us": 1e6 * h["loop_s"] / n}
+
+
+#: the ``--cpu`` run, in a fresh process of the tree's code: prints one JSON object
+CPU_CHILD = """
+import json, sys, tempfile, time
+from pathlib import Path
+import numpy as np
+from hil_harness.event import Event, EventConfig
+from hil_harness.event.io import EventWriter
+from hil_harness.event.recording import Recorder
+ev = Event(EventConfig("satellite_over_stars"), keep_frames=False)
+with tempfile.TemporaryDirectory() as tmp:
+    for rep in range(2):                    # a warm-up event, then the measured one
+        ev.reset()
+        rec = Recorder(Path(tmp) / str(rep) / "recording.h5")
+        w = EventWriter(rec, ev, True)
+        rc = rw = lc = 0.0
+        loop = []
+        while not ev.done:
+            c0, t0 = time.thread_time(), time.perf_counter()
+            o = ev.step()
+            c1, t1 = time.thread_time(), time.perf_counter()
+            w(o)
+            if ev.done:
+                w.drain()
+            o.frame = None
+            c2, t2 = time.thread_time(), time.perf_counter()
+            lc += c1 - c0; rc += c2 - c1; rw += t2 - t1; loop.append(t1 - t0)
+        rec.close()
+n = len(loop)
+print(json.dumps({"record_cpu_us": 1e6 * rc / n, "loop_cpu_us": 1e6 * lc / n,
+                  "mean_record_us": 1e6 * rw / n, "median_frame_us": 1e6 * float(np.median(loop))}))
+"""
+
+
+def cpu_run(tree: Path, busy: int, settle_s: float = 2.0) -> dict:
+    """:data:`CPU_CHILD` of ``tree``'s code beside ``busy`` busy loops: its figures and the load."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    procs = _busy(busy)
+    try:
+        time.sleep(settle_s if busy else 0.0)
+        load0 = os.getloadavg()[0]
+        p = subprocess.run([sys.executable, "-c", CPU_CHILD], cwd=tree, env=env,
+                           capture_output=True, text=True)
+        load1 = os.getloadavg()[0]
+    finally:
+        _stop(procs)
+    if p.returncode != 0:
+        raise SystemExit(f"{tree}: the run failed:\n{p.stderr[-2000:]}")
+    return dict(json.loads(p.stdout.strip().splitlines()[-1]), busy=busy, load_before=load0,
+                load_after=load1)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m bench.record_under_load",
+                                 description=__doc__.split("\n\n")[0])
+    ap.add_argument("--rounds", type=int, default=3, help="runs of each tree (default 3)")
+    ap.add_argument("--busy", type=int, default=0, help="busy loops beside each run (default 0)")
+    ap.add_argument("--tree", type=Path, action="append",
+                    help="a checkout whose code runs (repeat for an A/B; default: this one)")
+    ap.add_argument("--cpu", action="store_true",
+                    help="the recorder's and the loop's thread CPU time, in one process")
+    ap.add_argument("--json", action="store_true", help="one JSON object per run")
+    a = ap.parse_args(argv)
+    trees = [t.resolve() for t in (a.tree or [ROOT])]
+    names = {t: t.name for t in trees}
+    if a.cpu:
+        return _cpu_main(a, trees, names)
+    if not a.json:
+        print(f"uvisi event satellite_over_stars --no-figures; {a.busy} busy loops; "
+              f"{os.cpu_count()} cores; " + ", ".join(str(t) for t in trees))
+        print(f"{'tree':>12} {'load':>9} {'median':>7} {'record':>7} {'sum':>6} {'loop mean':>9}"
+              f"   (us a frame)")
+    runs: dict[Path, list] = {t: [] for t in trees}
+    with tempfile.TemporaryDirectory() as tmp:
+        for i in range(a.rounds):
+            for t in trees:
+                r = one_run(t, a.busy, Path(tmp) / f"run{i}-{len(runs[t])}-{names[t]}")
+                runs[t].append(r)
+                if a.json:
+                    print(json.dumps(dict(r, round=i, tree=str(t))), flush=True)
+                    continue
+                print(f"{names[t][-12:]:>12} {r['load_before']:4.1f}-{r['load_after']:<4.1f} "
+                      f"{r['median_frame_us']:7.0f} {r['mean_record_us']:7.0f} {r['sum_us']:6.0f} "
+                      f"{r['loop_mean_us']:9.0f}", flush=True)
+    if not a.json:
+        for t in trees:
+            med = {k: statistics.median(r[k] for r in runs[t]) for k in FIGURES}
+            print(f"{names[t][-12:]:>12} {'median':>9} {med['median_frame_us']:7.0f} "
+                  f"{med['mean_record_us']:7.0f} {med['sum_us']:6.0f} {med['loop_mean_us']:9.0f}")
+    return 0
+
+
+def _cpu_main(a, trees: list, names: dict) -> int:
+    cols = ("record_cpu_us", "loop_cpu_us", "mean_record_us", "median_frame_us")
+    if not a.json:
+        print(f"satellite_over_stars in one process, frames recorded; {a.busy} busy loops; "
+              f"{os.cpu_count()} cores; " + ", ".join(str(t) for t in trees))
+        print(f"{'tree':>12} {'load':>9} {'record cpu':>10} {'loop cpu':>8} {'record':>7} "
+              f"{'median':>7}   (us a frame)")
+    runs: dict[Path, list] = {t: [] for t in trees}
+    for i in range(a.rounds):
+        for t in trees:
+            r = cpu_run(t, a.busy)
+            runs[t].append(r)
+            if a.json:
+                print(json.dumps(dict(r, round=i, tree=str(t))), flush=True)
+                continue
+            print(f"{names[t][-12:]:>12} {r['load_before']:4.1f}-{r['load_after']:<4.1f} "
+                  f"{r['record_cpu_us']:10.0f} {r['loop_cpu_us']:8.0f} {r['mean_record_us']:7.0f} "
+                  f"{r['median_frame_us']:7.0f}", flush=True)
+    if not a.json:
+        for t in trees:
+            med = {k: statistics.median(r[k] for r in runs[t]) for k in cols}
+            print(f"{names[t][-12:]:>12} {'median':>9} {med['record_cpu_us']:10.0f} "
+                  f"{med['loop_cpu_us']:8.0f} {med['mean_record_us']:7.0f} "
+                  f"{med['median_frame_us']:7.0f}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
