@@ -424,7 +424,8 @@ def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
 @njit(cache=True)
 def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, uW, uWr, uN):
     """Smoothed state and covariance of step kk (eqs. 15-16) from lane ``l``'s gain C^T (right
-    half of ``G[l]``) into ``xs[kk]``, ``Ps[kk]`` and the next step's ``Psn``."""
+    half of ``G[l]``) into ``xs[kk]``, ``Ps[kk]`` and the next step's ``Psn``; the state only when
+    ``Ps`` has no rows (eq. 15 does not read the covariances)."""
     # eq. 15: xs = xf + C (xs_{kk+1} - x-_{kk+1}) = xf + X^T dx, X = C^T
     for i in range(n):
         cv[l, i] = xs[kk + 1, i] - xp[kk + 1, i]
@@ -433,6 +434,8 @@ def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, u
         for a in range(n):
             s += cv[l, a] * G[l, a, W + j]
         xs[kk, j] = s
+    if Ps.shape[0] == 0:
+        return
     # eq. 16: Ps = Pf + C (Ps_{kk+1} - P-_{kk+1}) C^T = Pf + (X^T D) X
     for i in range(n):
         for j in range(uN):
@@ -463,8 +466,8 @@ def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, u
 
 @njit(cache=True)
 def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
-    """RTS smoother (eqs. 14-16) writing into preallocated xs, Ps (N >= 1); nt, Wr as for
-    :func:`_filter_into`."""
+    """RTS smoother (eqs. 14-16) writing into preallocated xs, Ps (N >= 1; Ps with no rows: the
+    means only, eq. 16 skipped); nt, Wr as for :func:`_filter_into`."""
     n = len(nt)
     W = (n + 3) // 4 * 4
     R = n + 6                               # scratch rows: triangular reductions in chunks of 6
@@ -473,10 +476,13 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
     uWr = uint64(Wr)
     uN = uint64(xf.shape[1])                # n as a run-time value
     N = xf.shape[0]
+    cov = Ps.shape[0] != 0
     for i in range(n):
         xs[N - 1, i] = xf[N - 1, i]
-        for j in range(n):
-            Ps[N - 1, i, j] = Pf[N - 1, i, j]
+    if cov:
+        for i in range(n):
+            for j in range(n):
+                Ps[N - 1, i, j] = Pf[N - 1, i, j]
     NL = 2                                  # gains of two steps computed together (independent)
     cnt = np.zeros((NL, n), np.int64)       # sparsity pattern of Phi, rows padded to 4 terms
     idx = np.zeros((NL, n, n + 3), np.int64)
@@ -501,7 +507,10 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
         for kk in range(max(k - 2 * NL + 1, 0), k - NL + 1):
             for i in range(n):              # start loading the next steps' inputs and outputs
                 for j in range(0, n, 8):
-                    touch += Pf[kk, i, j] + Pp[kk + 1, i, j] + Phi[kk + 1, i, j] + Ps[kk, i, j]
+                    touch += Pf[kk, i, j] + Pp[kk + 1, i, j] + Phi[kk + 1, i, j]
+                if cov:
+                    for j in range(0, n, 8):
+                        touch += Ps[kk, i, j]
         for l in range(nl):
             _lane_load(l, k - l, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN)
         _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2)
@@ -677,7 +686,7 @@ def kalman_filter(x0, P0, Phi, Q, H, R, zs) -> FilterResult:
     return FilterResult(*kalman_filter_packed(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff))
 
 
-def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
+def rts_smooth(xf, Pf, xp, Pp, Phi, covariances: bool = True) -> SmootherResult:
     """Rauch-Tung-Striebel fixed-interval smoother, eqs. 14-16.
 
     xf (N, n), Pf (N, n, n): filtered means/covariances; xp (N, n), Pp (N, n, n): predicted ones, as
@@ -685,6 +694,8 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     (``Phi[k+1]`` carries step k to step k+1; ``Phi[0]`` is not used). The gain
     ``C_k = P+_k Phi_{k+1}^T (P-_{k+1})^-1`` is computed by a Cholesky solve.
     Returns SmootherResult(xs (N, n), Ps (N, n, n)), float64; ``xs[-1] = xf[-1]``.
+    ``covariances=False`` skips eq. 16 (about half the work; the means are the same to the bit,
+    eq. 15 does not read them) and returns Ps with no rows, shape (0, n, n).
     """
     xf = _kernel_array(xf)
     N = xf.shape[0]
@@ -697,7 +708,7 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     xp = _kernel_array(xp).reshape(N, n)
     Pp = _kernel_array(Pp).reshape(N, n, n)
     Phi = _per_step_matrices(Phi, N, n, "Phi")
-    xs, Ps = np.empty((N, n)), np.empty((N, n, n))
+    xs, Ps = np.empty((N, n)), np.empty((N if covariances else 0, n, n))
     if N:
         _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, (0,) * n, _padded(n))
     return SmootherResult(xs, Ps)
