@@ -169,6 +169,35 @@ def _resolve_map(map=None, executor=None) -> Callable:
     return builtins.map
 
 
+def _grid_tasks(n_scenes_list, densities, sigmas, n_states, realisations: int,
+                config: StudyConfig, chunk: int) -> list:
+    """The :func:`_study_task` tuples of a grid: ``chunk`` realisations of one L each, L by L."""
+    tasks = []
+    for L in n_scenes_list:
+        for r0 in range(0, realisations, chunk):
+            keys = [(config.seed, int(round(L * 1000)), r) for r in range(r0, min(realisations, r0 + chunk))]
+            tasks.append((config, L, tuple(densities), tuple(sigmas), tuple(n_states), keys))
+    return tasks
+
+
+def _task_cost(task) -> float:
+    """Relative cost of a task: filter + smoother runs times their epochs."""
+    config, n_scenes, densities, sigmas, n_states, keys = task
+    return len(keys) * (n_scenes * config.lines_per_scene + 1) * len(densities) * len(sigmas) \
+        * sum(n * n for n in n_states)
+
+
+def _map_largest_first(mapper: Callable, fn: Callable, tasks: list) -> list:
+    """``list(mapper(fn, tasks))``, the tasks handed out largest first (a pool's workers then
+    finish together instead of one waiting on the last long task); the results in task order."""
+    order = sorted(range(len(tasks)), key=lambda i: -_task_cost(tasks[i]))
+    done = list(mapper(fn, [tasks[i] for i in order]))
+    results = [None] * len(tasks)
+    for i, r in zip(order, done):
+        results[i] = r
+    return results
+
+
 def epsilon90_grid(n_scenes_list: Sequence[float], densities: Sequence[float],
                    sigmas: Sequence[float], n_states: Sequence[int] = (18, 12), *,
                    realisations: int = 100, config: StudyConfig | None = None,
@@ -179,13 +208,14 @@ def epsilon90_grid(n_scenes_list: Sequence[float], densities: Sequence[float],
     (len(n_scenes_list), len(densities), len(sigmas), len(n_states)) [m], plus the axes.
     """
     config = config or StudyConfig()
-    mapper = _resolve_map(map, executor)
-    tasks = []
-    for L in n_scenes_list:
-        for r0 in range(0, realisations, chunk):
-            keys = [(config.seed, int(round(L * 1000)), r) for r in range(r0, min(realisations, r0 + chunk))]
-            tasks.append((config, L, tuple(densities), tuple(sigmas), tuple(n_states), keys))
-    results = list(mapper(_study_task, tasks))
+    tasks = _grid_tasks(n_scenes_list, densities, sigmas, n_states, realisations, config, chunk)
+    results = _map_largest_first(_resolve_map(map, executor), _study_task, tasks)
+    return _grid_result(results, n_scenes_list, densities, sigmas, n_states, realisations, chunk)
+
+
+def _grid_result(results: list, n_scenes_list, densities, sigmas, n_states, realisations: int,
+                 chunk: int) -> dict:
+    """The :func:`epsilon90_grid` dict from its tasks' results (in :func:`_grid_tasks` order)."""
     shape = (len(n_scenes_list), len(densities), len(sigmas), len(n_states))
     mean = np.empty(shape)
     sem = np.empty(shape)
@@ -207,17 +237,28 @@ def map_float(xs: Iterable) -> list:
     return [float(x) for x in xs]
 
 
-def run_figure2(*, densities=(1, 2, 3, 5, 10), sigmas=(2.0, 4.0, 6.7, 10.0, 13.0, 16.0),
-                n_scenes: float = 5, n_states=(18, 12), realisations: int = 100,
-                config: StudyConfig | None = None, map=None, executor=None) -> dict:
-    """Figure 2: epsilon_90 [m] vs measurement error sigma [m] for several densities (CP/scene),
-    18- and 12-state estimators, five-scene interval. Returns the :func:`epsilon90_grid` dict with
-    the L axis squeezed: ``eps90_mean`` (D, S, E)."""
-    g = epsilon90_grid([n_scenes], densities, sigmas, n_states, realisations=realisations,
-                       config=config, map=map, executor=executor)
+def _figure2_axes(*, densities=(1, 2, 3, 5, 10),
+                  sigmas=(2.0, 4.0, 6.7, 10.0, 13.0, 16.0), n_scenes: float = 5,
+                  n_states=(18, 12)) -> dict:
+    """The :func:`epsilon90_grid` axes of Figure 2 (its defaults are the figure's)."""
+    return dict(n_scenes_list=[n_scenes], densities=densities, sigmas=sigmas, n_states=n_states)
+
+
+def _figure2(g: dict) -> dict:
     g["eps90_mean"], g["eps90_sem"] = g["eps90_mean"][0], g["eps90_sem"][0]
     g["figure"] = 2
     return g
+
+
+def run_figure2(*, realisations: int = 100, config: StudyConfig | None = None, map=None,
+                executor=None, **axes) -> dict:
+    """Figure 2: epsilon_90 [m] vs measurement error sigma [m] for several densities (CP/scene),
+    18- and 12-state estimators, five-scene interval. ``axes``: ``densities`` (default 1, 2, 3, 5,
+    10), ``sigmas`` (2, 4, 6.7, 10, 13, 16 m), ``n_scenes`` (5), ``n_states`` ((18, 12)). Returns
+    the :func:`epsilon90_grid` dict with the L axis squeezed: ``eps90_mean`` (D, S, E)."""
+    config = config or StudyConfig()
+    return _figure2(epsilon90_grid(**_figure2_axes(**axes), realisations=realisations,
+                                   config=config, map=map, executor=executor))
 
 
 def density_needed(densities: Sequence[float], eps90: Sequence[float], requirement: float) -> float:
@@ -237,21 +278,33 @@ def density_needed(densities: Sequence[float], eps90: Sequence[float], requireme
     return float(np.exp(x0 + f * (x1 - x0)))
 
 
-def run_figure3(*, n_scenes_list=(1, 2, 3, 5, 7, 10, 15, 20, 30),
-                densities=(0.5, 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10, 13, 16, 20, 25),
-                n_states=(18, 12), realisations: int = 100, config: StudyConfig | None = None,
-                map=None, executor=None) -> dict:
-    """Figure 3: control-point density needed for eps90 < requirement (4.9 m) at the requirement's
-    measurement error (6.7 m) vs interval length L (scenes). Adds ``density_needed`` (L, E)."""
-    config = config or StudyConfig()
-    g = epsilon90_grid(n_scenes_list, densities, [config.requirement_sigma_m], n_states,
-                       realisations=realisations, config=config, map=map, executor=executor)
+def _figure3_axes(config: StudyConfig, *, n_scenes_list=(1, 2, 3, 5, 7, 10, 15, 20, 30),
+                  densities=(0.5, 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10, 13, 16, 20, 25),
+                  n_states=(18, 12)) -> dict:
+    """The :func:`epsilon90_grid` axes of Figure 3 (its defaults are the figure's)."""
+    return dict(n_scenes_list=n_scenes_list, densities=densities,
+                sigmas=[config.requirement_sigma_m], n_states=n_states)
+
+
+def _figure3(g: dict, config: StudyConfig) -> dict:
     e = g["eps90_mean"][:, :, 0, :]                            # (L, D, E)
     g["eps90_mean"], g["eps90_sem"] = e, g["eps90_sem"][:, :, 0, :]
-    g["density_needed"] = np.array([[density_needed(densities, e[li, :, ei], config.requirement_m)
+    g["density_needed"] = np.array([[density_needed(g["densities"], e[li, :, ei],
+                                                    config.requirement_m)
                                      for ei in range(e.shape[2])] for li in range(e.shape[0])])
     g["figure"] = 3
     return g
+
+
+def run_figure3(*, realisations: int = 100, config: StudyConfig | None = None, map=None,
+                executor=None, **axes) -> dict:
+    """Figure 3: control-point density needed for eps90 < requirement (4.9 m) at the requirement's
+    measurement error (6.7 m) vs interval length L (scenes). ``axes``: ``n_scenes_list`` (default
+    1, 2, 3, 5, 7, 10, 15, 20, 30), ``densities`` (0.5 to 25 CP/scene), ``n_states`` ((18, 12)).
+    Adds ``density_needed`` (L, E)."""
+    config = config or StudyConfig()
+    return _figure3(epsilon90_grid(**_figure3_axes(config, **axes), realisations=realisations,
+                                   config=config, map=map, executor=executor), config)
 
 
 def plot_figure2(res: dict, path: str) -> None:
@@ -343,8 +396,15 @@ def run_study(out_dir: str | os.PathLike | None = None, *, realisations: int = 1
         f2.setdefault("sigmas", (2.0, 6.7, 13.0))
         f3.setdefault("n_scenes_list", (1, 3, 10, 20))
         f3.setdefault("densities", (1, 2, 3, 4, 6, 10, 16))
-    r2 = run_figure2(realisations=realisations, config=config, map=map, executor=executor, **f2)
-    r3 = run_figure3(realisations=realisations, config=config, map=map, executor=executor, **f3)
+    # both figures' tasks in one map, largest first: the workers of a pool finish together
+    a2, a3 = _figure2_axes(**f2), _figure3_axes(config, **f3)
+    chunk = 10
+    t2 = _grid_tasks(**a2, realisations=realisations, config=config, chunk=chunk)
+    t3 = _grid_tasks(**a3, realisations=realisations, config=config, chunk=chunk)
+    results = _map_largest_first(_resolve_map(map, executor), _study_task, t2 + t3)
+    r2 = _figure2(_grid_result(results[:len(t2)], **a2, realisations=realisations, chunk=chunk))
+    r3 = _figure3(_grid_result(results[len(t2):], **a3, realisations=realisations, chunk=chunk),
+                  config)
     cfg = asdict(config)
     geo = config.geometry
     cfg["derived"] = {"mean_motion_rad_s": geo.mean_motion, "ground_speed_m_s": geo.ground_speed,

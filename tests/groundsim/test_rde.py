@@ -302,6 +302,43 @@ def test_cli_rde_study_quick(tmp_path, capsys, monkeypatch):
     assert (tmp_path / "rde_figure3.png").exists()
 
 
+def test_cli_rde_study_same_files_on_one_or_two_workers(tmp_path, capsys, monkeypatch):
+    """The realisations spread over --workers processes (largest tasks first, both figures in
+    one pool); the numbers and files do not depend on how many."""
+    from hil_harness.cli import main
+    import groundsim.assess.rde_study as st
+    orig = st.run_study
+
+    def small(out, **kw):
+        return orig(out, config=StudyConfig(lines_per_scene=10),
+                    figure3_kw=dict(n_scenes_list=(1, 3), densities=(2, 6, 20)), **kw)
+
+    monkeypatch.setattr(st, "run_study", small)
+    outs = []
+    for w in ("1", "2"):
+        assert main(["rde", "study", "--quick", "--realisations", "4", "--workers", w,
+                     "--out", str(tmp_path / w)]) == 0
+        outs.append(capsys.readouterr().out.replace(str(tmp_path / w), "DIR"))
+    assert outs[0] == outs[1]
+    assert (tmp_path / "1" / "rde_study.json").read_bytes() == \
+        (tmp_path / "2" / "rde_study.json").read_bytes()
+
+
+def test_study_tasks_go_out_largest_first_and_come_back_in_order():
+    seen = []
+
+    def spy_map(fn, tasks):
+        tasks = list(tasks)
+        seen.extend(t[1] for t in tasks)            # the interval length L of each task
+        return map(fn, tasks)
+
+    kw = dict(realisations=2, config=StudyConfig(lines_per_scene=4), chunk=1)
+    a = epsilon90_grid([1, 3, 2], (2,), (6.7,), (12,), map=spy_map, **kw)
+    assert seen == [3, 3, 2, 2, 1, 1]
+    b = epsilon90_grid([1, 3, 2], (2,), (6.7,), (12,), **kw)
+    assert np.array_equal(a["eps90_mean"], b["eps90_mean"])
+
+
 def test_empty_interval_filters_and_smooths_to_nothing():
     r = kalman_filter(np.zeros(3), np.eye(3), np.zeros((0, 3, 3)), np.zeros((0, 3, 3)), [], [], [])
     assert r.xf.shape == (0, 3) and r.Pf.shape == (0, 3, 3)
