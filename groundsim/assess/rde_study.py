@@ -32,6 +32,7 @@ by the module-level function ``_study_task`` (picklable).
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import asdict, dataclass, field
@@ -95,6 +96,14 @@ def _truth(config: StudyConfig, n_epochs: int, rng: np.random.Generator) -> np.n
     return x
 
 
+@functools.lru_cache(maxsize=None)
+def _flat_eye(m: int) -> np.ndarray:
+    """np.eye(m).ravel(), kept (read only)."""
+    e = np.eye(m).ravel()
+    e.flags.writeable = False
+    return e
+
+
 def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence[float],
                          sigmas: Sequence[float], n_states: Sequence[int], seed_key: Sequence[int]):
     """epsilon_90 [m] of one realisation: array (len(densities), len(sigmas), len(n_states)).
@@ -139,7 +148,7 @@ def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence
         roff = np.zeros(N + 1, dtype=np.int64)
         roff[1:] = np.cumsum((2 * counts) ** 2)
         # the measurement covariance sigma^2 I of each epoch's 2 m dislocations, for sigma = 1
-        eyes = np.concatenate([np.eye(2 * m).ravel() for m in counts if m])
+        eyes = np.concatenate([_flat_eye(2 * m) for m in counts if m])
         for ni, ns in enumerate(n_states):
             model, Phi, Q, H_eval = models[ni]
             Hf = np.ascontiguousarray(dislocation_partials(c, geo, ns).reshape(-1, ns))
