@@ -28,7 +28,10 @@ the same across densities, sigmas and estimator sizes, so the curves are smooth 
 Parallelism: every function accepts ``map`` (any ``map(fn, iterable)``-like callable returning
 results in order, e.g. ``ProcessPoolExecutor(2).map`` or a Dask wrapper) or ``executor`` (anything
 with a ``.map`` method). The default is the serial built-in ``map``. Tasks are plain tuples handled
-by the module-level function ``_study_task`` (picklable).
+by the module-level function ``_study_task`` (picklable), chunks of 10 realisations of one interval
+length; they go to the map largest first (so a pool's workers finish together; the results are put
+back in order, and each depends only on its realisations' keys, so the numbers are the same on any
+map), and :func:`run_study` hands both figures' tasks to one map.
 """
 from __future__ import annotations
 
