@@ -14,6 +14,10 @@ code block:
   every line of that output must be printed, in order (a line ending in ``...`` matches any line
   that starts with the text before it).
 
+Each command run prints its wall time, the CPU time (user + system) it and its worker processes
+used, and the host's load average while it ran: on a shared machine the CPU seconds are the figure
+that does not move with the load.
+
 Exit status 0 when everything passes, 1 otherwise (each failure on one line).
 
 ``python docs/check_commands.py README.md`` (or ``make docs-check DOCS=README.md``) checks one
@@ -88,6 +92,20 @@ def run(argv: list[str], cwd: Path, timeout: int) -> subprocess.CompletedProcess
     return subprocess.run(argv, cwd=cwd, env=env, capture_output=True, text=True, timeout=timeout)
 
 
+def timed(argv: list[str], cwd: Path, timeout: int) -> tuple[subprocess.CompletedProcess, str]:
+    """:func:`run` and a line saying what it cost: wall seconds, CPU seconds (user + system, the
+    command and every process it waited for) and the 1-minute load average at its end."""
+    import resource
+    import time
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    res = run(argv, cwd, timeout)
+    wall = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    return res, f"{wall:.1f} s wall, {cpu:.1f} s CPU, load {os.getloadavg()[0]:.1f}"
+
+
 def expected_output_found(expected: list[str], printed: str) -> str | None:
     """None when every expected line appears in order; else the first one missing."""
     got = printed.splitlines()
@@ -124,10 +142,11 @@ def _check(path: Path, timeout: int, dry: bool, work: Path | None) -> list[str]:
     for j, (lang, lines, start) in enumerate(bl):
         where = f"{path.relative_to(ROOT)}:{start}"
         if lang == "python":
+            print(f"{where}: python example ({len(lines)} lines)", flush=True)
             if dry:
-                print(f"{where}: python example ({len(lines)} lines)")
                 continue
-            res = run([sys.executable, "-c", "\n".join(lines)], work, timeout)
+            res, cost = timed([sys.executable, "-c", "\n".join(lines)], work, timeout)
+            print(f"    {cost}", flush=True)
             if res.returncode != 0:
                 fails.append(f"{where}: python example exit {res.returncode}: "
                              f"{(res.stderr.strip().splitlines() or [''])[-1]}")
@@ -148,10 +167,11 @@ def _check(path: Path, timeout: int, dry: bool, work: Path | None) -> list[str]:
                                            ["-m", "hil_harness.cli"] + argv[1:])
             print(f"{where}: {cmd}", flush=True)
             try:
-                res = run(argv, work, timeout)
+                res, cost = timed(argv, work, timeout)
             except subprocess.TimeoutExpired:
                 fails.append(f"{where}: {cmd}: no answer within {timeout} s")
                 continue
+            print(f"    {cost}", flush=True)
             if res.returncode != want or "Traceback" in res.stderr:
                 last = (res.stderr.strip().splitlines() or [""])[-1]
                 fails.append(f"{where}: {cmd}: exit {res.returncode} (expected {want}): {last}")

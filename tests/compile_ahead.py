@@ -59,6 +59,7 @@ def rde_kernels():
         r = kalman_filter(np.zeros(n), eye, eye, 0.1 * eye, [eye[:2]] * 2, [np.eye(2)] * 2,
                           [np.zeros(2)] * 2)
         rts_smooth(r.xf, r.Pf, r.xp, r.Pp, eye)
+        rts_smooth(r.xf, r.Pf, r.xp, r.Pp, eye, covariances=False)     # the study's means only
 
 
 def labelling():

@@ -36,6 +36,13 @@ def test_file_commands_are_run_beside_uvisi(tmp_path):
                                     "uvisi budget --sequence scratch/b.toml"]   # ls: not a command run
 
 
+def test_each_command_run_says_its_wall_and_cpu_time(tmp_path):
+    import re
+    res, cost = C.timed([sys.executable, "-c", "sum(range(10**6))"], tmp_path, 60)
+    assert res.returncode == 0
+    assert re.fullmatch(r"\d+\.\d s wall, \d+\.\d s CPU, load \d+\.\d", cost), cost
+
+
 def test_one_document_by_name(capsys):
     assert C.main(["--list", "README.md"]) == 0
     out = capsys.readouterr().out

@@ -511,6 +511,57 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
     dinv[0, 0] = touch                      # keeps the prefetching loads
 
 
+@njit(cache=True)
+def _rts_means_into(xf, Pf, xp, Pp, Phi, xs, nt):
+    """The smoothed means alone: eq. 15 with the gain of eq. 14 applied to one vector,
+    ``xs_k = x+_k + P+_k Phi_k+1^T (P-_k+1)^-1 (xs_k+1 - x-_k+1)``, the solve by the Cholesky
+    factor of P-_k+1 (two triangular solves of a vector, not the n columns of the gain). The same
+    equations as :func:`_rts_into`, in about a fifth of its work; the rounding differs (a few ulp).
+    nt as for :func:`_filter_into`."""
+    n = len(nt)
+    N = xf.shape[0]
+    L = np.zeros((n, n))                    # P-_k+1 = L L^T, L lower triangular
+    v = np.zeros(n)
+    u = np.zeros(n)
+    for i in range(n):
+        xs[N - 1, i] = xf[N - 1, i]
+    for k in range(N - 2, -1, -1):
+        for j in range(n):
+            s = Pp[k + 1, j, j]
+            for t in range(j):
+                s -= L[j, t] * L[j, t]
+            if not s > 0.0:
+                raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
+            d = np.sqrt(s)
+            L[j, j] = d
+            for i in range(j + 1, n):
+                s = Pp[k + 1, i, j]
+                for t in range(j):
+                    s -= L[i, t] * L[j, t]
+                L[i, j] = s / d
+        for i in range(n):                  # L y = xs_k+1 - x-_k+1
+            s = xs[k + 1, i] - xp[k + 1, i]
+            for t in range(i):
+                s -= L[i, t] * v[t]
+            v[i] = s / L[i, i]
+        for i in range(n - 1, -1, -1):      # L^T v = y: v = (P-_k+1)^-1 (xs_k+1 - x-_k+1)
+            s = v[i]
+            for t in range(i + 1, n):
+                s -= L[t, i] * v[t]
+            v[i] = s / L[i, i]
+        for j in range(n):                  # u = Phi_k+1^T v
+            u[j] = 0.0
+        for i in range(n):
+            vi = v[i]
+            for j in range(n):
+                u[j] += Phi[k + 1, i, j] * vi
+        for i in range(n):                  # xs_k = x+_k + P+_k u
+            s = xf[k, i]
+            for j in range(n):
+                s += Pf[k, i, j] * u[j]
+            xs[k, i] = s
+
+
 # ----------------------------------------------------------------------------- Python surface
 def _kernel_array(a, dtype=np.float64) -> np.ndarray:
     """``a`` as the kernels take every array: C-contiguous and writable (a broadcast or read-only
@@ -677,7 +728,7 @@ def kalman_filter(x0, P0, Phi, Q, H, R, zs) -> FilterResult:
     return FilterResult(*kalman_filter_packed(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff))
 
 
-def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
+def rts_smooth(xf, Pf, xp, Pp, Phi, covariances: bool = True) -> SmootherResult:
     """Rauch-Tung-Striebel fixed-interval smoother, eqs. 14-16.
 
     xf (N, n), Pf (N, n, n): filtered means/covariances; xp (N, n), Pp (N, n, n): predicted ones, as
@@ -685,6 +736,9 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     (``Phi[k+1]`` carries step k to step k+1; ``Phi[0]`` is not used). The gain
     ``C_k = P+_k Phi_{k+1}^T (P-_{k+1})^-1`` is computed by a Cholesky solve.
     Returns SmootherResult(xs (N, n), Ps (N, n, n)), float64; ``xs[-1] = xf[-1]``.
+    ``covariances=False`` computes the means alone (:func:`_rts_means_into`: the same equations
+    applied to a vector, about a fifth of the work, the rounding differing by a few ulp) and
+    returns Ps with no rows, shape (0, n, n).
     """
     xf = _kernel_array(xf)
     N = xf.shape[0]
@@ -697,7 +751,9 @@ def rts_smooth(xf, Pf, xp, Pp, Phi) -> SmootherResult:
     xp = _kernel_array(xp).reshape(N, n)
     Pp = _kernel_array(Pp).reshape(N, n, n)
     Phi = _per_step_matrices(Phi, N, n, "Phi")
-    xs, Ps = np.empty((N, n)), np.empty((N, n, n))
-    if N:
+    xs, Ps = np.empty((N, n)), np.empty((N if covariances else 0, n, n))
+    if not covariances:
+        _rts_means_into(xf, Pf, xp, Pp, Phi, xs, (0,) * n)
+    elif N:
         _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, (0,) * n, _padded(n))
     return SmootherResult(xs, Ps)

@@ -28,10 +28,14 @@ the same across densities, sigmas and estimator sizes, so the curves are smooth 
 Parallelism: every function accepts ``map`` (any ``map(fn, iterable)``-like callable returning
 results in order, e.g. ``ProcessPoolExecutor(2).map`` or a Dask wrapper) or ``executor`` (anything
 with a ``.map`` method). The default is the serial built-in ``map``. Tasks are plain tuples handled
-by the module-level function ``_study_task`` (picklable).
+by the module-level function ``_study_task`` (picklable), chunks of 10 realisations of one interval
+length; they go to the map largest first (so a pool's workers finish together; the results are put
+back in order, and each depends only on its realisations' keys, so the numbers are the same on any
+map), and :func:`run_study` hands both figures' tasks to one map.
 """
 from __future__ import annotations
 
+import functools
 import json
 import os
 from dataclasses import asdict, dataclass, field
@@ -95,6 +99,14 @@ def _truth(config: StudyConfig, n_epochs: int, rng: np.random.Generator) -> np.n
     return x
 
 
+@functools.lru_cache(maxsize=None)
+def _flat_eye(m: int) -> np.ndarray:
+    """np.eye(m).ravel(), kept (read only)."""
+    e = np.eye(m).ravel()
+    e.flags.writeable = False
+    return e
+
+
 def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence[float],
                          sigmas: Sequence[float], n_states: Sequence[int], seed_key: Sequence[int]):
     """epsilon_90 [m] of one realisation: array (len(densities), len(sigmas), len(n_states)).
@@ -116,7 +128,16 @@ def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence
     c_eval = np.linspace(-geo.half_swath, geo.half_swath, config.eval_cross)
     H_true_eval = dislocation_partials(c_eval, geo, 18)                    # (C, 2, 18)
     d_true = np.einsum("cij,kj->kci", H_true_eval, x_true[eval_idx])      # (K, C, 2)
-    out = np.empty((len(densities), len(sigmas), len(n_states)))
+    # the residuals of every (density, sigma, estimator), their percentiles taken in one call
+    res = np.empty((len(densities), len(sigmas), len(n_states), eval_idx.size * c_eval.size))
+    models = []                             # per estimator size: the model, Phi, Q, H at the
+    for ns in n_states:                     # evaluation offsets (the same for every density)
+        model, Phi1, Q1 = _discrete(config, ns)
+        Phi = np.broadcast_to(Phi1, (N, ns, ns)).copy()
+        Q = np.broadcast_to(Q1, (N, ns, ns)).copy()
+        Phi[0] = np.eye(ns)                    # epoch 0 is the prior epoch
+        Q[0] = 0.0
+        models.append((model, Phi, Q, dislocation_partials(c_eval, geo, ns)))
     for di, dens in enumerate(densities):
         n_cp = max(1, int(round(dens * n_scenes)))
         ep = np.minimum((draws[:n_cp, 0] * N).astype(np.int64), N - 1)
@@ -129,25 +150,20 @@ def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence
         zoff[1:] = np.cumsum(2 * counts)
         roff = np.zeros(N + 1, dtype=np.int64)
         roff[1:] = np.cumsum((2 * counts) ** 2)
+        # the measurement covariance sigma^2 I of each epoch's 2 m dislocations, for sigma = 1
+        eyes = np.concatenate([_flat_eye(2 * m) for m in counts if m])
         for ni, ns in enumerate(n_states):
-            model, Phi1, Q1 = _discrete(config, ns)
-            Phi = np.broadcast_to(Phi1, (N, ns, ns)).copy()
-            Q = np.broadcast_to(Q1, (N, ns, ns)).copy()
-            Phi[0] = np.eye(ns)                    # epoch 0 is the prior epoch
-            Q[0] = 0.0
+            model, Phi, Q, H_eval = models[ni]
             Hf = np.ascontiguousarray(dislocation_partials(c, geo, ns).reshape(-1, ns))
-            H_eval = dislocation_partials(c_eval, geo, ns)
             for si, sig in enumerate(sigmas):
                 zf = (z_clean + sig * e).ravel()
-                Rf = np.concatenate([(sig * sig * np.eye(2 * m)).ravel() for m in counts if m]) \
-                    if n_cp else np.zeros(0)
+                Rf = sig * sig * eyes               # the same values as sigma^2 I epoch by epoch
                 xf, Pf, xp, Pp = kalman_filter_packed(np.zeros(ns), model.P0, Phi, Q, Hf, zf, Rf,
                                                       zoff, roff)
-                xs, _ = rts_smooth(xf, Pf, xp, Pp, Phi)
+                xs, _ = rts_smooth(xf, Pf, xp, Pp, Phi, covariances=False)
                 d_est = np.einsum("cij,kj->kci", H_eval, xs[eval_idx])
-                res = np.sqrt(((d_true - d_est) ** 2).sum(axis=-1))
-                out[di, si, ni] = np.percentile(res, config.percentile)
-    return out
+                res[di, si, ni] = np.sqrt(((d_true - d_est) ** 2).sum(axis=-1)).ravel()
+    return np.percentile(res, config.percentile, axis=-1)
 
 
 def _study_task(task):
@@ -165,6 +181,35 @@ def _resolve_map(map=None, executor=None) -> Callable:
     return builtins.map
 
 
+def _grid_tasks(n_scenes_list, densities, sigmas, n_states, realisations: int,
+                config: StudyConfig, chunk: int) -> list:
+    """The :func:`_study_task` tuples of a grid: ``chunk`` realisations of one L each, L by L."""
+    tasks = []
+    for L in n_scenes_list:
+        for r0 in range(0, realisations, chunk):
+            keys = [(config.seed, int(round(L * 1000)), r) for r in range(r0, min(realisations, r0 + chunk))]
+            tasks.append((config, L, tuple(densities), tuple(sigmas), tuple(n_states), keys))
+    return tasks
+
+
+def _task_cost(task) -> float:
+    """Relative cost of a task: filter + smoother runs times their epochs."""
+    config, n_scenes, densities, sigmas, n_states, keys = task
+    return len(keys) * (n_scenes * config.lines_per_scene + 1) * len(densities) * len(sigmas) \
+        * sum(n * n for n in n_states)
+
+
+def _map_largest_first(mapper: Callable, fn: Callable, tasks: list) -> list:
+    """``list(mapper(fn, tasks))``, the tasks handed out largest first (a pool's workers then
+    finish together instead of one waiting on the last long task); the results in task order."""
+    order = sorted(range(len(tasks)), key=lambda i: -_task_cost(tasks[i]))
+    done = list(mapper(fn, [tasks[i] for i in order]))
+    results = [None] * len(tasks)
+    for i, r in zip(order, done):
+        results[i] = r
+    return results
+
+
 def epsilon90_grid(n_scenes_list: Sequence[float], densities: Sequence[float],
                    sigmas: Sequence[float], n_states: Sequence[int] = (18, 12), *,
                    realisations: int = 100, config: StudyConfig | None = None,
@@ -175,13 +220,14 @@ def epsilon90_grid(n_scenes_list: Sequence[float], densities: Sequence[float],
     (len(n_scenes_list), len(densities), len(sigmas), len(n_states)) [m], plus the axes.
     """
     config = config or StudyConfig()
-    mapper = _resolve_map(map, executor)
-    tasks = []
-    for L in n_scenes_list:
-        for r0 in range(0, realisations, chunk):
-            keys = [(config.seed, int(round(L * 1000)), r) for r in range(r0, min(realisations, r0 + chunk))]
-            tasks.append((config, L, tuple(densities), tuple(sigmas), tuple(n_states), keys))
-    results = list(mapper(_study_task, tasks))
+    tasks = _grid_tasks(n_scenes_list, densities, sigmas, n_states, realisations, config, chunk)
+    results = _map_largest_first(_resolve_map(map, executor), _study_task, tasks)
+    return _grid_result(results, n_scenes_list, densities, sigmas, n_states, realisations, chunk)
+
+
+def _grid_result(results: list, n_scenes_list, densities, sigmas, n_states, realisations: int,
+                 chunk: int) -> dict:
+    """The :func:`epsilon90_grid` dict from its tasks' results (in :func:`_grid_tasks` order)."""
     shape = (len(n_scenes_list), len(densities), len(sigmas), len(n_states))
     mean = np.empty(shape)
     sem = np.empty(shape)
@@ -203,17 +249,28 @@ def map_float(xs: Iterable) -> list:
     return [float(x) for x in xs]
 
 
-def run_figure2(*, densities=(1, 2, 3, 5, 10), sigmas=(2.0, 4.0, 6.7, 10.0, 13.0, 16.0),
-                n_scenes: float = 5, n_states=(18, 12), realisations: int = 100,
-                config: StudyConfig | None = None, map=None, executor=None) -> dict:
-    """Figure 2: epsilon_90 [m] vs measurement error sigma [m] for several densities (CP/scene),
-    18- and 12-state estimators, five-scene interval. Returns the :func:`epsilon90_grid` dict with
-    the L axis squeezed: ``eps90_mean`` (D, S, E)."""
-    g = epsilon90_grid([n_scenes], densities, sigmas, n_states, realisations=realisations,
-                       config=config, map=map, executor=executor)
+def _figure2_axes(*, densities=(1, 2, 3, 5, 10),
+                  sigmas=(2.0, 4.0, 6.7, 10.0, 13.0, 16.0), n_scenes: float = 5,
+                  n_states=(18, 12)) -> dict:
+    """The :func:`epsilon90_grid` axes of Figure 2 (its defaults are the figure's)."""
+    return dict(n_scenes_list=[n_scenes], densities=densities, sigmas=sigmas, n_states=n_states)
+
+
+def _figure2(g: dict) -> dict:
     g["eps90_mean"], g["eps90_sem"] = g["eps90_mean"][0], g["eps90_sem"][0]
     g["figure"] = 2
     return g
+
+
+def run_figure2(*, realisations: int = 100, config: StudyConfig | None = None, map=None,
+                executor=None, **axes) -> dict:
+    """Figure 2: epsilon_90 [m] vs measurement error sigma [m] for several densities (CP/scene),
+    18- and 12-state estimators, five-scene interval. ``axes``: ``densities`` (default 1, 2, 3, 5,
+    10), ``sigmas`` (2, 4, 6.7, 10, 13, 16 m), ``n_scenes`` (5), ``n_states`` ((18, 12)). Returns
+    the :func:`epsilon90_grid` dict with the L axis squeezed: ``eps90_mean`` (D, S, E)."""
+    config = config or StudyConfig()
+    return _figure2(epsilon90_grid(**_figure2_axes(**axes), realisations=realisations,
+                                   config=config, map=map, executor=executor))
 
 
 def density_needed(densities: Sequence[float], eps90: Sequence[float], requirement: float) -> float:
@@ -233,21 +290,33 @@ def density_needed(densities: Sequence[float], eps90: Sequence[float], requireme
     return float(np.exp(x0 + f * (x1 - x0)))
 
 
-def run_figure3(*, n_scenes_list=(1, 2, 3, 5, 7, 10, 15, 20, 30),
-                densities=(0.5, 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10, 13, 16, 20, 25),
-                n_states=(18, 12), realisations: int = 100, config: StudyConfig | None = None,
-                map=None, executor=None) -> dict:
-    """Figure 3: control-point density needed for eps90 < requirement (4.9 m) at the requirement's
-    measurement error (6.7 m) vs interval length L (scenes). Adds ``density_needed`` (L, E)."""
-    config = config or StudyConfig()
-    g = epsilon90_grid(n_scenes_list, densities, [config.requirement_sigma_m], n_states,
-                       realisations=realisations, config=config, map=map, executor=executor)
+def _figure3_axes(config: StudyConfig, *, n_scenes_list=(1, 2, 3, 5, 7, 10, 15, 20, 30),
+                  densities=(0.5, 1, 1.5, 2, 2.5, 3, 4, 5, 6, 8, 10, 13, 16, 20, 25),
+                  n_states=(18, 12)) -> dict:
+    """The :func:`epsilon90_grid` axes of Figure 3 (its defaults are the figure's)."""
+    return dict(n_scenes_list=n_scenes_list, densities=densities,
+                sigmas=[config.requirement_sigma_m], n_states=n_states)
+
+
+def _figure3(g: dict, config: StudyConfig) -> dict:
     e = g["eps90_mean"][:, :, 0, :]                            # (L, D, E)
     g["eps90_mean"], g["eps90_sem"] = e, g["eps90_sem"][:, :, 0, :]
-    g["density_needed"] = np.array([[density_needed(densities, e[li, :, ei], config.requirement_m)
+    g["density_needed"] = np.array([[density_needed(g["densities"], e[li, :, ei],
+                                                    config.requirement_m)
                                      for ei in range(e.shape[2])] for li in range(e.shape[0])])
     g["figure"] = 3
     return g
+
+
+def run_figure3(*, realisations: int = 100, config: StudyConfig | None = None, map=None,
+                executor=None, **axes) -> dict:
+    """Figure 3: control-point density needed for eps90 < requirement (4.9 m) at the requirement's
+    measurement error (6.7 m) vs interval length L (scenes). ``axes``: ``n_scenes_list`` (default
+    1, 2, 3, 5, 7, 10, 15, 20, 30), ``densities`` (0.5 to 25 CP/scene), ``n_states`` ((18, 12)).
+    Adds ``density_needed`` (L, E)."""
+    config = config or StudyConfig()
+    return _figure3(epsilon90_grid(**_figure3_axes(config, **axes), realisations=realisations,
+                                   config=config, map=map, executor=executor), config)
 
 
 def plot_figure2(res: dict, path: str) -> None:
@@ -339,8 +408,15 @@ def run_study(out_dir: str | os.PathLike | None = None, *, realisations: int = 1
         f2.setdefault("sigmas", (2.0, 6.7, 13.0))
         f3.setdefault("n_scenes_list", (1, 3, 10, 20))
         f3.setdefault("densities", (1, 2, 3, 4, 6, 10, 16))
-    r2 = run_figure2(realisations=realisations, config=config, map=map, executor=executor, **f2)
-    r3 = run_figure3(realisations=realisations, config=config, map=map, executor=executor, **f3)
+    # both figures' tasks in one map, largest first: the workers of a pool finish together
+    a2, a3 = _figure2_axes(**f2), _figure3_axes(config, **f3)
+    chunk = 10
+    t2 = _grid_tasks(**a2, realisations=realisations, config=config, chunk=chunk)
+    t3 = _grid_tasks(**a3, realisations=realisations, config=config, chunk=chunk)
+    results = _map_largest_first(_resolve_map(map, executor), _study_task, t2 + t3)
+    r2 = _figure2(_grid_result(results[:len(t2)], **a2, realisations=realisations, chunk=chunk))
+    r3 = _figure3(_grid_result(results[len(t2):], **a3, realisations=realisations, chunk=chunk),
+                  config)
     cfg = asdict(config)
     geo = config.geometry
     cfg["derived"] = {"mean_motion_rad_s": geo.mean_motion, "ground_speed_m_s": geo.ground_speed,

@@ -3,7 +3,8 @@
 ``uvisi rde study [--out DIR] [--realisations N] [--quick] [--workers W]``
     the Monte Carlo study of section V: writes ``rde_figure2.png`` (epsilon_90 vs measurement error,
     five-scene interval), ``rde_figure3.png`` (control-point density needed for epsilon_90 < 4.9 m at
-    6.7 m vs interval length) and ``rde_study.json`` to DIR, prints the numbers.
+    6.7 m vs interval length) and ``rde_study.json`` to DIR, prints the numbers. The realisations
+    run on W processes (default: one per core this process may run on), the same numbers on any W.
 
 ``uvisi rde study --sensitivity [--out DIR] [--realisations N] [--quick] [--workers W]``
     the same study with one input of the a priori error model scaled at a time (the calibrated
@@ -51,7 +52,9 @@ def register(sub) -> None:
     ps.add_argument("--quick", action="store_true", help="reduced grid (smoke runs, tests)")
     ps.add_argument("--sensitivity", action="store_true",
                     help="rerun the study with each error-model input scaled x0.25..x4, one at a time")
-    ps.add_argument("--workers", type=int, default=2, help="worker processes (1 = serial)")
+    ps.add_argument("--workers", type=int, default=None,
+                    help="worker processes (default: one per core this process may run on; "
+                    "1 = serial); the numbers do not depend on it")
     from hil_harness.cli.checks import add_no_size_check
     add_no_size_check(ps)
     pr = rsub.add_parser("reconstruct", help="pointing reconstruction from a control-point .npz")
@@ -91,6 +94,14 @@ def _with_progress(base_map):
     return mapped
 
 
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity; all of the machine's elsewhere)."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:                  # not Linux
+        return os.cpu_count() or 1
+
+
 def _check_study_args(args) -> None:
     if args.out is None:
         args.out = "rde_sensitivity" if args.sensitivity else "rde_study"
@@ -102,6 +113,8 @@ def _check_study_args(args) -> None:
     # realisations are reduced to their mean chunk by chunk: nothing grows with their number
     check(Cost(f"rde study --realisations {args.realisations:,}", args.realisations,
                "realisations per grid point", 0.0, 0.0, MAX_RUNS), lift_cap=args.no_size_check)
+    if args.workers is None:
+        args.workers = available_cores()
     if args.workers < 1:
         raise ValueError(f"--workers {args.workers}: must be >= 1")
     if os.path.exists(args.out) and not os.path.isdir(args.out):

@@ -10,12 +10,14 @@
 
 ``uvisi tune optimise SPEC.toml -o TUNED.toml [--words TUNED.words] [--base aurora|FILE]
 [--frr 0.005] [--quantize auto|on|off] [--folds 3] [--seed 0] [--maxiter 15] [--popsize 4]
-[--centroid-penalty 0.25] [--events DIR] [--json OUT.json]``
+[--centroid-penalty 0.25] [--events DIR] [--json OUT.json] [--workers N]``
     every event of the spec rendered once, then replayed through the flight IP + TP for each
     candidate record: fit on the blobs the base record saw in closed loop, weights maximising the
     closed-loop top-1 rate (SciPy differential evolution) with a penalty that stops them leaning
     on the position prior alone, GOF threshold for the stated false-rejection rate; the
-    cross-validation groups by event (``hil_harness.tuning.closed``).
+    cross-validation groups by event (``hil_harness.tuning.closed``). The weight searches (per
+    fold and quantisation choice) run at once on N processes (default: one per core), the same
+    record on any N.
 
 ``uvisi tune validate SPEC.toml --record TUNED.toml [--compare aurora ...] --report DIR
 [--require-top1 0.95] [--events DIR]``
@@ -43,7 +45,9 @@ def register(sub) -> None:
     def common(q):
         q.add_argument("set", help="set spec (.toml) or saved set (.npz)")
         q.add_argument("--workers", type=number(1, integer=True), default=None,
-                       help="processes used to build a set from a spec (default: the spec's)")
+                       help="processes that render a set spec's events (default: the spec's "
+                            "workers) and run optimise's independent weight searches (default: "
+                            "one per core this process may run on); results do not depend on it")
         q.add_argument("--no-progress", action="store_true", help="no progress bar")
         from hil_harness.cli.checks import add_no_size_check
         add_no_size_check(q)
@@ -223,8 +227,10 @@ def _replayer(args):
     print(f"[tune] set {spec.name}: {len(evs)} events, {sum(e.n_frames for e in evs)} frames "
           f"({nobj} with the object) ({time.perf_counter() - t0:.1f} s)")
     # the closed-loop replays run the TP in target-of-opportunity mode (no velocity filter)
+    from hil_harness.cli.rde import available_cores
     return Replayer(evs, spec.sequence, event_radius(spec), spec.base_dir, spec.name,
-                    proposals=with_names(args, "opportunity") or ())
+                    proposals=with_names(args, "opportunity") or (),
+                    workers=args.workers or available_cores())
 
 
 def _rate_text(r) -> str:

@@ -37,6 +37,10 @@ Optimiser (:func:`optimise_closed_loop`)
     Cross-validation groups by event (never by frame); a single event (one night) is cut into
     contiguous blocks of at least four frames, each replayed afresh from the centre. Its held-out
     rates are scored with each fold's record thresholded at the calibrated ``kappa``.
+
+Workers: the weight searches (one per quantisation choice, of every fold) are independent and
+deterministic; they run at once on the :class:`Replayer`'s ``workers`` forked processes
+(:mod:`hil_harness.tuning.forked`), so a record is the same on any number of them.
 """
 from __future__ import annotations
 
@@ -83,10 +87,16 @@ class Replayer:
         Object radius (full-resolution px) by event name, or one for all.
     proposals : tuple of str
         The proposals the replays run with (default none: the paper's system).
+    workers : int
+        Processes the independent weight searches of :func:`optimise_closed_loop` and
+        :func:`cross_validate_closed` run on (default 1: this one); their results do not depend on
+        it. Subsets keep it.
     """
 
-    def __init__(self, events, sequence, radii, base_dir=None, name: str = "set", proposals=()):
+    def __init__(self, events, sequence, radii, base_dir=None, name: str = "set", proposals=(),
+                 workers: int = 1):
         self.events = list(events)
+        self.workers = int(workers)
         self.name = name
         self.proposals = tuple(proposals or ())
         self.sequence, self.base_dir = sequence, base_dir
@@ -101,7 +111,7 @@ class Replayer:
 
     def subset(self, events) -> "Replayer":
         return Replayer(events, self.sequence, self._radii, self.base_dir, self.name,
-                        self.proposals)
+                        self.proposals, self.workers)
 
     @property
     def n_frames_with_object(self) -> int:
@@ -197,8 +207,9 @@ def _w_from_u(u):
 
 
 def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, popsize,
-            progress=False):
-    """Differential evolution of the log-weights on the closed-loop rate (module docstring)."""
+            tick=None):
+    """Differential evolution of the log-weights on the closed-loop rate (module docstring);
+    ``tick()`` after each generation."""
     from scipy.optimize import differential_evolution
     n_obj = max(rp.n_frames_with_object, 1)
     u0 = np.clip(np.log10(np.maximum(np.asarray(rec.weight, float), 10 ** LOG_W[0])), *LOG_W)
@@ -220,15 +231,105 @@ def _search(rp: Replayer, rec: Record, fr0: FastRanker, penalty, seed, maxiter, 
     npop = max(8, popsize * N_FEATURES)
     init = rng.uniform(LOG_W[0], LOG_W[1], (npop, N_FEATURES))
     init[0], init[1] = u0, 0.0
-    from tqdm import tqdm
-    # the callback returns False: a True would stop the search (tqdm.update returns True on redraw)
-    with tqdm(total=maxiter, desc="[tune] weight search", unit="gen", leave=False,
-              disable=not progress) as bar:
-        res = differential_evolution(lambda u: -score(u), [LOG_W] * N_FEATURES, init=init,
-                                     maxiter=maxiter, tol=1e-8, seed=seed, polish=False,
-                                     mutation=(0.5, 1.0), recombination=0.7,
-                                     updating="immediate", callback=lambda *a, **k: bool(bar.update(1)) and False)
+
+    def generation(*a, **k) -> bool:
+        if tick is not None:
+            tick()
+        return False                        # True would stop the search
+    res = differential_evolution(lambda u: -score(u), [LOG_W] * N_FEATURES, init=init,
+                                 maxiter=maxiter, tol=1e-8, seed=seed, polish=False,
+                                 mutation=(0.5, 1.0), recombination=0.7,
+                                 updating="immediate", callback=generation)
     return _w_from_u(res.x), -float(res.fun), count[0]
+
+
+class _Optimisation:
+    """:func:`optimise_closed_loop` (same parameters) cut at its weight searches, which are
+    independent of each other (one per quantisation choice) and of other optimisations: the fit
+    here, :meth:`jobs` (:func:`hil_harness.tuning.forked.run_jobs`, on any process), then
+    :meth:`finish` with their results."""
+
+    def __init__(self, rp: Replayer, base="aurora", frr: float = 0.005, quantize="auto",
+                 seed: int = 0, maxiter: int = 15, popsize: int = 4,
+                 centroid_penalty: float = 0.25, name: str = "aurora_tuned",
+                 record_id: int | None = None, version: int = 1, log=print,
+                 kappa: float = 1.0):
+        if kappa is not None and not kappa >= 1.0:
+            raise ValueError(f"kappa={kappa!r} must be >= 1 or None (no threshold)")
+        base = load_record(base)
+        choices = {"auto": (False, True), "on": (True,), "off": (False,), True: (True,),
+                   False: (False,)}.get(quantize)
+        if choices is None:
+            raise ValueError(f"quantize={quantize!r} must be 'auto', 'on' or 'off'")
+        rid = base.record_id if record_id is None else record_id
+        b0 = base.replace(gof_threshold=0.0)
+        t0 = rp.training_set(rp.replays(b0), {"name": "closed-loop"})
+        # the object's features also from windows on the label (training reads labels; no rate
+        # does)
+        t_fit = TrainingSet.concat([t0, rp.training_set(rp.replays(b0, "truth"))], {"name": "fit"})
+        fitted = fit_record(t_fit, base=base, name=name, record_id=rid, version=version,
+                            description=f"tuned closed loop (IP + TP) on {len(rp.events)} events "
+                                        f"({rp.n_frames_with_object} frames with the object) of "
+                                        f"set {rp.name!r}")
+        self.rp, self.frr, self.kappa, self.name, self.log = rp, frr, kappa, name, log
+        self.recs = [fitted.replace(quantize=bool(q), gof_threshold=0.0) for q in choices]
+        self.rankers = [FastRanker(t0, rec) for rec in self.recs]
+        self.search = (centroid_penalty, seed, maxiter, popsize)
+        self.maxiter = maxiter
+
+    def jobs(self) -> list:
+        """One weight search per quantisation choice, as ``(cost, fn, args)``."""
+        cost = sum(e.n_frames for e in self.rp.events)
+        return [(cost, _search, (self.rp, rec, fr0) + self.search)
+                for rec, fr0 in zip(self.recs, self.rankers)]
+
+    def finish(self, found: list) -> "ClosedLoopResult":
+        """The record from the searches' results (``found``, in :meth:`jobs` order; an exception
+        there is raised here)."""
+        rp, log = self.rp, self.log
+        best, scores, evals = None, {}, 0
+        for rec, fr0, got in zip(self.recs, self.rankers, found):
+            if isinstance(got, BaseException):
+                raise got
+            w, s, n = got
+            evals += n
+            w = scale_to_chi2(fr0, w)
+            rec = rec.replace(weight=tuple(float(x) for x in w))
+            k, nn = rp.top1(rec)
+            q = "on" if rec.quantize else "off"
+            scores[q] = rate(k, nn)
+            log(f"[tune] quantize {q}: closed-loop training top-1 {k}/{nn} "
+                f"(objective {s:.4f}, {n} replays)")
+            if best is None or k > best[1]:
+                best = (rec, k)
+        rec = best[0]
+        final = rp.rates(rec)
+        rec = (threshold_record(rp.training_set(final["replays"]), rec, self.frr, self.kappa)
+               if self.kappa is not None else rec.replace(gof_threshold=0.0))
+        rec = Record.from_toml(rec.to_toml())                       # exactly what the file holds
+        train = {k: v for k, v in rp.rates(rec).items() if k in RATE_KEYS}
+        zeroed = {"top1_closed_loop": rp.rates(centroid_zeroed(rec))["top1_closed_loop"]}
+        log(f"[tune] {self.name}: closed-loop training top-1 {_fmt(train['top1_closed_loop'])}, "
+            f"no prior {_fmt(train['top1_no_prior'])}, truth prior (upper bound) "
+            f"{_fmt(train['top1_truth_prior'])}; centroid weights zeroed "
+            f"{_fmt(zeroed['top1_closed_loop'])}; GOF threshold {rec.gof_threshold:.4g} "
+            f"(kappa {self.kappa})")
+        return ClosedLoopResult(rec, train, zeroed, {}, scores, evals)
+
+
+def _run_searches(optimisations: list, workers: int, progress: bool) -> list:
+    """Every weight search of ``optimisations`` on ``workers`` processes at once -> per
+    optimisation, its searches' results (:meth:`_Optimisation.finish` takes them)."""
+    from .forked import run_jobs
+    jobs = [opt.jobs() for opt in optimisations]
+    flat = [j for js in jobs for j in js]
+    generations = sum(opt.maxiter * len(js) for opt, js in zip(optimisations, jobs))
+    found = run_jobs(flat, workers, generations, "[tune] weight search", "gen", progress)
+    out, i = [], 0
+    for js in jobs:
+        out.append(found[i:i + len(js)])
+        i += len(js)
+    return out
 
 
 def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quantize="auto",
@@ -241,49 +342,10 @@ def optimise_closed_loop(rp: Replayer, base="aurora", frr: float = 0.005, quanti
     wins); ``kappa``: the held-out widening of the ``frr`` quantile distance
     (:func:`cross_validate_closed`'s ``kappa``; None: no GOF threshold). Returns
     :class:`ClosedLoopResult` (its ``cv`` empty: see :func:`cross_validate_closed`)."""
-    if kappa is not None and not kappa >= 1.0:
-        raise ValueError(f"kappa={kappa!r} must be >= 1 or None (no threshold)")
-    base = load_record(base)
-    choices = {"auto": (False, True), "on": (True,), "off": (False,), True: (True,),
-               False: (False,)}.get(quantize)
-    if choices is None:
-        raise ValueError(f"quantize={quantize!r} must be 'auto', 'on' or 'off'")
-    rid = base.record_id if record_id is None else record_id
-    b0 = base.replace(gof_threshold=0.0)
-    t0 = rp.training_set(rp.replays(b0), {"name": "closed-loop"})
-    # the object's features also from windows on the label (training reads labels; no rate does)
-    t_fit = TrainingSet.concat([t0, rp.training_set(rp.replays(b0, "truth"))], {"name": "fit"})
-    fitted = fit_record(t_fit, base=base, name=name, record_id=rid, version=version,
-                        description=f"tuned closed loop (IP + TP) on {len(rp.events)} events "
-                                    f"({rp.n_frames_with_object} frames with the object) of set "
-                                    f"{rp.name!r}")
-    best, scores, evals = None, {}, 0
-    for q in choices:
-        rec = fitted.replace(quantize=bool(q), gof_threshold=0.0)
-        fr0 = FastRanker(t0, rec)
-        w, s, n = _search(rp, rec, fr0, centroid_penalty, seed, maxiter, popsize, progress)
-        evals += n
-        w = scale_to_chi2(fr0, w)
-        rec = rec.replace(weight=tuple(float(x) for x in w))
-        k, nn = rp.top1(rec)
-        scores["on" if q else "off"] = rate(k, nn)
-        log(f"[tune] quantize {'on' if q else 'off'}: closed-loop training top-1 {k}/{nn} "
-            f"(objective {s:.4f}, {n} replays)")
-        if best is None or k > best[1]:
-            best = (rec, k)
-    rec = best[0]
-    final = rp.rates(rec)
-    rec = (threshold_record(rp.training_set(final["replays"]), rec, frr, kappa)
-           if kappa is not None else rec.replace(gof_threshold=0.0))
-    rec = Record.from_toml(rec.to_toml())                       # exactly what the file holds
-    train = {k: v for k, v in rp.rates(rec).items() if k in RATE_KEYS}
-    zeroed = {"top1_closed_loop": rp.rates(centroid_zeroed(rec))["top1_closed_loop"]}
-    log(f"[tune] {name}: closed-loop training top-1 {_fmt(train['top1_closed_loop'])}, no prior "
-        f"{_fmt(train['top1_no_prior'])}, truth prior (upper bound) "
-        f"{_fmt(train['top1_truth_prior'])}; centroid weights zeroed "
-        f"{_fmt(zeroed['top1_closed_loop'])}; GOF threshold {rec.gof_threshold:.4g} "
-        f"(kappa {kappa})")
-    return ClosedLoopResult(rec, train, zeroed, {}, scores, evals)
+    opt = _Optimisation(rp, base=base, frr=frr, quantize=quantize, seed=seed, maxiter=maxiter,
+                        popsize=popsize, centroid_penalty=centroid_penalty, name=name,
+                        record_id=record_id, version=version, log=log, kappa=kappa)
+    return opt.finish(_run_searches([opt], rp.workers, progress)[0])
 
 
 def _fmt(r) -> str:
@@ -376,13 +438,22 @@ def cross_validate_closed(rp: Replayer, folds: int = 3, log=print, **kw) -> dict
     frr = kw.get("frr", 0.005)
     seed0 = kw.pop("seed", 0)
     kw.pop("kappa", None)
-    per, fitted = [], []
+    progress = kw.pop("progress", False)
+    per, fitted, started = [], [], []
     for i, test in enumerate(groups):
         names = {e.name for e in test}
         train = [e for g in groups for e in g if e.name not in names]
         try:
-            res = optimise_closed_loop(rp.subset(train), log=lambda *a, **k: None,
-                                       seed=seed0 + i, **kw)
+            opt = _Optimisation(rp.subset(train), log=lambda *a, **k: None, seed=seed0 + i, **kw)
+        except ValueError as exc:
+            per.append({"fold": i, "error": str(exc)})
+            continue
+        started.append((i, names, train, test, opt))
+    # every fold's weight searches at once (they are independent), then each fold's record
+    for (i, names, train, test, opt), found in zip(
+            started, _run_searches([s[-1] for s in started], rp.workers, progress)):
+        try:
+            res = opt.finish(found)
         except ValueError as exc:
             per.append({"fold": i, "error": str(exc)})
             continue

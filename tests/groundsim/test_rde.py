@@ -56,6 +56,20 @@ def test_filter_and_smoother_equal_filterpy(seed, n, N):
         assert rel(ours, theirs) < 1e-9
 
 
+@pytest.mark.parametrize("seed,n,N", [(4, 12, 41), (5, 18, 50), (6, 5, 1)])
+def test_smoother_means_only_equal_the_full_smoothers(seed, n, N):
+    """covariances=False (the study's smoother: the gain applied to a vector, no eq. 16) gives
+    the means of the full smoother and of filterpy's."""
+    rng = np.random.default_rng(seed)
+    x0, P0, F, Q, Hs, Rs, zs = random_system(rng, n, N)
+    r = kalman_filter(x0, P0, F, Q, Hs, Rs, zs)
+    full = rts_smooth(r.xf, r.Pf, r.xp, r.Pp, F)
+    means = rts_smooth(r.xf, r.Pf, r.xp, r.Pp, F, covariances=False)
+    assert means.Ps.shape == (0, n, n)
+    assert rel(means.xs, full.xs) < 1e-12
+    assert rel(means.xs, filterpy_run(x0, P0, F, Q, Hs, Rs, zs)[4]) < 1e-9
+
+
 def test_varying_measurement_count_matches_filterpy_stepwise():
     rng = np.random.default_rng(7)
     n, N = 5, 40
@@ -289,6 +303,43 @@ def test_cli_rde_study_quick(tmp_path, capsys, monkeypatch):
                  "--out", str(tmp_path)]) == 0
     assert "Figure 3" in capsys.readouterr().out
     assert (tmp_path / "rde_figure3.png").exists()
+
+
+def test_cli_rde_study_same_files_on_one_or_two_workers(tmp_path, capsys, monkeypatch):
+    """The realisations spread over --workers processes (largest tasks first, both figures in
+    one pool); the numbers and files do not depend on how many."""
+    from hil_harness.cli import main
+    import groundsim.assess.rde_study as st
+    orig = st.run_study
+
+    def small(out, **kw):
+        return orig(out, config=StudyConfig(lines_per_scene=10),
+                    figure3_kw=dict(n_scenes_list=(1, 3), densities=(2, 6, 20)), **kw)
+
+    monkeypatch.setattr(st, "run_study", small)
+    outs = []
+    for w in ("1", "2"):
+        assert main(["rde", "study", "--quick", "--realisations", "4", "--workers", w,
+                     "--out", str(tmp_path / w)]) == 0
+        outs.append(capsys.readouterr().out.replace(str(tmp_path / w), "DIR"))
+    assert outs[0] == outs[1]
+    assert (tmp_path / "1" / "rde_study.json").read_bytes() == \
+        (tmp_path / "2" / "rde_study.json").read_bytes()
+
+
+def test_study_tasks_go_out_largest_first_and_come_back_in_order():
+    seen = []
+
+    def spy_map(fn, tasks):
+        tasks = list(tasks)
+        seen.extend(t[1] for t in tasks)            # the interval length L of each task
+        return map(fn, tasks)
+
+    kw = dict(realisations=2, config=StudyConfig(lines_per_scene=4), chunk=1)
+    a = epsilon90_grid([1, 3, 2], (2,), (6.7,), (12,), map=spy_map, **kw)
+    assert seen == [3, 3, 2, 2, 1, 1]
+    b = epsilon90_grid([1, 3, 2], (2,), (6.7,), (12,), **kw)
+    assert np.array_equal(a["eps90_mean"], b["eps90_mean"])
 
 
 def test_empty_interval_filters_and_smooths_to_nothing():

@@ -156,3 +156,30 @@ def test_cross_validation_by_scenario_holds_out_whole_entries():
     assert cv["top1_closed_loop"]["n"] == 24
     with pytest.raises(ValueError, match="must be 'event' or 'scenario'"):
         cross_validate_closed(Replayer(evs, "aurora", 24.0), by="seed")
+
+
+def test_optimise_gives_the_same_record_on_one_or_two_workers(monkeypatch):
+    """The weight searches (every fold's and quantisation choice's) run on ``workers`` forked
+    processes at once; the record, the cross-validation and the log are the same on any number."""
+    from hil_harness.tuning import forked
+    from hil_harness.tuning.closed import Replayer, cross_validate_closed, optimise_closed_loop
+    pools = []
+    parallel = forked._parallel
+    monkeypatch.setattr(forked, "_parallel", lambda jobs, *a: pools.append(len(jobs)) or
+                        parallel(jobs, *a))
+    evs = []
+    for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
+        pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(5)])
+        blobs = [[(*p, 1100.0), (80.0, 190.0, 1400.0, 5.0)] for p in pos]
+        evs.append(FrameSequence(_frames(blobs, seed=s), 0.5 * np.arange(5), "wfov_uv", GEOM,
+                                 truth_row=pos[:, 0], truth_col=pos[:, 1], name=name))
+    out = []
+    for workers in (1, 2):
+        rp = Replayer(evs, "aurora", 24.0, workers=workers)
+        said = []
+        kw = dict(maxiter=2, popsize=1, frr=0.0, quantize="auto", log=said.append)
+        cv = cross_validate_closed(rp, folds=2, by="scenario", **kw)
+        res = optimise_closed_loop(rp, kappa=cv["kappa"] or 1.0, **kw)
+        out.append((res.record.to_toml(), cv, res.quantize_scores, res.evaluations, said))
+    assert pools == [4, 2]                  # 2 folds x 2 quantisations, then the final 2
+    assert out[0] == out[1]
