@@ -49,6 +49,7 @@ from .rde_models import ErrorModel, LandsatGeometry, dislocation_partials, make_
 __all__ = [
     "StudyConfig", "simulate_realisation", "epsilon90_grid", "run_figure2", "run_figure3",
     "run_study", "density_needed", "plot_figure2", "plot_figure3", "CALIBRATION_NOTE",
+    "load_kernels",
 ]
 
 
@@ -164,6 +165,13 @@ def simulate_realisation(config: StudyConfig, n_scenes: int, densities: Sequence
                 d_est = np.einsum("cij,kj->kci", H_eval, xs[eval_idx])
                 res[di, si, ni] = np.sqrt(((d_true - d_est) ** 2).sum(axis=-1)).ravel()
     return np.percentile(res, config.percentile, axis=-1)
+
+
+def load_kernels(config: StudyConfig | None = None, n_states: Sequence[int] = (18, 12)) -> None:
+    """Compile (first run) or load from numba's cache the filter and smoother of every estimator
+    size, in this process: called before a pool forks its workers, they inherit them instead of
+    each compiling or loading its own."""
+    simulate_realisation(config or StudyConfig(), 1, (1,), (1.0,), tuple(n_states), (0,))
 
 
 def _study_task(task):

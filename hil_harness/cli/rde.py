@@ -102,6 +102,16 @@ def available_cores() -> int:
         return os.cpu_count() or 1
 
 
+def _pool(workers: int):
+    """A process pool whose workers fork from this process where the system can (they inherit
+    the kernels :func:`groundsim.assess.rde_study.load_kernels` loaded)."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    ctx = (multiprocessing.get_context("fork") if "fork" in multiprocessing.get_all_start_methods()
+           else None)
+    return ProcessPoolExecutor(workers, mp_context=ctx)
+
+
 def _check_study_args(args) -> None:
     if args.out is None:
         args.out = "rde_sensitivity" if args.sensitivity else "rde_study"
@@ -144,8 +154,7 @@ def _sensitivity(args) -> int:
 
     try:
         if args.workers > 1:
-            from concurrent.futures import ProcessPoolExecutor
-            with ProcessPoolExecutor(args.workers) as ex:
+            with _pool(args.workers) as ex:
                 res = run_sensitivity(args.out, realisations=args.realisations, map=ex.map,
                                       progress=progress, **kw)
         else:
@@ -171,13 +180,14 @@ def _with_heartbeat(results, total: int):
 
 
 def _study(args) -> int:
-    from groundsim.assess.rde_study import CALIBRATION_NOTE, run_study
+    from groundsim.assess.rde_study import CALIBRATION_NOTE, load_kernels, run_study
     _check_study_args(args)
+    if args.workers > 1:
+        load_kernels()          # once, here: the forked workers inherit them
     if args.sensitivity:
         return _sensitivity(args)
     if args.workers > 1:
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers) as ex:
+        with _pool(args.workers) as ex:
             res = run_study(args.out, realisations=args.realisations, quick=args.quick,
                             map=_with_progress(ex.map))
     else:
