@@ -164,7 +164,9 @@ class _CompileWatch:
             self.bar.close()
             self.bar = None
         if self.beat is not None:
-            self.beat.close()
+            if self.beat.said:              # the compile time, not the run's since the start
+                note(f"compiling: {self.beat.n}/{self.beat.total} kernels done "
+                     f"({self.seconds:.0f} s compiling)")
             self.beat = None
 
 

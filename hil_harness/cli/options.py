@@ -1,5 +1,8 @@
-"""Options several subcommands share: ``--with`` (the proposals in force, :mod:`flightsw.proposals`)."""
+"""Options several subcommands share: ``--with`` (the proposals in force, :mod:`flightsw.proposals`),
+the seed's bounds, bounded numbers, and ``--workers``' default (:func:`available_cores`)."""
 from __future__ import annotations
+
+import os
 
 #: the largest seed any command takes: a signed 64-bit integer, as recordings store it (the same
 #: bound as :data:`groundsim.scenario.MAX_SEED`, not imported: the parser is built without groundsim)
@@ -7,6 +10,15 @@ MAX_SEED = 2 ** 63 - 1
 
 WITH_HELP = ("candidate flight-software changes to switch on (names from `uvisi proposals`, "
              "comma-separated, or 'all'); default none: the paper's system")
+
+
+def available_cores() -> int:
+    """The cores this process may run on (its CPU affinity; all of the machine's elsewhere): the
+    default of every ``--workers``."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:                  # not Linux
+        return os.cpu_count() or 1
 
 
 def add_with_option(p) -> None:

@@ -35,7 +35,7 @@ from __future__ import annotations
 import json
 import os
 
-from hil_harness.cli.options import MAX_SEED, number
+from hil_harness.cli.options import MAX_SEED, available_cores, number
 from hil_harness.console import Heartbeat
 
 
@@ -92,14 +92,6 @@ def _with_progress(base_map):
         return tqdm(base_map(fn, tasks), total=len(tasks), desc="rde study", unit="task",
                     leave=False)
     return mapped
-
-
-def available_cores() -> int:
-    """The cores this process may run on (its CPU affinity; all of the machine's elsewhere)."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:                  # not Linux
-        return os.cpu_count() or 1
 
 
 def _pool(workers: int):

@@ -227,7 +227,7 @@ def _replayer(args):
     print(f"[tune] set {spec.name}: {len(evs)} events, {sum(e.n_frames for e in evs)} frames "
           f"({nobj} with the object) ({time.perf_counter() - t0:.1f} s)")
     # the closed-loop replays run the TP in target-of-opportunity mode (no velocity filter)
-    from hil_harness.cli.rde import available_cores
+    from hil_harness.cli.options import available_cores
     return Replayer(evs, spec.sequence, event_radius(spec), spec.base_dir, spec.name,
                     proposals=with_names(args, "opportunity") or (),
                     workers=args.workers or available_cores())
