@@ -129,7 +129,7 @@ def _feature_table(features, r0, c0):
     return t
 
 
-def _same_objects(feats, name, ours=None, n=50):
+def same_objects(feats, name, ours=None, n=50):
     """The peer's (n, 12) features describe our objects: same count; each of ours matched to the
     peer's nearest centroid (and every peer centroid within 0.1 px of one of ours); on the matched
     pairs the area, total and peak brightness equal ours exactly and every other feature agrees to
@@ -225,7 +225,7 @@ def _skimage_features(img, on=None):
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_skimage_regionprops(benchmark):
     f = _skimage_features(WINDOW)
-    _same_objects(f, "skimage")
+    same_objects(f, "skimage")
     benchmark(_skimage_features, WINDOW)
 
 
@@ -254,7 +254,7 @@ def _fg_moments(img, on, lab, n):
     return cnt, s, rm, cm, cc2, rr2, rc, mx[1:]
 
 
-def _cv2_features(img, on=None):
+def cv2_features(img, on=None):
     """OpenCV 8-connected labelling + the intensity moments over the foreground pixels
     (:func:`_fg_moments`). `cv2.connectedComponents` rather than `...WithStats`: the stats' only
     column the features use is the area (one bincount here), its centroids are unweighted, and
@@ -269,8 +269,8 @@ def _cv2_features(img, on=None):
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_cv2_label_bincount(benchmark):
     pytest.importorskip("cv2")
-    _same_objects(_cv2_features(WINDOW), "cv2")
-    benchmark(_cv2_features, WINDOW)
+    same_objects(cv2_features(WINDOW), "cv2")
+    benchmark(cv2_features, WINDOW)
 
 
 def _scipy_features(img, on=None):
@@ -282,7 +282,7 @@ def _scipy_features(img, on=None):
 
 @pytest.mark.benchmark(group=G_BACK)
 def test_backend_scipy_bincount(benchmark):
-    _same_objects(_scipy_features(WINDOW), "scipy")
+    same_objects(_scipy_features(WINDOW), "scipy")
     benchmark(_scipy_features, WINDOW)
 
 
@@ -343,7 +343,7 @@ _FRAME_FEATURES = _feature_table(_REF.backend.features, 90.0, 96.0)
 
 
 def _frame_same(feats, name):
-    _same_objects(feats, name, _FRAME_FEATURES, _REF.backend.count)
+    same_objects(feats, name, _FRAME_FEATURES, _REF.backend.count)
 
 
 @pytest.mark.benchmark(group=G_FRAME)
@@ -387,9 +387,9 @@ def test_process_frame_skimage_label_regionprops(benchmark):
 @pytest.mark.benchmark(group=G_FRAME)
 def test_process_frame_cv2_label_bincount(benchmark):
     pytest.importorskip("cv2")
-    f = _cv2_features(_WIN, _ON)
+    f = cv2_features(_WIN, _ON)
     _frame_same(f, "cv2")
-    benchmark(lambda: _cv2_features(_WIN, _WIN > _THRESH))
+    benchmark(lambda: cv2_features(_WIN, _WIN > _THRESH))
 
 
 @pytest.mark.benchmark(group=G_FRAME)

@@ -15,7 +15,7 @@ the message's 23 and those below the record's GOF threshold dropped.
 
 The peer is put together from the suites' checked pieces, imported, not copied:
 ``bench_ip_frontend.opencv_chain`` (``cv2.resize`` INTER_AREA, ``sepFilter2D`` with our taps,
-``filter2D``, ``meanStdDev``: our binary window pixel for pixel), ``bench_ip_backend._cv2_features``
+``filter2D``, ``meanStdDev``: our binary window pixel for pixel), ``bench_ip_backend.cv2_features``
 (``cv2.connectedComponents``, 8-connected, then the moments over the foreground pixels, one
 ``np.bincount`` a moment, and the twelve features in float64), the normalisation as one
 multiply-add of the (n, 12) table, and ``bench_fullframe.OpenCVChain.rank`` (the record's
@@ -31,8 +31,8 @@ import numpy as np
 import pytest
 
 from bench.bench_fullframe import OpenCVChain
-from bench.bench_ip_backend import _cv2_features, _same_objects
-from bench.bench_ip_frontend import (FRAME, REF, RECORD, SEQ, H, W, _agree, _step_processor,
+from bench.bench_ip_backend import cv2_features, same_objects
+from bench.bench_ip_frontend import (FRAME, REF, RECORD, SEQ, H, W, agree, time_step,
                                      opencv_chain)
 from flightsw.ip.frame import process_frame
 from flightsw.ip.rank import flight_gof
@@ -95,7 +95,7 @@ def ours():
 def _features(mask):
     """The peer's normalised (n, 12) feature table of the int16 0/1 window ``mask``: labelling
     and moments of the foreground (``mask > 0``) with every pixel's weight its word, 1."""
-    return _cv2_features(mask, mask > 0) * SCALE + OFFSET
+    return cv2_features(mask, mask > 0) * SCALE + OFFSET
 
 
 def opencv_whole_chain():
@@ -118,14 +118,14 @@ D_RTOL = 1e-5
 def _check():
     """The peer does our job: same window, objects, features, distances, order and candidates."""
     mask = opencv_chain()
-    _agree(mask)                                        # the binary window, pixel for pixel
+    agree(mask)                                        # the binary window, pixel for pixel
     # the record's centroid means this frame: ours the window centre, the peer's the frame centre
     assert (O0 + H * F / 2, O1 + W * F / 2) == (FRAME.shape[0] / 2, FRAME.shape[1] / 2)
     assert list(PEER.mean[1:3]) == [O1 + W * F / 2, O0 + H * F / 2]
     be = _RES.backend
     mine = _table(be.features)
     peer = _features(mask)
-    _same_objects(peer, "opencv whole chain", mine, be.count)
+    same_objects(peer, "opencv whole chain", mine, be.count)
     j = np.hypot(mine[:, None, 2] - peer[None, :, 2], mine[:, None, 1] - peer[None, :, 1]).argmin(1)
     assert sorted(j.tolist()) == list(range(be.count))                 # one to one
     d_ours = be.decoded_distances()
@@ -164,21 +164,8 @@ def test_ours_process_frame(benchmark):
 def test_ours_imageprocessor_step(benchmark):
     """``ImageProcessor.step`` as bench/bench_ip_frontend.py times it (the command words read and
     checked, the frame's range checked, the candidate words out), on the same frame and window."""
-    ip, cmd = _step_processor()
-    first = ip.step(FRAME, frame_count=0, time_tag=0.0, imager="wfov_vis", command_words=cmd,
-                    want_stages=True)
-    np.testing.assert_array_equal(first.result.stages[-3].image, REF)   # the threshold stage
+    _, first = time_step(benchmark)
     assert np.array_equal(first.result.pack, _RES.pack)      # the back end's words: ours above
-    state = {"k": 0}
-
-    def step():
-        k = state["k"] = state["k"] + 1
-        return ip.step(FRAME, frame_count=k, time_tag=0.5 * k, imager="wfov_vis",
-                       command_words=cmd).words
-
-    words = benchmark(step)
-    assert ip.alpha.q12 == th.alpha_to_q12(4) and ip.rejected_commands == 0
-    assert np.array_equal(words[7:11], [58, 64, 64, 64])      # the peer's window (full-res origin)
 
 
 @pytest.mark.benchmark(group=GROUP)

@@ -107,7 +107,7 @@ def opencv_chain():
 REF = process_frame(FRAME, SEQ, RECORD, want_stages=True).stages[-3].image   # the threshold
 
 
-def _agree(other):
+def agree(other):
     """The peer's binary mask is ours, pixel for pixel (fixed-point rounding could flip a pixel
     sitting on the threshold; on this frame none does)."""
     assert REF.sum() > 5                     # the sources are found
@@ -120,7 +120,7 @@ def test_ours_frontend(benchmark):
     assert res.backend.count >= 1 and res.context["threshold"]["alpha_q12"] == th.alpha_to_q12(4)
 
 
-def _step_processor():
+def step_processor():
     """The IP as the closed loop holds it, and the TP's command it reads each frame: locked, the
     prediction at the frame centre (so the window is the peers' and alpha stays at 4)."""
     from flightsw.ip import ImageProcessor
@@ -130,12 +130,10 @@ def _step_processor():
     return ImageProcessor(SEQ, RECORD), cmd
 
 
-@pytest.mark.benchmark(group=GROUP)
-def test_ours_imageprocessor_step(benchmark):
-    """The loop's own call on the same frame: ``ImageProcessor.step`` with the frame count and
-    time tag, the command words read and checked, the frame's range checked, the candidate words
-    out (the front end's peers do none of that)."""
-    ip, cmd = _step_processor()
+def time_step(benchmark):
+    """Time ``ImageProcessor.step`` on the frame (:func:`step_processor`), its threshold stage
+    checked against ours first; returns the processor and its first result (the stages kept)."""
+    ip, cmd = step_processor()
     first = ip.step(FRAME, frame_count=0, time_tag=0.0, imager="wfov_vis", command_words=cmd,
                     want_stages=True)
     np.testing.assert_array_equal(first.result.stages[-3].image, REF)     # the threshold stage
@@ -149,11 +147,20 @@ def test_ours_imageprocessor_step(benchmark):
     words = benchmark(step)
     assert ip.alpha.q12 == th.alpha_to_q12(4) and ip.rejected_commands == 0
     assert np.array_equal(words[7:11], [58, 64, 64, 64])      # the peers' window (full-res origin)
+    return ip, first
+
+
+@pytest.mark.benchmark(group=GROUP)
+def test_ours_imageprocessor_step(benchmark):
+    """The loop's own call on the same frame: ``ImageProcessor.step`` with the frame count and
+    time tag, the command words read and checked, the frame's range checked, the candidate words
+    out (the front end's peers do none of that)."""
+    time_step(benchmark)
 
 
 @pytest.mark.benchmark(group=GROUP)
 def test_scipy_ndimage_chain(benchmark):
-    _agree(scipy_chain())
+    agree(scipy_chain())
     benchmark(scipy_chain)
 
 
@@ -166,7 +173,7 @@ def test_opencv_float32_chain(benchmark):
     assert cv2.resize(blocks, (3, 1), interpolation=cv2.INTER_AREA).tolist() == [[1, 3, 4095]]
     blk = FRAME[2 * R0:2 * (R0 + H), 2 * C0:2 * (C0 + W)]
     np.testing.assert_array_equal(cv2.resize(blk, (W, H), interpolation=cv2.INTER_AREA), IMG)
-    _agree(opencv_chain())
+    agree(opencv_chain())
     benchmark(opencv_chain)
 
 
