@@ -10,7 +10,7 @@ import os
 import sys
 
 __all__ = ["QUIET", "NORMAL", "VERBOSE", "set_level", "level", "progress_enabled", "note", "debug",
-           "watch_compilation", "compile_seconds", "Heartbeat"]
+           "watch_compilation", "compile_seconds", "compile_counts", "Heartbeat"]
 
 QUIET, NORMAL, VERBOSE = 0, 1, 2
 _state = {"level": NORMAL}
@@ -196,6 +196,13 @@ def watch_compilation() -> None:
     _watch["w"] = w
     import atexit
     atexit.register(w.close)
+
+
+def compile_counts() -> tuple[int, int]:
+    """(kernels compiled, kernels to compile) as the compile bar counts them, in this process
+    since :func:`watch_compilation` ((0, 0) before it)."""
+    w = _watch.get("w")
+    return (len(w.done), len(w.planned)) if w is not None else (0, 0)
 
 
 def compile_seconds() -> float:
