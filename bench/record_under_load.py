@@ -24,6 +24,13 @@ event`` calls it, and the thread CPU time (``time.thread_time``) of the writer's
 loop's steps is summed over one event after a warm-up one (the figures of that process: ``record
 cpu``, ``loop cpu``, us a frame; ``record`` and ``median`` as above, from the wall clock).
 
+``--pair COMMIT`` compares this tree's recorder with COMMIT's in one process (thread CPU):
+COMMIT's ``hil_harness/event/io.py`` and ``recording.py`` (``git show``) are loaded as a package
+of their own beside this tree's other event modules, and the two recorders record the same
+event's frames in turn (ROUNDS events each, in the order ABBA..., after a warm-up pair), so that
+the host's changes of speed fall on both alike; it prints each one's median thread CPU a frame
+(the writer's calls; of which the block writes, ``Recorder.flush``) and the paired ratios.
+
 With several ``--tree`` checkouts (``--tree /path/to/a --tree /path/to/b``, each one's root on
 ``PYTHONPATH`` for its runs) the trees take turns within each round, so that an A/B sees the same
 load; the last lines give each tree's median of each figure. On a 2-core machine ``--busy 2``
@@ -134,6 +141,98 @@ def cpu_run(tree: Path, busy: int, settle_s: float = 2.0) -> dict:
                 load_after=load1)
 
 
+#: the ``--pair`` run: both recorders in one process, events alternated; prints one JSON object
+PAIR_CHILD = """
+import importlib, json, statistics, sys, tempfile, time
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, {pkg_dir!r})
+from hil_harness.event import Event, EventConfig
+from hil_harness.event import io as new_io, recording as new_rec
+old_io = importlib.import_module({pkg!r} + ".io")
+old_rec = importlib.import_module({pkg!r} + ".recording")
+V = {{"old": (old_rec.Recorder, old_io.EventWriter), "new": (new_rec.Recorder, new_io.EventWriter)}}
+flush = {{v: [0.0] for v in V}}
+for v, (R, _) in V.items():
+    def timed(self, _f=R.flush, _acc=flush[v]):
+        c = time.thread_time()
+        try:
+            return _f(self)
+        finally:
+            _acc[0] += time.thread_time() - c
+    R.flush = timed
+ev = Event(EventConfig("satellite_over_stars"), keep_frames=False)
+ev.run()
+out = {{v: {{"record_cpu_us": [], "flush_cpu_us": [], "loop_cpu_us": []}} for v in V}}
+order = []
+for i in range({rounds} + 1):
+    order += ["old", "new"] if i % 2 == 0 else ["new", "old"]
+with tempfile.TemporaryDirectory() as tmp:
+    for j, v in enumerate(order):
+        R, W = V[v]
+        f0 = flush[v][0]
+        ev.reset()
+        rec = R(Path(tmp) / str(j) / "recording.h5")
+        w = W(rec, ev, True)
+        rc = lc = 0.0
+        n = 0
+        while not ev.done:
+            c0 = time.thread_time()
+            o = ev.step()
+            c1 = time.thread_time()
+            w(o)
+            if ev.done:
+                w.drain()
+            o.frame = None
+            lc += c1 - c0
+            rc += time.thread_time() - c1
+            n += 1
+        rec.close()
+        if j >= 2:
+            out[v]["record_cpu_us"].append(1e6 * rc / n)
+            out[v]["flush_cpu_us"].append(1e6 * (flush[v][0] - f0) / n)
+            out[v]["loop_cpu_us"].append(1e6 * lc / n)
+ratios = [b / a for a, b in zip(out["old"]["record_cpu_us"], out["new"]["record_cpu_us"])]
+print(json.dumps(dict(out, ratio=ratios)))
+"""
+
+
+def pair_run(commit: str, rounds: int, busy: int, settle_s: float = 2.0) -> dict:
+    """:data:`PAIR_CHILD`: this tree's recorder and ``commit``'s in one process, beside ``busy``
+    busy loops; the per-event figures of each, the paired ratios and the load."""
+    import tempfile as _tf
+    with _tf.TemporaryDirectory() as tmp:
+        pkg = "recorder_at_" + "".join(c for c in commit if c.isalnum())
+        d = Path(tmp) / pkg
+        d.mkdir()
+        (d / "__init__.py").write_text("")
+        for m in sorted((ROOT / "hil_harness" / "event").glob("*.py")):
+            if m.stem in ("__init__", "io", "recording"):
+                continue
+            (d / m.name).write_text(                  # this tree's module, every name of it
+                f"import importlib\n_m = importlib.import_module('hil_harness.event.{m.stem}')\n"
+                "globals().update({k: getattr(_m, k) for k in dir(_m) if k[:2] != '__'})\n")
+        for m in ("io", "recording"):
+            (d / f"{m}.py").write_text(subprocess.run(
+                ["git", "show", f"{commit}:hil_harness/event/{m}.py"], cwd=ROOT, check=True,
+                capture_output=True, text=True).stdout)
+        env = dict(os.environ, PYTHONPATH=str(ROOT))
+        procs = _busy(busy)
+        try:
+            time.sleep(settle_s if busy else 0.0)
+            load0 = os.getloadavg()[0]
+            p = subprocess.run([sys.executable, "-c", PAIR_CHILD.format(
+                pkg_dir=tmp, pkg=pkg, rounds=rounds)], cwd=ROOT, env=env, capture_output=True,
+                text=True)
+            load1 = os.getloadavg()[0]
+        finally:
+            _stop(procs)
+    if p.returncode != 0:
+        raise SystemExit(f"the paired run failed:\n{p.stderr[-2000:]}")
+    return dict(json.loads(p.stdout.strip().splitlines()[-1]), busy=busy, load_before=load0,
+                load_after=load1)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(prog="python -m bench.record_under_load",
                                  description=__doc__.split("\n\n")[0])
@@ -143,8 +242,12 @@ def main(argv=None) -> int:
                     help="a checkout whose code runs (repeat for an A/B; default: this one)")
     ap.add_argument("--cpu", action="store_true",
                     help="the recorder's and the loop's thread CPU time, in one process")
+    ap.add_argument("--pair", metavar="COMMIT",
+                    help="this tree's recorder against COMMIT's, in one process (thread CPU)")
     ap.add_argument("--json", action="store_true", help="one JSON object per run")
     a = ap.parse_args(argv)
+    if a.pair:
+        return _pair_main(a)
     trees = [t.resolve() for t in (a.tree or [ROOT])]
     names = {t: t.name for t in trees}
     if a.cpu:
@@ -198,6 +301,24 @@ def _cpu_main(a, trees: list, names: dict) -> int:
             print(f"{names[t][-12:]:>12} {'median':>9} {med['record_cpu_us']:10.0f} "
                   f"{med['loop_cpu_us']:8.0f} {med['mean_record_us']:7.0f} "
                   f"{med['median_frame_us']:7.0f}")
+    return 0
+
+
+def _pair_main(a) -> int:
+    r = pair_run(a.pair, a.rounds, a.busy)
+    if a.json:
+        print(json.dumps(r))
+        return 0
+    med = statistics.median
+    print(f"satellite_over_stars, {a.pair}'s recorder and this tree's in one process, "
+          f"{a.rounds} events each; {a.busy} busy loops; load {r['load_before']:.2f}-"
+          f"{r['load_after']:.2f}; us a frame (thread CPU), median")
+    for v, name in (("old", a.pair), ("new", "this tree")):
+        x = r[v]
+        print(f"{name[-12:]:>12}: recorder {med(x['record_cpu_us']):5.0f} (block writes "
+              f"{med(x['flush_cpu_us']):5.0f}), loop {med(x['loop_cpu_us']):5.0f}")
+    print(f"this tree / {a.pair}, paired: {med(r['ratio']):.2f} "
+          f"({min(r['ratio']):.2f}-{max(r['ratio']):.2f})")
     return 0
 
 
