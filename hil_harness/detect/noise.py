@@ -47,30 +47,21 @@ def _walk(x, m, use_mask, step, out):
     k = 0
     nxt = 0                                   # the next difference to store (a counter, no modulo)
     j = 0
-    for r in range(H):
-        for c in range(W - 2):
-            if use_mask and not (m[r, c] and m[r, c + 1] and m[r, c + 2]):
-                continue
-            d = np.float64(x[r, c]) - 2.0 * np.float64(x[r, c + 1]) + np.float64(x[r, c + 2])
-            if not np.isfinite(d):
-                continue
-            if pick and k == nxt:
-                out[j] = d
-                j += 1
-                nxt += step
-            k += 1
-    for r in range(H - 2):
-        for c in range(W):
-            if use_mask and not (m[r, c] and m[r + 1, c] and m[r + 2, c]):
-                continue
-            d = np.float64(x[r, c]) - 2.0 * np.float64(x[r + 1, c]) + np.float64(x[r + 2, c])
-            if not np.isfinite(d):
-                continue
-            if pick and k == nxt:
-                out[j] = d
-                j += 1
-                nxt += step
-            k += 1
+    for vertical in range(2):                # the horizontal differences, then the vertical
+        dr, dc = vertical, 1 - vertical
+        for r in range(H - 2 * dr):
+            for c in range(W - 2 * dc):
+                if use_mask and not (m[r, c] and m[r + dr, c + dc] and m[r + 2 * dr, c + 2 * dc]):
+                    continue
+                d = (np.float64(x[r, c]) - 2.0 * np.float64(x[r + dr, c + dc])
+                     + np.float64(x[r + 2 * dr, c + 2 * dc]))
+                if not np.isfinite(d):
+                    continue
+                if pick and k == nxt:
+                    out[j] = d
+                    j += 1
+                    nxt += step
+                k += 1
     return k
 
 
