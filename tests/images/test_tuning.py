@@ -305,6 +305,32 @@ def test_committed_wic_labels_follow_the_documented_procedure():
             assert pos == pytest.approx(redo[i], abs=0.051)
 
 
+@pytest.mark.parametrize("night", ["2008", "2014"])
+def test_committed_gill_labels_follow_the_documented_procedure(night):
+    """Every 7th frame re-labelled by the procedure equals the committed CSV (to its 0.1-px
+    rounding); the frames judged to show no aurora are blank; the header's SHA-256 is the file's."""
+    import hashlib
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("mkg", ROOT / "data/labels/make_gill_labels.py")
+    mk = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mk)
+    images, csv_path, median, sigmas, blank, _ = mk.NIGHTS[night]
+    labels = load_labels(csv_path)
+    img = np.load(images)["img"]
+    assert len(labels) == len(img)
+    from hil_harness.field import find_field
+    region = mk.search_region(night, img.shape[1:], find_field(img[0].astype(np.float64)))
+    for i in range(0, len(img), 7):
+        pos = labels[(images.name, i)]
+        if i in blank:
+            assert pos is None
+        else:
+            r, c, _ = mk.brightest_structure(img[i], region, median, sigmas)
+            assert pos == pytest.approx((r, c), abs=0.051)
+    head = [ln for ln in csv_path.read_text().splitlines() if ln.startswith("# image:")]
+    assert head == [f"# image: {images.name} sha256={hashlib.sha256(images.read_bytes()).hexdigest()}"]
+
+
 def test_real_wic_set_and_held_out_frames():
     spec = {"set": {"name": "wic", "sequence": "aurora"},
             "real": [{"images": str(WIC), "labels": str(WIC_LABELS), "radius_px": 25.0,
