@@ -48,7 +48,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["Field", "find_field", "circle_field", "mask_field", "parse_circle", "resolve_field",
-           "whole_frame", "compact_mask", "inside", "WORK_SIZE",
+           "sequence_field", "whole_frame", "compact_mask", "inside", "WORK_SIZE",
            "CORNER_SPREAD", "MIN_CONTRAST_SIGMA", "EDGE_LEVEL", "EDGE_STEP", "MIN_INLIERS",
            "MIN_IN_FRAME", "RIM_MARGIN"]
 
@@ -303,3 +303,15 @@ def inside(mask, rows, cols) -> np.ndarray:
     out = np.zeros(r.shape, bool)
     out[ok] = m[r[ok], c[ok]]
     return out
+
+
+def sequence_field(frames, mask=None, circle=None) -> Field:
+    """One field for a whole sequence (one imager): the user's ``mask`` (2-D array) or ``circle``
+    ((row, col, radius)), else :func:`find_field` on the per-pixel median of up to 16 evenly
+    spaced frames (a passing bright form does not move the field). ``frames``: a list of objects
+    with ``.data`` (2-D arrays of one shape: :class:`hil_harness.images.InputFrame`)."""
+    pick = np.unique(np.linspace(0, len(frames) - 1, min(16, len(frames))).round().astype(int))
+    stack = np.array([np.asarray(frames[i].data, np.float64) for i in pick])
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(stack, axis=0) if stack.shape[0] > 1 else stack[0]
+    return resolve_field(med, mask, circle)

@@ -65,10 +65,12 @@ def register(sub) -> None:
                    help="image files in order (FITS, TIFF, PNG, NPY, NPZ; a cube gives one frame "
                         "per plane)")
     p.add_argument("--record", required=True,
-                   help="a priori record: shipped name (aurora, star, satellite, plume) or .toml")
+                   help="a priori record: shipped name (aurora, aurora_allsky, aurora_surge, star, "
+                        "streak, satellite, plume) or .toml")
     p.add_argument("--sequence", default=None,
-                   help="processing sequence: shipped name or .toml (default: 'aurora' for an "
-                        "aurora record, else 'satellite')")
+                   help="processing sequence: shipped name or .toml (default: a job record's own "
+                        "sequence, as in uvisi detect; else 'aurora' for an aurora record, "
+                        "'satellite' for the others)")
     p.add_argument("--json", required=True, help="output JSON file")
     p.add_argument("--plot", default=None, help="PNG: the track over the last good frame")
     p.add_argument("--frame-dt", type=float, default=NOMINAL_DT,
@@ -84,23 +86,12 @@ def register(sub) -> None:
     p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
-def sequence_field(frames, mask=None, circle=None):
-    """One field for a whole sequence (one imager): the user's ``mask`` (2-D array) or ``circle``
-    ((row, col, radius)), else :func:`hil_harness.field.find_field` on the per-pixel median of up
-    to 16 evenly spaced frames (a passing bright form does not move the field)."""
-    from hil_harness.field import resolve_field
-    pick = np.unique(np.linspace(0, len(frames) - 1, min(16, len(frames))).round().astype(int))
-    stack = np.array([np.asarray(frames[i].data, np.float64) for i in pick])
-    with np.errstate(all="ignore"):
-        med = np.nanmedian(stack, axis=0) if stack.shape[0] > 1 else stack[0]
-    return resolve_field(med, mask, circle)
-
-
 def read_sequence(paths, no_scale: bool = False, channel: str = "l", mask=None, circle=None):
     """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags,
     field). ``channel``, ``mask``, ``circle``: as ``uvisi detect`` takes them."""
     from tqdm import tqdm
 
+    from hil_harness.field import sequence_field
     from hil_harness.images import frame_flags, read_images, scale_note, to_counts
     frames = read_images(paths, channel)
     if not frames:
@@ -129,10 +120,17 @@ def read_sequence(paths, no_scale: bool = False, channel: str = "l", mask=None, 
             [f.time_utc for f in frames], field)
 
 
-def _sequence(name, record, shape):
+def default_track_sequence(record, shape, name=None):
+    """The sequence ``uvisi track`` runs: ``name`` (shipped name or .toml) when given; else a job
+    record's own sequence (:data:`hil_harness.detect.jobs.JOBS`: ``aurora_allsky`` runs
+    ``aurora_allsky``, as in ``uvisi detect``); else by object type: aurora -> ``aurora``,
+    anything else -> ``satellite``. Set for frames of ``shape`` (H, W)."""
+    from hil_harness.detect.jobs import JOBS
     from hil_harness.tuning.data import load_sequence
     if name is None:
-        name = "aurora" if record.object_type == "aurora" else "satellite"
+        own = {rec: seq for seq, rec, _ in JOBS.values()}
+        name = own.get(record.name) or ("aurora" if record.object_type == "aurora"
+                                        else "satellite")
     return load_sequence(name, None, tuple(shape))
 
 
@@ -164,11 +162,12 @@ def _frame_entry(k, name, tag, rf, scale, flags) -> dict:
 
 
 def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None,
-                   proposals=()):
+                   proposals=(), keep_blobs=False):
     """IP + TP over ``counts`` (uint16 [F, H, W]) -> (list of ReplayFrame, ImagerGeometry).
 
     ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames);
-    ``proposals``: those in force (default none: the paper's system)."""
+    ``proposals``: those in force (default none: the paper's system); ``keep_blobs``: keep each
+    frame's rank and colour images (``ReplayFrame.ranks``, ``.colours``)."""
     from hil_harness.tuning.closed_loop import FrameSequence, replay
     from hil_harness.tuning.events import imager_geometry
     if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
@@ -179,7 +178,8 @@ def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, 
     geom = imager_geometry("real", fov, counts.shape[1:])
     ev = FrameSequence(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
                      name="input", object_type=record.object_type)
-    return replay(ev, sequence, record, "tp", skip=skip, proposals=proposals), geom, fov
+    return (replay(ev, sequence, record, "tp", skip=skip, proposals=proposals,
+                   keep_blobs=keep_blobs), geom, fov)
 
 
 def _write_json(path, obj):
@@ -204,7 +204,7 @@ def run(args) -> int:
     from hil_harness.images import unusable
     names, counts, scales, flags, tags, field = read_sequence(
         args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle)
-    seq = _sequence(args.sequence, record, counts.shape[1:])
+    seq = default_track_sequence(record, counts.shape[1:], args.sequence)
     skip = np.array([unusable(f) for f in flags])
     for n, f, s in zip(names, flags, skip):
         if f:

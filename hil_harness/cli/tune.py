@@ -230,7 +230,7 @@ def _replayer(args):
     from hil_harness.cli.options import available_cores
     return Replayer(evs, spec.sequence, event_radius(spec), spec.base_dir, spec.name,
                     proposals=with_names(args, "opportunity") or (),
-                    workers=args.workers or available_cores())
+                    workers=args.workers or available_cores(), object_rule=spec.object_rule)
 
 
 def _rate_text(r) -> str:

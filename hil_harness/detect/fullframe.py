@@ -127,19 +127,30 @@ def _single(img12, seq, record, f, size, max_candidates, mode_text):
     feats = words_to_struct(res.backend.feature_words[res.backend.order])
     return dict(mode=mode_text(res.subimage), windows=1, feats=feats,
                 distance=res.message.candidates["distance"], gof=res.message.candidates["gof"],
-                thresholded=_threshold_canvas(res, img12.shape, f))
+                thresholded=_threshold_canvas(res, img12.shape, f),
+                ranks=_rank_canvas(res, img12.shape, f))
 
 
 def _threshold_canvas(res, shape, f):
     """The threshold stage's window image placed in a zero compacted frame (int16 [H // f,
     W // f]), or None when the sequence has no threshold step."""
-    sub = res.subimage
     stage = [st for st in res.stages if st.data is not None and st.name != "colour"
              and st.name != "rank"]
     if not stage:
         return None
-    img = np.asarray(stage[-1].image)
-    out = np.zeros((shape[0] // f, shape[1] // f), np.int16)
+    return _canvas(res.subimage, np.asarray(stage[-1].image), shape, f, np.int16)
+
+
+def _rank_canvas(res, shape, f):
+    """The rank stage (each reported blob's pixels numbered by its rank, 1 = best) placed in a
+    zero compacted frame (int32 [H // f, W // f])."""
+    stage = [st for st in res.stages if st.name == "rank"]
+    return _canvas(res.subimage, np.asarray(stage[0].image), shape, f, np.int32) if stage else None
+
+
+def _canvas(sub, img, shape, f, dtype):
+    """``img`` (a window's stage image) at the window's compacted origin in a zero frame."""
+    out = np.zeros((shape[0] // f, shape[1] // f), dtype)
     r0, c0 = sub.origin
     h, w = min(img.shape[0], out.shape[0] - r0), min(img.shape[1], out.shape[1] - c0)
     out[r0:r0 + h, c0:c0 + w] = img[:h, :w]
@@ -159,7 +170,9 @@ def detect_frame(img12, seq, record, compaction, window_mode="full", max_candida
     centre). Returns a dict: ``mode`` (text),
     ``windows`` (int), ``feats`` (structured [m], FEATURE_DTYPE, best first), ``distance`` and
     ``gof`` (float [m]), and in the compiled full-frame mode ``thresholded`` (int16
-    [H // f, W // f], the image the back end labelled; absent in the other modes).
+    [H // f, W // f], the image the back end labelled; absent in the other modes); in the
+    one-window modes ``ranks`` (int32 [H // f, W // f]: the rank stage, each reported blob's
+    pixels numbered by its rank in ``feats``, 1 = best; 0 elsewhere).
     """
     f = compaction
     H, W = img12.shape

@@ -52,8 +52,8 @@ from flightsw.messages import N_FEATURES
 from flightsw.records import Record, load_record
 from hil_harness.rates import rate
 
-from .closed_loop import replay, score_top1
-from .data import TrainingSet, load_sequence
+from .closed_loop import blob_at, replay, score_top1
+from .data import OBJECT_RULES, TrainingSet, load_sequence
 from .fit import (COL, LOG_W, LOG_W_OFF, ROW, FastRanker, fit_record, scale_to_chi2,
                   threshold_record)
 
@@ -91,10 +91,17 @@ class Replayer:
         Processes the independent weight searches of :func:`optimise_closed_loop` and
         :func:`cross_validate_closed` run on (default 1: this one); their results do not depend on
         it. Subsets keep it.
+    object_rule : "radius" | "blob"
+        When a candidate is the object (:data:`hil_harness.tuning.data.OBJECT_RULES`): its
+        centroid within the event's radius of the truth, or that or its blob holding the true
+        pixel (the replays then keep their blob images). Subsets keep it.
     """
 
     def __init__(self, events, sequence, radii, base_dir=None, name: str = "set", proposals=(),
-                 workers: int = 1):
+                 workers: int = 1, object_rule: str = "radius"):
+        if object_rule not in OBJECT_RULES:
+            raise ValueError(f"object_rule {object_rule!r}: expected one of {OBJECT_RULES}")
+        self.object_rule = object_rule
         self.events = list(events)
         self.workers = int(workers)
         self.name = name
@@ -111,7 +118,7 @@ class Replayer:
 
     def subset(self, events) -> "Replayer":
         return Replayer(events, self.sequence, self._radii, self.base_dir, self.name,
-                        self.proposals, self.workers)
+                        self.proposals, self.workers, self.object_rule)
 
     @property
     def n_frames_with_object(self) -> int:
@@ -122,8 +129,9 @@ class Replayer:
 
     def replays(self, record, prior="tp") -> list:
         """Per event, the list of :class:`~hil_harness.tuning.closed_loop.ReplayFrame`."""
-        return [replay(e, self.seq_for(e), record, prior, proposals=self.proposals)
-                for e in self.events]
+        blobs = self.object_rule == "blob"
+        return [replay(e, self.seq_for(e), record, prior, proposals=self.proposals,
+                       keep_blobs=blobs) for e in self.events]
 
     def hits(self, record, prior="tp", replays=None) -> list:
         """Per event, bool [F] rank-1 hits (scored against truth)."""
@@ -157,7 +165,7 @@ class Replayer:
         used: a :class:`~hil_harness.tuning.data.TrainingSet` (truth as the label)."""
         words, rows = [], {k: [] for k in ("group", "source", "index", "t", "label_row",
                                            "label_col", "mean_row", "mean_col", "radius",
-                                           "n_blobs", "pred_row", "pred_col")}
+                                           "n_blobs", "pred_row", "pred_col", "label_blob")}
         for e, rep, rad in zip(self.events, replays, self.radius):
             for k, rf in enumerate(rep):
                 words.append(np.asarray(rf.feature_words, np.int64).reshape(-1, N_FEATURES))
@@ -166,15 +174,24 @@ class Replayer:
                             label_col=float(e.truth_col[k]), mean_row=rf.centroid_mean[0],
                             mean_col=rf.centroid_mean[1], radius=rad,
                             n_blobs=words[-1].shape[0], pred_row=float(rf.prior[0]),
-                            pred_col=float(rf.prior[1]))
+                            pred_col=float(rf.prior[1]), label_blob=_label_blob(e, k, rf))
                 for key, v in vals.items():
                     rows[key].append(v)
         n = np.array(rows["n_blobs"], np.int64)
         frames = {k: (np.array(v, dtype=str) if k in ("group", "source")
-                      else np.array(v, np.int64) if k in ("index", "n_blobs")
+                      else np.array(v, np.int64) if k in ("index", "n_blobs", "label_blob")
                       else np.array(v, np.float64)) for k, v in rows.items()}
         w = np.concatenate(words) if words else np.zeros((0, N_FEATURES), np.int64)
         return TrainingSet(w, np.repeat(np.arange(n.size), n), frames, dict(meta or {}))
+
+
+def _label_blob(event, k, rf) -> int:
+    """The blob (0-based row of ``rf.feature_words``) holding frame ``k``'s true pixel, -1 when
+    none, the object is absent or the replay kept no blob images."""
+    if rf.colours is None or not event.has_object[k]:
+        return -1
+    return blob_at(rf.colours, rf.window[:2], int(rf.window[4]),
+                   (event.truth_row[k], event.truth_col[k])) - 1
 
 
 # ================================================================================================

@@ -8,6 +8,8 @@ A set is described by a *set spec* (TOML, or the same as a dict)::
     sequence = "aurora"          # shipped sequence name or a sequence TOML path
     radius_px = 12.0             # a blob is the object when its centroid is within this distance of
                                  # the label (full-resolution imager pixels)
+    object_rule = "radius"       # or "blob": also when the blob holds the labelled pixel (the
+                                 # closed-loop replays of optimise / validate; issue 43's rule)
     predict = "centre"           # feature sets only (uvisi tune set / fit): the prior the IP gets
                                  # for the stored blobs: "centre" (none, the default), "previous"
                                  # (the previous frame's label), "truth" (label + noise: leans on
@@ -61,13 +63,18 @@ from flightsw.messages import N_FEATURES
 from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
-           "SET_SCHEMA", "PREDICT_MODES", "resolve_path", "scenario_from_entry", "load_sequence",
+           "SET_SCHEMA", "PREDICT_MODES", "OBJECT_RULES", "resolve_path", "scenario_from_entry", "load_sequence",
            "map_jobs", "deep_merge", "frame_prediction"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
+#: when a blob is the object: its centroid within the radius of the label ("radius"), or that or
+#: the blob holding the labelled pixel ("blob")
+OBJECT_RULES = ("radius", "blob")
 _FRAME_FIELDS = ("group", "source", "index", "t", "label_row", "label_col", "mean_row", "mean_col",
                  "radius", "n_blobs", "pred_row", "pred_col")
+#: frame fields a set may lack (older sets, open-loop sets): their value when absent
+_OPTIONAL_FIELDS = {"label_blob": -1}
 
 
 # ================================================================================================
@@ -88,7 +95,8 @@ class TrainingSet:
         (frame index in its source), ``t`` (s), ``label_row``/``label_col`` (full-res pixels, NaN:
         no object in this frame), ``mean_row``/``mean_col`` (the record centroid means the IP used:
         the prediction or the window centre), ``radius`` (px), ``n_blobs``, ``pred_row``/``pred_col``
-        (the prediction fed back, NaN for none).
+        (the prediction fed back, NaN for none); optional ``label_blob`` (int: the frame's blob
+        holding the labelled pixel, 0-based within the frame, -1 none or not known).
     meta : dict
         Spec and provenance (JSON-serialisable).
     """
@@ -107,7 +115,11 @@ class TrainingSet:
         if missing:
             raise ValueError(f"TrainingSet: frame table lacks {missing}")
         n = len(self.frames["t"])
-        for k in _FRAME_FIELDS:
+        self.frames = dict(self.frames)
+        for k, v in _OPTIONAL_FIELDS.items():
+            if k not in self.frames:
+                self.frames[k] = np.full(n, v, np.int64)
+        for k in (*_FRAME_FIELDS, *_OPTIONAL_FIELDS):
             if len(self.frames[k]) != n:
                 raise ValueError(f"TrainingSet: frame field {k!r} has {len(self.frames[k])} rows, "
                                  f"expected {n}")
@@ -183,7 +195,8 @@ class TrainingSet:
         words = np.concatenate([s.words for s in sets]) if sets else np.zeros((0, 12), np.int64)
         off = np.cumsum([0] + [s.n_frames for s in sets])
         frame = np.concatenate([s.frame + off[i] for i, s in enumerate(sets)])
-        frames = {k: np.concatenate([np.asarray(s.frames[k]) for s in sets]) for k in _FRAME_FIELDS}
+        frames = {k: np.concatenate([np.asarray(s.frames[k]) for s in sets])
+                  for k in (*_FRAME_FIELDS, *_OPTIONAL_FIELDS)}
         return TrainingSet(words, frame, frames, meta if meta is not None else dict(sets[0].meta))
 
     # ---- persistence ----
@@ -193,7 +206,7 @@ class TrainingSet:
         path.parent.mkdir(parents=True, exist_ok=True)
         arrays = {"schema": np.array(SET_SCHEMA), "words": self.words, "frame": self.frame,
                   "meta": np.array(json.dumps(self.meta, default=str))}
-        for k in _FRAME_FIELDS:
+        for k in (*_FRAME_FIELDS, *_OPTIONAL_FIELDS):
             v = np.asarray(self.frames[k])
             arrays[f"f_{k}"] = v.astype(str) if v.dtype.kind in "OU" else v
         fd, tmp = temp_beside(path, prefix=path.name + ".", suffix=".tmp.npz")
@@ -238,17 +251,26 @@ def load_set(path) -> TrainingSet:
         if "schema" not in z.files or str(z["schema"]) != SET_SCHEMA:
             raise ValueError(f"{p}: not a training set (schema {SET_SCHEMA} expected)")
         frames = {k: z[f"f_{k}"] for k in _FRAME_FIELDS}
+        frames.update({k: z[f"f_{k}"] for k in _OPTIONAL_FIELDS if f"f_{k}" in z.files})
         return TrainingSet(z["words"], z["frame"], frames, json.loads(str(z["meta"])))
 
 
 def object_mask(values, frame, frames) -> np.ndarray:
-    """bool [B]: blob centroid within ``frames['radius']`` of the frame's label."""
+    """bool [B]: blob centroid within ``frames['radius']`` of the frame's label, or the blob is
+    the frame's ``label_blob`` (when the set knows it)."""
     lr = np.asarray(frames["label_row"], float)[frame]
     lc = np.asarray(frames["label_col"], float)[frame]
     rad = np.asarray(frames["radius"], float)[frame]
     d2 = (values[:, 2] - lr) ** 2 + (values[:, 1] - lc) ** 2
     with np.errstate(invalid="ignore"):
-        return np.isfinite(d2) & (d2 <= rad * rad)
+        near = np.isfinite(d2) & (d2 <= rad * rad)
+    lb = frames.get("label_blob")
+    if lb is None or frame.size == 0:
+        return near
+    lb = np.asarray(lb, np.int64)
+    starts = np.searchsorted(frame, np.arange(lb.size))
+    within = np.arange(frame.size) - starts[frame]
+    return near | ((lb[frame] >= 0) & (within == lb[frame]) & np.isfinite(lr))
 
 
 # ================================================================================================
@@ -318,6 +340,7 @@ class SetSpec:
     workers: int = 1
     base_dir: str | None = None
     raw: dict = field(default_factory=dict)
+    object_rule: str = "radius"
 
     @classmethod
     def load(cls, path) -> "SetSpec":
@@ -337,7 +360,7 @@ class SetSpec:
             raise ValueError(f"{source}: [set] must be a table")
         w = f"{source}: set"
         bad = sorted(set(head) - {"name", "sequence", "radius_px", "predict", "predict_noise_px",
-                                  "workers"})
+                                  "workers", "object_rule"})
         if bad:
             raise ValueError(f"{w}: unknown key(s) {bad}")
         name = str(head.get("name", Path(source).stem))
@@ -348,6 +371,9 @@ class SetSpec:
         predict = _predict(head, "predict", w, "centre")
         noise = _num(head, "predict_noise_px", w, 3.0, lo=0.0)
         workers = _int(head, "workers", w, 1, lo=1)
+        rule = head.get("object_rule", "radius")
+        if rule not in OBJECT_RULES:
+            raise ValueError(f"{w}.object_rule: expected \"radius\" or \"blob\", got {rule!r}")
         scen, reals = [], []
         for i, e in enumerate(data.get("scenario", [])):
             we = f"{source}: scenario[{i}]"
@@ -400,7 +426,7 @@ class SetSpec:
                               group=str(e.get("group", f"r{i}"))))
         if not scen and not reals:
             raise ValueError(f"{source}: no [[scenario]] or [[real]] entries")
-        return cls(name, seq, radius, predict, noise, scen, reals, workers, base_dir, data)
+        return cls(name, seq, radius, predict, noise, scen, reals, workers, base_dir, data, rule)
 
 
 # ================================================================================================
@@ -610,8 +636,10 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     acc = _Acc()
     prev = None
     seq_cache = {}
+    from hil_harness.field import sequence_field
+    field = sequence_field(frames).mask          # the field uvisi track finds for the file
     for fr in sorted(want):
-        img = to_counts(frames[fr].data)[0]
+        img = to_counts(frames[fr].data, field=field, bits=frames[fr].bits)[0]
         if img.shape not in seq_cache:
             seq_cache[img.shape] = load_sequence(sequence, base_dir, img.shape)
         seq = seq_cache[img.shape]

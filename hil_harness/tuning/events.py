@@ -47,12 +47,14 @@ def imager_geometry(imager: str, fov_deg: float | None = None, shape=(244, 256))
     return ImagerGeometry(np.array([1.0, 0.0, 0.0, 0.0]), float(im.scale_col), float(im.scale_row))
 
 
-def real_to_counts(a) -> np.ndarray:
+def real_to_counts(a, field=None, bits=None) -> np.ndarray:
     """12-bit counts (uint16 [H, W]) from a real 2-D image: the product's default mapping
     (:func:`hil_harness.images.to_counts`: counts unchanged, a known shift, else a robust map from
-    the background and noise)."""
+    the background and noise). ``field``: bool [H, W], the instrument's field (pixels outside it
+    take part in no statistic and are set to the field's background), or None: the whole frame;
+    ``bits``: the file's stated bit depth (:class:`hil_harness.images.InputFrame`)."""
     from hil_harness.images import to_counts
-    return to_counts(a)[0]
+    return to_counts(a, field=field, bits=bits)[0]
 
 
 def render_scenario_event(entry: dict, seed: int, base_dir=None) -> FrameSequence:
@@ -92,7 +94,8 @@ def render_scenario_event(entry: dict, seed: int, base_dir=None) -> FrameSequenc
 
 def real_event(entry: dict, base_dir=None) -> FrameSequence:
     """A ``[[real]]`` entry (image file + label CSV) -> one event (a night): its frames in order,
-    12-bit counts (:func:`real_to_counts`), a nominal 0.5 s frame clock, fixed pointing."""
+    12-bit counts (:func:`real_to_counts`) inside the field ``uvisi track`` finds for the file
+    (:func:`hil_harness.field.sequence_field`), a nominal 0.5 s frame clock, fixed pointing."""
     from hil_harness.images import read_images
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
@@ -107,7 +110,10 @@ def real_event(entry: dict, base_dir=None) -> FrameSequence:
             raise ValueError(f"{entry['labels']}: frame {fr} of {name} has no label row")
         if fr >= len(frames):
             raise ValueError(f"{name}: frame {fr} out of range ({len(frames)} frames)")
-    imgs = np.array([real_to_counts(frames[fr].data) for fr in want], np.uint16)
+    from hil_harness.field import sequence_field
+    field = sequence_field(frames).mask          # the field uvisi track finds for the file
+    imgs = np.array([real_to_counts(frames[fr].data, field, frames[fr].bits)
+                     for fr in want], np.uint16)
     pos = [mine[fr] for fr in want]
     tr = [p[0] if p else math.nan for p in pos]
     tc = [p[1] if p else math.nan for p in pos]

@@ -1,0 +1,162 @@
+"""A record scored on labelled real frames the way ``uvisi detect`` and ``uvisi track`` run it.
+
+A candidate is **on the label** when its blob contains the labelled pixel or its centroid lies
+within :data:`ON_RADIUS` processed pixels of it (:func:`hil_harness.tuning.closed_loop.on_label`).
+The blob is the IP's own: the rank stage of the flight call (each reported blob's pixels numbered
+by its rank).
+
+* :func:`detect_hits`: each frame alone, as ``uvisi detect --record R`` reads, maps and processes
+  it (the field found in the frame, the whole compacted frame as one window, centroid means at its
+  centre, candidates outside the field dropped): is the rank-1 candidate on the label?
+* :func:`track_hits`: the closed loop as ``uvisi track --record R`` runs it over the whole sequence
+  (the IP's prior from the TP; no label reaches the IP or the TP): is the TP locked, and is the
+  object it chose on the label?
+
+The labels are read only here, after the flight code has answered. Rates come as k/n with a Wilson
+95 % interval (:func:`hil_harness.rates.rate`).
+
+``python -m hil_harness.tuning.label_scores`` prints the figures of ``docs/validation.md`` ("Aurora
+on real all-sky imagery").
+
+Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
+:func:`track_hits`, :func:`score_night`.
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
+
+__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "track_hits", "score_night"]
+
+_ROOT = Path(__file__).resolve().parents[2]
+
+#: the labelled nights: name -> (images, labels, scored frames)
+NIGHTS = {
+    "gill2008_test": ("data/real/themis_gill_20080309_0435-0450_150frames.npz",
+                      "data/labels/themis_gill_20080309_aurora.csv", range(75, 150)),
+    "gill2008_train": ("data/real/themis_gill_20080309_0435-0450_150frames.npz",
+                       "data/labels/themis_gill_20080309_aurora.csv", range(0, 70)),
+    "gill2014": ("data/real/themis_gill_20140310_0600-0606_60frames.npz",
+                 "data/labels/themis_gill_20140310_arc.csv", range(0, 60)),
+    "wic": ("data/real/wic_20000828_0928-0957_15frames.npz",
+            "data/labels/wic_20000828_surge.csv", range(0, 15)),
+}
+
+
+def _labels_of(path, image_name) -> dict:
+    from hil_harness.tuning.data import load_labels
+    return {k[1]: v for k, v in load_labels(path).items() if k[0] == image_name}
+
+
+def detect_hits(images, labels, record, frames, channel=None, sequence=None) -> dict:
+    """``uvisi detect --record`` on each frame of ``images`` alone -> ``{frame: hit}`` for the
+    labelled ``frames`` with an object (True: the rank-1 candidate is on the label; False: it is
+    not, or there is none). ``sequence``: name or .toml (``--sequence``; default the record's)."""
+    from hil_harness.cli.detect import FIELD_SPARE
+    from hil_harness.detect.fullframe import detect_frame
+    from hil_harness.detect.jobs import default_sequence_name, resolve_sequence, tile_for
+    from hil_harness.detect.noise import frame_noise
+    from hil_harness.field import find_field, inside
+    from hil_harness.images import read_images, to_counts
+    seq = resolve_sequence(sequence or default_sequence_name(record))
+    f = seq.preprocess.compaction
+    lab = _labels_of(labels, Path(images).name)
+    all_frames = read_images([str(images)], channel or "l")
+    out = {}
+    for k in frames:
+        if lab.get(k) is None:
+            continue
+        fr = all_frames[k]
+        field = find_field(fr.data, frame_noise(fr.data))
+        img, _ = to_counts(fr.data, no_scale=False, bits=fr.bits, field=field.mask)
+        res = detect_frame(img, seq, record, f, "full", 1 + FIELD_SPARE, tile_for(seq))
+        feats = res["feats"]
+        keep = np.flatnonzero(inside(field.mask, feats["row"], feats["col"])) if len(feats) else []
+        if len(keep) == 0:
+            out[k] = False
+            continue
+        i = int(keep[0])
+        out[k] = on_label(float(feats["row"][i]), float(feats["col"][i]), i + 1, res.get("ranks"),
+                          (0, 0), f, lab[k])
+    return out
+
+
+def track_hits(images, labels, record, frames, channel=None, sequence=None) -> dict:
+    """``uvisi track --record`` over the whole of ``images`` -> ``{frame: (locked, chosen on the
+    label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
+    :func:`detect_hits`."""
+    from hil_harness.cli.track import default_track_sequence, read_sequence, track_sequence
+    from hil_harness.images import unusable
+    names, counts, _, flags, _, _ = read_sequence([str(images)], False, channel or "l", None,
+                                                None)
+    seq = default_track_sequence(record, counts.shape[1:], sequence)
+    skip = np.array([unusable(fl) for fl in flags])
+    replayed, _, _ = track_sequence(counts, record, seq, skip=skip, keep_blobs=True)
+    lab = _labels_of(labels, Path(images).name)
+    out = {}
+    for k in frames:
+        if lab.get(k) is None:
+            continue
+        rf = replayed[k]
+        locked = bool(rf.track.get("locked"))
+        on = False
+        if locked and rf.chosen >= 0:
+            c = rf.candidates[rf.chosen]
+            on = on_label(float(c["row"]), float(c["col"]), rf.chosen + 1, rf.ranks,
+                          (rf.window[0], rf.window[1]), int(rf.window[4]), lab[k])
+        out[k] = (locked, on)
+    return out
+
+
+def score_night(night: str, record, channel=None, sequence=None) -> dict:
+    """Both scores of ``record`` on one of :data:`NIGHTS` -> ``{"detect_top1", "track_lock",
+    "track_on_given_lock", "frames"}``, each rate a :func:`hil_harness.rates.rate` dict."""
+    from hil_harness.rates import rate
+    images, labels, frames = NIGHTS[night]
+    images, labels = _ROOT / images, _ROOT / labels
+    det = detect_hits(images, labels, record, frames, channel, sequence)
+    trk = track_hits(images, labels, record, frames, channel, sequence)
+    locked = [k for k, (lk, _) in trk.items() if lk]
+    return {"frames": len(det),
+            "detect_top1": rate(sum(det.values()), len(det)),
+            "track_lock": rate(len(locked), len(trk)),
+            "track_on_given_lock": rate(sum(trk[k][1] for k in locked), len(locked))}
+
+
+def _fmt(r) -> str:
+    if not r["n"]:
+        return "-- (0/0)"
+    lo, hi = r["ci95"]
+    return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}, {100 * lo:.0f}-{100 * hi:.0f})"
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description="score records on the labelled real nights")
+    ap.add_argument("--record", action="append", default=None,
+                    help="shipped record name or .toml (repeat; default: every aurora record)")
+    ap.add_argument("--night", action="append", choices=sorted(NIGHTS), default=None)
+    ap.add_argument("--sequence", default=None,
+                    help="sequence name or .toml for every record (default: each record's own)")
+    args = ap.parse_args(argv)
+    from hil_harness.tuning.export import record_from
+    records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
+    nights = args.night or ["gill2008_test", "gill2014", "wic"]
+    print("| record | night | frames | detect: rank 1 on the label | track: locked | "
+          "track: on the label when locked |\n| --- | --- | --- | --- | --- | --- |")
+    for name in records:
+        rec = record_from(name)
+        for night in nights:
+            s = score_night(night, rec, sequence=args.sequence)
+            print(f"| {name} | {night} | {s['frames']} | {_fmt(s['detect_top1'])} | "
+                  f"{_fmt(s['track_lock'])} | {_fmt(s['track_on_given_lock'])} |", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
