@@ -8,14 +8,13 @@ import hashlib
 import html
 import json
 import math
-import os
 import re
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
-from hil_harness.fileio import temp_beside
+from hil_harness.fileio import write_text_atomic
 
 from .codec import pack
 from .data import extract
@@ -106,17 +105,8 @@ def inline_images(rec, data: dict, stages: dict, progress: bool = False) -> dict
 
 def write_atomic(path: Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file beside it (its folder made if missing;
-    nothing half-written on failure)."""
-    path = Path(path)
-    fd, tmp = temp_beside(path)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    nothing half-written on failure): :func:`hil_harness.fileio.write_text_atomic`."""
+    return write_text_atomic(path, text)
 
 
 def build(rec, progress: bool = False, replay_stages: bool = True) -> str:
