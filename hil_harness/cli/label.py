@@ -5,14 +5,15 @@ Serves a page from 127.0.0.1 (the URL is printed; ``--port 0`` picks a free port
 frame of the images (any file ``uvisi detect`` reads; a cube gives one frame per plane) with zoom
 (1-8x, the mouse wheel, drag to pan) and a contrast stretch between two percentiles of the frame's
 pixels. Click the object to label a frame (its position as clicked, in full-resolution pixels,
-0-based, pixel centres at +0.5, kept to 0.01 px), ``a`` marks it absent, ``u`` or Backspace
-clears it; the arrow keys, ``n``/``p``, Home and End step. Every change is written at once to
+0-based, pixel centres at +0.5, kept to 0.01 px); the key ``a`` marks it absent, ``u`` or
+Backspace clears it; the arrow keys, ``n``/``p``, Home and End step. Every change is written at once to
 LABELS.csv (atomically: the file is whole whenever the command is stopped), in the format
 ``uvisi tune`` reads (``image,frame,row,col``; ``image`` the file name, ``frame`` the 0-based
 plane in it; a blank row/col: absent; frames not labelled have no row), under ``#`` lines naming
 the labeller, the tool, the date and each image's SHA-256 (``data/labels/README.md``).
 
-An existing LABELS.csv is resumed: its labels are shown and kept. An image whose SHA-256 differs
+An existing LABELS.csv is resumed: its labels are shown and kept, and the page opens at the
+first frame not labelled. An image whose SHA-256 differs
 from the one recorded there is refused (``--accept-changed-images`` keeps the labels and records
 the new hash). The command ends with the page's Done button or Ctrl-C, printing one line: frames
 labelled, absent and not labelled.
