@@ -9,7 +9,8 @@ import os
 import tempfile
 from pathlib import Path
 
-__all__ = ["file_mode", "temp_beside", "FolderLock", "LOCK_NAME", "check_output", "OutputError"]
+__all__ = ["file_mode", "temp_beside", "write_text_atomic", "FolderLock", "LOCK_NAME", "check_output",
+           "OutputError"]
 
 #: the lock file a command holds in its output folder while it writes there
 LOCK_NAME = ".uvisi.lock"
@@ -47,6 +48,27 @@ def temp_beside(path, prefix: str | None = None, suffix: str = ".tmp") -> tuple[
         raise OutputError(f"{path}: cannot write in {path.parent} ({_why(exc)})") from None
     os.fchmod(fd, file_mode())
     return fd, tmp
+
+
+def write_text_atomic(path, text: str, durable: bool = False) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through a temp file beside it (:func:`temp_beside`; its
+    folder made if missing), renamed over ``path`` once complete: a reader, or a kill at any
+    moment, finds the old file or the new one, never a part. ``durable``: also flush the temp
+    file to the disk before the rename (``fsync``), so that a power cut after it cannot leave an
+    empty file. Returns ``path``; the temp file is removed on any failure."""
+    path = Path(path)
+    fd, tmp = temp_beside(path)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.write(text)
+            if durable:
+                fh.flush()
+                os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path
 
 
 def check_output(path, kind: str = "file", option: str = "") -> None:

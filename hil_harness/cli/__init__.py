@@ -26,6 +26,7 @@ SUBCOMMAND_MODULES = (
     "hil_harness.cli.demo",
     "hil_harness.cli.detect",
     "hil_harness.cli.track",
+    "hil_harness.cli.label",
     "hil_harness.cli.event",
     "hil_harness.cli.replay",
     "hil_harness.cli.proposals",

@@ -38,7 +38,7 @@ from hil_harness.cli.options import number
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
                                 to_counts, unusable)
 
-__all__ = ["register", "run", "detect_one", "add_trails", "add_input_options", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
+__all__ = ["register", "run", "detect_one", "add_trails", "add_input_options", "add_channel_option", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
 
 #: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
 FIELD_SPARE = 64
@@ -125,10 +125,7 @@ def add_input_options(p) -> None:
     """The input options ``detect``, ``track`` and the tuning commands share: ``--channel``,
     ``--mask``, ``--field-circle`` (the field's mutually exclusive pair)."""
     from hil_harness.field import parse_circle
-    p.add_argument("--channel", default="l", choices=CHANNELS,
-                   help="what a colour image becomes: l = luma by ITU-R BT.601 (0.299 R + 0.587 G "
-                        "+ 0.114 B; the default), or the r, g or b channel (auroral green 557.7 nm:"
-                        " g); greyscale images are read as they are")
+    add_channel_option(p)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--mask", default=None, metavar="FILE",
                    help="the instrument's field: an image the size of the frames (any format read "
@@ -137,6 +134,15 @@ def add_input_options(p) -> None:
     g.add_argument("--field-circle", default=None, type=_circle_arg(parse_circle),
                    metavar="ROW,COL,RADIUS",
                    help="the field as a circle in full-resolution pixels (pixel centres at +0.5)")
+
+
+def add_channel_option(p) -> None:
+    """``--channel l|r|g|b``: what a colour image becomes (:func:`hil_harness.images.read_images`);
+    part of :func:`add_input_options`, alone for ``uvisi label``, which has no field."""
+    p.add_argument("--channel", default="l", choices=CHANNELS,
+                   help="what a colour image becomes: l = luma by ITU-R BT.601 (0.299 R + 0.587 G "
+                        "+ 0.114 B; the default), or the r, g or b channel (auroral green 557.7 nm:"
+                        " g); greyscale images are read as they are")
 
 
 def _circle_arg(parse):

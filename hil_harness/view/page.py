@@ -4,18 +4,16 @@ a recording's data (:func:`.data.extract`) and, for a self-contained page, every
 from __future__ import annotations
 
 import base64
-import hashlib
-import html
 import json
 import math
-import os
 import re
 from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
-from hil_harness.fileio import temp_beside
+from hil_harness.fileio import write_text_atomic
+from hil_harness.webpage import page_document
 
 from .codec import pack
 from .data import extract
@@ -47,16 +45,7 @@ def script_json(o) -> str:
 
 
 #: the template's placeholders, filled in one pass (a value is never searched for another)
-_PLACEHOLDER = re.compile(r"__(CSS|JS|TITLE|DATA|IMAGES|CSP)__")
-
-
-def content_security_policy(js: str) -> str:
-    """The page's policy: only its own inline script runs (by its SHA-256; the template puts it
-    between two newlines), no inline event handler, no other source; styles inline; fetches to
-    its own server only (``--serve``)."""
-    digest = base64.b64encode(hashlib.sha256(f"\n{js}\n".encode("utf-8")).digest()).decode()
-    return (f"default-src 'none'; script-src 'sha256-{digest}'; style-src 'unsafe-inline'; "
-            f"img-src data:; connect-src 'self'; base-uri 'none'; form-action 'none'")
+_PLACEHOLDER = re.compile(r"__(DATA|IMAGES)__")
 
 
 def _resource(name: str) -> str:
@@ -71,13 +60,12 @@ def page_js() -> str:
 def page_html(data: dict, images: dict) -> str:
     """The page of ``data`` (:func:`.data.extract`) with ``images``: ``{"mode": "inline", "frames":
     [packed or None] * n, "stages": {frame: [packed + "name"]}}`` or ``{"mode": "serve"}`` (the
-    page fetches ``frames/<k>`` and ``stages/<k>`` from its server)."""
-    js = page_js()
-    title = f"{data['recording']['scenario']} ({data['recording']['name']})"
-    values = {"CSS": _resource("page.css"), "JS": js, "TITLE": html.escape(title),
-              "DATA": script_json(data), "IMAGES": script_json(images),
-              "CSP": html.escape(content_security_policy(js))}
-    return _PLACEHOLDER.sub(lambda m: values[m.group(1)], _resource("page.html"))
+    page fetches ``frames/<k>`` and ``stages/<k>`` from its server), in the harness's page document
+    (:func:`hil_harness.webpage.page_document`)."""
+    title = f"uvisi view: {data['recording']['scenario']} ({data['recording']['name']})"
+    values = {"DATA": script_json(data), "IMAGES": script_json(images)}
+    body = _PLACEHOLDER.sub(lambda m: values[m.group(1)], _resource("page.html"))
+    return page_document(title, _resource("page.css"), body, page_js())
 
 
 def frame_bytes(rec, k: int) -> bytes:
@@ -106,17 +94,8 @@ def inline_images(rec, data: dict, stages: dict, progress: bool = False) -> dict
 
 def write_atomic(path: Path, text: str) -> Path:
     """Write ``text`` to ``path`` through a temporary file beside it (its folder made if missing;
-    nothing half-written on failure)."""
-    path = Path(path)
-    fd, tmp = temp_beside(path)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            fh.write(text)
-        os.replace(tmp, path)
-    finally:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-    return path
+    nothing half-written on failure): :func:`hil_harness.fileio.write_text_atomic`."""
+    return write_text_atomic(path, text)
 
 
 def build(rec, progress: bool = False, replay_stages: bool = True) -> str:

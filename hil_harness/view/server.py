@@ -28,9 +28,10 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 from hil_harness.console import debug
+from hil_harness.webpage import content_security_policy
 
 from .data import FrameStars, extract, open_recording
-from .page import content_security_policy, frame_bytes, page_html, page_js, script_json
+from .page import frame_bytes, page_html, page_js, script_json
 from .stages import StageReplay, stage_note
 
 HOST = "127.0.0.1"

@@ -118,6 +118,7 @@ def test_record_check_reports_every_file_and_survives_a_folder(tmp_path, capsys)
 WRITERS = [
     "detect {real} --json {out}/o.json", "detect {real} --plot {out}/o.png",
     "track {real} --record aurora --json {out}/t.json", "view x.h5 -o {out}/v.html",
+    "label {real} -o {out}/l.csv",
     "campaign x.toml --out {out}/c", "rde study --out {out}/r", "rde reconstruct x.npz --out {out}/r",
     "inr synthetic --out {out}/i", "inr report x.csv --out {out}/i", "budget --plot {out}/b.png",
     "tune set x.toml -o {out}/s.npz", "tune validate x.toml --record aurora --report {out}/r",
@@ -192,6 +193,8 @@ MATRIX = [
     ("tune validate x.toml --record aurora --report {tmp}/r --require-top1 2", "--require-top1"),
     ("tune optimise x.toml -o {tmp}/o.toml --workers 0", "--workers"),
     ("view x.h5 --serve --port 70000", "--port"),
+    ("label {real} -o {tmp}/l.csv --port 70000", "--port"),
+    ("label {real} {real} -o {tmp}/l.csv", "same file name"),
     ("frobnicate", "invalid choice"),
     ("event satelite_over_stars", "did you mean satellite_over_stars"),
     ("inr report {tmp}/bin.csv --out {tmp}/r", "bin.csv: not a text CSV file"),

@@ -26,7 +26,7 @@ import h5py
 import numpy as np
 import pytest
 
-from bench.bench_viewer import chromium_path
+from browser_pages import open_page, wait_until
 from hil_harness.event.checksum import attrs_digest
 from hil_harness.event.io import run_event
 from hil_harness.view import make_server, write_page
@@ -36,60 +36,12 @@ K = 17                                   # a frame after the lock (frame 14 in t
 ROOT = Path(__file__).resolve().parents[2]
 
 
-def _playwright():
-    on_ci = os.environ.get("CI", "").lower() == "true"
-    try:
-        from playwright.sync_api import sync_playwright
-    except ImportError:
-        if on_ci:
-            pytest.fail("CI=true but playwright is not installed (.ci/run installs it)")
-        pytest.skip("playwright not installed (pip install -e '.[view]')")
-    exe = chromium_path()
-    if exe is None or not os.path.exists(exe):
-        if on_ci:
-            pytest.fail("CI=true but no chromium browser (apt-get install -y chromium)")
-        pytest.skip("no chromium browser (apt-get install chromium)")
-    return sync_playwright, exe
-
-
-@pytest.fixture(scope="module")
-def browser():
-    sync_playwright, exe = _playwright()
-    with sync_playwright() as p:
-        b = p.chromium.launch(executable_path=exe, args=["--no-sandbox"])
-        yield b
-        b.close()
-
-
 @pytest.fixture(scope="module")
 def event(tmp_path_factory):
     out = tmp_path_factory.mktemp("viewb") / "ev"
     run_event("satellite_over_stars", frames=FRAMES, out=out, figures=False)
     write_page(out / "recording.h5")
     return out
-
-
-def open_page(browser, url):
-    page = browser.new_page(viewport={"width": 1400, "height": 1000})
-    errors = []
-    page.on("console", lambda m: errors.append(f"console {m.type}: {m.text}")
-            if m.type == "error" else None)
-    page.on("pageerror", lambda e: errors.append(f"page error: {e}"))
-    page.goto(url)
-    return page, errors
-
-
-def wait_until(page, condition: str, timeout_ms: int = 15000):
-    """Wait until the JavaScript ``condition`` holds in the page. (Not ``wait_for_function``: it
-    evaluates its predicate with ``eval``, which the page's content security policy forbids.)"""
-    page.evaluate("""([t]) => new Promise((ok, bad) => {
-      const t0 = performance.now();
-      (function poll() {
-        if (%s) ok(true);
-        else if (performance.now() - t0 > t) bad(new Error("timed out: " + %r));
-        else setTimeout(poll, 10);
-      })();
-    })""" % (condition, condition), [timeout_ms])
 
 
 def wait_frame(page, k):
