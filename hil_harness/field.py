@@ -100,6 +100,17 @@ class Field:
         """True when every pixel is inside."""
         return bool(self.mask.all())
 
+    def scaled(self, factor: float) -> "Field":
+        """A circle's field with its radius times ``factor`` (0 < factor <= 1: e.g. a job that
+        keeps to the sky above the horizon ring); a mask or the whole frame is returned as it
+        is. Raises ValueError when the smaller circle holds no pixel."""
+        if self.kind != "circle" or factor == 1.0:
+            return self
+        if not 0.0 < factor <= 1.0:
+            raise ValueError(f"field scale {factor!r} must be in (0, 1]")
+        return circle_field(self.mask.shape, self.row, self.col, self.radius * factor,
+                            self.source)
+
 
 def whole_frame(shape, source: str = "auto") -> Field:
     """The whole frame as the field (``kind "none"``)."""

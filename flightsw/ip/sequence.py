@@ -87,7 +87,8 @@ DEFAULT_SEQUENCES = {"satellite": "sequence_satellite.toml", "aurora": "sequence
                      "satellite_c2": "sequence_satellite_c2.toml",
                      "satellite_track": "sequence_satellite_track.toml",
                      "aurora_track": "sequence_aurora_track.toml", "star": "sequence_star.toml",
-                     "streak": "sequence_streak.toml"}
+                     "streak": "sequence_streak.toml",
+                     "aurora_allsky": "sequence_aurora_allsky.toml"}
 
 
 class SequenceError(ValueError):

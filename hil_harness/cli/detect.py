@@ -35,13 +35,11 @@ from pathlib import Path
 import numpy as np
 
 from hil_harness.cli.options import number
+from hil_harness.detect.jobs import FIELD_SPARE          # re-exported: it was defined here
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
                                 to_counts, unusable)
 
 __all__ = ["register", "run", "detect_one", "add_trails", "add_input_options", "add_channel_option", "read_mask", "read_frames", "to_12bit", "HELP_TEXT", "FIELD_SPARE"]
-
-#: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
-FIELD_SPARE = 64
 
 HELP_TEXT = """\
 Run the flight image processor on image files. Every plane of every file (FITS, TIFF, PNG/JPEG,
@@ -98,7 +96,8 @@ def register(sub) -> None:
                         f"{jobs}")
     p.add_argument("--sequence", default=None,
                    help="processing sequence: shipped name (star, streak, aurora, satellite, "
-                        "satellite_c2) or a .toml file (default: the record's job sequence)")
+                        "satellite_c2, aurora_allsky) or a .toml file (default: the record's job "
+                        "sequence)")
     p.add_argument("--compaction", type=int, default=None, choices=(1, 2, 4),
                    help="compaction factor (default: the sequence's)")
     p.add_argument("--window", default="full", choices=("full", "64"),
@@ -416,12 +415,14 @@ def _setup(args):
 def _frame_job(args, record, seq, f, gate, user_mask=None):
     """The work of one frame, as a function of the frame alone (run here or in a worker):
     ``InputFrame -> (entry, counts or None (no --plot), messages for stderr)``."""
+    from hil_harness.detect.jobs import field_scale
     from hil_harness.detect.noise import frame_noise
     from hil_harness.field import find_field, resolve_field
+    scale = field_scale(record)
 
     def field_of(data):
         if user_mask is None and args.field_circle is None:    # found in the frame: its noise
-            return find_field(data, frame_noise(data))         # compiled, the same number
+            return find_field(data, frame_noise(data)).scaled(scale)   # compiled, same number
         return resolve_field(data, user_mask, args.field_circle)
 
     def one(fr):

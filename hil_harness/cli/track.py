@@ -52,10 +52,8 @@ import numpy as np
 
 from hil_harness.cli.options import add_with_option, with_names
 from hil_harness.fileio import temp_beside
-
-#: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
-WFOV_DEG = 13.1
-NOMINAL_DT = 0.5
+from hil_harness.real_track import (NOMINAL_DT, default_track_sequence, read_sequence,
+                                     track_sequence)
 
 
 def register(sub) -> None:
@@ -86,54 +84,6 @@ def register(sub) -> None:
     p.set_defaults(func=run, outputs={"json": "file", "plot": "file"})
 
 
-def read_sequence(paths, no_scale: bool = False, channel: str = "l", mask=None, circle=None):
-    """Read and map every frame -> (names, counts uint16 [F, H, W], scales, flags, time tags,
-    field). ``channel``, ``mask``, ``circle``: as ``uvisi detect`` takes them."""
-    from tqdm import tqdm
-
-    from hil_harness.field import sequence_field
-    from hil_harness.images import frame_flags, read_images, scale_note, to_counts
-    frames = read_images(paths, channel)
-    if not frames:
-        raise ValueError(f"{paths[0]}: no frames")
-    shape = frames[0].data.shape
-    for fr in frames:
-        if fr.data.shape != shape:
-            raise ValueError(f"{fr.name}: frame shape {fr.data.shape} differs from the first "
-                             f"frame's {shape} (one sequence, one imager)")
-    try:
-        field = sequence_field(frames, mask, circle)
-    except ValueError as exc:
-        raise ValueError(f"{frames[0].name}: {'--mask' if mask is not None else '--field-circle'}"
-                         f": {exc}") from None
-    counts, scales, flags = [], [], []
-    for fr in tqdm(frames, desc="[track] read", unit="frame", disable=len(frames) < 50,
-                   file=sys.stderr):
-        c, m = to_counts(fr.data, no_scale=no_scale, bits=fr.bits, field=field.mask)
-        note = scale_note(fr.name, m)
-        if note:
-            print(f"uvisi track: note: {note}", file=sys.stderr)
-        counts.append(c)
-        scales.append(m)
-        flags.append(frame_flags(fr.data, field.mask))
-    return ([f.name for f in frames], np.array(counts, np.uint16), scales, flags,
-            [f.time_utc for f in frames], field)
-
-
-def default_track_sequence(record, shape, name=None):
-    """The sequence ``uvisi track`` runs: ``name`` (shipped name or .toml) when given; else a job
-    record's own sequence (:data:`hil_harness.detect.jobs.JOBS`: ``aurora_allsky`` runs
-    ``aurora_allsky``, as in ``uvisi detect``); else by object type: aurora -> ``aurora``,
-    anything else -> ``satellite``. Set for frames of ``shape`` (H, W)."""
-    from hil_harness.detect.jobs import JOBS
-    from hil_harness.tuning.data import load_sequence
-    if name is None:
-        own = {rec: seq for seq, rec, _ in JOBS.values()}
-        name = own.get(record.name) or ("aurora" if record.object_type == "aurora"
-                                        else "satellite")
-    return load_sequence(name, None, tuple(shape))
-
-
 def _num(x):
     x = float(x)
     return x if math.isfinite(x) else None
@@ -161,27 +111,6 @@ def _frame_entry(k, name, tag, rf, scale, flags) -> dict:
             "chosen": rf.chosen + 1 if rf.chosen >= 0 else None, "track": track}
 
 
-def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None,
-                   proposals=(), keep_blobs=False):
-    """IP + TP over ``counts`` (uint16 [F, H, W]) -> (list of ReplayFrame, ImagerGeometry).
-
-    ``skip`` (bool [F]): frames whose message does not reach the TP (flagged frames);
-    ``proposals``: those in force (default none: the paper's system); ``keep_blobs``: keep each
-    frame's rank and colour images (``ReplayFrame.ranks``, ``.colours``)."""
-    from hil_harness.tuning.closed_loop import FrameSequence, replay
-    from hil_harness.tuning.events import imager_geometry
-    if not (isinstance(frame_dt, (int, float)) and math.isfinite(frame_dt) and frame_dt > 0):
-        raise ValueError(f"--frame-dt {frame_dt!r} must be a positive number of seconds")
-    w = counts.shape[2]
-    fov = fov_deg if fov_deg is not None else math.degrees(
-        2 * math.atan(w / 256.0 * math.tan(math.radians(WFOV_DEG) / 2)))
-    geom = imager_geometry("real", fov, counts.shape[1:])
-    ev = FrameSequence(counts, frame_dt * np.arange(counts.shape[0]), "real", geom,
-                     name="input", object_type=record.object_type)
-    return (replay(ev, sequence, record, "tp", skip=skip, proposals=proposals,
-                   keep_blobs=keep_blobs), geom, fov)
-
-
 def _write_json(path, obj):
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -201,9 +130,11 @@ def run(args) -> int:
     if args.fov is not None and not 0.0 < args.fov < 90.0:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
     from hil_harness.cli.detect import read_mask
+    from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
     names, counts, scales, flags, tags, field = read_sequence(
-        args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle)
+        args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle,
+        field_scale(record))
     seq = default_track_sequence(record, counts.shape[1:], args.sequence)
     skip = np.array([unusable(f) for f in flags])
     for n, f, s in zip(names, flags, skip):

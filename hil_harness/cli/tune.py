@@ -1,5 +1,8 @@
 """``uvisi tune``: tune an a priori feature record on labelled frames (``hil_harness.tuning``).
 
+Where a set spec names no ``sequence`` (or no ``field_scale``), optimise and validate run it as the
+record's job does (``--base``, ``--record``): ``aurora_allsky`` runs its own sequence and field.
+
 ``uvisi tune set SPEC.toml -o SET.npz [--workers N]``
     build a labelled training set (every blob's flight features) and save it; every other command
     takes either a set spec (TOML, built on the fly) or a saved ``.npz`` set.
@@ -207,8 +210,9 @@ def _fit(args) -> int:
     return 0
 
 
-def _replayer(args):
-    """Render (or read back from ``--events``) every event of the spec once -> Replayer."""
+def _replayer(args, record=None):
+    """Render (or read back from ``--events``) every event of the spec once -> Replayer; with
+    ``record``, the spec as that record's job runs it (:meth:`SetSpec.for_record`)."""
     from hil_harness.tuning.closed import Replayer
     from hil_harness.tuning.data import SetSpec
     from hil_harness.tuning.events import build_events, event_radius
@@ -219,6 +223,8 @@ def _replayer(args):
         raise ValueError(f"{p}: closed-loop tuning replays frames: give the set spec (.toml), "
                          f"not a saved feature set")
     spec = _with_channel(p, args.channel) if args.channel else SetSpec.load(p)
+    if record is not None:
+        spec = spec.for_record(record)
     check_render_size(spec, args)
     t0 = time.perf_counter()
     evs = build_events(spec, cache_dir=args.events, workers=args.workers,
@@ -247,8 +253,8 @@ def _optimise(args) -> int:
         raise ValueError("--folds, --maxiter and --popsize must be >= 1")
     if not args.centroid_penalty >= 0.0:
         raise ValueError(f"--centroid-penalty {args.centroid_penalty} must be >= 0")
-    rp = _replayer(args)
     base, name, rid, ver = _names(args)
+    rp = _replayer(args, base)
     kw = dict(base=base, frr=args.frr, quantize=args.quantize, maxiter=args.maxiter,
               popsize=args.popsize, centroid_penalty=args.centroid_penalty)
     t0 = time.perf_counter()
@@ -293,7 +299,7 @@ def _validate(args) -> int:
             continue                                  # the same record twice: report it once
         label = r.name if r.name not in records else f"{r.name} ({c})"
         records[label] = r
-    rp = _replayer(args)
+    rp = _replayer(args, rec)
     m = validate_closed_loop(rp, records, args.report,
                              title=args.title or f"Validation of record {rec.name} on "
                                                  f"{Path(args.set).name}")

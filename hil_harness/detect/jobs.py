@@ -1,14 +1,17 @@
-"""The jobs ``uvisi detect`` offers (star, streak, aurora): which shipped sequence goes with a
-record, sequences by name or file, and the star job's significance gate.
+"""The jobs ``uvisi detect`` offers (star, streak, aurora, aurora_allsky): which shipped sequence
+goes with a record, sequences by name or file, the star job's significance gate, and the part of a
+fisheye field a job keeps.
 
 Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gate_record`,
-:func:`tile_for`, :data:`JOBS`, :data:`GATE_SIGMA`, :data:`EXTENDED_TILE`.
+:func:`tile_for`, :func:`field_scale`, :data:`JOBS`, :data:`GATE_SIGMA`, :data:`EXTENDED_TILE`,
+:data:`JOB_FIELD_SCALE`.
 """
 from __future__ import annotations
 
 
-__all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "resolve_sequence",
-           "default_sequence_name", "peak_gate_record", "tile_for"]
+__all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "JOB_FIELD_SCALE", "FIELD_SPARE",
+           "resolve_sequence", "default_sequence_name", "peak_gate_record", "tile_for",
+           "field_scale"]
 
 def __getattr__(name):
     """``resolve_sequence`` stays importable from here (it was public here before) without loading
@@ -29,6 +32,9 @@ JOBS = {
                "compaction 4, one candidate per trail with its orientation"),
     "aurora": ("aurora", "aurora",
                "extended glow (auroral arcs and surges in UV frames): compaction 2, no detrend"),
+    "aurora_allsky": ("aurora_allsky", "aurora_allsky",
+                      "the brightest auroral structure in a ground all-sky (fisheye) frame: "
+                      "tuned on real THEMIS frames"),
 }
 
 #: the star job's gate: a candidate's peak in the smoothed, detrended image must be at least this
@@ -40,7 +46,24 @@ GATE_TOP = 8192.0
 
 #: full-frame tile (compacted pixels) for the sequences of extended objects: one trail or one
 #: auroral form stays in one window (point sources use detect.fullframe.DEFAULT_TILE, 64)
-EXTENDED_TILE = {"streak": 128, "aurora": 128}
+EXTENDED_TILE = {"streak": 128, "aurora": 128, "aurora_allsky": 128}
+
+
+#: candidates the flight IP is asked for beyond ``--max-candidates`` when a field drops some
+FIELD_SPARE = 64
+
+#: the ground-side field of a job, as a fraction of the fisheye circle found in the frame (jobs not
+#: named: 1, the whole circle). aurora_allsky: 0.7 of the radius, elevations above ~27 deg for an
+#: equidistant lens -- the horizon ring below it (brightened by the slant path through the
+#: emitting layer, obstructions, lights, moonlight) is not a pointing target; it is the region the
+#: Gillam 2008 labels were drawn in (data/labels/README.md), chosen before any tuning
+JOB_FIELD_SCALE = {"aurora_allsky": 0.7}
+
+
+def field_scale(record) -> float:
+    """The fraction of a found fisheye circle a record's job keeps (:data:`JOB_FIELD_SCALE`, by
+    the record's name as :func:`default_sequence_name` picks the job; 1 for the others)."""
+    return JOB_FIELD_SCALE.get(record.name, 1.0)
 
 
 def tile_for(seq) -> int:

@@ -10,6 +10,8 @@ A set is described by a *set spec* (TOML, or the same as a dict)::
                                  # the label (full-resolution imager pixels)
     object_rule = "radius"       # or "blob": also when the blob holds the labelled pixel (the
                                  # closed-loop replays of optimise / validate; issue 43's rule)
+    field_scale = 1.0            # [[real]] frames: the part of a found fisheye circle kept (a
+                                 # job's ground-side field, hil_harness.detect.jobs.field_scale)
     predict = "centre"           # feature sets only (uvisi tune set / fit): the prior the IP gets
                                  # for the stored blobs: "centre" (none, the default), "previous"
                                  # (the previous frame's label), "truth" (label + noise: leans on
@@ -50,6 +52,7 @@ from __future__ import annotations
 
 import copy
 import csv
+import dataclasses
 import json
 import math
 import os
@@ -342,6 +345,23 @@ class SetSpec:
     raw: dict = field(default_factory=dict)
     object_rule: str = "radius"
 
+    def for_record(self, record) -> "SetSpec":
+        """The spec as a record's job runs it: where the spec names no ``sequence`` the record's
+        job sequence (:func:`hil_harness.detect.jobs.default_sequence_name`: ``--record
+        aurora_allsky`` runs ``aurora_allsky``), and where it names no ``field_scale`` the job's
+        ground-side field (:func:`hil_harness.detect.jobs.field_scale`). Returns self when
+        nothing changes, else a changed copy."""
+        from hil_harness.detect.jobs import default_sequence_name, field_scale
+        head = self.raw.get("set") or {}
+        seq = self.sequence if "sequence" in head else default_sequence_name(record)
+        scale = None if "field_scale" in head else field_scale(record)
+        if seq == self.sequence and (scale is None or all(e.get("field_scale", 1.0) == scale
+                                                          for e in self.reals)):
+            return self
+        reals = [dict(e, field_scale=scale) if scale is not None else dict(e)
+                 for e in self.reals]
+        return dataclasses.replace(self, sequence=seq, reals=reals)
+
     @classmethod
     def load(cls, path) -> "SetSpec":
         from hil_harness.fileio import read_toml
@@ -360,7 +380,7 @@ class SetSpec:
             raise ValueError(f"{source}: [set] must be a table")
         w = f"{source}: set"
         bad = sorted(set(head) - {"name", "sequence", "radius_px", "predict", "predict_noise_px",
-                                  "workers", "object_rule"})
+                                  "workers", "object_rule", "field_scale"})
         if bad:
             raise ValueError(f"{w}: unknown key(s) {bad}")
         name = str(head.get("name", Path(source).stem))
@@ -371,6 +391,9 @@ class SetSpec:
         predict = _predict(head, "predict", w, "centre")
         noise = _num(head, "predict_noise_px", w, 3.0, lo=0.0)
         workers = _int(head, "workers", w, 1, lo=1)
+        fscale = _num(head, "field_scale", w, 1.0, positive=True)
+        if fscale > 1.0:
+            raise ValueError(f"{w}.field_scale: {fscale} must be in (0, 1]")
         rule = head.get("object_rule", "radius")
         if rule not in OBJECT_RULES:
             raise ValueError(f"{w}.object_rule: expected \"radius\" or \"blob\", got {rule!r}")
@@ -423,7 +446,7 @@ class SetSpec:
                               predict=_predict(e, "predict", we, predict),
                               predict_noise_px=_num(e, "predict_noise_px", we, noise, lo=0.0),
                               imager=str(e.get("imager", "wfov_vis")),
-                              group=str(e.get("group", f"r{i}"))))
+                              group=str(e.get("group", f"r{i}")), field_scale=fscale))
         if not scen and not reals:
             raise ValueError(f"{source}: no [[scenario]] or [[real]] entries")
         return cls(name, seq, radius, predict, noise, scen, reals, workers, base_dir, data, rule)
@@ -637,7 +660,8 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     prev = None
     seq_cache = {}
     from hil_harness.field import sequence_field
-    field = sequence_field(frames).mask          # the field uvisi track finds for the file
+    # the field uvisi track finds for the file (and keeps, for the entry's job)
+    field = sequence_field(frames).scaled(entry.get("field_scale", 1.0)).mask
     for fr in sorted(want):
         img = to_counts(frames[fr].data, field=field, bits=frames[fr].bits)[0]
         if img.shape not in seq_cache:

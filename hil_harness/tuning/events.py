@@ -95,7 +95,8 @@ def render_scenario_event(entry: dict, seed: int, base_dir=None) -> FrameSequenc
 def real_event(entry: dict, base_dir=None) -> FrameSequence:
     """A ``[[real]]`` entry (image file + label CSV) -> one event (a night): its frames in order,
     12-bit counts (:func:`real_to_counts`) inside the field ``uvisi track`` finds for the file
-    (:func:`hil_harness.field.sequence_field`), a nominal 0.5 s frame clock, fixed pointing."""
+    (:func:`hil_harness.field.sequence_field`, scaled by the entry's ``field_scale``), a nominal
+    0.5 s frame clock, fixed pointing."""
     from hil_harness.images import read_images
     ipath = resolve_path(entry["images"], base_dir)
     labels = load_labels(resolve_path(entry["labels"], base_dir))
@@ -111,7 +112,8 @@ def real_event(entry: dict, base_dir=None) -> FrameSequence:
         if fr >= len(frames):
             raise ValueError(f"{name}: frame {fr} out of range ({len(frames)} frames)")
     from hil_harness.field import sequence_field
-    field = sequence_field(frames).mask          # the field uvisi track finds for the file
+    # the field uvisi track finds for the file (and keeps, for the entry's job)
+    field = sequence_field(frames).scaled(entry.get("field_scale", 1.0)).mask
     imgs = np.array([real_to_counts(frames[fr].data, field, frames[fr].bits)
                      for fr in want], np.uint16)
     pos = [mine[fr] for fr in want]

@@ -19,7 +19,7 @@ The labels are read only here, after the flight code has answered. Rates come as
 on real all-sky imagery").
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`track_hits`, :func:`score_night`.
+:func:`track_hits`, :func:`score_night`, :func:`plot_night`.
 """
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ import numpy as np
 
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
-__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "track_hits", "score_night"]
+__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "track_hits", "score_night",
+           "plot_night"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -54,13 +55,15 @@ def _labels_of(path, image_name) -> dict:
     return {k[1]: v for k, v in load_labels(path).items() if k[0] == image_name}
 
 
-def detect_hits(images, labels, record, frames, channel=None, sequence=None) -> dict:
+def detect_hits(images, labels, record, frames, channel=None, sequence=None,
+                keep_top=False) -> dict:
     """``uvisi detect --record`` on each frame of ``images`` alone -> ``{frame: hit}`` for the
     labelled ``frames`` with an object (True: the rank-1 candidate is on the label; False: it is
-    not, or there is none). ``sequence``: name or .toml (``--sequence``; default the record's)."""
-    from hil_harness.cli.detect import FIELD_SPARE
+    not, or there is none). ``sequence``: name or .toml (``--sequence``; default the record's).
+    ``keep_top``: the values are ``(hit, (row, col) of the rank-1 candidate or None)``."""
     from hil_harness.detect.fullframe import detect_frame
-    from hil_harness.detect.jobs import default_sequence_name, resolve_sequence, tile_for
+    from hil_harness.detect.jobs import (FIELD_SPARE, default_sequence_name, field_scale,
+                                         resolve_sequence, tile_for)
     from hil_harness.detect.noise import frame_noise
     from hil_harness.field import find_field, inside
     from hil_harness.images import read_images, to_counts
@@ -73,17 +76,18 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None) -> 
         if lab.get(k) is None:
             continue
         fr = all_frames[k]
-        field = find_field(fr.data, frame_noise(fr.data))
+        field = find_field(fr.data, frame_noise(fr.data)).scaled(field_scale(record))
         img, _ = to_counts(fr.data, no_scale=False, bits=fr.bits, field=field.mask)
         res = detect_frame(img, seq, record, f, "full", 1 + FIELD_SPARE, tile_for(seq))
         feats = res["feats"]
         keep = np.flatnonzero(inside(field.mask, feats["row"], feats["col"])) if len(feats) else []
         if len(keep) == 0:
-            out[k] = False
+            out[k] = (False, None) if keep_top else False
             continue
         i = int(keep[0])
-        out[k] = on_label(float(feats["row"][i]), float(feats["col"][i]), i + 1, res.get("ranks"),
-                          (0, 0), f, lab[k])
+        top = (float(feats["row"][i]), float(feats["col"][i]))
+        hit = on_label(*top, i + 1, res.get("ranks"), (0, 0), f, lab[k])
+        out[k] = (hit, top) if keep_top else hit
     return out
 
 
@@ -91,10 +95,11 @@ def track_hits(images, labels, record, frames, channel=None, sequence=None) -> d
     """``uvisi track --record`` over the whole of ``images`` -> ``{frame: (locked, chosen on the
     label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
     :func:`detect_hits`."""
-    from hil_harness.cli.track import default_track_sequence, read_sequence, track_sequence
+    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
+    from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
     names, counts, _, flags, _, _ = read_sequence([str(images)], False, channel or "l", None,
-                                                None)
+                                                None, field_scale(record))
     seq = default_track_sequence(record, counts.shape[1:], sequence)
     skip = np.array([unusable(fl) for fl in flags])
     replayed, _, _ = track_sequence(counts, record, seq, skip=skip, keep_blobs=True)
@@ -112,6 +117,54 @@ def track_hits(images, labels, record, frames, channel=None, sequence=None) -> d
                           (rf.window[0], rf.window[1]), int(rf.window[4]), lab[k])
         out[k] = (locked, on)
     return out
+
+
+def plot_night(night: str, record, frames, out, channel=None) -> None:
+    """A PNG of ``frames`` of one of :data:`NIGHTS` (a row of panels): the label (``+``), the
+    rank-1 candidate of ``uvisi detect --record`` (circle) and, when locked, the object of ``uvisi
+    track --record`` (square), each green when on the label, red when not."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
+    from hil_harness.detect.jobs import field_scale
+    images, labels, _ = NIGHTS[night]
+    images, labels = _ROOT / images, _ROOT / labels
+    det = detect_hits(images, labels, record, frames, channel, keep_top=True)
+    _, counts, _, _, _, fld = read_sequence([str(images)], False, channel or "l", None, None,
+                                            field_scale(record))
+    reps, _, _ = track_sequence(counts, record, default_track_sequence(record, counts.shape[1:]))
+    lab = _labels_of(labels, images.name)
+    trk = track_hits(images, labels, record, frames, channel)
+    fig, axs = plt.subplots(1, len(frames), figsize=(3.0 * len(frames), 3.3))
+    for ax, k in zip(np.atleast_1d(axs), frames):
+        img = counts[k].astype(float)
+        lo, hi = np.percentile(img[fld.mask], [1, 99.5])
+        ax.imshow(img, cmap="gray", vmin=lo, vmax=max(hi, lo + 1))
+        if fld.kind == "circle":
+            ax.add_patch(plt.Circle((fld.col - 0.5, fld.row - 0.5), fld.radius, fill=False,
+                                    color="#3399ff", lw=0.7))
+        if lab.get(k) is not None:
+            ax.plot(lab[k][1] - 0.5, lab[k][0] - 0.5, "+", color="yellow", ms=14, mew=1.8)
+            hit, top = det[k]
+            if top is not None:
+                ax.plot(top[1] - 0.5, top[0] - 0.5, "o", mfc="none", ms=13, mew=1.6,
+                        color="#33dd33" if hit else "#ff3333")
+            locked, on = trk[k]
+            rf = reps[k]
+            if locked and rf.chosen >= 0:
+                c = rf.candidates[rf.chosen]
+                ax.plot(float(c["col"]) - 0.5, float(c["row"]) - 0.5, "s", mfc="none", ms=10,
+                        mew=1.6, color="#33dd33" if on else "#ff3333")
+        ax.set_title(f"frame {k}", fontsize=9)
+        ax.set_xticks([])
+        ax.set_yticks([])
+    fig.suptitle(f"{night}, record {record.name}: label +, detect rank 1 o, track object "
+                 f"(locked) [] -- green on the label, red not", fontsize=9)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=70)
+    plt.close(fig)
 
 
 def score_night(night: str, record, channel=None, sequence=None) -> dict:
@@ -143,6 +196,10 @@ def main(argv=None) -> int:
     ap.add_argument("--night", action="append", choices=sorted(NIGHTS), default=None)
     ap.add_argument("--sequence", default=None,
                     help="sequence name or .toml for every record (default: each record's own)")
+    ap.add_argument("--plot", default=None, metavar="PNG",
+                    help="also draw the first record on --plot-frames of the first night")
+    ap.add_argument("--plot-frames", default="80,95,110,125,140",
+                    help="comma-separated frames for --plot")
     args = ap.parse_args(argv)
     from hil_harness.tuning.export import record_from
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
@@ -155,6 +212,10 @@ def main(argv=None) -> int:
             s = score_night(night, rec, sequence=args.sequence)
             print(f"| {name} | {night} | {s['frames']} | {_fmt(s['detect_top1'])} | "
                   f"{_fmt(s['track_lock'])} | {_fmt(s['track_on_given_lock'])} |", flush=True)
+    if args.plot:
+        plot_night(nights[0], record_from(records[0]),
+                   [int(x) for x in args.plot_frames.split(",")], args.plot)
+        print(f"wrote {args.plot}")
     return 0
 
 

@@ -272,7 +272,11 @@ def test_tuning_real_entries_take_a_channel(tmp_path):
     spec = SetSpec.from_dict({"real": [dict(entry, channel="g")]}, base_dir=tmp_path)
     assert spec.reals[0]["channel"] == "g"
     ev = real_event(spec.reals[0], tmp_path)
-    assert np.array_equal(ev.frames[0], to_counts(g)[0])      # the green plane, as tuning maps it
+    # the green plane, mapped as uvisi track maps it (its field, the PNG's 8 bits)
+    from hil_harness.real_track import read_sequence
+    _, counts, _, _, _, field = read_sequence([str(tmp_path / "c.png")], channel="g")
+    assert field.kind == "circle" and not np.array_equal(counts[0], to_counts(g)[0])
+    assert np.array_equal(ev.frames[0], counts[0])
     with pytest.raises(ValueError, match=r"real\[0\].channel"):
         SetSpec.from_dict({"real": [dict(entry, channel="x")]}, base_dir=tmp_path)
 

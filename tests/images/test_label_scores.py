@@ -92,3 +92,79 @@ def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
         elif frames[k]["chosen"] and _hand_hit(frames[k]["candidates"][frames[k]["chosen"] - 1],
                                                labels[(GILL5.name, k)], 2):
             assert on
+
+
+# ------------------------------------------------------------------------------------------------
+# the aurora_allsky job: its sequence, its ground-side field, the tuning spec's keys
+# ------------------------------------------------------------------------------------------------
+def test_field_scaled_is_the_smaller_circle():
+    from hil_harness.field import circle_field, mask_field
+    f = circle_field((200, 240), 100.0, 120.0, 80.0, "auto")
+    g = f.scaled(0.7)
+    assert (g.kind, g.row, g.col, g.radius, g.source) == ("circle", 100.0, 120.0, 56.0, "auto")
+    assert abs(int(g.mask.sum()) - math.pi * 56.0 ** 2) < 2 * math.pi * 56.0   # area, to the rim
+    assert not (g.mask & ~f.mask).any()
+    m = mask_field(f.mask)
+    assert m.scaled(0.5) is m                                   # a user's mask is kept as given
+    with pytest.raises(ValueError, match="field scale"):
+        f.scaled(1.5)
+
+
+def test_aurora_allsky_job_runs_its_sequence_and_field(tmp_path):
+    out_a, out_j = tmp_path / "a.json", tmp_path / "j.json"
+    assert main(["detect", str(GILL5), "--record", "aurora", "--json", str(out_a)]) == 0
+    assert main(["detect", str(GILL5), "--record", "aurora_allsky", "--json", str(out_j)]) == 0
+    for a, j in zip(json.loads(out_a.read_text())["images"],
+                    json.loads(out_j.read_text())["images"]):
+        assert (a["sequence"], j["sequence"], j["compaction"]) == ("aurora", "aurora_allsky", 4)
+        fa, fj = a["field"], j["field"]
+        assert fj["kind"] == "circle" and fj["radius"] == pytest.approx(0.7 * fa["radius"],
+                                                                        abs=0.01)
+        for c in j["candidates"]:           # every candidate inside the job's field
+            assert math.hypot(c["row"] - fj["row"], c["col"] - fj["col"]) <= fj["radius"] + 1
+    out_t = tmp_path / "t.json"
+    assert main(["track", str(GILL5), "--record", "aurora_allsky", "--json", str(out_t)]) == 0
+    t = json.loads(out_t.read_text())
+    assert t["sequence"] == "aurora_allsky" and t["field"]["radius"] == pytest.approx(
+        0.7 * json.loads(out_a.read_text())["images"][0]["field"]["radius"], abs=2.0)
+
+
+def test_set_spec_object_rule_and_field_scale():
+    from hil_harness.tuning.data import SetSpec
+    real = {"images": "x.npz", "labels": "x.csv"}
+    s = SetSpec.from_dict({"set": {"object_rule": "blob", "field_scale": 0.7}, "real": [real]})
+    assert s.object_rule == "blob" and s.reals[0]["field_scale"] == 0.7
+    assert SetSpec.from_dict({"real": [real]}).object_rule == "radius"
+    with pytest.raises(ValueError, match="object_rule"):
+        SetSpec.from_dict({"set": {"object_rule": "near"}, "real": [real]})
+    with pytest.raises(ValueError, match="field_scale"):
+        SetSpec.from_dict({"set": {"field_scale": 1.2}, "real": [real]})
+
+
+def test_object_mask_counts_the_labelled_blob():
+    """Two frames of three blobs each; frame 0's label is far from every centroid but held by its
+    blob 2, frame 1's is near blob 0's centroid; frame 1 knows no labelled blob."""
+    from hil_harness.tuning.data import object_mask
+    values = np.zeros((6, 12))
+    values[:, 2] = [10, 50, 90, 10, 50, 90]         # row
+    values[:, 1] = [10, 50, 90, 10, 50, 90]         # col
+    frame = np.array([0, 0, 0, 1, 1, 1])
+    frames = {"label_row": np.array([200.0, 12.0]), "label_col": np.array([200.0, 12.0]),
+              "radius": np.array([5.0, 5.0]), "label_blob": np.array([2, -1])}
+    assert object_mask(values, frame, frames).tolist() == [False, False, True,
+                                                           True, False, False]
+    del frames["label_blob"]
+    assert object_mask(values, frame, frames).tolist() == [False] * 3 + [True, False, False]
+
+
+def test_set_spec_for_a_job_record():
+    from flightsw.records import load_record
+    from hil_harness.tuning.data import SetSpec
+    real = {"images": "x.npz", "labels": "x.csv"}
+    bare = SetSpec.from_dict({"real": [real]})
+    job = bare.for_record(load_record("aurora_allsky"))
+    assert job.sequence == "aurora_allsky" and job.reals[0]["field_scale"] == 0.7
+    assert bare.sequence == "aurora" and bare.reals[0]["field_scale"] == 1.0     # unchanged
+    assert bare.for_record(load_record("aurora")) is bare
+    named = SetSpec.from_dict({"set": {"sequence": "aurora", "field_scale": 0.9}, "real": [real]})
+    assert named.for_record(load_record("aurora_allsky")) is named

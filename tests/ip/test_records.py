@@ -22,8 +22,9 @@ TABLE1 = {  # the MSX paper's Table 1: mean, sigma, weight, lower, upper
 
 def test_shipped_records_and_table1_verbatim():
     recs = shipped_records()
-    assert set(recs) == {"aurora", "star", "satellite", "plume", "streak", "aurora_surge"}
-    assert len({r.record_id for r in recs.values()}) == 6
+    assert set(recs) == {"aurora", "star", "satellite", "plume", "streak", "aurora_surge",
+                         "aurora_allsky"}
+    assert len({r.record_id for r in recs.values()}) == 7
     a = recs["aurora"]
     for i, name in enumerate(FEATURE_NAMES):
         got = (a.mean[i], a.sigma[i], a.weight[i], a.lower[i], a.upper[i])
@@ -31,7 +32,8 @@ def test_shipped_records_and_table1_verbatim():
     assert a.n_weighted == 10 and a.object_type == "aurora"
 
 
-@pytest.mark.parametrize("name", ["aurora", "star", "satellite", "plume", "streak", "aurora_surge"])
+@pytest.mark.parametrize("name", ["aurora", "star", "satellite", "plume", "streak", "aurora_surge",
+                                  "aurora_allsky"])
 def test_toml_words_round_trip_exact(name):
     rec = load_record(name)
     words = rec.to_words()
