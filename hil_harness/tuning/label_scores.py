@@ -91,10 +91,12 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     return out
 
 
-def track_hits(images, labels, record, frames, channel=None, sequence=None) -> dict:
+def track_hits(images, labels, record, frames, channel=None, sequence=None,
+               proposals=()) -> dict:
     """``uvisi track --record`` over the whole of ``images`` -> ``{frame: (locked, chosen on the
     label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
-    :func:`detect_hits`."""
+    :func:`detect_hits`; ``proposals``: those in force (``uvisi track --with``; default none, the
+    paper's system)."""
     from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
@@ -102,7 +104,8 @@ def track_hits(images, labels, record, frames, channel=None, sequence=None) -> d
                                                 None, field_scale(record))
     seq = default_track_sequence(record, counts.shape[1:], sequence)
     skip = np.array([unusable(fl) for fl in flags])
-    replayed, _, _ = track_sequence(counts, record, seq, skip=skip, keep_blobs=True)
+    replayed, _, _ = track_sequence(counts, record, seq, skip=skip, proposals=proposals,
+                                    keep_blobs=True)
     lab = _labels_of(labels, Path(images).name)
     out = {}
     for k in frames:
@@ -167,14 +170,14 @@ def plot_night(night: str, record, frames, out, channel=None) -> None:
     plt.close(fig)
 
 
-def score_night(night: str, record, channel=None, sequence=None) -> dict:
+def score_night(night: str, record, channel=None, sequence=None, proposals=()) -> dict:
     """Both scores of ``record`` on one of :data:`NIGHTS` -> ``{"detect_top1", "track_lock",
     "track_on_given_lock", "frames"}``, each rate a :func:`hil_harness.rates.rate` dict."""
     from hil_harness.rates import rate
     images, labels, frames = NIGHTS[night]
     images, labels = _ROOT / images, _ROOT / labels
     det = detect_hits(images, labels, record, frames, channel, sequence)
-    trk = track_hits(images, labels, record, frames, channel, sequence)
+    trk = track_hits(images, labels, record, frames, channel, sequence, proposals)
     locked = [k for k, (lk, _) in trk.items() if lk]
     return {"frames": len(det),
             "detect_top1": rate(sum(det.values()), len(det)),
@@ -196,12 +199,16 @@ def main(argv=None) -> int:
     ap.add_argument("--night", action="append", choices=sorted(NIGHTS), default=None)
     ap.add_argument("--sequence", default=None,
                     help="sequence name or .toml for every record (default: each record's own)")
+    ap.add_argument("--with", dest="with_", default=None, metavar="NAME[,NAME...]",
+                    help="proposals in force for the track figures (as uvisi track --with)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night")
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
                     help="comma-separated frames for --plot")
     args = ap.parse_args(argv)
+    from flightsw.proposals import check_applicable
     from hil_harness.tuning.export import record_from
+    proposals = check_applicable(args.with_, "opportunity", "--with") if args.with_ else ()
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
     nights = args.night or ["gill2008_test", "gill2014", "wic"]
     print("| record | night | frames | detect: rank 1 on the label | track: locked | "
@@ -209,7 +216,7 @@ def main(argv=None) -> int:
     for name in records:
         rec = record_from(name)
         for night in nights:
-            s = score_night(night, rec, sequence=args.sequence)
+            s = score_night(night, rec, sequence=args.sequence, proposals=proposals)
             print(f"| {name} | {night} | {s['frames']} | {_fmt(s['detect_top1'])} | "
                   f"{_fmt(s['track_lock'])} | {_fmt(s['track_on_given_lock'])} |", flush=True)
     if args.plot:
