@@ -168,3 +168,30 @@ def test_set_spec_for_a_job_record():
     assert bare.for_record(load_record("aurora")) is bare
     named = SetSpec.from_dict({"set": {"sequence": "aurora", "field_scale": 0.9}, "real": [real]})
     assert named.for_record(load_record("aurora_allsky")) is named
+
+
+def test_blob_rule_replays_keep_blobs_and_count_more(gill5_labels):
+    """The same replays scored by the radius alone and by the blob rule: the blob rule's hits hold
+    the radius rule's, each added hit is a rank-1 blob holding the true pixel (read back from the
+    kept rank image), and the training set names each labelled frame's blob from the colours."""
+    from flightsw.records import load_record
+    from hil_harness.tuning.closed import Replayer
+    from hil_harness.tuning.closed_loop import blob_at
+    from hil_harness.tuning.events import real_event
+    path, _ = gill5_labels
+    ev = real_event({"images": str(GILL5), "labels": str(path), "field_scale": 0.7})
+    rec = load_record("aurora_allsky")
+    by_radius = Replayer([ev], "aurora_allsky", 12.0)
+    by_blob = Replayer([ev], "aurora_allsky", 12.0, object_rule="blob")
+    reps = by_blob.replays(rec)
+    assert all(rf.ranks is not None and rf.colours is not None for rf in reps[0])
+    assert all(rf.ranks is None for rf in by_radius.replays(rec)[0])
+    h_r, h_b = by_radius.hits(rec)[0], by_blob.hits(rec)[0]
+    assert (h_b | ~h_r).all() and (h_b & ~h_r).any()         # frame 0 here: on by its blob only
+    for k in np.flatnonzero(h_b & ~h_r):
+        rf = reps[0][k]
+        assert blob_at(rf.ranks, rf.window[:2], rf.window[4], (ev.truth_row[k], ev.truth_col[k])) == 1
+    ts = by_blob.training_set(reps)
+    lb = ts.frames["label_blob"]
+    assert lb.shape == (5,) and (lb >= -1).all() and (lb < ts.frames["n_blobs"]).all()
+    assert (lb >= 0).any() and ts.is_object()[ts.frame == 0].sum() >= 1
