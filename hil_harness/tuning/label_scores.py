@@ -97,9 +97,9 @@ def track_hits(images, labels, record, frames, channel=None, sequence=None,
     label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
     :func:`detect_hits`; ``proposals``: those in force (``uvisi track --with``; default none, the
     paper's system)."""
-    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
+    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     names, counts, _, flags, _, _ = read_sequence([str(images)], False, channel or "l", None,
                                                 None, field_scale(record))
     seq = default_track_sequence(record, counts.shape[1:], sequence)
@@ -129,8 +129,8 @@ def plot_night(night: str, record, frames, out, channel=None) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     from hil_harness.detect.jobs import field_scale
+    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     images, labels, _ = NIGHTS[night]
     images, labels = _ROOT / images, _ROOT / labels
     det = detect_hits(images, labels, record, frames, channel, keep_top=True)
