@@ -148,6 +148,27 @@ def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uW
 
 
 @njit(cache=True)
+def _cholesky_lower(A, L, m):
+    """The lower triangle of L with L L^T = A[:m, :m] (A symmetric, float64 [>= m, >= m]; only
+    its lower triangle is read; L may be A itself: the factor then overwrites it in place).
+    False, with L partly written, when A is not positive definite."""
+    for j in range(m):
+        d = A[j, j]
+        for p in range(j):
+            d -= L[j, p] * L[j, p]
+        if not d > 0.0:
+            return False
+        d = np.sqrt(d)
+        L[j, j] = d
+        for i in range(j + 1, m):
+            s = A[i, j]
+            for p in range(j):
+                s -= L[i, p] * L[j, p]
+            L[i, j] = s / d
+    return True
+
+
+@njit(cache=True)
 def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
     """The gain of an update with the m measurement rows ``Hm`` (m, n) and the packed R (``Rf``
     from ``r0_``): B = H P- into ``B``, B H^T into ``BH``, the Cholesky factor of S = H P- H^T + R
@@ -169,20 +190,10 @@ def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
             S[a, b] = v
             S[b, a] = v
     # Cholesky S = L L^T (lower, in place), then K^T = S^-1 B (eq. 11)
+    if not _cholesky_lower(S, S, m):
+        raise ValueError("innovation covariance H P H^T + R is not positive definite")
     for j in range(m):
-        d = S[j, j]
-        for p in range(j):
-            d -= S[j, p] * S[j, p]
-        if not d > 0.0:
-            raise ValueError("innovation covariance H P H^T + R is not positive definite")
-        d = np.sqrt(d)
-        S[j, j] = d
-        dS[j] = 1.0 / d
-        for i in range(j + 1, m):
-            s = S[i, j]
-            for p in range(j):
-                s -= S[i, p] * S[j, p]
-            S[i, j] = s / d
+        dS[j] = 1.0 / S[j, j]
     for a in range(m):
         for j in range(uWr):
             Kt[a, j] = B[a, j]
@@ -526,19 +537,8 @@ def _rts_means_into(xf, Pf, xp, Pp, Phi, xs, nt):
     for i in range(n):
         xs[N - 1, i] = xf[N - 1, i]
     for k in range(N - 2, -1, -1):
-        for j in range(n):
-            s = Pp[k + 1, j, j]
-            for t in range(j):
-                s -= L[j, t] * L[j, t]
-            if not s > 0.0:
-                raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
-            d = np.sqrt(s)
-            L[j, j] = d
-            for i in range(j + 1, n):
-                s = Pp[k + 1, i, j]
-                for t in range(j):
-                    s -= L[i, t] * L[j, t]
-                L[i, j] = s / d
+        if not _cholesky_lower(Pp[k + 1], L, n):
+            raise ValueError("predicted covariance is not positive definite; smoother gain undefined")
         for i in range(n):                  # L y = xs_k+1 - x-_k+1
             s = xs[k + 1, i] - xp[k + 1, i]
             for t in range(i):
