@@ -66,22 +66,37 @@ def _stop(procs: list[subprocess.Popen]) -> None:
         p.wait()
 
 
-def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0) -> dict:
-    """One event of ``tree``'s code in a fresh process beside ``busy`` busy loops: its
-    ``summary.json`` figures (us a frame) and the load average before and after."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
+def _beside_busy(args: list, cwd: Path, env: dict, busy: int, settle_s: float, what: str):
+    """Run ``args`` (a Python command line after the interpreter) in ``cwd`` with ``env`` beside
+    ``busy`` busy loops (started ``settle_s`` before it) -> (completed process, load average
+    before, after); SystemExit naming ``what`` when it fails."""
     procs = _busy(busy)
     try:
         time.sleep(settle_s if busy else 0.0)
         load0 = os.getloadavg()[0]
-        p = subprocess.run([sys.executable, "-m", "hil_harness.cli", "-q", "event",
-                            "satellite_over_stars", "--no-figures", "--out", str(out), "--force"],
-                           cwd=tree, env=env, capture_output=True, text=True)
+        p = subprocess.run([sys.executable, *args], cwd=cwd, env=env, capture_output=True,
+                           text=True)
         load1 = os.getloadavg()[0]
     finally:
         _stop(procs)
     if p.returncode != 0:
-        raise SystemExit(f"{tree}: the event failed:\n{p.stderr[-2000:]}")
+        raise SystemExit(f"{what} failed:\n{p.stderr[-2000:]}")
+    return p, load0, load1
+
+
+def _last_json(p, load0: float, load1: float, busy: int) -> dict:
+    """The JSON object a child printed last, with the busy loops and the load around it."""
+    return dict(json.loads(p.stdout.strip().splitlines()[-1]), busy=busy, load_before=load0,
+                load_after=load1)
+
+
+def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0) -> dict:
+    """One event of ``tree``'s code in a fresh process beside ``busy`` busy loops: its
+    ``summary.json`` figures (us a frame) and the load average before and after."""
+    _, load0, load1 = _beside_busy(
+        ["-m", "hil_harness.cli", "-q", "event", "satellite_over_stars", "--no-figures", "--out",
+         str(out), "--force"], tree, dict(os.environ, PYTHONPATH=str(tree)), busy, settle_s,
+        f"{tree}: the event")
     s = json.loads((out / "summary.json").read_text())
     h, n = s["host"], s["frames"]
     return {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
@@ -125,20 +140,9 @@ print(json.dumps({"record_cpu_us": 1e6 * rc / n, "loop_cpu_us": 1e6 * lc / n,
 
 def cpu_run(tree: Path, busy: int, settle_s: float = 2.0) -> dict:
     """:data:`CPU_CHILD` of ``tree``'s code beside ``busy`` busy loops: its figures and the load."""
-    env = dict(os.environ, PYTHONPATH=str(tree))
-    procs = _busy(busy)
-    try:
-        time.sleep(settle_s if busy else 0.0)
-        load0 = os.getloadavg()[0]
-        p = subprocess.run([sys.executable, "-c", CPU_CHILD], cwd=tree, env=env,
-                           capture_output=True, text=True)
-        load1 = os.getloadavg()[0]
-    finally:
-        _stop(procs)
-    if p.returncode != 0:
-        raise SystemExit(f"{tree}: the run failed:\n{p.stderr[-2000:]}")
-    return dict(json.loads(p.stdout.strip().splitlines()[-1]), busy=busy, load_before=load0,
-                load_after=load1)
+    ran = _beside_busy(["-c", CPU_CHILD], tree, dict(os.environ, PYTHONPATH=str(tree)), busy,
+                       settle_s, f"{tree}: the run")
+    return _last_json(*ran, busy)
 
 
 #: the ``--pair`` run: both recorders in one process, events alternated; prints one JSON object
@@ -216,21 +220,10 @@ def pair_run(commit: str, rounds: int, busy: int, settle_s: float = 2.0) -> dict
             (d / f"{m}.py").write_text(subprocess.run(
                 ["git", "show", f"{commit}:hil_harness/event/{m}.py"], cwd=ROOT, check=True,
                 capture_output=True, text=True).stdout)
-        env = dict(os.environ, PYTHONPATH=str(ROOT))
-        procs = _busy(busy)
-        try:
-            time.sleep(settle_s if busy else 0.0)
-            load0 = os.getloadavg()[0]
-            p = subprocess.run([sys.executable, "-c", PAIR_CHILD.format(
-                pkg_dir=tmp, pkg=pkg, rounds=rounds)], cwd=ROOT, env=env, capture_output=True,
-                text=True)
-            load1 = os.getloadavg()[0]
-        finally:
-            _stop(procs)
-    if p.returncode != 0:
-        raise SystemExit(f"the paired run failed:\n{p.stderr[-2000:]}")
-    return dict(json.loads(p.stdout.strip().splitlines()[-1]), busy=busy, load_before=load0,
-                load_after=load1)
+        ran = _beside_busy(["-c", PAIR_CHILD.format(pkg_dir=tmp, pkg=pkg, rounds=rounds)], ROOT,
+                           dict(os.environ, PYTHONPATH=str(ROOT)), busy, settle_s,
+                           "the paired run")
+    return _last_json(*ran, busy)
 
 
 def main(argv=None) -> int:
@@ -257,23 +250,33 @@ def main(argv=None) -> int:
               f"{os.cpu_count()} cores; " + ", ".join(str(t) for t in trees))
         print(f"{'tree':>12} {'load':>9} {'median':>7} {'record':>7} {'sum':>6} {'loop mean':>9}"
               f"   (us a frame)")
-    runs: dict[Path, list] = {t: [] for t in trees}
     with tempfile.TemporaryDirectory() as tmp:
-        for i in range(a.rounds):
-            for t in trees:
-                r = one_run(t, a.busy, Path(tmp) / f"run{i}-{len(runs[t])}-{names[t]}")
-                runs[t].append(r)
-                if a.json:
-                    print(json.dumps(dict(r, round=i, tree=str(t))), flush=True)
-                    continue
-                print(f"{names[t][-12:]:>12} {r['load_before']:4.1f}-{r['load_after']:<4.1f} "
-                      f"{r['median_frame_us']:7.0f} {r['mean_record_us']:7.0f} {r['sum_us']:6.0f} "
-                      f"{r['loop_mean_us']:9.0f}", flush=True)
+        return _rounds(a, trees, names,
+                       lambda t, i: one_run(t, a.busy, Path(tmp) / f"run{i}-{names[t]}"),
+                       list(zip(FIGURES, (7, 7, 6, 9))))
+
+
+def _rounds(a, trees: list, names: dict, run, cols: list) -> int:
+    """``a.rounds`` rounds of ``run(tree, round)`` (-> a run's dict) over ``trees``: one JSON
+    object per run (``--json``), or a row per run and each tree's medians of ``cols`` (``(key,
+    width)``, us a frame) under the caller's header."""
+    def row(name, load, values):
+        return f"{name[-12:]:>12} {load:>9} " + " ".join(
+            f"{v:{w}.0f}" for v, (_, w) in zip(values, cols))
+    runs: dict[Path, list] = {t: [] for t in trees}
+    for i in range(a.rounds):
+        for t in trees:
+            r = run(t, i)
+            runs[t].append(r)
+            if a.json:
+                print(json.dumps(dict(r, round=i, tree=str(t))), flush=True)
+            else:
+                print(row(names[t], f"{r['load_before']:4.1f}-{r['load_after']:<4.1f}",
+                          [r[k] for k, _ in cols]), flush=True)
     if not a.json:
         for t in trees:
-            med = {k: statistics.median(r[k] for r in runs[t]) for k in FIGURES}
-            print(f"{names[t][-12:]:>12} {'median':>9} {med['median_frame_us']:7.0f} "
-                  f"{med['mean_record_us']:7.0f} {med['sum_us']:6.0f} {med['loop_mean_us']:9.0f}")
+            print(row(names[t], "median", [statistics.median(r[k] for r in runs[t])
+                                           for k, _ in cols]))
     return 0
 
 
@@ -284,24 +287,8 @@ def _cpu_main(a, trees: list, names: dict) -> int:
               f"{os.cpu_count()} cores; " + ", ".join(str(t) for t in trees))
         print(f"{'tree':>12} {'load':>9} {'record cpu':>10} {'loop cpu':>8} {'record':>7} "
               f"{'median':>7}   (us a frame)")
-    runs: dict[Path, list] = {t: [] for t in trees}
-    for i in range(a.rounds):
-        for t in trees:
-            r = cpu_run(t, a.busy)
-            runs[t].append(r)
-            if a.json:
-                print(json.dumps(dict(r, round=i, tree=str(t))), flush=True)
-                continue
-            print(f"{names[t][-12:]:>12} {r['load_before']:4.1f}-{r['load_after']:<4.1f} "
-                  f"{r['record_cpu_us']:10.0f} {r['loop_cpu_us']:8.0f} {r['mean_record_us']:7.0f} "
-                  f"{r['median_frame_us']:7.0f}", flush=True)
-    if not a.json:
-        for t in trees:
-            med = {k: statistics.median(r[k] for r in runs[t]) for k in cols}
-            print(f"{names[t][-12:]:>12} {'median':>9} {med['record_cpu_us']:10.0f} "
-                  f"{med['loop_cpu_us']:8.0f} {med['mean_record_us']:7.0f} "
-                  f"{med['median_frame_us']:7.0f}")
-    return 0
+    return _rounds(a, trees, names, lambda t, i: cpu_run(t, a.busy),
+                   list(zip(cols, (10, 8, 7, 7))))
 
 
 def _pair_main(a) -> int:
