@@ -139,16 +139,23 @@ def test_one_night_is_cross_validated_by_blocks():
         assert cv[key]["n"] == 12
 
 
+def _two_scenarios_two_seeds(n_frames: int) -> list:
+    """Four events ``A/seed1``, ``B/seed1``, ``A/seed2``, ``B/seed2`` of ``n_frames`` frames: the
+    object moving (1, 2) px a frame from (120, 110), a brighter, broader still blob at (80, 190)."""
+    evs = []
+    for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
+        pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(n_frames)])
+        blobs = [[(*p, 1100.0), (80.0, 190.0, 1400.0, 5.0)] for p in pos]
+        evs.append(FrameSequence(_frames(blobs, seed=s), 0.5 * np.arange(n_frames), "wfov_uv",
+                                 GEOM, truth_row=pos[:, 0], truth_col=pos[:, 1], name=name))
+    return evs
+
+
 def test_cross_validation_by_scenario_holds_out_whole_entries():
     """``by="scenario"``: every seed of a set entry (the event name before '/') is in one fold, so a
     held-out fold is a scenario the fold's record never saw; the pooled counts cover every event."""
     from hil_harness.tuning.closed import Replayer, cross_validate_closed
-    evs = []
-    for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
-        pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(6)])
-        blobs = [[(*p, 1100.0), (80.0, 190.0, 1400.0, 5.0)] for p in pos]
-        evs.append(FrameSequence(_frames(blobs, seed=s), 0.5 * np.arange(6), "wfov_uv", GEOM,
-                               truth_row=pos[:, 0], truth_col=pos[:, 1], name=name))
+    evs = _two_scenarios_two_seeds(6)
     cv = cross_validate_closed(Replayer(evs, "aurora", 24.0), folds=3, maxiter=1, popsize=1,
                                frr=0.0, quantize="off", log=lambda *a: None, by="scenario")
     assert cv["how"] == "scenario"
@@ -167,12 +174,7 @@ def test_optimise_gives_the_same_record_on_one_or_two_workers(monkeypatch):
     parallel = forked._parallel
     monkeypatch.setattr(forked, "_parallel", lambda jobs, *a: pools.append(len(jobs)) or
                         parallel(jobs, *a))
-    evs = []
-    for name, s in (("A/seed1", 1), ("B/seed1", 2), ("A/seed2", 3), ("B/seed2", 4)):
-        pos = np.array([(120.0 + k, 110.0 + 2 * k) for k in range(5)])
-        blobs = [[(*p, 1100.0), (80.0, 190.0, 1400.0, 5.0)] for p in pos]
-        evs.append(FrameSequence(_frames(blobs, seed=s), 0.5 * np.arange(5), "wfov_uv", GEOM,
-                                 truth_row=pos[:, 0], truth_col=pos[:, 1], name=name))
+    evs = _two_scenarios_two_seeds(5)
     out = []
     for workers in (1, 2):
         rp = Replayer(evs, "aurora", 24.0, workers=workers)
