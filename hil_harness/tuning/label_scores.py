@@ -91,22 +91,24 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     return out
 
 
-def track_hits(images, labels, record, frames, channel=None, sequence=None,
-               proposals=()) -> dict:
-    """``uvisi track --record`` over the whole of ``images`` -> ``{frame: (locked, chosen on the
-    label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
-    :func:`detect_hits`; ``proposals``: those in force (``uvisi track --with``; default none, the
-    paper's system)."""
+def _tracked(images, record, channel=None, sequence=None, proposals=()):
+    """``uvisi track --record`` over the whole of ``images`` -> (counts uint16 [F, H, W], the
+    field, the list of :class:`~hil_harness.tuning.closed_loop.ReplayFrame` with their blobs)."""
     from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
     from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
-    names, counts, _, flags, _, _ = read_sequence([str(images)], False, channel or "l", None,
-                                                None, field_scale(record))
+    _, counts, _, flags, _, fld = read_sequence([str(images)], False, channel or "l", None, None,
+                                                field_scale(record))
     seq = default_track_sequence(record, counts.shape[1:], sequence)
     skip = np.array([unusable(fl) for fl in flags])
     replayed, _, _ = track_sequence(counts, record, seq, skip=skip, proposals=proposals,
                                     keep_blobs=True)
-    lab = _labels_of(labels, Path(images).name)
+    return counts, fld, replayed
+
+
+def _track_scores(replayed, lab: dict, frames) -> dict:
+    """``{frame: (locked, chosen on the label)}`` of a replay for the ``frames`` whose label
+    (``lab``: ``{frame: (row, col) or None}``) has an object."""
     out = {}
     for k in frames:
         if lab.get(k) is None:
@@ -122,6 +124,16 @@ def track_hits(images, labels, record, frames, channel=None, sequence=None,
     return out
 
 
+def track_hits(images, labels, record, frames, channel=None, sequence=None,
+               proposals=()) -> dict:
+    """``uvisi track --record`` over the whole of ``images`` -> ``{frame: (locked, chosen on the
+    label)}`` for the labelled ``frames`` with an object. ``sequence``: as for
+    :func:`detect_hits`; ``proposals``: those in force (``uvisi track --with``; default none, the
+    paper's system)."""
+    replayed = _tracked(images, record, channel, sequence, proposals)[2]
+    return _track_scores(replayed, _labels_of(labels, Path(images).name), frames)
+
+
 def plot_night(night: str, record, frames, out, channel=None) -> None:
     """A PNG of ``frames`` of one of :data:`NIGHTS` (a row of panels): the label (``+``), the
     rank-1 candidate of ``uvisi detect --record`` (circle) and, when locked, the object of ``uvisi
@@ -129,16 +141,12 @@ def plot_night(night: str, record, frames, out, channel=None) -> None:
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-    from hil_harness.detect.jobs import field_scale
-    from hil_harness.real_track import default_track_sequence, read_sequence, track_sequence
     images, labels, _ = NIGHTS[night]
     images, labels = _ROOT / images, _ROOT / labels
     det = detect_hits(images, labels, record, frames, channel, keep_top=True)
-    _, counts, _, _, _, fld = read_sequence([str(images)], False, channel or "l", None, None,
-                                            field_scale(record))
-    reps, _, _ = track_sequence(counts, record, default_track_sequence(record, counts.shape[1:]))
+    counts, fld, reps = _tracked(images, record, channel)
     lab = _labels_of(labels, images.name)
-    trk = track_hits(images, labels, record, frames, channel)
+    trk = _track_scores(reps, lab, frames)
     fig, axs = plt.subplots(1, len(frames), figsize=(3.0 * len(frames), 3.3))
     for ax, k in zip(np.atleast_1d(axs), frames):
         img = counts[k].astype(float)
