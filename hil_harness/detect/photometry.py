@@ -9,11 +9,15 @@ it (:func:`aperture_flux`, :func:`order_stars`).
 The peak gate (4.5 input-noise sigmas, :data:`hil_harness.detect.jobs.GATE_SIGMA`) was set so that
 the gated list of a sharp star-tracker frame matches SEP's 5-sigma list; a camera with a broad
 point-spread function (an all-sky imager) puts its real stars below it (their smoothed peak is
-spread, not their flux). So free slots are filled with candidates below the gate whose aperture
-signal-to-noise is at least :data:`FILL_SNR`, after every gated one; the JSON marks each
-candidate's ``gate``.
+spread, not their flux). So free slots are filled with candidates below the gate whose
+signal-to-noise in the detection aperture (:func:`detection_snr`: radius :data:`DETECT_RADIUS`
+about the centroid) is at least :data:`FILL_SNR`, after every gated one; the JSON marks each
+candidate's ``gate``. Two apertures, as photometry pipelines keep them: the flux that orders the
+stars is taken in an aperture wide enough to hold a star's light (:func:`aperture_flux`), the
+signal-to-noise that admits one in an aperture about its core, where a faint star stands highest
+above the sky's noise.
 
-Public: :func:`aperture_flux`, :func:`order_stars` and their constants.
+Public: :func:`aperture_flux`, :func:`detection_snr`, :func:`order_stars` and their constants.
 """
 from __future__ import annotations
 
@@ -23,8 +27,9 @@ import sys
 import numpy as np
 from numba import njit
 
-__all__ = ["aperture_flux", "order_stars", "MIN_RADIUS", "MAX_RADIUS", "RADIUS_PER_AXIS",
-           "ANNULUS", "FILL_SNR", "FILL_PEAK_SIGMA", "SAME_STAR_PX"]
+__all__ = ["aperture_flux", "detection_snr", "order_stars", "MIN_RADIUS", "MAX_RADIUS",
+           "RADIUS_PER_AXIS", "ANNULUS", "DETECT_RADIUS", "FILL_SNR", "FILL_PEAK_SIGMA",
+           "SAME_STAR_PX"]
 
 #: aperture radius = RADIUS_PER_AXIS x the blob's semimajor axis, within MIN_RADIUS..MAX_RADIUS px
 RADIUS_PER_AXIS = 2.0
@@ -32,6 +37,12 @@ MIN_RADIUS = 3.0
 MAX_RADIUS = 10.0
 #: background annulus: from the aperture radius + ANNULUS[0] to + ANNULUS[1] pixels
 ANNULUS = (3.0, 8.0)
+#: the detection aperture's radius (pixels): the fill's signal-to-noise is measured in it. For a
+#: Gaussian star under the sky's noise the signal-to-noise of an aperture of radius r grows as
+#: (1 - exp(-r^2 / 2 s^2)) / r, highest at r = 1.585 s; 2 px is that optimum for a star of FWHM
+#: 3 px (s = 1.26 px), as star trackers and all-sky imagers sample them. Chosen on the Gakona
+#: sequence of data/real/ (1.5 px gives the same counts there; docs/validation.md).
+DETECT_RADIUS = 2.0
 
 
 def aperture_flux(img, rows, cols, semimajor, noise: float, mask=None):
@@ -49,18 +60,37 @@ def aperture_flux(img, rows, cols, semimajor, noise: float, mask=None):
     limited signal-to-noise; NaN where the aperture holds no pixel). All the points in one
     compiled call (:func:`_apertures_k`).
     """
+    rad = np.clip(RADIUS_PER_AXIS * np.asarray(semimajor, float), MIN_RADIUS, MAX_RADIUS)
+    return _apertures(img, rows, cols, rad, noise, mask)
+
+
+def detection_snr(img, rows, cols, noise: float, mask=None):
+    """Signal-to-noise of each point in the detection aperture, radius :data:`DETECT_RADIUS`.
+
+    ``img``: 2-D array [H, W] (counts); ``rows``, ``cols``: float [n], full-resolution centroids
+    (pixel centres at +0.5); ``noise``: the frame's pixel noise (counts); ``mask``: optional bool
+    [H, W], pixels outside take no part. As :func:`aperture_flux` with every radius
+    ``DETECT_RADIUS`` (the background the median of its annulus): returns float64 [n], ``flux /
+    (noise * sqrt(pixels in the aperture))``, NaN where the aperture holds no pixel.
+    """
+    rad = np.full(np.size(rows), DETECT_RADIUS)
+    return _apertures(img, rows, cols, rad, noise, mask)[1]
+
+
+def _apertures(img, rows, cols, rad, noise: float, mask):
+    """``(flux, snr)`` of every point in apertures of radii ``rad`` (float [n], pixels); the
+    arguments as :func:`aperture_flux`'s."""
     a = np.asarray(img)
     if a.dtype not in (np.uint16, np.float64):
         a = a.astype(np.float64)
     a = np.ascontiguousarray(a)
     rows = np.ascontiguousarray(rows, float)
     cols = np.ascontiguousarray(cols, float)
-    rad = np.clip(RADIUS_PER_AXIS * np.asarray(semimajor, float), MIN_RADIUS, MAX_RADIUS)
     if mask is None:
         m, use = np.ones((1, 1), np.bool_), False
     else:
         m, use = np.ascontiguousarray(mask, np.bool_), True
-    return _apertures_k(a, rows, cols, np.ascontiguousarray(rad), float(noise), m, use,
+    return _apertures_k(a, rows, cols, np.ascontiguousarray(rad, float), float(noise), m, use,
                         float(ANNULUS[0]), float(ANNULUS[1]))
 
 
@@ -122,8 +152,8 @@ def _apertures_k(a, rows, cols, rad, noise, m, use_mask, ann0, ann1):
     return flux, snr
 
 
-#: the star job's fill: a candidate below the peak gate may fill a free slot when its aperture
-#: signal-to-noise is at least FILL_SNR; the IP is re-run with its peak gate at FILL_PEAK_SIGMA
+#: the star job's fill: a candidate below the peak gate may fill a free slot when its
+#: signal-to-noise in the detection aperture (:func:`detection_snr`) is at least FILL_SNR; the IP is re-run with its peak gate at FILL_PEAK_SIGMA
 #: input-noise sigmas to find them
 FILL_SNR = 5.0
 FILL_PEAK_SIGMA = 1.0
@@ -147,21 +177,23 @@ def order_stars(img12, gated: list, below: list, noise: float, max_candidates: i
     changed; this orders what it reported): every candidate that passed the peak gate, brightest
     aperture flux first; then, in the slots left up to ``max_candidates``, the candidates of a run
     with the gate lowered to ``FILL_PEAK_SIGMA`` that are not a gated star (``SAME_STAR_PX``) and
-    whose aperture signal-to-noise is at least ``FILL_SNR``, brightest first.
+    whose signal-to-noise in the detection aperture (:func:`detection_snr`) is at least
+    ``FILL_SNR``, brightest first.
 
     ``img12``: uint16 [H, W], the counts the IP was given; ``gated``, ``below``: candidate dicts
     (``row``, ``col``, ``features``: as :func:`hil_harness.cli.detect.detect_one` makes them)
     from the gated and the lowered run; ``noise``: pixel noise of ``img12`` (counts); ``mask``:
     optional bool [H, W], the field. Returns new dicts with ``rank`` (1-based, this order),
-    ``flight_rank`` (in its run), ``gate`` (True: passed the peak gate), ``flux`` (counts) and
-    ``snr`` added."""
+    ``flight_rank`` (in its run), ``gate`` (True: passed the peak gate), ``flux`` (counts, in
+    :func:`aperture_flux`'s aperture) and ``snr`` (in the detection aperture) added."""
     def measured(cands, gate):
         if not cands:
             return []
         r = np.array([c["row"] for c in cands])
         c_ = np.array([c["col"] for c in cands])
         a = np.array([c["features"]["semimajor"] for c in cands])
-        flux, snr = aperture_flux(img12, r, c_, a, noise, mask)
+        flux = aperture_flux(img12, r, c_, a, noise, mask)[0]
+        snr = detection_snr(img12, r, c_, noise, mask)
         return [dict(c, flight_rank=c["rank"], gate=gate, flux=float(f), snr=float(s))
                 for c, f, s in zip(cands, flux, snr)]
 

@@ -57,14 +57,15 @@ def test_the_ten_brightest_stars_are_among_the_default_candidates(tmp_path, path
 
 @need
 def test_gakona_catalogue_stars_with_the_horizon_mask(tmp_path):
-    """Measured, not the issue's 9 of 10: the 4 faintest of the 10 have aperture S/N 2-5 in one
-    1-s frame (SEP at their catalogue positions), so a default list that keeps noise out holds
-    8 here; the figure and why are in docs/validation.md."""
+    """The issue's 9 of 10 on this frame: the faint stars are admitted by their signal-to-noise
+    in the detection aperture (2 px); the tenth, Spica, images just outside the 15-deg mask (its
+    peak two pixels nearer the rim than the catalogue position). The 23 frames' spread is in
+    docs/validation.md."""
     stars = np.genfromtxt(GAKO_STARS, delimiter=",", names=True, skip_header=1)
     (e,) = _detect(tmp_path, GAKO, "--mask", GAKO_MASK)
     assert len(stars) == 10
     hits = _found(e["candidates"], stars["row"], stars["col"])
-    assert sum(hits) >= 8, hits
+    assert sum(hits) >= 9, hits
     assert all(hits[:3])                                   # Vega, Arcturus, Capella
 
 
