@@ -153,8 +153,8 @@ def _apertures_k(a, rows, cols, rad, noise, m, use_mask, ann0, ann1):
 
 
 #: the star job's fill: a candidate below the peak gate may fill a free slot when its
-#: signal-to-noise in the detection aperture (:func:`detection_snr`) is at least FILL_SNR; the IP is re-run with its peak gate at FILL_PEAK_SIGMA
-#: input-noise sigmas to find them
+#: signal-to-noise in the detection aperture (:func:`detection_snr`) is at least FILL_SNR; the IP
+#: is re-run with its peak gate at FILL_PEAK_SIGMA input-noise sigmas to find them
 FILL_SNR = 5.0
 FILL_PEAK_SIGMA = 1.0
 #: a fill candidate within this distance (pixels) of a gated one is the same star

@@ -78,7 +78,7 @@ def test_a_faint_compact_star_fills_a_free_slot():
     assert out[0]["flux"] == pytest.approx(aperture_flux(img, [48.5], [56.5], [1.4], noise)[0][0])
 
 
-def test_noise_below_the_fill_stays_out():
+def test_a_star_below_the_fill_stays_out():
     img = np.rint(_star_frame([(48.5, 56.5, 120.0)])).astype(np.uint16)
     cand = {"row": 48.5, "col": 56.5, "rank": 3, "features": {"semimajor": 1.4}}
     assert detection_snr(img, [48.5], [56.5], 10.0)[0] < FILL_SNR   # ~2.9
