@@ -53,11 +53,15 @@ EXTENDED_TILE = {"streak": 128, "aurora": 128, "aurora_allsky": 128}
 FIELD_SPARE = 64
 
 #: the ground-side field of a job, as a fraction of the fisheye circle found in the frame (jobs not
-#: named: 1, the whole circle). aurora_allsky: 0.7 of the radius, elevations above ~27 deg for an
-#: equidistant lens -- the horizon ring below it (brightened by the slant path through the
-#: emitting layer, obstructions, lights, moonlight) is not a pointing target; it is the region the
-#: Gillam 2008 labels were drawn in (data/labels/README.md), chosen before any tuning
-JOB_FIELD_SCALE = {"aurora_allsky": 0.7}
+#: named: 1, the whole circle; an equidistant lens puts elevation e at (90 - e) / 90 of the radius).
+#: aurora_allsky: 0.7 of the radius, elevations above ~27 deg -- the horizon ring below it
+#: (brightened by the slant path through the emitting layer, obstructions, lights, moonlight) is
+#: not a pointing target; it is the region the Gillam 2008 labels were drawn in
+#: (data/labels/README.md), chosen before any tuning. star: elevations above 15 deg, a common
+#: horizon cut of all-sky star work (below it ~4 airmasses dim the stars while trees, lights and
+#: twilight glow pass the peak gate first); the cut of the Gakona mask and catalogue list of
+#: data/real/. A frame with no fisheye circle (a star tracker, a telescope) keeps its whole field.
+JOB_FIELD_SCALE = {"aurora_allsky": 0.7, "star": 75.0 / 90.0}
 
 
 def field_scale(record) -> float:

@@ -112,6 +112,37 @@ def test_pixels_outside_the_field_take_part_in_no_statistic():
                                                                              // 2]))
 
 
+def test_the_star_job_keeps_the_sky_above_15_degrees(tmp_path):
+    """A made fisheye frame (circle radius 130 px) with one star at 0.5 of the radius (60 deg
+    elevation for an equidistant lens) and one at 0.93 (6 deg): the star job keeps 75/90 of the
+    circle found, so it reports the first and not the second; the whole circle given as
+    ``--field-circle`` reports both; the streak job keeps the whole circle."""
+    centre, radius = (152.0, 171.0), 130.0
+    img = fisheye(centre=centre, radius=radius, scene=False)
+    yy, xx = np.mgrid[:img.shape[0], :img.shape[1]] + 0.5
+    high, low = (centre[0] - 65.0, centre[1]), (centre[0], centre[1] + 121.0)
+    for r, c in (high, low):
+        img += 3000.0 * np.exp(-((yy - r) ** 2 + (xx - c) ** 2) / 3.0)
+    path = tmp_path / "fisheye.npy"
+    np.save(path, np.clip(img, 0, 4095).astype(np.uint16))
+    out = tmp_path / "d.json"
+
+    def found(*args):
+        assert main(["detect", str(path), *args, "--json", str(out)]) == 0
+        (e,) = json.loads(out.read_text())["images"]
+        rc = np.array([[c["row"], c["col"]] for c in e["candidates"]]).reshape(-1, 2)
+        near = [bool(len(rc)) and np.hypot(*(rc - p).T).min() < 2.0 for p in (high, low)]
+        return e["field"], near
+
+    whole = find_field(np.load(path)).radius          # the circle found (its own tests above)
+    field, near = found()
+    assert field["kind"] == "circle" and field["source"] == "auto"
+    assert field["radius"] == pytest.approx(whole * 75 / 90, abs=0.01)
+    assert near == [True, False]
+    assert found("--field-circle", f"{centre[0]},{centre[1]},{radius}")[1] == [True, True]
+    assert found("--record", "streak")[0]["radius"] == pytest.approx(whole, abs=0.01)
+
+
 # ------------------------------------------------------------------------------------------------
 # flags: each rule on frames whose answer is known
 # ------------------------------------------------------------------------------------------------
