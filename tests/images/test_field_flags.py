@@ -113,7 +113,7 @@ def test_pixels_outside_the_field_take_part_in_no_statistic():
 
 
 def test_the_star_job_keeps_the_sky_above_15_degrees(tmp_path):
-    """A made fisheye frame (circle radius 130 px) with one star at 0.5 of the radius (60 deg
+    """A made fisheye frame (circle radius 130 px) with one star at 0.5 of the radius (45 deg
     elevation for an equidistant lens) and one at 0.93 (6 deg): the star job keeps 75/90 of the
     circle found, so it reports the first and not the second; the whole circle given as
     ``--field-circle`` reports both; the streak job keeps the whole circle."""
