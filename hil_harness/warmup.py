@@ -18,6 +18,11 @@ OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test su
 processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
 kernel tests off) where one process alone never did, even with numba's cache saves locked
 (:mod:`flightsw.numba_cache`); until that is understood the first run compiles in one process.
+A second way two processes' code can mix is closed since: the 1750A primitives' overloads each
+have their own name (:func:`flightsw.arith.m1750_float.overload_impl2`), so a symbol two cached
+kernels both define is always the same code. On 2026-11-29 one cold suite with the compile-ahead
+process (12bd2df, before that change) showed no opportunity-track failure; one run does not clear
+it.
 """
 from __future__ import annotations
 

@@ -1430,7 +1430,7 @@ def overload_impl2(kern):
     def ov(a, b):
         def impl(a, b):
             return kern(a, b)
-        return impl
+        return _named_after(impl, kern)
     return ov
 
 
@@ -1439,8 +1439,25 @@ def overload_impl1(kern):
     def ov(a):
         def impl(a):
             return kern(a)
-        return impl
+        return _named_after(impl, kern)
     return ov
+
+
+def _named_after(impl, kern):
+    """``impl`` renamed ``<kern's module>_<kern's name>_overload``, its own name for each kernel.
+
+    numba names a compiled function by its module, qualified name, a counter of the process that
+    compiled it and its argument types. Every ``impl`` made here would share one qualified name
+    and, for one arity, one argument list (int64 words), so two processes that number their
+    compilations differently can give one symbol name to the overloads of two different
+    primitives. A kernel keeps such an overload out of line when it is large (the TP's frame
+    kernel keeps one), and when a process loads two cached kernels that define the same symbol
+    LLVM binds both to one body (numba issue 10486): wrong arithmetic. With a name per kernel, two
+    definitions of one symbol are always the same code."""
+    f = kern.py_func
+    impl.__name__ = impl.__qualname__ = (f"{f.__module__.rsplit('.', 1)[-1]}_{f.__name__}"
+                                         f"_overload")
+    return impl
 
 
 def _register_overloads():

@@ -29,9 +29,13 @@ assert len(uncached_kernels(f.qdcm)) == len(planned)          # an empty cache
 R = np.zeros(9, np.int64)
 half = encode32(0.5)
 f.qdcm(half, half, half, half, R)
-# the overloads' implementations numba makes (``<locals>``) are not kernels of their own
+# the overloads' implementations numba makes are not kernels of their own: a kernel is a
+# module's dispatcher
+import sys
+own = lambda fn: getattr(getattr(sys.modules[fn.__module__], fn.__qualname__, None), "py_func",
+                         None) is fn
 project = sorted({name(fn) for fn in compiled
-                  if fn.__module__.split(".")[0] in PROJECT_PACKAGES and "<locals>" not in name(fn)})
+                  if fn.__module__.split(".")[0] in PROJECT_PACKAGES and own(fn)})
 print(json.dumps({"planned": planned, "compiled": project,
                   "cached_after": len(uncached_kernels(f.qdcm)),
                   "bar": list(console.compile_counts())}))
