@@ -64,7 +64,9 @@ Jobs (--record; the job's sequence follows unless --sequence is given):
            Candidates pass a significance gate (peak in the smoothed image >= 4.5 pixel-noise
            sigmas, the noise measured on the frame). Ordering (a ground ordering; the flight
            ranking is in "flight_rank"): gated candidates by aperture flux, brightest first, then
-           free slots filled with candidates below the gate of aperture S/N >= 5 ("gate": false).
+           free slots filled with candidates below the gate whose S/N in a 2-px aperture is >= 5
+           ("gate": false). On a fisheye frame the field is the sky above 15 deg elevation (75/90
+           of the circle found).
   streak   satellite or meteor trails 80 px and longer that stand out of the sky (a trail of a
            few noise sigmas per pixel on a banded or graded sky is below the job's threshold).
            Sequence 'streak': compaction 4, one candidate per trail with its orientation (degrees

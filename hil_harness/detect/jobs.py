@@ -26,10 +26,12 @@ def __getattr__(name):
 JOBS = {
     "star": ("star", "star",
              "point sources (stars, distant satellites, any unresolved spot): compaction 1, "
-             "centroids to a few hundredths of a pixel, brightest first"),
+             "centroids to a few hundredths of a pixel, brightest first; on a fisheye frame the "
+             "sky above 15 deg elevation"),
     "streak": ("streak", "streak",
-               "elongated trails (satellites or meteors crossing the frame, 80 px and longer): "
-               "compaction 4, one candidate per trail with its orientation"),
+               "elongated trails (satellites or meteors crossing the frame, 80 px and longer, "
+               "standing out of the sky): compaction 4, one candidate per trail with its "
+               "orientation"),
     "aurora": ("aurora", "aurora",
                "extended glow (auroral arcs and surges in UV frames): compaction 2, no detrend"),
     "aurora_allsky": ("aurora_allsky", "aurora_allsky",
