@@ -25,14 +25,13 @@ import threading
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 
 from hil_harness.console import debug
-from hil_harness.webpage import content_security_policy
+from hil_harness.webpage import HOST, allowed_hosts, content_security_policy, send_reply
 
 from .page import page_html, page_js
 from .session import LabelSession
 
 __all__ = ["LabelServer", "make_server", "page_data", "label_json", "HOST", "MAX_POST_BYTES"]
 
-HOST = "127.0.0.1"
 #: the largest POST body read (a label is ~60 bytes)
 MAX_POST_BYTES = 4096
 _FRAME = re.compile(r"^/frames/(\d+)$")
@@ -74,11 +73,6 @@ class LabelServer(ThreadingHTTPServer):
     def url(self) -> str:
         return f"http://{HOST}:{self.server_address[1]}/"
 
-    def origins(self) -> tuple:
-        """The ``Host`` values (lower case) it answers; a POST's ``Origin`` is ``http://`` one."""
-        port = self.server_address[1]
-        return f"{HOST}:{port}", f"localhost:{port}"
-
     def finish_soon(self) -> None:
         """Stop serving once the answer in progress is sent (from a thread of its own:
         ``shutdown`` waits for ``serve_forever``'s loop)."""
@@ -90,31 +84,21 @@ class LabelHandler(BaseHTTPRequestHandler):
     server: LabelServer
 
     def _reply(self, code: int, body: bytes, ctype: str) -> None:
-        headers = {"Content-Type": ctype, "Content-Length": str(len(body)),
-                   "Cache-Control": "no-store", "X-Content-Type-Options": "nosniff",
-                   "Content-Security-Policy": self.server.csp}
-        self.send_response(code)
-        for name, value in headers.items():
-            self.send_header(name, value)
-        self.end_headers()
-        try:
-            self.wfile.write(body)
-        except (BrokenPipeError, ConnectionResetError):
-            debug(f"uvisi label: {self.path}: the browser went away before the answer")
+        send_reply(self, code, body, ctype, self.server.csp, "uvisi label")
 
     def _json(self, code: int, obj) -> None:
         self._reply(code, json.dumps(obj, allow_nan=False).encode("utf-8"), "application/json")
 
     def _refused(self, post: bool) -> str | None:
         """Why a request is refused (403), or None."""
+        hosts = allowed_hosts(self.server.server_address[1])
         host = (self.headers.get("Host") or "").strip().lower()
-        if host not in self.server.origins():
+        if host not in hosts:
             return "this server answers only requests for 127.0.0.1:PORT or localhost:PORT"
         if post:
             origin = (self.headers.get("Origin") or "").strip().lower()
             ctype = (self.headers.get("Content-Type") or "").split(";")[0].strip().lower()
-            if origin not in tuple("http://" + h for h in self.server.origins()) or \
-                    ctype != "application/json":
+            if origin not in {"http://" + h for h in hosts} or ctype != "application/json":
                 return "a change is taken only as JSON from the labelling page itself"
         return None
 

@@ -25,8 +25,10 @@ def write_page(recording, out=None, progress: bool = False, checksums: str = "ve
     """Write the self-contained page of ``recording`` to ``out`` (default: ``view.html`` beside
     it), atomically; returns its path. ``checksums``: "verify" (every row read is checked) or
     "ignore", as :class:`hil_harness.event.recording.Recording` takes it."""
-    from .page import build, write_atomic
+    from hil_harness.fileio import write_text_atomic
+
+    from .page import build
     out = Path(out) if out is not None else Path(recording).parent / "view.html"
     with open_recording(recording, checksums) as rec:
         html = build(rec, progress=progress)
-    return write_atomic(out, html)
+    return write_text_atomic(out, html)

@@ -8,11 +8,9 @@ import json
 import math
 import re
 from importlib.resources import files
-from pathlib import Path
 
 import numpy as np
 
-from hil_harness.fileio import write_text_atomic
 from hil_harness.webpage import page_document
 
 from .codec import pack
@@ -90,12 +88,6 @@ def inline_images(rec, data: dict, stages: dict, progress: bool = False) -> dict
             "frames": [None if f is None else {"shape": shape, "dtype": code, "data": f}
                        for f in frames],
             "stages": {str(k): v for k, v in stages.items()}}
-
-
-def write_atomic(path: Path, text: str) -> Path:
-    """Write ``text`` to ``path`` through a temporary file beside it (its folder made if missing;
-    nothing half-written on failure): :func:`hil_harness.fileio.write_text_atomic`."""
-    return write_text_atomic(path, text)
 
 
 def build(rec, progress: bool = False, replay_stages: bool = True) -> str:

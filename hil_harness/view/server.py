@@ -28,13 +28,12 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from pathlib import Path
 
 from hil_harness.console import debug
-from hil_harness.webpage import content_security_policy
+from hil_harness.webpage import HOST, allowed_hosts, content_security_policy, send_reply
 
 from .data import FrameStars, extract, open_recording
 from .page import frame_bytes, page_html, page_js, script_json
 from .stages import StageReplay, stage_note
 
-HOST = "127.0.0.1"
 #: frames whose stage images the server keeps (~40-250 kB each): memory bounded whatever the
 #: event's length; a frame evicted is replayed again on request
 STAGE_CACHE_FRAMES = 256
@@ -115,27 +114,12 @@ class ViewServer(ThreadingHTTPServer):
             self.rec.close()
 
 
-def allowed_hosts(port: int) -> frozenset:
-    """The ``Host`` header values the server answers (lower case): its own address by IP and by
-    ``localhost``, with its port."""
-    return frozenset({f"{HOST}:{int(port)}", f"localhost:{int(port)}"})
-
-
 class ViewHandler(BaseHTTPRequestHandler):
     server: ViewServer
 
     def _send(self, code: int, body: bytes, ctype: str) -> None:
-        self.send_response(code)
-        self.send_header("Content-Type", ctype)
-        self.send_header("Content-Length", str(len(body)))
-        self.send_header("Cache-Control", "no-store")
-        self.send_header("X-Content-Type-Options", "nosniff")
-        self.send_header("Content-Security-Policy", self.server.csp + "; frame-ancestors 'none'")
-        self.end_headers()
-        try:
-            self.wfile.write(body)
-        except (BrokenPipeError, ConnectionResetError):
-            debug(f"uvisi view: {self.path}: the browser went away before the answer")
+        send_reply(self, code, body, ctype, self.server.csp + "; frame-ancestors 'none'",
+                   "uvisi view")
 
     def do_GET(self) -> None:                                   # noqa: N802 (http.server's name)
         srv, path = self.server, self.path.split("?", 1)[0]
