@@ -67,12 +67,11 @@ def default_track_sequence(record, shape, name=None):
     record's own sequence (:data:`hil_harness.detect.jobs.JOBS`: ``aurora_allsky`` runs
     ``aurora_allsky``, as in ``uvisi detect``); else by object type: aurora -> ``aurora``,
     anything else -> ``satellite``. Set for frames of ``shape`` (H, W)."""
-    from hil_harness.detect.jobs import JOBS
+    from hil_harness.detect.jobs import job_sequence_name
     from hil_harness.tuning.data import load_sequence
     if name is None:
-        own = {rec: seq for seq, rec, _ in JOBS.values()}
-        name = own.get(record.name) or ("aurora" if record.object_type == "aurora"
-                                        else "satellite")
+        name = job_sequence_name(record) or ("aurora" if record.object_type == "aurora"
+                                             else "satellite")
     return load_sequence(name, None, tuple(shape))
 
 

@@ -2,16 +2,16 @@
 goes with a record, sequences by name or file, the star job's significance gate, and the part of a
 fisheye field a job keeps.
 
-Public: :func:`resolve_sequence`, :func:`default_sequence_name`, :func:`peak_gate_record`,
-:func:`tile_for`, :func:`field_scale`, :data:`JOBS`, :data:`GATE_SIGMA`, :data:`EXTENDED_TILE`,
-:data:`JOB_FIELD_SCALE`.
+Public: :func:`resolve_sequence`, :func:`job_sequence_name`, :func:`default_sequence_name`,
+:func:`peak_gate_record`, :func:`tile_for`, :func:`field_scale`, :data:`JOBS`, :data:`GATE_SIGMA`,
+:data:`EXTENDED_TILE`, :data:`JOB_FIELD_SCALE`.
 """
 from __future__ import annotations
 
 
 __all__ = ["JOBS", "GATE_SIGMA", "GATE_TOP", "EXTENDED_TILE", "JOB_FIELD_SCALE", "FIELD_SPARE",
-           "resolve_sequence", "default_sequence_name", "peak_gate_record", "tile_for",
-           "field_scale"]
+           "resolve_sequence", "job_sequence_name", "default_sequence_name", "peak_gate_record",
+           "tile_for", "field_scale"]
 
 def __getattr__(name):
     """``resolve_sequence`` stays importable from here (it was public here before) without loading
@@ -78,13 +78,18 @@ def tile_for(seq) -> int:
     return EXTENDED_TILE.get(seq.name, DEFAULT_TILE)
 
 
+def job_sequence_name(record) -> str | None:
+    """The shipped sequence of the job whose record ``record`` is (:data:`JOBS`, by name), or
+    None for a record of no job."""
+    return next((seq for seq, rec, _ in JOBS.values() if record.name == rec), None)
+
+
 def default_sequence_name(record) -> str:
     """The shipped sequence for a record: the job's own for the job records (star, streak,
-    aurora), by object type otherwise (aurora -> aurora, satellite -> satellite, else star)."""
-    for seq_name, rec_name, _ in JOBS.values():
-        if record.name == rec_name:
-            return seq_name
-    return {"aurora": "aurora", "satellite": "satellite"}.get(record.object_type, "star")
+    aurora, aurora_allsky), by object type otherwise (aurora -> aurora, satellite -> satellite,
+    else star)."""
+    return job_sequence_name(record) or {"aurora": "aurora", "satellite": "satellite"}.get(
+        record.object_type, "star")
 
 
 def peak_gate_record(record, noise_counts: float, sigma: float = GATE_SIGMA):
