@@ -158,10 +158,7 @@ def score_top1(event: FrameSequence, frames: list, radius_px: float) -> np.ndarr
     hit = np.zeros(event.n_frames, bool)
     for k, rf in enumerate(frames):
         if rf.candidates.size and event.has_object[k]:
-            c = rf.candidates[0]
-            truth = (event.truth_row[k], event.truth_col[k])
-            d = math.hypot(float(c["row"]) - truth[0], float(c["col"]) - truth[1])
-            hit[k] = d <= radius_px or (
-                rf.ranks is not None
-                and blob_at(rf.ranks, rf.window[:2], int(rf.window[4]), truth) == 1)
+            c, f = rf.candidates[0], int(rf.window[4])
+            hit[k] = on_label(float(c["row"]), float(c["col"]), 1, rf.ranks, rf.window[:2], f,
+                              (event.truth_row[k], event.truth_col[k]), radius_px / f)
     return hit

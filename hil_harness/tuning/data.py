@@ -66,8 +66,8 @@ from flightsw.messages import N_FEATURES
 from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
-           "SET_SCHEMA", "PREDICT_MODES", "OBJECT_RULES", "resolve_path", "scenario_from_entry", "load_sequence",
-           "map_jobs", "deep_merge", "frame_prediction"]
+           "SET_SCHEMA", "PREDICT_MODES", "OBJECT_RULES", "resolve_path", "scenario_from_entry",
+           "load_sequence", "map_jobs", "deep_merge", "frame_prediction", "real_field"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -634,6 +634,14 @@ def load_labels(path) -> dict:
     return out
 
 
+def real_field(frames, entry) -> np.ndarray:
+    """bool [H, W]: the field of a ``[[real]]`` entry's frames, as ``uvisi track`` finds it for
+    the file (:func:`hil_harness.field.sequence_field`), scaled by the entry's ``field_scale``
+    (the part of a found fisheye circle the entry's job keeps)."""
+    from hil_harness.field import sequence_field
+    return sequence_field(frames).scaled(entry.get("field_scale", 1.0)).mask
+
+
 def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     """Real imagery + label CSV (a ``[[real]]`` entry) -> TrainingSet."""
     from flightsw.records import load_record
@@ -659,9 +667,7 @@ def real_set(entry, sequence, base_dir=None, record=None) -> TrainingSet:
     acc = _Acc()
     prev = None
     seq_cache = {}
-    from hil_harness.field import sequence_field
-    # the field uvisi track finds for the file (and keeps, for the entry's job)
-    field = sequence_field(frames).scaled(entry.get("field_scale", 1.0)).mask
+    field = real_field(frames, entry)
     for fr in sorted(want):
         img = to_counts(frames[fr].data, field=field, bits=frames[fr].bits)[0]
         if img.shape not in seq_cache:

@@ -25,7 +25,8 @@ from flightsw.tp import ImagerGeometry
 from hil_harness.fileio import temp_beside
 
 from hil_harness.event.frames import FrameSequence
-from .data import SetSpec, load_labels, map_jobs, resolve_path, scenario_from_entry
+from .data import (SetSpec, load_labels, map_jobs, real_field, resolve_path,
+                   scenario_from_entry)
 
 __all__ = ["render_scenario_event", "real_event", "build_events", "event_radius",
            "imager_geometry", "real_to_counts", "NOMINAL_DT"]
@@ -111,9 +112,7 @@ def real_event(entry: dict, base_dir=None) -> FrameSequence:
             raise ValueError(f"{entry['labels']}: frame {fr} of {name} has no label row")
         if fr >= len(frames):
             raise ValueError(f"{name}: frame {fr} out of range ({len(frames)} frames)")
-    from hil_harness.field import sequence_field
-    # the field uvisi track finds for the file (and keeps, for the entry's job)
-    field = sequence_field(frames).scaled(entry.get("field_scale", 1.0)).mask
+    field = real_field(frames, entry)
     imgs = np.array([real_to_counts(frames[fr].data, field, frames[fr].bits)
                      for fr in want], np.uint16)
     pos = [mine[fr] for fr in want]
