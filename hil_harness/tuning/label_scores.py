@@ -24,7 +24,6 @@ Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from pathlib import Path
 
