@@ -18,8 +18,10 @@ The labels are read only here, after the flight code has answered. Rates come as
 ``python -m hil_harness.tuning.label_scores`` prints the figures of ``docs/validation.md`` ("Aurora
 on real all-sky imagery").
 
+``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`).
+
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`track_hits`, :func:`score_night`, :func:`plot_night`.
+:func:`blob_ceiling`, :func:`track_hits`, :func:`score_night`, :func:`plot_night`.
 """
 from __future__ import annotations
 
@@ -31,8 +33,8 @@ import numpy as np
 
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
-__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "track_hits", "score_night",
-           "plot_night"]
+__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_ceiling", "track_hits",
+           "score_night", "plot_night"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -54,15 +56,14 @@ def _labels_of(path, image_name) -> dict:
     return {k[1]: v for k, v in load_labels(path).items() if k[0] == image_name}
 
 
-def detect_hits(images, labels, record, frames, channel=None, sequence=None,
-                keep_top=False) -> dict:
-    """``uvisi detect --record`` on each frame of ``images`` alone -> ``{frame: hit}`` for the
-    labelled ``frames`` with an object (True: the rank-1 candidate is on the label; False: it is
-    not, or there is none). ``sequence``: name or .toml (``--sequence``; default the record's).
-    ``keep_top``: the values are ``(hit, (row, col) of the rank-1 candidate or None)``."""
+def _processed(images, labels, record, frames, channel, sequence, n_candidates: int):
+    """Each labelled frame of ``frames`` with an object, as ``uvisi detect --record`` processes it
+    -> yields ``(frame, features, candidate on the label? bool [m], top (row, col) or None)``:
+    the IP's first ``n_candidates`` candidates in its rank order, those outside the field
+    dropped (``features``: the detect_frame feature table of the kept ones)."""
     from hil_harness.detect.fullframe import detect_frame
-    from hil_harness.detect.jobs import (FIELD_SPARE, default_sequence_name, field_scale,
-                                         resolve_sequence, tile_for)
+    from hil_harness.detect.jobs import (default_sequence_name, field_scale, resolve_sequence,
+                                         tile_for)
     from hil_harness.detect.noise import frame_noise
     from hil_harness.field import find_field, inside
     from hil_harness.images import read_images, to_counts
@@ -70,24 +71,53 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     f = seq.preprocess.compaction
     lab = _labels_of(labels, Path(images).name)
     all_frames = read_images([str(images)], channel or "l")
-    out = {}
     for k in frames:
         if lab.get(k) is None:
             continue
         fr = all_frames[k]
         field = find_field(fr.data, frame_noise(fr.data)).scaled(field_scale(record))
         img, _ = to_counts(fr.data, no_scale=False, bits=fr.bits, field=field.mask)
-        res = detect_frame(img, seq, record, f, "full", 1 + FIELD_SPARE, tile_for(seq))
+        res = detect_frame(img, seq, record, f, "full", n_candidates, tile_for(seq))
         feats = res["feats"]
         keep = np.flatnonzero(inside(field.mask, feats["row"], feats["col"])) if len(feats) else []
-        if len(keep) == 0:
-            out[k] = (False, None) if keep_top else False
-            continue
-        i = int(keep[0])
-        top = (float(feats["row"][i]), float(feats["col"][i]))
-        hit = on_label(*top, i + 1, res.get("ranks"), (0, 0), f, lab[k])
+        on = np.array([on_label(float(feats["row"][i]), float(feats["col"][i]), i + 1,
+                                res.get("ranks"), (0, 0), f, lab[k]) for i in keep], bool)
+        top = (float(feats["row"][keep[0]]), float(feats["col"][keep[0]])) if len(keep) else None
+        yield k, (feats[keep] if len(keep) else feats[:0]), on, top
+
+
+def detect_hits(images, labels, record, frames, channel=None, sequence=None,
+                keep_top=False) -> dict:
+    """``uvisi detect --record`` on each frame of ``images`` alone -> ``{frame: hit}`` for the
+    labelled ``frames`` with an object (True: the rank-1 candidate is on the label; False: it is
+    not, or there is none). ``sequence``: name or .toml (``--sequence``; default the record's).
+    ``keep_top``: the values are ``(hit, (row, col) of the rank-1 candidate or None)``."""
+    from hil_harness.detect.jobs import FIELD_SPARE
+    out = {}
+    for k, _, on, top in _processed(images, labels, record, frames, channel, sequence,
+                                    1 + FIELD_SPARE):
+        hit = bool(on.size and on[0])
         out[k] = (hit, top) if keep_top else hit
     return out
+
+
+def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) -> dict:
+    """What any ranking of the IP's blobs could reach on the labelled ``frames`` with an object:
+    ``{"any": k, "by_feature": {feature: k}, "frames": n}``. ``any``: frames where some blob the
+    sequence makes (all of them: up to 1000 candidates, inside the field) is on the label;
+    ``by_feature``: frames where the blob with the largest value of that one feature is (a record
+    weighing that feature alone, its mean above every blob's). The record only sets the field
+    (its job's) and the order the blobs come in; a record with a GOF threshold drops some."""
+    from flightsw.messages import FEATURE_NAMES
+    n, anyk = 0, 0
+    by = dict.fromkeys(FEATURE_NAMES, 0)
+    for _, feats, on, _ in _processed(images, labels, record, frames, channel, sequence, 1000):
+        n += 1
+        anyk += bool(on.any())
+        for name in FEATURE_NAMES:
+            if on.size:
+                by[name] += bool(on[int(np.argmax(np.asarray(feats[name], float)))])
+    return {"any": anyk, "by_feature": by, "frames": n}
 
 
 def _tracked(images, record, channel=None, sequence=None, proposals=()):
@@ -199,6 +229,23 @@ def _fmt(r) -> str:
     return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}, {100 * lo:.0f}-{100 * hi:.0f})"
 
 
+def _print_ceiling(records, nights, sequence) -> int:
+    """The ``--ceiling`` table (:func:`blob_ceiling`), a row per record and night."""
+    from hil_harness.rates import rate
+    from hil_harness.tuning.export import record_from
+    print("| record | night | frames | some blob on the label | best one feature: its blob on "
+          "the label |\n| --- | --- | --- | --- | --- |")
+    for name in records:
+        rec = record_from(name)
+        for night in nights:
+            images, labels, frames = NIGHTS[night]
+            c = blob_ceiling(_ROOT / images, _ROOT / labels, rec, frames, sequence=sequence)
+            feat, k = max(c["by_feature"].items(), key=lambda t: t[1])
+            print(f"| {name} | {night} | {c['frames']} | {_fmt(rate(c['any'], c['frames']))} | "
+                  f"{feat}: {_fmt(rate(k, c['frames']))} |", flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="score records on the labelled real nights")
     ap.add_argument("--record", action="append", default=None,
@@ -208,6 +255,10 @@ def main(argv=None) -> int:
                     help="sequence name or .toml for every record (default: each record's own)")
     ap.add_argument("--with", dest="with_", default=None, metavar="NAME[,NAME...]",
                     help="proposals in force for the track figures (as uvisi track --with)")
+    ap.add_argument("--ceiling", action="store_true",
+                    help="instead of the scores: on how many frames some blob of the sequence is "
+                         "on the label, and the blob largest in each one feature (an upper bound "
+                         "with the labels in it)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night")
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
@@ -218,6 +269,8 @@ def main(argv=None) -> int:
     proposals = check_applicable(args.with_, "opportunity", "--with") if args.with_ else ()
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
     nights = args.night or ["gill2008_test", "gill2014", "wic"]
+    if args.ceiling:
+        return _print_ceiling(records, nights, args.sequence)
     print("| record | night | frames | detect: rank 1 on the label | track: locked | "
           "track: on the label when locked |\n| --- | --- | --- | --- | --- | --- |")
     for name in records:

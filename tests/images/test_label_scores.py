@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from hil_harness.cli import main
-from hil_harness.tuning.label_scores import ON_RADIUS, detect_hits, on_label, track_hits
+from hil_harness.tuning.label_scores import (ON_RADIUS, blob_ceiling, detect_hits, on_label,
+                                             track_hits)
 
 ROOT = Path(__file__).resolve().parents[2]
 GILL5 = ROOT / "data/real/themis_gill_20080309_5frames.npz"
@@ -75,6 +76,33 @@ def test_detect_hits_are_uvisi_detects_rank1(tmp_path, gill5_labels):
         elif not _hand_hit(top, lab, 2):    # far: on only through its blob, which holds the label
             assert math.hypot(top["row"] - lab[0], top["col"] - lab[1]) <= \
                 2 * top["features"]["semimajor"] + 2 * ON_RADIUS
+
+
+def test_blob_ceiling_counts_every_candidate_of_uvisi_detect(tmp_path, gill5_labels):
+    """``blob_ceiling`` against ``uvisi detect --max-candidates 1000``'s own list, scored by hand:
+    a frame counts for ``any`` when some candidate is near the label (or its blob holds it), and
+    for a feature when the candidate largest in it is."""
+    path, labels = gill5_labels
+    from flightsw.records import load_record
+    c = blob_ceiling(GILL5, path, load_record("aurora_allsky"), range(5))
+    out = tmp_path / "d.json"
+    assert main(["detect", str(GILL5), "--record", "aurora_allsky", "--max-candidates", "1000",
+                 "--json", str(out)]) == 0
+    entries = json.loads(out.read_text())["images"]
+    lab = {k: labels[(GILL5.name, k)] for k in range(5) if labels[(GILL5.name, k)] is not None}
+    assert c["frames"] == len(lab) == 5
+
+    def near(cand, k, reach=0.0):
+        return math.hypot(cand["row"] - lab[k][0], cand["col"] - lab[k][1]) <= \
+            ON_RADIUS * 4 + reach * (2 * cand["features"]["semimajor"])
+    # by distance alone a lower bound; with each blob's extent an upper one
+    assert sum(any(near(x, k) for x in entries[k]["candidates"]) for k in lab) <= c["any"]
+    assert c["any"] <= sum(any(near(x, k, 1) for x in entries[k]["candidates"]) for k in lab)
+    for feat in ("max_brightness", "size", "total_brightness"):
+        tops = {k: max(entries[k]["candidates"], key=lambda x: x["features"][feat]) for k in lab}
+        assert sum(near(t, k) for k, t in tops.items()) <= c["by_feature"][feat]
+        assert c["by_feature"][feat] <= sum(near(t, k, 1) for k, t in tops.items())
+    assert c["any"] >= max(c["by_feature"].values())
 
 
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
