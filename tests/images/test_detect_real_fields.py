@@ -121,7 +121,7 @@ def test_the_meteor_is_held_only_by_a_kernel_along_its_trail(tmp_path):
     streak sequence puts no candidate on the Maryland meteor (1.85 pixel-noise sigmas a processed
     pixel), and a filter along the trail's direction (which no uplinked sequence can know of a
     meteor in advance: truth is in it) lifts it to rank 1 with the flight orientation within
-    2 deg of the eye's."""
+    2 deg of the eye's and the length its semimajor axis gives within 10 %."""
     (e,) = _detect(tmp_path, METEOR, "--record", "streak")
     assert not [c for c in e["candidates"] if _on_meteor(c)], e["candidates"]
     seq = tmp_path / "line.toml"
@@ -131,3 +131,8 @@ def test_the_meteor_is_held_only_by_a_kernel_along_its_trail(tmp_path):
     assert _on_meteor(best), best
     err = abs(best["features"]["orientation"] - 38.2) % 180.0
     assert min(err, 180 - err) <= 2.0, best["features"]
+    # a uniform thin line of length L has semimajor sqrt(2 L^2 / 12 + 1) (the streak record's
+    # relation): measured 42.06 px, L = 103.0 against the eye's 101.8
+    a = best["features"]["semimajor"]
+    eye = math.hypot(METEOR_ENDS[1][0] - METEOR_ENDS[0][0], METEOR_ENDS[1][1] - METEOR_ENDS[0][1])
+    assert abs(math.sqrt(6.0 * (a * a - 1.0)) - eye) <= 0.1 * eye, a
