@@ -29,7 +29,10 @@ F32 = {k: mf.decode32_array(v).astype(np.float32) for k, v in
 F64 = {k: mf.decode48_array(v) for k, v in dict(a=A48, b=B48, p=P48).items()}
 
 
-@njit(cache=True)
+# not cached: numba keys a cached kernel that takes a kernel as an argument on that kernel's type,
+# which holds only a weak reference to it; a cache index written by another process then holds
+# dead references, and saving a new entry beside them fails ("underlying object has vanished")
+@njit
 def _loop2(f, a, b, out):
     fl = 0
     for i in range(a.size):
@@ -38,7 +41,7 @@ def _loop2(f, a, b, out):
     return fl
 
 
-@njit(cache=True)
+@njit
 def _loop1(f, a, out):
     fl = 0
     for i in range(a.size):
