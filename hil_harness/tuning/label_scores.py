@@ -113,10 +113,11 @@ def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) ->
     by = dict.fromkeys(FEATURE_NAMES, 0)
     for _, feats, on, _ in _processed(images, labels, record, frames, channel, sequence, 1000):
         n += 1
+        if not on.size:
+            continue
         anyk += bool(on.any())
         for name in FEATURE_NAMES:
-            if on.size:
-                by[name] += bool(on[int(np.argmax(np.asarray(feats[name], float)))])
+            by[name] += bool(on[int(np.argmax(np.asarray(feats[name], float)))])
     return {"any": anyk, "by_feature": by, "frames": n}
 
 
