@@ -125,7 +125,9 @@ def _single(img12, seq, record, f, size, max_candidates, mode_text):
     res = process_window(s.window(img12, None), s, record, ledger=None,
                          max_candidates=max_candidates, want_stages=True)
     feats = words_to_struct(res.backend.feature_words[res.backend.order])
-    return dict(mode=mode_text(res.subimage), windows=1, feats=feats,
+    sub = res.subimage
+    means = ((sub.origin[0] + sub.size[0] / 2.0) * f, (sub.origin[1] + sub.size[1] / 2.0) * f)
+    return dict(mode=mode_text(sub), windows=1, feats=feats, centroid_means=means,
                 distance=res.message.candidates["distance"], gof=res.message.candidates["gof"],
                 thresholded=_threshold_canvas(res, img12.shape, f),
                 ranks=_rank_canvas(res, img12.shape, f))
@@ -169,7 +171,8 @@ def detect_frame(img12, seq, record, compaction, window_mode="full", max_candida
     call, see the module docstring, ranked together with the centroid means at the image
     centre). Returns a dict: ``mode`` (text),
     ``windows`` (int), ``feats`` (structured [m], FEATURE_DTYPE, best first), ``distance`` and
-    ``gof`` (float [m]), and in the compiled full-frame mode ``thresholded`` (int16
+    ``gof`` (float [m]), ``centroid_means`` ((row, col), full-resolution pixels: the record's
+    centroid means the ranking used), and in the compiled full-frame mode ``thresholded`` (int16
     [H // f, W // f], the image the back end labelled; absent in the other modes); in the
     one-window modes ``ranks`` (int32 [H // f, W // f]: the rank stage, each reported blob's
     pixels numbered by its rank in ``feats``, 1 = best; 0 elsewhere).
@@ -254,6 +257,7 @@ def _compiled(img12, seq, record, f, max_candidates, tile, step):
                       f"pixel kept where any window's threshold passes it, blobs labelled once, "
                       f"ranked together with the centroid means at the image centre"),
                 windows=n_tiles, feats=words_to_struct(be.feature_words[be.order]),
+                centroid_means=(H / 2.0, W / 2.0),
                 distance=np.asarray(cand["distance"], float), gof=np.asarray(cand["gof"], float),
                 thresholded=kept)
 
@@ -319,4 +323,5 @@ def _tiled(img12, seq, record, f, max_candidates, tile, step):
                       f"{step} (compaction {f}), duplicates merged, ranked together with the "
                       f"centroid means at the image centre"),
                 windows=n_tiles, feats=words_to_struct(words[rk.order]),
+                centroid_means=(H / 2.0, W / 2.0),
                 distance=rk.distance[rk.order], gof=rk.gof)

@@ -26,6 +26,7 @@ Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -44,6 +45,11 @@ NIGHTS = {
                       "data/labels/themis_gill_20080309_aurora.csv", range(75, 150)),
     "gill2008_train": ("data/real/themis_gill_20080309_0435-0450_150frames.npz",
                        "data/labels/themis_gill_20080309_aurora.csv", range(0, 70)),
+    # the training frames' two cross-validation blocks (quiet arcs; the onset)
+    "gill2008_train_a": ("data/real/themis_gill_20080309_0435-0450_150frames.npz",
+                         "data/labels/themis_gill_20080309_aurora.csv", range(0, 35)),
+    "gill2008_train_b": ("data/real/themis_gill_20080309_0435-0450_150frames.npz",
+                         "data/labels/themis_gill_20080309_aurora.csv", range(35, 70)),
     "gill2014": ("data/real/themis_gill_20140310_0600-0606_60frames.npz",
                  "data/labels/themis_gill_20140310_arc.csv", range(0, 60)),
     "wic": ("data/real/wic_20000828_0928-0957_15frames.npz",
@@ -58,9 +64,10 @@ def _labels_of(path, image_name) -> dict:
 
 def _processed(images, labels, record, frames, channel, sequence, n_candidates: int):
     """Each labelled frame of ``frames`` with an object, as ``uvisi detect --record`` processes it
-    -> yields ``(frame, features, candidate on the label? bool [m], top (row, col) or None)``:
-    the IP's first ``n_candidates`` candidates in its rank order, those outside the field
-    dropped (``features``: the detect_frame feature table of the kept ones)."""
+    -> yields ``(frame, features, candidate on the label? bool [m], top (row, col) or None,
+    the ranking's centroid means (row, col))``: the IP's first ``n_candidates`` candidates in
+    its rank order, those outside the field dropped (``features``: the detect_frame feature
+    table of the kept ones)."""
     from hil_harness.detect.fullframe import detect_frame
     from hil_harness.detect.jobs import (default_sequence_name, field_scale, resolve_sequence,
                                          tile_for)
@@ -83,7 +90,7 @@ def _processed(images, labels, record, frames, channel, sequence, n_candidates: 
         on = np.array([on_label(float(feats["row"][i]), float(feats["col"][i]), i + 1,
                                 res.get("ranks"), (0, 0), f, lab[k]) for i in keep], bool)
         top = (float(feats["row"][keep[0]]), float(feats["col"][keep[0]])) if len(keep) else None
-        yield k, (feats[keep] if len(keep) else feats[:0]), on, top
+        yield k, (feats[keep] if len(keep) else feats[:0]), on, top, res["centroid_means"]
 
 
 def detect_hits(images, labels, record, frames, channel=None, sequence=None,
@@ -94,7 +101,7 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     ``keep_top``: the values are ``(hit, (row, col) of the rank-1 candidate or None)``."""
     from hil_harness.detect.jobs import FIELD_SPARE
     out = {}
-    for k, _, on, top in _processed(images, labels, record, frames, channel, sequence,
+    for k, _, on, top, _ in _processed(images, labels, record, frames, channel, sequence,
                                     1 + FIELD_SPARE):
         hit = bool(on.size and on[0])
         out[k] = (hit, top) if keep_top else hit
@@ -103,22 +110,36 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
 
 def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) -> dict:
     """What any ranking of the IP's blobs could reach on the labelled ``frames`` with an object:
-    ``{"any": k, "by_feature": {feature: k}, "frames": n}``. ``any``: frames where some blob the
-    sequence makes (all of them: up to 1000 candidates, inside the field) is on the label;
-    ``by_feature``: frames where the blob with the largest value of that one feature is (a record
-    weighing that feature alone, its mean above every blob's). The record only sets the field
-    (its job's) and the order the blobs come in; a record with a GOF threshold drops some."""
+    ``{"any": k, "by_feature": {feature: k}, "best_record": RecordCeiling, "frames": n}``.
+    ``any``: frames where some blob the sequence makes (all of them: up to 1000 candidates,
+    inside the field) is on the label; ``by_feature``: frames where the blob with the largest value
+    of that one feature is (a record weighing that feature alone, its mean above every blob's);
+    ``best_record``: the most frames one record (without quantisation) ranks a blob on the label
+    first, an exact count (:func:`hil_harness.tuning.record_ceiling.best_record`; the centroid
+    means are the ranking's, the window centre). The record only sets the field (its job's) and
+    the order the blobs come in; a record with a GOF threshold drops some."""
     from flightsw.messages import FEATURE_NAMES
-    n, anyk = 0, 0
+    from hil_harness.tuning.record_ceiling import best_record
+    n, anyk, table, means = 0, 0, [], set()
     by = dict.fromkeys(FEATURE_NAMES, 0)
-    for _, feats, on, _ in _processed(images, labels, record, frames, channel, sequence, 1000):
+    for _, feats, on, _, cm in _processed(images, labels, record, frames, channel, sequence,
+                                          1000):
         n += 1
+        means.add(cm)
+        x = np.stack([np.asarray(feats[name], float) for name in FEATURE_NAMES], 1)
+        table.append((x, on))
         if not on.size:
             continue
         anyk += bool(on.any())
-        for name in FEATURE_NAMES:
-            by[name] += bool(on[int(np.argmax(np.asarray(feats[name], float)))])
-    return {"any": anyk, "by_feature": by, "frames": n}
+        for i, name in enumerate(FEATURE_NAMES):
+            by[name] += bool(on[int(np.argmax(x[:, i]))])
+    if len(means) > 1:
+        raise ValueError(f"{images}: frames of different sizes ({sorted(means)} as centroid "
+                         f"means): score them as separate nights")
+    fixed = dict(zip((FEATURE_NAMES.index("row"), FEATURE_NAMES.index("col")),
+                     means.pop())) if means else {}
+    return {"any": anyk, "by_feature": by, "best_record": best_record(table, fixed),
+            "frames": n}
 
 
 def _tracked(images, record, channel=None, sequence=None, proposals=()):
@@ -208,9 +229,34 @@ def plot_night(night: str, record, frames, out, channel=None) -> None:
     plt.close(fig)
 
 
+def label_follow(trk: dict, lab: dict, gate_px: float) -> dict:
+    """How the label moves and whether the TP follows it, over the steps between consecutive
+    frames of ``trk`` (:func:`track_hits`' ``{frame: (locked, on the label)}``; ``lab``: the
+    labels ``{frame: (row, col)}``): ``{"steps", "hops"}`` (steps where the label moves more than
+    ``gate_px`` full-resolution pixels, the opportunity gate's half-width) and, after a frame where
+    the TP is locked on the label, the rate it is still on it the next frame for steps within the
+    gate (``"stay"``) and for hops (``"hop"``)."""
+    from hil_harness.rates import rate
+    steps = hops = 0
+    stay, hop = [0, 0], [0, 0]
+    for k in sorted(trk):
+        if k - 1 not in trk:
+            continue
+        steps += 1
+        moved = math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1]) > gate_px
+        hops += moved
+        if trk[k - 1] == (True, True):
+            tally = hop if moved else stay
+            tally[0] += trk[k] == (True, True)
+            tally[1] += 1
+    return {"steps": steps, "hops": hops, "stay": rate(*stay), "hop": rate(*hop)}
+
+
 def score_night(night: str, record, channel=None, sequence=None, proposals=()) -> dict:
     """Both scores of ``record`` on one of :data:`NIGHTS` -> ``{"detect_top1", "track_lock",
-    "track_on_given_lock", "frames"}``, each rate a :func:`hil_harness.rates.rate` dict."""
+    "track_on_given_lock", "frames", "follow"}``, each rate a :func:`hil_harness.rates.rate` dict
+    (``follow``: :func:`label_follow` at the TP's opportunity gate)."""
+    from flightsw.tp.config import OpportunityTrack
     from hil_harness.rates import rate
     images, labels, frames = NIGHTS[night]
     images, labels = _ROOT / images, _ROOT / labels
@@ -220,7 +266,9 @@ def score_night(night: str, record, channel=None, sequence=None, proposals=()) -
     return {"frames": len(det),
             "detect_top1": rate(sum(det.values()), len(det)),
             "track_lock": rate(len(locked), len(trk)),
-            "track_on_given_lock": rate(sum(trk[k][1] for k in locked), len(locked))}
+            "track_on_given_lock": rate(sum(trk[k][1] for k in locked), len(locked)),
+            "follow": label_follow(trk, _labels_of(labels, images.name),
+                                   OpportunityTrack().opp_gate_px)}
 
 
 def _fmt(r) -> str:
@@ -231,19 +279,35 @@ def _fmt(r) -> str:
 
 
 def _print_ceiling(records, nights, sequence) -> int:
-    """The ``--ceiling`` table (:func:`blob_ceiling`), a row per record and night."""
+    """The ``--ceiling`` table (:func:`blob_ceiling`), a row per record and night; then the best
+    record of the first night run as ``uvisi detect`` on each of the others."""
     from hil_harness.rates import rate
     from hil_harness.tuning.export import record_from
     print("| record | night | frames | some blob on the label | best one feature: its blob on "
-          "the label |\n| --- | --- | --- | --- | --- |")
+          "the label | best record: a blob on the label first |\n"
+          "| --- | --- | --- | --- | --- | --- |")
+    later = []
     for name in records:
         rec = record_from(name)
-        for night in nights:
+        for i, night in enumerate(nights):
             images, labels, frames = NIGHTS[night]
             c = blob_ceiling(_ROOT / images, _ROOT / labels, rec, frames, sequence=sequence)
             feat, k = max(c["by_feature"].items(), key=lambda t: t[1])
+            best = c["best_record"]
+            proven = "" if best.optimal else f" (at most {best.bound})"
             print(f"| {name} | {night} | {c['frames']} | {_fmt(rate(c['any'], c['frames']))} | "
-                  f"{feat}: {_fmt(rate(k, c['frames']))} |", flush=True)
+                  f"{feat}: {_fmt(rate(k, c['frames']))} | "
+                  f"{_fmt(rate(best.hits, c['frames']))}{proven} |", flush=True)
+            if i == 0:
+                fitted = best.record(rec)
+            else:
+                h = detect_hits(_ROOT / images, _ROOT / labels, fitted, frames, sequence=sequence)
+                later.append(f"{name}: the best record of {nights[0]} on {night}: "
+                             f"{_fmt(rate(sum(h.values()), len(h)))}")
+    if later:
+        print()
+    for line in later:
+        print(line)
     return 0
 
 
@@ -258,8 +322,9 @@ def main(argv=None) -> int:
                     help="proposals in force for the track figures (as uvisi track --with)")
     ap.add_argument("--ceiling", action="store_true",
                     help="instead of the scores: on how many frames some blob of the sequence is "
-                         "on the label, and the blob largest in each one feature (an upper bound "
-                         "with the labels in it)")
+                         "on the label, the blob largest in one feature, and the best record "
+                         "(upper bounds with the labels in them); the first night's best record "
+                         "scored on the others")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night")
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
@@ -274,12 +339,19 @@ def main(argv=None) -> int:
         return _print_ceiling(records, nights, args.sequence)
     print("| record | night | frames | detect: rank 1 on the label | track: locked | "
           "track: on the label when locked |\n| --- | --- | --- | --- | --- | --- |")
+    follow = []
     for name in records:
         rec = record_from(name)
         for night in nights:
             s = score_night(night, rec, sequence=args.sequence, proposals=proposals)
             print(f"| {name} | {night} | {s['frames']} | {_fmt(s['detect_top1'])} | "
                   f"{_fmt(s['track_lock'])} | {_fmt(s['track_on_given_lock'])} |", flush=True)
+            fo = s["follow"]
+            follow.append(f"| {name} | {night} | {fo['hops']}/{fo['steps']} | "
+                          f"{_fmt(fo['stay'])} | {_fmt(fo['hop'])} |")
+    print("\n| record | night | label steps beyond the gate | TP on the label, then on it next: "
+          "step within the gate | after a hop |\n| --- | --- | --- | --- | --- |")
+    print("\n".join(follow))
     if args.plot:
         plot_night(nights[0], record_from(records[0]),
                    [int(x) for x in args.plot_frames.split(",")], args.plot)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from hil_harness.cli import main
-from hil_harness.tuning.label_scores import (ON_RADIUS, blob_ceiling, detect_hits, on_label,
-                                             track_hits)
+from hil_harness.tuning.label_scores import (ON_RADIUS, blob_ceiling, detect_hits,
+                                             label_follow, on_label, track_hits)
 
 ROOT = Path(__file__).resolve().parents[2]
 GILL5 = ROOT / "data/real/themis_gill_20080309_5frames.npz"
@@ -37,6 +37,18 @@ def test_on_label_distance_and_blob():
     assert not on_label(0.0, 0.0, 1, ranks, origin, f, (19.9, 57.0))     # above the window
     assert not on_label(0.0, 0.0, 1, ranks, origin, f, (27.0, 64.0))     # col 12: off the window
     assert ON_RADIUS == 3.0
+
+
+def test_label_follow_counts_hops_and_what_the_tp_does_after_them():
+    # the label: steps of 5, 9 (a hop past 8), 8 (not past it), 30 (a hop); frame 6 not scored
+    lab = {1: (0.0, 0.0), 2: (0.0, 5.0), 3: (0.0, 14.0), 4: (8.0, 14.0), 5: (38.0, 14.0),
+           7: (0.0, 0.0), 8: (0.0, 1.0)}
+    trk = {1: (True, True), 2: (True, True), 3: (True, False), 4: (False, False),
+           5: (True, True), 7: (True, True), 8: (True, False)}
+    f = label_follow(trk, lab, 8.0)
+    assert (f["steps"], f["hops"]) == (5, 2)          # 1-2, 2-3, 3-4, 4-5, 7-8
+    assert (f["stay"]["k"], f["stay"]["n"]) == (1, 2)  # after 1: on at 2; after 7: off at 8
+    assert (f["hop"]["k"], f["hop"]["n"]) == (0, 1)    # after 2 (on), the hop to 3: off
 
 
 @pytest.fixture(scope="module")
@@ -103,6 +115,11 @@ def test_blob_ceiling_counts_every_candidate_of_uvisi_detect(tmp_path, gill5_lab
         assert sum(near(t, k) for k, t in tops.items()) <= c["by_feature"][feat]
         assert c["by_feature"][feat] <= sum(near(t, k, 1) for k, t in tops.items())
     assert c["any"] >= max(c["by_feature"].values())
+    # the best record's count is what the flight's own ranking gives with it
+    best = c["best_record"]
+    assert max(c["by_feature"].values()) <= best.hits <= c["any"] and best.optimal
+    rec = best.record(load_record("aurora_allsky"))
+    assert sum(detect_hits(GILL5, path, rec, range(5)).values()) == best.hits
 
 
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
