@@ -18,10 +18,15 @@ The labels are read only here, after the flight code has answered. Rates come as
 ``python -m hil_harness.tuning.label_scores`` prints the figures of ``docs/validation.md`` ("Aurora
 on real all-sky imagery").
 
-``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`).
+* :func:`label_follow`: how often the label hops beyond the TP's opportunity gate between frames,
+  and whether a TP on the label stays on it.
+
+``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`),
+and how the best record of the first night given fares on the others.
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`blob_ceiling`, :func:`track_hits`, :func:`score_night`, :func:`plot_night`.
+:func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`, :func:`score_night`,
+:func:`plot_night`.
 """
 from __future__ import annotations
 
@@ -35,7 +40,7 @@ import numpy as np
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
 __all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_ceiling", "track_hits",
-           "score_night", "plot_night"]
+           "label_follow", "score_night", "plot_night"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -102,7 +107,7 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     from hil_harness.detect.jobs import FIELD_SPARE
     out = {}
     for k, _, on, top, _ in _processed(images, labels, record, frames, channel, sequence,
-                                    1 + FIELD_SPARE):
+                                       1 + FIELD_SPARE):
         hit = bool(on.size and on[0])
         out[k] = (hit, top) if keep_top else hit
     return out
