@@ -156,12 +156,10 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
                 put(r, y, big)
                 ub.append(big - 1.0)
                 r += 1
-    for fi in range(len(used)):                     # one labelled blob per frame counts
-        for y, g in enumerate(ylabel):
-            if g == fi:
-                put(r, nth + y, 1.0)
-        ub.append(1.0)
-        r += 1
+    for y, g in enumerate(ylabel):                  # one labelled blob per frame counts
+        put(r + g, nth + y, 1.0)
+    ub += [1.0] * len(used)
+    r += len(used)
     for k, i in enumerate(free):                    # |m_i| <= MEAN_RANGE: |b_i| <= 2 R a_i
         for s in (1.0, -1.0):
             put(r, F + k, s), put(r, i, -2.0 * MEAN_RANGE)
