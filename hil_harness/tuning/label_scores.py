@@ -19,14 +19,15 @@ The labels are read only here, after the flight code has answered. Rates come as
 on real all-sky imagery").
 
 * :func:`label_follow`: how often the label hops beyond the TP's opportunity gate between frames,
-  and whether a TP on the label stays on it.
+  and whether a TP on the label stays on it; :func:`plot_follow` draws it frame by frame
+  (:func:`follow_timeline`).
 
 ``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`),
 and how the best record of the first night given fares on the others.
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`, :func:`score_night`,
-:func:`plot_night`.
+:func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`, :func:`follow_timeline`,
+:func:`score_night`, :func:`plot_night`, :func:`plot_follow`.
 """
 from __future__ import annotations
 
@@ -40,7 +41,7 @@ import numpy as np
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
 __all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_ceiling", "track_hits",
-           "label_follow", "score_night", "plot_night"]
+           "label_follow", "follow_timeline", "score_night", "plot_night", "plot_follow"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -257,6 +258,70 @@ def label_follow(trk: dict, lab: dict, gate_px: float) -> dict:
     return {"steps": steps, "hops": hops, "stay": rate(*stay), "hop": rate(*hop)}
 
 
+def follow_timeline(lab: dict, det: dict, trk: dict, frames) -> dict:
+    """Frame by frame over ``frames`` (those with a label, in order), what :func:`plot_follow`
+    draws: ``{"frame": int [n], "step": float [n] (full-resolution px the label moved since the
+    frame before; NaN when that frame is not one of them), "detect": bool [n] (:func:`detect_hits`),
+    "track": int [n] (0 not locked, 1 locked on another object, 2 locked on the label;
+    :func:`track_hits`)}``. ``lab``: ``{frame: (row, col) or None}``."""
+    ks = [k for k in frames if lab.get(k) is not None]
+    step = [math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1])
+            if k - 1 in ks else math.nan for k in ks]
+    return {"frame": np.array(ks, int), "step": np.array(step, float),
+            "detect": np.array([bool(det[k]) for k in ks], bool),
+            "track": np.array([(1 + trk[k][1]) if trk[k][0] else 0 for k in ks], int)}
+
+
+def plot_follow(night: str, records, out, sequence=None, proposals=()) -> None:
+    """A PNG of why the TP does not hold the labelled form on one of :data:`NIGHTS`: the label's
+    step between consecutive frames against the opportunity gate's half-width (top), then for each
+    ``(title, Record)`` of ``records`` two rows of frames (:func:`follow_timeline`): ``uvisi
+    detect``'s rank 1 on the label (green) or not (grey), and ``uvisi track`` locked on the label
+    (green), on another object (red) or not locked (grey)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from flightsw.tp.config import OpportunityTrack
+    images, labels, frames = NIGHTS[night]
+    images, labels = _ROOT / images, _ROOT / labels
+    lab = _labels_of(labels, images.name)
+    gate = OpportunityTrack().opp_gate_px
+    rows = []
+    for title, rec in records:
+        det = detect_hits(images, labels, rec, frames, sequence=sequence)
+        trk = track_hits(images, labels, rec, frames, sequence=sequence, proposals=proposals)
+        rows.append((title, follow_timeline(lab, det, trk, frames)))
+    t = rows[0][1]
+    fig, (top, bot) = plt.subplots(2, 1, figsize=(9, 2.4 + 0.5 * len(rows)), sharex=True,
+                                   gridspec_kw={"height_ratios": [2.2, 0.45 * 2 * len(rows)]})
+    hop = t["step"] > gate
+    top.bar(t["frame"], np.maximum(t["step"], 0.5), color=np.where(hop, "#dd3333", "#999999"),
+            width=0.8)
+    top.axhline(gate, color="k", ls="--", lw=0.8)
+    top.set_yscale("log")
+    top.set_ylabel("label step (px)")
+    top.set_title(f"{night}: the labelled form's step from the frame before\nred: beyond the "
+                  f"TP's opportunity gate ({gate:g} px, dashed), {int(hop.sum())} of "
+                  f"{int(np.isfinite(t['step']).sum())} steps", fontsize=9)
+    colours = {0: "#dddddd", 1: "#dd3333", 2: "#33aa33"}
+    names = []
+    for i, (title, r) in enumerate(rows):
+        y_det, y_trk = -2 * i, -2 * i - 1
+        bot.scatter(r["frame"], np.full(r["frame"].size, y_det), marker="s", s=22,
+                    c=np.where(r["detect"], "#33aa33", "#dddddd"))
+        bot.scatter(r["frame"], np.full(r["frame"].size, y_trk), marker="s", s=22,
+                    c=[colours[v] for v in r["track"]])
+        names += [(y_det, f"{title}: detect"), (y_trk, f"{title}: track")]
+    bot.set_yticks([y for y, _ in names], [n for _, n in names], fontsize=8)
+    bot.set_ylim(-2 * len(rows) + 0.5, 0.5)
+    bot.set_xlabel("frame   (detect: rank 1 on the label green, not grey; track: locked on the "
+                   "label green, on another object red, not locked grey)", fontsize=8)
+    fig.tight_layout()
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(out, dpi=80)
+    plt.close(fig)
+
+
 def score_night(night: str, record, channel=None, sequence=None, proposals=()) -> dict:
     """Both scores of ``record`` on one of :data:`NIGHTS` -> ``{"detect_top1", "track_lock",
     "track_on_given_lock", "frames", "follow"}``, each rate a :func:`hil_harness.rates.rate` dict
@@ -283,12 +348,13 @@ def _fmt(r) -> str:
     return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}, {100 * lo:.0f}-{100 * hi:.0f})"
 
 
-def _print_ceiling(records, nights, sequence, proposals=()) -> int:
+def _print_ceiling(records, nights, sequence, proposals=(), plot=None) -> int:
     """The ``--ceiling`` table (:func:`blob_ceiling`), a row per record and night, with each
     night's best record run as ``uvisi track`` on that night (:func:`track_hits`: does the best
     ranking there is bring the paper's TP to the track figures?); then the best record of the
     first night run as ``uvisi detect`` on each of the others. ``proposals``: those in force for
-    the track column (``--with``)."""
+    the track column (``--with``); ``plot``: a PNG path for :func:`plot_follow` of the first
+    record and its best record on the first night."""
     from hil_harness.rates import rate
     from hil_harness.tuning.export import record_from
     print("| record | night | frames | some blob on the label | best one feature: its blob on "
@@ -314,6 +380,10 @@ def _print_ceiling(records, nights, sequence, proposals=()) -> int:
                   f"{_fmt(rate(sum(trk[f][1] for f in locked), len(locked)))} |", flush=True)
             if i == 0:
                 fitted = own
+                if plot and name == records[0]:
+                    plot_follow(night, [(name, rec), ("best record", own)], plot, sequence,
+                                proposals)
+                    later.append(f"wrote {plot}")
             else:
                 h = detect_hits(_ROOT / images, _ROOT / labels, fitted, frames, sequence=sequence)
                 later.append(f"{name}: the best record of {nights[0]} on {night}: "
@@ -340,7 +410,9 @@ def main(argv=None) -> int:
                          "(upper bounds with the labels in them), that record in uvisi track on "
                          "its night; the first night's best record scored on the others")
     ap.add_argument("--plot", default=None, metavar="PNG",
-                    help="also draw the first record on --plot-frames of the first night")
+                    help="also draw the first record on --plot-frames of the first night (with "
+                         "--ceiling: the label's steps and, frame by frame, detect and track with "
+                         "the first record and its best record on the first night)")
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
                     help="comma-separated frames for --plot")
     args = ap.parse_args(argv)
@@ -350,7 +422,7 @@ def main(argv=None) -> int:
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
     nights = args.night or ["gill2008_test", "gill2014", "wic"]
     if args.ceiling:
-        return _print_ceiling(records, nights, args.sequence, proposals)
+        return _print_ceiling(records, nights, args.sequence, proposals, args.plot)
     print("| record | night | frames | detect: rank 1 on the label | track: locked | "
           "track: on the label when locked |\n| --- | --- | --- | --- | --- | --- |")
     follow = []

@@ -15,7 +15,8 @@ import pytest
 
 from hil_harness.cli import main
 from hil_harness.tuning.label_scores import (ON_RADIUS, blob_ceiling, detect_hits,
-                                             label_follow, on_label, track_hits)
+                                             follow_timeline, label_follow, on_label,
+                                             track_hits)
 
 ROOT = Path(__file__).resolve().parents[2]
 GILL5 = ROOT / "data/real/themis_gill_20080309_5frames.npz"
@@ -49,6 +50,21 @@ def test_label_follow_counts_hops_and_what_the_tp_does_after_them():
     assert (f["steps"], f["hops"]) == (5, 2)          # 1-2, 2-3, 3-4, 4-5, 7-8
     assert (f["stay"]["k"], f["stay"]["n"]) == (1, 2)  # after 1: on at 2; after 7: off at 8
     assert (f["hop"]["k"], f["hop"]["n"]) == (0, 1)    # after 2 (on), the hop to 3: off
+
+
+def test_follow_timeline_steps_and_states_frame_by_frame():
+    # frames 1-6 scored; 3 blank; 0 labelled but not scored; 7 labelled but not scored
+    lab = {0: (0.0, 0.0), 1: (3.0, 4.0), 2: (3.0, 4.0), 3: None, 4: (0.0, 0.0), 5: (0.0, 9.0),
+           6: (0.0, 10.0), 7: (0.0, 0.0)}
+    det = {1: True, 2: False, 4: False, 5: True, 6: True}
+    trk = {1: (False, False), 2: (True, False), 4: (True, True), 5: (True, False),
+           6: (True, True)}
+    t = follow_timeline(lab, det, trk, range(1, 7))
+    assert t["frame"].tolist() == [1, 2, 4, 5, 6]
+    # 1: its frame before (0) is not scored; 4: its frame before (3) has no label
+    np.testing.assert_array_equal(t["step"], [np.nan, 0.0, np.nan, 9.0, 1.0])
+    assert t["detect"].tolist() == [True, False, False, True, True]
+    assert t["track"].tolist() == [0, 1, 2, 1, 2]
 
 
 @pytest.fixture(scope="module")
