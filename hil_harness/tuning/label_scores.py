@@ -23,7 +23,8 @@ on real all-sky imagery").
   (:func:`follow_timeline`).
 
 ``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`),
-and how the best record of the first night given fares on the others.
+what that best record does in ``uvisi track`` on the same night, and how the best record of the
+first night given fares on the others; with ``--plot``, :func:`plot_follow` of the first night.
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
 :func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`, :func:`follow_timeline`,
@@ -265,8 +266,9 @@ def follow_timeline(lab: dict, det: dict, trk: dict, frames) -> dict:
     "track": int [n] (0 not locked, 1 locked on another object, 2 locked on the label;
     :func:`track_hits`)}``. ``lab``: ``{frame: (row, col) or None}``."""
     ks = [k for k in frames if lab.get(k) is not None]
+    kept = set(ks)
     step = [math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1])
-            if k - 1 in ks else math.nan for k in ks]
+            if k - 1 in kept else math.nan for k in ks]
     return {"frame": np.array(ks, int), "step": np.array(step, float),
             "detect": np.array([bool(det[k]) for k in ks], bool),
             "track": np.array([(1 + trk[k][1]) if trk[k][0] else 0 for k in ks], int)}
