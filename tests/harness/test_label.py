@@ -235,10 +235,14 @@ def test_the_routes_answer_and_foreign_requests_are_refused(served, images):
 
 # ---------------------------------------------------------------- the command
 def start(argv, tmp_path):
+    """``uvisi label ARGV`` in a process of its own, with Ctrl-C's signal at its default as a
+    terminal gives it (a suite started in the background by a non-interactive shell ignores
+    SIGINT, and its children would inherit that) -> (process, port)."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), UVISI_PROGRESS="0")
     p = subprocess.Popen([sys.executable, "-m", "hil_harness.cli", "label", *argv],
                          stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
-                         cwd=tmp_path)
+                         cwd=tmp_path,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     line = p.stdout.readline()
     m = re.search(r"open http://127\.0\.0\.1:(\d+)/", line)
     assert m, (line, p.stderr.read() if p.poll() is not None else "")
