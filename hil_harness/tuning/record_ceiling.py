@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 
@@ -93,6 +94,36 @@ def _solver_quiet():
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+
+
+@contextmanager
+def _searching(n_frames: int, time_limit: float):
+    """Progress while HiGHS searches (it releases the GIL, so a thread can tick): on a terminal a
+    bar of the seconds against the time limit, in a log a line every
+    :attr:`hil_harness.console.Heartbeat.HEARTBEAT_S` (silent with ``--quiet``)."""
+    from hil_harness.console import Heartbeat, progress_enabled
+    desc = f"best record: exact search over {n_frames} frames"
+    if progress_enabled():
+        from tqdm import tqdm
+        shown = tqdm(desc=desc, total=int(time_limit), file=sys.stderr, leave=False,
+                     bar_format="{desc}: {n}/{total} s of the time limit")
+        tick, end = shown.update, shown.close
+    else:
+        beat = Heartbeat(int(time_limit), desc, "s of the time limit")
+        tick, end = beat.update, beat.close
+    stop = threading.Event()
+
+    def run():
+        while not stop.wait(1.0):
+            tick(1)
+    clock = threading.Thread(target=run, daemon=True)
+    clock.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        clock.join()
+        end()
 
 
 def _standardised(frames, fixed_mean: dict):
@@ -170,7 +201,7 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
     cost = np.r_[np.zeros(nth), -np.ones(len(ylabel))]
     lo = np.r_[np.zeros(F), -box[F:], np.zeros(len(ylabel))]
     hi = np.r_[box, np.ones(len(ylabel))]
-    with _solver_quiet():
+    with _searching(nf, time_limit), _solver_quiet():
         res = milp(cost, constraints=LinearConstraint(A, -np.inf, np.array(ub)),
                    integrality=np.r_[np.zeros(nth), np.ones(len(ylabel))],
                    bounds=Bounds(lo, hi), options={"time_limit": float(time_limit)})

@@ -71,3 +71,22 @@ def test_fixed_means_are_kept():
     got = best_record([(x, np.array([True, False]))] * 3, fixed_mean={0: 3.0})
     assert got.hits == 3 and got.mean[0] == 3.0
     assert MEAN_RANGE >= 10
+
+
+def test_a_long_search_says_so_and_stops_at_its_limit(monkeypatch, capsys):
+    """A search that runs to its time limit prints progress lines while HiGHS works (a log: no
+    terminal) and returns what it found with the proven bound, not optimal."""
+    from hil_harness.console import Heartbeat
+    monkeypatch.setenv("UVISI_PROGRESS", "0")
+    monkeypatch.setattr(Heartbeat, "HEARTBEAT_S", 0.4)
+    rng = np.random.default_rng(1)
+    frames = []
+    for _ in range(150):                     # twelve noise features: no record ranks them well
+        on = np.zeros(25, bool)
+        on[rng.integers(25)] = True
+        frames.append((rng.normal(size=(25, 12)), on))
+    c = best_record(frames, time_limit=1.5)
+    err = capsys.readouterr().err
+    assert "best record: exact search over 150 frames: " in err
+    assert "s of the time limit done" in err
+    assert not c.optimal and c.hits <= c.bound <= 150
