@@ -115,7 +115,8 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     return out
 
 
-def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) -> dict:
+def blob_ceiling(images, labels, record, frames, channel=None, sequence=None,
+                 unused=()) -> dict:
     """What any ranking of the IP's blobs could reach on the labelled ``frames`` with an object:
     ``{"any": k, "by_feature": {feature: k}, "best_record": RecordCeiling, "frames": n}``.
     ``any``: frames where some blob the sequence makes (all of them: up to 1000 candidates,
@@ -123,8 +124,9 @@ def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) ->
     of that one feature is (a record weighing that feature alone, its mean above every blob's);
     ``best_record``: the most frames one record (without quantisation) ranks a blob on the label
     first, an exact count (:func:`hil_harness.tuning.record_ceiling.best_record`; the centroid
-    means are the ranking's, the window centre). The record only sets the field (its job's) and
-    the order the blobs come in; a record with a GOF threshold drops some."""
+    means are the ranking's, the window centre; ``unused``: feature names the best record may not
+    weigh). The record only sets the field (its job's) and the order the blobs come in; a record
+    with a GOF threshold drops some."""
     from flightsw.messages import FEATURE_NAMES
     from hil_harness.tuning.record_ceiling import best_record
     n, anyk, table, means = 0, 0, [], set()
@@ -145,7 +147,8 @@ def blob_ceiling(images, labels, record, frames, channel=None, sequence=None) ->
                          f"means): score them as separate nights")
     fixed = dict(zip((FEATURE_NAMES.index("row"), FEATURE_NAMES.index("col")),
                      means.pop())) if means else {}
-    return {"any": anyk, "by_feature": by, "best_record": best_record(table, fixed),
+    off = [FEATURE_NAMES.index(name) for name in unused]
+    return {"any": anyk, "by_feature": by, "best_record": best_record(table, fixed, unused=off),
             "frames": n}
 
 
@@ -350,13 +353,14 @@ def _fmt(r) -> str:
     return f"{100 * r['rate']:.0f} % ({r['k']}/{r['n']}, {100 * lo:.0f}-{100 * hi:.0f})"
 
 
-def _print_ceiling(records, nights, sequence, proposals=(), plot=None) -> int:
+def _print_ceiling(records, nights, sequence, proposals=(), plot=None, unused=()) -> int:
     """The ``--ceiling`` table (:func:`blob_ceiling`), a row per record and night, with each
     night's best record run as ``uvisi track`` on that night (:func:`track_hits`: does the best
     ranking there is bring the paper's TP to the track figures?); then the best record of the
     first night run as ``uvisi detect`` on each of the others. ``proposals``: those in force for
     the track column (``--with``); ``plot``: a PNG path for :func:`plot_follow` of the first
-    record and its best record on the first night."""
+    record and its best record on the first night; ``unused``: features the best records may not
+    weigh (:func:`blob_ceiling`)."""
     from hil_harness.rates import rate
     from hil_harness.tuning.export import record_from
     print("| record | night | frames | some blob on the label | best one feature: its blob on "
@@ -367,7 +371,8 @@ def _print_ceiling(records, nights, sequence, proposals=(), plot=None) -> int:
         rec = record_from(name)
         for i, night in enumerate(nights):
             images, labels, frames = NIGHTS[night]
-            c = blob_ceiling(_ROOT / images, _ROOT / labels, rec, frames, sequence=sequence)
+            c = blob_ceiling(_ROOT / images, _ROOT / labels, rec, frames, sequence=sequence,
+                             unused=unused)
             feat, k = max(c["by_feature"].items(), key=lambda t: t[1])
             best = c["best_record"]
             proven = "" if best.optimal else f" (at most {best.bound})"
@@ -411,6 +416,9 @@ def main(argv=None) -> int:
                          "on the label, the blob largest in one feature, and the best record "
                          "(upper bounds with the labels in them), that record in uvisi track on "
                          "its night; the first night's best record scored on the others")
+    ap.add_argument("--without-centroids", action="store_true",
+                    help="with --ceiling: best records that do not weigh the centroids (a ranking "
+                         "that does not depend on where the TP's prior puts them)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night (with "
                          "--ceiling: the label's steps and, frame by frame, detect and track with "
@@ -424,7 +432,8 @@ def main(argv=None) -> int:
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
     nights = args.night or ["gill2008_test", "gill2014", "wic"]
     if args.ceiling:
-        return _print_ceiling(records, nights, args.sequence, proposals, args.plot)
+        return _print_ceiling(records, nights, args.sequence, proposals, args.plot,
+                              ("row", "col") if args.without_centroids else ())
     print("| record | night | frames | detect: rank 1 on the label | track: locked | "
           "track: on the label when locked |\n| --- | --- | --- | --- | --- | --- |")
     follow = []

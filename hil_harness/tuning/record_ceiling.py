@@ -137,7 +137,8 @@ def _standardised(frames, fixed_mean: dict):
     return loc, scale, [(np.asarray(f, np.float64) - loc) / scale for f, _ in frames]
 
 
-def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.0) -> RecordCeiling:
+def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.0,
+                unused=()) -> RecordCeiling:
     """The record that ranks a labelled blob first on the most frames.
 
     Parameters
@@ -149,6 +150,9 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
         Features whose mean is not the record's to choose (the centroids: the prior).
     time_limit : float
         Seconds HiGHS may take (s); past it the best found and the proven bound are returned.
+    unused : iterable of int
+        Features the record may not weigh (``a_i = 0``): the centroids, for a ranking that does
+        not depend on where the prior puts the centroid means.
 
     Returns
     -------
@@ -201,6 +205,8 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
     cost = np.r_[np.zeros(nth), -np.ones(len(ylabel))]
     lo = np.r_[np.zeros(F), -box[F:], np.zeros(len(ylabel))]
     hi = np.r_[box, np.ones(len(ylabel))]
+    for i in unused:
+        hi[i] = 0.0
     with _searching(nf, time_limit), _solver_quiet():
         res = milp(cost, constraints=LinearConstraint(A, -np.inf, np.array(ub)),
                    integrality=np.r_[np.zeros(nth), np.ones(len(ylabel))],

@@ -41,6 +41,24 @@ def test_one_feature_equals_the_sweep(seed):
     assert got.frames == 12
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_an_unused_feature_is_not_weighed(seed):
+    """Feature 0 separates every frame, feature 1 is the sweep's case: with feature 0 out of use
+    the count is the sweep's on feature 1, and the record gives feature 0 no weight."""
+    rng = np.random.default_rng(seed)
+    frames = []
+    for _ in range(12):
+        m = int(rng.integers(2, 5))
+        x = rng.choice(np.arange(0, 50, 10.0), m, replace=False)[:, None]
+        on = np.zeros(m, bool)
+        on[rng.integers(m)] = True
+        frames.append((np.c_[np.where(on, 5.0, 0.0), x], on))
+    assert best_record(frames).hits == 12
+    got = best_record(frames, unused=[0])
+    assert got.optimal and got.coef[0] == 0.0
+    assert got.hits == _sweep_best([(x[:, 1:], on) for x, on in frames])
+
+
 def test_two_frames_asking_opposite_things_give_one():
     # frame 1 wants the bright blob, frame 2 the faint one, the blobs otherwise alike
     x1 = np.array([[10.0, 100.0], [10.0, 50.0]])
