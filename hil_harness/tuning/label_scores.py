@@ -426,6 +426,8 @@ def main(argv=None) -> int:
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
                     help="comma-separated frames for --plot")
     args = ap.parse_args(argv)
+    if args.without_centroids and not args.ceiling:
+        ap.error("--without-centroids: only with --ceiling (it shapes the best records)")
     from flightsw.proposals import check_applicable
     from hil_harness.tuning.export import record_from
     proposals = check_applicable(args.with_, "opportunity", "--with") if args.with_ else ()
