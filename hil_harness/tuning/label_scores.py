@@ -239,6 +239,11 @@ def plot_night(night: str, record, frames, out, channel=None) -> None:
     plt.close(fig)
 
 
+def _label_step(lab: dict, k: int) -> float:
+    """Full-resolution pixels the label moved from frame ``k - 1`` to frame ``k``."""
+    return math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1])
+
+
 def label_follow(trk: dict, lab: dict, gate_px: float) -> dict:
     """How the label moves and whether the TP follows it, over the steps between consecutive
     frames of ``trk`` (:func:`track_hits`' ``{frame: (locked, on the label)}``; ``lab``: the
@@ -253,7 +258,7 @@ def label_follow(trk: dict, lab: dict, gate_px: float) -> dict:
         if k - 1 not in trk:
             continue
         steps += 1
-        moved = math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1]) > gate_px
+        moved = _label_step(lab, k) > gate_px
         hops += moved
         if trk[k - 1] == (True, True):
             tally = hop if moved else stay
@@ -270,8 +275,7 @@ def follow_timeline(lab: dict, det: dict, trk: dict, frames) -> dict:
     :func:`track_hits`)}``. ``lab``: ``{frame: (row, col) or None}``."""
     ks = [k for k in frames if lab.get(k) is not None]
     kept = set(ks)
-    step = [math.hypot(lab[k][0] - lab[k - 1][0], lab[k][1] - lab[k - 1][1])
-            if k - 1 in kept else math.nan for k in ks]
+    step = [_label_step(lab, k) if k - 1 in kept else math.nan for k in ks]
     return {"frame": np.array(ks, int), "step": np.array(step, float),
             "detect": np.array([bool(det[k]) for k in ks], bool),
             "track": np.array([(1 + trk[k][1]) if trk[k][0] else 0 for k in ks], int)}
