@@ -27,8 +27,8 @@ what that best record does in ``uvisi track`` on the same night, and how the bes
 first night given fares on the others; with ``--plot``, :func:`plot_follow` of the first night.
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`, :func:`follow_timeline`,
-:func:`score_night`, :func:`plot_night`, :func:`plot_follow`.
+:func:`blob_tables`, :func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`,
+:func:`follow_timeline`, :func:`score_night`, :func:`plot_night`, :func:`plot_follow`.
 """
 from __future__ import annotations
 
@@ -41,8 +41,9 @@ import numpy as np
 
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
-__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_ceiling", "track_hits",
-           "label_follow", "follow_timeline", "score_night", "plot_night", "plot_follow"]
+__all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_tables", "blob_ceiling",
+           "track_hits", "label_follow", "follow_timeline", "score_night", "plot_night",
+           "plot_follow"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -115,6 +116,30 @@ def detect_hits(images, labels, record, frames, channel=None, sequence=None,
     return out
 
 
+def blob_tables(images, labels, record, frames, channel=None, sequence=None):
+    """Every blob the sequence makes on the labelled ``frames`` with an object, as the exact
+    record searches take them -> ``(table, fixed)``.
+
+    ``table``: a list, one entry per frame, of ``(features float64 [m, F], on bool [m])``: the
+    IP's first 1000 candidates inside the record's field, their F features
+    (:data:`flightsw.messages.FEATURE_NAMES` order, the IP's units) and whether each is on the
+    label. ``fixed``: ``{feature index: mean}`` for the centroid rows, the ranking's centroid means
+    (in ``uvisi detect`` the window centre; the record does not choose them)."""
+    from flightsw.messages import FEATURE_NAMES
+    table, means = [], set()
+    for _, feats, on, _, cm in _processed(images, labels, record, frames, channel, sequence,
+                                          1000):
+        means.add(cm)
+        x = np.stack([np.asarray(feats[name], float) for name in FEATURE_NAMES], 1)
+        table.append((x, on))
+    if len(means) > 1:
+        raise ValueError(f"{images}: frames of different sizes ({sorted(means)} as centroid "
+                         f"means): score them as separate nights")
+    fixed = dict(zip((FEATURE_NAMES.index("row"), FEATURE_NAMES.index("col")),
+                     means.pop())) if means else {}
+    return table, fixed
+
+
 def blob_ceiling(images, labels, record, frames, channel=None, sequence=None,
                  unused=()) -> dict:
     """What any ranking of the IP's blobs could reach on the labelled ``frames`` with an object:
@@ -129,27 +154,18 @@ def blob_ceiling(images, labels, record, frames, channel=None, sequence=None,
     with a GOF threshold drops some."""
     from flightsw.messages import FEATURE_NAMES
     from hil_harness.tuning.record_ceiling import best_record
-    n, anyk, table, means = 0, 0, [], set()
+    table, fixed = blob_tables(images, labels, record, frames, channel, sequence)
+    anyk = 0
     by = dict.fromkeys(FEATURE_NAMES, 0)
-    for _, feats, on, _, cm in _processed(images, labels, record, frames, channel, sequence,
-                                          1000):
-        n += 1
-        means.add(cm)
-        x = np.stack([np.asarray(feats[name], float) for name in FEATURE_NAMES], 1)
-        table.append((x, on))
+    for x, on in table:
         if not on.size:
             continue
         anyk += bool(on.any())
         for i, name in enumerate(FEATURE_NAMES):
             by[name] += bool(on[int(np.argmax(x[:, i]))])
-    if len(means) > 1:
-        raise ValueError(f"{images}: frames of different sizes ({sorted(means)} as centroid "
-                         f"means): score them as separate nights")
-    fixed = dict(zip((FEATURE_NAMES.index("row"), FEATURE_NAMES.index("col")),
-                     means.pop())) if means else {}
     off = [FEATURE_NAMES.index(name) for name in unused]
     return {"any": anyk, "by_feature": by, "best_record": best_record(table, fixed, unused=off),
-            "frames": n}
+            "frames": len(table)}
 
 
 def _tracked(images, record, channel=None, sequence=None, proposals=()):
