@@ -1,13 +1,14 @@
 """The exact best record (``hil_harness.tuning.record_ceiling.best_record``) against cases whose
 answer is known: with one feature the ranking is "the blob nearest the mean", and the best mean is
 found by a sweep over the points where a frame's winner changes (an independent algorithm); two
-frames that ask opposite things; and a feature that separates every frame."""
+frames that ask opposite things; and a feature that separates every frame. The widest-lead record
+(``widest_record``) against a grid search of its objective over one free parameter."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from hil_harness.tuning.record_ceiling import MEAN_RANGE, best_record
+from hil_harness.tuning.record_ceiling import MEAN_RANGE, best_record, widest_record
 
 
 def _sweep_best(frames) -> int:
@@ -108,3 +109,87 @@ def test_a_long_search_says_so_and_stops_at_its_limit(monkeypatch, capsys):
     assert "best record: exact search over 150 frames: " in err
     assert "s of the time limit done" in err
     assert not c.optimal and c.hits <= c.bound <= 150
+
+
+def _leads(frames, coef, mean):
+    """The least lead ``d_j - d_l`` over the frames a record (``coef``, ``mean``) ranks a labelled
+    blob ``l`` first on, with the distances in the pooled standard deviations the search uses
+    and the coefficients scaled to sum 1 there; and how many such frames."""
+    x = np.concatenate([f for f, _ in frames])
+    scale = x.std(0)
+    a = coef * scale ** 2
+    a = a / a.sum()
+    worst, n = np.inf, 0
+    for f, on in frames:
+        d = (((f - mean) / scale) ** 2 * a).sum(1)
+        if on[np.argmin(d)]:
+            n += 1
+            worst = min(worst, d[~on].min() - d[np.argmin(d)])
+    return worst, n
+
+
+def _frames(rng, m_frames=10, blobs=4, f=2):
+    frames = []
+    for _ in range(m_frames):
+        on = np.zeros(blobs, bool)
+        on[rng.integers(blobs)] = True
+        frames.append((rng.normal(size=(blobs, f)), on))
+    return frames
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_widest_split_of_two_fixed_features_equals_a_grid_search(seed):
+    """Both means fixed at 0: the record is the split ``a, 1 - a`` between the two features, and
+    the widest least lead over the frames the best record counts is found on a fine grid of ``a``
+    (the LP must match it, and beat every grid point)."""
+    frames = _frames(np.random.default_rng(seed))
+    fixed = {0: 0.0, 1: 0.0}
+    best = best_record(frames, fixed)
+    got = widest_record(frames, best, fixed)
+    assert got.hits >= best.hits and (got.mean == 0.0).all()
+    lead, n = _leads(frames, got.coef, got.mean)
+    assert n == got.hits
+    x = np.concatenate([f for f, _ in frames])
+    z2 = [((f / x.std(0)) ** 2, on) for f, on in frames]
+    # the frames and labelled blobs the best record counts: the LP keeps exactly these winners
+    keep = [(q, on, int(np.argmin((q * best.coef * x.std(0) ** 2).sum(1)))) for q, on in z2]
+    keep = [(q, on, i) for q, on, i in keep if on[i]]
+    grid = np.linspace(0.0, 1.0, 200001)
+    w = np.c_[grid, 1 - grid]
+    oracle = np.min([(q[~on] @ w.T - q[i] @ w.T).min(0) for q, on, i in keep], axis=0).max()
+    assert lead >= oracle - 1e-9
+    assert lead == pytest.approx(oracle, abs=1e-4)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_widest_mean_of_one_free_feature_equals_a_grid_search(seed):
+    """One feature with a free mean ``m`` (in pooled standard deviations about the pooled mean,
+    within the search's ``MEAN_RANGE``): the lead is ``(z_j - m)**2 - (z_l - m)**2``, and its
+    least value over the counted frames is maximised on a fine grid of ``m``."""
+    frames = _frames(np.random.default_rng(10 + seed), m_frames=8, blobs=3, f=1)
+    best = best_record(frames)
+    got = widest_record(frames, best)
+    x = np.concatenate([f for f, _ in frames])[:, 0]
+    loc, scale = x.mean(), x.std()
+    zs = [((f[:, 0] - loc) / scale, on) for f, on in frames]
+    m0 = (best.mean[0] - loc) / scale
+    keep = [(z, on, int(np.argmin((z - m0) ** 2))) for z, on in zs]
+    keep = [(z, on, i) for z, on, i in keep if on[i]]
+    grid = np.linspace(-MEAN_RANGE, MEAN_RANGE, 2000001)
+    least = np.full(grid.size, np.inf)
+    for z, on, i in keep:
+        for zj in z[~on]:
+            least = np.minimum(least, (zj - grid) ** 2 - (z[i] - grid) ** 2)
+    oracle = least.max()
+    lead, n = _leads(frames, got.coef, got.mean)
+    assert n == got.hits >= best.hits
+    assert lead >= oracle - 1e-9
+    assert lead == pytest.approx(oracle, abs=1e-3)
+
+
+def test_the_widest_record_keeps_an_unused_feature_unused():
+    rng = np.random.default_rng(3)
+    frames = _frames(rng, m_frames=12, blobs=4, f=3)
+    best = best_record(frames, unused=[2])
+    got = widest_record(frames, best, unused=[2])
+    assert got.coef[2] == 0.0 and got.hits >= best.hits
