@@ -1,6 +1,6 @@
 """A sequence and record for the all-sky job chosen by the exact count instead of the closed-loop
 tuner (docs/validation.md, "Aurora on real all-sky imagery", "Measured and not kept"):
-``python -m bench.allsky_exact_choice [--workers N] [--top N]`` (~50 min on 2 cores).
+``python -m bench.allsky_exact_choice [--workers N] [--top N]`` (~20 min wall on 2 cores).
 
 Chosen on the training frames of THEMIS Gillam 2008 only (frames 0-69, two blocks); the scored
 frames 75-149, the 2014 night and the WIC night are run once, after the choice:
@@ -34,7 +34,7 @@ TRAIN_BLOCKS = ("gill2008_train_a", "gill2008_train_b")
 SCORED = ("gill2008_test", "gill2014", "wic")
 CENTROIDS = ("row", "col")
 
-__all__ = ["grid", "sequence_toml", "block_cv", "fit_and_score", "main"]
+__all__ = ["grid", "sequence_toml", "label", "block_cv", "fit_and_score", "main"]
 
 
 def grid():
@@ -63,6 +63,7 @@ def sequence_toml(spec) -> str:
 
 
 def label(spec) -> str:
+    """One :func:`grid` tuple in words, as the tables print it."""
     comp, detrend, sigma, filt, alpha, mode = spec
     d = f"highpass {sigma}" if detrend == "highpass" else detrend
     return f"c{comp}, {d}, filter {filt}, alpha {alpha} {mode}"
@@ -150,6 +151,8 @@ def main(argv=None) -> int:
     ap.add_argument("--workers", type=int, default=os.cpu_count() or 1)
     ap.add_argument("--top", type=int, default=20, help="sequences refined in step 2")
     args = ap.parse_args(argv)
+    if args.workers < 1 or args.top < 1:
+        ap.error("--workers and --top: at least 1")
     specs = grid()
     with tempfile.TemporaryDirectory() as tmp:
         paths = []

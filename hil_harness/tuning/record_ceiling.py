@@ -271,7 +271,8 @@ def widest_record(frames, record: RecordCeiling, fixed_mean: dict | None = None,
             rows.append(row)
     A = np.vstack(rows)
     eq = np.r_[np.ones(F), np.zeros(len(free) + 1)][None, :]
-    bounds = ([(0.0, 0.0 if i in set(unused) else 1.0) for i in range(F)]
+    off = set(unused)
+    bounds = ([(0.0, 0.0 if i in off else 1.0) for i in range(F)]
               + [(None, None)] * (len(free) + 1))
     with _solver_quiet():
         res = linprog(np.r_[np.zeros(F + len(free)), -1.0], A_ub=A, b_ub=np.zeros(len(A)),
