@@ -127,6 +127,23 @@ def _searching(n_frames: int, time_limit: float):
         end()
 
 
+def _first(z, a, mz) -> int:
+    """The blob the record ``(a, mz)`` (standardised units) ranks first among ``z`` [m, F]."""
+    return int(np.argmin(((z - mz) ** 2 * a).sum(1)))
+
+
+def _record_of(theta, free, used, zs, loc, scale):
+    """A search's ``theta = (a [F], b [free], ...)`` in standardised units -> ``(hits, coef,
+    mean)``: the frames of ``used`` whose first blob is on the label, and the record in the
+    features' units (:class:`RecordCeiling`'s ``coef``, ``mean``)."""
+    F = len(loc)
+    a, b = np.where(theta[:F] > 1e-12, theta[:F], 0.0), np.zeros(F)
+    b[free] = theta[F:F + len(free)]
+    mz = np.where(a > 0, -b / (2.0 * np.where(a > 0, a, 1.0)), 0.0)
+    hits = sum(bool(np.asarray(on)[_first(z, a, mz)]) for (_, on), z in zip(used, zs))
+    return hits, a / scale ** 2, loc + mz * scale
+
+
 def _standardised(frames, fixed_mean: dict):
     """Pooled location and scale of every feature over the frames' blobs, and the features
     ``z = (x - loc) / scale`` per frame."""
@@ -214,15 +231,9 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
                    bounds=Bounds(lo, hi), options={"time_limit": float(time_limit)})
     if res.x is None:
         raise RuntimeError(f"the record search found no solution: {res.message}")
-    a, b = res.x[:F], np.zeros(F)
-    b[free] = res.x[F:nth]
-    a = np.where(a > 1e-12, a, 0.0)
-    mz = np.where(a > 0, -b / (2.0 * np.where(a > 0, a, 1.0)), 0.0)
-    hits = sum(bool(np.asarray(on)[np.argmin(((z - mz) ** 2 * a).sum(1))])
-               for (_, on), z in zip(used, zs))
+    hits, coef, mean = _record_of(res.x, free, used, zs, loc, scale)
     bound = int(np.floor(-res.mip_dual_bound + 1e-6)) if res.mip_dual_bound is not None else nf
-    return RecordCeiling(hits, nf, min(bound, len(used)), res.status == 0,
-                         a / scale ** 2, loc + mz * scale)
+    return RecordCeiling(hits, nf, min(bound, len(used)), res.status == 0, coef, mean)
 
 
 def widest_record(frames, record: RecordCeiling, fixed_mean: dict | None = None,
@@ -260,7 +271,7 @@ def widest_record(frames, record: RecordCeiling, fixed_mean: dict | None = None,
     rows = []
     for (_, on), z in zip(used, zs):
         on = np.asarray(on, bool)
-        lead = int(np.argmin(((z - mz0) ** 2 * a0).sum(1)))
+        lead = _first(z, a0, mz0)
         if on[lead]:
             phi = np.hstack([z ** 2, z[:, free]])
             rows.append(np.c_[phi[lead] - phi[~on], np.ones((~on).sum())])  # d_l - d_j + t <= 0
@@ -279,10 +290,5 @@ def widest_record(frames, record: RecordCeiling, fixed_mean: dict | None = None,
                       A_eq=eq, b_eq=[1.0], bounds=bounds, method="highs")
     if res.status != 0:
         raise RuntimeError(f"the widest-lead search failed: {res.message}")
-    a, b = np.where(res.x[:F] > 1e-12, res.x[:F], 0.0), np.zeros(F)
-    b[free] = res.x[F:F + len(free)]
-    mz = np.where(a > 0, -b / (2.0 * np.where(a > 0, a, 1.0)), 0.0)
-    hits = sum(bool(np.asarray(on)[np.argmin(((z - mz) ** 2 * a).sum(1))])
-               for (_, on), z in zip(used, zs))
-    return RecordCeiling(hits, record.frames, record.bound, record.optimal, a / scale ** 2,
-                         loc + mz * scale)
+    hits, coef, mean = _record_of(res.x, free, used, zs, loc, scale)
+    return RecordCeiling(hits, record.frames, record.bound, record.optimal, coef, mean)
