@@ -137,13 +137,9 @@ def fit_and_score(sequence, unused=()) -> dict:
 
 
 def _fmt(k, n) -> str:
-    """``k/n`` as the validation tables give it: the rate, the count and a Wilson 95 % interval."""
     from hil_harness.rates import rate
-    if n == 0:
-        return "-- (0/0)"
-    r = rate(k, n)
-    lo, hi = r["ci95"]
-    return f"{100 * r['rate']:.0f} % ({k}/{n}, {100 * lo:.0f}-{100 * hi:.0f})"
+    from hil_harness.tuning.label_scores import rate_cell
+    return rate_cell(rate(k, n))
 
 
 def main(argv=None) -> int:

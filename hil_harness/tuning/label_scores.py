@@ -28,7 +28,8 @@ first night given fares on the others; with ``--plot``, :func:`plot_follow` of t
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
 :func:`blob_tables`, :func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`,
-:func:`follow_timeline`, :func:`score_night`, :func:`plot_night`, :func:`plot_follow`.
+:func:`follow_timeline`, :func:`score_night`, :func:`plot_night`, :func:`plot_follow`,
+:func:`rate_cell`.
 """
 from __future__ import annotations
 
@@ -43,7 +44,7 @@ from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
 __all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_tables", "blob_ceiling",
            "track_hits", "label_follow", "follow_timeline", "score_night", "plot_night",
-           "plot_follow"]
+           "plot_follow", "rate_cell"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -366,7 +367,9 @@ def score_night(night: str, record, channel=None, sequence=None, proposals=()) -
                                    OpportunityTrack().opp_gate_px)}
 
 
-def _fmt(r) -> str:
+def rate_cell(r) -> str:
+    """A :func:`hil_harness.rates.rate` dict as the validation tables give it: ``"43 % (32/75,
+    32-54)"`` (the rate, k/n, the Wilson 95 % interval), ``"-- (0/0)"`` for no frames."""
     if not r["n"]:
         return "-- (0/0)"
     lo, hi = r["ci95"]
@@ -400,11 +403,12 @@ def _print_ceiling(records, nights, sequence, proposals=(), plot=None, unused=()
             trk = track_hits(_ROOT / images, _ROOT / labels, own, frames, sequence=sequence,
                              proposals=proposals)
             locked = [f for f, (lk, _) in trk.items() if lk]
-            print(f"| {name} | {night} | {c['frames']} | {_fmt(rate(c['any'], c['frames']))} | "
-                  f"{feat}: {_fmt(rate(k, c['frames']))} | "
-                  f"{_fmt(rate(best.hits, c['frames']))}{proven} | "
-                  f"{_fmt(rate(len(locked), len(trk)))} | "
-                  f"{_fmt(rate(sum(trk[f][1] for f in locked), len(locked)))} |", flush=True)
+            print(f"| {name} | {night} | {c['frames']} | "
+                  f"{rate_cell(rate(c['any'], c['frames']))} | "
+                  f"{feat}: {rate_cell(rate(k, c['frames']))} | "
+                  f"{rate_cell(rate(best.hits, c['frames']))}{proven} | "
+                  f"{rate_cell(rate(len(locked), len(trk)))} | "
+                  f"{rate_cell(rate(sum(trk[f][1] for f in locked), len(locked)))} |", flush=True)
             if i == 0:
                 fitted = own
                 if plot and name == records[0]:
@@ -414,7 +418,7 @@ def _print_ceiling(records, nights, sequence, proposals=(), plot=None, unused=()
             else:
                 h = detect_hits(_ROOT / images, _ROOT / labels, fitted, frames, sequence=sequence)
                 later.append(f"{name}: the best record of {nights[0]} on {night}: "
-                             f"{_fmt(rate(sum(h.values()), len(h)))}")
+                             f"{rate_cell(rate(sum(h.values()), len(h)))}")
     if later:
         print()
     for line in later:
@@ -463,11 +467,12 @@ def main(argv=None) -> int:
         rec = record_from(name)
         for night in nights:
             s = score_night(night, rec, sequence=args.sequence, proposals=proposals)
-            print(f"| {name} | {night} | {s['frames']} | {_fmt(s['detect_top1'])} | "
-                  f"{_fmt(s['track_lock'])} | {_fmt(s['track_on_given_lock'])} |", flush=True)
+            print(f"| {name} | {night} | {s['frames']} | {rate_cell(s['detect_top1'])} | "
+                  f"{rate_cell(s['track_lock'])} | {rate_cell(s['track_on_given_lock'])} |",
+                  flush=True)
             fo = s["follow"]
             follow.append(f"| {name} | {night} | {fo['hops']}/{fo['steps']} | "
-                          f"{_fmt(fo['stay'])} | {_fmt(fo['hop'])} |")
+                          f"{rate_cell(fo['stay'])} | {rate_cell(fo['hop'])} |")
     print("\n| record | night | label steps beyond the gate | TP on the label, then on it next: "
           "step within the gate | after a hop |\n| --- | --- | --- | --- | --- |")
     print("\n".join(follow))
