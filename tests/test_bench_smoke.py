@@ -38,3 +38,23 @@ def test_regenerating_the_report_keeps_the_dated_ab_records():
     assert [k.split("\n")[1] for k in kept] == ["## 2026-01-02: x (A/B with abc1234)",
                                                 "## 2026-01-01: y (A/B with def5678)"]
     assert "row 1" in kept[0] and "table" not in "".join(kept)
+
+
+def test_each_group_says_when_where_and_at_what_load(monkeypatch):
+    """A group's figures carry the date, machine and load of the run that took them, so that a
+    ``-k`` run's groups and the ones kept from an older run are told apart; the peers' versions
+    are the installed ones, and a peer that is not installed is said so."""
+    from bench import report
+    taken = {"date": "2026-01-02", "machine": "box", "load": report.load_range([1.31, 0.52, 0.9])}
+    rows = [{"name": "test_ours_x", "median_s": 2e-6, "rounds": 10}]
+    groups = {"new": {"doc": "", "module": "bench/x.py", "rows": rows, "taken": taken},
+              "old": {"doc": "", "module": "bench/y.py", "rows": rows}}
+    text = report.render(groups, "box", "2026-01-02", "OpenCV 9")
+    assert ("Taken 2026-01-02 on box; 1-min load average 0.52-1.31 during the run (the run itself "
+            "adds ~1).") in text
+    assert text.split("## old")[1].split("|")[0].count("Taken before the report recorded") == 1
+    assert "Peers: OpenCV 9." in text and report.load_range([]) == "n/a"
+    import cv2
+    assert f"OpenCV {cv2.__version__}" in report.peer_versions()
+    monkeypatch.setattr(report, "PEERS", (("Nothing", "no-such-distribution-uvisi"),))
+    assert report.peer_versions() == "Nothing not installed (no-such-distribution-uvisi)"
