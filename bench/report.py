@@ -77,12 +77,14 @@ def load_range(samples: list[float]) -> str:
     return f"{min(samples):.2f}-{max(samples):.2f}" if samples else "n/a"
 
 
-def stamp_line(taken: dict | None) -> str:
-    """The line under a group's command: when, where and at what load its figures were taken."""
+def stamp_line(taken: dict | None, machine: str) -> str:
+    """The line under a group's command: when, where (when not ``machine``, the report's) and at
+    what load its figures were taken."""
     if not taken:
         return "Taken before the report recorded each group's date and load."
-    return (f"Taken {taken['date']} on {taken['machine']}; 1-min load average "
-            f"{taken['load']} during the run (the run itself adds ~1).")
+    where = "this machine" if taken["machine"] == machine else taken["machine"]
+    return (f"Taken {taken['date']} on {where}; 1-min load average {taken['load']} during the "
+            f"run, the run's own process counting up to 1 of it.")
 
 
 def run_suites(k: str | None, json_path: Path, loads: list) -> int:
@@ -168,8 +170,9 @@ def render(groups: dict, machine: str, when: str, peers: str = "") -> str:
            "a median from pytest-benchmark on one core; the peers of a group ran in the same run on the",
            "same input, and each was checked to find the same result as ours before it was timed.",
            "Ratio = peer median / our median (> 1: we are faster).", "",
-           f"Machine: {machine}. Taken {when}. Each group says when, where and at what load its",
-           "figures were taken (`python -m bench.report -k` re-runs some groups and keeps the others).",
+           f"Machine: {machine}. Taken {when}.", "",
+           "Each group says when, where and at what load its figures were taken (`python -m",
+           "bench.report -k` re-runs some groups and keeps the others).",
            ""]
     if peers:
         out += [f"Peers: {peers}.", ""]
@@ -184,7 +187,7 @@ def render(groups: dict, machine: str, when: str, peers: str = "") -> str:
         if entry["doc"]:
             out += [entry["doc"], ""]
         out += [f"Command: `.venv/bin/python -m pytest {entry['module']} --benchmark-enable`", "",
-                stamp_line(entry.get("taken")), "",
+                stamp_line(entry.get("taken"), machine), "",
                 "| contender | median | ratio to ours |", "| --- | ---: | ---: |"]
         for r in rows:
             name = r["name"].removeprefix("test_").replace("_", " ")
@@ -193,7 +196,7 @@ def render(groups: dict, machine: str, when: str, peers: str = "") -> str:
             ratio = _fmt_ratio(r["median_s"] / base) if base else "n/a"
             out.append(f"| {name} | {_fmt(r['median_s'])} | {ratio} |")
         out.append("")
-    out += event_markdown(groups)
+    out += event_markdown(groups, machine)
     budget = []
     for module, func in BUDGET_PROVIDERS:
         try:
@@ -221,7 +224,7 @@ def _row(entry: dict, name: str) -> dict | None:
     return next((r for r in entry["rows"] if r["name"].startswith(name)), None)
 
 
-def event_markdown(groups: dict) -> list[str]:
+def event_markdown(groups: dict, machine: str = "") -> list[str]:
     """The event section: the recorded frame's mean beside the loop's median, and the wall-time
     table of a warm ``uvisi event`` (rows' ``extra`` from bench/bench_event.py)."""
     frame = groups.get(EVENT_PREFIX + "recorded closed-loop frame")
@@ -233,7 +236,7 @@ def event_markdown(groups: dict) -> list[str]:
     if doc:
         out += [doc, ""]
     out += ["Command: `.venv/bin/python -m pytest bench/bench_event.py --benchmark-enable`", "",
-            stamp_line((frame or wall).get("taken")), ""]
+            stamp_line((frame or wall).get("taken"), machine), ""]
     ours = _row(frame, "test_ours_recorded_frame") if frame else None
     loop = _row(frame, "test_loop_frame_unrecorded") if frame else None
     if ours:

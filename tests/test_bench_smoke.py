@@ -50,8 +50,9 @@ def test_each_group_says_when_where_and_at_what_load(monkeypatch):
     groups = {"new": {"doc": "", "module": "bench/x.py", "rows": rows, "taken": taken},
               "old": {"doc": "", "module": "bench/y.py", "rows": rows}}
     text = report.render(groups, "box", "2026-01-02", "OpenCV 9")
-    assert ("Taken 2026-01-02 on box; 1-min load average 0.52-1.31 during the run (the run itself "
-            "adds ~1).") in text
+    assert ("Taken 2026-01-02 on this machine; 1-min load average 0.52-1.31 during the run, the "
+            "run's own process counting up to 1 of it.") in text
+    assert "Taken 2026-01-02 on box;" in report.render(groups, "other box", "2026-01-03")
     assert text.split("## old")[1].split("|")[0].count("Taken before the report recorded") == 1
     assert "Peers: OpenCV 9." in text and report.load_range([]) == "n/a"
     import cv2
