@@ -1,5 +1,6 @@
 """flightsw: the emulated MSX flight software (the UVISI image processor, the track processor, their
 messages and arithmetic)."""
-from flightsw.numba_cache import serialise_cache_writes
+from flightsw.numba_cache import key_cache_on_sources, serialise_cache_writes
 
+key_cache_on_sources()           # numba's cache: a folder per version of the sources
 serialise_cache_writes()         # numba's cache, written by several processes at once: locked

@@ -1,7 +1,18 @@
-"""Numba's on-disk cache made safe for the several processes that compile at once here.
+"""Numba's on-disk cache made safe: keyed on the project's sources, and written by several
+processes at once.
 
-``uvisi`` compiles in two processes on a cold cache (the command, and the warm-up process on the
-other core); the test suite does the same (``tests/compile_ahead.py``); campaigns run Dask workers.
+**Keyed on the sources.** numba keys each cached function on its own source file only: a kernel
+keeps the code of every function it calls as it was when the kernel was compiled, until the
+kernel's own file changes. After an update that changes a callee (a 1750A primitive, a filter)
+and not its callers, the cached callers would still run the old callee: other words out, with no
+sign of it (numba's documented limit; seen here on 2026-11-29, when the cached full-frame front
+end ran a filter two versions old at 2.6x the time of the current one). :func:`key_cache_on_sources`
+points numba's cache at a folder named by a digest of every Python file of the packages the
+kernels are made from (:data:`SOURCE_PACKAGES`), so that any change to them compiles everything
+once, afresh. A ``NUMBA_CACHE_DIR`` set by the user is left alone (its keeping is then the user's).
+
+**Several processes.** ``uvisi`` compiles in two processes on a cold cache when the warm-up process
+is on; campaigns run Dask workers.
 Numba 0.68's cache (``numba.core.caching.IndexDataCacheFile.save``) reads a function's index,
 picks the first unused data-file number and writes the index, then the data, with no lock: two
 processes saving different signatures of one function at the same moment can both pick number 1,
@@ -17,8 +28,67 @@ from __future__ import annotations
 
 import fcntl
 import functools
+import hashlib
+import os
+import shutil
+from pathlib import Path
 
-__all__ = ["serialise_cache_writes"]
+__all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
+           "SOURCE_PACKAGES", "KEEP_OLD"]
+
+#: the packages whose Python the compiled kernels are made from: the cache is keyed on all of it
+SOURCE_PACKAGES = ("flightsw", "groundsim", "hil_harness")
+#: cache folders of other sources kept beside the current one (a checkout switched back and forth
+#: recompiles nothing); older ones are removed when a new one is made
+KEEP_OLD = 2
+#: the project's root: the folder holding the packages
+_ROOT = Path(__file__).resolve().parents[1]
+
+
+def source_digest(root: Path = _ROOT, packages=SOURCE_PACKAGES) -> str:
+    """The first 16 hex digits of the SHA-256 of every ``*.py`` file under ``root / package`` for
+    each of ``packages``: its path relative to ``root`` and its bytes, in sorted path order."""
+    h = hashlib.sha256()
+    for pkg in packages:
+        for f in sorted((Path(root) / pkg).rglob("*.py")):
+            h.update(f.relative_to(root).as_posix().encode() + b"\0")
+            h.update(f.read_bytes() + b"\0")
+    return h.hexdigest()[:16]
+
+
+def cache_root(root: Path = _ROOT) -> Path:
+    """Where the source-keyed folders go: ``root/.numba_cache`` if ``root`` is writable (a
+    checkout), else ``$XDG_CACHE_HOME/uvisi/numba`` (``~/.cache/uvisi/numba``)."""
+    if os.access(root, os.W_OK):
+        return Path(root) / ".numba_cache"
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "uvisi" / "numba"
+
+
+def key_cache_on_sources(root: Path = _ROOT, packages=SOURCE_PACKAGES) -> Path | None:
+    """Point numba's cache at ``cache_root(root) / source_digest(root, packages)`` (through
+    ``NUMBA_CACHE_DIR``, which child processes inherit, and numba's config if numba is loaded),
+    unless ``NUMBA_CACHE_DIR`` is set already. A new folder removes all but the :data:`KEEP_OLD`
+    most recently used others. Returns the folder, or None when the user's setting stands. Call
+    before any kernel is defined: numba reads the setting when it sets up a kernel's cache."""
+    if os.environ.get("NUMBA_CACHE_DIR"):
+        return None
+    top = cache_root(Path(root))
+    here = top / source_digest(root, packages)
+    new = not here.is_dir()
+    here.mkdir(parents=True, exist_ok=True)
+    os.utime(here)                                  # most recently used: kept when pruning
+    if new:
+        others = sorted((d for d in top.iterdir() if d.is_dir() and d != here),
+                        key=lambda d: d.stat().st_mtime, reverse=True)
+        for d in others[KEEP_OLD:]:
+            shutil.rmtree(d, ignore_errors=True)
+    os.environ["NUMBA_CACHE_DIR"] = str(here)
+    import sys
+    config = sys.modules.get("numba.core.config")
+    if config is not None:
+        config.CACHE_DIR = str(here)
+    return here
 
 
 def serialise_cache_writes() -> None:

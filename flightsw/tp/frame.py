@@ -21,12 +21,11 @@ EKF covariance; 16-bit integers for the gate-membership tests. Every stage adds 
 clocks to its counter in ``cyc`` (:data:`~flightsw.tp.state.CYCLES_DTYPE`); the processor charges
 them to the frame's ledger on ``"tp1750"``.
 
-Editing a stage: numba's cache keys each compiled function on its own source file only, so after
-changing a stage module (or the 1750A arithmetic) the cached :func:`step_frame` and
-:func:`tp_frame` still run the old code until ``frame.py`` changes too (its content: numba keys
-the cache on a hash of the source, so touching the file does not help). Clear the cache
-(``find flightsw -name '*.nb[ic]' -delete``, or an empty ``NUMBA_CACHE_DIR``) before trusting the
-behaviour fixture after such an edit.
+Editing a stage: numba keys each cached function on its own source file only, so a cached
+:func:`step_frame` would keep an edited stage's old code; the project's cache is keyed on all its
+sources instead (:func:`flightsw.numba_cache.key_cache_on_sources`), and any edit compiles afresh.
+With a ``NUMBA_CACHE_DIR`` of your own, clear it after such an edit before trusting the behaviour
+fixture.
 """
 from __future__ import annotations
 

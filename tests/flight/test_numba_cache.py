@@ -38,3 +38,129 @@ def test_concurrent_saves_keep_every_key_with_its_own_data(tmp_path):
     for key in [(tag, i) for tag in "ab" for i in range(N)]:       # numba's own reader
         got = f.load(key)
         assert got is not None and got["payload"] == key, key
+
+
+# ------------------------------------------------------------------------------------------------
+# the cache keyed on the sources
+# ------------------------------------------------------------------------------------------------
+
+import os  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import textwrap  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from flightsw import numba_cache as nc  # noqa: E402
+
+_CALLER = """
+from numba import njit
+from pkgx.callee import f
+
+@njit(cache=True)
+def g():
+    return f() + 10
+"""
+
+
+def _callee(tree: Path, value: int, when: float) -> None:
+    p = tree / "pkgx" / "callee.py"
+    p.write_text(f"from numba import njit\n\n@njit(cache=True)\ndef f():\n    return {value}\n")
+    os.utime(p, (when, when))            # a new stamp, the same size: numba sees an edit
+
+
+def _run_g(tree: Path, env_cache: str | None) -> int:
+    """``pkgx.caller.g()`` in a fresh process: the cache keyed on pkgx's sources
+    (``env_cache`` None) or numba's own per-file cache in ``env_cache``."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    if env_cache is not None:
+        env["NUMBA_CACHE_DIR"] = env_cache
+    code = textwrap.dedent(f"""
+        import os, sys
+        sys.path.insert(0, {str(tree)!r})
+        keyed = {env_cache is None!r}
+        from flightsw.numba_cache import key_cache_on_sources   # keys the project's own cache
+        if keyed:
+            del os.environ["NUMBA_CACHE_DIR"]                       # then key it on pkgx instead
+            key_cache_on_sources({str(tree)!r}, ("pkgx",))
+        from pkgx.caller import g
+        print(g())
+    """)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    return int(out.stdout.split()[-1])
+
+
+def test_a_changed_callee_reaches_its_cached_caller(tmp_path):
+    """numba keys a cached kernel on its own file: after the callee's file changes, the caller
+    loaded from numba's own cache still returns the old callee's value (11, the hazard); with the
+    cache keyed on the package's sources the caller returns the new one (12)."""
+    for mode in ("numba's own", "keyed"):
+        tree = tmp_path / mode.replace("'", "").replace(" ", "_")
+        (tree / "pkgx").mkdir(parents=True)
+        (tree / "pkgx" / "__init__.py").write_text("")
+        (tree / "pkgx" / "caller.py").write_text(_CALLER)
+        env_cache = str(tree / "own_cache") if mode == "numba's own" else None
+        _callee(tree, 1, 1.7e9)
+        assert _run_g(tree, env_cache) == 11
+        _callee(tree, 2, 1.7e9 + 100)
+        got = _run_g(tree, env_cache)
+        assert got == (11 if mode == "numba's own" else 12), (mode, got)
+    assert len(list((tmp_path / "keyed" / ".numba_cache").iterdir())) == 2   # one per version
+
+
+def test_the_digest_follows_python_sources_only(tmp_path):
+    (tmp_path / "pkgx" / "sub").mkdir(parents=True)
+    (tmp_path / "pkgx" / "a.py").write_text("A = 1\n")
+    (tmp_path / "pkgx" / "sub" / "b.py").write_text("B = 2\n")
+    d0 = nc.source_digest(tmp_path, ("pkgx",))
+    (tmp_path / "pkgx" / "data.toml").write_text("x = 1\n")
+    assert nc.source_digest(tmp_path, ("pkgx",)) == d0
+    (tmp_path / "pkgx" / "sub" / "b.py").write_text("B = 3\n")
+    d1 = nc.source_digest(tmp_path, ("pkgx",))
+    (tmp_path / "pkgx" / "sub" / "b.py").write_text("B = 2\n")
+    assert d1 != d0 and nc.source_digest(tmp_path, ("pkgx",)) == d0
+    (tmp_path / "pkgx" / "sub" / "b.py").rename(tmp_path / "pkgx" / "b.py")   # moved: another tree
+    assert nc.source_digest(tmp_path, ("pkgx",)) != d0
+
+
+def test_a_new_version_keeps_the_two_last_used_others_and_the_users_setting_stands(
+        tmp_path, monkeypatch):
+    import numba.core.config
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", numba.core.config.CACHE_DIR)  # restored
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    (tmp_path / "pkgx").mkdir()
+    (tmp_path / "pkgx" / "a.py").write_text("A = 1\n")
+    top = tmp_path / ".numba_cache"
+    for i, name in enumerate(["old0", "old1", "old2", "old3"]):
+        (top / name).mkdir(parents=True)
+        os.utime(top / name, (1e9 + i, 1e9 + i))
+    here = nc.key_cache_on_sources(tmp_path, ("pkgx",))
+    assert here == top / nc.source_digest(tmp_path, ("pkgx",))
+    assert sorted(d.name for d in top.iterdir()) == sorted(["old2", "old3", here.name])
+    assert os.environ["NUMBA_CACHE_DIR"] == str(here)
+    monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
+    assert nc.key_cache_on_sources(tmp_path, ("pkgx",)) is None
+    assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "mine")
+
+
+def test_every_project_kernel_caches_in_one_folder():
+    """Each kernel of the flight code, the simulator and the harness keeps its cache in the one
+    folder the process chose (the source-keyed one, unless the user set ``NUMBA_CACHE_DIR``)."""
+    import importlib
+    import pkgutil
+
+    from numba.core.registry import CPUDispatcher
+    where = Path(os.environ["NUMBA_CACHE_DIR"]).resolve()
+    paths = []
+    for pkg in nc.SOURCE_PACKAGES:
+        top = importlib.import_module(pkg)
+        for m in pkgutil.walk_packages(top.__path__, pkg + "."):
+            if m.name.startswith("hil_harness.cli"):
+                continue
+            mod = importlib.import_module(m.name)
+            for obj in vars(mod).values():
+                if isinstance(obj, CPUDispatcher) and obj.__module__ == m.name and obj._cache:
+                    paths.append(Path(obj._cache.cache_path).resolve())
+    assert len(paths) > 200
+    assert all(where in p.parents or p == where for p in paths)
