@@ -49,7 +49,12 @@ GROUP_DOCS = {
         brightest are SEP's 23 brightest. Target (issue 45): ours >= 1.5x faster than the peer in
         the same run; measured 2026-11-29 on the shared 2-core host (6 runs, load average
         0.9-2.2 at the start of each): ours 164-339 ms min, 172-387 ms median; SEP 328-740 ms min,
-        347-789 ms median (1.90-2.24x median; the table is the last run, load 2.15). Parts of ours
+        347-789 ms median (1.90-2.24x median). Again on the quiet host (13:52 UTC, load 0.8-0.9,
+        three runs, the cache compiled from the current sources): ours 126-136 ms min, 131-139 ms
+        median; SEP 261-279 ms min, 272-289 ms median (2.08-2.09x). The same host earlier that hour
+        with a numba cache that held a full-frame front end compiled before its filter's last change
+        (numba keys a kernel on its own file; the cache is now keyed on all the sources,
+        `flightsw.numba_cache`): ours 204 ms, 1.43x. Parts of ours
         (timed alone, minima, load 1.4): the full-frame call 91 ms (compaction 3 ms, high-pass
         detrend 18 ms and 5x5 smoothing 26 ms (the flight kernels), window words 5 ms, union
         5 ms, back end 17 ms with the colouring 11 ms), the noise 19 ms, the photometry 9 ms;
