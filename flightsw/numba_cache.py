@@ -65,24 +65,53 @@ def cache_root(root: Path = _ROOT) -> Path:
     return Path(base) / "uvisi" / "numba"
 
 
+def _drop_numba_default_cache(root: Path, packages) -> None:
+    """Remove numba's index, data and lock files (``*.nbi``, ``*.nbc``, ``*.nbi.lock``) from the
+    ``__pycache__`` folders under ``root / package``: numba's default cache, from before the
+    cache was keyed on the sources."""
+    for pkg in packages:
+        for f in (root / pkg).rglob("__pycache__/*.nb[ic]*"):
+            try:
+                f.unlink()
+            except OSError:
+                pass
+
+
+def _prune(top: Path, here: Path) -> None:
+    """Remove the folders in ``top`` but ``here`` and the :data:`KEEP_OLD` most recently used
+    others (one another process removes first is passed over)."""
+    def used(d):
+        try:
+            return d.stat().st_mtime
+        except OSError:
+            return 0.0
+    others = sorted((d for d in top.iterdir() if d.is_dir() and d != here), key=used,
+                    reverse=True)
+    for d in others[KEEP_OLD:]:
+        shutil.rmtree(d, ignore_errors=True)
+
+
 def key_cache_on_sources(root: Path = _ROOT, packages=SOURCE_PACKAGES) -> Path | None:
     """Point numba's cache at ``cache_root(root) / source_digest(root, packages)`` (through
     ``NUMBA_CACHE_DIR``, which child processes inherit, and numba's config if numba is loaded),
     unless ``NUMBA_CACHE_DIR`` is set already. A new folder removes all but the :data:`KEEP_OLD`
-    most recently used others. Returns the folder, or None when the user's setting stands. Call
-    before any kernel is defined: numba reads the setting when it sets up a kernel's cache."""
+    most recently used others, and the files numba's default cache left in the packages'
+    ``__pycache__`` folders (nothing reads them now). Returns the folder, or None when the user's
+    setting stands. Call before any kernel is defined: numba reads the setting when it sets up a
+    kernel's cache. Where no folder can be made, numba's default stands (None)."""
     if os.environ.get("NUMBA_CACHE_DIR"):
         return None
     top = cache_root(Path(root))
     here = top / source_digest(root, packages)
     new = not here.is_dir()
-    here.mkdir(parents=True, exist_ok=True)
-    os.utime(here)                                  # most recently used: kept when pruning
+    try:
+        here.mkdir(parents=True, exist_ok=True)
+        os.utime(here)                              # most recently used: kept when pruning
+    except OSError:                                 # nowhere to write: numba's own default
+        return None
     if new:
-        others = sorted((d for d in top.iterdir() if d.is_dir() and d != here),
-                        key=lambda d: d.stat().st_mtime, reverse=True)
-        for d in others[KEEP_OLD:]:
-            shutil.rmtree(d, ignore_errors=True)
+        _prune(top, here)
+        _drop_numba_default_cache(Path(root), packages)
     os.environ["NUMBA_CACHE_DIR"] = str(here)
     import sys
     config = sys.modules.get("numba.core.config")

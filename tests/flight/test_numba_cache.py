@@ -124,7 +124,7 @@ def test_the_digest_follows_python_sources_only(tmp_path):
     assert nc.source_digest(tmp_path, ("pkgx",)) != d0
 
 
-def test_a_new_version_keeps_the_two_last_used_others_and_the_users_setting_stands(
+def test_a_new_version_keeps_two_others_drops_numbas_default_and_respects_the_user(
         tmp_path, monkeypatch):
     import numba.core.config
     monkeypatch.setattr(numba.core.config, "CACHE_DIR", numba.core.config.CACHE_DIR)  # restored
@@ -135,9 +135,15 @@ def test_a_new_version_keeps_the_two_last_used_others_and_the_users_setting_stan
     for i, name in enumerate(["old0", "old1", "old2", "old3"]):
         (top / name).mkdir(parents=True)
         os.utime(top / name, (1e9 + i, 1e9 + i))
+    old_cache = tmp_path / "pkgx" / "__pycache__"
+    old_cache.mkdir()
+    for name in ("a.f-3.py311.nbi", "a.f-3.py311.1.nbc", "a.f-3.py311.nbi.lock",
+                 "a.cpython-311.pyc"):
+        (old_cache / name).write_bytes(b"x")
     here = nc.key_cache_on_sources(tmp_path, ("pkgx",))
     assert here == top / nc.source_digest(tmp_path, ("pkgx",))
     assert sorted(d.name for d in top.iterdir()) == sorted(["old2", "old3", here.name])
+    assert [f.name for f in old_cache.iterdir()] == ["a.cpython-311.pyc"]     # numba's files gone
     assert os.environ["NUMBA_CACHE_DIR"] == str(here)
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
     assert nc.key_cache_on_sources(tmp_path, ("pkgx",)) is None
@@ -164,3 +170,15 @@ def test_every_project_kernel_caches_in_one_folder():
                     paths.append(Path(obj._cache.cache_path).resolve())
     assert len(paths) > 200
     assert all(where in p.parents or p == where for p in paths)
+
+
+def test_nowhere_to_write_leaves_numbas_default(tmp_path, monkeypatch):
+    """A cache root that cannot be made (a file stands in its place) leaves numba's default."""
+    import numba.core.config
+    monkeypatch.setattr(numba.core.config, "CACHE_DIR", numba.core.config.CACHE_DIR)
+    monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
+    (tmp_path / "pkgx").mkdir()
+    (tmp_path / "pkgx" / "a.py").write_text("A = 1\n")
+    (tmp_path / ".numba_cache").write_text("not a folder")
+    assert nc.key_cache_on_sources(tmp_path, ("pkgx",)) is None
+    assert "NUMBA_CACHE_DIR" not in os.environ
