@@ -3,13 +3,14 @@ processes at once.
 
 **Keyed on the sources.** numba keys each cached function on its own source file only: a kernel
 keeps the code of every function it calls as it was when the kernel was compiled, until the
-kernel's own file changes. After an update that changes a callee (a 1750A primitive, a filter)
-and not its callers, the cached callers would still run the old callee: other words out, with no
-sign of it (numba's documented limit; seen here on 2026-11-29, when the cached full-frame front
-end ran a filter two versions old at 2.6x the time of the current one). :func:`key_cache_on_sources`
-points numba's cache at a folder named by a digest of every Python file of the packages the
-kernels are made from (:data:`SOURCE_PACKAGES`), so that any change to them compiles everything
-once, afresh. A ``NUMBA_CACHE_DIR`` set by the user is left alone (its keeping is then the user's).
+kernel's own file changes. After an update that changes a callee (a 1750A primitive, a filter) and
+not its callers, the cached callers would still run the old callee: other words out, with no sign
+of it (a limit numba's "Notes on Caching" state; seen here on 2026-11-29, when the cached
+full-frame front end ran its 5x5 filter as it was before the filter's last change, at 2.6x the
+time). :func:`key_cache_on_sources` points numba's cache at a folder named by a digest of every
+Python file of the packages the kernels are made from (:data:`SOURCE_PACKAGES`), so that any change
+to them compiles everything once, afresh. A ``NUMBA_CACHE_DIR`` set by the user is left alone (its
+keeping is then the user's).
 
 **Several processes.** ``uvisi`` compiles in two processes on a cold cache when the warm-up process
 is on; campaigns run Dask workers.

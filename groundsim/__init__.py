@@ -5,12 +5,13 @@ aurora, the four UVISI imagers, the MSX spacecraft and scenario files -- plus gr
 Entry points: ``Scenario.load(name_or_path, seed=None)`` -> ``.frames()`` / ``.world()``;
 ``RealSequence.load(path)``.
 """
-from flightsw.numba_cache import key_cache_on_sources, serialise_cache_writes
+# importing flightsw keys numba's cache on the sources (flightsw.numba_cache) before any kernel
+# below is defined
+from flightsw.numba_cache import serialise_cache_writes
 
 from .imagers import IMAGER_IDS, IMAGERS, Imager, get_imager
 from .scenario import Scenario, ScenarioError
 
-key_cache_on_sources()           # numba's cache: a folder per version of the sources
 serialise_cache_writes()         # numba's cache, written by several processes at once: locked
 
 __all__ = ["Scenario", "ScenarioError", "RealSequence", "StarCatalog", "Imager", "IMAGERS", "IMAGER_IDS",

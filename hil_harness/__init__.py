@@ -20,7 +20,4 @@ first run's compilation on the second core).
 :mod:`.campaign_jobs` and :mod:`.tuning_closed` re-export :mod:`.campaign.jobs` and
 :mod:`.tuning.closed` under their old paths, for campaign files that name them.
 """
-from flightsw.numba_cache import key_cache_on_sources
-
-key_cache_on_sources()           # numba's cache: a folder per version of the sources (flightsw)
-
+import flightsw  # noqa: F401  (keys numba's cache on the sources before any kernel is defined)
