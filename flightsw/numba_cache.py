@@ -8,9 +8,10 @@ not its callers, the cached callers would still run the old callee: other words 
 of it (a limit numba's "Notes on Caching" state; seen here on 2026-11-29, when the cached
 full-frame front end ran its 5x5 filter as it was before the filter's last change, at 2.6x the
 time). :func:`key_cache_on_sources` points numba's cache at a folder named by a digest of every
-Python file of the packages the kernels are made from (:data:`SOURCE_PACKAGES`), so that any change
-to them compiles everything once, afresh. A ``NUMBA_CACHE_DIR`` set by the user is left alone (its
-keeping is then the user's).
+Python file of the packages the kernels are made from (:data:`SOURCE_PACKAGES`; the command line's
+modules, which no kernel reaches, left out: :data:`NOT_KERNEL_SOURCES`), so that any change to them
+compiles everything once, afresh. A ``NUMBA_CACHE_DIR`` set by the user is left alone (its keeping
+is then the user's).
 
 **Several processes.** ``uvisi`` compiles in two processes on a cold cache when the warm-up process
 is on; campaigns run Dask workers.
@@ -35,10 +36,14 @@ import shutil
 from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
-           "SOURCE_PACKAGES", "KEEP_OLD"]
+           "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
 
 #: the packages whose Python the compiled kernels are made from: the cache is keyed on all of it
 SOURCE_PACKAGES = ("flightsw", "groundsim", "hil_harness")
+#: folders left out of the digest: the command line, which no library module imports (a code rule,
+#: tests/test_code_rules.py), so no kernel calls its functions or reads its globals; editing a
+#: command compiles nothing again
+NOT_KERNEL_SOURCES = ("hil_harness/cli",)
 #: cache folders of other sources kept beside the current one (a checkout switched back and forth
 #: recompiles nothing); older ones are removed when a new one is made
 KEEP_OLD = 2
@@ -46,13 +51,18 @@ KEEP_OLD = 2
 _ROOT = Path(__file__).resolve().parents[1]
 
 
-def source_digest(root: Path = _ROOT, packages=SOURCE_PACKAGES) -> str:
+def source_digest(root: Path = _ROOT, packages=SOURCE_PACKAGES,
+                  leave_out=NOT_KERNEL_SOURCES) -> str:
     """The first 16 hex digits of the SHA-256 of every ``*.py`` file under ``root / package`` for
-    each of ``packages``: its path relative to ``root`` and its bytes, in sorted path order."""
+    each of ``packages`` but those under a folder of ``leave_out`` (paths relative to ``root``):
+    its path relative to ``root`` and its bytes, in sorted path order."""
     h = hashlib.sha256()
     for pkg in packages:
         for f in sorted((Path(root) / pkg).rglob("*.py")):
-            h.update(f.relative_to(root).as_posix().encode() + b"\0")
+            rel = f.relative_to(root).as_posix()
+            if any(rel.startswith(d.rstrip("/") + "/") for d in leave_out):
+                continue
+            h.update(rel.encode() + b"\0")
             h.update(f.read_bytes() + b"\0")
     return h.hexdigest()[:16]
 

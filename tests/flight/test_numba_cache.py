@@ -121,7 +121,13 @@ def test_the_digest_follows_python_sources_only(tmp_path):
     (tmp_path / "pkgx" / "sub" / "b.py").write_text("B = 2\n")
     assert d1 != d0 and nc.source_digest(tmp_path, ("pkgx",)) == d0
     (tmp_path / "pkgx" / "sub" / "b.py").rename(tmp_path / "pkgx" / "b.py")   # moved: another tree
-    assert nc.source_digest(tmp_path, ("pkgx",)) != d0
+    d2 = nc.source_digest(tmp_path, ("pkgx",))
+    assert d2 != d0
+    (tmp_path / "pkgx" / "cmd").mkdir()                  # a folder left out: edits there count not
+    (tmp_path / "pkgx" / "cmd" / "c.py").write_text("C = 1\n")
+    assert nc.source_digest(tmp_path, ("pkgx",), leave_out=("pkgx/cmd",)) == d2
+    assert nc.source_digest(tmp_path, ("pkgx",)) != d2
+    assert nc.NOT_KERNEL_SOURCES == ("hil_harness/cli",)
 
 
 def test_a_new_version_keeps_two_others_drops_numbas_default_and_respects_the_user(
@@ -152,24 +158,29 @@ def test_a_new_version_keeps_two_others_drops_numbas_default_and_respects_the_us
 
 def test_every_project_kernel_caches_in_one_folder():
     """Each kernel of the flight code, the simulator and the harness keeps its cache in the one
-    folder the process chose (the source-keyed one, unless the user set ``NUMBA_CACHE_DIR``)."""
+    folder the process chose (the source-keyed one, unless the user set ``NUMBA_CACHE_DIR``), and
+    none is defined in a folder the digest leaves out (the command line)."""
     import importlib
     import pkgutil
 
     from numba.core.registry import CPUDispatcher
     where = Path(os.environ["NUMBA_CACHE_DIR"]).resolve()
-    paths = []
+    left_out = tuple(d.replace("/", ".") + "." for d in nc.NOT_KERNEL_SOURCES)
+    paths, outside = [], []
     for pkg in nc.SOURCE_PACKAGES:
         top = importlib.import_module(pkg)
         for m in pkgutil.walk_packages(top.__path__, pkg + "."):
-            if m.name.startswith("hil_harness.cli"):
+            if m.name.endswith(".__main__"):                # runs a command when imported
                 continue
             mod = importlib.import_module(m.name)
             for obj in vars(mod).values():
-                if isinstance(obj, CPUDispatcher) and obj.__module__ == m.name and obj._cache:
-                    paths.append(Path(obj._cache.cache_path).resolve())
-    assert len(paths) > 200
-    assert all(where in p.parents or p == where for p in paths)
+                if isinstance(obj, CPUDispatcher) and obj.__module__ == m.name:
+                    (outside if m.name.startswith(left_out) else paths).append(obj)
+    assert len(paths) > 200 and not outside        # no kernel where the digest does not look
+    for k in paths:
+        if k._cache:
+            p = Path(k._cache.cache_path).resolve()
+            assert where in p.parents or p == where, (k, p)
 
 
 def test_nowhere_to_write_leaves_numbas_default(tmp_path, monkeypatch):
