@@ -309,7 +309,8 @@ def main(argv=None) -> int:
         text = head + "".join(kept) + sep + rest
     tmp_md, tmp_js = OUT.with_suffix(".md.tmp"), DATA.with_suffix(".json.tmp")
     tmp_md.write_text(text)
-    tmp_js.write_text(json.dumps({"machine": machine, "date": when, "peers": peers, "groups": groups}, indent=1))
+    tmp_js.write_text(json.dumps({"machine": machine, "date": when, "peers": peers,
+                                  "groups": groups}, indent=1))
     os.replace(tmp_md, OUT)           # atomic: never a half-written report
     os.replace(tmp_js, DATA)
     print(f"wrote {OUT.relative_to(ROOT)} ({len(groups)} groups)")

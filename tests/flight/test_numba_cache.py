@@ -1,17 +1,25 @@
-"""Numba's on-disk cache written by several processes at once (flightsw.numba_cache).
+"""Numba's on-disk cache (flightsw.numba_cache): keyed on the sources, and written by several
+processes at once.
 
-Oracle: the index and data files themselves. Two processes save 60 different keys each into one
-cache file at the same time; afterwards every key is in the index and its data file holds that
-key's payload (numba 0.68's unlocked save lets two processes pick the same data-file number, so a
-key can name the other process's machine code).
+Keyed: the oracle is a caller's value after its callee's file changed (numba's own cache keeps the
+old callee). Locked saves: the oracle is the index and data files themselves. Two processes save 60
+different keys each into one cache file at the same time; afterwards every key is in the index and
+its data file holds that key's payload (numba 0.68's unlocked save lets two processes pick the same
+data-file number, so a key can name the other process's machine code).
 """
 from __future__ import annotations
 
 import multiprocessing as mp
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
 
 from numba.core.caching import IndexDataCacheFile
 
 import flightsw  # noqa: F401  (installs the locked save)
+from flightsw import numba_cache as nc
 
 N = 60
 
@@ -43,14 +51,6 @@ def test_concurrent_saves_keep_every_key_with_its_own_data(tmp_path):
 # ------------------------------------------------------------------------------------------------
 # the cache keyed on the sources
 # ------------------------------------------------------------------------------------------------
-
-import os  # noqa: E402
-import subprocess  # noqa: E402
-import sys  # noqa: E402
-import textwrap  # noqa: E402
-from pathlib import Path  # noqa: E402
-
-from flightsw import numba_cache as nc  # noqa: E402
 
 _CALLER = """
 from numba import njit
