@@ -64,4 +64,4 @@ interchange: $(STAMP)
 	UVISI_OLD_H5PY=1 $(BIN)/python -m pytest -q -p no:cacheprovider tests/harness/test_recording_interchange.py
 
 clean:
-	rm -rf $(VENV) .venv-h5py-old build *.egg-info
+	rm -rf $(VENV) .venv-h5py-old .numba_cache build *.egg-info
