@@ -81,7 +81,7 @@ def stamp_line(taken: dict | None, machine: str) -> str:
     """The line under a group's command: when, where (when not ``machine``, the report's) and at
     what load its figures were taken."""
     if not taken:
-        return "Taken before the report recorded each group's date and load."
+        return "When, where and at what load these figures were taken: not recorded."
     where = "this machine" if taken["machine"] == machine else taken["machine"]
     return (f"Taken {taken['date']} on {where}; 1-min load average {taken['load']} during the "
             f"run, the run's own process counting up to 1 of it.")

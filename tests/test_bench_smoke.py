@@ -53,7 +53,8 @@ def test_each_group_says_when_where_and_at_what_load(monkeypatch):
     assert ("Taken 2026-01-02 on this machine; 1-min load average 0.52-1.31 during the run, the "
             "run's own process counting up to 1 of it.") in text
     assert "Taken 2026-01-02 on box;" in report.render(groups, "other box", "2026-01-03")
-    assert text.split("## old")[1].split("|")[0].count("Taken before the report recorded") == 1
+    old = text.split("## old")[1].split("|")[0]
+    assert old.count("When, where and at what load these figures were taken: not recorded.") == 1
     assert "Peers: OpenCV 9." in text and report.load_range([]) == "n/a"
     import cv2
     assert f"OpenCV {cv2.__version__}" in report.peer_versions()
