@@ -28,6 +28,7 @@ from numba import njit
 
 from flightsw.arith.m1750_float import (decode32_k, decode48_k, encode_k, is_normalized32_k,
                                         is_normalized48_k)
+from flightsw.numba_cache import KERNEL
 
 
 @dataclass
@@ -95,7 +96,7 @@ def _crc_table() -> np.ndarray:
 _CRC_TABLE = _crc_table()
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _crc_range(w, n, table):
     """Table-driven CRC-16/CCITT-FALSE of the first ``n`` 16-bit words of ``w`` (MSB first).
 
@@ -216,7 +217,7 @@ _REASONS = {_BAD_WORD: "not a 16-bit word (0..0xFFFF)", _BAD_ID: "wrong message 
             _BAD_COUNT: f"candidate count above {MAX_CANDIDATES}"}
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _words_ok(w):
     """Index of the first word outside 0..0xFFFF, -1 if none (``w`` int64 [n]).
 
@@ -232,7 +233,7 @@ def _words_ok(w):
     return -1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _f32_at(w, i):
     """Words ``i``, ``i + 1`` of ``w`` (int64, 16-bit values) -> the packed 32-bit 1750A float.
 
@@ -243,7 +244,7 @@ def _f32_at(w, i):
     return (w[i] << 16) | w[i + 1]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _f48_at(w, i):
     """Words ``i`` .. ``i + 2`` of ``w`` (int64, 16-bit values) -> the packed 48-bit 1750A float.
 
@@ -257,7 +258,7 @@ def _f48_at(w, i):
 # ================================================================================================
 # the candidate message codec (one jitted encoder, one jitted checker + filler)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _cand_encode_k(head, t, alpha, iv, fv, out, table):
     """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words (3-5 and
     11-12 are filled here from the time tag ``t`` and ``alpha``, finite float64), ``iv``/``fv``
@@ -301,7 +302,7 @@ def _cand_encode_k(head, t, alpha, iv, fv, out, table):
     return -1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _cand_check_k(w, table, imager_ok):
     """Every rule of the candidate message on int64 words ``w`` -> (verdict, word index, time tag,
     alpha); verdict 0 when the message is well formed (:data:`_REASONS` otherwise).
@@ -354,7 +355,7 @@ def _cand_check_k(w, table, imager_ok):
     return 0, 0, decode48_k(_f48_at(w, np.int64(3))), decode32_k(_f32_at(w, np.int64(11)))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _cand_fill_k(w, iv, fv):
     """Candidates of checked words ``w`` into the int64/float64 views (k, 15) of the array.
 
@@ -370,7 +371,7 @@ def _cand_fill_k(w, iv, fv):
             fv[i, 1 + j] = decode32_k(_f32_at(w, b + 1 + 2 * j))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def candidate_words_k(head, t, alpha, iv, fv, out):
     """The candidate message's one encoder for compiled callers (:meth:`CandidateMessage.to_words`
     runs the same kernel): :func:`_cand_encode_k` with the CRC table. ``head`` int64 [15], ``t``
@@ -405,7 +406,7 @@ def _candidate_field(i: int, n: int) -> str:
 # ================================================================================================
 # the track command codec
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _group(v, lo, hi):
     """1 all finite, 0 all NaN, -1 mixed (an optional group ``v[lo:hi]`` of the track command,
     float64).
@@ -438,7 +439,7 @@ _TC_WIDTH = np.array([2] * 9 + [3] * 6 + [2, 2], np.int64)
 _TC_FLAG = np.array([0x10] * 4 + [0x02] * 5 + [0x04] * 8, np.int64)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _track_encode_k(head, t, v, out, table):
     """Track command words into ``out`` (uint16[55]): ``head`` int64[13] (flags word without the
     presence bits; words 3-5 are the time tag ``t``, finite, encoded here), ``v`` float64[17]
@@ -486,7 +487,7 @@ def _track_encode_k(head, t, v, out, table):
     return 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _track_check_k(w, v, table, imager_ok, type_ok, status_mask):
     """Every rule of the track command on int64[55] words ``w``; fills ``v`` (NaN when absent).
     Returns (verdict, word index, time tag); verdict 0 when well formed.
@@ -582,7 +583,7 @@ def _track_field(i: int) -> str:
 FEEDBACK_VALUES = 4
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def feedback_words_k(words, fb):
     """The IP's per-frame read of the track command: every check of :meth:`TrackCommand.from_words`
     (:func:`_track_check_k`) on ``words`` (uint16 [n]); when they pass, the feedback's values into

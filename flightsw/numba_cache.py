@@ -36,7 +36,16 @@ import shutil
 from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
-           "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+           "KERNEL", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+
+#: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
+#: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
+#: otherwise adds to each compiled function for use as a first-class function value (a kernel
+#: passed as a typed function pointer, ``numba.cfunc``), which nothing here does. Each wrapper is
+#: one more function for LLVM to optimise and turn into machine code: dropping them took a first
+#: run's compile 6-7 % less CPU (docs/validation.md, "The first run"). What a kernel computes does
+#: not change. The Python-callable wrapper stays: Python calls the kernels.
+KERNEL = {"cache": True, "no_cfunc_wrapper": True}
 
 #: the packages whose Python the compiled kernels are made from: the cache is keyed on all of it
 SOURCE_PACKAGES = ("flightsw", "groundsim", "hil_harness")

@@ -26,6 +26,8 @@ import math
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 from .frames import gmst82, jd_utc, rot_z
 from .imagers import COL0, ROW0
 from .target_params import Arc, AuroraParams  # noqa: F401 - Arc: re-exported (its home before)
@@ -54,7 +56,7 @@ def sun_direction_eci(jd, fr) -> np.ndarray:
 # vectorise here); their errors (< 1e-13 of the quantities they make) are far below what changes a
 # float32 electron count: tests/groundsim/test_aurora_fixture.py compares the frames with those of
 # the per-pixel libm renderer this one replaced (issue 45: 5.5 ms a WFOV frame then, ~0.4 ms now).
-_JIT = dict(cache=True, error_model="numpy", fastmath={"contract"})   # contract: FMAs only
+_JIT = dict(KERNEL, error_model="numpy", fastmath={"contract"})   # contract: FMAs only
 SPAN = 32                              # pixels a feature is skipped over at once when out of reach
 GAUSS_Z_MAX = 64.0                     # exp(-z/2) is evaluated up to z = 64 (8 sigma): 1.3e-14 there
 ARC_Z_MAX = 36.0                       # an arc's Gaussian profile is cut at 6 widths (as before)
@@ -271,7 +273,7 @@ def _features_row(xr, yr, acc, ycr, peakr, arcs_now, surge_now, spot):
             _spot_span(xr, yr, acc, c0, c1, spot)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _arcs_now(arcs, t, bulge):
     """The arcs (float64 [n, 11], :class:`Arc` fields in order) at time ``t`` (s) as float64 [n, 9]
     rows: centre north y0 + drift t (km), wave amplitude (km), wavenumber 2 pi / wavelength (rad/km),

@@ -1,4 +1,4 @@
-"""Frame rendering: numba kernels (module level, ``@njit(cache=True)``) and the :class:`Renderer` that
+"""Frame rendering: numba kernels (module level, ``@njit(**KERNEL)``) and the :class:`Renderer` that
 configures and calls them.
 
 Pipeline for one frame (electrons until the ADC):
@@ -23,6 +23,8 @@ import math
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 from .frames import R_EARTH_M
 from .imagers import COL0, ROW0, Imager
 from .tables import normal_tables
@@ -43,7 +45,7 @@ STAR_DTYPE = np.dtype([("hip", np.int32), ("row", np.float64), ("col", np.float6
 
 # ---------------------------------------------------------------------------------------------------
 # kernels
-@njit(cache=True)
+@njit(**KERNEL)
 def _cdf(u, table):
     x = (u + CDF_HALF) * (1.0 / CDF_STEP)
     if x <= 0.0:
@@ -56,7 +58,7 @@ def _cdf(u, table):
     return table[i] + f * (table[i + 1] - table[i])
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_col, scale_row,
                       idx, rows, cols):
     """Select and project the candidate stars ``cand`` (int64 catalogue indices) in one pass.
@@ -101,7 +103,7 @@ def star_field_kernel(cand, keep, uvec, observer, cos_limit, m0, m, m1, scale_co
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def add_points_kernel(img, colmax, r0, c0, r1, c1, flux, sigma, table):
     """Add point sources (electrons ``flux``) moving from (r0, c0) to (r1, c1) during the integration.
 
@@ -162,7 +164,7 @@ def add_points_kernel(img, colmax, r0, c0, r1, c1, flux, sigma, table):
                             colmax[cc2] = v
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def truth_kernel(out, idx, rows, cols, electrons, hip, mag, gain, n_rows, n_cols):
     """Fill the structured truth array ``out`` (STAR_DTYPE) with the stars whose centre is in the frame;
     returns their number."""
@@ -181,7 +183,7 @@ def truth_kernel(out, idx, rows, cols, electrons, hip, mag, gain, n_rows, n_cols
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def add_elongated_kernel(img, row, col, flux, sig_along, sig_across, angle):
     """Add a Gaussian of total ``flux`` centred at (row, col), long axis at ``angle`` (rad, from +col
     toward +row), sampled 3x3 per pixel and renormalised over the pixels it touches in the frame."""
@@ -213,12 +215,12 @@ def add_elongated_kernel(img, row, col, flux, sig_along, sig_across, angle):
             img[r, c] += acc * scale
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _rotl(x, k):
     return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _xo(s0, s1, s2, s3):
     res = _rotl(s1 * np.uint64(5), 7) * np.uint64(9)
     t = s1 << np.uint64(17)
@@ -231,7 +233,7 @@ def _xo(s0, s1, s2, s3):
     return res, s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _poisson_small(lam, u):
     p = math.exp(-lam)
     f = p
@@ -243,13 +245,13 @@ def _poisson_small(lam, u):
     return float(k)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _uniform(s0, s1, s2, s3):
     y, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
     return (float(y >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0), s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _tail(k, s0, s1, s2, s3):
     """Exact normal tail beyond TAIL_START (Marsaglia), signed by the extreme table bin ``k``. The
     table's extreme bins (probability 2**-15 each) are replaced by it so the tails are right."""
@@ -265,7 +267,7 @@ def _tail(k, s0, s1, s2, s3):
     return z, s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _normal(s0, s1, s2, s3, gtab):
     x, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
     k = int(x & np.uint64(0xFFFF))
@@ -275,7 +277,7 @@ def _normal(s0, s1, s2, s3, gtab):
     return z, s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def standard_normals_kernel(state, out):
     """Fill ``out`` (n,) float64 with independent N(0, 1) deviates: Box-Muller on pairs of xoshiro256**
     uniforms (53-bit, in (0, 1)) from the uint64[4] ``state`` (:func:`frame_rng_state`), which is
@@ -304,7 +306,7 @@ def standard_normals_kernel(state, out):
     state[3] = s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _note_tails(krow, r, tails, ntail):
     """Note the pixels of row ``r`` whose normal-table index ``krow`` (uint16 [nc]) is an extreme
     bin (0 or 65535), as ``(r * nc + c) * 2 + upper``, into ``tails`` from ``ntail`` on (while it has
@@ -330,7 +332,7 @@ def _note_tails(krow, r, tails, ntail):
     return ntail
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _digitise(e, inv_gain, bias, hi):
     v = bias + e * inv_gain + 0.5
     if v < 0.0:
@@ -340,7 +342,7 @@ def _digitise(e, inv_gain, bias, hi):
     return np.uint16(int(v))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def extrema_kernel(mean, colmax, rowmin):
     """Per-column maximum and per-row minimum of ``mean`` (inputs of :func:`expose_kernel`)."""
     nr, nc = mean.shape
@@ -355,7 +357,7 @@ def extrema_kernel(mean, colmax, rowmin):
         rowmin[r] = rm
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igain32, hi32):
     """One common row of :func:`expose_kernel` (every mean >= POISSON_GAUSS_SWITCH, no column that
     can bloom, ``nc % 4 == 0``): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal per pixel.
@@ -385,7 +387,7 @@ def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igai
     return s0, s1, s2, s3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _spill(work, c, j, step, charge, full_well):
     """Blooming: put ``charge`` (electrons) into column ``c`` of ``work`` (float64 [nr, nc]) from
     row ``j`` on, moving by ``step`` (-1 up, +1 down), filling each pixel to ``full_well``; charge
@@ -410,7 +412,7 @@ def _spill(work, c, j, step, charge, full_well):
         j += step
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain, bias, full_well, adc_max,
                   reset):
     """Noise, blooming and digitisation of ``mean`` (electrons, float32 [nr, nc]) into ``out`` (uint16).
@@ -532,7 +534,7 @@ def expose_kernel(mean, out, work, state, gtab, colmax, rowmin, read_noise, gain
 
 
 # ---------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def _mix_kernel(base, frame_index, stream, out):
     # splitmix64 of (base word, frame index, stream): independent, well-mixed per-frame states
     for i in range(4):

@@ -37,6 +37,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 HIP_EPOCH_JYEAR = 1991.25
 MAS_TO_RAD = math.pi / (180.0 * 3600.0 * 1000.0)
 COLOR_COEFF = {"vis": 0.0, "uv": 2.5}
@@ -120,7 +122,7 @@ def _load_arrays() -> dict:
     return parse_hip2(src)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _zone_cone(uvec_s, ra_s, idx_s, zone_start, zone_rad, x, y, z, radius, out):
     """Kernel: indices of stars within ``radius`` of unit vector (x, y, z). Returns the count."""
     cosr = math.cos(radius)

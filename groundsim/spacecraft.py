@@ -18,6 +18,7 @@ from sgp4.api import WGS72, Satrec
 from sgp4.exporter import export_tle
 
 from flightsw.messages import AttitudeData
+from flightsw.numba_cache import KERNEL
 
 from .frames import R_EARTH_M, gmst82, jd_utc, teme_to_gcrs
 from .quat import q_from_rotvec, q_mul, q_normalize
@@ -96,7 +97,7 @@ class Orbit:
         return rr.copy(), vv.copy()
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _qmul4(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
@@ -104,7 +105,7 @@ def _qmul4(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _qnorm4(q0, q1, q2, q3):
     n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     q0, q1, q2, q3 = q0 / n, q1 / n, q2 / n, q3 / n
@@ -113,7 +114,7 @@ def _qnorm4(q0, q1, q2, q3):
     return q0, q1, q2, q3
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _rotvec_q4(p0, p1, p2):
     """Quaternion of the rotation vector (p0, p1, p2) (rad), as :func:`groundsim.quat.q_from_rotvec`."""
     ang = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
@@ -123,7 +124,7 @@ def _rotvec_q4(p0, p1, p2):
     return math.cos(0.5 * ang), sa * p0, sa * p1, sa * p2
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _controller_steps(q, w, q_cmd, w_ff_eci, k, rate_limit, accel_limit, h, n, feedforward):
     """``n`` integration substeps of length ``h`` of :meth:`AttitudeController.step` (same algebra as
     ``groundsim.quat``: error rotation vector, proportional rate + feed-forward, rate and
@@ -161,7 +162,7 @@ def _controller_steps(q, w, q_cmd, w_ff_eci, k, rate_limit, accel_limit, h, n, f
     return np.array([q0, q1, q2, q3]), np.array([w0, w1, w2])
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def exposure_matrices_kernel(q, w, h, align, out):
     """ECI -> imager rotation matrices at the start, middle and end of an integration.
 
@@ -195,7 +196,7 @@ def exposure_matrices_kernel(q, w, h, align, out):
             out[j, i, 2] = r20 * b0 + r21 * b1 + r22 * b2
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def knowledge_kernel(q, w, r, bias, noise, rate_noise, position_noise, z, q_out, w_out, r_out):
     """The attitude processor's knowledge of the true state (body -> ECI quaternion ``q`` (4,), body
     rate ``w`` (3,) rad/s, position ``r`` (3,) m): ``q_out = normalise(q * q_from_rotvec(bias +

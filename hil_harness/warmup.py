@@ -3,7 +3,7 @@ processor, a second process compiles the 1750A lane operations the image process
 then the track processor and the bus codecs, into the same numba cache.
 
 numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
-are ``@njit(cache=True)``). On a machine's first run an event compiles everything in one process,
+are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles everything in one process,
 one kernel after another, while the second core idles. :func:`start` (called by the console's
 compile listener on the first compilation it sees, so never on a warm run) launches
 ``python -m hil_harness.warmup``. It first calls the lane operations (:mod:`flightsw.arith.m1750_lanes`,

@@ -31,6 +31,7 @@ from numba import njit
 from numba.extending import overload
 
 from flightsw.budget import ADSP_COSTS
+from flightsw.numba_cache import KERNEL
 
 DECISION_8000_SQUARED = "manual"
 DECISION_RND_MIDPOINT = "full_sum"
@@ -83,7 +84,7 @@ def _flag(name, v):
 # --------------------------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def s16(w):
     """Sign-extend a 16-bit pattern to a Python/numba int.
 
@@ -97,7 +98,7 @@ def s16(w):
     return w - 0x10000 if w & 0x8000 else w
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def s40(mr):
     """Sign-extend a 40-bit MR pattern.
 
@@ -111,7 +112,7 @@ def s40(mr):
     return mr - 0x10000000000 if mr & 0x8000000000 else mr
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def mv_of(mr):
     """MV condition: MR bits 39..31 not all equal (the value does not fit 32-bit MR1:MR0).
 
@@ -125,7 +126,7 @@ def mv_of(mr):
     return 1 if (top != 0 and top != 0x1FF) else 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def product40(x, y, x_signed, y_signed):
     """The multiplier's contribution to MR: 16x16 product, taken as signed 32 bits, sign-extended to
     40 bits and shifted left one bit (fractional mode). Returns the signed value (no masking).
@@ -147,7 +148,7 @@ def product40(x, y, x_signed, y_signed):
     return p << 1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def rnd40(res, lo_unrounded):
     """Unbiased rounding at the MR0/MR1 boundary of a 40-bit value (both as patterns): add 0x8000; if
     the unrounded low word ``lo_unrounded`` was exactly 0x8000, clear bit 16. MR0 keeps
@@ -167,7 +168,7 @@ def rnd40(res, lo_unrounded):
     return res
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _mac_k(mr, x, y, op, x_signed, y_signed, rnd):
     """One MAC instruction on patterns -> (new MR pattern, MV); see :func:`mac`.
 
@@ -194,7 +195,7 @@ def _mac_k(mr, x, y, op, x_signed, y_signed, rnd):
     return res, mv_of(res)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _sat_mr_k(mr):
     """``IF MV SAT MR`` on a 40-bit pattern -> the new MR pattern.
 
@@ -209,7 +210,7 @@ def _sat_mr_k(mr):
     return mr
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _rnd_mr_k(mr):
     """``MR = MR (RND)`` on a 40-bit pattern: :func:`rnd40` with MR's own low word.
 
@@ -221,7 +222,7 @@ def _rnd_mr_k(mr):
     return rnd40(mr, mr & 0xFFFF)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _alu_add_k(x, y, ar_sat):
     """``AR = X + Y`` on 16-bit patterns -> (AR, AC, AV); see :func:`alu_add`.
 
@@ -244,7 +245,7 @@ def _alu_add_k(x, y, ar_sat):
     return r, ac, av
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _alu_sub_k(x, y, ar_sat):
     """``AR = X - Y`` (X + NOT Y + 1) on 16-bit patterns -> (AR, AC, AV); see :func:`alu_sub`.
 
@@ -266,7 +267,7 @@ def _alu_sub_k(x, y, ar_sat):
     return r, ac, av
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _ashift_k(x, se, hi):
     """``SR = ASHIFT x BY se (HI|LO)`` -> the 32-bit SR pattern; see :func:`ashift`.
 
@@ -288,7 +289,7 @@ def _ashift_k(x, se, hi):
     return res & 0xFFFFFFFF
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _lshift_k(x, se, hi):
     """``SR = LSHIFT x BY se (HI|LO)`` -> the 32-bit SR pattern; see :func:`lshift`.
 
@@ -309,7 +310,7 @@ def _lshift_k(x, se, hi):
     return res & 0xFFFFFFFF
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _norm_k(x, se, hi, ac):
     """``SR = NORM x (HI|LO)`` with shift code ``se`` (left by ``-se``) -> the 32-bit SR pattern; see
     :func:`norm`.
@@ -343,7 +344,7 @@ def _norm_k(x, se, hi, ac):
     return res & 0xFFFFFFFF
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _redundant_sign_bits(x):
     """Redundant sign bits of a 16-bit word (bits after the sign equal to it), 0..15.
 
@@ -368,7 +369,7 @@ def _redundant_sign_bits(x):
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _exp_hi_k(x, hix, av):
     """``SE = EXP x (HI|HIX)`` -> (SE, SS); see :func:`exp_hi`.
 
@@ -386,7 +387,7 @@ def _exp_hi_k(x, hix, av):
     return -_redundant_sign_bits(x), ss
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _exp_lo_k(x, se, ss):
     """``SE = EXP x (LO)`` for the low word of a double-precision value -> the new SE; see
     :func:`exp_lo`.
@@ -414,7 +415,7 @@ def _exp_lo_k(x, se, ss):
     return -n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _expadj_k(x, sb):
     """``SB = EXPADJ x`` -> the new SB; see :func:`expadj`.
 
@@ -428,7 +429,7 @@ def _expadj_k(x, sb):
     return e if e > sb else sb
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _divs_k(af, ay0, x):
     """``DIVS AF, X`` -> (AF, AY0, AQ): AQ = sign(AF) XOR sign(X), AF:AY0 shifted left one bit with AQ
     entering AY0.
@@ -445,7 +446,7 @@ def _divs_k(af, ay0, x):
     return af_new, ay0_new, aq
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _divq_k(af, ay0, x, aq):
     """``DIVQ X`` -> (AF, AY0, AQ): one non-restoring step; the new quotient bit (NOT AQ) enters AY0.
 
@@ -462,7 +463,7 @@ def _divq_k(af, ay0, x, aq):
     return af_new, ay0_new, aq_new
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _divide_signed_k(hi, lo, divisor):
     """DIVS + 15 DIVQ of ``hi:lo`` by ``divisor`` (patterns) -> (quotient AY0, partial remainder AF);
     see :func:`divide_signed`.
@@ -480,7 +481,7 @@ def _divide_signed_k(hi, lo, divisor):
     return ay0, af
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _divide_unsigned_k(hi, lo, divisor):
     """Cleared AQ + 16 DIVQ of ``hi:lo`` by ``divisor`` -> (quotient AY0, partial remainder AF); see
     :func:`divide_unsigned` (``1 <= divisor <= 0x7FFF``, ``hi < divisor``).
@@ -534,7 +535,7 @@ def mac(mr, x, y, op="+", signs="ss", rnd=False):
     return int(res), int(mv)
 
 
-@overload(mac, jit_options={"cache": True})
+@overload(mac, jit_options=KERNEL)
 def _mac_ov(mr, x, y, op="+", signs="ss", rnd=False):
     def impl(mr, x, y, op="+", signs="ss", rnd=False):
         o = 1 if op == "+" else (2 if op == "-" else 0)
@@ -552,7 +553,7 @@ def sat_mr(mr):
     return int(_sat_mr_k(_mr(mr)))
 
 
-@overload(sat_mr, jit_options={"cache": True})
+@overload(sat_mr, jit_options=KERNEL)
 def _sat_mr_ov(mr):
     return lambda mr: _sat_mr_k(mr)
 
@@ -563,7 +564,7 @@ def rnd_mr(mr):
     return int(_rnd_mr_k(_mr(mr)))
 
 
-@overload(rnd_mr, jit_options={"cache": True})
+@overload(rnd_mr, jit_options=KERNEL)
 def _rnd_mr_ov(mr):
     return lambda mr: _rnd_mr_k(mr)
 
@@ -576,7 +577,7 @@ def alu_add(x, y, ar_sat=False):
     return tuple(int(v) for v in _alu_add_k(_word("x", x), _word("y", y), bool(ar_sat)))
 
 
-@overload(alu_add, jit_options={"cache": True})
+@overload(alu_add, jit_options=KERNEL)
 def _alu_add_ov(x, y, ar_sat=False):
     return lambda x, y, ar_sat=False: _alu_add_k(x, y, ar_sat)
 
@@ -587,7 +588,7 @@ def alu_sub(x, y, ar_sat=False):
     return tuple(int(v) for v in _alu_sub_k(_word("x", x), _word("y", y), bool(ar_sat)))
 
 
-@overload(alu_sub, jit_options={"cache": True})
+@overload(alu_sub, jit_options=KERNEL)
 def _alu_sub_ov(x, y, ar_sat=False):
     return lambda x, y, ar_sat=False: _alu_sub_k(x, y, ar_sat)
 
@@ -599,7 +600,7 @@ def ashift(x, se, hi=True):
     return int(_ashift_k(_word("x", x), _count("se", se, -128, 127), bool(hi)))
 
 
-@overload(ashift, jit_options={"cache": True})
+@overload(ashift, jit_options=KERNEL)
 def _ashift_ov(x, se, hi=True):
     return lambda x, se, hi=True: _ashift_k(x, se, hi)
 
@@ -609,7 +610,7 @@ def lshift(x, se, hi=True):
     return int(_lshift_k(_word("x", x), _count("se", se, -128, 127), bool(hi)))
 
 
-@overload(lshift, jit_options={"cache": True})
+@overload(lshift, jit_options=KERNEL)
 def _lshift_ov(x, se, hi=True):
     return lambda x, se, hi=True: _lshift_k(x, se, hi)
 
@@ -621,7 +622,7 @@ def norm(x, se, hi=True, ac=0):
     return int(_norm_k(_word("x", x), _count("se", se, -128, 127), bool(hi), _flag("ac", ac)))
 
 
-@overload(norm, jit_options={"cache": True})
+@overload(norm, jit_options=KERNEL)
 def _norm_ov(x, se, hi=True, ac=0):
     return lambda x, se, hi=True, ac=0: _norm_k(x, se, hi, ac)
 
@@ -633,7 +634,7 @@ def exp_hi(x, hix=False, av=0):
     return int(se), int(ss)
 
 
-@overload(exp_hi, jit_options={"cache": True})
+@overload(exp_hi, jit_options=KERNEL)
 def _exp_hi_ov(x, hix=False, av=0):
     return lambda x, hix=False, av=0: _exp_hi_k(x, hix, av)
 
@@ -644,7 +645,7 @@ def exp_lo(x, se, ss):
     return int(_exp_lo_k(_word("x", x), _count("se", se, -128, 127), _flag("ss", ss)))
 
 
-@overload(exp_lo, jit_options={"cache": True})
+@overload(exp_lo, jit_options=KERNEL)
 def _exp_lo_ov(x, se, ss):
     return lambda x, se, ss: _exp_lo_k(x, se, ss)
 
@@ -655,7 +656,7 @@ def expadj(x, sb):
     return int(_expadj_k(_word("x", x), _count("sb", sb, -16, 15)))
 
 
-@overload(expadj, jit_options={"cache": True})
+@overload(expadj, jit_options=KERNEL)
 def _expadj_ov(x, sb):
     return lambda x, sb: _expadj_k(x, sb)
 
@@ -665,7 +666,7 @@ def divs(af, ay0, x):
     return tuple(int(v) for v in _divs_k(_word("af", af), _word("ay0", ay0), _word("x", x)))
 
 
-@overload(divs, jit_options={"cache": True})
+@overload(divs, jit_options=KERNEL)
 def _divs_ov(af, ay0, x):
     return lambda af, ay0, x: _divs_k(af, ay0, x)
 
@@ -676,7 +677,7 @@ def divq(af, ay0, x, aq):
                                          _flag("aq", aq)))
 
 
-@overload(divq, jit_options={"cache": True})
+@overload(divq, jit_options=KERNEL)
 def _divq_ov(af, ay0, x, aq):
     return lambda af, ay0, x, aq: _divq_k(af, ay0, x, aq)
 
@@ -693,7 +694,7 @@ def divide_signed(hi, lo, divisor):
     return int(q), int(r)
 
 
-@overload(divide_signed, jit_options={"cache": True})
+@overload(divide_signed, jit_options=KERNEL)
 def _divide_signed_ov(hi, lo, divisor):
     return lambda hi, lo, divisor: _divide_signed_k(hi, lo, divisor)
 
@@ -716,7 +717,7 @@ def divide_unsigned(hi, lo, divisor):
     return int(q), int(r)
 
 
-@overload(divide_unsigned, jit_options={"cache": True})
+@overload(divide_unsigned, jit_options=KERNEL)
 def _divide_unsigned_ov(hi, lo, divisor):
     return lambda hi, lo, divisor: _divide_unsigned_k(hi, lo, divisor)
 
@@ -724,7 +725,7 @@ def _divide_unsigned_ov(hi, lo, divisor):
 # --------------------------------------------------------------------------------------------
 # array kernels: the multiply-accumulate loops of the image processor
 # --------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def block_bitlen(img):
     """Bit length of the largest-magnitude 16-bit word of ``img`` (``x`` for x >= 0, ``~x`` for
     x < 0): the block exponent an EXPADJ pass over the block yields, as a count of significant
@@ -746,7 +747,7 @@ def block_bitlen(img):
     return bitlen(m)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def bitlen(v):
     """Number of significant bits of a non-negative integer (0 for 0).
 
@@ -762,7 +763,7 @@ def bitlen(v):
     return n
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def finish_mr(acc, rnd, sat):
     """Store step of a MAC loop: the 40-bit accumulation ``acc`` (signed int) -> the word MR1 holds
     after ``(RND)`` on the last MAC and ``IF MV SAT MR``. Returns a signed 16-bit value.
@@ -785,7 +786,7 @@ def finish_mr(acc, rnd, sat):
     return s16((mr >> 16) & 0xFFFF)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def dot_q15(x, y, rnd=True, sat=True):
     """MAC loop ``MR = sum x[i]*y[i]`` (SS, fractional mode), then RND and SAT, returning MR1.
 
@@ -808,7 +809,7 @@ def dot_q15(x, y, rnd=True, sat=True):
     return finish_mr(acc, rnd, sat)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def correlate_valid_q15(img, kern, rnd=True, sat=True):
     """2-D correlation of a 16-bit image with a Q1.15 kernel, as the ADSP-2100 computes it.
 

@@ -83,7 +83,7 @@ results** -- above the largest magnitude, the overflow result ``7FFFFF/7F`` (pos
 rounding) give floating zero, the underflow result. NaN or infinite ``x`` -> ``ValueError``.
 ``decode32/decode48`` are exact (every 1750A value is a Python float).
 
-Speed: all op kernels are integer-only ``@njit(cache=True)`` functions on int64 packed words.
+Speed: all op kernels are integer-only ``@njit(**KERNEL)`` functions on int64 packed words.
 """
 from __future__ import annotations
 
@@ -98,6 +98,7 @@ from numba.cpython.unsafe.numbers import leading_zeros
 from numba.extending import intrinsic, overload
 
 from flightsw.budget import PACE1750A, Processor, m1750_cycles
+from flightsw.numba_cache import KERNEL
 
 __all__ = [
     "FLAG_FLOAT_OVERFLOW", "FLAG_FIXED_OVERFLOW", "FLAG_FLOAT_UNDERFLOW", "FLAG_DOMAIN",
@@ -140,7 +141,7 @@ ZERO = 0
 # ================================================================================================
 # unpack / pack / normalise (small kernels LLVM inlines, W = fraction bits: 23 or 39)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def unpack32(p):
     """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent).
 
@@ -157,7 +158,7 @@ def unpack32(p):
     return m - 0x800000, e - 0x80
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def unpack48(p):
     """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent).
 
@@ -174,7 +175,7 @@ def unpack48(p):
     return m - 0x8000000000, e - 0x80
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def pack32(m, e):
     """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks).
 
@@ -187,7 +188,7 @@ def pack32(m, e):
     return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def pack48(m, e):
     """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks).
 
@@ -200,7 +201,7 @@ def pack48(m, e):
     return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def unpack_w(p, W):
     """:func:`unpack32` (W = 23) or :func:`unpack48` (W = 39) of packed word ``p``.
 
@@ -214,7 +215,7 @@ def unpack_w(p, W):
     return unpack48(p)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def pack_w(m, e, W):
     """:func:`pack32` (W = 23) or :func:`pack48` (W = 39) of ``(m, e)`` (no checks).
 
@@ -228,7 +229,7 @@ def pack_w(m, e, W):
     return pack48(m, e)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def norm_shift(m, W):
     """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
     bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift). ``m`` must
@@ -245,7 +246,7 @@ def norm_shift(m, W):
     return leading_zeros(m ^ (m >> 63)) - (64 - W)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def overflow_word(neg, W):
     """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
     negative.
@@ -262,7 +263,7 @@ def overflow_word(neg, W):
     return MIN48 if neg else MAX48
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _overflow(neg, W):
     """Standard overflow result and its PI flag.
 
@@ -274,7 +275,7 @@ def _overflow(neg, W):
     return overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _finish(m, e, W):
     """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags).
 
@@ -303,7 +304,7 @@ def _finish(m, e, W):
 # ================================================================================================
 # FA / FS (5.60, 5.61, 5.68, 5.69)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _add_core(a, b, W, subtract):
     """FA/FS on packed words of W fraction bits -> (p, flags) (see the module docstring: no guard
     bits, FS negates the subtrahend exactly before aligning it).
@@ -354,7 +355,7 @@ def _add_core(a, b, W, subtract):
     return _finish(s, ea, W)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fa32_k(a, b):
     """FA (5.60): packed 32-bit ``a + b`` -> (p, flags).
 
@@ -365,7 +366,7 @@ def _fa32_k(a, b):
     return _add_core(a, b, 23, False)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fs32_k(a, b):
     """FS (5.68): packed 32-bit ``a - b`` -> (p, flags).
 
@@ -376,7 +377,7 @@ def _fs32_k(a, b):
     return _add_core(a, b, 23, True)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fa48_k(a, b):
     """EFA (5.61): packed 48-bit ``a + b`` -> (p, flags).
 
@@ -387,7 +388,7 @@ def _fa48_k(a, b):
     return _add_core(a, b, 39, False)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fs48_k(a, b):
     """EFS (5.69): packed 48-bit ``a - b`` -> (p, flags).
 
@@ -401,7 +402,7 @@ def _fs48_k(a, b):
 # ================================================================================================
 # FM (5.74, 5.75)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _mul_exp_checks(ma, mo, n, W):
     """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags).
 
@@ -419,7 +420,7 @@ def _mul_exp_checks(ma, mo, n, W):
     return False, 0, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fm32_k(a, b):
     """FM (5.74): packed 32-bit ``a * b`` -> (p, flags); exact double-length product, normalised,
     truncated toward minus infinity.
@@ -460,7 +461,7 @@ def _fm32_k(a, b):
     return pack32((P << s) >> 23, n), 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def prod80(A, B):
     """A * B for 0 <= A, B <= 2**39 as (H, L) with A * B = H * 2**40 + L, 0 <= L < 2**40: the
     80-bit product from 20-bit limbs (no intermediate exceeds 63 bits). Branch-free, so the lane
@@ -495,7 +496,7 @@ def _prod_shr38(typingctx, a, b):
     return types.int64(types.int64, types.int64), codegen
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _mul48_core(a, b):
     """EFM's body, compiled into :func:`_fm48_k` and :func:`madd48` (its cases are
     :func:`_fm48_k`'s).
@@ -536,7 +537,7 @@ def _mul48_core(a, b):
     return pack48(m, n), 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fm48_k(a, b):
     """EFM (5.75): packed 48-bit ``a * b`` -> (p, flags); the exact 80-bit product (one 128-bit
     multiply, :func:`_mul48_core`) normalised and truncated toward minus infinity.
@@ -560,7 +561,7 @@ def _fm48_k(a, b):
     return _mul48_core(a, b)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def madd48(acc, a, b):
     """EFM then EFA, ``acc + a * b`` -> (p, flags): exactly ``fa48(acc, fm48(a, b))`` (two
     truncations, the flags of both OR'ed), compiled into its caller (no call) -- for the
@@ -580,7 +581,7 @@ def madd48(acc, a, b):
 # ================================================================================================
 # FD (5.79, 5.80)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _quotient_floor(A, B, W):
     """(floor(A * 2**(W+1) / B), remainder != 0) for 0 < A, B <= 2**W, W = 23 or 39.
 
@@ -621,7 +622,7 @@ def _quotient_floor(A, B, W):
     return Q, r != 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _div_core(a, b, W):
     """FD/EFD on packed words of W fraction bits -> (p, flags); the quotient truncated toward minus
     infinity (see the module docstring for the reading of "|MQ| >= 1.0").
@@ -678,7 +679,7 @@ def _div_core(a, b, W):
     return pack_w(Q, n, W), 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fd32_k(a, b):
     """FD (5.79): packed 32-bit ``a / b`` -> (p, flags).
 
@@ -689,7 +690,7 @@ def _fd32_k(a, b):
     return _div_core(a, b, 23)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fd48_k(a, b):
     """EFD (5.80): packed 48-bit ``a / b`` -> (p, flags).
 
@@ -703,7 +704,7 @@ def _fd48_k(a, b):
 # ================================================================================================
 # FABS (5.62), FNEG (5.70)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _fabs_core(a, W):
     """FABS on a packed word of W fraction bits -> (p, flags).
 
@@ -725,7 +726,7 @@ def _fabs_core(a, W):
     return pack_w(-m, e, W), 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fneg_core(a, W):
     """FNEG on a packed word of W fraction bits -> (p, flags).
 
@@ -752,7 +753,7 @@ def _fneg_core(a, W):
     return pack_w(-m, e, W), 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fabs32_k(a):
     """FABS (5.62): packed 32-bit ``|a|`` -> (p, flags).
 
@@ -763,7 +764,7 @@ def _fabs32_k(a):
     return _fabs_core(a, 23)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fabs48_k(a):
     """48-bit analogue of FABS: packed 48-bit ``|a|`` -> (p, flags).
 
@@ -774,7 +775,7 @@ def _fabs48_k(a):
     return _fabs_core(a, 39)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fneg32_k(a):
     """FNEG (5.70): packed 32-bit ``-a`` -> (p, flags).
 
@@ -785,7 +786,7 @@ def _fneg32_k(a):
     return _fneg_core(a, 23)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fneg48_k(a):
     """48-bit negate (``0 EFS a``): packed 48-bit ``-a`` -> (p, flags).
 
@@ -799,7 +800,7 @@ def _fneg48_k(a):
 # ================================================================================================
 # FIX / EFIX (5.85, 5.87), FLT / EFLT (5.86, 5.88)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _fix32_k(a):
     """FIX (5.85): packed 32-bit float -> (16-bit integer pattern, flags), truncated toward zero.
 
@@ -822,7 +823,7 @@ def _fix32_k(a):
     return r & 0xFFFF, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fix48_k(a):
     """EFIX (5.87): packed 48-bit float -> (32-bit integer pattern, flags), truncated toward zero.
 
@@ -845,7 +846,7 @@ def _fix48_k(a):
     return r & 0xFFFFFFFF, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _flt32_k(i):
     """FLT (5.86): 16-bit integer pattern -> (packed 32-bit float, 0), exact.
 
@@ -861,7 +862,7 @@ def _flt32_k(i):
     return _finish(v << 8, 15, 23)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _flt48_k(i):
     """EFLT (5.88): 32-bit integer pattern -> (packed 48-bit float, 0), exact.
 
@@ -880,7 +881,7 @@ def _flt48_k(i):
 # ================================================================================================
 # FC / EFC (5.94, 5.95)
 # ================================================================================================
-@njit(cache=True)
+@njit(**KERNEL)
 def _fc_core(a, b, W):
     """FC/EFC on packed words of W fraction bits -> -1 (a < b), 0 (a = b), 1 (a > b).
 
@@ -909,7 +910,7 @@ def _fc_core(a, b, W):
     return 1 if ma > mo else -1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fc32_k(a, b):
     """FC (5.94): compare packed 32-bit floats -> -1, 0, 1.
 
@@ -920,7 +921,7 @@ def _fc32_k(a, b):
     return _fc_core(a, b, 23)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _fc48_k(a, b):
     """EFC (5.95): compare packed 48-bit floats -> -1, 0, 1.
 
@@ -931,7 +932,7 @@ def _fc48_k(a, b):
     return _fc_core(a, b, 39)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def to48(p):
     """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact.
 
@@ -942,7 +943,7 @@ def to48(p):
     return (p & 0xFFFFFFFF) << 16
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def to32(p):
     """48-bit float -> 32-bit float by dropping ``w2``: the 40-bit 2's complement mantissa is cut to
     24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised.
@@ -1096,7 +1097,7 @@ def decode48(p) -> float:
     return math.ldexp(float(m), e - 39)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def enc_mantissa(x, W, nearest):
     """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
     32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.
@@ -1157,7 +1158,7 @@ def enc_mantissa(x, W, nearest):
     return mi, e
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _enc_k(x, W, nearest):
     """One finite float64 -> packed 1750A word (W = 23: 32-bit, 39: 48-bit); exactly
     :func:`_encode_array`'s arithmetic for one element (floor or nearest-even rounding).
@@ -1185,7 +1186,7 @@ def _enc_k(x, W, nearest):
     return (((mi >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (mi & 0xFFFF)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _enc_array_k(x, W, nearest, out):
     """Encode the flat float64 ``x`` into ``out`` (int64); False (nothing written) if any is not finite.
 
@@ -1208,7 +1209,7 @@ def _enc_array_k(x, W, nearest, out):
 _POW2 = np.ldexp(1.0, np.arange(-192, 192))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _dec32_k(p):
     """Packed 32-bit float -> float64 (exact: 24-bit mantissa times a power of two, no subnormals
     in the 1750A range), in jitted code.
@@ -1223,7 +1224,7 @@ def _dec32_k(p):
     return float(m) * _POW2[e + (192 - 23)]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _dec48_k(p):
     """Packed 48-bit float -> float64 (exact), in jitted code.
 
@@ -1237,7 +1238,7 @@ def _dec48_k(p):
     return float(m) * _POW2[e + (192 - 39)]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _norm48_k(p):
     """:func:`is_normalized48` of a 48-bit pattern (in range).
 
@@ -1254,7 +1255,7 @@ def _norm48_k(p):
     return ((m >> 39) ^ (m >> 38)) & 1 == 1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _norm32_k(p):
     """:func:`is_normalized32` of a 32-bit pattern (in range).
 
@@ -1278,7 +1279,7 @@ encode_k, decode32_k, decode48_k = _enc_k, _dec32_k, _dec48_k
 is_normalized32_k, is_normalized48_k = _norm32_k, _norm48_k
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _dec_array_k(p, W, out):
     """Decode the flat packed words ``p`` (int64) into ``out`` (float64, same length), exactly.
 
@@ -1467,9 +1468,9 @@ def _register_overloads():
     pairs1 = [(fabs32, _fabs32_k), (fabs48, _fabs48_k), (fneg32, _fneg32_k), (fneg48, _fneg48_k),
               (fix32, _fix32_k), (fix48, _fix48_k), (flt32, _flt32_k), (flt48, _flt48_k)]
     for pub, kern in pairs2:
-        overload(pub, jit_options={"cache": True})(overload_impl2(kern))
+        overload(pub, jit_options=KERNEL)(overload_impl2(kern))
     for pub, kern in pairs1:
-        overload(pub, jit_options={"cache": True})(overload_impl1(kern))
+        overload(pub, jit_options=KERNEL)(overload_impl1(kern))
 
 
 _register_overloads()

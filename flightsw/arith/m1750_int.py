@@ -30,12 +30,13 @@ from numba import njit
 from numba.extending import overload
 
 from flightsw.arith.m1750_float import FLAG_FIXED_OVERFLOW, overload_impl1, overload_impl2
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32",
            "mul16", "mul16x32", "mul32", "div16", "div32_16", "div32", "INT_OP_MIX"]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _s16(w):
     """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
 
@@ -47,7 +48,7 @@ def _s16(w):
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _s32(w):
     """The low 32 bits of ``w`` (int) read as a two's complement integer.
 
@@ -59,7 +60,7 @@ def _s32(w):
     return ((w & 0xFFFFFFFF) ^ 0x80000000) - 0x80000000
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _add16_k(a, b):
     """``a + b`` of two 16-bit patterns (ints 0..0xFFFF) -> ``(pattern, flags)``: A/AR (5.55).
 
@@ -75,7 +76,7 @@ def _add16_k(a, b):
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _sub16_k(a, b):
     """``a - b`` of two 16-bit patterns (ints 0..0xFFFF) -> ``(pattern, flags)``: S/SR (5.63).
 
@@ -91,7 +92,7 @@ def _sub16_k(a, b):
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _add32_k(a, b):
     """``a + b`` of two 32-bit patterns (ints 0..0xFFFFFFFF) -> ``(pattern, flags)``: DA/DAR (5.59).
 
@@ -107,7 +108,7 @@ def _add32_k(a, b):
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _sub32_k(a, b):
     """``a - b`` of two 32-bit patterns (ints 0..0xFFFFFFFF) -> ``(pattern, flags)``: DS/DSR (5.67).
 
@@ -123,7 +124,7 @@ def _sub32_k(a, b):
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _neg16_k(a):
     """``-a`` of a 16-bit pattern -> ``(pattern, flags)``: NEG (5.65).
 
@@ -138,7 +139,7 @@ def _neg16_k(a):
     return (-a) & 0xFFFF, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _neg32_k(a):
     """``-a`` of a 32-bit pattern -> ``(pattern, flags)``: DNEG (5.66).
 
@@ -153,7 +154,7 @@ def _neg32_k(a):
     return (-a) & 0xFFFFFFFF, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _abs16_k(a):
     """``|a|`` of a 16-bit pattern -> ``(pattern, flags)``: ABS (5.57).
 
@@ -169,7 +170,7 @@ def _abs16_k(a):
     return (-a) & 0xFFFF if a & 0x8000 else a, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _abs32_k(a):
     """``|a|`` of a 32-bit pattern -> ``(pattern, flags)``: DABS (5.58).
 
@@ -185,7 +186,7 @@ def _abs32_k(a):
     return (-a) & 0xFFFFFFFF if a & 0x80000000 else a, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _mul16_k(a, b):
     """``a * b`` of two 16-bit patterns, single-precision result -> ``(low 16 bits, flags)``: MS
     (5.71).
@@ -201,7 +202,7 @@ def _mul16_k(a, b):
     return r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (r > 32767 or r < -32768) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _mul16x32_k(a, b):
     """``a * b`` of two 16-bit patterns as a 32-bit pattern -> ``(pattern, 0)``: M/MR (5.72).
 
@@ -215,7 +216,7 @@ def _mul16x32_k(a, b):
     return (_s16(a) * _s16(b)) & 0xFFFFFFFF, 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _mul32_k(a, b):
     """``a * b`` of two 32-bit patterns -> ``(low 32 bits, flags)``: DM (5.73). The exact product
     (``|p| <= 2**62``) fits int64.
@@ -230,7 +231,7 @@ def _mul32_k(a, b):
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _tdivmod(x, y):
     """Truncating division (toward zero), remainder with the dividend's sign.
 
@@ -254,7 +255,7 @@ def _tdivmod(x, y):
     return q, r
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _div16_k(a, b):
     """``a / b`` of two 16-bit patterns -> ``(quotient, remainder, flags)``: DV/DVR (5.76).
 
@@ -273,7 +274,7 @@ def _div16_k(a, b):
     return q & 0xFFFF, r & 0xFFFF, (FLAG_FIXED_OVERFLOW if q > 32767 else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _div32_16_k(a, b):
     """``a / b`` of a 32-bit dividend pattern by a 16-bit divisor pattern -> ``(quotient16,
     remainder16, flags)``: D/DR (5.77).
@@ -295,7 +296,7 @@ def _div32_16_k(a, b):
     return q & 0xFFFF, r & 0xFFFF, (FLAG_FIXED_OVERFLOW if (q > 32767 or q < -32768) else 0)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _div32_k(a, b):
     """``a / b`` of two 32-bit patterns -> ``(quotient32, flags)``: DD/DDR (5.78); no remainder.
 
@@ -354,7 +355,7 @@ for _pub, _k, _n in [(add16, _add16_k, 2), (sub16, _sub16_k, 2), (add32, _add32_
                      (abs16, _abs16_k, 1), (abs32, _abs32_k, 1), (mul16, _mul16_k, 2),
                      (mul16x32, _mul16x32_k, 2), (mul32, _mul32_k, 2), (div16, _div16_k, 2),
                      (div32_16, _div32_16_k, 2), (div32, _div32_k, 2)]:
-    overload(_pub, jit_options={"cache": True})(
+    overload(_pub, jit_options=KERNEL)(
         overload_impl2(_k) if _n == 2 else overload_impl1(_k))
 
 #: budget keys of each integer primitive (memory-operand forms). MS, DM, DV, D, DD, DA, DS, NEG,

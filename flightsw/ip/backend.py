@@ -25,6 +25,7 @@ from flightsw.ip.frame_header import header_of, new_header
 from flightsw.ip.rank import OP_CYCLES as RANK_OP_CYCLES
 from flightsw.ip.rank import rank_k, record_words
 from flightsw.messages import CANDIDATE_DTYPE, MAX_CANDIDATES
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["backend", "backend_k", "backend_params", "BackendResult", "enc32", "BACK_KEYS",
            "PACK_HEAD", "candidate_table", "BACKEND_PARAMS", "with_labels", "result_from_head"]
@@ -60,7 +61,7 @@ def enc32(x: float) -> int:
     return encode32(float(x), rounding="nearest")
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def backend_k(img, params, header):
     """Steps 6-8 on a thresholded window.
 

@@ -79,6 +79,7 @@ from numba import njit
 
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.ip.filters import gaussian_taps_q15
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
            "highpass_k", "polynomial_k", "polynomial_coefficients_k", "check_taps", "default_taps",
@@ -93,7 +94,7 @@ G_MAX = 8          # cap of the block headroom used by the high-pass intermediat
 # high-pass
 # ---------------------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _headroom(img, gmax):
     """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``.
 
@@ -108,7 +109,7 @@ def _headroom(img, gmax):
     return min(15 - block_bitlen(img), gmax)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _lowpass_k(img, taps, g):
     """Separable low-pass: row pass to Q(16-g).g, column pass to Q16.0 (see module docstring).
 
@@ -195,7 +196,7 @@ def _lowpass_k(img, taps, g):
 STRIP = 64
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def highpass_k(img, taps, gmax):
     """The high-pass detrender on an int16 [h, w] window (Q16.0) with 7 Q1.15 ``taps``; the block
     headroom is capped at ``gmax``. Returns int16 [h, w] (Q16.0, AR_SAT).
@@ -333,7 +334,7 @@ def polynomial_basis(h, w):
     return tables, np.array(js, np.int64), Ns, np.array(Rs, np.int64), np.array(Ps, np.int64)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _block_shift(img):
     """Block shift of the polynomial moments: ``max(0, bitlen(max|x|) - 12)`` of int16 [h, w].
 
@@ -345,7 +346,7 @@ def _block_shift(img):
     return max(0, block_bitlen(img) - 12)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _moments_k(img, tables, js, s):
     """Exact moments ``M_k = sum (x >> s) * B_k`` (B_k = B'_k >> j_k, exact since B'_k = B_k << j_k).
 
@@ -367,7 +368,7 @@ def _moments_k(img, tables, js, s):
     return M
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _surface_sub_k(img, tables, cw, s):
     """Surface by double-precision MACs and subtraction (see module docstring).
 
@@ -417,7 +418,7 @@ def _surface_sub_k(img, tables, cw, s):
     return out
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def polynomial_coefficients_k(M, js, rs, ps):
     """Q1.31 coefficient words ``c_k = round_half_up(M_k R_k / 2**(P_k + j_k - 31))``, saturated to
     32 bits: the DSP's multiprecision multiply-round (module docstring).
@@ -465,7 +466,7 @@ def polynomial_coefficients_k(M, js, rs, ps):
     return out
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def polynomial_k(img, tables, js, rs, ps):
     """The polynomial detrender on an int16 [h, w] window (Q16.0): block shift, the six moments,
     the Q1.31 coefficients and the surface subtraction. ``tables`` int16 [6, h, w] and ``js``, ``rs``,

@@ -105,6 +105,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.adsp2100 import bitlen
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["FFT_TILES", "FLIGHT_TILES", "MAX_FFT_KERNEL", "FFTKernel", "fft_kernel",
            "fft_correlate", "fft_filter_cycles", "fft_cycles_1d", "twiddles_q15",
@@ -318,7 +319,7 @@ def fft_dm_words(h, w, tile):
 # ------------------------------------------------------------------------------------------------
 # the fixed-point kernels
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def _rnd15(a):
     """MR (RND) read from MR1 for MR = 2a: round half to even of a / 2**15.
 
@@ -336,7 +337,7 @@ def _rnd15(a):
     return q
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     """Radix-2 DIT FFT along axis 1 of rows 0..nv-1 (stage by stage over the whole block, one block
     exponent). ``state`` = (bl, E, Vv): ``bl`` the bit length of the block's largest magnitude on
@@ -425,7 +426,7 @@ def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     return bl, E, Vv, shifts
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _floor_m2(sh):
     """Second moment of the floor error of ``>> sh`` on uniformly distributed low bits.
 
@@ -440,7 +441,7 @@ def _floor_m2(sh):
     return (d - 1.0) * (2.0 * d - 1.0) / (6.0 * d * d)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _block_bitlen(re, im, nv, T):
     """Bit length (``x`` or ``~x``) of the largest word in rows ``0..nv-1`` of ``re`` and ``im``
     (int64 [T, T]): the tile's block exponent on entry.
@@ -460,7 +461,7 @@ def _block_bitlen(re, im, nv, T):
     return bitlen(orv)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _transpose(a, T):
     """Transposed copy of an int64 [T, T] array (the row-column FFT's corner turn).
 
@@ -475,7 +476,7 @@ def _transpose(a, T):
     return out
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _dc_mean(img, use_mean):
     """The DC level the frequency path removes from an int16 [h, w] window: ``m = round_half_up(
     mean)`` when ``use_mean``, else 0; 0 too when some ``x - m`` would not fit 16 bits.
@@ -503,7 +504,7 @@ def _dc_mean(img, use_mean):
     return m
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _store_tile(re, vr, vc, D, mk, out, r0, c0):
     """One tile's output: ``out[r0 + u, c0 + v]`` = one RND/SAT of ``(Y 2**(D+15) + m sum k) /
     2**15`` for the valid ``vr x vc`` corner of the inverse transform ``re`` (int64 [T, T]);
@@ -531,7 +532,7 @@ def _store_tile(re, vr, vc, D, mk, out, r0, c0):
             out[r0 + u, c0 + v] = np.int16(o)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def fft_correlate_k(img, spec, kr, ki, brev, twc, tws):
     """The whole frequency path on an int16 window (module docstring). Returns (out int16 [h, w],
     bounds float64 [nti, ntj], rms float64 [nti, ntj] (the predicted RMS), info

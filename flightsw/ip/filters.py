@@ -40,6 +40,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.adsp2100 import correlate_cycles
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["SPATIAL_SIZES", "DEFAULT_KERNELS", "smoothing_kernel", "matched_kernel",
            "validate_kernel", "correlate_q15", "filter_cycles", "pad_cycles",
@@ -134,7 +135,7 @@ def validate_kernel(coefficients, name="coefficients"):
 # ---------------------------------------------------------------------------------------------
 # kernels
 # ---------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def _finish(a):
     """MR1 after (RND) and IF MV SAT MR, from the exact sum ``a = sum x*k`` (MR = 2a, 40 bits).
 
@@ -157,7 +158,7 @@ def _finish(a):
     return np.int16(min(max(q, -32768), 32767))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def pad_nearest(img, p):
     """Replicate-edge padding by ``p`` (SciPy mode="nearest"). int16 -> int16.
 
@@ -184,7 +185,7 @@ def pad_nearest(img, p):
     return out
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _maxabs(img):
     """max |x| of an int16 array (any shape) as int32 (-32768 -> 32768).
 
@@ -203,7 +204,7 @@ def _maxabs(img):
     return m
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _finish32(acc, out):
     """Vectorised :func:`_finish` over a row of int32 sums (no overflow: the caller's bound).
 
@@ -233,7 +234,7 @@ def _finish32(acc, out):
 SMALL_WORDS = 128 * 128
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _correlate_k32(pad, kern, h, w):
     """Correlation with int32 sums (the caller proved ``max|x| sum|k| < 2**31 - 2**14``).
 
@@ -299,7 +300,7 @@ def _correlate_k32(pad, kern, h, w):
     return out
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _correlate_k64(pad, kern, h, w):
     """Correlation with int64 sums (any 16-bit data and kernel).
 
@@ -333,7 +334,7 @@ def _correlate_k64(pad, kern, h, w):
 INT32_LIMIT = 2 ** 31 - 2 ** 14     # a + 0x4000 must not overflow int32 in the finish
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def correlate_q15_k(img, kern):
     """Correlate an int16 image with an int16 Q1.15 kernel, replicate edges, ADSP RND/SAT store.
     Chooses the int32 accumulator when ``max|x| * sum|k| < 2**31 - 2**14`` proves it exact.

@@ -40,6 +40,7 @@ from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, Detr
                                   FeatureParams, FilterFFTParams, FilterParams, ProcessingSequence,
                                   RankParams, Stage, ThresholdParams)
 from flightsw.messages import IMAGER_CODES, CandidateMessage
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "place_window_k",
            "ip_frame_at_k", "ip_frame_into_k", "FRAME_HEADER", "plan_for", "step_words",
@@ -81,7 +82,7 @@ class PolyTables(NamedTuple):
     ps: np.ndarray      #: int64 [6] their exponents
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def front_step_k(img, i, front, ffts, poly, aq, mode):
     """Front-end step ``i`` of ``front`` on the int16 [h, w] image ``img``. Returns (image int16
     [h, w], is_threshold, t4, mean4, std4, shift): the threshold's words (Q.4 and the block
@@ -135,7 +136,7 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
     return out, op == OP_THRESHOLD, t4, m4, d4, sh
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def place_window_k(header, pr, pc):
     """Place the frame's window about the TP's predicted full-resolution pixel (``pr``, ``pc``;
     NaN: none) in ``header`` (:data:`FRAME_HEADER` [1]): reads the plan's ``rows``, ``cols``,
@@ -164,7 +165,7 @@ def place_window_k(header, pr, pc):
     hd.override = 1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
     """:func:`ip_frame_into_k` on the window :func:`place_window_k` places about ``pred``
     (float64 [2]: the predicted full-resolution row and column, NaN: none): one frame of
@@ -179,7 +180,7 @@ def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
     return ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst):
     """One frame through the image processor.
 

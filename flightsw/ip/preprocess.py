@@ -31,6 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 __all__ = ["FRAME_SHAPE", "COMPACTION_FACTORS", "Subimage", "compact", "compact_k", "check_frame",
            "window", "window_origin", "window_origin_k", "frame_over_12bit_k",
            "window_shape", "preprocess"]
@@ -80,7 +82,7 @@ def _check_factor(factor):
     return int(factor)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def frame_over_12bit_k(frame):
     """True when a pixel of ``frame`` (uint16 [H, W], C order) is above 4095: one pass OR-ing
     every pixel (an indexed loop the compiler vectorises; ~0.7 us for a 244x256 frame).
@@ -112,7 +114,7 @@ def check_frame(frame):
     return frame
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def compact_k(frame, f, r0, c0, h, w):
     """Rounded block mean over blocks ``r0..r0+h-1``, ``c0..c0+w-1`` (compacted indices). Q16.0.
 
@@ -188,7 +190,7 @@ def window_shape(compacted_shape, size=FLIGHT_WINDOW):
     return min(int(size), H), min(int(size), W)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def window_origin_k(H, W, h, w, f, pr, pc):
     """Origin (row0, col0) of the h x w window in an H x W compacted image (compaction ``f``)
     centred on the predicted full-resolution pixel (``pr``, ``pc``; NaN: none), in compacted

@@ -41,6 +41,7 @@ from flightsw.arith.m1750_lanes import fa32_lanes, fc32_key, fm32_lanes, fs32_la
 from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["rank", "rank_words", "RankResult", "flight_gof",
            "quantise", "RANK_MIX", "rank_cycles"]
@@ -75,7 +76,7 @@ def rank_cycles(ops) -> int:
     return int(np.dot(OP_CYCLES, np.asarray(ops, np.int64)))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _sigmoid(x, a2, ops):
     """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
 
@@ -99,7 +100,7 @@ def _sigmoid(x, a2, ops):
     return r, fl
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
     """fwt int64 [12, k] feature words (feature-major), rec int64 [5, 12] record words, centroid
     means used if ``override`` -> (order [m], d words [k], gof words [m], flags, ops [9]) int64.
@@ -317,7 +318,7 @@ def rank(feats, record, centroid_mean=None, ledger: Ledger | None = None,
 # ------------------------------------------------------------------------------------------------
 # ground-side comparisons (float64; not in the flight path)
 # ------------------------------------------------------------------------------------------------
-@njit(cache=True)
+@njit(**KERNEL)
 def _flight_gof_kernel(dw, n):
     """The flight GOF ``exp(-d^2 ln2 / n^2)`` of packed 32-bit distance words ``dw`` (int64 [k])
     with ``n`` (int, 1 .. 32767) degrees of freedom -> packed words int64 [k].

@@ -41,6 +41,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import fa32, fc32, fd32, flt32, fm32, fs32
+from flightsw.numba_cache import KERNEL
 from flightsw.tp.f1750 import dec32, enc32
 
 __all__ = ["alpha_beta_step", "ab_predict", "ab_update", "growing_memory_gains",
@@ -55,7 +56,7 @@ GM_MAX_K = 180
 SIX32 = 0x60000003                    # 6.0 = 0.75 * 2**3, packed 1750A 32-bit
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def ab_predict(x, v, dt):
     """x + v dt -> (x_p, flags) (packed 32-bit 1750A floats; FM then FA).
 
@@ -69,7 +70,7 @@ def ab_predict(x, v, dt):
     return xp, f | g
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def ab_update(xp, v, z, alpha, gain_v):
     """Correct a predicted position with observation z: ``r = z - x_p``, ``x = x_p + alpha r``,
     ``v = v + gain_v r`` (``gain_v = beta / dt``; 0 leaves v unchanged) -> (x, v, r, flags).
@@ -91,7 +92,7 @@ def ab_update(xp, v, z, alpha, gain_v):
     return x, v, r, f
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def growing_memory_gains(k, alpha, beta):
     """The start-up gains after the k-th observation, none below the steady ones ->
     ``(max(alpha_k, alpha), max(beta_k, beta), flags)``.
@@ -135,7 +136,7 @@ def growing_memory_last_k(alpha: float, beta: float) -> int:
     return last
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _ab_many(x, v, z, alpha, beta, dt, xo, vo):
     """One alpha-beta step per element (float64 [n] inputs rounded to 32-bit, nearest) into ``xo``,
     ``vo`` (float64 [n], decoded exactly) -> the OR of the flags.
@@ -163,7 +164,7 @@ def _ab_many(x, v, z, alpha, beta, dt, xo, vo):
     return fl
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _ab_scalar(x, v, z, alpha, beta, dt):
     """One alpha-beta step on float64 scalars rounded to 32-bit (nearest) -> (x, v) decoded.
 

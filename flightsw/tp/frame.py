@@ -31,6 +31,7 @@ from __future__ import annotations
 
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
@@ -47,7 +48,7 @@ from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propag
 __all__ = ["tp_frame", "step_frame", "command_fields"]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def tp_frame(st):
     """One frame on the state record ``st`` (:data:`flightsw.tp.state.TP_STATE_DTYPE`: the
     frame's inputs ``msg``, ``att`` already written) -> status bits (``flightsw.messages`` TC_*);
@@ -104,7 +105,7 @@ def tp_frame(st):
     return end_frame(S, G, V, out, opportunity)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def command_fields(status, out):
     """The track command's scalars from the frame's status and its decoded outputs ``out``
     (:data:`~flightsw.tp.state.OUTPUTS_DTYPE`) -> ``(status, frame_count, imager index,
@@ -125,7 +126,7 @@ def command_fields(status, out):
             out.pcol, out.sp, out.sv)
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def step_frame(ST, usable, cand, t_msg, img_idx, frame_count, att_given, att_t, q, rate, r, v,
                att_valid):
     """The frame's inputs written into the state ``ST[0]`` (``msg``, ``att``), then

@@ -27,6 +27,7 @@ from flightsw.budget import TP1750
 from flightsw.messages import (
     CANDIDATE_DTYPE, IMAGER_CODES, TC_BAD_CONTENT, CandidateMessage, TrackCommand,
 )
+from flightsw.numba_cache import KERNEL
 from flightsw.tp.alphabeta import growing_memory_last_k
 from flightsw.tp.command import prediction_in
 from flightsw.tp.config import TPConfig
@@ -75,7 +76,7 @@ _CONTENT_FAULTS = ("", "candidate outside the imager", "GOF outside [0, 1]",
                    "distance negative or not finite")
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def candidates_fault_k(cand, n_rows, n_cols):
     """The first rule a candidate array (:data:`~flightsw.messages.CANDIDATE_DTYPE` [k]) breaks:
     0 none, 1 a ``row``/``col`` outside [0, n_rows) x [0, n_cols), 2 a GOF outside [0, 1], 3 a

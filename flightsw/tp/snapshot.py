@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
 from flightsw.tp.ekf import UT
 from flightsw.tp.f1750 import dec32, dec48
 from flightsw.tp.geometry import directions_to_pixels
@@ -35,7 +36,7 @@ SNAPSHOT_DTYPE = np.dtype([
     ("status", np.int32), ("mode", "S64"), ("imager", "S64")])
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def snapshot_kernel(G, S, E, img, rec):
     """Decode the TP state the snapshot shows into ``rec[0]`` (all fields but ``mode``, ``imager``).
 
@@ -129,7 +130,7 @@ def snapshot_kernel(G, S, E, img, rec):
         r.opp_vel[q] = dec32(S.opp.v[q]) if opp else nan
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def snapshot_of_state(ST, img, rec):
     """:func:`snapshot_kernel` on the state ``ST[0]`` (:data:`~flightsw.tp.state.TP_STATE_DTYPE`
     [1]) and its imager ``img``: the processor's call, one array argument (its parts as arrays of

@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.messages import IMAGER_CODES
+from flightsw.numba_cache import KERNEL
 
 __all__ = ["MAX_OBS", "NPAIR", "NG", "MAX_FIT_TERMS", "N_IMAGERS", "STAGES", "DYNAMICS_DTYPE",
            "EKF_PARAMS_DTYPE", "EKF_DTYPE", "NOMINAL_DTYPE", "IMAGER_DTYPE", "MESSAGE_DTYPE",
@@ -358,7 +359,7 @@ def new_record(dtype: np.dtype, n: int | None = None):
     return a[0] if n is None else a
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def begin_frame(V, cyc):
     """Clear the frame's working values ``V`` (:data:`WORK_DTYPE`) and clocks ``cyc``
     (:data:`CYCLES_DTYPE`).
@@ -387,7 +388,7 @@ def begin_frame(V, cyc):
     cyc.ekf_predict = cyc.ekf_update = cyc.opportunity = cyc.command = 0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def clear_outputs(out):
     """The frame's decoded outputs ``out`` (:data:`OUTPUTS_DTYPE`) cleared: NaN where a value may
     be absent.

@@ -23,7 +23,7 @@ predicts from step ``k-1`` (from ``x0, P0`` at ``k = 0``) with ``Phi[k], Q[k]`` 
 ``z[k]``; a step whose measurement is ``None`` or of length 0 is prediction only (``x+ = x-``).
 Any number of measurements per step is allowed (``H[k]`` of shape ``(m_k, n)``).
 
-The kernels are numba ``@njit(cache=True)`` loops that skip the zero entries of ``Phi`` and ``H``
+The kernels are cached numba loops that skip the zero entries of ``Phi`` and ``H``
 (the paper's models are block sparse: ~40 of the 324 entries of the 18-state ``Phi`` are non-zero),
 so the cost per step is dominated by the dense smoother algebra.
 The estimator lives in :mod:`groundsim.assess.rde_estimator`, the paper's models in

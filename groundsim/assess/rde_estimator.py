@@ -27,9 +27,10 @@ predicts from step ``k-1`` (from ``x0, P0`` at ``k = 0``) with ``Phi[k], Q[k]`` 
 ``z[k]``; a step whose measurement is ``None`` or of length 0 is prediction only (``x+ = x-``).
 Any number of measurements per step is allowed (``H[k]`` of shape ``(m_k, n)``).
 
-The kernels are numba ``@njit(cache=True)`` loops, compiled per state dimension n (passed as a
-tuple of length n, so that loop bounds are compile-time constants; the first call for a new n
-compiles for some seconds, later runs load the cache) and IEEE (no fastmath). They work on
+The kernels are cached numba loops (:data:`flightsw.numba_cache.KERNEL`), compiled per state
+dimension n (passed as a tuple of length n, so that loop bounds are compile-time constants; the
+first call for a new n compiles for some seconds, later runs load the cache) and IEEE (no
+fastmath). They work on
 C-contiguous float64 scratch rows padded to a multiple of 4, the inner loops written as row updates
 ``y[j] = y[j] + sum_t c_t X[r_t, j]`` over a chunk of rows (4 rows of a sparsity pattern, 6 rows of a
 triangular solve, all n rows of a dense product), which LLVM vectorises over j without reassociating
@@ -46,6 +47,8 @@ from typing import NamedTuple
 
 import numpy as np
 from numba import njit, uint64
+
+from flightsw.numba_cache import KERNEL
 
 __all__ = [
     "FilterResult", "SmootherResult", "kalman_filter", "rts_smooth", "pack_measurements",
@@ -72,7 +75,7 @@ class SmootherResult(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- numba kernels
-@njit(cache=True)
+@njit(**KERNEL)
 def _row_patterns(A, rows, n, idx, val, cnt):
     """Sparsity pattern of rows 0..rows-1 of A (rows, n): row i's non-zero columns idx[i, :q] and
     values val[i, :q], zero padded to cnt[i] = q rounded up to a multiple of 4 (for
@@ -90,7 +93,7 @@ def _row_patterns(A, rows, n, idx, val, cnt):
         cnt[i] = (q + 3) // 4 * 4
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
     """out[i, :uWr] = sum_t val[i, t] X[idx[i, t], :uWr] for i < rows: a sparse (pattern) matrix
     times the dense padded rows of X, four pattern terms at a time (patterns are zero padded to a
@@ -110,7 +113,7 @@ def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
                 out[i, j] = s if t == 0 else out[i, j] + s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uWr, uN):
     """Step k's prediction (eqs. 5-6): x- = Phi x into ``xp[k]``, P- = Phi P Phi^T + Q into ``Pn``
     (padded scratch) and ``Pp[k]``. Phi's sparsity pattern (``idx``, ``val``, ``cnt``) is rebuilt only
@@ -147,7 +150,7 @@ def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uW
             Pp[k, i, j] = Pn[i, j]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _cholesky_lower(A, L, m):
     """The lower triangle of L with L L^T = A[:m, :m] (A symmetric, float64 [>= m, >= m]; only
     its lower triangle is read; L may be A itself: the factor then overwrites it in place).
@@ -168,7 +171,7 @@ def _cholesky_lower(A, L, m):
     return True
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
     """The gain of an update with the m measurement rows ``Hm`` (m, n) and the packed R (``Rf``
     from ``r0_``): B = H P- into ``B``, B H^T into ``BH``, the Cholesky factor of S = H P- H^T + R
@@ -215,7 +218,7 @@ def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
             Kt[a, j] *= c0
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _joseph_into(k, kt, m, n, Phi, Q, Rf, r0_, Kt, B, BH, Pn, g, cv, acc, P, Pf, Pp, uWr, uN):
     """P+ of step k (eq. 13, Joseph form) from K^T, B and B H^T (:func:`_gain_into`) into ``P``
     (padded scratch) and ``Pf[k]``; touches one element per cache line of step ``kt``'s inputs so
@@ -263,7 +266,7 @@ def _joseph_into(k, kt, m, n, Phi, Q, Rf, r0_, Kt, B, BH, Pn, g, cv, acc, P, Pf,
     return touch
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr):
     """Kalman filter (eqs. 5-6, 10-13) over packed measurements, writing into preallocated xf, Pf,
     xp, Pp (the other arguments as for :func:`kalman_filter_packed`). nt is a tuple of length n (the
@@ -338,7 +341,7 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
     y[0] = touch                            # keeps those loads
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _lane_load(l, kk, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN):
     """Lane ``l`` of the smoother takes step kk: P+_kk into ``Pfp[l]``, P-_kk+1 into the left half
     of ``G[l]`` and Phi_kk+1 P+_kk (Phi sparse; its pattern rebuilt only when Phi changes) into the
@@ -383,7 +386,7 @@ def _lane_load(l, kk, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN):
                 G[l, i, W + j] = s if t == 0 else G[l, i, W + j] + s
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
     """The smoother gains of ``nl`` lanes: in each ``G[l]`` = [P-_kk+1 | Phi P+_kk], C^T =
     (P-)^-1 Phi P+ (eq. 14) into the right half, through P- = U^T U (``dinv`` 1/diag U)."""
@@ -432,7 +435,7 @@ def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
                 G[l, i, W + j] = acc[l, j] * inv
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, uW, uWr, uN):
     """Smoothed state and covariance of step kk (eqs. 15-16) from lane ``l``'s gain C^T (right
     half of ``G[l]``) into ``xs[kk]``, ``Ps[kk]`` and the next step's ``Psn``."""
@@ -472,7 +475,7 @@ def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, u
             Psn[i, j] = Psk[i, j]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
     """RTS smoother (eqs. 14-16) writing into preallocated xs, Ps (N >= 1); nt, Wr as for
     :func:`_filter_into`."""
@@ -522,7 +525,7 @@ def _rts_into(xf, Pf, xp, Pp, Phi, xs, Ps, nt, Wr):
     dinv[0, 0] = touch                      # keeps the prefetching loads
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _rts_means_into(xf, Pf, xp, Pp, Phi, xs, nt):
     """The smoothed means alone: eq. 15 with the gain of eq. 14 applied to one vector,
     ``xs_k = x+_k + P+_k Phi_k+1^T (P-_k+1)^-1 (xs_k+1 - x-_k+1)``, the solve by the Cholesky

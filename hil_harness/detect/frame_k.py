@@ -13,12 +13,13 @@ from numba import njit
 from flightsw.ip.backend import backend_k
 from flightsw.ip.pipeline import OP_THRESHOLD, front_step_k
 from flightsw.ip.preprocess import compact_k
+from flightsw.numba_cache import KERNEL
 from hil_harness.detect.union import union_threshold_k, window_t4_k
 
 __all__ = ["fullframe_k"]
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def fullframe_k(src, header, front, ffts, poly, params, rows, cols, th, tw, rcover, ccover):
     """A frame through the full-frame mode.
 

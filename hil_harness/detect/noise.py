@@ -18,6 +18,8 @@ import math
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 __all__ = ["frame_noise", "MAX_DIFFERENCES"]
 
 #: the most second differences kept (``hil_harness.images``: regularly subsampled above this)
@@ -27,7 +29,7 @@ MAX_DIFFERENCES = 1 << 21
 _DIRECT = (np.dtype(np.uint16), np.dtype(np.float64))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _walk(x, m, use_mask, step, out):
     """Count the finite second differences of ``x`` (float64 of any numeric [H, W]) whose three
     pixels are inside ``m`` (bool [H, W], when ``use_mask``), horizontal ones first, row by row,
@@ -65,7 +67,7 @@ def _walk(x, m, use_mask, step, out):
     return k
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _pick_dense(x, step, out):
     """Every ``step``-th second difference of ``x`` (uint16 [H, W]: every difference is finite),
     horizontal ones row by row then vertical ones, into ``out`` (float64 [k]), each found from its
@@ -100,7 +102,7 @@ def _pick_dense(x, step, out):
             r += 1
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _kth(counts, lo, scale, k):
     """The k-th smallest (0-based) of the values whose histogram ``counts`` (int64 [m]) has bin
     ``i`` for the value ``(lo + i) / scale``.
@@ -117,7 +119,7 @@ def _kth(counts, lo, scale, k):
     return np.nan
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _median_mad(d):
     """``(median(d), median(|d - median(d)|))`` of integer-valued float64 ``d`` (non-empty, the
     second differences of integer pixels) from two histograms: the values ``np.median`` gives

@@ -27,6 +27,8 @@ import sys
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 __all__ = ["aperture_flux", "detection_snr", "order_stars", "MIN_RADIUS", "MAX_RADIUS",
            "RADIUS_PER_AXIS", "ANNULUS", "DETECT_RADIUS", "FILL_SNR", "FILL_PEAK_SIGMA",
            "SAME_STAR_PX"]
@@ -94,7 +96,7 @@ def _apertures(img, rows, cols, rad, noise: float, mask):
                         float(ANNULUS[0]), float(ANNULUS[1]))
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def _apertures_k(a, rows, cols, rad, noise, m, use_mask, ann0, ann1):
     """:func:`aperture_flux` of every point: ``a`` (uint16 or float64 [H, W]), ``rows``, ``cols``,
     ``rad`` (float [n]: the aperture radii), the pixel noise, the mask ``m`` (bool [H, W], read when

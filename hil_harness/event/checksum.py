@@ -13,12 +13,14 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from flightsw.numba_cache import KERNEL
+
 ADLER_MOD = 65521
 #: bytes per inner block: sum (m - j) * 255 over 2**20 bytes is < 2**47, safe in int64
 _BLOCK = 1 << 20
 
 
-@njit(cache=True)
+@njit(**KERNEL)
 def adler32_rows_kernel(data, out):
     """Adler-32 of each row of ``data``.
 

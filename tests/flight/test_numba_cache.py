@@ -156,17 +156,15 @@ def test_a_new_version_keeps_two_others_drops_numbas_default_and_respects_the_us
     assert os.environ["NUMBA_CACHE_DIR"] == str(tmp_path / "mine")
 
 
-def test_every_project_kernel_caches_in_one_folder():
-    """Each kernel of the flight code, the simulator and the harness keeps its cache in the one
-    folder the process chose (the source-keyed one, unless the user set ``NUMBA_CACHE_DIR``), and
-    none is defined in a folder the digest leaves out (the command line)."""
+def _project_kernels() -> tuple[list, list]:
+    """The kernels (numba dispatchers) defined in the packages the digest covers, and those
+    defined in a folder it leaves out (the command line)."""
     import importlib
     import pkgutil
 
     from numba.core.registry import CPUDispatcher
-    where = Path(os.environ["NUMBA_CACHE_DIR"]).resolve()
     left_out = tuple(d.replace("/", ".") + "." for d in nc.NOT_KERNEL_SOURCES)
-    paths, outside = [], []
+    kernels, outside = [], []
     for pkg in nc.SOURCE_PACKAGES:
         top = importlib.import_module(pkg)
         for m in pkgutil.walk_packages(top.__path__, pkg + "."):
@@ -175,7 +173,16 @@ def test_every_project_kernel_caches_in_one_folder():
             mod = importlib.import_module(m.name)
             for obj in vars(mod).values():
                 if isinstance(obj, CPUDispatcher) and obj.__module__ == m.name:
-                    (outside if m.name.startswith(left_out) else paths).append(obj)
+                    (outside if m.name.startswith(left_out) else kernels).append(obj)
+    return kernels, outside
+
+
+def test_every_project_kernel_caches_in_one_folder():
+    """Each kernel of the flight code, the simulator and the harness keeps its cache in the one
+    folder the process chose (the source-keyed one, unless the user set ``NUMBA_CACHE_DIR``), and
+    none is defined in a folder the digest leaves out (the command line)."""
+    where = Path(os.environ["NUMBA_CACHE_DIR"]).resolve()
+    paths, outside = _project_kernels()
     assert len(paths) > 200 and not outside        # no kernel where the digest does not look
     for k in paths:
         if k._cache:
@@ -193,3 +200,38 @@ def test_nowhere_to_write_leaves_numbas_default(tmp_path, monkeypatch):
     (tmp_path / ".numba_cache").write_text("not a folder")
     assert nc.key_cache_on_sources(tmp_path, ("pkgx",)) is None
     assert "NUMBA_CACHE_DIR" not in os.environ
+
+
+def test_every_project_kernel_is_compiled_with_the_kernel_options():
+    """Every kernel of the three packages is compiled with :data:`flightsw.numba_cache.KERNEL`
+    (cached, no C-callable wrapper), whatever else it asks for."""
+    from numba.core.caching import NullCache
+    assert set(nc.KERNEL) == {"cache", "no_cfunc_wrapper"}
+    kernels, _ = _project_kernels()
+    missing = [k.py_func.__qualname__ for k in kernels            # numba keeps "cache" as its
+               if isinstance(k._cache, NullCache) is nc.KERNEL["cache"]      # cache object
+               or k.targetoptions.get("no_cfunc_wrapper") is not nc.KERNEL["no_cfunc_wrapper"]]
+    assert len(kernels) > 200 and not missing, missing
+
+
+def test_the_kernel_options_drop_only_the_c_callable_wrapper():
+    """The oracle is numba's own LLVM IR: a function compiled with the options (uncached here)
+    defines its Python wrapper and no ``cfunc.`` wrapper, where plain ``njit`` defines both; both
+    return the same value to Python."""
+    from numba import njit
+
+    def f(a, b):
+        return a * b + 1
+
+    plain = njit(f)
+    ours = njit(**dict(nc.KERNEL, cache=False))(f)
+    assert plain(6, 7) == ours(6, 7) == 43
+    ir_plain, = plain.inspect_llvm().values()
+    ir_ours, = ours.inspect_llvm().values()
+
+    def wrappers(ir):
+        defined = [ln for ln in ir.splitlines() if ln.startswith("define")]
+        return (any("@cfunc." in ln for ln in defined),      # the C-callable wrapper
+                any("@_ZN7cpython" in ln for ln in defined))  # the Python-callable one
+    assert wrappers(ir_plain) == (True, True)
+    assert wrappers(ir_ours) == (False, True)
