@@ -3,16 +3,16 @@ processor, a second process compiles the 1750A lane operations the image process
 then the track processor and the bus codecs, into the same numba cache.
 
 numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
-are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles everything in one process,
-one kernel after another, while the second core idles. :func:`start` (called by the console's
-compile listener on the first compilation it sees, so never on a warm run) launches
-``python -m hil_harness.warmup``. It first calls the lane operations (:mod:`flightsw.arith.m1750_lanes`,
-the heaviest part of the IP's compilation, needed only once the IP's front end is compiled) with the
-argument types the feature and ranking kernels pass, then steps a :class:`flightsw.tp.TrackProcessor`
-through a few synthetic frames and runs the message codecs: the same specialisations the event will
-ask for (the kernels take word and state arrays whose types do not depend on the scenario). When the
-event reaches them they are usually in the cache already; if not, numba compiles them in the
-event's process as it would have anyway.
+are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles
+everything in one process, one kernel after another, while the second core idles. :func:`start`
+(called by the console's compile listener on the first compilation it sees, so never on a warm run)
+launches ``python -m hil_harness.warmup``. It first calls the lane operations
+(:mod:`flightsw.arith.m1750_lanes`, the heaviest part of the IP's compilation, needed only once the
+IP's front end is compiled) with the argument types the feature and ranking kernels pass, then
+steps a :class:`flightsw.tp.TrackProcessor` through a few synthetic frames and runs the message
+codecs: the same specialisations the event will ask for (the kernels take word and state arrays
+whose types do not depend on the scenario). When the event reaches them they are usually in the
+cache already; if not, numba compiles them in the event's process as it would have anyway.
 
 OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
 processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
