@@ -43,7 +43,7 @@ __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "c
 #: otherwise adds to each compiled function for use as a first-class function value (a kernel
 #: passed as a typed function pointer, ``numba.cfunc``), which nothing here does. Each wrapper is
 #: one more function for LLVM to optimise and turn into machine code: dropping them took a first
-#: run's compile 6-7 % less CPU (docs/validation.md, "The first run"). What a kernel computes does
+#: run's compile 6 % less CPU (docs/validation.md, "The first run"). What a kernel computes does
 #: not change. The Python-callable wrapper stays: Python calls the kernels.
 KERNEL = {"cache": True, "no_cfunc_wrapper": True}
 
