@@ -36,7 +36,9 @@ import shutil
 from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
-           "KERNEL", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+           "KERNEL", "CALLEE", "callee_kernel", "is_callee_kernel",
+           "dispatcher_of", "SOURCE_PACKAGES",
+           "NOT_KERNEL_SOURCES", "KEEP_OLD"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -190,3 +192,80 @@ def _lock_saves(caching) -> None:
 
     save.uvisi_locked = True
     cls.save = save
+
+
+
+
+#: the numba options of the copy of a :func:`callee_kernel` its callers compile: neither of numba's
+#: wrappers (no Python or C caller reaches this copy), and cached under a name of its own
+CALLEE = {"cache": True, "no_cfunc_wrapper": True, "no_cpython_wrapper": True}
+#: the suffix of that copy's name (its cache files are ``<module>.<name>_in_callers-<line>...``)
+IN_CALLERS = "_in_callers"
+
+
+def callee_kernel(fn=None, **options):
+    """Decorator: a kernel that other kernels call, compiled into each of them without the wrappers
+    that let Python and C call it. ``@callee_kernel`` or ``@callee_kernel(error_model="numpy",
+    ...)`` (numba options, as for ``njit``).
+
+    numba compiles beside every ``@njit`` function a wrapper that converts Python objects to its
+    arguments and its result back (unboxing and boxing every array), whether Python ever calls
+    the function or not, and LLVM optimises it and makes its machine code. Most of the project's
+    kernels are called only by other kernels. The function returned here is a plain Python
+    function registered with numba as an overload of itself (``numba.extending.overload``, the
+    public way to teach numba a function): a kernel that calls it compiles a copy of ``fn``
+    (``inner``: the same code, named ``<name>_in_callers``) with the options of :data:`CALLEE`,
+    once per argument types, and links it in as it links a dispatcher. A first run compiled 10 %
+    less CPU this way (docs/validation.md, "The first run"); what the callers compute does not
+    change.
+
+    A Python call (a test, a user at the prompt) goes to a separate ``@njit(**KERNEL)`` dispatcher
+    of ``fn``, compiled and cached on its first call: the attribute ``twin`` (also what a kernel
+    passed as an argument to another must be: :func:`dispatcher_of`). The two copies are cached
+    under different names because numba's cache index keys a function's entries on its argument
+    types and code, not on the options it was compiled with: under one name a Python call could
+    load the copy that has no Python wrapper and end the process (seen with numba 0.68.1).
+    ``py_func`` is ``fn``, as on a dispatcher."""
+    if fn is None:
+        return functools.partial(callee_kernel, **options)
+    import types
+
+    from numba import njit
+    from numba.extending import overload
+    twin = njit(**dict(KERNEL, **options))(fn)
+
+    @functools.wraps(fn)
+    def kernel(*args, **kwargs):
+        return twin(*args, **kwargs)
+
+    # the copy compiled into callers: fn's code under a name of its own, so that its cache entries
+    # (cached: a later command's new caller loads it rather than compiling it again) are never
+    # the twin's
+    inner = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__,
+                               fn.__closure__)
+    inner.__qualname__ = fn.__qualname__ + IN_CALLERS
+    inner.__module__ = fn.__module__
+    inner.__doc__ = fn.__doc__
+    kernel.py_func = fn
+    kernel.inner = inner
+    kernel.twin = twin
+
+    def typing(*args, **kwargs):
+        return inner
+
+    overload(kernel, jit_options=dict(options, **CALLEE), strict=False)(typing)
+    return kernel
+
+
+def dispatcher_of(kernel):
+    """The numba dispatcher behind ``kernel``: a :func:`callee_kernel`'s ``twin``, else
+    ``kernel`` itself. For passing a kernel as an argument to another (a first-class function
+    value, as the tests' element-wise helpers do): numba types a dispatcher, not the Python
+    function a callee kernel is."""
+    return kernel.twin if is_callee_kernel(kernel) else kernel
+
+
+def is_callee_kernel(obj) -> bool:
+    """Whether ``obj`` was made by :func:`callee_kernel`."""
+    twin = getattr(obj, "twin", None)
+    return twin is not None and getattr(obj, "py_func", None) is getattr(twin, "py_func", False)

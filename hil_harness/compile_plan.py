@@ -5,7 +5,8 @@ numba compiles a kernel on its first call, and with it every kernel its code cal
 compiled kernel reaches are read from its code: the global names it uses (and the attributes it
 takes of a module), followed through other kernels and through plain Python functions of the
 project (a 1750A operation's public function, whose numba overload calls the kernel its Python
-body calls). A kernel whose cache index exists is counted as compiled already.
+body calls). A kernel whose cache index exists is counted as compiled already, with all it calls
+(its cached code holds the kernels compiled into it: :func:`flightsw.numba_cache.callee_kernel`).
 
 This reads the code, not numba's typing: the set can hold a kernel the call never compiles (a
 branch of Python code it does not take); the compile bar then closes below its total. The test
@@ -16,7 +17,10 @@ from __future__ import annotations
 import os
 import types as pytypes
 
-__all__ = ["PROJECT_PACKAGES", "reachable_kernels", "is_cached", "uncached_kernels"]
+from flightsw.numba_cache import is_callee_kernel
+
+__all__ = ["PROJECT_PACKAGES", "reachable_kernels", "compiled_function", "is_cached",
+           "uncached_kernels"]
 
 #: the packages whose kernels the compile bar counts (numba's own are not counted)
 PROJECT_PACKAGES = ("flightsw", "groundsim", "hil_harness")
@@ -62,18 +66,22 @@ def _referenced(func) -> list:
     return found
 
 
-def reachable_kernels(root) -> list:
-    """The project's kernels (numba dispatchers) ``root`` reaches through its code, ``root``
-    included if it is one, in the order found. ``root``: a dispatcher or a Python function."""
+def reachable_kernels(root, stop=None) -> list:
+    """The project's kernels ``root`` reaches through its code, ``root`` included if it is one, in
+    the order found: numba dispatchers and kernels compiled into their callers
+    (:func:`flightsw.numba_cache.callee_kernel`). ``root``: a kernel or a Python function.
+    ``stop(kernel)``: if given and true, that kernel is neither listed nor followed."""
     dispatcher = _dispatcher_type()
     seen_funcs, kernels, seen = set(), [], set()
     stack = [root]
     while stack:
         obj = stack.pop()
-        if isinstance(obj, dispatcher):
+        if isinstance(obj, dispatcher) or is_callee_kernel(obj):
             if id(obj) in seen or not _is_project(obj.py_func):
                 continue
             seen.add(id(obj))
+            if stop is not None and stop(obj):
+                continue
             kernels.append(obj)
             stack.extend(_referenced(obj.py_func))
         elif isinstance(obj, pytypes.FunctionType) and _is_project(obj):
@@ -84,15 +92,27 @@ def reachable_kernels(root) -> list:
     return kernels
 
 
+def compiled_function(kernel):
+    """The Python function numba compiles for ``kernel`` (and names in its compile events): a
+    dispatcher's ``py_func``; the copy a kernel compiled into its callers is compiled from."""
+    return kernel.inner if is_callee_kernel(kernel) else kernel.py_func
+
+
 def is_cached(kernel) -> bool:
     """Whether numba's cache holds an index for ``kernel`` (it then loads, not compiles, the
-    argument types the index lists)."""
-    cache = getattr(kernel, "_cache", None)
+    argument types the index lists); for a kernel compiled into its callers, for the copy they
+    compile."""
+    if is_callee_kernel(kernel):
+        from numba.core.caching import FunctionCache
+        cache = FunctionCache(kernel.inner)
+    else:
+        cache = getattr(kernel, "_cache", None)
     impl = getattr(cache, "_cache_file", None)
     path = getattr(impl, "_index_path", None)
     return bool(path) and os.path.exists(path)
 
 
 def uncached_kernels(root) -> list:
-    """:func:`reachable_kernels` of ``root`` that the cache does not hold."""
-    return [k for k in reachable_kernels(root) if not is_cached(k)]
+    """The kernels a call of ``root`` compiles on the present cache: :func:`reachable_kernels` of
+    ``root`` up to the cached ones (which load with the code of all they call)."""
+    return reachable_kernels(root, stop=is_cached)

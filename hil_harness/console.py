@@ -111,8 +111,8 @@ class _CompileWatch:
         """Add the uncached kernels ``dispatcher`` reaches to the total."""
         if dispatcher is None:
             return
-        from hil_harness.compile_plan import uncached_kernels
-        new = {id(k) for k in uncached_kernels(dispatcher)} - self.planned
+        from hil_harness.compile_plan import compiled_function, uncached_kernels
+        new = {id(compiled_function(k)) for k in uncached_kernels(dispatcher)} - self.planned
         self.planned |= new
         total = len(self.planned)
         if self.bar is not None:
@@ -149,7 +149,7 @@ class _CompileWatch:
         import time
         self.depth = max(0, self.depth - 1)
         self.count += 1
-        key = id(dispatcher)
+        key = id(getattr(dispatcher, "py_func", None))
         if dispatcher is not None and key in self.planned and key not in self.done:
             self.done.add(key)
             if self.bar is not None:

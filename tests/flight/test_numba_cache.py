@@ -157,8 +157,9 @@ def test_a_new_version_keeps_two_others_drops_numbas_default_and_respects_the_us
 
 
 def _project_kernels() -> tuple[list, list]:
-    """The kernels (numba dispatchers) defined in the packages the digest covers, and those
-    defined in a folder it leaves out (the command line)."""
+    """The kernels (numba dispatchers; for a kernel compiled into its callers, the dispatcher
+    Python calls) defined in the packages the digest covers, and those defined in a folder it
+    leaves out (the command line)."""
     import importlib
     import pkgutil
 
@@ -172,6 +173,7 @@ def _project_kernels() -> tuple[list, list]:
                 continue
             mod = importlib.import_module(m.name)
             for obj in vars(mod).values():
+                obj = nc.dispatcher_of(obj)
                 if isinstance(obj, CPUDispatcher) and obj.__module__ == m.name:
                     (outside if m.name.startswith(left_out) else kernels).append(obj)
     return kernels, outside
@@ -235,3 +237,62 @@ def test_the_kernel_options_drop_only_the_c_callable_wrapper():
                 any("@_ZN7cpython" in ln for ln in defined))  # the Python-callable one
     assert wrappers(ir_plain) == (True, True)
     assert wrappers(ir_ours) == (False, True)
+
+
+CALLEE_MODULE = """
+import numpy as np
+from numba import njit
+from flightsw.numba_cache import KERNEL, callee_kernel
+
+@callee_kernel
+def scale(x, k):
+    out = np.empty_like(x)
+    for i in range(x.size):
+        out[i] = x[i] * k
+    return out
+
+@njit(**KERNEL)
+def total(x):
+    return scale(x, 3.0).sum()
+"""
+
+CALLEE_RUN = """
+import sys
+import numpy as np
+sys.path.insert(0, sys.argv[1])
+import callee_mod as m
+x = np.arange(4.0)
+if sys.argv[2] == "caller":
+    print(m.total(x))
+    if sys.argv[3] == "cold":
+        ir = "\\n".join(m.total.inspect_llvm().values())
+        defined = [ln for ln in ir.splitlines()
+                   if ln.startswith("define") and "scale_in_callers" in ln]
+        print(len(defined), any("cpython" in ln or "cfunc" in ln for ln in defined))
+else:
+    print(m.scale(x, 2.0).tolist())
+"""
+
+
+def test_a_callee_kernel_is_compiled_into_its_caller_and_still_answers_python(tmp_path):
+    """A kernel made by ``callee_kernel`` is compiled into its caller with neither wrapper (the
+    oracle: numba's LLVM IR of the caller defines the callee once, with no ``cpython`` or
+    ``cfunc`` function), and a Python call to it in a later process, on the cache the caller
+    left, returns the right answer rather than loading the wrapperless copy and crashing; and the
+    other way round. Each step is a process of its own."""
+    (tmp_path / "callee_mod.py").write_text(CALLEE_MODULE)
+    (tmp_path / "run.py").write_text(CALLEE_RUN)
+
+    def run(cache, who, state):
+        env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / cache))
+        res = subprocess.run([sys.executable, str(tmp_path / "run.py"), str(tmp_path), who,
+                              state], capture_output=True, text=True, timeout=300, env=env)
+        assert res.returncode == 0, (who, state, res.returncode, res.stderr[-2000:])
+        return res.stdout.split("\n")
+
+    total, ir = run("a", "caller", "cold")[:2]
+    assert float(total) == 18.0                     # 3 * (0 + 1 + 2 + 3)
+    assert ir == "1 False"                          # the callee's body alone, no wrapper
+    assert run("a", "python", "warm")[0] == "[0.0, 2.0, 4.0, 6.0]"
+    assert run("b", "python", "cold")[0] == "[0.0, 2.0, 4.0, 6.0]"
+    assert float(run("b", "caller", "warm")[0]) == 18.0
