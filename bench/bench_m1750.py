@@ -15,6 +15,7 @@ from numba import njit
 
 from flightsw.arith import m1750_float as mf
 from flightsw.arith import m1750_math as mm
+from flightsw.numba_cache import dispatcher_of
 
 N = 100_000
 RNG = np.random.default_rng(1750)
@@ -75,6 +76,7 @@ CASES1 = [
 def test_ours_m1750_binary(benchmark, name, kern, a, b, dec, uf, fops, rtol):
     benchmark.group = f"m1750 {name} (10^5 elements)"
     out = np.empty(N, np.int64)
+    kern = dispatcher_of(kern)                 # a first-class value: numba's dispatcher
     _loop2(kern, a, b, out)
     np.testing.assert_allclose(dec(out), uf(*(x.astype(np.float64) for x in fops)), rtol=rtol,
                                atol=1e-30)
@@ -94,6 +96,7 @@ def test_numpy_float_binary(benchmark, name, kern, a, b, dec, uf, fops, rtol):
 def test_ours_m1750_unary(benchmark, name, kern, a, dec, uf, fop, rtol):
     benchmark.group = f"m1750 {name} (10^5 elements)"
     out = np.empty(N, np.int64)
+    kern = dispatcher_of(kern)
     _loop1(kern, a, out)
     np.testing.assert_allclose(dec(out), uf(fop.astype(np.float64)), rtol=rtol)
     benchmark(_loop1, kern, a, out)

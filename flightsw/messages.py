@@ -28,7 +28,7 @@ from numba import njit
 
 from flightsw.arith.m1750_float import (decode32_k, decode48_k, encode_k, is_normalized32_k,
                                         is_normalized48_k)
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 
 @dataclass
@@ -217,7 +217,7 @@ _REASONS = {_BAD_WORD: "not a 16-bit word (0..0xFFFF)", _BAD_ID: "wrong message 
             _BAD_COUNT: f"candidate count above {MAX_CANDIDATES}"}
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _words_ok(w):
     """Index of the first word outside 0..0xFFFF, -1 if none (``w`` int64 [n]).
 
@@ -233,7 +233,7 @@ def _words_ok(w):
     return -1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _f32_at(w, i):
     """Words ``i``, ``i + 1`` of ``w`` (int64, 16-bit values) -> the packed 32-bit 1750A float.
 
@@ -244,7 +244,7 @@ def _f32_at(w, i):
     return (w[i] << 16) | w[i + 1]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _f48_at(w, i):
     """Words ``i`` .. ``i + 2`` of ``w`` (int64, 16-bit values) -> the packed 48-bit 1750A float.
 
@@ -258,7 +258,7 @@ def _f48_at(w, i):
 # ================================================================================================
 # the candidate message codec (one jitted encoder, one jitted checker + filler)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _cand_encode_k(head, t, alpha, iv, fv, out, table):
     """Candidate message words into ``out`` (uint16): ``head`` int64[15] header words (3-5 and
     11-12 are filled here from the time tag ``t`` and ``alpha``, finite float64), ``iv``/``fv``
@@ -406,7 +406,7 @@ def _candidate_field(i: int, n: int) -> str:
 # ================================================================================================
 # the track command codec
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _group(v, lo, hi):
     """1 all finite, 0 all NaN, -1 mixed (an optional group ``v[lo:hi]`` of the track command,
     float64).
@@ -583,7 +583,7 @@ def _track_field(i: int) -> str:
 FEEDBACK_VALUES = 4
 
 
-@njit(**KERNEL)
+@callee_kernel
 def feedback_words_k(words, fb):
     """The IP's per-frame read of the track command: every check of :meth:`TrackCommand.from_words`
     (:func:`_track_check_k`) on ``words`` (uint16 [n]); when they pass, the feedback's values into

@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 from .frames import gmst82, jd_utc, rot_z
 from .imagers import COL0, ROW0
@@ -98,7 +98,7 @@ def _gauss(z):
     return p
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _geometry_row(inv_n, xv, y, m, p, cvec, evec, nvec, svec, shell_r, airglow_kR, dayglow_kR,
                   xr, yr, wr, gr, br):
     """One image row's rays, Earth-fixed. Pixel c's unit ray is ``inv_n[c] * m @ (1, xv[c], y)``
@@ -152,7 +152,7 @@ def _geometry_row(inv_n, xv, y, m, p, cvec, evec, nvec, svec, shell_r, airglow_k
         br[c] = b if ((not earth) & (b < 0.0)) else 1.0
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _limb_row(br, gr, pp, limb_kR):
     """Limb glow (kR) into ``gr`` (float64 [nc]) where ``br`` (float64 [nc], m) marks a ray toward
     the Earth that misses it: ``limb_kR`` up to a tangent height of 100 km, ``limb_kR exp(-(h - 100
@@ -168,7 +168,7 @@ def _limb_row(br, gr, pp, limb_kR):
 # The span functions below work on the pixels c0 <= c < c1 of scratch rows (float64 [nc]); c0 and
 # c1 are unsigned (np.uint64): an index that cannot be negative needs no wrap-around, so the loops
 # vectorise (views of the rows would cost a reference count each).
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _span_box(xr, yr, c0, c1):
     """(min, max) of ``xr`` and of ``yr`` over the span (km)."""
     xlo, xhi, ylo, yhi = xr[c0], xr[c0], yr[c0], yr[c0]
@@ -181,7 +181,7 @@ def _span_box(xr, yr, c0, c1):
     return xlo, xhi, ylo, yhi
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _centre_span(xr, ycr, c0, c1, a):
     """Arc ``a``'s centre line (float64 [9], :func:`_arcs_now`) at the span's east coordinates
     ``xr`` (km) into ``ycr`` (km north): ``y0(t) + amp sin(k x + phase(t))``."""
@@ -190,7 +190,7 @@ def _centre_span(xr, ycr, c0, c1, a):
         ycr[c] = y0 + amp * _sin(k * xr[c] + ph)
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _surge_span(xr, yr, ycr, acc, c0, c1, surge):
     """Add the surge's fill to ``acc`` (kR) over the span, above the first arc's centre line ``ycr``
     (km): ``fill g(x)`` where ``yc < y < yc + bulge g(x)``, ``g(x) = exp(-((x - xc) / width)^2 /
@@ -205,7 +205,7 @@ def _surge_span(xr, yr, ycr, acc, c0, c1, surge):
         acc[c] = b
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _peak_span(xr, peakr, c0, c1, a):
     """Arc ``a``'s peak brightness (kR) over the span into ``peakr``: ``b(t) end(x)``, ``end(x) =
     exp(-(|x| - hl)^2 / (2 (50 km)^2))`` beyond the half length hl, 1 within."""
@@ -215,7 +215,7 @@ def _peak_span(xr, peakr, c0, c1, a):
         peakr[c] = b_t * _gauss(min(e * e, GAUSS_Z_MAX))
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _arc_span(yr, ycr, peakr, acc, c0, c1, inv_w):
     """Add an arc's Gaussian profile to ``acc`` (kR) over the span: ``peak exp(-d^2 / 2)`` for |d| <
     6, ``d = (y - yc) inv_w`` (``ycr`` its centre line km, ``peakr`` kR, ``inv_w`` 1 / width km^-1)."""
@@ -227,7 +227,7 @@ def _arc_span(yr, ycr, peakr, acc, c0, c1, inv_w):
         acc[c] = b
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _spot_span(xr, yr, acc, c0, c1, spot):
     """Add the hot spot ``spot`` (float64 [4]: east km, north km, radius km, kR) to ``acc`` (kR)
     over the span: ``kR exp(-r^2 / (2 radius^2))`` within 8 radii (1.3e-14 kR there)."""
@@ -240,7 +240,7 @@ def _spot_span(xr, yr, acc, c0, c1, spot):
         acc[c] = b
 
 
-@njit(**_JIT)
+@callee_kernel(**_JIT)
 def _features_row(xr, yr, acc, ycr, peakr, arcs_now, surge_now, spot):
     """The aurora (kR, before the slant factor) along one row (``xr``, ``yr``: float64 [nc], km)
     into ``acc`` (float64 [nc], zeroed first; ``ycr``, ``peakr`` float64 [nc] scratch), span by span,
@@ -273,7 +273,7 @@ def _features_row(xr, yr, acc, ycr, peakr, arcs_now, surge_now, spot):
             _spot_span(xr, yr, acc, c0, c1, spot)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _arcs_now(arcs, t, bulge):
     """The arcs (float64 [n, 11], :class:`Arc` fields in order) at time ``t`` (s) as float64 [n, 9]
     rows: centre north y0 + drift t (km), wave amplitude (km), wavenumber 2 pi / wavelength (rad/km),

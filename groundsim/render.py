@@ -23,7 +23,7 @@ import math
 import numpy as np
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 from .frames import R_EARTH_M
 from .imagers import COL0, ROW0, Imager
@@ -45,7 +45,7 @@ STAR_DTYPE = np.dtype([("hip", np.int32), ("row", np.float64), ("col", np.float6
 
 # ---------------------------------------------------------------------------------------------------
 # kernels
-@njit(**KERNEL)
+@callee_kernel
 def _cdf(u, table):
     x = (u + CDF_HALF) * (1.0 / CDF_STEP)
     if x <= 0.0:
@@ -215,12 +215,12 @@ def add_elongated_kernel(img, row, col, flux, sig_along, sig_across, angle):
             img[r, c] += acc * scale
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _rotl(x, k):
     return (x << np.uint64(k)) | (x >> np.uint64(64 - k))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _xo(s0, s1, s2, s3):
     res = _rotl(s1 * np.uint64(5), 7) * np.uint64(9)
     t = s1 << np.uint64(17)
@@ -233,7 +233,7 @@ def _xo(s0, s1, s2, s3):
     return res, s0, s1, s2, s3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _poisson_small(lam, u):
     p = math.exp(-lam)
     f = p
@@ -245,13 +245,13 @@ def _poisson_small(lam, u):
     return float(k)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _uniform(s0, s1, s2, s3):
     y, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
     return (float(y >> np.uint64(11)) + 0.5) * (1.0 / 9007199254740992.0), s0, s1, s2, s3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _tail(k, s0, s1, s2, s3):
     """Exact normal tail beyond TAIL_START (Marsaglia), signed by the extreme table bin ``k``. The
     table's extreme bins (probability 2**-15 each) are replaced by it so the tails are right."""
@@ -267,7 +267,7 @@ def _tail(k, s0, s1, s2, s3):
     return z, s0, s1, s2, s3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _normal(s0, s1, s2, s3, gtab):
     x, s0, s1, s2, s3 = _xo(s0, s1, s2, s3)
     k = int(x & np.uint64(0xFFFF))
@@ -306,7 +306,7 @@ def standard_normals_kernel(state, out):
     state[3] = s3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _note_tails(krow, r, tails, ntail):
     """Note the pixels of row ``r`` whose normal-table index ``krow`` (uint16 [nc]) is an extreme
     bin (0 or 65535), as ``(r * nc + c) * 2 + upper``, into ``tails`` from ``ntail`` on (while it has
@@ -332,7 +332,7 @@ def _note_tails(krow, r, tails, ntail):
     return ntail
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _digitise(e, inv_gain, bias, hi):
     v = bias + e * inv_gain + 0.5
     if v < 0.0:
@@ -357,7 +357,7 @@ def extrema_kernel(mean, colmax, rowmin):
         rowmin[r] = rm
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igain32, hi32):
     """One common row of :func:`expose_kernel` (every mean >= POISSON_GAUSS_SWITCH, no column that
     can bloom, ``nc % 4 == 0``): Poisson(m) + N(0, rn^2) ~ N(m, m + rn^2), one normal per pixel.
@@ -387,7 +387,7 @@ def _fast_row(mrow, orow, zrow, krow, gtab, s0, s1, s2, s3, bias32, rn2_32, igai
     return s0, s1, s2, s3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _spill(work, c, j, step, charge, full_well):
     """Blooming: put ``charge`` (electrons) into column ``c`` of ``work`` (float64 [nr, nc]) from
     row ``j`` on, moving by ``step`` (-1 up, +1 down), filling each pixel to ``full_well``; charge

@@ -18,7 +18,7 @@ from sgp4.api import WGS72, Satrec
 from sgp4.exporter import export_tle
 
 from flightsw.messages import AttitudeData
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 from .frames import R_EARTH_M, gmst82, jd_utc, teme_to_gcrs
 from .quat import q_from_rotvec, q_mul, q_normalize
@@ -97,7 +97,7 @@ class Orbit:
         return rr.copy(), vv.copy()
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _qmul4(a0, a1, a2, a3, b0, b1, b2, b3):
     return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3,
             a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
@@ -105,7 +105,7 @@ def _qmul4(a0, a1, a2, a3, b0, b1, b2, b3):
             a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _qnorm4(q0, q1, q2, q3):
     n = math.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
     q0, q1, q2, q3 = q0 / n, q1 / n, q2 / n, q3 / n
@@ -114,7 +114,7 @@ def _qnorm4(q0, q1, q2, q3):
     return q0, q1, q2, q3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _rotvec_q4(p0, p1, p2):
     """Quaternion of the rotation vector (p0, p1, p2) (rad), as :func:`groundsim.quat.q_from_rotvec`."""
     ang = math.sqrt(p0 * p0 + p1 * p1 + p2 * p2)

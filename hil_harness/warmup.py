@@ -1,18 +1,18 @@
 """First-run compilation on both cores: while a command compiles the ground simulator and the image
-processor, a second process compiles the 1750A lane operations the image processor's back end uses,
-then the track processor and the bus codecs, into the same numba cache.
+processor, a second process compiles the track processor and the bus codecs into the same numba
+cache.
 
 numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
 are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles
 everything in one process, one kernel after another, while the second core idles. :func:`start`
 (called by the console's compile listener on the first compilation it sees, so never on a warm run)
-launches ``python -m hil_harness.warmup``. It first calls the lane operations
-(:mod:`flightsw.arith.m1750_lanes`, the heaviest part of the IP's compilation, needed only once the
-IP's front end is compiled) with the argument types the feature and ranking kernels pass, then
-steps a :class:`flightsw.tp.TrackProcessor` through a few synthetic frames and runs the message
-codecs: the same specialisations the event will ask for (the kernels take word and state arrays
-whose types do not depend on the scenario). When the event reaches them they are usually in the
-cache already; if not, numba compiles them in the event's process as it would have anyway.
+launches ``python -m hil_harness.warmup``. It steps a :class:`flightsw.tp.TrackProcessor` through a
+few synthetic frames and runs the message codecs: the same specialisations the event will ask for
+(the kernels take word and state arrays whose types do not depend on the scenario). When the event
+reaches them they are usually in the cache already; if not, numba compiles them in the event's
+process as it would have anyway. Only kernels Python calls can be compiled ahead like this: the
+kernels compiled into their callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A lane
+operations among them) are compiled with each caller, and not cached on their own.
 
 OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
 processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
@@ -30,7 +30,7 @@ import os
 import subprocess
 import sys
 
-__all__ = ["start", "warm_lanes", "warm_track_processor", "WARMUP_ENV"]
+__all__ = ["start", "warm_track_processor", "WARMUP_ENV"]
 
 #: set in the child's environment, so that its own compilations do not start another child
 WARMUP_ENV = "UVISI_WARMUP_CHILD"
@@ -51,41 +51,6 @@ def start() -> bool:
     except OSError:
         return False
     return True
-
-
-def warm_lanes():
-    """Call the 1750A lane operations with the argument types the IP's features, normalisation and
-    ranking pass (int64 word arrays; some with one int64 word), in the order the features use
-    them. Returns the last result, atan2(1.5, 0.75) in every lane (1750A 32-bit words)."""
-    import numpy as np
-
-    from flightsw.arith import m1750_lanes as L
-    from flightsw.arith import m1750_math as M
-    from flightsw.arith.m1750 import encode32, encode48
-
-    n = 4
-    a32 = np.full(n, encode32(1.5), np.int64)
-    b32 = np.full(n, encode32(0.75), np.int64)
-    a48 = np.full(n, encode48(1.5), np.int64)
-    b48 = np.full(n, encode48(0.75), np.int64)
-    out = np.empty(n, np.int64)
-    one32, one48 = np.int64(encode32(1.0)), np.int64(encode48(1.0))
-    for op in (L.fd48_lanes, L.fm48_lanes, L.fs48_lanes):
-        op(a48, b48, out)
-    L.fa48_lanes(a48, b48, out)
-    L.fa48_lanes(a48, one48, out)
-    L.flt48_lanes(a32, out)
-    for op in (L.fm32_lanes, L.fd32_lanes, L.fa32_lanes, L.fs32_lanes, L.fd32_pos_lanes):
-        op(a32, b32, out)
-    for op in (L.fa32_lanes, L.fm32_lanes, L.fs32_lanes):
-        op(a32, one32, out)
-    for op in (L.fm32_lanes, L.fs32_lanes):
-        op(one32, a32, out)
-    for op in (L.fabs32_lanes, L.fneg32_lanes, L.fix32_lanes):
-        op(a32, out)
-    M.sqrt32_lanes(a32, out)
-    M.atan2_32_lanes(a32, b32, out)
-    return out
 
 
 def warm_track_processor(n_frames: int = 4):
@@ -121,5 +86,4 @@ def warm_track_processor(n_frames: int = 4):
 
 
 if __name__ == "__main__":      # python -m hil_harness.warmup (started by start())
-    warm_lanes()
     warm_track_processor()

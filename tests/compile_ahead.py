@@ -5,8 +5,8 @@ kernel after another in one process while the second core idles. This process co
 same on-disk cache, the kernels the suite reaches after its first minute, in the order it reaches
 them, while the suite's own process compiles the image processor for its first tests:
 
-1. the 1750A lane operations and the track processor (:mod:`hil_harness.warmup`, as a first
-   ``uvisi`` run does, with the TP's snapshot);
+1. the 1750A lane operations as tests/arith calls them, and the track processor
+   (:mod:`hil_harness.warmup`, as a first ``uvisi`` run does, with the TP's snapshot);
 2. the ground simulator's frame (a satellite scenario and an aurora one: attitude data, the
    render, the spacecraft's command and step);
 3. the RDE filter and smoother for the state dimensions the tests use (2, 5, 12, 18);
@@ -32,10 +32,41 @@ RDE_DIMENSIONS = (2, 5, 12, 18)
 LABEL_DTYPES = (np.bool_, np.uint8, np.int16, np.uint16, np.int64)
 
 
-def track_processor():
-    from hil_harness.warmup import warm_lanes, warm_track_processor
+def lane_operations():
+    """Call the 1750A lane operations (their Python-callable copies, which tests/arith calls) with
+    int64 word arrays and single int64 words."""
+    from flightsw.arith import m1750_lanes as L
+    from flightsw.arith import m1750_math as M
+    from flightsw.arith.m1750 import encode32, encode48
 
-    warm_lanes()
+    n = 4
+    a32 = np.full(n, encode32(1.5), np.int64)
+    b32 = np.full(n, encode32(0.75), np.int64)
+    a48 = np.full(n, encode48(1.5), np.int64)
+    b48 = np.full(n, encode48(0.75), np.int64)
+    out = np.empty(n, np.int64)
+    one32, one48 = np.int64(encode32(1.0)), np.int64(encode48(1.0))
+    for op in (L.fd48_lanes, L.fm48_lanes, L.fs48_lanes):
+        op(a48, b48, out)
+    L.fa48_lanes(a48, b48, out)
+    L.fa48_lanes(a48, one48, out)
+    L.flt48_lanes(a32, out)
+    for op in (L.fm32_lanes, L.fd32_lanes, L.fa32_lanes, L.fs32_lanes, L.fd32_pos_lanes):
+        op(a32, b32, out)
+    for op in (L.fa32_lanes, L.fm32_lanes, L.fs32_lanes):
+        op(a32, one32, out)
+    for op in (L.fm32_lanes, L.fs32_lanes):
+        op(one32, a32, out)
+    for op in (L.fabs32_lanes, L.fneg32_lanes, L.fix32_lanes):
+        op(a32, out)
+    M.sqrt32_lanes(a32, out)
+    M.atan2_32_lanes(a32, b32, out)
+
+
+def track_processor():
+    from hil_harness.warmup import warm_track_processor
+
+    lane_operations()
     warm_track_processor()
 
 

@@ -33,7 +33,7 @@ HEADER = re.compile(r"^Cases\s*$")
 def _is_njit(dec: ast.expr) -> bool:
     node = dec.func if isinstance(dec, ast.Call) else dec
     name = node.attr if isinstance(node, ast.Attribute) else getattr(node, "id", "")
-    return name == "njit"
+    return name in ("njit", "callee_kernel")
 
 
 def _module_name(path: Path) -> str:

@@ -31,7 +31,7 @@ from numba import njit
 from numba.extending import overload
 
 from flightsw.budget import ADSP_COSTS
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 DECISION_8000_SQUARED = "manual"
 DECISION_RND_MIDPOINT = "full_sum"
@@ -84,7 +84,7 @@ def _flag(name, v):
 # --------------------------------------------------------------------------------------------
 # kernels
 # --------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def s16(w):
     """Sign-extend a 16-bit pattern to a Python/numba int.
 
@@ -98,7 +98,7 @@ def s16(w):
     return w - 0x10000 if w & 0x8000 else w
 
 
-@njit(**KERNEL)
+@callee_kernel
 def s40(mr):
     """Sign-extend a 40-bit MR pattern.
 
@@ -112,7 +112,7 @@ def s40(mr):
     return mr - 0x10000000000 if mr & 0x8000000000 else mr
 
 
-@njit(**KERNEL)
+@callee_kernel
 def mv_of(mr):
     """MV condition: MR bits 39..31 not all equal (the value does not fit 32-bit MR1:MR0).
 
@@ -126,7 +126,7 @@ def mv_of(mr):
     return 1 if (top != 0 and top != 0x1FF) else 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def product40(x, y, x_signed, y_signed):
     """The multiplier's contribution to MR: 16x16 product, taken as signed 32 bits, sign-extended to
     40 bits and shifted left one bit (fractional mode). Returns the signed value (no masking).
@@ -148,7 +148,7 @@ def product40(x, y, x_signed, y_signed):
     return p << 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rnd40(res, lo_unrounded):
     """Unbiased rounding at the MR0/MR1 boundary of a 40-bit value (both as patterns): add 0x8000; if
     the unrounded low word ``lo_unrounded`` was exactly 0x8000, clear bit 16. MR0 keeps
@@ -344,7 +344,7 @@ def _norm_k(x, se, hi, ac):
     return res & 0xFFFFFFFF
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _redundant_sign_bits(x):
     """Redundant sign bits of a 16-bit word (bits after the sign equal to it), 0..15.
 
@@ -429,7 +429,7 @@ def _expadj_k(x, sb):
     return e if e > sb else sb
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _divs_k(af, ay0, x):
     """``DIVS AF, X`` -> (AF, AY0, AQ): AQ = sign(AF) XOR sign(X), AF:AY0 shifted left one bit with AQ
     entering AY0.
@@ -446,7 +446,7 @@ def _divs_k(af, ay0, x):
     return af_new, ay0_new, aq
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _divq_k(af, ay0, x, aq):
     """``DIVQ X`` -> (AF, AY0, AQ): one non-restoring step; the new quotient bit (NOT AQ) enters AY0.
 
@@ -725,7 +725,7 @@ def _divide_unsigned_ov(hi, lo, divisor):
 # --------------------------------------------------------------------------------------------
 # array kernels: the multiply-accumulate loops of the image processor
 # --------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def block_bitlen(img):
     """Bit length of the largest-magnitude 16-bit word of ``img`` (``x`` for x >= 0, ``~x`` for
     x < 0): the block exponent an EXPADJ pass over the block yields, as a count of significant
@@ -747,7 +747,7 @@ def block_bitlen(img):
     return bitlen(m)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def bitlen(v):
     """Number of significant bits of a non-negative integer (0 for 0).
 
@@ -763,7 +763,7 @@ def bitlen(v):
     return n
 
 
-@njit(**KERNEL)
+@callee_kernel
 def finish_mr(acc, rnd, sat):
     """Store step of a MAC loop: the 40-bit accumulation ``acc`` (signed int) -> the word MR1 holds
     after ``(RND)`` on the last MAC and ``IF MV SAT MR``. Returns a signed 16-bit value.
@@ -786,7 +786,7 @@ def finish_mr(acc, rnd, sat):
     return s16((mr >> 16) & 0xFFFF)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def dot_q15(x, y, rnd=True, sat=True):
     """MAC loop ``MR = sum x[i]*y[i]`` (SS, fractional mode), then RND and SAT, returning MR1.
 
@@ -809,7 +809,7 @@ def dot_q15(x, y, rnd=True, sat=True):
     return finish_mr(acc, rnd, sat)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def correlate_valid_q15(img, kern, rnd=True, sat=True):
     """2-D correlation of a 16-bit image with a Q1.15 kernel, as the ADSP-2100 computes it.
 

@@ -98,7 +98,7 @@ from numba.cpython.unsafe.numbers import leading_zeros
 from numba.extending import intrinsic, overload
 
 from flightsw.budget import PACE1750A, Processor, m1750_cycles
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = [
     "FLAG_FLOAT_OVERFLOW", "FLAG_FIXED_OVERFLOW", "FLAG_FLOAT_UNDERFLOW", "FLAG_DOMAIN",
@@ -141,7 +141,7 @@ ZERO = 0
 # ================================================================================================
 # unpack / pack / normalise (small kernels LLVM inlines, W = fraction bits: 23 or 39)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def unpack32(p):
     """Packed 32-bit float -> (signed 24-bit mantissa, signed exponent).
 
@@ -158,7 +158,7 @@ def unpack32(p):
     return m - 0x800000, e - 0x80
 
 
-@njit(**KERNEL)
+@callee_kernel
 def unpack48(p):
     """Packed 48-bit float -> (signed 40-bit mantissa, signed exponent).
 
@@ -175,7 +175,7 @@ def unpack48(p):
     return m - 0x8000000000, e - 0x80
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pack32(m, e):
     """(signed 24-bit mantissa, exponent) -> packed 32-bit float (no checks).
 
@@ -188,7 +188,7 @@ def pack32(m, e):
     return ((m & 0xFFFFFF) << 8) | (e & 0xFF)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pack48(m, e):
     """(signed 40-bit mantissa, exponent) -> packed 48-bit float (no checks).
 
@@ -201,7 +201,7 @@ def pack48(m, e):
     return (((m >> 16) & 0xFFFFFF) << 24) | ((e & 0xFF) << 16) | (m & 0xFFFF)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def unpack_w(p, W):
     """:func:`unpack32` (W = 23) or :func:`unpack48` (W = 39) of packed word ``p``.
 
@@ -215,7 +215,7 @@ def unpack_w(p, W):
     return unpack48(p)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pack_w(m, e, W):
     """:func:`pack32` (W = 23) or :func:`pack48` (W = 39) of ``(m, e)`` (no checks).
 
@@ -229,7 +229,7 @@ def pack_w(m, e, W):
     return pack48(m, e)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def norm_shift(m, W):
     """Left shift that normalises a non-zero signed mantissa of W fraction bits (redundant sign
     bits). Negative powers of two normalise to -1.0 (e.g. -0.5 -> -1.0 with one shift). ``m`` must
@@ -246,7 +246,7 @@ def norm_shift(m, W):
     return leading_zeros(m ^ (m >> 63)) - (64 - W)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def overflow_word(neg, W):
     """Standard overflow result word: 7FFF..FF/7F if the result is positive, 8000..00/7F if
     negative.
@@ -263,7 +263,7 @@ def overflow_word(neg, W):
     return MIN48 if neg else MAX48
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _overflow(neg, W):
     """Standard overflow result and its PI flag.
 
@@ -275,7 +275,7 @@ def _overflow(neg, W):
     return overflow_word(neg, W), FLAG_FLOAT_OVERFLOW
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _finish(m, e, W):
     """Normalise (m, e) (m fits W+1 bits), apply underflow/overflow, pack -> (p, flags).
 
@@ -304,7 +304,7 @@ def _finish(m, e, W):
 # ================================================================================================
 # FA / FS (5.60, 5.61, 5.68, 5.69)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _add_core(a, b, W, subtract):
     """FA/FS on packed words of W fraction bits -> (p, flags) (see the module docstring: no guard
     bits, FS negates the subtrahend exactly before aligning it).
@@ -402,7 +402,7 @@ def _fs48_k(a, b):
 # ================================================================================================
 # FM (5.74, 5.75)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _mul_exp_checks(ma, mo, n, W):
     """Pre-multiply RTL checks on n = EA + EO. Returns (done, p, flags).
 
@@ -461,7 +461,7 @@ def _fm32_k(a, b):
     return pack32((P << s) >> 23, n), 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def prod80(A, B):
     """A * B for 0 <= A, B <= 2**39 as (H, L) with A * B = H * 2**40 + L, 0 <= L < 2**40: the
     80-bit product from 20-bit limbs (no intermediate exceeds 63 bits). Branch-free, so the lane
@@ -496,7 +496,7 @@ def _prod_shr38(typingctx, a, b):
     return types.int64(types.int64, types.int64), codegen
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _mul48_core(a, b):
     """EFM's body, compiled into :func:`_fm48_k` and :func:`madd48` (its cases are
     :func:`_fm48_k`'s).
@@ -561,7 +561,7 @@ def _fm48_k(a, b):
     return _mul48_core(a, b)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def madd48(acc, a, b):
     """EFM then EFA, ``acc + a * b`` -> (p, flags): exactly ``fa48(acc, fm48(a, b))`` (two
     truncations, the flags of both OR'ed), compiled into its caller (no call) -- for the
@@ -581,7 +581,7 @@ def madd48(acc, a, b):
 # ================================================================================================
 # FD (5.79, 5.80)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _quotient_floor(A, B, W):
     """(floor(A * 2**(W+1) / B), remainder != 0) for 0 < A, B <= 2**W, W = 23 or 39.
 
@@ -622,7 +622,7 @@ def _quotient_floor(A, B, W):
     return Q, r != 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _div_core(a, b, W):
     """FD/EFD on packed words of W fraction bits -> (p, flags); the quotient truncated toward minus
     infinity (see the module docstring for the reading of "|MQ| >= 1.0").
@@ -704,7 +704,7 @@ def _fd48_k(a, b):
 # ================================================================================================
 # FABS (5.62), FNEG (5.70)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _fabs_core(a, W):
     """FABS on a packed word of W fraction bits -> (p, flags).
 
@@ -726,7 +726,7 @@ def _fabs_core(a, W):
     return pack_w(-m, e, W), 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _fneg_core(a, W):
     """FNEG on a packed word of W fraction bits -> (p, flags).
 
@@ -881,7 +881,7 @@ def _flt48_k(i):
 # ================================================================================================
 # FC / EFC (5.94, 5.95)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _fc_core(a, b, W):
     """FC/EFC on packed words of W fraction bits -> -1 (a < b), 0 (a = b), 1 (a > b).
 
@@ -932,7 +932,7 @@ def _fc48_k(a, b):
     return _fc_core(a, b, 39)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def to48(p):
     """32-bit float -> the same value as a 48-bit float (``w2 = 0``); exact.
 
@@ -943,7 +943,7 @@ def to48(p):
     return (p & 0xFFFFFFFF) << 16
 
 
-@njit(**KERNEL)
+@callee_kernel
 def to32(p):
     """48-bit float -> 32-bit float by dropping ``w2``: the 40-bit 2's complement mantissa is cut to
     24 bits, i.e. truncated toward minus infinity; the cut of a normalised mantissa is normalised.
@@ -1097,7 +1097,7 @@ def decode48(p) -> float:
     return math.ldexp(float(m), e - 39)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def enc_mantissa(x, W, nearest):
     """Finite non-zero float64 -> normalised ``(mi, e)`` with value ``mi * 2**(e - W)`` (W = 23:
     32-bit, 39: 48-bit), floor or nearest-even rounding, before the exponent range is checked.
@@ -1209,7 +1209,7 @@ def _enc_array_k(x, W, nearest, out):
 _POW2 = np.ldexp(1.0, np.arange(-192, 192))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _dec32_k(p):
     """Packed 32-bit float -> float64 (exact: 24-bit mantissa times a power of two, no subnormals
     in the 1750A range), in jitted code.
@@ -1224,7 +1224,7 @@ def _dec32_k(p):
     return float(m) * _POW2[e + (192 - 23)]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _dec48_k(p):
     """Packed 48-bit float -> float64 (exact), in jitted code.
 
@@ -1238,7 +1238,7 @@ def _dec48_k(p):
     return float(m) * _POW2[e + (192 - 39)]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _norm48_k(p):
     """:func:`is_normalized48` of a 48-bit pattern (in range).
 
@@ -1255,7 +1255,7 @@ def _norm48_k(p):
     return ((m >> 39) ^ (m >> 38)) & 1 == 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _norm32_k(p):
     """:func:`is_normalized32` of a 32-bit pattern (in range).
 

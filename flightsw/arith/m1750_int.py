@@ -30,13 +30,13 @@ from numba import njit
 from numba.extending import overload
 
 from flightsw.arith.m1750_float import FLAG_FIXED_OVERFLOW, overload_impl1, overload_impl2
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["add16", "sub16", "add32", "sub32", "neg16", "neg32", "abs16", "abs32",
            "mul16", "mul16x32", "mul32", "div16", "div32_16", "div32", "INT_OP_MIX"]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _s16(w):
     """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
 
@@ -48,7 +48,7 @@ def _s16(w):
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _s32(w):
     """The low 32 bits of ``w`` (int) read as a two's complement integer.
 
@@ -231,7 +231,7 @@ def _mul32_k(a, b):
     return r & 0xFFFFFFFF, (FLAG_FIXED_OVERFLOW if (r > 0x7FFFFFFF or r < -0x80000000) else 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _tdivmod(x, y):
     """Truncating division (toward zero), remainder with the dividend's sign.
 

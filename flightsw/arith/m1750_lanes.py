@@ -33,14 +33,14 @@ run about a quarter of its compile time: ``docs/validation.md``, first run).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit, types
+from numba import types
 from numba.extending import overload
 
 from flightsw.arith.m1750_float import (
     FLAG_FIXED_OVERFLOW, FLAG_FLOAT_OVERFLOW, FLAG_FLOAT_UNDERFLOW, MAX32, MAX48,
     norm_shift, overflow_word, pack_w, prod80, unpack_w, pack32, pack48, unpack32, unpack48,
 )
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["fa32_v", "fs32_v", "fm32_v", "fd32_v", "fd32_pos_v", "fa48_v", "fs48_v", "fm48_v",
            "fd48_v", "fd48_pos_v", "flt48_v", "fc32_v", "fc32_key", "fabs32_v", "fneg32_v",
@@ -52,7 +52,7 @@ _FOV = FLAG_FLOAT_OVERFLOW
 _FUN = FLAG_FLOAT_UNDERFLOW
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _finish_v(m, e, W):
     """m1750_float._finish without branches: normalise (m, e), underflow/overflow, pack.
 
@@ -82,7 +82,7 @@ def _finish_v(m, e, W):
     return p, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _add_v(a, b, W, subtract):
     """FA/FS (5.60, 5.61, 5.68, 5.69; m1750_float._add_core).
 
@@ -117,7 +117,7 @@ def _add_v(a, b, W, subtract):
     return _finish_v(s, e, W)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fa32_v(a, b):
     """FA (5.60), branch-free.
 
@@ -136,7 +136,7 @@ def fa32_v(a, b):
     return _add_v(a, b, 23, False)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fs32_v(a, b):
     """FS (5.68), branch-free.
 
@@ -155,7 +155,7 @@ def fs32_v(a, b):
     return _add_v(a, b, 23, True)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fa48_v(a, b):
     """EFA (5.61), branch-free.
 
@@ -174,7 +174,7 @@ def fa48_v(a, b):
     return _add_v(a, b, 39, False)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fs48_v(a, b):
     """EFS (5.69), branch-free.
 
@@ -193,7 +193,7 @@ def fs48_v(a, b):
     return _add_v(a, b, 39, True)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _mul_pre_v(p, f, ma, mo, n, W):
     """The RTL's checks before the multiply, applied over (p, f): n overflow/underflow, then a zero
     operand (the highest precedence).
@@ -215,7 +215,7 @@ def _mul_pre_v(p, f, ma, mo, n, W):
     return p, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fm32_v(a, b):
     """FM (5.74), branch-free (m1750_float._fm32_k).
 
@@ -248,7 +248,7 @@ def fm32_v(a, b):
     return _mul_pre_v(p, f, ma, mo, n, 23)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fm48_v(a, b):
     """EFM (5.75), branch-free (m1750_float._fm48_k: the 80-bit product from 20-bit limbs).
 
@@ -292,7 +292,7 @@ def fm48_v(a, b):
     return _mul_pre_v(p, f, ma, mo, n, 39)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _div_v(a, b, W):
     """FD/EFD (5.79, 5.80; m1750_float._div_core).
 
@@ -354,7 +354,7 @@ def _div_v(a, b, W):
     return p, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fd32_v(a, b):
     """FD (5.79), branch-free.
 
@@ -371,7 +371,7 @@ def fd32_v(a, b):
     return _div_v(a, b, 23)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fd32_pos_v(a, b):
     """FD of two words with *positive* mantissas whose exponent difference is within -128..126
     (the caller guarantees it: the Heron steps of sqrt32, ``g`` in [1/4, 1) over ``y`` near 1).
@@ -393,7 +393,7 @@ def fd32_pos_v(a, b):
     return pack32(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fd48_pos_v(a, b):
     """EFD of two words with positive mantissas whose exponent difference is within -128..126:
     :func:`_div_v`'s 40-bit quotient with its exact remainder fix-up and nothing else (as
@@ -414,7 +414,7 @@ def fd48_pos_v(a, b):
     return pack48(Q >> 1 if fit else Q, ea - eo + 1 if fit else ea - eo)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _nn_domain(ma, ea, mo, eo):
     """True where FD/EFD reduces to the positive form or zero: dividend >= 0, divisor > 0, and a
     non-zero dividend's exponent difference within -128..126 (none of the RTL's checks fires).
@@ -430,7 +430,7 @@ def _nn_domain(ma, ea, mo, eo):
     return (ma >= 0) & (mo > 0) & ((ma == 0) | ((n >= -128) & (n <= 126)))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fd48_v(a, b):
     """EFD (5.80), branch-free.
 
@@ -446,7 +446,7 @@ def fd48_v(a, b):
     return _div_v(a, b, 39)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def flt48_v(i):
     """EFLT (5.88) of a 32-bit pattern, branch-free.
 
@@ -460,7 +460,7 @@ def flt48_v(i):
     return _finish_v(v << 8, 31, 39)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fc32_v(a, b):
     """FC (5.94) -> -1, 0, 1, branch-free.
 
@@ -484,7 +484,7 @@ def fc32_v(a, b):
     return (np.int64(sa > so) - np.int64(sa < so)) if sa != so else same
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fc32_key(a):
     """int64 key of a normalised 32-bit word (or zero) whose integer order is FC's order:
     ``sign(fc32_key(a) - fc32_key(b)) == fc32(a, b)``. ``|key| = (e + 128) 2**24 + |m|`` orders
@@ -503,7 +503,7 @@ def fc32_key(a):
     return 0 if m == 0 else (-mag if m < 0 else mag)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fabs32_v(a):
     """FABS (5.62), branch-free.
 
@@ -522,7 +522,7 @@ def fabs32_v(a):
     return p, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fneg32_v(a):
     """FNEG (5.70), branch-free.
 
@@ -548,7 +548,7 @@ def fneg32_v(a):
     return p, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fix32_v(a):
     """FIX (5.85) -> 16-bit pattern, branch-free (overflow: 0 and the fixed-overflow flag).
 
@@ -566,7 +566,7 @@ def fix32_v(a):
     return (0 if e > 15 else r & 0xFFFF), (FLAG_FIXED_OVERFLOW if e > 15 else 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def scale32_v(p, k):
     """p * 2**k by exponent edit with the standard's overflow/underflow results, branch-free
     (m1750_math._scale32).
@@ -605,7 +605,7 @@ def _el_ov(b, i):
     return lambda b, i: b
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fa32_lanes(a, b, out):
     """FA of every lane, ``out[i] = fa32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -624,7 +624,7 @@ def fa32_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fs32_lanes(a, b, out):
     """FS of every lane, ``out[i] = fs32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -643,7 +643,7 @@ def fs32_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fm32_lanes(a, b, out):
     """FM of every lane, ``out[i] = fm32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -662,7 +662,7 @@ def fm32_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _all_nn(a, b, n, W):
     """:func:`_nn_domain` holds for all ``n`` lanes of ``a / b`` (W-bit mantissas).
 
@@ -680,7 +680,7 @@ def _all_nn(a, b, n, W):
     return ok
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fd32_lanes(a, b, out):
     """FD of every lane, ``out[i] = fd32(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -709,7 +709,7 @@ def fd32_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fd32_pos_lanes(a, b, out):
     """:func:`fd32_pos_v` of every lane (positive operands only, see there);
     ``a``, ``b``, ``out`` int64 [K]. No flags can arise.
@@ -723,7 +723,7 @@ def fd32_pos_lanes(a, b, out):
         out[i] = fd32_pos_v(a[i], b[i])
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fa48_lanes(a, b, out):
     """EFA of every lane, ``out[i] = fa48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -742,7 +742,7 @@ def fa48_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fs48_lanes(a, b, out):
     """EFS of every lane, ``out[i] = fs48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -761,7 +761,7 @@ def fs48_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fm48_lanes(a, b, out):
     """EFM of every lane, ``out[i] = fm48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -780,7 +780,7 @@ def fm48_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL, error_model="numpy")
+@callee_kernel(error_model="numpy")
 def fd48_lanes(a, b, out):
     """EFD of every lane, ``out[i] = fd48(a[i], b[i])``; ``a``, ``b`` int64 [K] words (or one word
     for every lane), ``out`` int64 [K]. Returns the OR of the PI flags.
@@ -807,7 +807,7 @@ def fd48_lanes(a, b, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def flt48_lanes(a, out):
     """EFLT of every lane, ``out[i] = flt48(a[i])`` (int64 [K]). Returns the OR of the PI flags.
 
@@ -824,7 +824,7 @@ def flt48_lanes(a, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fabs32_lanes(a, out):
     """FABS of every lane, ``out[i] = fabs32(a[i])`` (int64 [K]). Returns the OR of the PI flags.
 
@@ -841,7 +841,7 @@ def fabs32_lanes(a, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fneg32_lanes(a, out):
     """FNEG of every lane, ``out[i] = fneg32(a[i])`` (int64 [K]). Returns the OR of the PI flags.
 
@@ -858,7 +858,7 @@ def fneg32_lanes(a, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def fix32_lanes(a, out):
     """FIX of every lane, ``out[i] = fix32(a[i])`` (int64 [K]). Returns the OR of the PI flags.
 

@@ -73,7 +73,7 @@ from flightsw.arith.m1750_lanes import (
     fneg32_lanes, fs32_lanes, scale32_v,
 )
 from flightsw.budget import PACE1750A, Processor
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["sqrt32", "sqrt48", "exp32", "ln32", "sin32", "cos32", "sin48", "cos48",
            "atan2_32", "atan2_48", "sqrt32_lanes", "atan2_32_lanes", "MATH_OP_MIX", "MATH_CYCLES",
@@ -125,7 +125,7 @@ EXP32 = (0x40000000, 0x555555fe, 0x555555fc, 0x444424fa, 0x5b069ef7, 0x6868eaf4,
 # ------------------------------------------------------------------------------------------------
 # word-level helpers (1750A integer/logical instructions on the exponent field)
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _set_exp32(p, e):
     """Replace the exponent byte of packed 32-bit float ``p`` (int) with ``e`` (int, -128..127); the
     mantissa bits are kept (a 1750A integer/logical edit, no float operation, no checks).
@@ -138,7 +138,7 @@ def _set_exp32(p, e):
     return (p & 0xFFFFFF00) | (e & 0xFF)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _set_exp48(p, e):
     """Replace the exponent byte (bits 16..23) of packed 48-bit float ``p`` (int) with ``e`` (int,
     -128..127); the 40 mantissa bits (``w0``, the high byte of ``w1``, ``w2``) are kept. No checks.
@@ -151,7 +151,7 @@ def _set_exp48(p, e):
     return (p & 0xFFFFFF00FFFF) | ((e & 0xFF) << 16)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _scale32(p, k):
     """p * 2**k by exponent edit, with the standard's overflow/underflow results.
 
@@ -175,7 +175,7 @@ def _scale32(p, k):
     return _set_exp32(p, e), 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _scale48(p, k):
     """``p * 2**k`` for a packed 48-bit float ``p`` by exponent edit, with the standard's
     overflow/underflow results -> ``(word, flags)`` (the 48-bit form of :func:`_scale32`).
@@ -200,7 +200,7 @@ def _scale48(p, k):
     return _set_exp48(p, e), 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _s16(w):
     """The low 16 bits of ``w`` (int) read as a two's complement integer, -32768..32767.
 
@@ -212,7 +212,7 @@ def _s16(w):
     return ((w & 0xFFFF) ^ 0x8000) - 0x8000
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _s32(w):
     """The low 32 bits of ``w`` (int) read as a two's complement integer.
 
@@ -227,7 +227,7 @@ def _s32(w):
 # ================================================================================================
 # sqrt
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _sqrt32_k(x):
     """sqrt of a packed 32-bit float ``x`` -> ``(word, flags)``: ``x = g * 4**k`` with ``g`` in
     [0.25, 1) by exponent edit, linear seed, 2 Heron steps in FD/FA/FM, exponent + ``k``.
@@ -263,7 +263,7 @@ def _sqrt32_k(x):
     return _scale32(y, k)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def sqrt32_lanes(xs, out):
     """sqrt32 of every word of ``xs`` int64 [K] into ``out`` int64 [K]; returns the OR of the flags.
 
@@ -318,7 +318,7 @@ def sqrt32_lanes(xs, out):
     return flags
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sqrt48_k(x):
     """sqrt of a packed 48-bit float ``x`` -> ``(word, flags)``; as :func:`_sqrt32_k` in EFD/EFA/EFM
     with 3 Heron steps.
@@ -356,7 +356,7 @@ def _sqrt48_k(x):
 # ================================================================================================
 # exp, ln (32-bit)
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _exp32_k(x):
     """``e**x`` of a packed 32-bit float ``x`` -> ``(word, flags)``: ``n = round(x / ln2)``, ``r = x
     - n ln2`` in 48-bit with a 2-part ln2, ``1 + r + r**2 P(r)``, exponent + ``n``.
@@ -405,7 +405,7 @@ def _exp32_k(x):
     return _scale32(p, n)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _ln32_k(x):
     """Natural log of a packed 32-bit float ``x`` -> ``(word, flags)``: ``x = f * 2**E`` with ``f``
     in [sqrt(1/2), sqrt(2)), ``s = (f-1)/(f+1)``, ``ln f = s (2 + s**2 P(s**2))``, plus ``E ln2``
@@ -458,7 +458,7 @@ def _ln32_k(x):
 # ================================================================================================
 # sin, cos
 # ================================================================================================
-@njit(**KERNEL)
+@callee_kernel
 def _reduce_n(x48):
     """n = round(x * 2/pi) (48-bit FM, FA +-0.5, EFIX) -> (n signed, n as 48-bit float).
 
@@ -475,7 +475,7 @@ def _reduce_n(x48):
     return _s32(nw), nf
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _reduce48(x):
     """r = x - n*pi/2 in 48-bit, exact up to the C2/C3 terms. x is a 48-bit float, |x| < 2**15.
 
@@ -502,7 +502,7 @@ def _reduce48(x):
     return n, r
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sin_poly32(r):
     """``sin r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``r + r z P(z)``, ``z = r*r``
     (FM/FA).
@@ -524,7 +524,7 @@ def _sin_poly32(r):
     return s
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cos_poly32(r):
     """``cos r`` of a packed 32-bit float ``r``, ``|r| <= ~pi/4``: ``1 + z (-1/2 + z Q(z))``, ``z =
     r*r``.
@@ -546,7 +546,7 @@ def _cos_poly32(r):
     return c
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sin_poly48(r):
     """``sin r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``P``, EFM/EFA).
 
@@ -566,7 +566,7 @@ def _sin_poly48(r):
     return s
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cos_poly48(r):
     """``cos r`` of a packed 48-bit float ``r``, ``|r| <= ~pi/4`` (degree-6 ``Q``, EFM/EFA).
 
@@ -587,7 +587,7 @@ def _cos_poly48(r):
     return c
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _trig32(x, quad_shift):
     """``sin x`` (``quad_shift = 0``) or ``cos x`` (``quad_shift = 1``, ``cos x = sin(x + pi/2)``)
     of a packed 32-bit float ``x`` -> ``(word, flags)``: 48-bit reduction, quadrant
@@ -619,7 +619,7 @@ def _trig32(x, quad_shift):
     return v, 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _trig48(x, quad_shift):
     """``sin x`` / ``cos x`` (``quad_shift`` 0 / 1) of a packed 48-bit float ``x`` -> ``(word,
     flags)``, as :func:`_trig32` with the 48-bit polynomials.
@@ -649,7 +649,7 @@ def _trig48(x, quad_shift):
     return v, 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sin32_k(x):
     """``sin x`` of a packed 32-bit float -> ``(word, flags)`` (:func:`_trig32`, shift 0).
 
@@ -662,7 +662,7 @@ def _sin32_k(x):
     return _trig32(x, 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cos32_k(x):
     """``cos x`` of a packed 32-bit float -> ``(word, flags)`` (:func:`_trig32`, shift 1).
 
@@ -675,7 +675,7 @@ def _cos32_k(x):
     return _trig32(x, 1)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sin48_k(x):
     """``sin x`` of a packed 48-bit float -> ``(word, flags)`` (:func:`_trig48`, shift 0).
 
@@ -688,7 +688,7 @@ def _sin48_k(x):
     return _trig48(x, 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cos48_k(x):
     """``cos x`` of a packed 48-bit float -> ``(word, flags)`` (:func:`_trig48`, shift 1).
 
@@ -766,7 +766,7 @@ _K8_32 = np.array(K8_32 + (0,) * 7, np.int64)           # k = 0..15 (fix & 0xF):
 _ATANK_32 = np.array(ATANK_32 + (0,) * 7, np.int64)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def atan2_32_lanes(ys, xs, out):
     """atan2_32 of every pair (ys[i], xs[i]) into ``out`` int64 [K]; returns the OR of the flags
     (always 0: atan2 raises none). The same instructions as :func:`atan2_32` per element, each
@@ -841,7 +841,7 @@ def atan2_32_lanes(ys, xs, out):
     return 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _atan2_48_k(y, x):
     """``atan2(y, x)`` of packed 48-bit floats -> ``(word, 0)`` in [-pi, pi], as :func:`_atan2_32_k`
     with a degree-4 ``P``. Flags are always 0.

@@ -47,7 +47,7 @@ from numba import njit
 from numba.cpython.unsafe.numbers import leading_zeros, trailing_zeros
 
 from flightsw.budget import IP1750, Ledger, m1750_cycles
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["label", "colour", "blob_sums", "ColourResult", "NSUM", "SUM_NAMES", "BLOB_SUMS",
            "COLOUR_MIX",
@@ -104,7 +104,7 @@ OP_CYCLES = np.array([m1750_cycles(COLOUR_MIX[e]) for e in _EVENTS], np.int64)
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _find(parent, k):
     """Root of colour k along the colour array (path halving); returns (root, steps).
 
@@ -124,7 +124,7 @@ def _find(parent, k):
     return k, steps
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _merge(parent, x, y):
     """Link the colours of x and y (the larger root to the smaller); returns the find steps.
 
@@ -142,7 +142,7 @@ def _merge(parent, x, y):
     return s1 + s2
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _accumulate(psums, k, v, r, c):
     """Add on pixel (r, c) of intensity v to the sums of colour k.
 
@@ -175,7 +175,7 @@ def _accumulate(psums, k, v, r, c):
         psums[k].max = vi
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _flush(psums, k, r, run):
     """Add a run (row r) of colour k to its sums.
 
@@ -206,7 +206,7 @@ def _flush(psums, k, r, run):
         psums[k].max = vmax
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _scan_pixels(img, diagonal, prov, parent, run_r, run_a, run_b):
     """The raster scan, pixel by pixel (any width). Returns (ncol, nrun, n_on, n_merge, n_steps,
     bad) with ``bad`` set when a pixel is outside the 16-bit word range -32768..65535.
@@ -309,7 +309,7 @@ def _scan_pixels(img, diagonal, prov, parent, run_r, run_a, run_b):
 _ONES = np.uint64(0xFFFFFFFFFFFFFFFF)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _low(n):
     """uint64 with bits 0..n-1 set (0 <= n <= 64).
 
@@ -323,7 +323,7 @@ def _low(n):
     return (np.uint64(1) << np.uint64(n)) - np.uint64(1)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _colour_at(U, S, srow, x):
     """Provisional colour of pixel ``x`` (-1 <= x <= 64) of the row above, from its on mask ``U``,
     its run-start mask ``S`` and its run-start colours ``srow`` (``srow[p + 1]`` = colour of the run
@@ -342,7 +342,7 @@ def _colour_at(U, S, srow, x):
     return srow[p + 1] if on != 0 else np.int32(0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _scan_masks(img, diagonal, prov, parent, run_r, run_a, run_b):
     """The same raster scan for windows up to 64 columns, a row at a time through its on-pixel
     bitmask: the runs come from the mask (trailing-zero counts), the first pixel of a run gets the
@@ -452,7 +452,7 @@ def _scan_masks(img, diagonal, prov, parent, run_r, run_a, run_b):
     return ncol, nrun, n_on, n_merge, n_steps, bad
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _run_end(U, c):
     """One past the last pixel of the run of mask ``U`` that contains pixel ``c``.
 
@@ -465,7 +465,7 @@ def _run_end(U, c):
     return np.int64(64) if rest == 0 else c + np.int64(trailing_zeros(rest))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def colour_k(img, diagonal, want_labels, want_sums=True):
     """Raster-scan blob colouring of ``img`` (integer or bool [H, W]; non-zero = on).
 

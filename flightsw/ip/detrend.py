@@ -79,7 +79,7 @@ from numba import njit
 
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.ip.filters import gaussian_taps_q15
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["detrend_highpass", "detrend_polynomial", "detrend_none", "highpass_cycles",
            "highpass_k", "polynomial_k", "polynomial_coefficients_k", "check_taps", "default_taps",
@@ -94,7 +94,7 @@ G_MAX = 8          # cap of the block headroom used by the high-pass intermediat
 # high-pass
 # ---------------------------------------------------------------------------------------------
 
-@njit(**KERNEL)
+@callee_kernel
 def _headroom(img, gmax):
     """EXPADJ over the block: fewest redundant sign bits of any word, capped at ``gmax``.
 
@@ -109,7 +109,7 @@ def _headroom(img, gmax):
     return min(15 - block_bitlen(img), gmax)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _lowpass_k(img, taps, g):
     """Separable low-pass: row pass to Q(16-g).g, column pass to Q16.0 (see module docstring).
 
@@ -334,7 +334,7 @@ def polynomial_basis(h, w):
     return tables, np.array(js, np.int64), Ns, np.array(Rs, np.int64), np.array(Ps, np.int64)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _block_shift(img):
     """Block shift of the polynomial moments: ``max(0, bitlen(max|x|) - 12)`` of int16 [h, w].
 
@@ -346,7 +346,7 @@ def _block_shift(img):
     return max(0, block_bitlen(img) - 12)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _moments_k(img, tables, js, s):
     """Exact moments ``M_k = sum (x >> s) * B_k`` (B_k = B'_k >> j_k, exact since B'_k = B_k << j_k).
 
@@ -368,7 +368,7 @@ def _moments_k(img, tables, js, s):
     return M
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _surface_sub_k(img, tables, cw, s):
     """Surface by double-precision MACs and subtraction (see module docstring).
 
@@ -418,7 +418,7 @@ def _surface_sub_k(img, tables, cw, s):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def polynomial_coefficients_k(M, js, rs, ps):
     """Q1.31 coefficient words ``c_k = round_half_up(M_k R_k / 2**(P_k + j_k - 31))``, saturated to
     32 bits: the DSP's multiprecision multiply-round (module docstring).

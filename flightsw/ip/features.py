@@ -87,7 +87,7 @@ from flightsw.arith.m1750_math import MATH_CYCLES, atan2_32_lanes, sqrt32_lanes
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.ip.colour import BLOB_SUMS, NSUM, blob_sums
 from flightsw.messages import FEATURE_NAMES, N_FEATURES
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["features", "features_words", "normalise_words", "normalise", "FEATURE_DTYPE",
            "FEATURE_NAMES", "FEATURE_MIX", "NORMALISE_MIX", "IMAGER_SCALE", "features_cycles",
@@ -125,7 +125,7 @@ def features_cycles(count: int, normalise: bool = True) -> int:
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _i2f48(v):
     """int64 sum -> 48-bit float: EFLT when it fits 32 bits, else hi * 2**31 + lo (EFLT, EFM,
     EFLT, EFA), as a multiword flight routine would.
@@ -166,7 +166,7 @@ def _features_kernel(sums, count, intensity):
     return np.ascontiguousarray(o.T), fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def features_k(sums, count, intensity):
     """sums :data:`~flightsw.ip.colour.BLOB_SUMS` [count + 1] -> (packed 32-bit words int64
     [12, count], feature-major: row i
@@ -288,7 +288,7 @@ def features_k(sums, count, intensity):
     return o, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def normalise_k(words, area, lin, f, r0, c0):
     """Feature-major words int64 [12, K] -> (normalised copy [12, K], flags): size, total *= area;
     axes *= lin; col = f col + c0; row = f row + r0 (packed 32-bit floats; the blobs side by side in

@@ -105,7 +105,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.adsp2100 import bitlen
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["FFT_TILES", "FLIGHT_TILES", "MAX_FFT_KERNEL", "FFTKernel", "fft_kernel",
            "fft_correlate", "fft_filter_cycles", "fft_cycles_1d", "twiddles_q15",
@@ -319,7 +319,7 @@ def fft_dm_words(h, w, tile):
 # ------------------------------------------------------------------------------------------------
 # the fixed-point kernels
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _rnd15(a):
     """MR (RND) read from MR1 for MR = 2a: round half to even of a / 2**15.
 
@@ -337,7 +337,7 @@ def _rnd15(a):
     return q
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     """Radix-2 DIT FFT along axis 1 of rows 0..nv-1 (stage by stage over the whole block, one block
     exponent). ``state`` = (bl, E, Vv): ``bl`` the bit length of the block's largest magnitude on
@@ -426,7 +426,7 @@ def _row_pass(re, im, nv, spec, tables, inverse, state, log):
     return bl, E, Vv, shifts
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _floor_m2(sh):
     """Second moment of the floor error of ``>> sh`` on uniformly distributed low bits.
 
@@ -441,7 +441,7 @@ def _floor_m2(sh):
     return (d - 1.0) * (2.0 * d - 1.0) / (6.0 * d * d)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _block_bitlen(re, im, nv, T):
     """Bit length (``x`` or ``~x``) of the largest word in rows ``0..nv-1`` of ``re`` and ``im``
     (int64 [T, T]): the tile's block exponent on entry.
@@ -461,7 +461,7 @@ def _block_bitlen(re, im, nv, T):
     return bitlen(orv)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _transpose(a, T):
     """Transposed copy of an int64 [T, T] array (the row-column FFT's corner turn).
 
@@ -476,7 +476,7 @@ def _transpose(a, T):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _dc_mean(img, use_mean):
     """The DC level the frequency path removes from an int16 [h, w] window: ``m = round_half_up(
     mean)`` when ``use_mean``, else 0; 0 too when some ``x - m`` would not fit 16 bits.
@@ -504,7 +504,7 @@ def _dc_mean(img, use_mean):
     return m
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _store_tile(re, vr, vc, D, mk, out, r0, c0):
     """One tile's output: ``out[r0 + u, c0 + v]`` = one RND/SAT of ``(Y 2**(D+15) + m sum k) /
     2**15`` for the valid ``vr x vc`` corner of the inverse transform ``re`` (int64 [T, T]);

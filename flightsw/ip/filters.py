@@ -37,10 +37,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.adsp2100 import correlate_cycles
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["SPATIAL_SIZES", "DEFAULT_KERNELS", "smoothing_kernel", "matched_kernel",
            "validate_kernel", "correlate_q15", "filter_cycles", "pad_cycles",
@@ -135,7 +134,7 @@ def validate_kernel(coefficients, name="coefficients"):
 # ---------------------------------------------------------------------------------------------
 # kernels
 # ---------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _finish(a):
     """MR1 after (RND) and IF MV SAT MR, from the exact sum ``a = sum x*k`` (MR = 2a, 40 bits).
 
@@ -158,7 +157,7 @@ def _finish(a):
     return np.int16(min(max(q, -32768), 32767))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pad_nearest(img, p):
     """Replicate-edge padding by ``p`` (SciPy mode="nearest"). int16 -> int16.
 
@@ -185,7 +184,7 @@ def pad_nearest(img, p):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _maxabs(img):
     """max |x| of an int16 array (any shape) as int32 (-32768 -> 32768).
 
@@ -204,7 +203,7 @@ def _maxabs(img):
     return m
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _finish32(acc, out):
     """Vectorised :func:`_finish` over a row of int32 sums (no overflow: the caller's bound).
 
@@ -234,7 +233,7 @@ def _finish32(acc, out):
 SMALL_WORDS = 128 * 128
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _correlate_k32(pad, kern, h, w):
     """Correlation with int32 sums (the caller proved ``max|x| sum|k| < 2**31 - 2**14``).
 
@@ -300,7 +299,7 @@ def _correlate_k32(pad, kern, h, w):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _correlate_k64(pad, kern, h, w):
     """Correlation with int64 sums (any 16-bit data and kernel).
 
@@ -334,7 +333,7 @@ def _correlate_k64(pad, kern, h, w):
 INT32_LIMIT = 2 ** 31 - 2 ** 14     # a + 0x4000 must not overflow int32 in the finish
 
 
-@njit(**KERNEL)
+@callee_kernel
 def correlate_q15_k(img, kern):
     """Correlate an int16 image with an int16 Q1.15 kernel, replicate edges, ADSP RND/SAT store.
     Chooses the int32 accumulator when ``max|x| * sum|k| < 2**31 - 2**14`` proves it exact.

@@ -40,7 +40,7 @@ from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, Detr
                                   FeatureParams, FilterFFTParams, FilterParams, ProcessingSequence,
                                   RankParams, Stage, ThresholdParams)
 from flightsw.messages import IMAGER_CODES, CandidateMessage
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["FramePlan", "FrameResult", "FrontOps", "FFTTables", "PolyTables", "place_window_k",
            "ip_frame_at_k", "ip_frame_into_k", "FRAME_HEADER", "plan_for", "step_words",
@@ -82,7 +82,7 @@ class PolyTables(NamedTuple):
     ps: np.ndarray      #: int64 [6] their exponents
 
 
-@njit(**KERNEL)
+@callee_kernel
 def front_step_k(img, i, front, ffts, poly, aq, mode):
     """Front-end step ``i`` of ``front`` on the int16 [h, w] image ``img``. Returns (image int16
     [h, w], is_threshold, t4, mean4, std4, shift): the threshold's words (Q.4 and the block
@@ -136,7 +136,7 @@ def front_step_k(img, i, front, ffts, poly, aq, mode):
     return out, op == OP_THRESHOLD, t4, m4, d4, sh
 
 
-@njit(**KERNEL)
+@callee_kernel
 def place_window_k(header, pr, pc):
     """Place the frame's window about the TP's predicted full-resolution pixel (``pr``, ``pc``;
     NaN: none) in ``header`` (:data:`FRAME_HEADER` [1]): reads the plan's ``rows``, ``cols``,

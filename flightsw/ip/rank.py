@@ -41,7 +41,7 @@ from flightsw.arith.m1750_lanes import fa32_lanes, fc32_key, fm32_lanes, fs32_la
 from flightsw.arith.m1750_math import MATH_CYCLES
 from flightsw.budget import IP1750, Ledger, m1750_cycles
 from flightsw.messages import MAX_CANDIDATES, N_FEATURES
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["rank", "rank_words", "RankResult", "flight_gof",
            "quantise", "RANK_MIX", "rank_cycles"]
@@ -76,7 +76,7 @@ def rank_cycles(ops) -> int:
     return int(np.dot(OP_CYCLES, np.asarray(ops, np.int64)))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sigmoid(x, a2, ops):
     """x' = 1 - exp(-a^2 x^2) (packed 32-bit).
 

@@ -19,7 +19,7 @@ from flightsw.ip.pipeline import FrontOps, ip_frame_into_k, place_window_k
 from flightsw.ip.preprocess import frame_over_12bit_k, window_origin_k
 from flightsw.ip.threshold import alpha_next_k
 from flightsw.messages import MAX_CANDIDATES, candidate_words_k, feedback_words_k
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["ip_step_k", "read_command_k", "front_of", "STEP_OK", "STEP_TIME_TAG",
            "STEP_FRAME_RANGE", "STEP_MESSAGE", "CMD_PREDICTION_OUTSIDE", "FRAME_HEADER"]
@@ -28,7 +28,7 @@ __all__ = ["ip_step_k", "read_command_k", "front_of", "STEP_OK", "STEP_TIME_TAG"
 #: (the others are :func:`flightsw.messages.feedback_words_k`'s)
 CMD_PREDICTION_OUTSIDE = 64
 
-@njit(**KERNEL)
+@callee_kernel
 def read_command_k(cmd, fb, H, W):
     """The IP's read of the TP's command words ``cmd`` (uint16 [n]) into the feedback values
     ``fb`` (float64 [4]): every check of :func:`flightsw.messages.feedback_words_k`, then the
@@ -58,7 +58,7 @@ def read_command_k(cmd, fb, H, W):
 STEP_OK, STEP_TIME_TAG, STEP_FRAME_RANGE, STEP_MESSAGE = 0, 1, 2, 3
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _message_words(pack, t, header):
     """The candidate-message words (uint16) of the pipeline's ``pack`` (its candidate table,
     :func:`flightsw.ip.backend.backend_k`) with the frame header ``header`` (:data:`FRAME_HEADER`
@@ -89,7 +89,7 @@ def _message_words(pack, t, header):
     return out if bad < 0 else np.zeros(0, np.uint16)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def front_of(ints, i16):
     """The :class:`FrontOps` of a plan's packed front end (:func:`flightsw.ip.pipeline.step_words`:
     int64 [3 n], int16 [56 n]).

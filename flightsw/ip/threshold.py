@@ -38,11 +38,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.budget import m1750_cycles
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["threshold", "threshold_stats", "threshold_cycles", "isqrt32", "threshold_words",
            "AlphaController", "alpha_to_q12", "ALPHA_MIN", "ALPHA_MAX", "BINARIZE", "CLIP",
@@ -75,7 +74,7 @@ def alpha_to_q12(alpha):
     return int(np.floor(a * 4096 + 0.5))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def isqrt32(v):
     """floor(sqrt(v)) for 0 <= v < 2**32: the DSP's restoring bit-pair square root (16 steps).
 
@@ -103,7 +102,7 @@ def isqrt32(v):
     return root
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _stats_k(img):
     """Block shift and the two sums of the threshold pass.
 
@@ -133,7 +132,7 @@ def _stats_k(img):
     return s, s1, s2
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _rhu_div(a, b):
     """round_half_up(a / b) for b > 0 (floor division, exact integers).
 
@@ -148,7 +147,7 @@ def _rhu_div(a, b):
     return (2 * a + b) // (2 * b)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def threshold_words(s1, s2, n, s, alpha_q12):
     """Threshold words from a window's sums (steps 3 and 4 of the module docstring).
 
@@ -178,7 +177,7 @@ def threshold_words(s1, s2, n, s, alpha_q12):
     return t4, m4, d4
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _threshold_value(img, alpha_q12):
     """Threshold words of a window: its block shift and sums (:func:`_stats_k`), then
     :func:`threshold_words`.
@@ -202,7 +201,7 @@ def _threshold_value(img, alpha_q12):
     return t4, m4, d4, s
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _apply_k(img, t4, mode):
     """Apply the threshold: pass ``x`` where ``16 x > T4`` (strictly).
 
@@ -230,7 +229,7 @@ def _apply_k(img, t4, mode):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def threshold_k(img, alpha_q12, mode):
     """The threshold step in one compiled call.
 
@@ -305,7 +304,7 @@ ALPHA_LOGIC = np.dtype([
 ])
 
 
-@njit(**KERNEL)
+@callee_kernel
 def alpha_next_k(q12, count, locked, logic):
     """The alpha logic's next Q4.12 word (1750A integer code).
 

@@ -41,7 +41,7 @@ import numpy as np
 from numba import njit
 
 from flightsw.arith.m1750 import fa32, fc32, fd32, flt32, fm32, fs32
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.f1750 import dec32, enc32
 
 __all__ = ["alpha_beta_step", "ab_predict", "ab_update", "growing_memory_gains",
@@ -56,7 +56,7 @@ GM_MAX_K = 180
 SIX32 = 0x60000003                    # 6.0 = 0.75 * 2**3, packed 1750A 32-bit
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ab_predict(x, v, dt):
     """x + v dt -> (x_p, flags) (packed 32-bit 1750A floats; FM then FA).
 
@@ -70,7 +70,7 @@ def ab_predict(x, v, dt):
     return xp, f | g
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ab_update(xp, v, z, alpha, gain_v):
     """Correct a predicted position with observation z: ``r = z - x_p``, ``x = x_p + alpha r``,
     ``v = v + gain_v r`` (``gain_v = beta / dt``; 0 leaves v unchanged) -> (x, v, r, flags).
@@ -92,7 +92,7 @@ def ab_update(xp, v, z, alpha, gain_v):
     return x, v, r, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def growing_memory_gains(k, alpha, beta):
     """The start-up gains after the k-th observation, none below the steady ones ->
     ``(max(alpha_k, alpha), max(beta_k, beta), flags)``.

@@ -11,10 +11,9 @@ star for ever and the pair is never decided (0.5-1 % of the synthetic events).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 from numba.cpython.unsafe.numbers import trailing_zeros
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.f1750 import cycles
 from flightsw.tp.state import MAX_OBS, NG
 
@@ -26,7 +25,7 @@ CYC_SORT_MOVE = cycles({"C": 1, "JC": 1, "L": 3, "ST": 3})
 CYC_ASSIGN_TEST = cycles({"L": 4, "C": 2, "JC": 2, "ST": 1})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def observation_columns(OBS):
     """The observations' integer coordinates and usable flags as contiguous rows -> int64
     [3, MAX_OBS] (``OBS.ia``, ``OBS.ib``, ``OBS.ok``), so that :func:`gate_mask` runs as vector
@@ -44,7 +43,7 @@ def observation_columns(OBS):
     return OC
 
 
-@njit(**KERNEL)
+@callee_kernel
 def gate_mask(OC, nuse, ia, ib, half):
     """Which of the first ``nuse`` observations lie inside the gate centred at ``(ia, ib)`` (16-bit
     integers, half-width ``half``) -> int64 bit mask (bit j: observation j usable and inside).
@@ -68,7 +67,7 @@ def gate_mask(OC, nuse, ia, ib, half):
     return mask & ((np.int64(1) << nuse) - 1)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     """The (squared distance, gate row, observation) triples of one class (``kind`` 0 star gates,
     1 object gates) whose observation lies inside the gate (``half``: the 16-bit half-width) into
@@ -110,7 +109,7 @@ def in_gate_pairs(G, OC, nuse, kind, half, PW, cyc):
     return npairs
 
 
-@njit(**KERNEL)
+@callee_kernel
 def sort_pairs(PW, npairs, cyc):
     """Insertion sort of the first ``npairs`` rows of ``PW`` (int64 [>= npairs, 3]) by distance
     (column 0; stable; ~1 per gate), in place.
@@ -133,7 +132,7 @@ def sort_pairs(PW, npairs, cyc):
     cyc.gates += moves * CYC_SORT_MOVE
 
 
-@njit(**KERNEL)
+@callee_kernel
 def associate(G, OBS, nuse, half, PW, TAKEN, cyc):
     """Set each live gate's ``G.obs`` to the observation it is fed this frame (-1: none; the gates
     must have been propagated, which clears it), nearest pairs first within each class.

@@ -16,11 +16,10 @@ words are packed 1750A floats (32-bit unless marked 48-bit).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.m1750 import fa32, fa48, fc32, fc48, fm32, fm48, fs32, fs48, to32, to48
 from flightsw.messages import TC_ATTITUDE_INVALID, TC_BAD_MESSAGE, TC_COASTING, TC_FRAME_GAP
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.f1750 import (
     DOT3_MIX, QDCM_MIX, QMUL_MIX, QNORM_MIX, cycles, dec48, dot3, enc32, enc48, mix, qdcm, qmul,
     qnormalize,
@@ -38,7 +37,7 @@ CYC_INPUT = cycles(mix(QNORM_MIX, mix(DOT3_MIX, times=3), QDCM_MIX,
 CYC_ATT_PROP = cycles(mix(QMUL_MIX, QNORM_MIX, {"FM": 6, "EFM": 3, "EFA": 3}))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     """The frame's time ``V.t`` (48-bit), frame count, imager, interval ``dt`` (32- and 48-bit) and
     gap flags from the message header (``msg_ok`` False: the message was lost) and the last frame's
@@ -104,7 +103,7 @@ def frame_clock(C, S, V, msg_ok, img_idx, t_msg, frame_count, att):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def read_attitude(C, V, att):
     """Encode and check the attitude inputs ``att`` (:data:`~flightsw.tp.state.ATTITUDE_DTYPE`:
     t, valid, q (4), rate (3), r_sc (3, m), v_sc (3, m/s)) into ``V`` (q normalised, 32-bit; r_sc
@@ -170,7 +169,7 @@ def read_attitude(C, V, att):
     return ok
 
 
-@njit(**KERNEL)
+@callee_kernel
 def coast_attitude(S, V):
     """No usable attitude this frame: the last one propagated with its rate,
     ``q <- q (x) (1, w dt / 2)``, ``r += v dt``.
@@ -205,7 +204,7 @@ def coast_attitude(S, V):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def mean_rate(S, V):
     """The interval's mean body rate ``(w + w_prev) / 2`` into ``V.wm[0]`` (this frame's rate when
     there is no previous attitude).
@@ -225,7 +224,7 @@ def mean_rate(S, V):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def frame_attitude(C, S, V, att, RM, dR, cyc):
     """The attitude in force this frame -> False when there has never been one (nothing can be
     predicted or commanded). Fills ``V`` (q, w, mean rate, r_sc, v_sc, att_ok, had_att, evidence),
@@ -273,7 +272,7 @@ def frame_attitude(C, S, V, att, RM, dR, cyc):
     return True
 
 
-@njit(**KERNEL)
+@callee_kernel
 def no_attitude_frame(S, V, out):
     """Close a frame that has no attitude ever: only the clock advances -> status.
 

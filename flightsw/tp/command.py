@@ -16,7 +16,7 @@ from numba import njit
 
 from flightsw.arith.m1750 import fa32, fa48, fc32, fd32, fm32, fm48, fs32, fs48, to32, to48
 from flightsw.messages import TC_ARITH_FLAG, TC_EKF_RUNNING
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.ekf import ekf_sigmas
 from flightsw.tp.f1750 import (MV3_MIX, QMUL_MIX, QNORM_MIX, UNIT3_MIX, cycles, dec32, dec48, mix,
                                mtv3, mv3, qmul, qnormalize, unit3)
@@ -35,7 +35,7 @@ CYC_SCAN = cycles({"FM": 4, "FA": 1, "FS": 1, "L": 6, "ST": 2, "C": 1, "JC": 1})
 CYC_SIGMAS = cycles({"EFA": 4, "sqrt32": 2, "DL": 6})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def los_from_state(T, x, V, RM):
     """Line of sight from the spacecraft to a 48-bit state (r, v) advanced by T -> ECI (l0..l2),
     body (u0..u2), range (rho), flags.
@@ -70,7 +70,7 @@ def los_from_state(T, x, V, RM):
     return l0, l1, l2, u0, u1, u2, rho, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     """The target's direction at the next frame -> (have, l0, l1, l2 (ECI), u0, u1, u2 (body),
     flags); ``have`` False when nothing is tracked or predicted.
@@ -107,7 +107,7 @@ def target_direction(C, S, N, E, V, RM, opportunity, nominal):
     return False, 0, 0, 0, 0, 0, 0, 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     """``u`` turned by the attitude motion over the next frame at the last interval's mean rate
     (the skew part of ``dR`` over dt; the sampled rate without a previous attitude), through the
@@ -143,7 +143,7 @@ def predicted_pixel(C, IMG, V, dR, wk, u0, u1, u2, cyc):
     return prow, pcol, ok, n0, n1, n2, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def aim_scan(C, S, held):
     """This frame's offset of the aim scan -> (rows, cols, flags), packed 32-bit imager pixels;
     the kept offset turned by ``2 pi / aim_scan_frames`` for the next frame:
@@ -174,7 +174,7 @@ def aim_scan(C, S, held):
     return r, c, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def aim_offset(C, img, u1, u2, scan_r, scan_c):
     """The direction to point +X body at so that the target falls ``aim_row_px + scan_r``,
     ``aim_col_px + scan_c`` imager pixels off the pixel +X falls on -> (u1', u2', flags):
@@ -207,7 +207,7 @@ def aim_offset(C, img, u1, u2, scan_r, scan_c):
     return v1, v2, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pointing(V, u0, u1, u2):
     """``q (x) d``, ``d = normalise(1 + u_x, 0, -u_z, u_y)`` -> (ok, q0..q3, flags); not ok when the
     target is behind (``1 + u_x <= 2**-7``).
@@ -228,7 +228,7 @@ def pointing(V, u0, u1, u2):
     return True, q0, q1, q2, q3, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def command(C, IMG, S, N, E, V, X, out, cyc):
     """The track command's direction, predicted pixel and pointing into ``out``.
 
@@ -298,7 +298,7 @@ def prediction_in(img, S):
     return row, col, ok
 
 
-@njit(**KERNEL)
+@callee_kernel
 def filter_outputs(E, V, out, cyc):
     """The EKF's state and 1-sigma position/velocity into ``out`` (NaN when it is not running).
 
@@ -327,7 +327,7 @@ def filter_outputs(E, V, out, cyc):
         out.sv = np.nan
 
 
-@njit(**KERNEL)
+@callee_kernel
 def end_frame(S, G, V, out, opportunity):
     """The frame's counts, flags and identity into ``out``; this frame's time, attitude and status
     remembered in ``S`` -> status.

@@ -24,13 +24,12 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.m1750 import (
     encode32, encode48, fa32, fa48, fc48, fd32, fd48, fm32, fm48, fs32, fs48, madd48, sqrt32, to32,
     to48,
 )
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.f1750 import cycles, dec48, mix
 from flightsw.tp.state import DYNAMICS_DTYPE, MAX_FIT_TERMS, new_record
 
@@ -158,7 +157,7 @@ def dyn_table(accel_coeffs=None, j2: bool = True, t0: float = 0.0):
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _radius_terms(nmu, r0, r1, r2):
     """The radius terms the gravity routines share, from a position (packed 32-bit, m) and
     ``nmu`` = -mu (packed 32-bit, ``D.nmu``: a scalar, so the inlined copies take no reference
@@ -182,7 +181,7 @@ def _radius_terms(nmu, r0, r1, r2):
     return z2, inv, inv2, m3, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def accel(D, r0, r1, r2, tau):
     """Plant acceleration at position (packed 32-bit, m) and ``tau = t - t0`` (packed 32-bit, s)
     -> (a0, a1, a2, flags) (packed 32-bit, m/s^2)::
@@ -232,7 +231,7 @@ def accel(D, r0, r1, r2, tau):
     return a0, a1, a2, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def grav_gradient_h(D, r0, r1, r2, h):
     """``C = h G`` of two-body gravity at r (packed 32-bit), ``G = mu/r^3 (3 u u^T - I)``; returns
     the six distinct elements (c00, c01, c02, c11, c12, c22, flags), packed 32-bit, 1/s.
@@ -267,7 +266,7 @@ def grav_gradient_h(D, r0, r1, r2, h):
     return c00, c01, c02, c11, c12, c22, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _stage(r, v, c, c32, k, a):
     """One RK4 intermediate state ``(r + c k_r, v + c k_v)``: position in 48-bit (``c`` packed
     48-bit, ``k`` the previous stage's velocity), velocity increment ``c32 * a`` formed in 32-bit
@@ -291,7 +290,7 @@ def _stage(r, v, c, c32, k, a):
     return s0, s1, s2, w0, w1, w2, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rk4_step(D, X, t, h):
     """One classical RK4 step of ``h`` (packed 48-bit, s) from time ``t`` (packed 48-bit) of the
     state ``X`` (int64 [6]: r, v; packed 48-bit), in place -> flags.
@@ -350,7 +349,7 @@ def rk4_step(D, X, t, h):
     return f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def propagate(D, X, t_from, t_to, max_step):
     """Integrate ``X`` (int64 [6], r, v packed 48-bit) from ``t_from`` to ``t_to`` (packed 48-bit)
     in RK4 steps of at most ``max_step`` -> flags (OR) in the low bits and the number of steps

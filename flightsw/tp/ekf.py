@@ -54,7 +54,7 @@ from numba import njit
 from flightsw.arith.m1750 import (
     encode48, fa48, fc48, fd48, fm32, fm48, fs32, fs48, madd48, sqrt32, to32, to48,
 )
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.dynamics import CYC_GRAD, dyn_table, grav_gradient_h, rk4_step, rk4_step_cycles
 from flightsw.tp.f1750 import cycles, dec32, dec48, dot3, enc32, enc48, mix, unit3
 from flightsw.tp.state import EKF_DTYPE, EKF_PARAMS_DTYPE, new_record
@@ -104,7 +104,7 @@ def ekf_predict_step_cycles(j2: bool, k: int) -> int:
 # ------------------------------------------------------------------------------------------------
 # kernels
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def ekf_reset_cov(E, p0r, p0v):
     """``P <- diag(p0r I, p0v I)`` (packed 48-bit, m^2 and (m/s)^2); the state is kept.
 
@@ -120,7 +120,7 @@ def ekf_reset_cov(E, p0r, p0v):
         E.p[UT[i + 3, i + 3]] = p0v
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_init(E, x, t, p0r, p0v):
     """Start the filter ``E`` (:data:`~flightsw.tp.state.EKF_DTYPE`) at ``x`` = (r, v) (int64 [6],
     packed 48-bit) and time t with P = diag(p0r I, p0v I).
@@ -138,7 +138,7 @@ def ekf_init(E, x, t, p0r, p0v):
     E.have_los = 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cov_step(E, wk, h, cg, q):
     """P <- Phi P Phi^T + Q for Phi = [[I, hI], [C, I]] (C = h G symmetric, packed 32-bit: ``cg``
     its six distinct elements (c00, c01, c02, c11, c12, c22), a tuple).
@@ -206,7 +206,7 @@ def _cov_step(E, wk, h, cg, q):
     return f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_predict(E, D, K, wk, t_to):
     """Propagate state and covariance from E.t to t_to (packed 48-bit) -> (flags, steps).
 
@@ -241,7 +241,7 @@ def ekf_predict(E, D, K, wk, t_to):
     return f, n
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_los(E, rs0, rs1, rs2):
     """Unit line of sight from the spacecraft (packed 48-bit r_sc) to the estimate -> (l0, l1, l2,
     rho, flags), packed 32-bit.
@@ -259,7 +259,7 @@ def ekf_los(E, rs0, rs1, rs2):
     return l0, l1, l2, rho, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_update(E, K, wk, comp, z, M, rs, rvar):
     """Sequential scalar update with component ``comp`` (1 or 2) of the imager-frame unit line of
     sight ``z`` (packed 32-bit), ``M`` the ECI -> imager rotation (int64[9], packed 32-bit), ``rs``
@@ -280,7 +280,7 @@ def ekf_update(E, K, wk, comp, z, M, rs, rvar):
     return ok, nu, s, f | g
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_update_los(E, K, wk, comp, z, M, los, rvar):
     """:func:`ekf_update` given the state's :func:`ekf_los` ``los = (l0, l1, l2, rho)`` (packed
     32-bit, a tuple), for a caller that already holds it -> (accepted, nu, s, flags), the flags
@@ -348,7 +348,7 @@ def ekf_update_los(E, K, wk, comp, z, M, los, rvar):
     return True, nu, s, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_sigmas(E):
     """(sqrt(tr P_rr), sqrt(tr P_vv)) packed 32-bit -> (sp, sv, flags).
 

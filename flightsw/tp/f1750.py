@@ -25,7 +25,7 @@ from flightsw.arith.m1750 import (
 from flightsw.arith.m1750_float import decode32_k, decode48_k, enc_mantissa
 from flightsw.arith.m1750_math import MATH_OP_MIX
 from flightsw.budget import m1750_cycles
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["enc32", "enc48", "dec32", "dec48", "dot3", "mv3", "mtv3", "qdcm", "qmul", "unit3",
            "mix", "cycles"]
@@ -55,7 +55,7 @@ def cycles(m: dict) -> int:
 # ------------------------------------------------------------------------------------------------
 # boundary: host float64 <-> packed words (nearest, ties to even; as encode32/48(rounding="nearest"))
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def _enc(x, W):
     """float64 ``x`` -> (nearest packed 1750A float with ``W`` fraction bits: 23 for 32-bit, 39 for
     48-bit, flags).
@@ -85,7 +85,7 @@ def _enc(x, W):
     return pack48(mi, e), 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def enc32(x):
     """float64 -> (nearest packed 32-bit 1750A float, flags); non-finite -> (0, FLAG_DOMAIN).
 
@@ -96,7 +96,7 @@ def enc32(x):
     return _enc(x, np.int64(23))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def enc48(x):
     """float64 -> (nearest packed 48-bit 1750A float, flags).
 
@@ -123,7 +123,7 @@ QMUL_MIX = {"FM": 16, "FA": 12, "L": 8, "ST": 4}
 QDCM_MIX = {"FM": 12, "FA": 6, "FS": 6, "ST": 9, "L": 4}
 
 
-@njit(**KERNEL)
+@callee_kernel
 def dot3(a0, a1, a2, b0, b1, b2):
     """a . b (FM, FM, FA, FM, FA) -> (s, flags), packed 32-bit.
 
@@ -140,7 +140,7 @@ def dot3(a0, a1, a2, b0, b1, b2):
     return s, f0 | f1 | f2 | f3 | f4
 
 
-@njit(**KERNEL)
+@callee_kernel
 def mv3(R, x0, x1, x2):
     """R @ x for R int64[9] row-major -> (y0, y1, y2, flags).
 
@@ -154,7 +154,7 @@ def mv3(R, x0, x1, x2):
     return y0, y1, y2, f0 | f1 | f2
 
 
-@njit(**KERNEL)
+@callee_kernel
 def mtv3(R, x0, x1, x2):
     """R.T @ x -> (y0, y1, y2, flags).
 
@@ -168,7 +168,7 @@ def mtv3(R, x0, x1, x2):
     return y0, y1, y2, f0 | f1 | f2
 
 
-@njit(**KERNEL)
+@callee_kernel
 def mv1ab(R, a, b):
     """R @ (1, a, b) for R int64[9] row-major (no multiply by the leading 1): v_i = R[i,0] +
     R[i,1] a + R[i,2] b -> (v0, v1, v2, flags).
@@ -193,7 +193,7 @@ def mv1ab(R, a, b):
     return v0, v1, v2, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def unit3(x0, x1, x2):
     """x / |x| -> (u0, u1, u2, |x|, flags); |x| = 0 -> zeros with FLAG_DOMAIN.
 
@@ -217,7 +217,7 @@ def unit3(x0, x1, x2):
     return u0, u1, u2, n, f | f1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def qmul(a0, a1, a2, a3, b0, b1, b2, b3):
     """Hamilton product a (x) b of scalar-first quaternions -> (c0, c1, c2, c3, flags).
 
@@ -303,7 +303,7 @@ def qdcm(w, x, y, z, R):
 QNORM_MIX = mix({"FM": 4, "FA": 3, "FD": 1, "sqrt32": 1}, {"FM": 4})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def qnormalize(q0, q1, q2, q3):
     """q / |q| -> (q0, q1, q2, q3, |q|^2, flags).
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.association import associate
 from flightsw.tp.attitude import frame_attitude, frame_clock, no_attitude_frame
 from flightsw.tp.command import command, end_frame, filter_outputs
@@ -48,7 +48,7 @@ from flightsw.tp.trajectory import (ekf_running, no_nominal, predict_ekf, propag
 __all__ = ["tp_frame", "step_frame", "command_fields"]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def tp_frame(st):
     """One frame on the state record ``st`` (:data:`flightsw.tp.state.TP_STATE_DTYPE`: the
     frame's inputs ``msg``, ``att`` already written) -> status bits (``flightsw.messages`` TC_*);
@@ -105,7 +105,7 @@ def tp_frame(st):
     return end_frame(S, G, V, out, opportunity)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def command_fields(status, out):
     """The track command's scalars from the frame's status and its decoded outputs ``out``
     (:data:`~flightsw.tp.state.OUTPUTS_DTYPE`) -> ``(status, frame_count, imager index,

@@ -37,11 +37,10 @@ packed 32-bit coordinates, 16-bit integer copies for the membership tests).
 """
 from __future__ import annotations
 
-from numba import njit
 
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
 from flightsw.messages import TC_OBJECT_LOST
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.alphabeta import AB_UPDATE_MIX, ab_update
 from flightsw.tp.f1750 import cycles, mix
 from flightsw.tp.geometry import rot_tan, tan_int
@@ -62,7 +61,7 @@ CYC_GATE_SETUP = cycles({"FM": 6, "FIX": 2, "L": 6})
 
 
 
-@njit(**KERNEL)
+@callee_kernel
 def kill_pair(G, p):
     """Delete both gates of pair p (rows ``2p``, ``2p + 1`` of ``G``, GATE_DTYPE [NG]).
 
@@ -74,7 +73,7 @@ def kill_pair(G, p):
     G[2 * p + 1].alive = 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def any_gate_alive(G):
     """True when any gate of ``G`` (GATE_DTYPE [NG]) is alive.
 
@@ -89,7 +88,7 @@ def any_gate_alive(G):
     return False
 
 
-@njit(**KERNEL)
+@callee_kernel
 def drop_all_gates(S, G, V):
     """After a gap longer than ``max_coast_s`` no gate can be trusted: all deleted, the verified
     object lost.
@@ -109,7 +108,7 @@ def drop_all_gates(S, G, V):
         S.nlost += 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def gate_params(C, IMG, V, GP, cyc):
     """This frame's gate constants into ``GP`` (a GATE_PARAMS_DTYPE record): the gate half-width
     as a 16-bit integer (LSB 2**-16 rad; ``gate_px`` times the larger pixel scale), the rules'
@@ -149,7 +148,7 @@ def gate_params(C, IMG, V, GP, cyc):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def propagate_gates(S, G, V, GP, dR, cyc):
     """Every live gate moved to this frame (star: attitude change; object: plus the a priori
     motion; both: a learned velocity); its apparent velocity kept, its observation cleared.
@@ -207,7 +206,7 @@ def propagate_gates(S, G, V, GP, dR, cyc):
 CYC_CENTRE = cycles({"L": 3, "ST": 4})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def centre_object_gate(S, G, V, cyc):
     """The verified object's gate put on the running EKF's predicted line of sight, whose body
     tangent coordinates :func:`flightsw.tp.trajectory.predict_ekf` left in ``V.etan[0]``.
@@ -231,7 +230,7 @@ def centre_object_gate(S, G, V, cyc):
     cyc.gates += CYC_CENTRE
 
 
-@njit(**KERNEL)
+@callee_kernel
 def smooth_gates(C, G, OBS, V, GP, cyc):
     """Each live gate with an associated observation (``G.obs``) smoothed by the alpha-beta tracker,
     its squared residual accumulated, its populated run counted; the others counted empty.

@@ -32,7 +32,7 @@ from numba import njit
 from flightsw.arith.m1750 import (FLAG_DOMAIN, encode32, fa32, fd32, fm32, fs32, sqrt32,
                                   unpack32)
 from flightsw.messages import TC_COASTING, TC_EMPTY_MESSAGE
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.f1750 import dec32, enc32, mix, mtv3, mv1ab, qdcm
 from flightsw.tp.f1750 import cycles as _cycles
 from flightsw.tp.state import IMAGER_DTYPE, MAX_OBS, new_record
@@ -126,7 +126,7 @@ class ImagerGeometry:
 # ------------------------------------------------------------------------------------------------
 # kernels (packed 32-bit words)
 # ------------------------------------------------------------------------------------------------
-@njit(**KERNEL)
+@callee_kernel
 def pix_to_tan(img, row, col):
     """Pixel (packed row, col) -> body tangent coordinates (a, b), v_x -> (a, b, vx, flags).
     ``img`` is the imager's table row. ``v = A (1, x, y)``, ``a = v_y / v_x``, ``b = v_z / v_x``.
@@ -148,7 +148,7 @@ def pix_to_tan(img, row, col):
     return a, b, v0, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def tan_int(a):
     """Packed tangent coordinate -> 16-bit integer, LSB 2**-16 rad (FM by 2**16, FIX), saturated
     to +-32767 when the FIX overflows (a >= 0.5 or a < -0.5 rad, outside every imager).
@@ -178,7 +178,7 @@ def tan_int(a):
     return i - 0x10000 if i & 0x8000 else i
 
 
-@njit(**KERNEL)
+@callee_kernel
 def vec_to_pix(img, v0, v1, v2):
     """Body direction (packed, any length, v must point forward of the imager) -> (row, col, ok,
     flags): ``p = A.T v``, ``col = p_y / p_x / scale_col + COL0``, ``row = p_z / p_x / scale_row +
@@ -203,7 +203,7 @@ def vec_to_pix(img, v0, v1, v2):
     return row, col, True, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pix_unit(img, row, col):
     """Pixel -> imager-frame unit vector components 2 and 3 (the paper's e1, e2):
     ``(x, y) / sqrt(1 + x^2 + y^2)`` -> (e1, e2, flags).
@@ -236,7 +236,7 @@ _ONE32 = 0x40000001
 _HALF32 = 0x40000000
 
 
-@njit(**KERNEL)
+@callee_kernel
 def neg32(p):
     """-p (packed 32-bit).
 
@@ -249,7 +249,7 @@ def neg32(p):
     return r
 
 
-@njit(**KERNEL)
+@callee_kernel
 def i16abs(x):
     """|x| of a 16-bit gate coordinate difference (int).
 
@@ -260,7 +260,7 @@ def i16abs(x):
     return -x if x < 0 else x
 
 
-@njit(**KERNEL)
+@callee_kernel
 def make_dR(w0, w1, w2, dt, R):
     """``R <- I - [theta]x + [theta]x^2 / 2``, theta = w dt (packed 32-bit) -> flags. Maps an
     inertially fixed direction in body axes over dt (the body turning at rate w).
@@ -303,7 +303,7 @@ def make_dR(w0, w1, w2, dt, R):
     return f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rot_tan(R, a, b):
     """``T(R (1, a, b))`` -> (a', b', flags); (a, b) unchanged with FLAG_DOMAIN if v_x <= 0.
 
@@ -321,7 +321,7 @@ def rot_tan(R, a, b):
     return na, nb, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def los_tan(RM, l0, l1, l2):
     """ECI direction -> body tangent coordinates T(R^T l) -> (a, b, ok, flags).
 
@@ -341,7 +341,7 @@ def los_tan(RM, l0, l1, l2):
     return a, b, True, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def los_delta(RM, l0, l1, l2, p0, p1, p2, have_p):
     """Change of an ECI direction's body tangent coordinates from the previous direction p to l,
     both seen in the current attitude RM -> (da, db, an, bn, okn, flags), ``(an, bn)`` the tangent
@@ -365,7 +365,7 @@ def los_delta(RM, l0, l1, l2, p0, p1, p2, have_p):
     return da, db, an, bn, okn, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def host_to32(x):
     """host float64 (a 1750A value from a decoded message) -> packed 32-bit (nearest).
 
@@ -378,7 +378,7 @@ def host_to32(x):
     return p
 
 
-@njit(**KERNEL)
+@callee_kernel
 def observations(IMG, V, OBS, rows, cols, n_obs, cyc):
     """This frame's candidate centroids (``rows``, ``cols`` float64 pixels, best ranked first) in
     body tangent coordinates of the imager in force -> ``OBS`` (OBSERVATION_DTYPE [MAX_OBS]: a, b
@@ -450,7 +450,7 @@ def _p2t_many(img, rows, cols, out):
     return fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def directions_to_pixels(img, vecs, out):
     """Body directions ``vecs`` float64 [n, 3] -> pixels ``out`` float64 [n, 2] (row, col) of the
     imager whose table row is ``img``, through the 1750A kernel (NaN when not representable or

@@ -16,11 +16,10 @@ observations), each gain floored at its steady value.
 """
 from __future__ import annotations
 
-from numba import njit
 
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32
 from flightsw.messages import TC_COASTING, TC_OBJECT_DECIDED, TC_OBJECT_LOST, TC_REINITIALISED
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.alphabeta import AB_PREDICT_MIX, GM_GAINS_MIX, ab_update, growing_memory_gains
 from flightsw.tp.association import CYC_PAIR_TEST
 from flightsw.tp.f1750 import cycles, mix
@@ -31,7 +30,7 @@ CYC_OPP = cycles(mix(GATE_PRED_MIX, mix(AB_PREDICT_MIX, times=2), GATE_INT_MIX, 
 CYC_OPP_STARTUP = cycles(GM_GAINS_MIX)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     """The highest-ranked usable observation inside the opportunity gate centred on (a, b) ->
     its index (-1: none) and flags.
@@ -66,7 +65,7 @@ def first_in_gate(IMG, C, OBS, V, a, b, cyc):
     return -1, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def follow_track(C, IMG, S, OBS, V, dR, cyc):
     """The live opportunity track predicted to this frame and smoothed with the observation in
     its gate (or counted empty, and lost after ``opp_n_lost`` empty frames).
@@ -129,7 +128,7 @@ def follow_track(C, IMG, S, OBS, V, dR, cyc):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def acquire_track(S, OBS, V):
     """No live track: start one on the highest-ranked usable observation.
 
@@ -156,7 +155,7 @@ def acquire_track(S, OBS, V):
         return
 
 
-@njit(**KERNEL)
+@callee_kernel
 def track_opportunity(C, IMG, S, OBS, V, dR, cyc):
     """One frame of the opportunity tracker (follow or acquire) and its status.
 

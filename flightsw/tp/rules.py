@@ -62,12 +62,11 @@ occurs, with a set of new gates placed on the current UVISI IP imager frame's ob
 """
 from __future__ import annotations
 
-from numba import njit
 
 from flightsw.arith.m1750 import fc32, fs32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.f1750 import cycles
 from flightsw.tp.gates import any_gate_alive, kill_pair
 from flightsw.tp.geometry import tan_int
@@ -81,7 +80,7 @@ CYC_RULE = cycles(RULE_MIX)
 CYC_NEW_PAIR = cycles({"L": 4, "ST": 22})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rule1(ms, ko, res_o, n, thr_o, guards):
     """Star gate empty ``n`` frames, object gate populated since -> moving object; with the
     proposal ``rule_guards`` its residual must be within the threshold as well.
@@ -102,7 +101,7 @@ def rule1(ms, ko, res_o, n, thr_o, guards):
     return ms >= n and ko >= min(ms, 2 * n) and (not guards or fc32(res_o, thr_o) <= 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rule2(mo, ks, res_s, n_o, thr_s, guards):
     """Object gate empty ``n'`` frames, star gate populated since -> star; with the proposal
     ``rule_guards`` its residual must be within the threshold as well.
@@ -123,7 +122,7 @@ def rule2(mo, ks, res_s, n_o, thr_s, guards):
     return mo >= n_o and ks >= min(mo, 2 * n_o) and (not guards or fc32(res_s, thr_s) <= 0)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rule3(res_s, res_o, ko, thr_o, n, guards):
     """Star gate's residuals exceed the object gate's by more than ``thr`` -> (moving object,
     flags); with the proposal ``rule_guards``, only while the object gate has been populated ``n``
@@ -146,7 +145,7 @@ def rule3(res_s, res_o, ko, thr_o, n, guards):
     return (not guards or ko >= n) and fc32(d, thr_o) > 0, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rule4(res_s, res_o, ks, thr_s, guards):
     """Object gate's residuals exceed the star gate's by more than ``thr'`` -> (star, flags); with
     the proposal ``rule_guards``, only while the star gate is populated.
@@ -169,7 +168,7 @@ def rule4(res_s, res_o, ks, thr_s, guards):
     return fc32(d, thr_s) > 0, f
 
 
-@njit(**KERNEL)
+@callee_kernel
 def pair_conclusion(gs, go, C, GP):
     """One undecided pair, its star gate ``gs`` and object gate ``go``
     (:data:`~flightsw.tp.state.GATE_DTYPE` records: successive empty frames ``miss``, populated
@@ -225,7 +224,7 @@ def pair_conclusion(gs, go, C, GP):
     return UNDECIDED, 0, f | g
 
 
-@njit(**KERNEL)
+@callee_kernel
 def apply_rules(C, S, G, V, GP, cyc):
     """The four rules on every live pair; the best object conclusion becomes the verified object
     (``S.dec``) when none is held, the others are deleted as spurious.
@@ -278,7 +277,7 @@ def apply_rules(C, S, G, V, GP, cyc):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def decide_pair(S, G, V, p, rule):
     """Pair ``p`` becomes the verified object by ``rule``: its star gate deleted, ``S.dec``,
     ``S.dec_frame``, ``S.ndec``, ``S.rule`` set, ``TC_NEW_DECISION`` raised.
@@ -302,7 +301,7 @@ CYC_APRIORI_PAIR = cycles({"L": 6, "SR": 2, "C": 7, "JC": 7})
 CYC_APRIORI_RES = cycles({"L": 2, "FC": 1, "JC": 1})
 
 
-@njit(**KERNEL)
+@callee_kernel
 def apriori_rule(C, S, G, OBS, V, GP, cyc):
     """Rule 5 (module docstring): among the pairs that velocity filtering has left undecided for
     ``n_apriori`` frames, the one fed by this frame's observation nearest the nominal's prediction
@@ -366,7 +365,7 @@ def apriori_rule(C, S, G, OBS, V, GP, cyc):
         S.nstale += 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def verify_object(C, S, G, V):
     """The verified object's gate: lost when deleted or empty ``n_lost`` frames; else its
     observation this frame becomes the object (``V.obj``, -1 none) -> True while it is held.
@@ -394,7 +393,7 @@ def verify_object(C, S, G, V):
     return True
 
 
-@njit(**KERNEL)
+@callee_kernel
 def place_pairs(G, OBS, nuse, frame_count):
     """A star and an object gate on every usable observation j (pair j) -> pairs placed.
 
@@ -432,7 +431,7 @@ def place_pairs(G, OBS, nuse, frame_count):
     return placed
 
 
-@njit(**KERNEL)
+@callee_kernel
 def reinitialise(S, G, OBS, V, cyc):
     """If, and only if, every gate is deleted and no object is held (and the frame's observations
     are usable): new pairs on the observations -> pairs placed.
@@ -456,7 +455,7 @@ def reinitialise(S, G, OBS, V, cyc):
     return placed
 
 
-@njit(**KERNEL)
+@callee_kernel
 def report_object(S, V):
     """Status of the verified object: decided; locked when its gate was fed this frame, else
     coasting.
@@ -475,7 +474,7 @@ def report_object(S, V):
             V.status |= TC_COASTING
 
 
-@njit(**KERNEL)
+@callee_kernel
 def object_observed(S, V):
     """The verified object was fed an observation this frame (usable evidence).
 

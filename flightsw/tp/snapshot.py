@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 from flightsw.tp.ekf import UT
 from flightsw.tp.f1750 import dec32, dec48
 from flightsw.tp.geometry import directions_to_pixels
@@ -36,7 +36,7 @@ SNAPSHOT_DTYPE = np.dtype([
     ("status", np.int32), ("mode", "S64"), ("imager", "S64")])
 
 
-@njit(**KERNEL)
+@callee_kernel
 def snapshot_kernel(G, S, E, img, rec):
     """Decode the TP state the snapshot shows into ``rec[0]`` (all fields but ``mode``, ``imager``).
 

@@ -33,10 +33,9 @@ Records (``TP_STATE_DTYPE`` holds one of each; :func:`new_state` allocates it):
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from flightsw.messages import IMAGER_CODES
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["MAX_OBS", "NPAIR", "NG", "MAX_FIT_TERMS", "N_IMAGERS", "STAGES", "DYNAMICS_DTYPE",
            "EKF_PARAMS_DTYPE", "EKF_DTYPE", "NOMINAL_DTYPE", "IMAGER_DTYPE", "MESSAGE_DTYPE",
@@ -359,7 +358,7 @@ def new_record(dtype: np.dtype, n: int | None = None):
     return a[0] if n is None else a
 
 
-@njit(**KERNEL)
+@callee_kernel
 def begin_frame(V, cyc):
     """Clear the frame's working values ``V`` (:data:`WORK_DTYPE`) and clocks ``cyc``
     (:data:`CYCLES_DTYPE`).
@@ -388,7 +387,7 @@ def begin_frame(V, cyc):
     cyc.ekf_predict = cyc.ekf_update = cyc.opportunity = cyc.command = 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def clear_outputs(out):
     """The frame's decoded outputs ``out`` (:data:`OUTPUTS_DTYPE`) cleared: NaN where a value may
     be absent.

@@ -12,11 +12,10 @@ Stages read and write the frame's working values ``V`` (:mod:`flightsw.tp.state`
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.m1750 import FLAG_DOMAIN, fm32, fm48, fs48, to32, to48
 from flightsw.messages import (TC_EKF_RESET, TC_INNOVATION_REJECTED, TC_NO_NOMINAL)
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 from flightsw.tp.dynamics import propagate
 from flightsw.tp.ekf import (
     CYC_EKF_UPDATE, ekf_init, ekf_los, ekf_predict, ekf_reset_cov, ekf_update_los,
@@ -31,7 +30,7 @@ CYC_LOS_DELTA = cycles(mix({"EFS": 3, "DL": 3}, UNIT3_MIX, MV3_MIX, MV3_MIX,
 CYC_EKF_MEAS = cycles(mix({"FM": 27, "FA": 18, "ST": 9}, {"FM": 4, "EFM": 2}))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ekf_running(E):
     """True once the EKF has been started (on the verified object).
 
@@ -42,7 +41,7 @@ def ekf_running(E):
     return E.run != 0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     """The nominal state to this frame's time (RK4, 48-bit) and the change of its line of sight
     seen in this frame's attitude -> ``V.dn[0]`` (da, db; 0 on the first frame); the line of
@@ -82,7 +81,7 @@ def propagate_nominal(C, D, K, S, N, V, RM, cyc):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def no_nominal(V):
     """A dedicated event without a nominal trajectory: said in the status.
 
@@ -93,7 +92,7 @@ def no_nominal(V):
     V.status |= TC_NO_NOMINAL
 
 
-@njit(**KERNEL)
+@callee_kernel
 def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
     """A running EKF to this frame's time and the change of its line of sight -> ``V.de[0]``; the
     line of sight's body tangent coordinates -> ``V.etan[0]`` (``V.etan_ok = 1``).
@@ -127,7 +126,7 @@ def predict_ekf(C, D, K, S, E, V, wk, RM, cyc):
     V.aflags |= fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def start_ekf(K, N, E, V):
     """The object just verified: start the EKF on the nominal state at this frame's time.
 
@@ -145,7 +144,7 @@ def start_ekf(K, N, E, V):
     E.have_los = 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def update_ekf(C, K, IMG, E, V, X, rows, cols, cyc):
     """The verified object's centroid (``rows``/``cols`` float64, pixels) as two sequential scalar
     updates of the EKF (``X`` the frame's scratch: its ``wk``, ``rm`` body -> ECI, ``m``); with the

@@ -48,7 +48,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, uint64
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = [
     "FilterResult", "SmootherResult", "kalman_filter", "rts_smooth", "pack_measurements",
@@ -75,7 +75,7 @@ class SmootherResult(NamedTuple):
 
 
 # ----------------------------------------------------------------------------- numba kernels
-@njit(**KERNEL)
+@callee_kernel
 def _row_patterns(A, rows, n, idx, val, cnt):
     """Sparsity pattern of rows 0..rows-1 of A (rows, n): row i's non-zero columns idx[i, :q] and
     values val[i, :q], zero padded to cnt[i] = q rounded up to a multiple of 4 (for
@@ -93,7 +93,7 @@ def _row_patterns(A, rows, n, idx, val, cnt):
         cnt[i] = (q + 3) // 4 * 4
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
     """out[i, :uWr] = sum_t val[i, t] X[idx[i, t], :uWr] for i < rows: a sparse (pattern) matrix
     times the dense padded rows of X, four pattern terms at a time (patterns are zero padded to a
@@ -113,7 +113,7 @@ def _sparse_rows_mm(rows, cnt, idx, val, X, out, uWr):
                 out[i, j] = s if t == 0 else out[i, j] + s
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uWr, uN):
     """Step k's prediction (eqs. 5-6): x- = Phi x into ``xp[k]``, P- = Phi P Phi^T + Q into ``Pn``
     (padded scratch) and ``Pp[k]``. Phi's sparsity pattern (``idx``, ``val``, ``cnt``) is rebuilt only
@@ -150,7 +150,7 @@ def _predict_into(k, n, Phi, Q, Phi0, idx, val, cnt, x, P, T, TT, Pn, xp, Pp, uW
             Pp[k, i, j] = Pn[i, j]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _cholesky_lower(A, L, m):
     """The lower triangle of L with L L^T = A[:m, :m] (A symmetric, float64 [>= m, >= m]; only
     its lower triangle is read; L may be A itself: the factor then overwrites it in place).
@@ -171,7 +171,7 @@ def _cholesky_lower(A, L, m):
     return True
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
     """The gain of an update with the m measurement rows ``Hm`` (m, n) and the packed R (``Rf``
     from ``r0_``): B = H P- into ``B``, B H^T into ``BH``, the Cholesky factor of S = H P- H^T + R
@@ -218,7 +218,7 @@ def _gain_into(m, n, Hm, Rf, r0_, hidx, hval, hcnt, Pn, B, BH, S, dS, Kt, uWr):
             Kt[a, j] *= c0
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _joseph_into(k, kt, m, n, Phi, Q, Rf, r0_, Kt, B, BH, Pn, g, cv, acc, P, Pf, Pp, uWr, uN):
     """P+ of step k (eq. 13, Joseph form) from K^T, B and B H^T (:func:`_gain_into`) into ``P``
     (padded scratch) and ``Pf[k]``; touches one element per cache line of step ``kt``'s inputs so
@@ -341,7 +341,7 @@ def _filter_into(x0, P0, Phi, Q, Hf, zf, Rf, zoff, roff, xf, Pf, xp, Pp, nt, Wr)
     y[0] = touch                            # keeps those loads
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _lane_load(l, kk, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN):
     """Lane ``l`` of the smoother takes step kk: P+_kk into ``Pfp[l]``, P-_kk+1 into the left half
     of ``G[l]`` and Phi_kk+1 P+_kk (Phi sparse; its pattern rebuilt only when Phi changes) into the
@@ -386,7 +386,7 @@ def _lane_load(l, kk, n, Pf, Pp, Phi, Phi0, idx, val, cnt, Pfp, G, W, uWr, uN):
                 G[l, i, W + j] = s if t == 0 else G[l, i, W + j] + s
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
     """The smoother gains of ``nl`` lanes: in each ``G[l]`` = [P-_kk+1 | Phi P+_kk], C^T =
     (P-)^-1 Phi P+ (eq. 14) into the right half, through P- = U^T U (``dinv`` 1/diag U)."""
@@ -435,7 +435,7 @@ def _gain_lanes(nl, n, G, acc, cv, dinv, W, uW, uW2):
                 G[l, i, W + j] = acc[l, j] * inv
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _smooth_lane(l, kk, n, xf, xp, xs, Pp, Ps, Pfp, G, D, CD, Psn, Psk, cv, W, uW, uWr, uN):
     """Smoothed state and covariance of step kk (eqs. 15-16) from lane ``l``'s gain C^T (right
     half of ``G[l]``) into ``xs[kk]``, ``Ps[kk]`` and the next step's ``Psn``."""

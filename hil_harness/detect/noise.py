@@ -18,7 +18,7 @@ import math
 import numpy as np
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["frame_noise", "MAX_DIFFERENCES"]
 
@@ -102,7 +102,7 @@ def _pick_dense(x, step, out):
             r += 1
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _kth(counts, lo, scale, k):
     """The k-th smallest (0-based) of the values whose histogram ``counts`` (int64 [m]) has bin
     ``i`` for the value ``(lo + i) / scale``.

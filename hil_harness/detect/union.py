@@ -21,16 +21,15 @@ Public: :func:`window_t4_k`, :func:`union_threshold_k`, :func:`cover_ranges`.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.adsp2100 import block_bitlen
 from flightsw.ip.threshold import threshold_words
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["window_t4_k", "union_threshold_k", "cover_ranges"]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _column_snapshots(img, marks):
     """Column sums of x and x**2 over rows ``0..m-1`` for each ``m`` of the sorted int64
     ``marks`` (0..H): int64 [2, len(marks), W] (one running pass down the frame).
@@ -60,7 +59,7 @@ def _column_snapshots(img, marks):
     return snap
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _sums_12bit(img, rows, cols, th, tw):
     """S1, S2 (int64 [2, nr, nc]) of every ``th`` x ``tw`` window of ``img`` (int16 [H, W]) at
     ``rows`` x ``cols``, block shift 0.
@@ -87,7 +86,7 @@ def _sums_12bit(img, rows, cols, th, tw):
     return out
 
 
-@njit(**KERNEL)
+@callee_kernel
 def window_t4_k(img, rows, cols, th, tw, aq):
     """The flight threshold word ``T4`` of every window of ``img``.
 
@@ -148,7 +147,7 @@ def cover_ranges(starts, tile, n):
     return np.stack([lo, hi], axis=1).astype(np.int64)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def _bands(rng):
     """Distinct consecutive (first, last) pairs of an [n, 2] cover table: (band of each pixel
     int64 [n], the bands' pairs int64 [nb, 2]).
@@ -170,7 +169,7 @@ def _bands(rng):
     return band, pairs[:nb]
 
 
-@njit(**KERNEL)
+@callee_kernel
 def union_threshold_k(img, t4, rcover, ccover, mode):
     """Keep the pixels that pass any covering window's threshold.
 

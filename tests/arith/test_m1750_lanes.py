@@ -10,6 +10,7 @@ from numba import njit
 import flightsw.arith.m1750_float as mf
 import flightsw.arith.m1750_math as mm
 import flightsw.arith.m1750_lanes as ml
+from flightsw.numba_cache import dispatcher_of
 
 N = 200_000
 
@@ -84,6 +85,7 @@ OPS2 = {"fa32": (mf._fa32_k, ml.fa32_v, ml.fa32_lanes), "fs32": (mf._fs32_k, ml.
         "fa48": (mf._fa48_k, ml.fa48_v, ml.fa48_lanes), "fs48": (mf._fs48_k, ml.fs48_v, ml.fs48_lanes),
         "fm48": (mf._fm48_k, ml.fm48_v, ml.fm48_lanes), "fd48": (mf._fd48_k, ml.fd48_v, ml.fd48_lanes),
         "fc32": (mf._fc32_k, ml.fc32_v, None)}
+OPS2 = {k: tuple(dispatcher_of(f) for f in fs) for k, fs in OPS2.items()}   # first-class values
 
 
 def _check(name, a, ref, res, fref, fres, b=None):
@@ -124,6 +126,7 @@ OPS1 = {"flt48": (mf._flt48_k, ml.flt48_v, ml.flt48_lanes),
         "fneg32": (mf._fneg32_k, ml.fneg32_v, ml.fneg32_lanes),
         "fix32": (mf._fix32_k, ml.fix32_v, ml.fix32_lanes),
         "scale32": (mm._scale32, ml.scale32_v, None)}
+OPS1 = {k: tuple(dispatcher_of(f) for f in fs) for k, fs in OPS1.items()}
 
 
 @pytest.mark.parametrize("name", OPS1)
@@ -259,6 +262,7 @@ V = {"fa32": ml.fa32_v, "fs32": ml.fs32_v, "fa48": ml.fa48_v, "fs48": ml.fs48_v,
      "fm48": ml.fm48_v, "fd32": ml.fd32_v, "fd48": ml.fd48_v, "fd32_pos": ml.fd32_pos_v,
      "fd48_pos": ml.fd48_pos_v, "flt48": ml.flt48_v, "fc32": ml.fc32_v, "fabs32": ml.fabs32_v,
      "fneg32": ml.fneg32_v, "fix32": ml.fix32_v, "scale32": ml.scale32_v}
+V = {k: dispatcher_of(f) for k, f in V.items()}
 LANE_CASES = [
     # 1 + 1 = 2: the sum reaches 1.0, shifted right, exponent + 1
     pytest.param("fa32", (0x40000001, 0x40000001), (0x40000002, 0), marks=[

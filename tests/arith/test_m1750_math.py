@@ -10,6 +10,7 @@ from numba import njit
 from flightsw.arith import m1750 as m
 from flightsw.arith import m1750_math as mm
 from flightsw.budget import m1750_cycles
+from flightsw.numba_cache import dispatcher_of
 
 N = 20000
 RNG = np.random.default_rng(20240611)
@@ -52,7 +53,7 @@ FMT = {23: (m.encode32_array, m.decode32_array), 39: (m.encode48_array, m.decode
 def _check(name, W, x, ref_fn, args=1):
     enc, dec = FMT[W]
     kind, bound = mm.MAX_ERROR[name]
-    fn = getattr(mm, f"_{name}_k")       # the kernel behind the public name (first-class in numba)
+    fn = dispatcher_of(getattr(mm, f"_{name}_k"))   # the kernel behind the public name, first-class
     if args == 1:
         p = enc(x)
         r, fl = _apply1(fn, p)
