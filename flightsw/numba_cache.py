@@ -25,6 +25,10 @@ wrong opportunity-track states on a cold cache, 2026-11-28). :func:`serialise_ca
 index as the previous one left it and never reuses a number. Loading needs no lock: a data file is
 written to a temporary name and renamed, and a number once in an index is never given to another
 signature.
+
+**Kernels compiled into their callers.** :func:`callee_kernel` marks a kernel that only other
+kernels call: they compile it in without numba's wrappers, and Python calls reach it through a
+separate dispatcher; the two copies are cached under different names.
 """
 from __future__ import annotations
 
@@ -33,12 +37,12 @@ import functools
 import hashlib
 import os
 import shutil
+import types
 from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
-           "KERNEL", "CALLEE", "callee_kernel", "is_callee_kernel",
-           "dispatcher_of", "SOURCE_PACKAGES",
-           "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+           "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
+           "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -194,8 +198,6 @@ def _lock_saves(caching) -> None:
     cls.save = save
 
 
-
-
 #: the numba options of the copy of a :func:`callee_kernel` its callers compile: neither of numba's
 #: wrappers (no Python or C caller reaches this copy), and cached under a name of its own
 CALLEE = {"cache": True, "no_cfunc_wrapper": True, "no_cpython_wrapper": True}
@@ -228,8 +230,6 @@ def callee_kernel(fn=None, **options):
     ``py_func`` is ``fn``, as on a dispatcher."""
     if fn is None:
         return functools.partial(callee_kernel, **options)
-    import types
-
     from numba import njit
     from numba.extending import overload
     twin = njit(**dict(KERNEL, **options))(fn)
@@ -267,5 +267,7 @@ def dispatcher_of(kernel):
 
 def is_callee_kernel(obj) -> bool:
     """Whether ``obj`` was made by :func:`callee_kernel`."""
+    if not isinstance(obj, types.FunctionType):
+        return False
     twin = getattr(obj, "twin", None)
     return twin is not None and getattr(obj, "py_func", None) is getattr(twin, "py_func", False)

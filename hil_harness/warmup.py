@@ -10,9 +10,9 @@ launches ``python -m hil_harness.warmup``. It steps a :class:`flightsw.tp.TrackP
 few synthetic frames and runs the message codecs: the same specialisations the event will ask for
 (the kernels take word and state arrays whose types do not depend on the scenario). When the event
 reaches them they are usually in the cache already; if not, numba compiles them in the event's
-process as it would have anyway. Only kernels Python calls can be compiled ahead like this: the
-kernels compiled into their callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A lane
-operations among them) are compiled with each caller, and not cached on their own.
+process as it would have anyway. Only kernels Python calls can be compiled ahead like this: a
+kernel compiled into its callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A lane
+operations among them) is compiled when a caller is.
 
 OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
 processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
