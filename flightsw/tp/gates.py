@@ -37,7 +37,6 @@ packed 32-bit coordinates, 16-bit integer copies for the membership tests).
 """
 from __future__ import annotations
 
-
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32, fs32
 from flightsw.messages import TC_OBJECT_LOST
 from flightsw.numba_cache import callee_kernel

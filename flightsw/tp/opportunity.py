@@ -16,7 +16,6 @@ observations), each gain floored at its steady value.
 """
 from __future__ import annotations
 
-
 from flightsw.arith.m1750 import fa32, fc32, fd32, fm32
 from flightsw.messages import TC_COASTING, TC_OBJECT_DECIDED, TC_OBJECT_LOST, TC_REINITIALISED
 from flightsw.numba_cache import callee_kernel

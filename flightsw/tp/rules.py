@@ -62,7 +62,6 @@ occurs, with a set of new gates placed on the current UVISI IP imager frame's ob
 """
 from __future__ import annotations
 
-
 from flightsw.arith.m1750 import fc32, fs32
 from flightsw.messages import (TC_COASTING, TC_NEW_DECISION, TC_OBJECT_DECIDED, TC_OBJECT_LOST,
                                TC_REINITIALISED)
