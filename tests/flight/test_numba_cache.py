@@ -205,7 +205,8 @@ def test_nowhere_to_write_leaves_numbas_default(tmp_path, monkeypatch):
 
 
 def test_every_project_kernel_is_compiled_with_the_kernel_options():
-    """Every kernel of the three packages is compiled with :data:`flightsw.numba_cache.KERNEL`
+    """Every kernel of the three packages that Python calls (for a kernel compiled into its
+    callers, its Python-callable twin) is compiled with :data:`flightsw.numba_cache.KERNEL`
     (cached, no C-callable wrapper), whatever else it asks for."""
     from numba.core.caching import NullCache
     assert nc.KERNEL == {"cache": True, "no_cfunc_wrapper": True}
