@@ -50,7 +50,8 @@ __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "c
 #: passed as a typed function pointer, ``numba.cfunc``), which nothing here does. Each wrapper is
 #: one more function for LLVM to optimise and turn into machine code: dropping them took a first
 #: run's compile 6 % less CPU (docs/validation.md, "The first run"). What a kernel computes does
-#: not change. The Python-callable wrapper stays: Python calls the kernels.
+#: not change. The Python-callable wrapper stays for the kernels Python calls; a kernel that only
+#: kernels call is a :func:`callee_kernel`, compiled into its callers without it.
 KERNEL = {"cache": True, "no_cfunc_wrapper": True}
 
 #: the packages whose Python the compiled kernels are made from: the cache is keyed on all of it

@@ -30,7 +30,7 @@ PACKAGES = ("flightsw", "hil_harness")
 CASE_ID = re.compile(r"^[a-z0-9][a-z0-9-]*$")
 HEADER = re.compile(r"^Cases\s*$")
 
-def _is_njit(dec: ast.expr) -> bool:
+def _is_kernel_decorator(dec: ast.expr) -> bool:
     node = dec.func if isinstance(dec, ast.Call) else dec
     name = node.attr if isinstance(node, ast.Attribute) else getattr(node, "id", "")
     return name in ("njit", "callee_kernel")
@@ -82,7 +82,8 @@ def kernels() -> dict[str, tuple[Path, int, list[str] | None]]:
             mod = _module_name(path)
             tree = ast.parse(path.read_text(), str(path))
             for node in ast.walk(tree):
-                if isinstance(node, ast.FunctionDef) and any(map(_is_njit, node.decorator_list)):
+                if isinstance(node, ast.FunctionDef) and any(
+                        map(_is_kernel_decorator, node.decorator_list)):
                     found[f"{mod}.{node.name}"] = (path, node.lineno,
                                                    parse_cases(ast.get_docstring(node)))
     return found
