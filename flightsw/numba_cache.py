@@ -28,7 +28,9 @@ signature.
 
 **Kernels compiled into their callers.** :func:`callee_kernel` marks a kernel that only other
 kernels call: they compile it in without numba's wrappers, and Python calls reach it through a
-separate dispatcher; the two copies are cached under different names.
+separate dispatcher; the two copies are cached under different names. The copy the callers link is
+kept as LLVM IR only (:func:`link_callee_copies_only`): no machine code of its own, and LLVM's
+whole-module passes run once, in each caller.
 """
 from __future__ import annotations
 
@@ -42,7 +44,7 @@ from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
            "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
-           "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+           "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -233,6 +235,7 @@ def callee_kernel(fn=None, **options):
         return functools.partial(callee_kernel, **options)
     from numba import njit
     from numba.extending import overload
+    link_callee_copies_only()
     twin = njit(**dict(KERNEL, **options))(fn)
 
     @functools.wraps(fn)
@@ -272,3 +275,76 @@ def is_callee_kernel(obj) -> bool:
         return False
     twin = getattr(obj, "twin", None)
     return twin is not None and getattr(obj, "py_func", None) is getattr(twin, "py_func", False)
+
+
+def link_callee_copies_only() -> None:
+    """Make numba keep a :func:`callee_kernel`'s copy (a code library named ``*_in_callers``) as
+    LLVM IR, for linking into its callers only. Idempotent; called by :func:`callee_kernel`.
+
+    numba finishes every compiled function's code library the same way: it links in the IR of
+    the functions it calls, runs LLVM's whole-module passes over the result and makes its machine
+    code, which it caches beside the IR. A callee copy has no wrapper, so nothing ever runs that
+    machine code: each caller links the copy's IR into its own module and optimises and compiles
+    it there, again. For these libraries only, this skips the whole-module passes and the machine
+    code (LLVM's per-function passes still run as the IR is added), and caches the IR alone
+    (numba's ``bitcode`` form, which it loads without optimising again). A caller then optimises
+    its callees' code once, in its own module, as whole-program optimisation would. A first run
+    compiled about a quarter less CPU this way (docs/validation.md, "The first run"); what the
+    callers compute does not change.
+
+    The functions' environments follow: numba points each function's environment global (what
+    an exception with run-time values reads, among others) at its environment when it compiles
+    the function (``set_env``), through the engine, which never holds a link-only copy. So that
+    write is skipped for the copy, and made for each copy's global in the caller once the caller
+    is in the engine, as numba does for the globals of a caller it loads from its cache.
+
+    These are numba's internals (``numba.core.codegen``, as of numba 0.68): where they are not as
+    expected, nothing is changed and the copies are finished as numba finishes any function, which
+    costs time only."""
+    from numba.core import codegen as cg
+    from numba.core.environment import lookup_environment
+    lib, gen = getattr(cg, "JITCodeLibrary", None), getattr(cg, "JITCPUCodegen", None)
+    needed = ("_optimize_final_module", "_finalize_final_module", "_finalize_dynamic_globals",
+              "_verify_declare_only_symbols", "serialize_using_object_code")
+    if lib is None or gen is None or not all(hasattr(lib, n) for n in needed + ("finalize",)) \
+            or not hasattr(gen, "set_env") or getattr(lib, "uvisi_link_only", False):
+        return
+    optimise, finish, serialise, set_env = (lib._optimize_final_module,
+                                            lib._finalize_final_module,
+                                            lib.serialize_using_object_code, gen.set_env)
+
+    def link_only(library) -> bool:
+        return library.name.endswith(IN_CALLERS)
+
+    def optimize_final_module(self):
+        if not link_only(self):
+            optimise(self)
+
+    def finalize_final_module(self):
+        if not link_only(self):
+            finish(self)
+            for gv in self._final_module.global_variables:      # the linked copies' environments
+                if gv.name.startswith("_ZN08NumbaEnv") and IN_CALLERS in gv.name:
+                    env = lookup_environment(gv.name)
+                    if env is not None:
+                        self._codegen.set_env(gv.name, env)
+            return
+        self._finalize_dynamic_globals()
+        self._verify_declare_only_symbols()
+        self._finalized = True
+
+    def serialize_using_object_code(self):
+        if not link_only(self):
+            return serialise(self)
+        self._ensure_finalized()
+        return (self.name, "bitcode", self._final_module.as_bitcode())
+
+    def set_env_if_defined(self, env_name, env):
+        if self._engine.get_global_value_address(env_name):
+            set_env(self, env_name, env)
+
+    lib._optimize_final_module = optimize_final_module
+    lib._finalize_final_module = finalize_final_module
+    lib.serialize_using_object_code = serialize_using_object_code
+    gen.set_env = set_env_if_defined
+    lib.uvisi_link_only = True

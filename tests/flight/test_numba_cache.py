@@ -247,40 +247,62 @@ from flightsw.numba_cache import KERNEL, callee_kernel
 
 @callee_kernel
 def scale(x, k):
+    if k < 0.0:
+        raise ValueError("negative factor", k)     # a message with a run-time value
     out = np.empty_like(x)
     for i in range(x.size):
         out[i] = x[i] * k
     return out
 
 @njit(**KERNEL)
-def total(x):
-    return scale(x, 3.0).sum()
+def total(x, k):
+    return scale(x, k).sum()
+
+@njit(**KERNEL)
+def top(x, k):
+    return scale(x, k).max()
 """
 
 CALLEE_RUN = """
 import sys
 import numpy as np
+import numba.core.codegen as cg
 sys.path.insert(0, sys.argv[1])
+made = []                                       # the code libraries LLVM made machine code of
+emit = cg.JITCodeLibrary._finalize_specific
+cg.JITCodeLibrary._finalize_specific = lambda lib: (made.append(lib.name), emit(lib))[1]
 import callee_mod as m
 x = np.arange(4.0)
+def value_and_error(caller):
+    print(caller(x, 3.0))
+    try:
+        caller(x, -2.0)
+    except ValueError as e:
+        print(e.args)
 if sys.argv[2] == "caller":
-    print(m.total(x))
+    value_and_error(m.total)
     if sys.argv[3] == "cold":
         ir = "\\n".join(m.total.inspect_llvm().values())
-        defined = [ln for ln in ir.splitlines()
-                   if ln.startswith("define") and "scale_in_callers" in ln]
-        print(len(defined), any("cpython" in ln or "cfunc" in ln for ln in defined))
+        defined = [ln for ln in ir.splitlines() if ln.startswith("define") and "scale" in ln]
+        print(len(defined) <= 1, any("cpython" in ln or "cfunc" in ln for ln in defined))
+elif sys.argv[2] == "other caller":
+    value_and_error(m.top)
 else:
     print(m.scale(x, 2.0).tolist())
+print(sorted({name for name in made if "total" in name or "top" in name or "scale" in name}))
 """
 
 
 def test_a_callee_kernel_is_compiled_into_its_caller_and_still_answers_python(tmp_path):
     """A kernel made by ``callee_kernel`` is compiled into its caller with neither wrapper (the
-    oracle: numba's LLVM IR of the caller defines the callee once, with no ``cpython`` or
-    ``cfunc`` function), and a Python call to it in a later process, on the cache the caller
-    left, returns the right answer rather than loading the wrapperless copy and crashing; and the
-    other way round. Each step is a process of its own."""
+    oracle: numba's LLVM IR of the caller defines the callee at most once, where LLVM did not
+    inline it, and no ``cpython`` or ``cfunc`` function of it), and a Python call to it in a
+    later process, on the cache the caller left, returns the right answer rather than loading the
+    wrapperless copy and crashing; and the other way round. The copy is kept as IR for linking
+    only: LLVM makes machine code of the caller alone (numba's code library's last stage,
+    watched), and a second caller in a later process links the copy from the cache. In each, an
+    exception the callee raises with a run-time value reaches Python with its value. Each step is
+    a process of its own."""
     (tmp_path / "callee_mod.py").write_text(CALLEE_MODULE)
     (tmp_path / "run.py").write_text(CALLEE_RUN)
 
@@ -291,9 +313,14 @@ def test_a_callee_kernel_is_compiled_into_its_caller_and_still_answers_python(tm
         assert res.returncode == 0, (who, state, res.returncode, res.stderr[-2000:])
         return res.stdout.split("\n")
 
-    total, ir = run("a", "caller", "cold")[:2]
+    total, error, ir, made = run("a", "caller", "cold")[:4]
     assert float(total) == 18.0                     # 3 * (0 + 1 + 2 + 3)
-    assert ir == "1 False"                          # the callee's body alone, no wrapper
+    assert error == "('negative factor', -2.0)"     # the copy's environment reached
+    assert ir == "True False"                       # the callee's body (or inlined), no wrapper
+    assert made == "['total']"                      # the copy is IR only: no machine code
+    top, error, made = run("a", "other caller", "warm")[:3]
+    assert (float(top), error) == (9.0, "('negative factor', -2.0)")
+    assert made == "['top']"                        # the copy's IR, loaded from the cache
     assert run("a", "python", "warm")[0] == "[0.0, 2.0, 4.0, 6.0]"
     assert run("b", "python", "cold")[0] == "[0.0, 2.0, 4.0, 6.0]"
-    assert float(run("b", "caller", "warm")[0]) == 18.0
+    assert run("b", "caller", "warm")[:2] == ["18.0", "('negative factor', -2.0)"]
