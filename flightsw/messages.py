@@ -371,7 +371,7 @@ def _cand_fill_k(w, iv, fv):
             fv[i, 1 + j] = decode32_k(_f32_at(w, b + 1 + 2 * j))
 
 
-@njit(**KERNEL)
+@callee_kernel
 def candidate_words_k(head, t, alpha, iv, fv, out):
     """The candidate message's one encoder for compiled callers (:meth:`CandidateMessage.to_words`
     runs the same kernel): :func:`_cand_encode_k` with the CRC table. ``head`` int64 [15], ``t``

@@ -12,7 +12,6 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from numba import njit
 
 from flightsw.arith.m1750 import decode32_array, encode32
 from flightsw.arith.m1750_float import decode32_k
@@ -25,7 +24,7 @@ from flightsw.ip.frame_header import header_of, new_header
 from flightsw.ip.rank import OP_CYCLES as RANK_OP_CYCLES
 from flightsw.ip.rank import rank_k, record_words
 from flightsw.messages import CANDIDATE_DTYPE, MAX_CANDIDATES
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import callee_kernel
 
 __all__ = ["backend", "backend_k", "backend_params", "BackendResult", "enc32", "BACK_KEYS",
            "PACK_HEAD", "candidate_table", "BACKEND_PARAMS", "with_labels", "result_from_head"]
@@ -61,7 +60,7 @@ def enc32(x: float) -> int:
     return encode32(float(x), rounding="nearest")
 
 
-@njit(**KERNEL)
+@callee_kernel
 def backend_k(img, params, header):
     """Steps 6-8 on a thresholded window.
 

@@ -196,7 +196,7 @@ def _lowpass_k(img, taps, g):
 STRIP = 64
 
 
-@njit(**KERNEL)
+@callee_kernel
 def highpass_k(img, taps, gmax):
     """The high-pass detrender on an int16 [h, w] window (Q16.0) with 7 Q1.15 ``taps``; the block
     headroom is capped at ``gmax``. Returns int16 [h, w] (Q16.0, AR_SAT).

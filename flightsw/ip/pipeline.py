@@ -180,7 +180,7 @@ def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
     return ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst)
 
 
-@njit(**KERNEL)
+@callee_kernel
 def ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst):
     """One frame through the image processor.
 

@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from flightsw.numba_cache import KERNEL
+from flightsw.numba_cache import KERNEL, callee_kernel
 
 __all__ = ["FRAME_SHAPE", "COMPACTION_FACTORS", "Subimage", "compact", "compact_k", "check_frame",
            "window", "window_origin", "window_origin_k", "frame_over_12bit_k",
@@ -114,7 +114,7 @@ def check_frame(frame):
     return frame
 
 
-@njit(**KERNEL)
+@callee_kernel
 def compact_k(frame, f, r0, c0, h, w):
     """Rounded block mean over blocks ``r0..r0+h-1``, ``c0..c0+w-1`` (compacted indices). Q16.0.
 

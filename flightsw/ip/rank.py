@@ -100,7 +100,7 @@ def _sigmoid(x, a2, ops):
     return r, fl
 
 
-@njit(**KERNEL)
+@callee_kernel
 def rank_k(fwt, rec, mean_row, mean_col, override, quantize, thr, max_out):
     """fwt int64 [12, k] feature words (feature-major), rec int64 [5, 12] record words, centroid
     means used if ``override`` -> (order [m], d words [k], gof words [m], flags, ops [9]) int64.
