@@ -168,8 +168,9 @@ def _lowpass_k(img, taps, g):
             for c in range(w):
                 dst[c] = dst[c] >> sh          # SR0: |y| < 2**15 by the convexity bound, no wrap
     for r in range(p):                     # replicate the border rows of the intermediate
-        y[r, :] = y[p]
-        y[h + p + r, :] = y[h + p - 1]
+        for c in range(w):                 # (word by word: a row-slice copy compiles numba's
+            y[r, c] = y[p, c]              # shape-mismatch message, seconds of a first run)
+            y[h + p + r, c] = y[h + p - 1, c]
     # column pass: lp = (sum y*t + 2**(14+g)) >> (15+g)     Q16.0
     lp = np.empty((h, w), np.int32)
     cb = np.int32(1 << (14 + g))

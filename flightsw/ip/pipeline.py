@@ -165,6 +165,22 @@ def place_window_k(header, pr, pc):
     hd.override = 1
 
 
+@callee_kernel
+def copy_plane_k(dst, k, src):
+    """``dst[k] = src``, word by word (``dst`` [n, h, w], ``src`` [h, w], each word cast to
+    ``dst``'s type as numpy's assignment casts it). A plane-slice assignment would do the same and
+    also compile numba's message for mismatched shapes, seconds of a first run.
+
+    Cases
+    -----
+    same-type : int16 into int16 -> plane ``k`` equals ``src``, the other planes untouched.
+    narrowing : int32 into int16 -> each word as numpy's assignment casts it (wrapping).
+    """
+    for r in range(src.shape[0]):
+        for c in range(src.shape[1]):
+            dst[k, r, c] = src[r, c]
+
+
 @njit(**KERNEL)
 def ip_frame_at_k(src, header, pred, front, ffts, poly, params, fst, bst):
     """:func:`ip_frame_into_k` on the window :func:`place_window_k` places about ``pred``
@@ -227,17 +243,17 @@ def ip_frame_into_k(src, header, front, ffts, poly, params, fst, bst):
     aq, mode = hd.alpha_q12, hd.mode
     img = win
     if want_stages:
-        fst[0] = win
+        copy_plane_k(fst, 0, win)
     hd.t4, hd.mean4, hd.std4, hd.shift = 0, 0, 0, 0
     for i in range(front.ops.size):
         img, is_thr, a, b, c, d = front_step_k(img, i, front, ffts, poly, aq, mode)
         if is_thr:
             hd.t4, hd.mean4, hd.std4, hd.shift = a, b, c, d
         if want_stages:
-            fst[i + 1] = img
+            copy_plane_k(fst, i + 1, img)
     labels, pack = backend_k(img, params, header)
     if want_stages:
-        bst[0] = labels
+        copy_plane_k(bst, 0, labels)
         lut = np.zeros(hd.count + 1, np.int32)
         for q in range(hd.m):
             lut[pack[q] + 1] = q + 1                            # pack[:m]: the order

@@ -759,6 +759,19 @@ def test_pipeline_on_a_window_the_caller_cut():
         assert (res.message.window_row0, res.message.window_col0) == (20, 40)
 
 
+@pytest.mark.cases("flightsw.ip.pipeline.copy_plane_k", "same-type", "narrowing")
+def test_copy_plane_writes_one_plane_as_numpy_assigns_it():
+    from flightsw.ip.pipeline import copy_plane_k
+    rng = np.random.default_rng(3)
+    for src in (rng.integers(-2**15, 2**15, (5, 7)).astype(np.int16),
+                rng.integers(-2**31, 2**31, (5, 7)).astype(np.int32)):
+        dst = rng.integers(-100, 100, (3, 5, 7)).astype(np.int16)
+        want = dst.copy()
+        want[1] = src                               # numpy's own assignment: the oracle
+        copy_plane_k(dst, 1, src)
+        assert np.array_equal(dst, want)
+
+
 def test_budget_tables_render():
     from bench.budget_tables import frontend_cycle_markdown, frontend_step_rows
     md = frontend_cycle_markdown(host_times=False)
