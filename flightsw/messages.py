@@ -90,7 +90,8 @@ def _crc_table() -> np.ndarray:
         for _ in range(8):
             c = ((c << 1) ^ 0x1021) & 0xFFFF if c & 0x8000 else (c << 1) & 0xFFFF
         t[b] = c
-    return t
+    t.setflags(write=False)     # read-only, as numba types a global array in a kernel: Python's
+    return t                    # calls and the kernels' share one compiled specialisation
 
 
 _CRC_TABLE = _crc_table()
@@ -198,6 +199,7 @@ def _code_table(codes) -> np.ndarray:
     """bool[256]: which byte values are codes of ``codes`` (a name -> code dict), for kernels."""
     t = np.zeros(256, np.bool_)
     t[list(codes.values())] = True
+    t.setflags(write=False)                         # as _crc_table's
     return t
 
 
@@ -868,7 +870,9 @@ Q_NORM_TOL = 2.0 ** -20
 # flag-word bits of the track command (which optional values are present)
 _TCF_LOCKED, _TCF_PRED, _TCF_EST, _TCF_DECIDED, _TCF_POINT, _TCF_OPP, _TCF_OBJIDX = (
     0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40)
-_TC_STATUS_MASK = sum(TC_STATUS_NAMES)          # the defined status bits (0xFFFF)
+#: the defined status bits (0xFFFF); a numpy integer, which numba types in a kernel as in a Python
+#: call (a Python int global is a literal there: a second compiled specialisation)
+_TC_STATUS_MASK = np.int64(sum(TC_STATUS_NAMES))
 _TYPE_OK = _code_table(OBJECT_TYPE_CODES)
 _MODES = {"dedicated": 0, "opportunity": _TCF_OPP}    # mode -> its flag bit
 
