@@ -302,7 +302,10 @@ def link_callee_copies_only() -> None:
     expected, nothing is changed and the copies are finished as numba finishes any function, which
     costs time only."""
     from numba.core import codegen as cg
-    from numba.core.environment import lookup_environment
+    try:
+        from numba.core.environment import lookup_environment
+    except ImportError:                             # another numba: its own way, unchanged
+        return
     lib, gen = getattr(cg, "JITCodeLibrary", None), getattr(cg, "JITCPUCodegen", None)
     needed = ("_optimize_final_module", "_finalize_final_module", "_finalize_dynamic_globals",
               "_verify_declare_only_symbols", "serialize_using_object_code")
