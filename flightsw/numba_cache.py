@@ -206,6 +206,10 @@ def _lock_saves(caching) -> None:
 CALLEE = {"cache": True, "no_cfunc_wrapper": True, "no_cpython_wrapper": True}
 #: the suffix of that copy's name (its cache files are ``<module>.<name>_in_callers-<line>...``)
 IN_CALLERS = "_in_callers"
+#: the qualified names of those copies: numba names each code library after its function, and
+#: :func:`link_callee_copies_only` keeps these libraries as IR (a function of another origin that
+#: happens to end in the suffix is compiled as usual)
+_LINK_ONLY = set()
 
 
 def callee_kernel(fn=None, **options):
@@ -248,6 +252,7 @@ def callee_kernel(fn=None, **options):
     inner = types.FunctionType(fn.__code__, fn.__globals__, fn.__name__, fn.__defaults__,
                                fn.__closure__)
     inner.__qualname__ = fn.__qualname__ + IN_CALLERS
+    _LINK_ONLY.add(inner.__qualname__)
     inner.__module__ = fn.__module__
     inner.__doc__ = fn.__doc__
     kernel.py_func = fn
@@ -278,8 +283,9 @@ def is_callee_kernel(obj) -> bool:
 
 
 def link_callee_copies_only() -> None:
-    """Make numba keep a :func:`callee_kernel`'s copy (a code library named ``*_in_callers``) as
-    LLVM IR, for linking into its callers only. Idempotent; called by :func:`callee_kernel`.
+    """Make numba keep a :func:`callee_kernel`'s copy (a code library named after the copy:
+    ``<name>_in_callers``) as LLVM IR, for linking into its callers only. Idempotent; called by
+    :func:`callee_kernel`.
 
     numba finishes every compiled function's code library the same way: it links in the IR of
     the functions it calls, runs LLVM's whole-module passes over the result and makes its machine
@@ -317,7 +323,7 @@ def link_callee_copies_only() -> None:
                                             lib.serialize_using_object_code, gen.set_env)
 
     def link_only(library) -> bool:
-        return library.name.endswith(IN_CALLERS)
+        return library.name in _LINK_ONLY
 
     def optimize_final_module(self):
         if not link_only(self):

@@ -324,3 +324,26 @@ def test_a_callee_kernel_is_compiled_into_its_caller_and_still_answers_python(tm
     assert run("a", "python", "warm")[0] == "[0.0, 2.0, 4.0, 6.0]"
     assert run("b", "python", "cold")[0] == "[0.0, 2.0, 4.0, 6.0]"
     assert run("b", "caller", "warm")[:2] == ["18.0", "('negative factor', -2.0)"]
+
+
+def test_only_callee_copies_are_kept_as_ir(tmp_path):
+    """A function of another origin whose name ends like a callee copy's is compiled whole: Python
+    calls it (in a process of its own: a library without machine code would end the process)."""
+    (tmp_path / "named_mod.py").write_text(textwrap.dedent("""
+        from numba import njit
+        from flightsw.numba_cache import IN_CALLERS, callee_kernel
+
+        @callee_kernel
+        def twice(x):
+            return 2 * x
+
+        def shift_in_callers(x):
+            return twice(x) + 1
+
+        assert shift_in_callers.__qualname__.endswith(IN_CALLERS)
+        print(njit(shift_in_callers)(20))
+    """))
+    res = subprocess.run([sys.executable, str(tmp_path / "named_mod.py")], capture_output=True,
+                         text=True, timeout=300,
+                         env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache")))
+    assert (res.returncode, res.stdout.strip()) == (0, "41"), res.stderr[-2000:]
