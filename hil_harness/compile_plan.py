@@ -47,7 +47,8 @@ def _names(code) -> set:
 
 def _referenced(func) -> list:
     """The objects ``func``'s code names: its globals, its closure's cells, and the attributes it
-    takes of a module it names."""
+    takes of a project module it names (another package's attributes are not kernels of ours,
+    and reading some warns: numpy 1.26's ``np.bool``)."""
     code = func.__code__
     g = func.__globals__
     names = _names(code)
@@ -55,7 +56,8 @@ def _referenced(func) -> list:
     for name in names:
         obj = g.get(name)
         if isinstance(obj, pytypes.ModuleType):
-            found.extend(getattr(obj, a) for a in names if hasattr(obj, a))
+            if obj.__name__.split(".")[0] in PROJECT_PACKAGES:
+                found.extend(getattr(obj, a) for a in names if hasattr(obj, a))
         elif obj is not None:
             found.append(obj)
     for cell in func.__closure__ or ():

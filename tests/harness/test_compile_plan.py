@@ -70,3 +70,27 @@ def test_without_a_terminal_one_line_says_it(tmp_path):
     from hil_harness.console import COMPILE_NOTE
     _, err = _run(tmp_path, "0")
     assert err.count(COMPILE_NOTE) == 1 and "kernels [" not in err
+
+
+def test_the_plan_reads_no_attribute_of_another_package(recwarn):
+    """The plan follows the attributes a kernel takes of a project module, and reads none of
+    another package's module: numpy 1.26 warns on ``np.bool`` (FutureWarning), which a first run
+    printed three times. Here a module of another package whose every attribute read warns, and
+    a function of ours that names it beside a project module's kernel."""
+    import types
+    import warnings
+
+    import flightsw.tp.f1750 as f
+    from hil_harness.compile_plan import reachable_kernels
+
+    class Noisy(types.ModuleType):
+        def __getattr__(self, name):
+            warnings.warn(f"{name} read", FutureWarning)
+            raise AttributeError(name)
+
+    source = "def run(R):\n    noisy.bool\n    return f1750.qdcm(1, 1, 1, 1, R)\n"
+    space = {"noisy": Noisy("otherpkg"), "f1750": f, "__name__": "hil_harness.example"}
+    exec(compile(source, "<example>", "exec"), space)
+    found = reachable_kernels(space["run"])
+    assert f.qdcm in found                                  # through the project module
+    assert not [w for w in recwarn if issubclass(w.category, FutureWarning)]
