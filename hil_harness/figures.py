@@ -247,26 +247,50 @@ def stage_colours(names: list[str]) -> dict:
     return out
 
 
+def stacked_bars(frames, per_stage_ms: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """The rectangles of a stacked bar chart, one bar a frame, one layer a stage, in the order
+    given: ``{name: float64 (n, 4, 2)}``, each rectangle's corners (x, y) counter-clockwise from
+    the lower left, x from ``frame - 0.5`` to ``frame + 0.5``, y from the stages below to them plus
+    this one's ms. A stage's zero-height bars are left out (they draw nothing), and so are the
+    bars of a frame from its first stage whose ms is not a number on (as ``ax.bar`` draws them).
+
+    frames : (n,) frame numbers; per_stage_ms : {"processor/stage": (n,) ms per frame}
+    """
+    x = np.asarray(frames, float)
+    bottom = np.zeros(len(x))
+    out = {}
+    for name, ms in per_stage_ms.items():
+        top = bottom + np.asarray(ms, float)
+        keep = np.isfinite(top) & (top != bottom)
+        x0, x1, y0, y1 = x[keep] - 0.5, x[keep] + 0.5, bottom[keep], top[keep]
+        out[name] = np.stack([np.stack([x0, y0], 1), np.stack([x1, y0], 1),
+                              np.stack([x1, y1], 1), np.stack([x0, y1], 1)], 1)
+        bottom = top
+    return out
+
+
 def budget(frames, per_stage_ms: dict[str, np.ndarray], path, title: str = "",
            period_ms: float = FRAME_PERIOD_MS) -> Path:
     """Per-frame budget use stacked by stage against the 500 ms line.
 
     per_stage_ms : {"processor/stage": array of ms per frame}
-    """
-    frames = np.asarray(frames)
+
+    Each stage is one collection of rectangles (:func:`stacked_bars`): a bar patch per frame and
+    stage took matplotlib ~3 s for an event's 181 frames and 15 stages."""
+    from matplotlib.collections import PolyCollection
+
     fig, ax = plt.subplots(figsize=(8, 4))
-    bottom = np.zeros(len(frames))
     colours = stage_colours(list(per_stage_ms))
-    for name, ms in per_stage_ms.items():
-        ms = np.asarray(ms, float)
-        ax.bar(frames, ms, bottom=bottom, width=1.0, label=name, linewidth=0,
-               color=colours[name])
-        bottom += ms
-    ax.axhline(period_ms, color="tab:red", lw=1.5, label=f"{period_ms:.0f} ms frame")
+    shown = [ax.axhline(period_ms, color="tab:red", lw=1.5, label=f"{period_ms:.0f} ms frame")]
+    for name, verts in stacked_bars(frames, per_stage_ms).items():
+        layer = PolyCollection(verts, facecolors=[colours[name]], linewidths=0, label=name)
+        layer.sticky_edges.y.append(0.0)            # the bars stand on the axis, as ax.bar's do
+        shown.append(ax.add_collection(layer))
+    ax.autoscale_view()
     ax.set_xlabel("frame")
     ax.set_ylabel("emulated time (ms)")
     ax.set_title(title or "Flight processor budget per frame")
-    ax.legend(fontsize=7, ncol=2, loc="upper right")
+    ax.legend(handles=shown, fontsize=7, ncol=2, loc="upper right")
     return _save(fig, path)
 
 

@@ -25,6 +25,21 @@ def test_each_figure_writes_a_png(tmp_path):
     assert not list(tmp_path.glob("*.tmp*"))
 
 
+def test_stacked_bars_are_the_stages_on_top_of_each_other():
+    """A hand-made stack: three frames, two stages; a zero-height bar is left out."""
+    rects = figures.stacked_bars([3, 4, 5], {"a": [1.0, 2.0, 0.0], "b": [3.0, 0.0, 4.0]})
+    assert list(rects) == ["a", "b"]
+
+    def box(x, y0, y1):
+        return [[x - 0.5, y0], [x + 0.5, y0], [x + 0.5, y1], [x - 0.5, y1]]
+    np.testing.assert_array_equal(rects["a"], [box(3, 0, 1), box(4, 0, 2)])
+    np.testing.assert_array_equal(rects["b"], [box(3, 1, 4), box(5, 0, 4)])
+    # a frame's stage with no number: nothing drawn for it or the stages above, as ax.bar does
+    rects = figures.stacked_bars([0, 1], {"a": [1.0, np.nan], "b": [2.0, 5.0]})
+    np.testing.assert_array_equal(rects["a"], [box(0, 0, 1)])
+    np.testing.assert_array_equal(rects["b"], [box(0, 1, 3)])
+
+
 def test_event_gif_has_one_picture_per_frame(tmp_path):
     frames = [np.full((244, 256), 100 * k, np.uint16) for k in range(5)]
     marks = [{"candidates": np.array([[10.0, 20.0]]), "tracked": (10.0, 20.0), "gate": (10, 20, 5),
