@@ -314,8 +314,8 @@ def link_callee_copies_only() -> None:
         return
     lib, gen = getattr(cg, "JITCodeLibrary", None), getattr(cg, "JITCPUCodegen", None)
     needed = ("_optimize_final_module", "_finalize_final_module", "_finalize_dynamic_globals",
-              "_verify_declare_only_symbols", "serialize_using_object_code")
-    if lib is None or gen is None or not all(hasattr(lib, n) for n in needed + ("finalize",)) \
+              "_verify_declare_only_symbols", "serialize_using_object_code", "_ensure_finalized")
+    if lib is None or gen is None or not all(hasattr(lib, n) for n in needed) \
             or not hasattr(gen, "set_env") or getattr(lib, "uvisi_link_only", False):
         return
     optimise, finish, serialise, set_env = (lib._optimize_final_module,
