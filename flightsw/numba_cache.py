@@ -26,6 +26,17 @@ index as the previous one left it and never reuses a number. Loading needs no lo
 written to a temporary name and renamed, and a number once in an index is never given to another
 signature.
 
+**One compile of a kernel at a time.** Two processes that miss the same kernel and argument types
+in the cache would both compile them: a first run's warm-up process (:mod:`hil_harness.warmup`)
+and the command it helps, or campaign workers. :func:`serialise_cache_writes` also wraps numba's
+``Dispatcher.compile``: a process about to compile a cached kernel for argument types it has not
+loaded takes an exclusive ``flock`` on a file named by the kernel's index and the types
+(``<index>.<digest>.compiling``) and holds it until the kernel is compiled and saved. A process
+that finds the lock taken waits for it (numba's event ``uvisi:compile-wait`` marks the wait, at
+most :data:`COMPILE_WAIT_S`), then loads what the other saved, as numba's ``compile`` does first
+anyway (numba types a recursive call without compiling the kernel again, so no process waits for
+itself). Nothing about what is compiled changes; only who compiles it.
+
 **Kernels compiled into their callers.** :func:`callee_kernel` marks a kernel that only other
 kernels call: they compile it in without numba's wrappers, and Python calls reach it through a
 separate dispatcher; the two copies are cached under different names. The copy the callers link is
@@ -44,7 +55,8 @@ from pathlib import Path
 
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
            "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
-           "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD"]
+           "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD",
+           "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -67,6 +79,12 @@ NOT_KERNEL_SOURCES = ("hil_harness/cli",)
 KEEP_OLD = 2
 #: the project's root: the folder holding the packages
 _ROOT = Path(__file__).resolve().parents[1]
+#: the most seconds a process waits for another that compiles the same kernel and argument types
+#: before compiling them itself (the longest compile, the IP's frame kernel, takes ~45 s of one
+#: core on the slow development host)
+COMPILE_WAIT_S = 300.0
+#: numba event kind triggered around such a wait (``data``: the dispatcher and its argument types)
+COMPILE_WAIT_EVENT = "uvisi:compile-wait"
 
 
 def source_digest(root: Path = _ROOT, packages=SOURCE_PACKAGES,
@@ -150,22 +168,28 @@ def key_cache_on_sources(root: Path = _ROOT, packages=SOURCE_PACKAGES) -> Path |
 
 
 def serialise_cache_writes() -> None:
-    """Install the locked ``save``: now if numba's cache module is loaded, else when it is (a
-    package that imports this does not import numba by itself: ``uvisi scenarios`` never loads
-    it). Idempotent."""
+    """Install the locked ``save`` and the compile lock (the module's docstring): each now if its
+    numba module is loaded, else when it is (a package that imports this does not import numba
+    by itself: ``uvisi scenarios`` never loads it). Idempotent."""
     import sys
-    mod = sys.modules.get("numba.core.caching")
-    if mod is not None:
-        _lock_saves(mod)
-    elif not any(isinstance(f, _PatchOnImport) for f in sys.meta_path):
-        sys.meta_path.insert(0, _PatchOnImport())
+    for name, patch in (("numba.core.caching", _lock_saves),
+                        ("numba.core.dispatcher", _lock_compiles)):
+        mod = sys.modules.get(name)
+        if mod is not None:
+            patch(mod)
+        elif not any(isinstance(f, _PatchOnImport) and f.name == name for f in sys.meta_path):
+            sys.meta_path.insert(0, _PatchOnImport(name, patch))
 
 
 class _PatchOnImport:
-    """A meta-path finder that lets ``numba.core.caching`` load as usual, then locks its saves."""
+    """A meta-path finder that lets the module ``name`` load as usual, then calls ``patch`` on
+    it."""
+
+    def __init__(self, name: str, patch):
+        self.name, self.patch = name, patch
 
     def find_spec(self, name, path=None, target=None):
-        if name != "numba.core.caching":
+        if name != self.name:
             return None
         import importlib.util
         import sys
@@ -177,28 +201,94 @@ class _PatchOnImport:
 
         def exec_module(module):
             run(module)
-            _lock_saves(module)
+            self.patch(module)
         spec.loader.exec_module = exec_module
         return spec
 
 
-def _lock_saves(caching) -> None:
-    cls = caching.IndexDataCacheFile
-    if getattr(cls.save, "uvisi_locked", False):
+def _replace_once(cls, name: str, make) -> None:
+    """Replace the method ``cls.name`` by ``make(original)`` (wrapped as the original), unless it
+    was replaced before (the replacement is marked)."""
+    original = getattr(cls, name)
+    if getattr(original, "uvisi_locked", False):
         return
-    unlocked = cls.save
+    new = functools.wraps(original)(make(original))
+    new.uvisi_locked = True
+    setattr(cls, name, new)
 
-    @functools.wraps(unlocked)
-    def save(self, key, data):
-        with open(self._index_path + ".lock", "a") as fh:
-            fcntl.flock(fh, fcntl.LOCK_EX)
+
+def _lock_saves(caching) -> None:
+    def make(unlocked):
+        def save(self, key, data):
+            with open(self._index_path + ".lock", "a") as fh:
+                fcntl.flock(fh, fcntl.LOCK_EX)
+                try:
+                    return unlocked(self, key, data)
+                finally:
+                    fcntl.flock(fh, fcntl.LOCK_UN)
+        return save
+
+    _replace_once(caching.IndexDataCacheFile, "save", make)
+
+
+def compile_lock_path(dispatcher, args: tuple) -> str | None:
+    """The compile lock of ``dispatcher`` for the argument types ``args`` (numba types): beside its
+    cache index, named by the index and a digest of the types' names; None for a kernel that is
+    not cached on disk."""
+    index = getattr(getattr(getattr(dispatcher, "_cache", None), "_cache_file", None),
+                    "_index_path", None)
+    if index is None:
+        return None
+    digest = hashlib.sha1(repr(tuple(str(a) for a in args)).encode()).hexdigest()[:12]
+    return f"{index}.{digest}.compiling"
+
+
+def _lock_compiles(dispatcher_module) -> None:
+    from numba.core import event, sigutils
+
+    def make(unlocked):
+        def compile(self, sig):
+            args, _ = sigutils.normalize_signature(sig)
+            path = None if tuple(args) in self.overloads else compile_lock_path(self, args)
+            if path is None:
+                return unlocked(self, sig)
             try:
-                return unlocked(self, key, data)
-            finally:
-                fcntl.flock(fh, fcntl.LOCK_UN)
+                fh = open(path, "a")
+            except OSError:                 # a read-only cache: numba finds its own way
+                return unlocked(self, sig)
+            with fh:
+                if not _try_lock(fh):
+                    with event.trigger_event(COMPILE_WAIT_EVENT,
+                                             data={"dispatcher": self, "args": args}):
+                        _wait_lock(fh, COMPILE_WAIT_S)
+                try:
+                    return unlocked(self, sig)      # loads what another process saved meanwhile
+                finally:
+                    fcntl.flock(fh, fcntl.LOCK_UN)
+        return compile
 
-    save.uvisi_locked = True
-    cls.save = save
+    _replace_once(dispatcher_module.Dispatcher, "compile", make)
+
+
+def _try_lock(fh) -> bool:
+    try:
+        fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return False
+    return True
+
+
+def _wait_lock(fh, limit_s: float) -> bool:
+    """Take the lock of ``fh`` when it is free, polling, for at most ``limit_s`` seconds (a
+    process waiting on another that waits on it would otherwise wait for ever); whether it was
+    taken."""
+    import time
+    end = time.monotonic() + limit_s
+    while time.monotonic() < end:
+        time.sleep(0.05)
+        if _try_lock(fh):
+            return True
+    return False
 
 
 #: the numba options of the copy of a :func:`callee_kernel` its callers compile: neither of numba's

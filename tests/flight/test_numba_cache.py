@@ -5,10 +5,14 @@ Keyed: the oracle is a caller's value after its callee's file changed (numba's o
 old callee). Locked saves: the oracle is the index and data files themselves. Two processes save 60
 different keys each into one cache file at the same time; afterwards every key is in the index and
 its data file holds that key's payload (numba 0.68's unlocked save lets two processes pick the same
-data-file number, so a key can name the other process's machine code).
+data-file number, so a key can name the other process's machine code). One compile at a time: the
+oracles are numba's own compile events in each of two processes calling one kernel (the second
+compiles nothing and loads the first's) and the kernels' values.
 """
 from __future__ import annotations
 
+import json
+import math
 import multiprocessing as mp
 import os
 import subprocess
@@ -46,6 +50,123 @@ def test_concurrent_saves_keep_every_key_with_its_own_data(tmp_path):
     for key in [(tag, i) for tag in "ab" for i in range(N)]:       # numba's own reader
         got = f.load(key)
         assert got is not None and got["payload"] == key, key
+
+
+# ------------------------------------------------------------------------------------------------
+# one compile of a kernel at a time across processes
+# ------------------------------------------------------------------------------------------------
+
+_KERNELS = """
+from numba import njit
+
+@njit(cache=True)
+def f(x):
+    return 3 * x + 1
+
+@njit("int64(int64)", cache=True)
+def fact(n):
+    return 1 if n <= 1 else n * fact(n - 1)
+"""
+
+#: one process of the compile-lock test: ``compiler`` compiles ``f`` for int64, slowly (2 s in
+#: numba's compile event), ``waiter`` calls it once the compiler has started; each prints its
+#: numba compile events of ``f``, its waits and ``f(4)``
+_ROLE = """
+import json, os, sys, time
+sys.path.insert(0, {tree!r})
+import flightsw                                   # installs the locks
+from flightsw.numba_cache import COMPILE_WAIT_EVENT
+from numba.core import event
+role, flag = sys.argv[1], {flag!r}
+compiles, waits = [], []
+
+class Count(event.Listener):
+    def __init__(self, into, slow):
+        self.into, self.slow = into, slow
+    def on_start(self, ev):
+        if ev.data["dispatcher"].py_func.__name__ == "f":
+            self.into.append(1)
+            if self.slow:
+                open(flag, "w").close()           # the compiler holds f's lock now
+                time.sleep(2.0)
+    def on_end(self, ev):
+        pass
+
+event.register("numba:compile", Count(compiles, role == "compiler"))
+event.register(COMPILE_WAIT_EVENT, Count(waits, False))
+from pkgy.kernels import f
+if role == "waiter":
+    while not os.path.exists(flag):
+        time.sleep(0.01)
+f4 = int(f(4))
+print(json.dumps({{"compiles": len(compiles), "waits": len(waits), "f4": f4}}))
+"""
+
+
+def test_a_second_process_waits_for_the_kernel_being_compiled_and_loads_it(tmp_path):
+    """Oracles: numba's own compile events in each process (the second compiles nothing), the
+    lock's wait event (seen once, in the second only) and the kernel's value (3 * 4 + 1)."""
+    tree = tmp_path / "tree"
+    (tree / "pkgy").mkdir(parents=True)
+    (tree / "pkgy" / "__init__.py").write_text("")
+    (tree / "pkgy" / "kernels.py").write_text(_KERNELS)
+    script = tmp_path / "role.py"
+    script.write_text(_ROLE.format(tree=str(tree), flag=str(tmp_path / "compiling")))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    procs = {role: subprocess.Popen([sys.executable, str(script), role], env=env, text=True,
+                                    stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+             for role in ("compiler", "waiter")}
+    got = {}
+    for role, p in procs.items():
+        out, err = p.communicate(timeout=300)
+        assert p.returncode == 0, err[-2000:]
+        got[role] = json.loads(out.splitlines()[-1])
+    assert got["compiler"] == {"compiles": 1, "waits": 0, "f4": 13}
+    assert got["waiter"] == {"compiles": 0, "waits": 1, "f4": 13}
+    assert list((tmp_path / "cache").rglob("*.compiling"))         # the lock files, beside it
+
+
+def test_a_recursive_kernel_does_not_wait_for_itself(tmp_path):
+    """A recursive kernel calls itself with the types it is being compiled for, under its own
+    lock: numba types that call without compiling again, so the process never waits for itself
+    (oracle: math.factorial; the wait event never fires; a numba that compiled again there would
+    wait out COMPILE_WAIT_S and fail the subprocess's timeout)."""
+    (tmp_path / "pkgy").mkdir()
+    (tmp_path / "pkgy" / "__init__.py").write_text("")
+    (tmp_path / "pkgy" / "kernels.py").write_text(_KERNELS)
+    code = textwrap.dedent(f"""
+        import sys
+        sys.path.insert(0, {str(tmp_path)!r})
+        import flightsw
+        from flightsw.numba_cache import COMPILE_WAIT_EVENT
+        from numba.core import event
+        waits = []
+        class W(event.Listener):
+            def on_start(self, ev):
+                waits.append(1)
+            def on_end(self, ev):
+                pass
+        event.register(COMPILE_WAIT_EVENT, W())
+        from pkgy.kernels import fact
+        print(fact(10), len(waits))
+    """)
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == [str(math.factorial(10)), "0"]
+
+
+def test_the_lock_is_named_by_the_kernel_and_its_types():
+    from numba.core import types
+    from flightsw.arith.m1750_float import _fa32_k, _fm32_k
+    a = nc.compile_lock_path(_fa32_k, (types.int64, types.int64))
+    assert a.endswith(".compiling") and a.startswith(_fa32_k._cache._cache_file._index_path)
+    assert a == nc.compile_lock_path(_fa32_k, (types.int64, types.int64))
+    assert a != nc.compile_lock_path(_fa32_k, (types.int32, types.int64))
+    assert a != nc.compile_lock_path(_fm32_k, (types.int64, types.int64))
+    from numba import njit
+    assert nc.compile_lock_path(njit(lambda x: x), (types.int64,)) is None    # not cached
 
 
 # ------------------------------------------------------------------------------------------------
