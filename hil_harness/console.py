@@ -145,6 +145,23 @@ class _CompileWatch:
         if self.bar is not None:
             self.bar.set_postfix_str(name, refresh=False)
 
+    def on_wait(self, name: str) -> None:
+        """Another process is compiling kernel ``name`` for the same argument types (the warm-up
+        process): this one waits for it (:data:`flightsw.numba_cache.COMPILE_WAIT_EVENT`), and
+        the wait counts as compiling."""
+        import time
+        if self.depth == 0:
+            self.t0 = time.perf_counter()
+        self.depth += 1
+        if self.bar is not None:
+            self.bar.set_postfix_str(f"{name} (waiting for the warm-up process)")
+
+    def on_wait_end(self) -> None:
+        import time
+        self.depth = max(0, self.depth - 1)
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.t0
+
     def on_end(self, dispatcher=None) -> None:
         import time
         self.depth = max(0, self.depth - 1)
@@ -192,7 +209,17 @@ def watch_compilation() -> None:
         def on_end(self, event):
             w.on_end(event.data.get("dispatcher") if isinstance(event.data, dict) else None)
 
+    class WaitListener(numba_event.Listener):
+        def on_start(self, event):
+            d = event.data.get("dispatcher") if isinstance(event.data, dict) else None
+            w.on_wait(getattr(getattr(d, "py_func", None), "__qualname__", "kernel"))
+
+        def on_end(self, event):
+            w.on_wait_end()
+
     numba_event.register("numba:compile", Listener())
+    from flightsw.numba_cache import COMPILE_WAIT_EVENT
+    numba_event.register(COMPILE_WAIT_EVENT, WaitListener())
     _watch["w"] = w
     import atexit
     atexit.register(w.close)

@@ -1,18 +1,22 @@
-"""First-run compilation on both cores: while a command compiles the ground simulator and the image
-processor, a second process compiles the track processor and the bus codecs into the same numba
-cache.
+"""First-run compilation on both cores: while a command compiles the track processor and the ground
+simulator, a second process compiles the image processor's frame kernel into the same numba cache.
 
 numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
 are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles
-everything in one process, one kernel after another, while the second core idles. :func:`start`
-(called by the console's compile listener on the first compilation it sees, so never on a warm run)
-launches ``python -m hil_harness.warmup``. It steps a :class:`flightsw.tp.TrackProcessor` through a
-few synthetic frames and runs the message codecs: the same specialisations the event will ask for
-(the kernels take word and state arrays whose types do not depend on the scenario). When the event
-reaches them they are usually in the cache already; if not, numba compiles them in the event's
-process as it would have anyway. Only kernels Python calls can be compiled ahead like this: a
-kernel compiled into its callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A lane
-operations among them) is compiled when a caller is.
+everything in one process, one kernel after another, while the second core idles: the track
+processor's frame kernel first (a :class:`flightsw.tp.TrackProcessor` loads it when it is made),
+then the renderer's kernels at the first frame, then the image processor's frame kernel
+(``flightsw.ip.step.ip_step_k``), the largest. :func:`start` (called by the console's compile
+listener on the first compilation it sees, so never on a warm run) launches ``python -m
+hil_harness.warmup``, which steps an :class:`flightsw.ip.ImageProcessor` through a few synthetic
+frames (:func:`warm_image_processor`: the one specialisation of its frame kernel that every
+sequence and record use), then a track processor and the message codecs
+(:func:`warm_track_processor`: loaded from the cache by then, or compiled if the command is one
+that never makes a TP). numba's compile is locked per kernel and argument types across processes
+(:mod:`flightsw.numba_cache`): a process that reaches a kernel the other is compiling waits for it
+and loads it, so nothing is compiled twice. Only kernels Python calls can be compiled ahead like
+this: a kernel compiled into its callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A
+lane operations among them) is compiled when a caller is.
 
 OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
 processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
@@ -30,7 +34,7 @@ import os
 import subprocess
 import sys
 
-__all__ = ["start", "warm_track_processor", "WARMUP_ENV"]
+__all__ = ["start", "warm_image_processor", "warm_track_processor", "WARMUP_ENV"]
 
 #: set in the child's environment, so that its own compilations do not start another child
 WARMUP_ENV = "UVISI_WARMUP_CHILD"
@@ -85,5 +89,31 @@ def warm_track_processor(n_frames: int = 4):
     return cmd
 
 
+def warm_image_processor(n_frames: int = 2):
+    """Step an ImageProcessor (the shipped ``satellite_c2`` sequence and ``satellite`` record)
+    through ``n_frames`` synthetic frames (uint16 [244, 256], Poisson sky and one bright blob),
+    reading a locked track command each frame and keeping the stage images of the last, as the
+    closed loop does. Returns the last :class:`flightsw.ip.processor.IPOutput`."""
+    import numpy as np
+
+    from flightsw.ip import ImageProcessor
+    from flightsw.ip.sequence import load_default_sequence
+    from flightsw.messages import TrackCommand
+    from flightsw.records import load_record
+
+    ip = ImageProcessor(load_default_sequence("satellite_c2"), load_record("satellite"))
+    rng = np.random.default_rng(0)
+    out = None
+    for k in range(n_frames):
+        frame = rng.poisson(100.0, (244, 256)).astype(np.uint16)
+        frame[120:125, 126:131] += np.uint16(1500)
+        cmd = TrackCommand(predicted_row=122.0, predicted_col=128.0, locked=True,
+                           los_eci=np.array([1.0, 0.0, 0.0]), object_type="satellite").to_words()
+        out = ip.step(frame, frame_count=k, time_tag=0.5 * k, imager="wfov_vis",
+                      command_words=cmd, want_stages=k == n_frames - 1)
+    return out
+
+
 if __name__ == "__main__":      # python -m hil_harness.warmup (started by start())
+    warm_image_processor()       # reached last by a closed-loop command, so compiled ahead first
     warm_track_processor()

@@ -55,3 +55,40 @@ def test_the_first_compilation_starts_it(launches, monkeypatch):
 def test_the_warm_up_runs_the_flight_code():
     cmd = warmup.warm_track_processor(n_frames=3)
     assert cmd.frame_count == 2 and cmd.time_tag == 1.0
+
+
+def test_the_warm_up_runs_the_image_processor():
+    """Oracle: the synthetic frame's one bright blob, rows 120-124 and columns 126-130 (centre
+    122, 128): the message's only candidate, within a processed pixel of it."""
+    out = warmup.warm_image_processor(n_frames=2)
+    msg = out.result.message
+    assert msg.count == 1
+    row, col = msg.candidates["row"][0], msg.candidates["col"][0]
+    assert abs(row - 122.0) < 1.0 and abs(col - 128.0) < 1.0
+
+
+def test_a_wait_for_the_other_process_counts_as_compiling(monkeypatch):
+    """numba's event for a wait on another process's compile (flightsw.numba_cache) reaches the
+    compile watch: its seconds count in compile_seconds, outside any compile and inside one alike
+    (counted once). Oracle: a clock that moves only when the test moves it."""
+    import time
+
+    from numba.core import event
+
+    from flightsw.numba_cache import COMPILE_WAIT_EVENT
+    from hil_harness import console
+    monkeypatch.setattr(console, "progress_enabled", lambda: False)
+    console.watch_compilation()
+    w = console._watch["w"]
+    now = [1000.0]
+    monkeypatch.setattr(time, "perf_counter", lambda: now[0])
+    before = console.compile_seconds()
+    with event.trigger_event(COMPILE_WAIT_EVENT, data={"dispatcher": None, "args": ()}):
+        now[0] += 2.0
+    assert console.compile_seconds() - before == 2.0
+    w.on_start("outer")                     # a wait inside a compile: the compile's time only
+    now[0] += 1.0
+    with event.trigger_event(COMPILE_WAIT_EVENT, data={"dispatcher": None, "args": ()}):
+        now[0] += 4.0
+    w.on_end()
+    assert console.compile_seconds() - before == 7.0 and w.depth == 0
