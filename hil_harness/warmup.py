@@ -18,15 +18,16 @@ and loads it, so nothing is compiled twice. Only kernels Python calls can be com
 this: a kernel compiled into its callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A
 lane operations among them) is compiled when a caller is.
 
-OFF by default (``UVISI_WARMUP=1`` switches it on): on 2026-11-28 a cold test suite compiled in two
-processes at once ran wrong code for the opportunity track (aurora events lost, the start-up gains'
-kernel tests off) where one process alone never did, even with numba's cache saves locked
-(:mod:`flightsw.numba_cache`); until that is understood the first run compiles in one process.
-A second way two processes' code can mix is closed since: the 1750A primitives' overloads each
-have their own name (:func:`flightsw.arith.m1750_float.overload_impl2`), so a symbol two cached
-kernels both define is always the same code. On 2026-11-29 one cold suite with the compile-ahead
-process (12bd2df, before that change) showed no opportunity-track failure; one run does not clear
-it.
+On by default; ``UVISI_WARMUP=0`` switches it off (the command then compiles everything itself, on
+one core). Two processes compiling into one cache once ran wrong code (a cold test suite with its
+compile-ahead process, 2026-11-28: the opportunity track lost aurora events); the two ways their
+code can mix are closed: numba's saves are locked (:mod:`flightsw.numba_cache`), and the 1750A
+primitives' overloads each have their own name (:func:`flightsw.arith.m1750_float.overload_impl2`),
+so a symbol two cached kernels both define is always the same code. With the compile lock on top,
+no two processes compile the same kernel and argument types at all. Checked on 2026-11-30 (docs/
+validation.md, "The first run"): three cold caches built by an event and this process at once gave
+the one-process summaries and passed the flight fixtures, and a cold suite with its compile-ahead
+process passed whole.
 """
 from __future__ import annotations
 
@@ -42,9 +43,9 @@ _STARTED: list = []
 
 
 def start() -> bool:
-    """Launch the warm-up process once per process (only with ``UVISI_WARMUP=1``, not from inside
+    """Launch the warm-up process once per process (not with ``UVISI_WARMUP=0``, not from inside
     a warm-up child). Returns True if one was started."""
-    if _STARTED or os.environ.get(WARMUP_ENV) or os.environ.get("UVISI_WARMUP", "0") != "1":
+    if _STARTED or os.environ.get(WARMUP_ENV) or os.environ.get("UVISI_WARMUP", "1") == "0":
         return False
     _STARTED.append(True)
     env = dict(os.environ, **{WARMUP_ENV: "1"})

@@ -19,7 +19,7 @@ def launches(monkeypatch):
     monkeypatch.setattr(subprocess, "Popen", FakePopen)
     monkeypatch.setattr(warmup, "_STARTED", [])
     monkeypatch.delenv(warmup.WARMUP_ENV, raising=False)
-    monkeypatch.setenv("UVISI_WARMUP", "1")              # opt-in (off by default)
+    monkeypatch.delenv("UVISI_WARMUP", raising=False)    # on by default
     return calls
 
 
@@ -37,9 +37,9 @@ def test_not_started_inside_a_child_or_when_switched_off(launches, monkeypatch):
     monkeypatch.delenv(warmup.WARMUP_ENV)
     monkeypatch.setenv("UVISI_WARMUP", "0")
     assert warmup.start() is False
-    monkeypatch.delenv("UVISI_WARMUP")                   # off by default
-    assert warmup.start() is False
     assert launches == []
+    monkeypatch.setenv("UVISI_WARMUP", "1")
+    assert warmup.start() is True
 
 
 def test_the_first_compilation_starts_it(launches, monkeypatch):
