@@ -245,6 +245,7 @@ def compile_lock_path(dispatcher, args: tuple) -> str | None:
 
 def _lock_compiles(dispatcher_module) -> None:
     from numba.core import event, sigutils
+    from numba.core.compiler_lock import global_compiler_lock
 
     def make(unlocked):
         def compile(self, sig):
@@ -256,7 +257,10 @@ def _lock_compiles(dispatcher_module) -> None:
                 fh = open(path, "a")
             except OSError:                 # a read-only cache: numba finds its own way
                 return unlocked(self, sig)
-            with fh:
+            # numba's own lock first (re-entrant; ``compile`` takes it too): threads of one
+            # process take the file locks one at a time, so none waits on a file lock another
+            # thread holds while that thread waits for numba's lock
+            with fh, global_compiler_lock:
                 if not _try_lock(fh):
                     with event.trigger_event(COMPILE_WAIT_EVENT,
                                              data={"dispatcher": self, "args": args}):

@@ -147,14 +147,14 @@ class _CompileWatch:
 
     def on_wait(self, name: str) -> None:
         """Another process is compiling kernel ``name`` for the same argument types (the warm-up
-        process): this one waits for it (:data:`flightsw.numba_cache.COMPILE_WAIT_EVENT`), and
-        the wait counts as compiling."""
+        process, a campaign's other worker): this one waits for it
+        (:data:`flightsw.numba_cache.COMPILE_WAIT_EVENT`), and the wait counts as compiling."""
         import time
         if self.depth == 0:
             self.t0 = time.perf_counter()
         self.depth += 1
         if self.bar is not None:
-            self.bar.set_postfix_str(f"{name} (waiting for the warm-up process)")
+            self.bar.set_postfix_str(f"{name} (waiting: another process compiles it)")
 
     def on_wait_end(self) -> None:
         import time

@@ -24,10 +24,10 @@ compile-ahead process, 2026-11-28: the opportunity track lost aurora events); th
 code can mix are closed: numba's saves are locked (:mod:`flightsw.numba_cache`), and the 1750A
 primitives' overloads each have their own name (:func:`flightsw.arith.m1750_float.overload_impl2`),
 so a symbol two cached kernels both define is always the same code. With the compile lock on top,
-no two processes compile the same kernel and argument types at all. Checked on 2026-11-30 (docs/
-validation.md, "The first run"): three cold caches built by an event and this process at once gave
-the one-process summaries and passed the flight fixtures, and a cold suite with its compile-ahead
-process passed whole.
+no two processes compile the same kernel and argument types at all. Checked on 2026-11-30
+(``docs/validation.md``, "The first run"): three cold caches built by an event and this process at
+once gave the one-process summaries and passed the flight fixtures, and a cold suite with its
+compile-ahead process passed whole.
 """
 from __future__ import annotations
 
@@ -103,13 +103,13 @@ def warm_image_processor(n_frames: int = 2):
     from flightsw.records import load_record
 
     ip = ImageProcessor(load_default_sequence("satellite_c2"), load_record("satellite"))
+    cmd = TrackCommand(predicted_row=122.0, predicted_col=128.0, locked=True,
+                       los_eci=np.array([1.0, 0.0, 0.0]), object_type="satellite").to_words()
     rng = np.random.default_rng(0)
     out = None
     for k in range(n_frames):
         frame = rng.poisson(100.0, (244, 256)).astype(np.uint16)
         frame[120:125, 126:131] += np.uint16(1500)
-        cmd = TrackCommand(predicted_row=122.0, predicted_col=128.0, locked=True,
-                           los_eci=np.array([1.0, 0.0, 0.0]), object_type="satellite").to_words()
         out = ip.step(frame, frame_count=k, time_tag=0.5 * k, imager="wfov_vis",
                       command_words=cmd, want_stages=k == n_frames - 1)
     return out
