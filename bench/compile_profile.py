@@ -12,7 +12,9 @@ many functions the optimised modules still define (a callee that is not inlined 
 compiled again in every kernel that links it). Then the ``--top`` kernels by their own LLVM time.
 
 It times numba's ``CPUCodeLibrary`` methods by wrapping them (numba's internals: a measuring
-script, not product code) and sets ``NUMBA_CACHE_DIR`` to a fresh folder before numba loads.
+script, not product code) and sets ``NUMBA_CACHE_DIR`` to a fresh folder before numba loads, and
+``UVISI_WARMUP=0``: the command compiles everything in this process, as it does without the
+first run's warm-up process (which would compile the image processor beside it).
 """
 from __future__ import annotations
 
@@ -82,6 +84,7 @@ def main(argv=None) -> int:
     if "numba" in sys.modules:
         sys.exit("bench.compile_profile: numba was imported before the cache folder was set")
     os.environ["NUMBA_CACHE_DIR"] = tempfile.mkdtemp(prefix="uvisi-compile-profile-")
+    os.environ["UVISI_WARMUP"] = "0"        # every kernel compiled here, none by a second process
     stages = collections.defaultdict(float)
     per_lib = collections.defaultdict(lambda: collections.defaultdict(float))
     defined: dict = {}
