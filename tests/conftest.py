@@ -4,9 +4,10 @@ benchmark smoke test last.
 A session that collects at least :data:`COMPILE_AHEAD_MIN_TESTS` tests (the whole suite, not one
 file) starts ``python -m tests.compile_ahead`` beside it, and stops it when the session ends if it
 is still running. On a warm cache the process only loads the cache (a few seconds on the other
-core). Only with ``UVISI_WARMUP=1`` (``uvisi``'s own warm-up process is on unless it is ``0``):
-a cold suite with it took 722 s on 2026-11-30 against 757 s without it the session before, on
-the same slow host; no controlled comparison shows it paying for a second process by default.
+core). Only with ``UVISI_WARMUP=1``; without it the commands the tests run start no warm-up
+process either (``uvisi``'s own, on by default outside the tests). A cold suite with it took 722 s
+on 2026-11-30 against 757 s without it the session before, on the same slow host; no controlled
+comparison shows it paying for a second process by default.
 
 tests/test_bench_smoke.py runs every benchmark once in a process of its own, which loads from the
 cache whatever the suite has compiled before it: run last, it compiles almost nothing (on a cold
@@ -24,6 +25,10 @@ import pytest
 from hil_harness.warmup import WARMUP_ENV
 
 ROOT = Path(__file__).resolve().parents[1]
+# the commands the tests run (in this process and in subprocesses) start no warm-up process of
+# their own: the suite compiles everything anyway, and its own helper is the compile-ahead
+# process below; a test of the warm-up sets the variable itself
+os.environ.setdefault("UVISI_WARMUP", "0")
 # the tests live in folders by package (tests/ip, tests/tp, ...); their shared helpers
 # (ip_reference, quat_oracle) stay here, importable from every folder
 sys.path.insert(0, str(Path(__file__).resolve().parent))
