@@ -134,14 +134,26 @@ class _CompileWatch:
         else:
             self.beat = Heartbeat(0, "compiling", "kernels")
 
-    def on_start(self, name: str, dispatcher=None) -> None:
+    def _enter(self) -> None:
+        """One more compile (or wait) under way; the outermost starts the clock."""
         import time
         if self.depth == 0:
             self.t0 = time.perf_counter()
+        self.depth += 1
+
+    def _leave(self) -> None:
+        """One compile (or wait) over; the outermost adds its wall time to :attr:`seconds`."""
+        import time
+        self.depth = max(0, self.depth - 1)
+        if self.depth == 0:
+            self.seconds += time.perf_counter() - self.t0
+
+    def on_start(self, name: str, dispatcher=None) -> None:
+        self._enter()
+        if self.depth == 1:
             if not self.noted:
                 self._first()
             self._plan(dispatcher)
-        self.depth += 1
         if self.bar is not None:
             self.bar.set_postfix_str(name, refresh=False)
 
@@ -149,22 +161,14 @@ class _CompileWatch:
         """Another process is compiling kernel ``name`` for the same argument types (the warm-up
         process, a campaign's other worker): this one waits for it
         (:data:`flightsw.numba_cache.COMPILE_WAIT_EVENT`), and the wait counts as compiling."""
-        import time
-        if self.depth == 0:
-            self.t0 = time.perf_counter()
-        self.depth += 1
+        self._enter()
         if self.bar is not None:
             self.bar.set_postfix_str(f"{name} (waiting: another process compiles it)")
 
     def on_wait_end(self) -> None:
-        import time
-        self.depth = max(0, self.depth - 1)
-        if self.depth == 0:
-            self.seconds += time.perf_counter() - self.t0
+        self._leave()
 
     def on_end(self, dispatcher=None) -> None:
-        import time
-        self.depth = max(0, self.depth - 1)
         self.count += 1
         key = id(getattr(dispatcher, "py_func", None))
         if dispatcher is not None and key in self.planned and key not in self.done:
@@ -173,8 +177,7 @@ class _CompileWatch:
                 self.bar.update(1)
             if self.beat is not None:
                 self.beat.update(1)
-        if self.depth == 0:
-            self.seconds += time.perf_counter() - self.t0
+        self._leave()
 
     def close(self) -> None:
         if self.bar is not None:
