@@ -17,13 +17,14 @@ from __future__ import annotations
 import os
 import types as pytypes
 
-from flightsw.numba_cache import is_callee_kernel
+from flightsw.numba_cache import SOURCE_PACKAGES, is_callee_kernel
 
 __all__ = ["PROJECT_PACKAGES", "reachable_kernels", "compiled_function", "is_cached",
            "uncached_kernels"]
 
-#: the packages whose kernels the compile bar counts (numba's own are not counted)
-PROJECT_PACKAGES = ("flightsw", "groundsim", "hil_harness")
+#: the packages whose kernels the compile bar counts (numba's own are not counted): those the
+#: kernels are made from, whose sources key the cache
+PROJECT_PACKAGES = SOURCE_PACKAGES
 
 
 def _is_project(obj) -> bool:
