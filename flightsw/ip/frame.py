@@ -26,6 +26,7 @@ from flightsw.ip.pipeline import FrameResult, plan_for
 from flightsw.ip.preprocess import Subimage
 from flightsw.ip.sequence import ProcessingSequence
 from flightsw.messages import Feedback
+from flightsw.records import Record
 
 __all__ = ["backend", "BackendResult", "process_frame", "process_window", "FrameResult",
            "check_inputs", "frame_parts"]
@@ -64,7 +65,6 @@ def check_inputs(alpha_q12, time_tag: float) -> None:
 
 
 def _check_objects(sequence, record):
-    from flightsw.records import Record
     if not isinstance(sequence, ProcessingSequence):
         raise ValueError(f"sequence must be a ProcessingSequence, got {type(sequence).__name__}")
     if not isinstance(record, Record):

@@ -33,7 +33,7 @@ from flightsw.ip import filters as flt
 from flightsw.ip import threshold as th
 from flightsw.ip.backend import (BACK_KEYS, BackendResult, backend_k, backend_params,
                                  candidate_table, enc32)
-from flightsw.ip.frame_header import FRAME_HEADER, header_of, new_header
+from flightsw.ip.frame_header import FRAME_HEADER, HEADER_WORD, header_of, new_header
 from flightsw.ip.preprocess import Subimage, compact_k, window_origin_k
 from flightsw.ip.rank import record_words
 from flightsw.ip.sequence import (PHASE_LABEL, STEP_REGISTRY, ColourParams, DetrendParams,
@@ -552,9 +552,9 @@ class FramePlan:
         """One checked frame (uint16 [244, 256], C order) through the pipeline; ``pred`` the TP's
         predicted pixel (full resolution) or None (the window is the image centre and the centroid
         means are the window centre)."""
-        hd = self.header[0]
-        hd["alpha_q12"] = self.aq if alpha_q12 is None else int(alpha_q12)
-        hd["frame_count"] = frame_count
+        words = self.header_words
+        words[HEADER_WORD["alpha_q12"]] = self.aq if alpha_q12 is None else int(alpha_q12)
+        words[HEADER_WORD["frame_count"]] = frame_count
         stages = self.stage_arrays() if want_stages else self.no_stages
         at = _NO_PREDICTION if pred is None else np.array(pred, np.float64)
         win, pack = ip_frame_at_k(frame, self.header, at, self.front, self.ffts, self.poly,

@@ -102,7 +102,7 @@ def frame_over_12bit_k(frame):
 def check_frame(frame):
     """The frame as a 2-D integer array of 12-bit counts (ValueError otherwise)."""
     frame = np.asarray(frame)
-    if frame.ndim != 2 or not np.issubdtype(frame.dtype, np.integer):
+    if frame.ndim != 2 or frame.dtype.kind not in "ui":
         raise ValueError(f"frame must be a 2-D integer array (uint16 [244, 256]), got "
                          f"{frame.dtype} {frame.shape}")
     if frame.dtype == np.uint16 and frame.flags.c_contiguous and frame.size:
