@@ -56,7 +56,7 @@ from pathlib import Path
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
            "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
            "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD",
-           "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path"]
+           "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path", "compile_for_callers"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -352,12 +352,27 @@ def callee_kernel(fn=None, **options):
     kernel.py_func = fn
     kernel.inner = inner
     kernel.twin = twin
+    kernel.callee_options = dict(options, **CALLEE)
 
     def typing(*args, **kwargs):
         return inner
 
-    overload(kernel, jit_options=dict(options, **CALLEE), strict=False)(typing)
+    overload(kernel, jit_options=kernel.callee_options, strict=False)(typing)
     return kernel
+
+
+def compile_for_callers(kernel, argtypes: tuple) -> None:
+    """Compile the copy of the :func:`callee_kernel` ``kernel`` that its callers link in, for the
+    numba argument types ``argtypes``, as a caller's typing does when it first meets a call with
+    those types (numba's ``jit`` of the copy with the overload's options, then ``compile``). The
+    copy is cached, so a caller compiled later, in this process or another, loads it rather than
+    compiling it; if another process is compiling it, this waits and loads it (the compile lock).
+    A first run's second process compiles a large callee ahead this way
+    (:mod:`hil_harness.warmup`). Types no caller uses compile a copy no caller loads: time only."""
+    from numba import njit
+    if not is_callee_kernel(kernel):
+        raise ValueError(f"{getattr(kernel, '__qualname__', kernel)!r} is not a callee kernel")
+    njit(**kernel.callee_options)(kernel.inner).compile(tuple(argtypes))
 
 
 def dispatcher_of(kernel):

@@ -1,5 +1,6 @@
 """First-run compilation on both cores: while a command compiles the track processor and the ground
-simulator, a second process compiles the image processor's frame kernel into the same numba cache.
+simulator, a second process compiles the image processor's back end and frame kernel into the same
+numba cache.
 
 numba compiles a kernel the first time it is called and keeps it in its on-disk cache (the kernels
 are cached: :data:`flightsw.numba_cache.KERNEL`). On a machine's first run an event compiles
@@ -8,15 +9,18 @@ processor's frame kernel first (a :class:`flightsw.tp.TrackProcessor` loads it w
 then the renderer's kernels at the first frame, then the image processor's frame kernel
 (``flightsw.ip.step.ip_step_k``), the largest. :func:`start` (called by the console's compile
 listener on the first compilation it sees, so never on a warm run) launches ``python -m
-hil_harness.warmup``, which steps an :class:`flightsw.ip.ImageProcessor` through a few synthetic
-frames (:func:`warm_image_processor`: the one specialisation of its frame kernel that every
-sequence and record use), then a track processor and the message codecs
-(:func:`warm_track_processor`: loaded from the cache by then, or compiled if the command is one
-that never makes a TP). numba's compile is locked per kernel and argument types across processes
-(:mod:`flightsw.numba_cache`): a process that reaches a kernel the other is compiling waits for it
-and loads it, so nothing is compiled twice. Only kernels Python calls can be compiled ahead like
-this: a kernel compiled into its callers (:func:`flightsw.numba_cache.callee_kernel`, the 1750A
-lane operations among them) is compiled when a caller is.
+hil_harness.warmup``, which first compiles the IP's back end for its callers
+(:func:`warm_back_end`: a callee kernel, compiled into the IP's frame kernels and into ``uvisi
+detect``'s full-frame kernel, which reaches it after its front end), then steps an
+:class:`flightsw.ip.ImageProcessor` through a few synthetic frames (:func:`warm_image_processor`:
+the one specialisation of its frame kernel that every sequence and record use), then a track
+processor and the message codecs (:func:`warm_track_processor`: loaded from the cache by then, or
+compiled if the command is one that never makes a TP). numba's compile is locked per kernel and
+argument types across processes (:mod:`flightsw.numba_cache`): a process that reaches a kernel
+the other is compiling waits for it and loads it, so nothing is compiled twice. A kernel compiled
+into its callers (:func:`flightsw.numba_cache.callee_kernel`) is compiled ahead through
+:func:`flightsw.numba_cache.compile_for_callers`, for the argument types its callers use
+(:func:`back_end_types`).
 
 On by default; ``UVISI_WARMUP=0`` switches it off (the command then compiles everything itself, on
 one core). Two processes compiling into one cache once ran wrong code (a cold test suite with its
@@ -35,7 +39,8 @@ import os
 import subprocess
 import sys
 
-__all__ = ["start", "warm_image_processor", "warm_track_processor", "WARMUP_ENV"]
+__all__ = ["start", "warm_back_end", "back_end_types", "warm_image_processor",
+           "warm_track_processor", "WARMUP_ENV"]
 
 #: set in the child's environment, so that its own compilations do not start another child
 WARMUP_ENV = "UVISI_WARMUP_CHILD"
@@ -115,6 +120,34 @@ def warm_image_processor(n_frames: int = 2):
     return out
 
 
+def back_end_types() -> tuple:
+    """The numba argument types every caller of the IP's back end (:func:`flightsw.ip.backend.
+    backend_k`: the IP's frame kernels and ``uvisi detect``'s full-frame kernel) calls it with:
+    the window (int16 [h, w], C order), :data:`~flightsw.ip.backend.BACKEND_PARAMS` [1] and the
+    frame header (:data:`~flightsw.ip.frame_header.FRAME_HEADER` [1])."""
+    import numpy as np
+    from numba import typeof
+
+    from flightsw.ip.backend import BACKEND_PARAMS
+    from flightsw.ip.frame_header import new_header
+
+    header, _ = new_header()
+    return (typeof(np.zeros((64, 64), np.int16)), typeof(np.zeros(1, BACKEND_PARAMS)),
+            typeof(header))
+
+
+def warm_back_end() -> None:
+    """Compile the IP's back end (colouring, features and ranking in 1750A arithmetic) for its
+    callers: the largest part of each kernel that holds it (about 20 of the ~48 s a first ``uvisi
+    detect`` compiles, reached after the front end's ~15 s), so the command that started this
+    process finds it compiled, or being compiled, when its own kernel gets there."""
+    from flightsw.ip.backend import backend_k
+    from flightsw.numba_cache import compile_for_callers
+
+    compile_for_callers(backend_k, back_end_types())
+
+
 if __name__ == "__main__":      # python -m hil_harness.warmup (started by start())
+    warm_back_end()              # shared by the IP's frame kernels and the full-frame detector
     warm_image_processor()       # reached last by a closed-loop command, so compiled ahead first
     warm_track_processor()

@@ -20,6 +20,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+import pytest
 from numba.core.caching import IndexDataCacheFile
 
 import flightsw  # noqa: F401  (installs the locked save)
@@ -155,6 +156,76 @@ def test_a_recursive_kernel_does_not_wait_for_itself(tmp_path):
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == [str(math.factorial(10)), "0"]
+
+
+_CALLEES = """
+from numba import njit
+from flightsw.numba_cache import callee_kernel
+
+@callee_kernel
+def h(x):
+    return 2 * x + 5
+
+@njit(cache=True)
+def g(x):
+    return h(x) + 1
+"""
+
+#: one process: ``ahead`` compiles h's copy for its callers for int64, ``caller`` calls g on
+#: argv[2] (an int or a float); each prints the numba compile events of h's copy and g's value
+_AHEAD = """
+import json, sys
+sys.path.insert(0, {tree!r})
+from numba import types
+from numba.core import event
+from flightsw.numba_cache import compile_for_callers
+from pkgz.kernels import g, h
+copies = []
+
+class Count(event.Listener):
+    def on_start(self, ev):
+        if ev.data["dispatcher"].py_func.__qualname__ == "h_in_callers":
+            copies.append(1)
+    def on_end(self, ev):
+        pass
+
+event.register("numba:compile", Count())
+value = None
+if sys.argv[1] == "ahead":
+    compile_for_callers(h, (types.int64,))
+else:
+    value = g(int(sys.argv[2]) if sys.argv[2].isdigit() else float(sys.argv[2]))
+print(json.dumps({{"copies": len(copies), "value": value}}))
+"""
+
+
+def test_a_callee_compiled_ahead_is_what_a_later_caller_links(tmp_path):
+    """compile_for_callers caches the copy a caller's typing would compile. Oracles: numba's
+    compile events of the copy in each process (the caller's process compiles none for the types
+    compiled ahead, one for other types) and g's value (2 x + 6)."""
+    tree = tmp_path / "tree"
+    (tree / "pkgz").mkdir(parents=True)
+    (tree / "pkgz" / "__init__.py").write_text("")
+    (tree / "pkgz" / "kernels.py").write_text(_CALLEES)
+    script = tmp_path / "ahead.py"
+    script.write_text(_AHEAD.format(tree=str(tree)))
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+    def run(*argv):
+        out = subprocess.run([sys.executable, str(script), *argv], env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        return json.loads(out.stdout.splitlines()[-1])
+
+    assert run("ahead") == {"copies": 1, "value": None}
+    assert run("caller", "4") == {"copies": 0, "value": 14}
+    assert run("caller", "4.5") == {"copies": 1, "value": 15.0}
+
+
+def test_compile_for_callers_takes_callee_kernels_only():
+    from numba import njit, types
+    with pytest.raises(ValueError, match="not a callee kernel"):
+        nc.compile_for_callers(njit(lambda x: x), (types.int64,))
 
 
 def test_the_lock_is_named_by_the_kernel_and_its_types():

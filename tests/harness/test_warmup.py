@@ -3,6 +3,7 @@ compile listener), never from inside itself or when switched off; what it runs w
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from hil_harness import warmup
@@ -65,6 +66,34 @@ def test_the_warm_up_runs_the_image_processor():
     assert msg.count == 1
     row, col = msg.candidates["row"][0], msg.candidates["col"][0]
     assert abs(row - 122.0) < 1.0 and abs(col - 128.0) < 1.0
+
+
+def test_the_back_end_is_warmed_for_the_types_its_callers_use():
+    """The warm-up's back end is the copy the IP's frame kernel and the full-frame detector link
+    in. Oracle: numba's own compile events. Once both callers are in this cache (compiled by now,
+    or loaded: either way their back-end copy was compiled into it and cached), the warm-up
+    compiles nothing; with types no caller uses, it would (the call then compiles a copy)."""
+    from numba.core import event
+
+    from flightsw.ip.sequence import load_default_sequence
+    from flightsw.records import load_record
+    from hil_harness.detect.fullframe import detect_frame
+    warmup.warm_image_processor(n_frames=1)
+    frame = np.random.default_rng(1).poisson(100.0, (128, 128)).astype(np.uint16)
+    frame[60:63, 70:73] += np.uint16(2000)
+    detect_frame(frame, load_default_sequence("star"), load_record("star"), 1, "full", 23, 64)
+    compiled = []
+
+    class Count(event.Listener):
+        def on_start(self, ev):
+            compiled.append(ev.data["dispatcher"].py_func.__qualname__)
+
+        def on_end(self, ev):
+            pass
+
+    with event.install_listener("numba:compile", Count()):
+        warmup.warm_back_end()
+    assert compiled == []
 
 
 def test_a_wait_for_the_other_process_counts_as_compiling(monkeypatch):
