@@ -149,5 +149,5 @@ def warm_back_end() -> None:
 
 if __name__ == "__main__":      # python -m hil_harness.warmup (started by start())
     warm_back_end()              # shared by the IP's frame kernels and the full-frame detector
-    warm_image_processor()       # reached last by a closed-loop command, so compiled ahead first
+    warm_image_processor()       # reached last by a closed-loop command, so compiled ahead next
     warm_track_processor()
