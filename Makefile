@@ -26,8 +26,12 @@ $(STAMP): $(STAMP_RUN)
 
 install: $(STAMP)
 
+# the suite in two worker processes (pytest-xdist): on a cold cache each compiles what its tests
+# reach, numba's compile lock has the other wait and load a kernel one of them is compiling, and the
+# warm tests share the cores (make test TEST_WORKERS=4 on a larger machine; 0: one process)
+TEST_WORKERS ?= 2
 test: $(STAMP)
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(TEST_WORKERS)
 
 # the decoders and TOML loaders fuzzed at full size: 10,000 streams / texts per decoder and loader,
 # 1,000 hypothesis examples per property (make test runs 300 and 40-150)
