@@ -148,6 +148,22 @@ def test_help_texts_are_plain_sentences():
             assert mark not in text, (" ".join(words), mark)
 
 
+def test_every_output_option_is_also_dash_o():
+    """``-o`` is ``--out`` in every command that writes to a file or a folder it is told."""
+    import re
+    seen = 0
+    for words, text in _all_help_texts():
+        for line in text.splitlines():
+            m = re.match(r"^\s+(-o (\S+), )?--out(?![\w-])( (\S+))?", line)
+            if m:
+                seen += 1
+                assert m.group(1) is not None and m.group(2) == m.group(4), (" ".join(words), line)
+    assert seen >= 10
+    from hil_harness.cli import build_parser
+    args = build_parser().parse_args(["event", "satellite_over_stars", "-o", "somewhere"])
+    assert args.out == "somewhere"
+
+
 def test_plain_turns_roles_into_names():
     from hil_harness.cli import plain
     assert plain("see :func:`hil_harness.event.io.run_event` and ``--out``") == \

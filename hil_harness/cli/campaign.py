@@ -25,7 +25,7 @@ def register(sub) -> None:
     p.add_argument("--show", default=None, metavar="DIR",
                    help="print the summary of a campaign folder (runs, failures by reason, "
                         "results per axis combination) and exit")
-    p.add_argument("--out", default=None, help="output directory (default: campaign_<name>)")
+    p.add_argument("-o", "--out", default=None, help="output directory (default: campaign_<name>)")
     p.add_argument("--workers", type=int, default=2,
                    help="worker processes of the local cluster (default 2)")
     p.add_argument("--scheduler", default=None,

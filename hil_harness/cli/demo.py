@@ -20,7 +20,7 @@ from hil_harness.cli.options import add_with_option
 def register(sub) -> None:
     p = sub.add_parser("demo", help="run the product's main job on the built-in default",
                        description=__doc__)
-    p.add_argument("--out", default=None,
+    p.add_argument("-o", "--out", default=None,
                    help="output directory (default: ./events/satellite_over_stars, replaced on each "
                         "run; another run in a given one is refused unless --force)")
     p.add_argument("--force", action="store_true", help="replace another run found in --out")

@@ -34,8 +34,8 @@ def register(sub) -> None:
                    help="shipped scenario name or TOML file (default: satellite_over_stars)")
     p.add_argument("--seed", type=int, default=None, help="seed (default: the scenario's)")
     p.add_argument("--frames", type=int, default=None, help="stop after N frames")
-    p.add_argument("--out", default=None, help="output directory (default: ./events/<scenario>, "
-                                               "replaced on each run)")
+    p.add_argument("-o", "--out", default=None,
+                   help="output directory (default: ./events/<scenario>, replaced on each run)")
     p.add_argument("--force", action="store_true",
                    help="replace another run found in --out (removed first)")
     p.add_argument("--no-frames", action="store_true",

@@ -48,12 +48,14 @@ def register(sub) -> None:
     pr = isub.add_parser("report", help="assess a landmark-measurement CSV")
     pr.add_argument("csv", help="landmark CSV (schema uvisi-inr-landmarks/1)")
     pr.set_defaults(outputs={"out": "folder"})
-    pr.add_argument("--out", default="inr_report", help="output directory (default ./inr_report)")
+    pr.add_argument("-o", "--out", default="inr_report",
+                    help="output directory (default ./inr_report)")
     _report_options(pr)
     pe = isub.add_parser("event", help="assess the star landmarks of an event recording")
     pe.add_argument("recording", help="recording.h5 written by uvisi event")
     pe.set_defaults(outputs={"out": "folder"})
-    pe.add_argument("--out", default="inr_event", help="output directory (default ./inr_event)")
+    pe.add_argument("-o", "--out", default="inr_event",
+                    help="output directory (default ./inr_event)")
     pe.add_argument("--imager", default=None, help="imager id (default: the most used one)")
     pe.add_argument("--gate", type=number(0, lo_open=True), default=3.0, help="star association gate [px] (default 3)")
     pe.add_argument("--csv", action="store_true", help="also write the landmark table as CSV")
@@ -62,7 +64,8 @@ def register(sub) -> None:
     _report_options(pe)
     ps = isub.add_parser("synthetic", help="the paper-scale synthetic population, reported")
     ps.set_defaults(outputs={"out": "folder"})
-    ps.add_argument("--out", default="inr_synthetic", help="output directory (default ./inr_synthetic)")
+    ps.add_argument("-o", "--out", default="inr_synthetic",
+                    help="output directory (default ./inr_synthetic)")
     ps.add_argument("--seed", type=number(0, MAX_SEED, integer=True), default=0)
     ps.add_argument("--excursion", type=number(), default=0.0,
                     help="inject a real system excursion of this many urad (EW) for one hour")

@@ -45,7 +45,7 @@ def register(sub) -> None:
     rsub = p.add_subparsers(dest="rde_command", metavar="RDE_COMMAND")
     ps = rsub.add_parser("study", help="reproduce the paper's Figures 2 and 3")
     ps.set_defaults(outputs={"out": "folder"})
-    ps.add_argument("--out", default=None,
+    ps.add_argument("-o", "--out", default=None,
                     help="output directory (default: ./rde_study; ./rde_sensitivity with --sensitivity)")
     ps.add_argument("--realisations", type=int, default=None,
                     help="Monte Carlo realisations per point (default 100; 60 with --sensitivity)")
@@ -61,7 +61,7 @@ def register(sub) -> None:
     pr.add_argument("control_points", help="control-point file (.npz, schema uvisi-rde-cp/1) or an "
                     "event recording (.h5)")
     pr.set_defaults(outputs={"out": "folder"})
-    pr.add_argument("--out", default=None, help="directory for rde_reconstruct.json/.npz")
+    pr.add_argument("-o", "--out", default=None, help="directory for rde_reconstruct.json/.npz")
     pr.add_argument("--iterations", type=number(1, integer=True), default=3, help="linearisation passes (default 3)")
     pr.add_argument("--min-significance", type=number(0), default=3.0,
                     help="apply the correction about an imager axis only if its mean is at least this "
