@@ -41,7 +41,7 @@ fuzz: $(STAMP)
 
 # branch coverage of the Python-visible code (njit bodies excluded: pyproject [tool.coverage])
 coverage: $(STAMP)
-	$(BIN)/python -m pytest -q -p no:cacheprovider --cov --cov-report=
+	$(BIN)/python -m pytest -q -p no:cacheprovider -n $(TEST_WORKERS) --cov --cov-report=
 	@for p in flightsw hil_harness; do \
 		printf '%s branch coverage: ' $$p; \
 		$(BIN)/python -m coverage report --include="$$p/*" --format=total; done
