@@ -156,7 +156,7 @@ def _standardised(frames, fixed_mean: dict):
 
 
 def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.0,
-                unused=()) -> RecordCeiling:
+                unused=(), counted=None, at_least=()) -> RecordCeiling:
     """The record that ranks a labelled blob first on the most frames.
 
     Parameters
@@ -171,18 +171,38 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
     unused : iterable of int
         Features the record may not weigh (``a_i = 0``): the centroids, for a ranking that does
         not depend on where the prior puts the centroid means.
+    counted : bool [len(frames)], optional
+        The frames the count maximises (default: all). The others still shape the
+        standardisation and the constraints of ``at_least``.
+    at_least : iterable of (bool [len(frames)], int)
+        Each pair asks the record to put a labelled blob first on at least that many of the
+        marked frames: the frontier between two sets of frames (what the record can reach on
+        later frames while it holds ``k`` of the earlier ones).
 
     Returns
     -------
     RecordCeiling
+        ``hits``, ``frames`` and ``bound`` are of the ``counted`` frames.
+
+    Raises
+    ------
+    ValueError
+        ``counted`` or a mask of ``at_least`` not one flag per frame.
+    RuntimeError
+        No record meets ``at_least`` (HiGHS finds the problem infeasible).
     """
     from scipy.optimize import Bounds, LinearConstraint, milp
     from scipy.sparse import coo_matrix
     fixed_mean = dict(fixed_mean or {})
-    used = [(f, on) for f, on in frames if len(f) and np.asarray(on).any()]
-    nf = len(frames)
+    counted = _frame_mask(counted, len(frames), "counted")
+    at_least = [(_frame_mask(m, len(frames), "at_least"), int(k)) for m, k in at_least]
+    keep = [i for i, (f, on) in enumerate(frames) if len(f) and np.asarray(on).any()]
+    used = [frames[i] for i in keep]
+    nf = int(counted.sum())
     F = np.asarray(frames[0][0]).shape[1] if frames else 0
     if not used:
+        if any(k > 0 for _, k in at_least):
+            raise RuntimeError("the record search found no solution: no frame has a labelled blob")
         return RecordCeiling(0, nf, 0, True, np.zeros(F), np.zeros(F))
     loc, scale, zs = _standardised(used, fixed_mean)
     free = [i for i in range(F) if i not in fixed_mean]
@@ -213,6 +233,12 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
         put(r + g, nth + y, 1.0)
     ub += [1.0] * len(used)
     r += len(used)
+    for mask, k in at_least:                        # -sum(y over the marked frames) <= -k
+        for y, g in enumerate(ylabel):
+            if mask[keep[g]]:
+                put(r, nth + y, -1.0)
+        ub.append(-float(k))
+        r += 1
     for k, i in enumerate(free):                    # |m_i| <= MEAN_RANGE: |b_i| <= 2 R a_i
         for s in (1.0, -1.0):
             put(r, F + k, s), put(r, i, -2.0 * MEAN_RANGE)
@@ -220,7 +246,7 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
             r += 1
     nv = nth + len(ylabel)
     A = coo_matrix((vals, (rows, cols)), shape=(r, nv)).tocsr()
-    cost = np.r_[np.zeros(nth), -np.ones(len(ylabel))]
+    cost = np.r_[np.zeros(nth), -counted[[keep[g] for g in ylabel]].astype(float)]
     lo = np.r_[np.zeros(F), -box[F:], np.zeros(len(ylabel))]
     hi = np.r_[box, np.ones(len(ylabel))]
     for i in unused:
@@ -231,9 +257,21 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
                    bounds=Bounds(lo, hi), options={"time_limit": float(time_limit)})
     if res.x is None:
         raise RuntimeError(f"the record search found no solution: {res.message}")
-    hits, coef, mean = _record_of(res.x, free, used, zs, loc, scale)
+    mine = [frames[i] for i in keep if counted[i]]
+    hits, coef, mean = _record_of(res.x, free, mine, [z for i, z in zip(keep, zs) if counted[i]],
+                                  loc, scale)
     bound = int(np.floor(-res.mip_dual_bound + 1e-6)) if res.mip_dual_bound is not None else nf
-    return RecordCeiling(hits, nf, min(bound, len(used)), res.status == 0, coef, mean)
+    return RecordCeiling(hits, nf, min(bound, len(mine)), res.status == 0, coef, mean)
+
+
+def _frame_mask(mask, n: int, what: str) -> np.ndarray:
+    """``mask`` as bool [n] (None: every frame)."""
+    if mask is None:
+        return np.ones(n, bool)
+    out = np.asarray(mask, bool)
+    if out.shape != (n,):
+        raise ValueError(f"{what}: one flag per frame ({n}), got shape {out.shape}")
+    return out
 
 
 def widest_record(frames, record: RecordCeiling, fixed_mean: dict | None = None,

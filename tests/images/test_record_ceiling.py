@@ -60,6 +60,66 @@ def test_an_unused_feature_is_not_weighed(seed):
     assert got.hits == _sweep_best([(x[:, 1:], on) for x, on in frames])
 
 
+def _sweep_frontier(first, later, k: int) -> int:
+    """One feature, a free mean: the most ``later`` frames any mean ranks a labelled blob first
+    on while it does so on at least ``k`` of the ``first`` frames (the sweep of
+    :func:`_sweep_best` over both sets of frames; -1: no mean reaches ``k``)."""
+    values = np.concatenate([x[:, 0] for x, _ in first + later])
+    mids = np.unique([(a + b) / 2 for a in values for b in values])
+    probes = np.r_[mids[0] - 1, (mids[1:] + mids[:-1]) / 2, mids[-1] + 1]
+
+    def hits(frames, m):
+        n = 0
+        for x, on in frames:
+            d = np.abs(x[:, 0] - m)
+            n += bool(on.all() or ((~on).any() and d[on].min() < d[~on].min()))
+        return n
+    return max((hits(later, m) for m in probes if hits(first, m) >= k), default=-1)
+
+
+def _first_on(x, on, record) -> bool:
+    """Whether ``record`` ranks a labelled blob of ``x`` strictly first (a tie is a miss)."""
+    d = ((x - record.mean) ** 2 * record.coef).sum(1)
+    return bool(on.all() or d[on].min() < d[~on].min())
+
+
+def _one_feature_frames(rng, n):
+    frames = []
+    for _ in range(n):
+        m = int(rng.integers(2, 5))
+        x = rng.choice(np.arange(0, 50, 10.0), m, replace=False)[:, None]
+        on = np.zeros(m, bool)
+        on[rng.integers(m)] = True
+        frames.append((x, on))
+    return frames
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_frontier_equals_the_sweep(seed):
+    """``counted`` and ``at_least``: the most later frames one record ranks first on while it
+    holds k of the first ones, for every k the sweep reaches, and no record past the sweep's
+    largest k."""
+    rng = np.random.default_rng(100 + seed)
+    first, later = _one_feature_frames(rng, 10), _one_feature_frames(rng, 10)
+    mask = np.r_[np.ones(10, bool), np.zeros(10, bool)]
+    top = _sweep_best(first)
+    for k in range(top + 1):
+        got = best_record(first + later, counted=~mask, at_least=[(mask, k)])
+        assert got.optimal and got.frames == 10
+        assert got.hits == _sweep_frontier(first, later, k), k
+        assert sum(_first_on(x, on, got) for x, on in first) >= k, k
+    with pytest.raises(RuntimeError, match="no solution"):
+        best_record(first + later, counted=~mask, at_least=[(mask, top + 1)])
+
+
+def test_frame_masks_are_checked():
+    frames = [(np.array([[1.0], [2.0]]), np.array([True, False]))] * 3
+    with pytest.raises(ValueError, match=r"counted: one flag per frame \(3\)"):
+        best_record(frames, counted=[True, False])
+    with pytest.raises(ValueError, match="at_least: one flag per frame"):
+        best_record(frames, at_least=[(np.ones(4, bool), 1)])
+
+
 def test_two_frames_asking_opposite_things_give_one():
     # frame 1 wants the bright blob, frame 2 the faint one, the blobs otherwise alike
     x1 = np.array([[10.0, 100.0], [10.0, 50.0]])
