@@ -25,11 +25,13 @@ on real all-sky imagery").
 ``--ceiling`` prints instead what any record could reach with the sequence (:func:`blob_ceiling`),
 what that best record does in ``uvisi track`` on the same night, and how the best record of the
 first night given fares on the others; with ``--plot``, :func:`plot_follow` of the first night.
+``--frontier K,...`` prints what one record can reach on a second night while it holds K frames of
+the first (:func:`frontier`).
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`blob_tables`, :func:`blob_ceiling`, :func:`track_hits`, :func:`label_follow`,
-:func:`follow_timeline`, :func:`score_night`, :func:`plot_night`, :func:`plot_follow`,
-:func:`rate_cell`.
+:func:`blob_tables`, :func:`blob_ceiling`, :func:`frontier`, :func:`track_hits`,
+:func:`label_follow`, :func:`follow_timeline`, :func:`score_night`, :func:`plot_night`,
+:func:`plot_follow`, :func:`rate_cell`.
 """
 from __future__ import annotations
 
@@ -43,7 +45,7 @@ import numpy as np
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
 __all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_tables", "blob_ceiling",
-           "track_hits", "label_follow", "follow_timeline", "score_night", "plot_night",
+           "frontier", "track_hits", "label_follow", "follow_timeline", "score_night", "plot_night",
            "plot_follow", "rate_cell"]
 
 _ROOT = Path(__file__).resolve().parents[2]
@@ -426,6 +428,54 @@ def _print_ceiling(records, nights, sequence, proposals=(), plot=None, unused=()
     return 0
 
 
+def frontier(record, first: str, later: str, holds, time_limit: float = 120.0,
+             sequence=None) -> list[dict]:
+    """What one record can reach on the ``later`` night's frames while it holds the ``first``
+    night's (both of :data:`NIGHTS`, frames of one size): for each ``k`` of ``holds``, the record
+    (without quantisation) that ranks a labelled blob first on the most ``later`` frames among
+    those that do so on at least ``k`` of the ``first`` frames (an exact search,
+    :func:`hil_harness.tuning.record_ceiling.best_record` with ``at_least``; labels of both
+    nights in it: an upper bound), then that record run as ``uvisi detect`` on both nights.
+
+    Returns one dict per ``k``: ``{"hold": k, "best": RecordCeiling (of the later frames),
+    "detect_first": {frame: hit}, "detect_later": {frame: hit}}``."""
+    from hil_harness.tuning.record_ceiling import best_record
+    (im1, lb1, fr1), (im2, lb2, fr2) = NIGHTS[first], NIGHTS[later]
+    t1, fixed = blob_tables(_ROOT / im1, _ROOT / lb1, record, fr1, sequence=sequence)
+    t2, fixed2 = blob_tables(_ROOT / im2, _ROOT / lb2, record, fr2, sequence=sequence)
+    if fixed != fixed2:
+        raise ValueError(f"{first} and {later}: frames of different sizes: no one ranking")
+    mask = np.r_[np.ones(len(t1), bool), np.zeros(len(t2), bool)]
+    out = []
+    for k in holds:
+        best = best_record(t1 + t2, fixed, time_limit, counted=~mask, at_least=[(mask, k)])
+        own = best.record(record)
+        out.append({"hold": k, "best": best,
+                    "detect_first": detect_hits(_ROOT / im1, _ROOT / lb1, own, fr1,
+                                                sequence=sequence),
+                    "detect_later": detect_hits(_ROOT / im2, _ROOT / lb2, own, fr2,
+                                                sequence=sequence)})
+    return out
+
+
+def _print_frontier(records, nights, sequence, holds, time_limit) -> int:
+    """The ``--frontier`` table (:func:`frontier`): a row per record and hold."""
+    from hil_harness.rates import rate
+    from hil_harness.tuning.export import record_from
+    first, later = nights
+    print(f"| record | holds on {first} | best on {later}: a blob on the label first | that "
+          f"record as `uvisi detect`: {first} | {later} |\n| --- | --- | --- | --- | --- |")
+    for name in records:
+        for row in frontier(record_from(name), first, later, holds, time_limit, sequence):
+            best, d1, d2 = row["best"], row["detect_first"], row["detect_later"]
+            proven = "" if best.optimal else f" (at most {best.bound})"
+            print(f"| {name} | >= {row['hold']} of {len(d1)} | "
+                  f"{rate_cell(rate(best.hits, best.frames))}{proven} | "
+                  f"{rate_cell(rate(sum(d1.values()), len(d1)))} | "
+                  f"{rate_cell(rate(sum(d2.values()), len(d2)))} |", flush=True)
+    return 0
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description="score records on the labelled real nights")
     ap.add_argument("--record", action="append", default=None,
@@ -443,6 +493,13 @@ def main(argv=None) -> int:
     ap.add_argument("--without-centroids", action="store_true",
                     help="with --ceiling: best records that do not weigh the centroids (a ranking "
                          "that does not depend on where the TP's prior puts them)")
+    ap.add_argument("--frontier", default=None, metavar="K[,K...]",
+                    help="instead of the scores: with two --night, the most frames of the second "
+                         "one record ranks a blob on the label first on while it does so on at "
+                         "least K frames of the first (an upper bound with both nights' labels "
+                         "in it), and that record as uvisi detect on both")
+    ap.add_argument("--time-limit", type=float, default=120.0, metavar="S",
+                    help="seconds each exact record search may take (default 120)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night (with "
                          "--ceiling: the label's steps and, frame by frame, detect and track with "
@@ -457,6 +514,14 @@ def main(argv=None) -> int:
     proposals = check_applicable(args.with_, "opportunity", "--with") if args.with_ else ()
     records = args.record or ["aurora_allsky", "aurora", "aurora_surge"]
     nights = args.night or ["gill2008_test", "gill2014", "wic"]
+    if args.frontier is not None:
+        if args.ceiling or len(nights) != 2:
+            ap.error("--frontier: two --night (the held one first), without --ceiling")
+        try:
+            holds = [int(k) for k in args.frontier.split(",")]
+        except ValueError:
+            ap.error(f"--frontier {args.frontier!r}: comma-separated frame counts")
+        return _print_frontier(records, nights, args.sequence, holds, args.time_limit)
     if args.ceiling:
         return _print_ceiling(records, nights, args.sequence, proposals, args.plot,
                               ("row", "col") if args.without_centroids else ())

@@ -138,6 +138,30 @@ def test_blob_ceiling_counts_every_candidate_of_uvisi_detect(tmp_path, gill5_lab
     assert sum(detect_hits(GILL5, path, rec, range(5)).values()) == best.hits
 
 
+def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch):
+    """``frontier`` on two nights made of the 5-frame subset (frames 0-2 held, 3-4 counted): each
+    hold's record, run as ``uvisi detect``, holds what it was asked on the first night and gets
+    its count on the second (the flight's ranking is the oracle of the search); a hold past the
+    first night's best is refused."""
+    from flightsw.records import load_record
+    from hil_harness.tuning import label_scores
+    path, _ = gill5_labels
+    rel = str(GILL5.relative_to(ROOT))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_a", (rel, str(path), range(0, 3)))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_b", (rel, str(path), range(3, 5)))
+    rec = load_record("aurora_allsky")
+    top = blob_ceiling(GILL5, path, rec, range(0, 3))["best_record"].hits
+    rows = label_scores.frontier(rec, "five_a", "five_b", [0, top])
+    for row in rows:
+        best = row["best"]
+        assert best.optimal and best.frames == 2
+        assert sum(row["detect_later"].values()) == best.hits
+        assert sum(row["detect_first"].values()) >= row["hold"]
+    assert rows[0]["best"].hits >= rows[1]["best"].hits
+    with pytest.raises(RuntimeError, match="no solution"):
+        label_scores.frontier(rec, "five_a", "five_b", [top + 1])
+
+
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
     path, labels = gill5_labels
     from flightsw.records import load_record
