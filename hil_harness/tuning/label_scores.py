@@ -499,7 +499,8 @@ def main(argv=None) -> int:
                          "least K frames of the first (an upper bound with both nights' labels "
                          "in it), and that record as uvisi detect on both")
     ap.add_argument("--time-limit", type=float, default=120.0, metavar="S",
-                    help="seconds each exact record search may take (default 120)")
+                    help="seconds each exact record search may take (default 120; the "
+                         "solver checks it between steps and can run past it)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night (with "
                          "--ceiling: the label's steps and, frame by frame, detect and track with "
