@@ -522,7 +522,11 @@ def main(argv=None) -> int:
             holds = [int(k) for k in args.frontier.split(",")]
         except ValueError:
             ap.error(f"--frontier {args.frontier!r}: comma-separated frame counts")
-        return _print_frontier(records, nights, args.sequence, holds, args.time_limit)
+        try:
+            return _print_frontier(records, nights, args.sequence, holds, args.time_limit)
+        except (ValueError, RuntimeError) as exc:      # frames of two sizes; a hold no record meets
+            print(f"label_scores: --frontier: {exc}", file=sys.stderr)
+            return 2
     if args.ceiling:
         return _print_ceiling(records, nights, args.sequence, proposals, args.plot,
                               ("row", "col") if args.without_centroids else ())

@@ -258,7 +258,9 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
                    integrality=np.r_[np.zeros(nth), np.ones(len(ylabel))],
                    bounds=Bounds(lo, hi), options={"time_limit": float(time_limit)})
     if res.x is None:
-        raise RuntimeError(f"the record search found no solution: {res.message}")
+        held = ", ".join(f"{k} of {int(m.sum())}" for m, k in at_least)
+        why = f"no record holds {held} marked frames" if res.status == 2 and held else res.message
+        raise RuntimeError(f"the record search found no solution: {why}")
     mine = [frames[i] for i in keep if counted[i]]
     hits, coef, mean = _record_of(res.x, free, mine, [z for i, z in zip(keep, zs) if counted[i]],
                                   loc, scale)

@@ -138,7 +138,7 @@ def test_blob_ceiling_counts_every_candidate_of_uvisi_detect(tmp_path, gill5_lab
     assert sum(detect_hits(GILL5, path, rec, range(5)).values()) == best.hits
 
 
-def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch):
+def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch, capsys):
     """``frontier`` on two nights made of the 5-frame subset (frames 0-2 held, 3-4 counted): each
     hold's record, run as ``uvisi detect``, holds what it was asked on the first night and gets
     its count on the second (the flight's ranking is the oracle of the search); a hold past the
@@ -160,6 +160,12 @@ def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch):
     assert rows[0]["best"].hits >= rows[1]["best"].hits
     with pytest.raises(RuntimeError, match="no solution"):
         label_scores.frontier(rec, "five_a", "five_b", [top + 1])
+    capsys.readouterr()
+    assert label_scores.main(["--frontier", str(top + 1), "--record", "aurora_allsky",
+                              "--night", "five_a", "--night", "five_b"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err[-1] == (f"label_scores: --frontier: the record search found no solution: no "
+                       f"record holds {top + 1} of 3 marked frames")
 
 
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
