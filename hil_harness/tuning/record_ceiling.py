@@ -169,7 +169,7 @@ def best_record(frames, fixed_mean: dict | None = None, time_limit: float = 120.
     time_limit : float
         Seconds HiGHS may take (s); past it the best found and the proven bound are returned.
         HiGHS checks it between its steps, and a long step can run past it (a search with a
-        held count, ``at_least``, has run to twice its limit).
+        held count, ``at_least``, has run 2.5 times its limit: 25 min against 10).
     unused : iterable of int
         Features the record may not weigh (``a_i = 0``): the centroids, for a ranking that does
         not depend on where the prior puts the centroid means.
