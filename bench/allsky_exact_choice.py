@@ -34,7 +34,8 @@ TRAIN_BLOCKS = ("gill2008_train_a", "gill2008_train_b")
 SCORED = ("gill2008_test", "gill2014", "wic")
 CENTROIDS = ("row", "col")
 
-__all__ = ["grid", "sequence_toml", "label", "block_cv", "fit_and_score", "main"]
+__all__ = ["grid", "sequence_toml", "label", "block_cv", "run_all", "fit_and_score",
+           "rate_text", "print_scored", "main"]
 
 
 def grid():
@@ -102,15 +103,16 @@ def _screen_one(args):
     return block_cv(*args)
 
 
-def _run_all(jobs, workers: int, desc: str) -> list:
-    """:func:`block_cv` of each job on ``workers`` processes (the workers quiet: the searches'
-    own progress would interleave), with a bar on a terminal or a heartbeat line in a log."""
+def run_all(jobs, workers: int, desc: str, unit: str = "sequences") -> list:
+    """:func:`block_cv` of each job (a tuple of its arguments) on ``workers`` processes (the
+    workers quiet: the searches' own progress would interleave), with a bar on a terminal or a
+    heartbeat line in a log counting ``unit``."""
     from hil_harness.console import QUIET, Heartbeat, progress_enabled, set_level
     if progress_enabled():
         from tqdm import tqdm
-        shown = tqdm(total=len(jobs), desc=desc, unit="sequence", file=sys.stderr)
+        shown = tqdm(total=len(jobs), desc=desc, unit=unit.rstrip("s"), file=sys.stderr)
     else:
-        shown = Heartbeat(len(jobs), desc, "sequences")
+        shown = Heartbeat(len(jobs), desc, unit)
     out = []
     with ProcessPoolExecutor(workers, initializer=set_level, initargs=(QUIET,)) as pool:
         for r in pool.map(_screen_one, jobs):
@@ -120,11 +122,12 @@ def _run_all(jobs, workers: int, desc: str) -> list:
     return out
 
 
-def fit_and_score(sequence, unused=()) -> dict:
-    """The widest-lead record fitted to training frames 0-69 -> ``{"train": hits, night:
-    (detect hits, frames, locked, track frames, on the label when locked)}`` for :data:`SCORED`."""
+def fit_and_score(sequence, unused=(), widest=True) -> dict:
+    """The widest-lead record (``widest=False``: the best record) fitted to training frames 0-69
+    -> ``{"train": hits, night: (detect hits, frames, locked, track frames, on the label when
+    locked)}`` for :data:`SCORED`."""
     from hil_harness.tuning.label_scores import NIGHTS, detect_hits, track_hits
-    rec, hits = _fit(sequence, NIGHTS["gill2008_train"][2], True, unused)
+    rec, hits = _fit(sequence, NIGHTS["gill2008_train"][2], widest, unused)
     out = {"train": hits}
     for night in SCORED:
         images, labels, frames = NIGHTS[night]
@@ -136,10 +139,21 @@ def fit_and_score(sequence, unused=()) -> dict:
     return out
 
 
-def _fmt(k, n) -> str:
+def rate_text(k, n) -> str:
+    """``k`` of ``n`` as the tables print a rate: percent, k/n and the Wilson 95 % interval."""
     from hil_harness.rates import rate
     from hil_harness.tuning.label_scores import rate_cell
     return rate_cell(rate(k, n))
+
+
+def print_scored(got: dict) -> None:
+    """:func:`fit_and_score`'s result as the training count and a table of the scored nights."""
+    print(f"fitted to training frames 0-69: {rate_text(got['train'], 70)}\n")
+    print("| night | `uvisi detect`: rank 1 on the label | `uvisi track`: locked | on the label "
+          "when locked |\n| --- | --- | --- | --- |")
+    for night in SCORED:
+        d, n, lk, nt, on = got[night]
+        print(f"| {night} | {rate_text(d, n)} | {rate_text(lk, nt)} | {rate_text(on, lk)} |")
 
 
 def main(argv=None) -> int:
@@ -156,13 +170,13 @@ def main(argv=None) -> int:
             p = Path(tmp) / f"screen_{i:03d}.toml"
             p.write_text(sequence_toml(spec))
             paths.append(str(p))
-        cv = _run_all([(p, False, ()) for p in paths], args.workers, "screen")
+        cv = run_all([(p, False, ()) for p in paths], args.workers, "screen")
         order = sorted(range(len(specs)), key=lambda i: -sum(cv[i]))[:args.top]
         print("| sequence | A on B | B on A | of 70 |\n| --- | ---: | ---: | ---: |")
         for i in order:
             print(f"| {label(specs[i])} | {cv[i][0]} | {cv[i][1]} | {sum(cv[i])} |")
         jobs = [(paths[i], True, u) for i in order for u in ((), CENTROIDS)]
-        refined = _run_all(jobs, args.workers, "refine")
+        refined = run_all(jobs, args.workers, "refine")
         print("\n| sequence | centroids weighed | widest lead: of 70 |\n| --- | --- | ---: |")
         for (p, _, u), r in zip(jobs, refined):
             print(f"| {label(specs[paths.index(p)])} | {'no' if u else 'yes'} | {sum(r)} |")
@@ -170,14 +184,9 @@ def main(argv=None) -> int:
         path, _, unused = jobs[k]
         spec = specs[paths.index(path)]
         print(f"\nchosen: {label(spec)}, centroids {'not ' if unused else ''}weighed: "
-              f"{_fmt(sum(refined[k]), 70)} cross-validated")
+              f"{rate_text(sum(refined[k]), 70)} cross-validated")
         got = fit_and_score(path, unused)
-    print(f"fitted to training frames 0-69: {_fmt(got['train'], 70)}\n")
-    print("| night | `uvisi detect`: rank 1 on the label | `uvisi track`: locked | on the label "
-          "when locked |\n| --- | --- | --- | --- |")
-    for night in SCORED:
-        d, n, lk, nt, on = got[night]
-        print(f"| {night} | {_fmt(d, n)} | {_fmt(lk, nt)} | {_fmt(on, lk)} |")
+    print_scored(got)
     return 0
 
 
