@@ -26,18 +26,20 @@ on real all-sky imagery").
 what that best record does in ``uvisi track`` on the same night, and how the best record of the
 first night given fares on the others; with ``--plot``, :func:`plot_follow` of the first night.
 ``--frontier K,...`` prints what one record can reach on a second night while it holds K frames of
-the first (:func:`frontier`).
+the first (:func:`frontier`); ``--save DIR`` also writes each of those records as a record TOML
+(:func:`save_frontier_record`), so that ``--record FILE`` repeats its figures.
 
 Public: :data:`ON_RADIUS`, :data:`NIGHTS`, :func:`on_label`, :func:`detect_hits`,
-:func:`blob_tables`, :func:`blob_ceiling`, :func:`frontier`, :func:`track_hits`,
-:func:`label_follow`, :func:`follow_timeline`, :func:`score_night`, :func:`plot_night`,
-:func:`plot_follow`, :func:`rate_cell`.
+:func:`blob_tables`, :func:`blob_ceiling`, :func:`frontier`, :func:`save_frontier_record`,
+:func:`track_hits`, :func:`label_follow`, :func:`follow_timeline`, :func:`score_night`,
+:func:`plot_night`, :func:`plot_follow`, :func:`rate_cell`.
 """
 from __future__ import annotations
 
 import argparse
 import math
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -45,8 +47,8 @@ import numpy as np
 from hil_harness.tuning.closed_loop import ON_RADIUS, on_label
 
 __all__ = ["ON_RADIUS", "NIGHTS", "on_label", "detect_hits", "blob_tables", "blob_ceiling",
-           "frontier", "track_hits", "label_follow", "follow_timeline", "score_night", "plot_night",
-           "plot_follow", "rate_cell"]
+           "frontier", "save_frontier_record", "track_hits", "label_follow", "follow_timeline",
+           "score_night", "plot_night", "plot_follow", "rate_cell"]
 
 _ROOT = Path(__file__).resolve().parents[2]
 
@@ -458,22 +460,52 @@ def frontier(record, first: str, later: str, holds, time_limit: float = 120.0,
     return out
 
 
-def _print_frontier(records, nights, sequence, holds, time_limit) -> int:
-    """The ``--frontier`` table (:func:`frontier`): a row per record and hold."""
+def _print_frontier(records, nights, sequence, holds, time_limit, save=None) -> int:
+    """The ``--frontier`` table (:func:`frontier`): a row per record and hold; with ``save`` (a
+    folder) each row's record also as a record TOML there (:func:`save_frontier_record`)."""
     from hil_harness.rates import rate
     from hil_harness.tuning.export import record_from
     first, later = nights
     print(f"| record | holds on {first} | best on {later}: a blob on the label first | that "
           f"record as `uvisi detect`: {first} | {later} |\n| --- | --- | --- | --- | --- |")
     for name in records:
-        for row in frontier(record_from(name), first, later, holds, time_limit, sequence):
+        base = record_from(name)
+        for row in frontier(base, first, later, holds, time_limit, sequence):
             best, d1, d2 = row["best"], row["detect_first"], row["detect_later"]
             proven = "" if best.optimal else f" (at most {best.bound})"
             print(f"| {name} | >= {row['hold']} of {len(d1)} | "
                   f"{rate_cell(rate(best.hits, best.frames))}{proven} | "
                   f"{rate_cell(rate(sum(d1.values()), len(d1)))} | "
                   f"{rate_cell(rate(sum(d2.values()), len(d2)))} |", flush=True)
+            if save is not None:
+                path = save_frontier_record(save, base, row, nights)
+                print(f"wrote {path}", file=sys.stderr)
     return 0
+
+
+def save_frontier_record(folder, base, row: dict, nights) -> Path:
+    """One :func:`frontier` row's record as ``<folder>/<base name>_hold<k>_<first night>.toml``
+    (written atomically; the folder made if need be), its ``#`` header and description saying how
+    it was found, that both nights' labels are in it (evidence for the figure, not a record to
+    uplink) and its counts as ``uvisi detect``. The file reads back to the record the row's
+    counts were run with, so ``--record FILE`` repeats them."""
+    from hil_harness.tuning.export import export_record
+    first, later = nights
+    best, d1, d2 = row["best"], row["detect_first"], row["detect_later"]
+    own = replace(best.record(base), description=(
+        f"exact search (label_scores --frontier {row['hold']}): the most {later} frames with a "
+        f"labelled blob first while holding >= {row['hold']} {first} frames; both nights' labels "
+        f"in it: evidence, not for uplink"))
+    bound = "optimal" if best.optimal else f"at most {best.bound} proven"
+    comment = (f"python -m hil_harness.tuning.label_scores --frontier {row['hold']} --record "
+               f"{base.name} --night {first} --night {later}\n"
+               f"search: {best.hits}/{best.frames} {later} frames ({bound})\n"
+               f"uvisi detect: {sum(d1.values())}/{len(d1)} {first}, "
+               f"{sum(d2.values())}/{len(d2)} {later}")
+    Path(folder).mkdir(parents=True, exist_ok=True)
+    path = Path(folder) / f"{base.name}_hold{row['hold']}_{first}.toml"
+    export_record(own, toml_path=path, comment=comment)
+    return path
 
 
 def main(argv=None) -> int:
@@ -501,6 +533,10 @@ def main(argv=None) -> int:
     ap.add_argument("--time-limit", type=float, default=120.0, metavar="S",
                     help="seconds each exact record search may take (default 120; the "
                          "solver checks it between steps and can run past it)")
+    ap.add_argument("--save", default=None, metavar="DIR",
+                    help="with --frontier: also write each hold's record as a record TOML in "
+                         "DIR (labels of both nights in it: to repeat the figure with --record, "
+                         "not to uplink)")
     ap.add_argument("--plot", default=None, metavar="PNG",
                     help="also draw the first record on --plot-frames of the first night (with "
                          "--ceiling: the label's steps and, frame by frame, detect and track with "
@@ -508,6 +544,8 @@ def main(argv=None) -> int:
     ap.add_argument("--plot-frames", default="80,95,110,125,140",
                     help="comma-separated frames for --plot")
     args = ap.parse_args(argv)
+    if args.save is not None and args.frontier is None:
+        ap.error("--save: only with --frontier (it writes the frontier's records)")
     if args.without_centroids and not args.ceiling:
         ap.error("--without-centroids: only with --ceiling (it shapes the best records)")
     from flightsw.proposals import check_applicable
@@ -523,7 +561,8 @@ def main(argv=None) -> int:
         except ValueError:
             ap.error(f"--frontier {args.frontier!r}: comma-separated frame counts")
         try:
-            return _print_frontier(records, nights, args.sequence, holds, args.time_limit)
+            return _print_frontier(records, nights, args.sequence, holds, args.time_limit,
+                                   args.save)
         except (ValueError, RuntimeError) as exc:      # frames of two sizes; a hold no record meets
             print(f"label_scores: --frontier: {exc}", file=sys.stderr)
             return 2

@@ -168,6 +168,40 @@ def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch, caps
                        f"record holds {top + 1} of 3 marked frames")
 
 
+def test_a_saved_frontier_record_repeats_its_counts(gill5_labels, monkeypatch, tmp_path, capsys):
+    """``--frontier K --save DIR`` writes the hold's record; read back as ``--record FILE``, the
+    flight's ranking (``uvisi detect``) gives the counts the table printed, and the file says how
+    it was found and that it is not for uplink."""
+    import tomllib
+
+    from hil_harness.tuning import label_scores
+    from hil_harness.tuning.export import record_from
+    path, _ = gill5_labels
+    rel = str(GILL5.relative_to(ROOT))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_a", (rel, str(path), range(0, 3)))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_b", (rel, str(path), range(3, 5)))
+    out = tmp_path / "records"
+    capsys.readouterr()
+    assert label_scores.main(["--frontier", "1", "--record", "aurora_allsky", "--night", "five_a",
+                              "--night", "five_b", "--save", str(out)]) == 0
+    table = capsys.readouterr().out.strip().splitlines()[-1].split("|")
+    saved = out / "aurora_allsky_hold1_five_a.toml"
+    assert sorted(out.iterdir()) == [saved]
+    text = saved.read_text()
+    assert text.startswith("# python -m hil_harness.tuning.label_scores --frontier 1 ")
+    assert "not for uplink" in tomllib.loads(text)["record"]["description"]
+    rec = record_from(saved)
+    assert rec.name == "aurora_allsky" and not rec.quantize
+    first = detect_hits(GILL5, path, rec, range(0, 3))
+    later = detect_hits(GILL5, path, rec, range(3, 5))
+    assert sum(first.values()) >= 1
+    assert f"({sum(first.values())}/3," in table[4] and f"({sum(later.values())}/2," in table[5]
+    with pytest.raises(SystemExit) as stop:
+        label_scores.main(["--record", "aurora_allsky", "--save", str(out)])
+    assert stop.value.code == 2
+    assert "--save: only with --frontier" in capsys.readouterr().err
+
+
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
     path, labels = gill5_labels
     from flightsw.records import load_record
