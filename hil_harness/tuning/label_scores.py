@@ -478,17 +478,18 @@ def _print_frontier(records, nights, sequence, holds, time_limit, save=None) -> 
                   f"{rate_cell(rate(sum(d1.values()), len(d1)))} | "
                   f"{rate_cell(rate(sum(d2.values()), len(d2)))} |", flush=True)
             if save is not None:
-                path = save_frontier_record(save, base, row, nights)
+                path = save_frontier_record(save, base, row, nights, time_limit)
                 print(f"wrote {path}", file=sys.stderr)
     return 0
 
 
-def save_frontier_record(folder, base, row: dict, nights) -> Path:
+def save_frontier_record(folder, base, row: dict, nights, time_limit: float) -> Path:
     """One :func:`frontier` row's record as ``<folder>/<base name>_hold<k>_<first night>.toml``
     (written atomically; the folder made if need be), its ``#`` header and description saying how
     it was found, that both nights' labels are in it (evidence for the figure, not a record to
     uplink) and its counts as ``uvisi detect``. The file reads back to the record the row's
-    counts were run with, so ``--record FILE`` repeats them."""
+    counts were run with, so ``--record FILE`` repeats them. ``time_limit``: the search's (s), for
+    the header's command."""
     from hil_harness.tuning.export import export_record
     first, later = nights
     best, d1, d2 = row["best"], row["detect_first"], row["detect_later"]
@@ -498,7 +499,7 @@ def save_frontier_record(folder, base, row: dict, nights) -> Path:
         f"in it: evidence, not for uplink"))
     bound = "optimal" if best.optimal else f"at most {best.bound} proven"
     comment = (f"python -m hil_harness.tuning.label_scores --frontier {row['hold']} --record "
-               f"{base.name} --night {first} --night {later}\n"
+               f"{base.name} --night {first} --night {later} --time-limit {time_limit:g}\n"
                f"search: {best.hits}/{best.frames} {later} frames ({bound})\n"
                f"uvisi detect: {sum(d1.values())}/{len(d1)} {first}, "
                f"{sum(d2.values())}/{len(d2)} {later}")

@@ -189,6 +189,7 @@ def test_a_saved_frontier_record_repeats_its_counts(gill5_labels, monkeypatch, t
     assert sorted(out.iterdir()) == [saved]
     text = saved.read_text()
     assert text.startswith("# python -m hil_harness.tuning.label_scores --frontier 1 ")
+    assert text.splitlines()[0].endswith(" --night five_a --night five_b --time-limit 120")
     assert "not for uplink" in tomllib.loads(text)["record"]["description"]
     rec = record_from(saved)
     assert rec.name == "aurora_allsky" and not rec.quantize
