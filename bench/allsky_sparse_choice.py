@@ -1,6 +1,6 @@
 """A record for the all-sky job that weighs only a few features, chosen by the exact count
 (docs/validation.md, "Aurora on real all-sky imagery", "Measured and not kept"):
-``python -m bench.allsky_sparse_choice [--workers N] [--max-size N]`` (~10 min wall on 2 cores).
+``python -m bench.allsky_sparse_choice [--workers N] [--max-size N]`` (~13 min wall on 2 cores).
 
 Why: the record that ranks the label first on the most training frames (62 of 70, with every
 feature weighed) does so on at most 43 of the 75 scored frames, and fitted to one training block
