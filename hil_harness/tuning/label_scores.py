@@ -503,9 +503,8 @@ def save_frontier_record(folder, base, row: dict, nights, time_limit: float) -> 
                f"search: {best.hits}/{best.frames} {later} frames ({bound})\n"
                f"uvisi detect: {sum(d1.values())}/{len(d1)} {first}, "
                f"{sum(d2.values())}/{len(d2)} {later}")
-    Path(folder).mkdir(parents=True, exist_ok=True)
     path = Path(folder) / f"{base.name}_hold{row['hold']}_{first}.toml"
-    export_record(own, toml_path=path, comment=comment)
+    export_record(own, toml_path=path, comment=comment)      # makes the folder if need be
     return path
 
 
@@ -562,9 +561,12 @@ def main(argv=None) -> int:
         except ValueError:
             ap.error(f"--frontier {args.frontier!r}: comma-separated frame counts")
         try:
+            if args.save is not None:             # before a search of minutes, not after it
+                Path(args.save).mkdir(parents=True, exist_ok=True)
             return _print_frontier(records, nights, args.sequence, holds, args.time_limit,
                                    args.save)
-        except (ValueError, RuntimeError) as exc:      # frames of two sizes; a hold no record meets
+        # frames of two sizes; a hold no record meets; a --save folder that cannot be written
+        except (ValueError, RuntimeError, OSError) as exc:
             print(f"label_scores: --frontier: {exc}", file=sys.stderr)
             return 2
     if args.ceiling:

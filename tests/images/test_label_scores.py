@@ -83,6 +83,18 @@ def gill5_labels(tmp_path_factory):
     return p, load_labels(p)
 
 
+@pytest.fixture
+def five_nights(gill5_labels, monkeypatch):
+    """Two nights made of the 5-frame subset, ``five_a`` (frames 0-2) and ``five_b`` (3-4), in
+    :data:`hil_harness.tuning.label_scores.NIGHTS` for the test; the subset's labels' path."""
+    from hil_harness.tuning import label_scores
+    path, _ = gill5_labels
+    rel = str(GILL5.relative_to(ROOT))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_a", (rel, str(path), range(0, 3)))
+    monkeypatch.setitem(label_scores.NIGHTS, "five_b", (rel, str(path), range(3, 5)))
+    return path
+
+
 def _hand_hit(cand, label, f):
     return math.hypot(cand["row"] - label[0], cand["col"] - label[1]) <= ON_RADIUS * f
 
@@ -138,17 +150,14 @@ def test_blob_ceiling_counts_every_candidate_of_uvisi_detect(tmp_path, gill5_lab
     assert sum(detect_hits(GILL5, path, rec, range(5)).values()) == best.hits
 
 
-def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch, capsys):
+def test_the_frontier_is_the_flights_own_ranking(five_nights, capsys):
     """``frontier`` on two nights made of the 5-frame subset (frames 0-2 held, 3-4 counted): each
     hold's record, run as ``uvisi detect``, holds what it was asked on the first night and gets
     its count on the second (the flight's ranking is the oracle of the search); a hold past the
     first night's best is refused."""
     from flightsw.records import load_record
     from hil_harness.tuning import label_scores
-    path, _ = gill5_labels
-    rel = str(GILL5.relative_to(ROOT))
-    monkeypatch.setitem(label_scores.NIGHTS, "five_a", (rel, str(path), range(0, 3)))
-    monkeypatch.setitem(label_scores.NIGHTS, "five_b", (rel, str(path), range(3, 5)))
+    path = five_nights
     rec = load_record("aurora_allsky")
     top = blob_ceiling(GILL5, path, rec, range(0, 3))["best_record"].hits
     rows = label_scores.frontier(rec, "five_a", "five_b", [0, top])
@@ -168,7 +177,7 @@ def test_the_frontier_is_the_flights_own_ranking(gill5_labels, monkeypatch, caps
                        f"record holds {top + 1} of 3 marked frames")
 
 
-def test_a_saved_frontier_record_repeats_its_counts(gill5_labels, monkeypatch, tmp_path, capsys):
+def test_a_saved_frontier_record_repeats_its_counts(five_nights, monkeypatch, tmp_path, capsys):
     """``--frontier K --save DIR`` writes the hold's record; read back as ``--record FILE``, the
     flight's ranking (``uvisi detect``) gives the counts the table printed, and the file says how
     it was found and that it is not for uplink."""
@@ -176,10 +185,7 @@ def test_a_saved_frontier_record_repeats_its_counts(gill5_labels, monkeypatch, t
 
     from hil_harness.tuning import label_scores
     from hil_harness.tuning.export import record_from
-    path, _ = gill5_labels
-    rel = str(GILL5.relative_to(ROOT))
-    monkeypatch.setitem(label_scores.NIGHTS, "five_a", (rel, str(path), range(0, 3)))
-    monkeypatch.setitem(label_scores.NIGHTS, "five_b", (rel, str(path), range(3, 5)))
+    path = five_nights
     out = tmp_path / "records"
     capsys.readouterr()
     assert label_scores.main(["--frontier", "1", "--record", "aurora_allsky", "--night", "five_a",
@@ -201,6 +207,14 @@ def test_a_saved_frontier_record_repeats_its_counts(gill5_labels, monkeypatch, t
         label_scores.main(["--record", "aurora_allsky", "--save", str(out)])
     assert stop.value.code == 2
     assert "--save: only with --frontier" in capsys.readouterr().err
+    blocked = tmp_path / "a_file"
+    blocked.write_text("")
+    monkeypatch.setattr(label_scores, "frontier", None)      # refused before any search starts
+    assert label_scores.main(["--frontier", "1", "--record", "aurora_allsky", "--night", "five_a",
+                              "--night", "five_b", "--save", str(blocked / "records")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith("label_scores: --frontier: ") \
+        and str(blocked) in err[0]
 
 
 def test_track_hits_are_uvisi_tracks_lock_and_object(tmp_path, gill5_labels):
