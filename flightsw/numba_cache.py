@@ -42,6 +42,9 @@ kernels call: they compile it in without numba's wrappers, and Python calls reac
 separate dispatcher; the two copies are cached under different names. The copy the callers link is
 kept as LLVM IR only (:func:`link_callee_copies_only`): no machine code of its own, and LLVM's
 whole-module passes run once, in each caller.
+
+**numba's BLAS check.** numba imports ``scipy.linalg`` in every process to learn whether BLAS is
+there, though no kernel here calls it; :func:`defer_blas_check` has that check look for the file.
 """
 from __future__ import annotations
 
@@ -56,7 +59,8 @@ from pathlib import Path
 __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "cache_root",
            "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
            "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD",
-           "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path", "compile_for_callers"]
+           "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path", "compile_for_callers",
+           "defer_blas_check", "scipy_blas_installed"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -171,14 +175,60 @@ def serialise_cache_writes() -> None:
     """Install the locked ``save`` and the compile lock (the module's docstring): each now if its
     numba module is loaded, else when it is (a package that imports this does not import numba
     by itself: ``uvisi scenarios`` never loads it). Idempotent."""
+    _patch_when_loaded("numba.core.caching", _lock_saves)
+    _patch_when_loaded("numba.core.dispatcher", _lock_compiles)
+
+
+def _patch_when_loaded(name: str, patch) -> None:
+    """Call ``patch`` on the module ``name`` now if it is loaded, else once it is (once)."""
     import sys
-    for name, patch in (("numba.core.caching", _lock_saves),
-                        ("numba.core.dispatcher", _lock_compiles)):
-        mod = sys.modules.get(name)
-        if mod is not None:
-            patch(mod)
-        elif not any(isinstance(f, _PatchOnImport) and f.name == name for f in sys.meta_path):
-            sys.meta_path.insert(0, _PatchOnImport(name, patch))
+    mod = sys.modules.get(name)
+    if mod is not None:
+        patch(mod)
+    elif not any(isinstance(f, _PatchOnImport) and f.name == name for f in sys.meta_path):
+        sys.meta_path.insert(0, _PatchOnImport(name, patch))
+
+
+def defer_blas_check() -> None:
+    """Have numba find whether SciPy's BLAS is installed without importing it, at the check it
+    makes once a process; numba's own ``ensure_blas`` still runs wherever a kernel needs BLAS.
+    Idempotent; does nothing once ``numba.np.arraymath`` is loaded (numba has checked by then).
+
+    ``numba.np.arraymath`` calls ``numba.np.linalg.ensure_blas()`` as it is imported (by the first
+    compile or cache load of each process) to learn whether ``np.dot`` and its kin may call BLAS.
+    That imports ``scipy.linalg`` (for ``scipy.linalg.cython_blas``), which starts OpenBLAS too:
+    ~0.1-0.15 s of wall time and ~0.25 s of CPU of a warm ``uvisi event`` (5-7 % and 9-11 %,
+    BENCHMARKS.md), though no kernel here calls BLAS (none of their cached code calls numba's
+    BLAS wrappers). Here that first call answers
+    whether the ``cython_blas`` extension is installed (:func:`scipy_blas_installed`) and puts
+    numba's function back: a kernel that uses BLAS calls it as it compiles, which imports SciPy's
+    BLAS and checks its integer width, as before. What a process that only loads such a kernel
+    from the cache skips is that width check (the process that compiled it made it)."""
+    import sys
+    if "numba.np.arraymath" not in sys.modules:
+        _patch_when_loaded("numba.np.linalg", _check_blas_without_import)
+
+
+def scipy_blas_installed() -> bool:
+    """Whether SciPy's ``scipy.linalg.cython_blas`` extension is installed, found without
+    importing SciPy (a file ``scipy/linalg/cython_blas*`` beside SciPy's package)."""
+    import importlib.util
+    spec = importlib.util.find_spec("scipy")
+    places = (spec.submodule_search_locations or []) if spec is not None else []
+    return any(any(Path(p, "linalg").glob("cython_blas*")) for p in places)
+
+
+def _check_blas_without_import(linalg) -> None:
+    real = getattr(linalg, "ensure_blas", None)
+    if real is None or getattr(real, "uvisi_deferred", False):
+        return
+
+    def ensure_blas():
+        linalg.ensure_blas = real           # every later call is numba's own
+        if not scipy_blas_installed():
+            raise ImportError("scipy 0.16+ is required for linear algebra")
+    ensure_blas.uvisi_deferred = True
+    linalg.ensure_blas = ensure_blas
 
 
 class _PatchOnImport:

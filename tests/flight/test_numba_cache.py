@@ -539,3 +539,57 @@ def test_only_callee_copies_are_kept_as_ir(tmp_path):
                          text=True, timeout=300,
                          env=dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache")))
     assert (res.returncode, res.stdout.strip()) == (0, "41"), res.stderr[-2000:]
+
+
+def test_numbas_blas_check_imports_no_scipy_linalg_and_a_blas_kernel_still_compiles():
+    """In a fresh process the first kernel run leaves ``scipy.linalg`` unimported while numba's
+    flag says BLAS is there (what numba's own check gives with SciPy installed); a kernel calling
+    ``np.dot`` then compiles through numba's own check (SciPy's BLAS imported) and equals numpy."""
+    code = textwrap.dedent("""
+        import sys
+        import numpy as np
+        import flightsw
+        from numba import njit
+        import numba.np.linalg as linalg
+
+        @njit
+        def plus_one(x):
+            return x + 1.0
+
+        plus_one(1.0)
+        import numba.np.arraymath as am
+        before = "scipy.linalg" in sys.modules
+        restored = not getattr(linalg.ensure_blas, "uvisi_deferred", False)
+
+        @njit
+        def dot(a, b):
+            return np.dot(a, b)
+
+        a, b = np.arange(6.0).reshape(2, 3), np.array([1.0, -2.0, 0.5])
+        same = bool(np.array_equal(dot(a, b), a @ b))
+        print(before, am._HAVE_BLAS, restored, "scipy.linalg" in sys.modules, same)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == ["False", "True", "True", "True", "True"]
+
+
+@pytest.mark.parametrize("files, found", [((), False),
+                                          (("cython_blas.cpython-311-x86_64-linux-gnu.so",), True),
+                                          (("cython_lapack.pyd",), False)])
+def test_scipy_blas_is_found_by_its_file_without_importing_scipy(tmp_path, files, found):
+    """A made SciPy package (an ``__init__`` that raises if imported): the check finds its BLAS
+    extension file, or its absence, without importing it."""
+    linalg = tmp_path / "scipy" / "linalg"
+    linalg.mkdir(parents=True)
+    (tmp_path / "scipy" / "__init__.py").write_text("raise RuntimeError('imported')\n")
+    for f in files:
+        (linalg / f).write_bytes(b"")
+    code = ("import sys; from flightsw.numba_cache import scipy_blas_installed; "
+            "print(scipy_blas_installed(), 'scipy' in sys.modules)")
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(root)]))
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.split() == [str(found), "False"]
