@@ -199,11 +199,11 @@ def defer_blas_check() -> None:
     That imports ``scipy.linalg`` (for ``scipy.linalg.cython_blas``), which starts OpenBLAS too:
     ~0.1-0.15 s of wall time and ~0.25 s of CPU of a warm ``uvisi event`` (5-7 % and 9-11 %,
     BENCHMARKS.md), though no kernel here calls BLAS (none of their cached code calls numba's
-    BLAS wrappers). Here that first call answers
-    whether the ``cython_blas`` extension is installed (:func:`scipy_blas_installed`) and puts
-    numba's function back: a kernel that uses BLAS calls it as it compiles, which imports SciPy's
-    BLAS and checks its integer width, as before. What a process that only loads such a kernel
-    from the cache skips is that width check (the process that compiled it made it)."""
+    BLAS wrappers). Here that first call answers whether the ``cython_blas`` extension is
+    installed (:func:`scipy_blas_installed`) and puts numba's function back: a kernel that uses
+    BLAS calls it as it compiles, which imports SciPy's BLAS and checks its integer width, as
+    before. What a process that only loads such a kernel from the cache skips is that width check
+    (the process that compiled it made it)."""
     import sys
     if "numba.np.arraymath" not in sys.modules:
         _patch_when_loaded("numba.np.linalg", _check_blas_without_import)
