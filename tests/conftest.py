@@ -1,5 +1,5 @@
-"""Test-session set-up: the commands the tests run start no warm-up process, and the benchmark
-smoke test runs last.
+"""Test-session set-up: the commands the tests run start no warm-up process, the benchmark smoke
+test runs last, and no command's closing note follows the report.
 
 ``make test`` runs the suite in two worker processes (pytest-xdist, ``-n 2``): on a cold numba
 cache each worker compiles the kernels its tests reach, and numba's compile lock
@@ -31,3 +31,12 @@ def pytest_collection_modifyitems(session, config, items):
         path = item.nodeid.split("::", 1)[0]
         return LAST.index(path) + 1 if path in LAST else 0
     items.sort(key=rank)                    # stable: the others keep their order
+
+
+def pytest_sessionfinish(session, exitstatus):
+    """Quiet the console at the session's end: the commands the tests ran in this process set up
+    the first-run compile notice, whose closing line ("compiling: N/M kernels done") a process
+    prints as it exits, after pytest's capture has ended: a note for a user's command, which in
+    the suite landed on the report's progress line."""
+    from hil_harness import console
+    console.set_level(console.QUIET)
