@@ -48,6 +48,8 @@ def main(args=None) -> int:
     ap.add_argument("--rounds", type=int, default=6, help="runs each way (default 6)")
     ap.add_argument("command", nargs="*", help="the uvisi command and its arguments")
     a = ap.parse_args(args)
+    if a.rounds < 1:
+        ap.error(f"--rounds {a.rounds}: at least 1")
     argv = a.command or DEFAULT
     runs = {w: [] for w in WAYS}
     with tempfile.TemporaryDirectory() as tmp:
