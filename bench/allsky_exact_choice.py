@@ -34,7 +34,7 @@ TRAIN_BLOCKS = ("gill2008_train_a", "gill2008_train_b")
 SCORED = ("gill2008_test", "gill2014", "wic")
 CENTROIDS = ("row", "col")
 
-__all__ = ["grid", "sequence_toml", "label", "block_cv", "run_all", "fit_and_score",
+__all__ = ["CENTROIDS", "grid", "sequence_toml", "label", "block_cv", "run_all", "fit_and_score",
            "rate_text", "print_scored", "main"]
 
 

@@ -28,7 +28,7 @@ import itertools
 import os
 import sys
 
-from bench.allsky_exact_choice import fit_and_score, print_scored, rate_text, run_all
+from bench.allsky_exact_choice import CENTROIDS, fit_and_score, print_scored, rate_text, run_all
 
 __all__ = ["subsets", "main"]
 
@@ -37,7 +37,7 @@ def subsets(max_size: int = 3) -> list[tuple[str, ...]]:
     """Every set of 1 to ``max_size`` feature names (:data:`flightsw.messages.FEATURE_NAMES`
     order) among the features that are not the centroids, smaller sets first."""
     from flightsw.messages import FEATURE_NAMES
-    free = [f for f in FEATURE_NAMES if f not in ("row", "col")]
+    free = [f for f in FEATURE_NAMES if f not in CENTROIDS]
     return [s for n in range(1, max_size + 1) for s in itertools.combinations(free, n)]
 
 
