@@ -74,6 +74,13 @@ Jobs (--record; the job's sequence follows unless --sequence is given):
            the frame.
   aurora   extended UV glow, auroral arcs and surges. Sequence 'aurora': compaction 2, no
            detrend, clipped threshold at 1.5 sigma.
+  aurora_allsky
+           the brightest auroral structure in a ground all-sky (fisheye) frame, tuned on real
+           THEMIS frames. Sequence 'aurora_allsky': compaction 4 (a 256 x 256 sky in one 64 x 64
+           window), high-pass detrend (sigma 3 compacted pixels), 3x3 smoothing, clipped
+           threshold at 1.5 sigma. The field is 0.7 of the fisheye circle found (elevations above
+           ~27 deg). Rank 1 is on the labelled form on 43 % of the scored Gillam 2008 frames
+           (docs/validation.md): where several forms are about as bright it often picks another.
 
 Modes: --window full (default) processes the whole compacted image as one window when it fits in
 one tile, else through overlapping flight windows (64 x 64 compacted pixels every 16 for point
