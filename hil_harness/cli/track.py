@@ -129,6 +129,8 @@ def run(args) -> int:
     record = record_from(args.record)
     if args.fov is not None and not 0.0 < args.fov < 90.0:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
+    if not (math.isfinite(args.frame_dt) and args.frame_dt > 0):    # before the frames are read
+        raise ValueError(f"--frame-dt {args.frame_dt} must be a positive number of seconds")
     from hil_harness.cli.detect import read_mask
     from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable

@@ -86,6 +86,7 @@ def test_track_bad_input_one_line(with_blank, tmp_path, capsys):
     rc, _, cap = _run([str(with_blank), "--record", "aurora", "--frame-dt", "0"], tmp_path,
                       capsys)
     assert rc == 2 and "--frame-dt" in cap.err
+    assert cap.err.count("\n") == 1        # refused before the frames are read: no flag warnings
     small = tmp_path / "small.npy"
     np.save(small, np.full((50, 60), 300, np.uint16))
     rc, _, cap = _run([str(with_blank), str(small), "--record", "aurora"], tmp_path, capsys)
