@@ -66,13 +66,20 @@ def default_track_sequence(record, shape, name=None):
     """The sequence ``uvisi track`` runs: ``name`` (shipped name or .toml) when given; else a job
     record's own sequence (:data:`hil_harness.detect.jobs.JOBS`: ``aurora_allsky`` runs
     ``aurora_allsky``, as in ``uvisi detect``); else by object type: aurora -> ``aurora``,
-    anything else -> ``satellite``. Set for frames of ``shape`` (H, W)."""
+    anything else -> ``satellite``. Set for frames of ``shape`` (H, W).
+
+    Interpretation (frames that are not UVISI's): where the compacted frame is smaller than the
+    sequence's window in both directions, the window is the whole compacted frame, as ``uvisi
+    detect --window 64`` places it (the flight's 256 x 244 frames always hold the window in one
+    direction at least; :func:`flightsw.ip.preprocess.window_shape` cuts the other)."""
     from hil_harness.detect.jobs import job_sequence_name
     from hil_harness.tuning.data import load_sequence
     if name is None:
         name = job_sequence_name(record) or ("aurora" if record.object_type == "aurora"
                                              else "satellite")
-    return load_sequence(name, None, tuple(shape))
+    pre = load_sequence(name).preprocess
+    whole = max(shape[0] // pre.compaction, shape[1] // pre.compaction)
+    return load_sequence(name, None, tuple(shape), min(pre.window, whole))
 
 
 def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None,

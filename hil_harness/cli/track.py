@@ -13,7 +13,9 @@ from the image centre); the TP runs in target-of-opportunity mode with a stand-i
 pointing), imager pixel scale from ``--fov`` (degrees across the columns) or the UVISI wide field
 of view (13.1 deg across 256 columns, scaled to the frame width), and a nominal 0.5 s per input
 frame unless ``--frame-dt`` is given (real sequences can be minutes apart, beyond the TP's coast
-limit). Real time tags, where the input has them, are written beside each frame.
+limit). Real time tags, where the input has them, are written beside each frame. Frames whose
+compacted image is smaller than the sequence's window both ways are processed in one window of the
+whole compacted frame, as ``uvisi detect --window 64`` does (a note says so).
 
 The instrument's field (``--mask FILE``, ``--field-circle ROW,COL,RADIUS``, else found on the
 median of up to 16 frames: :mod:`hil_harness.field`) is one for the whole sequence; pixels outside
@@ -51,6 +53,7 @@ from pathlib import Path
 import numpy as np
 
 from hil_harness.cli.options import add_with_option, with_names
+from hil_harness.console import note
 from hil_harness.fileio import temp_beside
 from hil_harness.real_track import (NOMINAL_DT, default_track_sequence, read_sequence,
                                      track_sequence)
@@ -124,6 +127,24 @@ def _write_json(path, obj):
             os.unlink(tmp)
 
 
+def _sequence_for_frames(record, name, seq, shape, first):
+    """The track's sequence set for frames of ``shape`` (H, W) (``seq``: the same sequence at the
+    flight frame's shape). A note when the frames are too small for its window (the window is then
+    the whole compacted frame: :func:`hil_harness.real_track.default_track_sequence`); an error
+    names the first input."""
+    try:
+        out = default_track_sequence(record, shape, name)
+    except ValueError as exc:
+        raise ValueError(f"{first}: frames of {shape[0]}x{shape[1]} pixels: {exc}") from None
+    c, w = seq.preprocess.compaction, seq.preprocess.window
+    if out.preprocess.window != w:
+        note(f"uvisi track: note: frames of {shape[0]}x{shape[1]} pixels are "
+             f"{shape[0] // c}x{shape[1] // c} at the sequence {seq.name}'s compaction {c}, "
+             f"smaller than its {w}x{w} window: the window is the whole compacted frame (as in "
+             f"uvisi detect --window 64)")
+    return out
+
+
 def run(args) -> int:
     from hil_harness.tuning.export import record_from
     record = record_from(args.record)
@@ -131,13 +152,15 @@ def run(args) -> int:
         raise ValueError(f"--fov {args.fov} must be in (0, 90) degrees")
     if not (math.isfinite(args.frame_dt) and args.frame_dt > 0):    # before the frames are read
         raise ValueError(f"--frame-dt {args.frame_dt} must be a positive number of seconds")
+    from flightsw.ip.preprocess import FRAME_SHAPE
     from hil_harness.cli.detect import read_mask
     from hil_harness.detect.jobs import field_scale
     from hil_harness.images import unusable
+    seq = default_track_sequence(record, FRAME_SHAPE, args.sequence)     # its own errors first
     names, counts, scales, flags, tags, field = read_sequence(
         args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle,
         field_scale(record))
-    seq = default_track_sequence(record, counts.shape[1:], args.sequence)
+    seq = _sequence_for_frames(record, args.sequence, seq, counts.shape[1:], args.images[0])
     skip = np.array([unusable(f) for f in flags])
     for n, f, s in zip(names, flags, skip):
         if f:

@@ -455,9 +455,9 @@ class SetSpec:
 # ================================================================================================
 # building
 # ================================================================================================
-def load_sequence(name_or_path, base_dir=None, frame_shape=None):
+def load_sequence(name_or_path, base_dir=None, frame_shape=None, window=None):
     """The processing sequence (shipped name or TOML path), its frame shape set to
-    ``frame_shape`` when given."""
+    ``frame_shape`` and its window (compacted pixels) to ``window`` when given."""
     from flightsw.ip.sequence import (DEFAULT_SEQUENCES, Preprocess, ProcessingSequence,
                                       load_default_sequence)
     if name_or_path in DEFAULT_SEQUENCES:
@@ -468,9 +468,11 @@ def load_sequence(name_or_path, base_dir=None, frame_shape=None):
             raise ValueError(f"sequence {name_or_path!r}: not a shipped sequence "
                              f"({sorted(DEFAULT_SEQUENCES)}) nor a file")
         seq = ProcessingSequence.from_toml(p)
-    if frame_shape is not None and tuple(frame_shape) != tuple(seq.preprocess.frame_shape):
-        pre = Preprocess(seq.preprocess.compaction, seq.preprocess.window,
-                         frame_shape=tuple(frame_shape))
+    pre = seq.preprocess
+    shape = pre.frame_shape if frame_shape is None else tuple(frame_shape)
+    window = pre.window if window is None else window
+    if shape != tuple(pre.frame_shape) or window != pre.window:
+        pre = Preprocess(pre.compaction, window, frame_shape=shape)
         seq = ProcessingSequence([dict(s.raw) for s in seq.steps], pre, seq.name, seq.description)
     return seq
 

@@ -87,7 +87,35 @@ def test_track_bad_input_one_line(with_blank, tmp_path, capsys):
                       capsys)
     assert rc == 2 and "--frame-dt" in cap.err
     assert cap.err.count("\n") == 1        # refused before the frames are read: no flag warnings
+    rc, _, cap = _run([str(with_blank), "--record", "aurora", "--sequence", "nosuch"], tmp_path,
+                      capsys)
+    assert rc == 2 and "'nosuch'" in cap.err and cap.err.count("\n") == 1
     small = tmp_path / "small.npy"
     np.save(small, np.full((50, 60), 300, np.uint16))
     rc, _, cap = _run([str(with_blank), str(small), "--record", "aurora"], tmp_path, capsys)
     assert rc == 2 and "small.npy" in cap.err and "shape" in cap.err
+
+
+def test_track_frames_smaller_than_the_window_run_in_one_whole_frame_window(tmp_path, capsys):
+    """200 x 200 frames at aurora_allsky's compaction 4 are 50 x 50, under its 64 x 64 window
+    (hand arithmetic): the window is the whole compacted frame, said in a note, and the arc
+    (rows 90-110, columns 60-140) is rank 1; frames too small for compaction 4 (24 x 24 -> 6 x 6,
+    under the flight's 8-pixel least window) are refused in one line naming the input."""
+    rng = np.random.default_rng(3)
+    cube = rng.normal(300.0, 8.0, (3, 200, 200))
+    cube[:, 90:110, 60:140] += 400.0
+    path = tmp_path / "small_sky.npy"
+    np.save(path, cube.astype(np.float32))
+    rc, js, cap = _run([str(path), "--record", "aurora_allsky"], tmp_path, capsys)
+    assert rc == 0, cap.err
+    assert "50x50" in cap.err and "64x64 window" in cap.err
+    for f in js["frames"]:
+        assert f["window"] == {"row0": 0, "col0": 0, "rows": 50, "cols": 50, "compaction": 4}
+        c = f["candidates"][0]
+        assert 90 <= c["row"] < 110 and 60 <= c["col"] < 140
+    (tmp_path / "track.json").unlink()
+    tiny = tmp_path / "tiny.npy"
+    np.save(tiny, cube[:, :24, :24].astype(np.float32))
+    rc, js, cap = _run([str(tiny), "--record", "aurora_allsky"], tmp_path, capsys)
+    assert rc == 2 and js is None and cap.err.count("\n") == 1
+    assert cap.err.startswith("uvisi track: error:") and "tiny.npy" in cap.err
