@@ -45,6 +45,10 @@ whole-module passes run once, in each caller.
 
 **numba's BLAS check.** numba imports ``scipy.linalg`` in every process to learn whether BLAS is
 there, though no kernel here calls it; :func:`defer_blas_check` has that check look for the file.
+
+**Loading without a refresh.** numba refreshes its typing and target contexts before every load
+from the cache, though a loaded kernel needs only its runtime; :func:`load_without_refresh` has a
+load start the runtime alone, and leaves the refresh to the first compile, which makes its own.
 """
 from __future__ import annotations
 
@@ -60,7 +64,7 @@ __all__ = ["serialise_cache_writes", "key_cache_on_sources", "source_digest", "c
            "KERNEL", "CALLEE", "IN_CALLERS", "callee_kernel", "is_callee_kernel", "dispatcher_of",
            "link_callee_copies_only", "SOURCE_PACKAGES", "NOT_KERNEL_SOURCES", "KEEP_OLD",
            "COMPILE_WAIT_S", "COMPILE_WAIT_EVENT", "compile_lock_path", "compile_for_callers",
-           "defer_blas_check", "scipy_blas_installed"]
+           "defer_blas_check", "scipy_blas_installed", "load_without_refresh"]
 
 #: the numba options every kernel of the project is compiled with (``@njit(**KERNEL)``, and the
 #: ``jit_options`` of its overloads): cached on disk, and without the C-callable wrapper numba
@@ -185,7 +189,8 @@ def _patch_when_loaded(name: str, patch) -> None:
     mod = sys.modules.get(name)
     if mod is not None:
         patch(mod)
-    elif not any(isinstance(f, _PatchOnImport) and f.name == name for f in sys.meta_path):
+    elif not any(isinstance(f, _PatchOnImport) and (f.name, f.patch) == (name, patch)
+                 for f in sys.meta_path):
         sys.meta_path.insert(0, _PatchOnImport(name, patch))
 
 
@@ -207,6 +212,38 @@ def defer_blas_check() -> None:
     import sys
     if "numba.np.arraymath" not in sys.modules:
         _patch_when_loaded("numba.np.linalg", _check_blas_without_import)
+
+
+def load_without_refresh() -> None:
+    """Have numba's cache load a kernel with its runtime started (``rtsys.initialize``) instead of
+    a refresh of its typing and target contexts. Idempotent.
+
+    numba's ``Cache.load_overload`` refreshes the target context before every load, to make sure
+    it is initialised: each refresh runs the import statements of its ~30 lowering modules and
+    installs their registries again, and the typing context's as well (the first also imports
+    the modules). The 23 loads of a warm ``uvisi event`` took 0.44-0.60 s so and 0.34-0.45 s
+    without it; the command 0.09-0.15 s less wall time (BENCHMARKS.md). A kernel loaded from the
+    cache is
+    machine code: the one thing it needs of that refresh is the runtime (NRT) it calls, which
+    ``rtsys.initialize`` starts, once a process, as the refresh does. Anything that compiles goes
+    through numba's ``CompilerBase``, which refreshes both contexts first, so a kernel compiled
+    after loads finds every registry in place. What a kernel computes does not change; a process
+    that only loads no longer imports numba's lowering modules (nor ``numba.np.arraymath``, whose
+    BLAS check :func:`defer_blas_check` defers)."""
+    _patch_when_loaded("numba.core.caching", _load_with_runtime_only)
+
+
+def _load_with_runtime_only(caching) -> None:
+    from numba.core.runtime import rtsys
+
+    def make(refreshing):
+        def load_overload(self, sig, target_context):
+            rtsys.initialize(target_context)
+            with self._guard_against_spurious_io_errors():
+                return self._load_overload(sig, target_context)
+        return load_overload
+
+    _replace_once(caching.Cache, "load_overload", make)
 
 
 def scipy_blas_installed() -> bool:

@@ -199,17 +199,24 @@ print(json.dumps({{"copies": len(copies), "value": value}}))
 """
 
 
+def _kernel_tree(tmp_path, kernels: str, script: str) -> tuple:
+    """A package ``pkgz`` whose ``kernels`` module is ``kernels``, a script made from the template
+    ``script`` (``{tree}``: the package's folder) and an environment with a cache of its own ->
+    (script path, environment)."""
+    tree = tmp_path / "tree"
+    (tree / "pkgz").mkdir(parents=True)
+    (tree / "pkgz" / "__init__.py").write_text("")
+    (tree / "pkgz" / "kernels.py").write_text(kernels)
+    path = tmp_path / "script.py"
+    path.write_text(script.format(tree=str(tree)))
+    return path, dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+
+
 def test_a_callee_compiled_ahead_is_what_a_later_caller_links(tmp_path):
     """compile_for_callers caches the copy a caller's typing would compile. Oracles: numba's
     compile events of the copy in each process (the caller's process compiles none for the types
     compiled ahead, one for other types) and g's value (2 x + 6)."""
-    tree = tmp_path / "tree"
-    (tree / "pkgz").mkdir(parents=True)
-    (tree / "pkgz" / "__init__.py").write_text("")
-    (tree / "pkgz" / "kernels.py").write_text(_CALLEES)
-    script = tmp_path / "ahead.py"
-    script.write_text(_AHEAD.format(tree=str(tree)))
-    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path / "cache"))
+    script, env = _kernel_tree(tmp_path, _CALLEES, _AHEAD)
 
     def run(*argv):
         out = subprocess.run([sys.executable, str(script), *argv], env=env, capture_output=True,
@@ -593,3 +600,85 @@ def test_scipy_blas_is_found_by_its_file_without_importing_scipy(tmp_path, files
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert out.stdout.split() == [str(found), "False"]
+
+
+# ------------------------------------------------------------------------------------------------
+# loading from the cache without refreshing numba's contexts
+# ------------------------------------------------------------------------------------------------
+
+_NRT_KERNELS = """
+import numpy as np
+from numba import njit
+
+@njit(cache=True)
+def ramp(n):
+    a = np.empty(n)              # allocated by numba's runtime (NRT) and boxed for Python
+    for i in range(n):
+        a[i] = 0.5 * i
+    return a
+"""
+
+#: one process: counts numba's target-context refreshes, calls the cached ``ramp`` (``patched``:
+#: with flightsw's patches, else numba as shipped), then compiles a kernel that is in no cache
+#: (numpy reductions and math: numba's lowering registries) and prints what it saw
+_LOAD = """
+import json, sys
+sys.path.insert(0, {tree!r})
+import numpy as np
+if sys.argv[1] == "patched":
+    import flightsw                               # noqa: F401  (installs the patches)
+from numba.core import base, event
+refreshes, compiles = [], []
+real = base.BaseContext.refresh
+def counted(self):
+    refreshes.append(1)
+    return real(self)
+base.BaseContext.refresh = counted
+
+class Count(event.Listener):
+    def on_start(self, ev):
+        name = ev.data["dispatcher"].py_func.__name__
+        if name in ("ramp", "stats"):               # not numba's own overloads
+            compiles.append(name)
+    def on_end(self, ev):
+        pass
+event.register("numba:compile", Count())
+from pkgz.kernels import ramp
+a = ramp(7)
+out = {{"ramp": a.tolist(), "refreshes_at_load": len(refreshes),
+        "lowering_loaded": "numba.np.arraymath" in sys.modules}}
+from numba import njit
+
+@njit
+def stats(x):
+    return np.sum(x), np.max(x), np.sqrt(x[3])
+
+s = stats(a)
+out.update(stats=[float(v) for v in s], compiles=compiles, refreshes=len(refreshes))
+print(json.dumps(out))
+"""
+
+
+def test_a_cached_kernel_loads_without_a_refresh_and_a_later_compile_still_works(tmp_path):
+    """Oracles: numpy (``0.5 * arange(7)``, its sum, max and a square root), numba's compile
+    events and a count of its target-context refreshes. One process compiles ``ramp`` into the
+    cache; then, as numba ships, loading it refreshes the contexts and imports numba's lowering
+    modules, and with flightsw's patch it does neither and the array numba's runtime allocated
+    comes back right; a kernel compiled after that load refreshes first and answers right."""
+    script, env = _kernel_tree(tmp_path, _NRT_KERNELS, _LOAD)
+    got = {}
+    for run in ("compile", "shipped", "patched"):       # the first fills the cache
+        out = subprocess.run([sys.executable, str(script), run], env=env, capture_output=True,
+                             text=True, timeout=300)
+        assert out.returncode == 0, out.stderr[-2000:]
+        got[run] = json.loads(out.stdout.splitlines()[-1])
+    want = [0.5 * i for i in range(7)]
+    assert got["compile"]["compiles"] == ["ramp", "stats"]
+    for run in ("shipped", "patched"):
+        g = got[run]
+        assert g["ramp"] == want and g["compiles"] == ["stats"], run       # ramp was loaded
+        assert g["stats"] == [sum(want), max(want), math.sqrt(want[3])], run
+        assert g["refreshes"] > g["refreshes_at_load"], run                 # the compile's own
+    assert got["shipped"]["refreshes_at_load"] > 0 and got["shipped"]["lowering_loaded"]
+    assert got["patched"]["refreshes_at_load"] == 0
+    assert not got["patched"]["lowering_loaded"]
