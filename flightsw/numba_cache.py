@@ -221,15 +221,14 @@ def load_without_refresh() -> None:
     numba's ``Cache.load_overload`` refreshes the target context before every load, to make sure
     it is initialised: each refresh runs the import statements of its ~30 lowering modules and
     installs their registries again, and the typing context's as well (the first also imports
-    the modules). The 23 loads of a warm ``uvisi event`` took 0.44-0.60 s so and 0.34-0.45 s
-    without it; the command 0.09-0.15 s less wall time (BENCHMARKS.md). A kernel loaded from the
-    cache is
-    machine code: the one thing it needs of that refresh is the runtime (NRT) it calls, which
-    ``rtsys.initialize`` starts, once a process, as the refresh does. Anything that compiles goes
-    through numba's ``CompilerBase``, which refreshes both contexts first, so a kernel compiled
-    after loads finds every registry in place. What a kernel computes does not change; a process
-    that only loads no longer imports numba's lowering modules (nor ``numba.np.arraymath``, whose
-    BLAS check :func:`defer_blas_check` defers)."""
+    the modules). The 23 loads of a warm ``uvisi event`` took 0.44-0.60 s with the refreshes and
+    0.34-0.45 s without; the command ran 0.06-0.15 s faster (BENCHMARKS.md). A kernel loaded from
+    the cache is machine code: the one thing it needs of that refresh is the runtime (NRT) it
+    calls, which ``rtsys.initialize`` starts, once a process, as the refresh does. Anything that
+    compiles goes through numba's ``CompilerBase``, which refreshes both contexts first, so a
+    kernel compiled after loads finds every registry in place. What a kernel computes does not
+    change; a process that only loads no longer imports numba's lowering modules (nor
+    ``numba.np.arraymath``, whose BLAS check :func:`defer_blas_check` defers)."""
     _patch_when_loaded("numba.core.caching", _load_with_runtime_only)
 
 
