@@ -227,8 +227,10 @@ def load_without_refresh() -> None:
     calls, which ``rtsys.initialize`` starts, once a process, as the refresh does. Anything that
     compiles goes through numba's ``CompilerBase``, which refreshes both contexts first, so a
     kernel compiled after loads finds every registry in place. What a kernel computes does not
-    change; a process that only loads no longer imports numba's lowering modules (nor
-    ``numba.np.arraymath``, whose BLAS check :func:`defer_blas_check` defers)."""
+    change. What is saved is the repeated refreshing, not numba's imports: the environment of
+    each numba function compiled into a kernel names that function's module, imported as the
+    kernel is read (a warm event's process still imports every module a refresh would,
+    ``numba.np.arraymath`` and its BLAS check, deferred by :func:`defer_blas_check`, included)."""
     _patch_when_loaded("numba.core.caching", _load_with_runtime_only)
 
 
