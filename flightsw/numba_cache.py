@@ -298,10 +298,10 @@ def _replace_once(cls, name: str, make) -> None:
     """Replace the method ``cls.name`` by ``make(original)`` (wrapped as the original), unless it
     was replaced before (the replacement is marked)."""
     original = getattr(cls, name)
-    if getattr(original, "uvisi_locked", False):
+    if getattr(original, "uvisi_replaced", False):
         return
     new = functools.wraps(original)(make(original))
-    new.uvisi_locked = True
+    new.uvisi_replaced = True
     setattr(cls, name, new)
 
 
