@@ -40,6 +40,18 @@ def test_regenerating_the_report_keeps_the_dated_ab_records():
     assert "row 1" in kept[0] and "table" not in "".join(kept)
 
 
+def test_every_dated_record_in_benchmarks_md_survives_a_regeneration():
+    """Each dated section of the committed BENCHMARKS.md (``## YYYY-MM-DD: ...``, measured by hand)
+    is one a regeneration keeps: its heading names what it was measured against with "(A/B with
+    ...)". A dated heading without it would be dropped by the next ``make bench``."""
+    import re
+    from bench.report import ab_sections
+    text = (ROOT / "BENCHMARKS.md").read_text(encoding="utf-8")
+    dated = re.findall(r"^## (\d{4}-\d{2}-\d{2}:.*)$", text, flags=re.M)
+    kept = [k.split("\n")[1][3:] for k in ab_sections(text)]
+    assert dated and [d for d in dated if d not in kept] == []
+
+
 def test_each_group_says_when_where_and_at_what_load(monkeypatch):
     """A group's figures carry the date, machine and load of the run that took them, so that a
     ``-k`` run's groups and the ones kept from an older run are told apart; the peers' versions
