@@ -19,10 +19,11 @@ image the candidates with full-resolution centroids (0-based ``[row, col]``, pix
 Without ``--json`` a table goes to stdout. The instrument's field (:mod:`hil_harness.field`) is
 found in each frame or given by ``--mask`` / ``--field-circle``; pixels outside it take part in no
 statistic, flag or detection. A flagged frame (unusable: blank, constant, nan, missing; warning:
-saturated; :func:`hil_harness.images.frame_flags`, inside the field) gets a warning on stderr; the
-IP's answer for it is still given. The jobs (star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame
-tiling (:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help``
-text.
+saturated; :func:`hil_harness.images.frame_flags`, inside the field) is warned of on stderr, once
+the frames are done, in one line for each kind of flagged frame
+(:func:`hil_harness.cli.flag_report.flag_lines`); the IP's answer for it is still given. The jobs
+(star, streak, aurora: :mod:`hil_harness.detect.jobs`) and the full-frame tiling
+(:mod:`hil_harness.detect.fullframe`) are described in :data:`HELP_TEXT`, the ``--help`` text.
 """
 from __future__ import annotations
 
@@ -34,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.cli.flag_report import flag_lines
 from hil_harness.cli.options import number
 from hil_harness.detect.jobs import FIELD_SPARE          # re-exported: it was defined here
 from hil_harness.images import (CHANNELS, ImageError, frame_flags, read_images, scale_note,
@@ -54,7 +56,8 @@ whole frame) or given by --mask FILE or --field-circle ROW,COL,RADIUS (JSON "fie
 outside it are set to the field's median before the 12-bit mapping and take part in no statistic,
 flag or detection; candidate coordinates stay in the input image's pixels.
 
-Bad frames, measured inside the field on the pixel noise (JSON "flags", and stderr): unusable
+Bad frames, measured inside the field on the pixel noise (JSON "flags"; on stderr one line for
+each kind, naming its frames): unusable
 (blank, constant, nan, missing: kept from the TP by track) or a warning (saturated: >= 5 % of the
 field at the maximum). The IP's answer is still given.
 
@@ -448,10 +451,6 @@ def _frame_job(args, record, seq, f, gate, user_mask=None):
             raise ImageError(f"{fr.name}: {exc}") from None
         note = scale_note(fr.name, scale)
         msgs = [f"uvisi detect: note: {note}"] if note else []
-        if flags:
-            kind = "unusable" if unusable(flags) else "warning only"
-            msgs.append(f"uvisi detect: warning: {fr.name}: flagged {', '.join(flags)} ({kind}; "
-                        f"the IP's answer is still given)")
         try:
             out = detect_one(img, seq, record, f, args.window, args.max_candidates, gate,
                              field=field.mask, trails=record.name == "streak")
@@ -465,6 +464,10 @@ def _frame_job(args, record, seq, f, gate, user_mask=None):
         return entry, (img if args.plot else None), msgs
 
     return one
+
+
+def _why(unusable_: bool, several: bool) -> str:
+    return ("unusable" if unusable_ else "warning only") + "; the IP's answer is still given"
 
 
 def run(args) -> int:
@@ -489,6 +492,9 @@ def run(args) -> int:
                       f"{len(entry['candidates'])} candidates, record {record.name}"
                       + (f" [{', '.join(flags)}]" if flags else "")))
     bar.close()
+    for line in flag_lines([e["path"] for e in entries], [e["flags"] for e in entries],
+                           [unusable(e["flags"]) for e in entries], _why):
+        print(f"uvisi detect: warning: {line}", file=sys.stderr)
     if args.json:
         _write_json(args.json, entries)
         for e in entries:

@@ -23,9 +23,10 @@ it take part in no statistic, flag or detection (:func:`hil_harness.images.to_co
 the field's background before the 12-bit mapping). ``--channel`` picks what a colour frame becomes.
 
 Bad frames (:func:`hil_harness.images.frame_flags`, measured inside the field) are reported in the
-JSON and on stderr. An *unusable* one (blank, constant, nan, missing) still gets the IP's answer,
-but its candidate message does not reach the TP: it does not move the track. A *warning*
-(saturated) is reported and the frame is used.
+JSON and on stderr (one line for each kind of flagged frame, naming its frames:
+:func:`hil_harness.cli.flag_report.flag_lines`). An *unusable* one (blank, constant, nan, missing)
+still gets the IP's answer, but its candidate message does not reach the TP: it does not move the
+track. A *warning* (saturated) is reported and the frame is used.
 
 Output (``--json``)::
 
@@ -52,6 +53,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hil_harness.cli.flag_report import flag_lines
 from hil_harness.cli.options import add_with_option, with_names
 from hil_harness.console import note
 from hil_harness.fileio import temp_beside
@@ -145,6 +147,13 @@ def _sequence_for_frames(record, name, seq, shape, first):
     return out
 
 
+def _why(unusable: bool, several: bool) -> str:
+    if unusable:
+        return ("unusable: the IP still answers; the track does not move on "
+                + ("them" if several else "it"))
+    return "a warning: the frames are used" if several else "a warning: the frame is used"
+
+
 def run(args) -> int:
     from hil_harness.tuning.export import record_from
     record = record_from(args.record)
@@ -162,11 +171,8 @@ def run(args) -> int:
         field_scale(record))
     seq = _sequence_for_frames(record, args.sequence, seq, counts.shape[1:], args.images[0])
     skip = np.array([unusable(f) for f in flags])
-    for n, f, s in zip(names, flags, skip):
-        if f:
-            why = ("unusable: the IP still answers; the track does not move on it" if s else
-                   "a warning: the frame is used")
-            print(f"uvisi track: warning: {n}: flagged {', '.join(f)} ({why})", file=sys.stderr)
+    for line in flag_lines(names, flags, skip, _why):
+        print(f"uvisi track: warning: {line}", file=sys.stderr)
     from flightsw.proposals import flight_profile
     proposals = with_names(args, "opportunity") or ()     # uvisi track: no velocity filter
     frames, geom, fov = track_sequence(counts, record, seq, args.frame_dt, args.fov, skip,
