@@ -209,8 +209,9 @@ def _plot(path, counts, frames, skip):
     if pr:
         ax.plot(*zip(*pr), "x", color="#33ddff", ms=4, label="prediction (window centre)")
     ax.legend(fontsize=7, loc="lower right")
-    ax.set_title(f"{len(frames)} frames ({int(np.sum(skip))} flagged); last good frame shown",
-                 fontsize=9)
+    n_flagged = sum(1 for e in frames if e["flags"])
+    ax.set_title(f"{len(frames)} frames ({n_flagged} flagged, {int(np.sum(skip))} of them "
+                 f"unusable); the last usable frame shown", fontsize=9)
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     fig.tight_layout()

@@ -121,19 +121,25 @@ def test_track_frames_smaller_than_the_window_run_in_one_whole_frame_window(tmp_
     assert cap.err.startswith("uvisi track: error:") and "tiny.npy" in cap.err
 
 
-def test_track_says_each_kind_of_flagged_frame_once(tmp_path, capsys):
+def test_track_says_each_kind_of_flagged_frame_once(tmp_path, capsys, monkeypatch):
     """Six made 200 x 200 frames: sky noise and an arc; frames 1-4 hold a plateau at the frame's
     maximum over 6 % of the field (saturated: >= 5 %), frame 5 is noise alone (blank). stderr
     has one line for the four saturated frames, naming them as the run [1-4] (what the JSON says
-    of each), and one for the blank frame; not one a frame."""
+    of each), and one for the blank frame; not one a frame. The plot's title counts the flagged
+    frames and the unusable ones apart."""
     rng = np.random.default_rng(5)
     cube = rng.normal(300.0, 8.0, (6, 200, 200))
     cube[:5, 90:110, 60:140] += 400.0
     cube[1:5, 85:115, 60:140] = 2000.0           # 2400 px of 40000 at the maximum
     path = tmp_path / "sky.npy"
     np.save(path, cube.astype(np.float32))
-    rc, js, cap = _run([str(path), "--record", "aurora_allsky"], tmp_path, capsys)
+    from matplotlib.axes import Axes
+    titles = []
+    monkeypatch.setattr(Axes, "set_title", lambda ax, t, **kw: titles.append(t))
+    rc, js, cap = _run([str(path), "--record", "aurora_allsky", "--plot",
+                        str(tmp_path / "t.png")], tmp_path, capsys)
     assert rc == 0, cap.err
+    assert titles == ["6 frames (5 flagged, 1 of them unusable); the last usable frame shown"]
     flags = [f["flags"] for f in js["frames"]]
     assert flags == [[], ["saturated"], ["saturated"], ["saturated"], ["saturated"], ["blank"]]
     lines = [ln for ln in cap.err.splitlines() if "flagged" in ln]
