@@ -184,8 +184,9 @@ def run(args) -> int:
                       for k, rf in enumerate(frames)]}
     _write_json(args.json, out)
     locked = sum(1 for e in out["frames"] if e["track"].get("locked"))
-    print(f"{len(frames)} frames ({int(skip.sum())} unusable), record {record.name}, sequence "
-          f"{seq.name}: the TP locked on {locked}; wrote {args.json}")
+    n = len(frames)
+    print(f"{n} frame{'' if n == 1 else 's'} ({int(skip.sum())} unusable), record {record.name}, "
+          f"sequence {seq.name}: the TP locked on {locked}; wrote {args.json}")
     if args.plot:
         _plot(args.plot, counts, out["frames"], skip)
     return 0
@@ -208,10 +209,12 @@ def _plot(path, counts, frames, skip):
     pr = [(e["prior"]["col"], e["prior"]["row"]) for e in frames if e["prior"]]
     if pr:
         ax.plot(*zip(*pr), "x", color="#33ddff", ms=4, label="prediction (window centre)")
-    ax.legend(fontsize=7, loc="lower right")
+    if pts or pr:
+        ax.legend(fontsize=7, loc="lower right")
     n_flagged = sum(1 for e in frames if e["flags"])
-    ax.set_title(f"{len(frames)} frames ({n_flagged} flagged, {int(np.sum(skip))} of them "
-                 f"unusable); the last usable frame shown", fontsize=9)
+    n = len(frames)
+    ax.set_title(f"{n} frame{'' if n == 1 else 's'} ({n_flagged} flagged, {int(np.sum(skip))} of "
+                 f"them unusable); the last usable frame shown", fontsize=9)
     ax.set_xlim(0, W)
     ax.set_ylim(H, 0)
     fig.tight_layout()

@@ -149,3 +149,20 @@ def test_track_says_each_kind_of_flagged_frame_once(tmp_path, capsys, monkeypatc
         f"uvisi track: warning: {path}[5]: flagged blank (unusable: the IP still answers; the "
         f"track does not move on it)"]
     assert js["frames"][5]["track"].get("skipped") is True
+
+
+def test_track_one_frame_without_a_track_plots_quietly(tmp_path, capsys, monkeypatch):
+    """One frame of sky noise (blank: nothing stands out of the noise, and no track): the summary
+    says "1 frame", and the plot is made without matplotlib's warning of a legend with nothing in
+    it (warnings raised as errors)."""
+    import warnings
+    rng = np.random.default_rng(11)
+    path = tmp_path / "one.npy"
+    np.save(path, rng.normal(300.0, 8.0, (1, 200, 200)).astype(np.float32))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rc, js, cap = _run([str(path), "--record", "streak", "--plot", str(tmp_path / "p.png")],
+                           tmp_path, capsys)
+    assert rc == 0, cap.err
+    assert cap.out.startswith("1 frame (1 unusable), record streak") and len(js["frames"]) == 1
+    assert (tmp_path / "p.png").stat().st_size > 1000
