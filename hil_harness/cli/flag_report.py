@@ -1,9 +1,9 @@
 """Bad-frame flags on the console: one line for each kind of flagged frame, not one a frame.
 
 A real sequence can flag many frames alike (58 of the 150 Gillam 2008 frames are flagged
-``saturated``); the commands that read sequences (``uvisi track``, ``uvisi
-detect``) print one line a kind, naming the frames as runs of a cube's indices, and leave every
-frame's flags to their JSON.
+``saturated``); the commands that read sequences (``uvisi track``, ``uvisi detect``) print one line
+for each kind, naming the frames as runs of a cube's indices, and leave every frame's flags to
+their JSON.
 """
 from __future__ import annotations
 
