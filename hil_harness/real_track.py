@@ -15,7 +15,7 @@ import sys
 
 import numpy as np
 
-__all__ = ["read_sequence", "default_track_sequence", "track_sequence", "NOMINAL_DT", "WFOV_DEG"]
+__all__ = ["read_sequence", "default_track_sequence", "fit_sequence_to_frames", "track_sequence", "NOMINAL_DT", "WFOV_DEG"]
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
 WFOV_DEG = 13.1
@@ -66,20 +66,27 @@ def default_track_sequence(record, shape, name=None):
     """The sequence ``uvisi track`` runs: ``name`` (shipped name or .toml) when given; else a job
     record's own sequence (:data:`hil_harness.detect.jobs.JOBS`: ``aurora_allsky`` runs
     ``aurora_allsky``, as in ``uvisi detect``); else by object type: aurora -> ``aurora``,
-    anything else -> ``satellite``. Set for frames of ``shape`` (H, W).
-
-    Interpretation (frames that are not UVISI's): where the compacted frame is smaller than the
-    sequence's window in both directions, the window is the whole compacted frame, as ``uvisi
-    detect --window 64`` places it (the flight's 256 x 244 frames always hold the window in one
-    direction at least; :func:`flightsw.ip.preprocess.window_shape` cuts the other)."""
+    anything else -> ``satellite``. Set for frames of ``shape`` (H, W) by
+    :func:`fit_sequence_to_frames`."""
     from hil_harness.detect.jobs import job_sequence_name
     from hil_harness.tuning.data import load_sequence
     if name is None:
         name = job_sequence_name(record) or ("aurora" if record.object_type == "aurora"
                                              else "satellite")
-    pre = load_sequence(name).preprocess
+    return fit_sequence_to_frames(load_sequence(name), shape)
+
+
+def fit_sequence_to_frames(seq, shape):
+    """``seq`` set for frames of ``shape`` (H, W).
+
+    Interpretation (frames that are not UVISI's): where the compacted frame is smaller than the
+    sequence's window in both directions, the window is the whole compacted frame, as ``uvisi
+    detect --window 64`` places it (the flight's 256 x 244 frames always hold the window in one
+    direction at least; :func:`flightsw.ip.preprocess.window_shape` cuts the other)."""
+    from hil_harness.tuning.data import reshape_sequence
+    pre = seq.preprocess
     whole = max(shape[0] // pre.compaction, shape[1] // pre.compaction)
-    return load_sequence(name, None, tuple(shape), min(pre.window, whole))
+    return reshape_sequence(seq, tuple(shape), min(pre.window, whole))
 
 
 def track_sequence(counts, record, sequence, frame_dt=NOMINAL_DT, fov_deg=None, skip=None,

@@ -57,8 +57,8 @@ from hil_harness.cli.flag_report import flag_lines
 from hil_harness.cli.options import add_with_option, with_names
 from hil_harness.console import note
 from hil_harness.fileio import temp_beside
-from hil_harness.real_track import (NOMINAL_DT, default_track_sequence, read_sequence,
-                                     track_sequence)
+from hil_harness.real_track import (NOMINAL_DT, default_track_sequence, fit_sequence_to_frames,
+                                     read_sequence, track_sequence)
 
 
 def register(sub) -> None:
@@ -129,13 +129,13 @@ def _write_json(path, obj):
             os.unlink(tmp)
 
 
-def _sequence_for_frames(record, name, seq, shape, first):
-    """The track's sequence set for frames of ``shape`` (H, W) (``seq``: the same sequence at the
-    flight frame's shape). A note when the frames are too small for its window (the window is then
-    the whole compacted frame: :func:`hil_harness.real_track.default_track_sequence`); an error
-    names the first input."""
+def _sequence_for_frames(seq, shape, first):
+    """``seq`` (the track's sequence at the flight frame's shape) set for frames of ``shape``
+    (H, W). A note when the frames are too small for its window (the window is then the whole
+    compacted frame: :func:`hil_harness.real_track.fit_sequence_to_frames`); an error names the
+    first input."""
     try:
-        out = default_track_sequence(record, shape, name)
+        out = fit_sequence_to_frames(seq, shape)
     except ValueError as exc:
         raise ValueError(f"{first}: frames of {shape[0]}x{shape[1]} pixels: {exc}") from None
     c, w = seq.preprocess.compaction, seq.preprocess.window
@@ -169,7 +169,7 @@ def run(args) -> int:
     names, counts, scales, flags, tags, field = read_sequence(
         args.images, args.no_scale, args.channel, read_mask(args.mask), args.field_circle,
         field_scale(record))
-    seq = _sequence_for_frames(record, args.sequence, seq, counts.shape[1:], args.images[0])
+    seq = _sequence_for_frames(seq, counts.shape[1:], args.images[0])
     skip = np.array([unusable(f) for f in flags])
     for line in flag_lines(names, flags, skip, _why):
         print(f"uvisi track: warning: {line}", file=sys.stderr)

@@ -67,7 +67,7 @@ from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
            "SET_SCHEMA", "PREDICT_MODES", "OBJECT_RULES", "resolve_path", "scenario_from_entry",
-           "load_sequence", "map_jobs", "deep_merge", "frame_prediction", "real_field"]
+           "load_sequence", "reshape_sequence", "map_jobs", "deep_merge", "frame_prediction", "real_field"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
@@ -455,11 +455,10 @@ class SetSpec:
 # ================================================================================================
 # building
 # ================================================================================================
-def load_sequence(name_or_path, base_dir=None, frame_shape=None, window=None):
+def load_sequence(name_or_path, base_dir=None, frame_shape=None):
     """The processing sequence (shipped name or TOML path), its frame shape set to
-    ``frame_shape`` and its window (compacted pixels) to ``window`` when given."""
-    from flightsw.ip.sequence import (DEFAULT_SEQUENCES, Preprocess, ProcessingSequence,
-                                      load_default_sequence)
+    ``frame_shape`` when given."""
+    from flightsw.ip.sequence import DEFAULT_SEQUENCES, ProcessingSequence, load_default_sequence
     if name_or_path in DEFAULT_SEQUENCES:
         seq = load_default_sequence(name_or_path)
     else:
@@ -468,13 +467,21 @@ def load_sequence(name_or_path, base_dir=None, frame_shape=None, window=None):
             raise ValueError(f"sequence {name_or_path!r}: not a shipped sequence "
                              f"({sorted(DEFAULT_SEQUENCES)}) nor a file")
         seq = ProcessingSequence.from_toml(p)
+    return reshape_sequence(seq, frame_shape)
+
+
+def reshape_sequence(seq, frame_shape=None, window=None):
+    """``seq`` (a :class:`flightsw.ip.sequence.ProcessingSequence`) with its frame shape set to
+    ``frame_shape`` and its window (compacted pixels) to ``window`` where given; ``seq`` itself
+    when neither changes."""
+    from flightsw.ip.sequence import Preprocess, ProcessingSequence
     pre = seq.preprocess
-    shape = pre.frame_shape if frame_shape is None else tuple(frame_shape)
+    shape = tuple(pre.frame_shape) if frame_shape is None else tuple(frame_shape)
     window = pre.window if window is None else window
-    if shape != tuple(pre.frame_shape) or window != pre.window:
-        pre = Preprocess(pre.compaction, window, frame_shape=shape)
-        seq = ProcessingSequence([dict(s.raw) for s in seq.steps], pre, seq.name, seq.description)
-    return seq
+    if shape == tuple(pre.frame_shape) and window == pre.window:
+        return seq
+    pre = Preprocess(pre.compaction, window, frame_shape=shape)
+    return ProcessingSequence([dict(s.raw) for s in seq.steps], pre, seq.name, seq.description)
 
 
 def deep_merge(base, over):
