@@ -18,6 +18,10 @@ command), and prints, per run, the figures of the run's ``summary.json`` ``host`
 - ``load``: the 1-minute load average before and after the run (the machine's other users
   included).
 
+``--bare`` adds, to each run, the same event without a recorder in another fresh process beside
+the same number of busy loops (``run_event`` with no output folder): ``bare``, its
+``median_frame_us``, the loop alone, the floor under ``sum`` whatever the recorder does.
+
 ``--cpu`` measures the recorder's CPU instead, less sensitive to the machine's other users: the
 event's frames are stepped in one process with the event writer called after each, as ``uvisi
 event`` calls it, and the thread CPU time (``time.thread_time``) of the writer's calls and of the
@@ -90,19 +94,39 @@ def _last_json(p, load0: float, load1: float, busy: int) -> dict:
                 load_after=load1)
 
 
-def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0) -> dict:
+#: the ``--bare`` run: the event without a recorder, in a fresh process; prints one JSON object
+BARE_CHILD = """
+import json
+from hil_harness.event.io import run_event
+print(json.dumps(run_event("satellite_over_stars", figures=False)["host"]))
+"""
+
+
+def bare_run(tree: Path, busy: int, settle_s: float = 2.0) -> float:
+    """:data:`BARE_CHILD` of ``tree``'s code beside ``busy`` busy loops: the loop's median frame
+    without a recorder (us)."""
+    p, _, _ = _beside_busy(["-c", BARE_CHILD], tree, dict(os.environ, PYTHONPATH=str(tree)), busy,
+                           settle_s, f"{tree}: the event without a recorder")
+    return json.loads(p.stdout.strip().splitlines()[-1])["median_frame_us"]
+
+
+def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0, bare: bool = False) -> dict:
     """One event of ``tree``'s code in a fresh process beside ``busy`` busy loops: its
-    ``summary.json`` figures (us a frame) and the load average before and after."""
+    ``summary.json`` figures (us a frame) and the load average before and after; ``bare``: and
+    ``bare_median_us``, the same event's median frame without a recorder (:func:`bare_run`)."""
     _, load0, load1 = _beside_busy(
         ["-m", "hil_harness.cli", "-q", "event", "satellite_over_stars", "--no-figures", "--out",
          str(out), "--force"], tree, dict(os.environ, PYTHONPATH=str(tree)), busy, settle_s,
         f"{tree}: the event")
     s = json.loads((out / "summary.json").read_text())
     h, n = s["host"], s["frames"]
-    return {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
-            "median_frame_us": h["median_frame_us"], "mean_record_us": h["mean_record_us"],
-            "sum_us": h["median_frame_us"] + h["mean_record_us"],
-            "loop_mean_us": 1e6 * h["loop_s"] / n}
+    out = {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
+           "median_frame_us": h["median_frame_us"], "mean_record_us": h["mean_record_us"],
+           "sum_us": h["median_frame_us"] + h["mean_record_us"],
+           "loop_mean_us": 1e6 * h["loop_s"] / n}
+    if bare:
+        out["bare_median_us"] = bare_run(tree, busy, settle_s)
+    return out
 
 
 #: the ``--cpu`` run, in a fresh process of the tree's code: prints one JSON object
@@ -237,6 +261,8 @@ def main(argv=None) -> int:
                     help="the recorder's and the loop's thread CPU time, in one process")
     ap.add_argument("--pair", metavar="COMMIT",
                     help="this tree's recorder against COMMIT's, in one process (thread CPU)")
+    ap.add_argument("--bare", action="store_true",
+                    help="and the same event without a recorder each run (the loop alone)")
     ap.add_argument("--json", action="store_true", help="one JSON object per run")
     a = ap.parse_args(argv)
     if a.pair:
@@ -249,11 +275,12 @@ def main(argv=None) -> int:
         print(f"uvisi event satellite_over_stars --no-figures; {a.busy} busy loops; "
               f"{os.cpu_count()} cores; " + ", ".join(str(t) for t in trees))
         print(f"{'tree':>12} {'load':>9} {'median':>7} {'record':>7} {'sum':>6} {'loop mean':>9}"
-              f"   (us a frame)")
+              + (f" {'bare':>6}" if a.bare else "") + "   (us a frame)")
+    cols = list(zip(FIGURES, (7, 7, 6, 9))) + ([("bare_median_us", 6)] if a.bare else [])
     with tempfile.TemporaryDirectory() as tmp:
         return _rounds(a, trees, names,
-                       lambda t, i: one_run(t, a.busy, Path(tmp) / f"run{i}-{names[t]}"),
-                       list(zip(FIGURES, (7, 7, 6, 9))))
+                       lambda t, i: one_run(t, a.busy, Path(tmp) / f"run{i}-{names[t]}",
+                                            bare=a.bare), cols)
 
 
 def _rounds(a, trees: list, names: dict, run, cols: list) -> int:
