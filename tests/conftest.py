@@ -8,7 +8,8 @@ load it. ``python -m pytest`` alone runs the suite in one process.
 
 tests/test_bench_smoke.py runs every benchmark once in a process of its own, which loads from the
 cache whatever the suite has compiled before it: run last, it compiles almost nothing (on a cold
-cache ~20 s instead of ~60-90 s in alphabetical place).
+cache ~20 s instead of ~60-90 s in alphabetical place). tests/bench/test_record_under_load.py
+runs whole events in processes of their own, and goes just before it for the same reason.
 """
 from __future__ import annotations
 
@@ -23,7 +24,7 @@ os.environ.setdefault("UVISI_WARMUP", "0")
 # (ip_reference, quat_oracle) stay here, importable from every folder
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 #: the test files run after all the others, in this order
-LAST = ("tests/test_bench_smoke.py",)
+LAST = ("tests/bench/test_record_under_load.py", "tests/test_bench_smoke.py")
 
 
 def pytest_collection_modifyitems(session, config, items):
