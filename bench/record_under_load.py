@@ -120,13 +120,13 @@ def one_run(tree: Path, busy: int, out: Path, settle_s: float = 2.0, bare: bool 
         f"{tree}: the event")
     s = json.loads((out / "summary.json").read_text())
     h, n = s["host"], s["frames"]
-    out = {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
+    row = {"busy": busy, "load_before": load0, "load_after": load1, "frames": n,
            "median_frame_us": h["median_frame_us"], "mean_record_us": h["mean_record_us"],
            "sum_us": h["median_frame_us"] + h["mean_record_us"],
            "loop_mean_us": 1e6 * h["loop_s"] / n}
     if bare:
-        out["bare_median_us"] = bare_run(tree, busy, settle_s)
-    return out
+        row["bare_median_us"] = bare_run(tree, busy, settle_s)
+    return row
 
 
 #: the ``--cpu`` run, in a fresh process of the tree's code: prints one JSON object
@@ -265,6 +265,8 @@ def main(argv=None) -> int:
                     help="and the same event without a recorder each run (the loop alone)")
     ap.add_argument("--json", action="store_true", help="one JSON object per run")
     a = ap.parse_args(argv)
+    if a.bare and (a.cpu or a.pair):
+        ap.error("--bare goes with the default runs, not with --cpu or --pair")
     if a.pair:
         return _pair_main(a)
     trees = [t.resolve() for t in (a.tree or [ROOT])]

@@ -2,6 +2,8 @@
 median frame with no recorder at all, beside the recorded run's figures of the same round."""
 import json
 
+import pytest
+
 from bench import record_under_load
 from hil_harness.event import io
 
@@ -25,3 +27,9 @@ def test_one_round_reports_the_recorded_run_and_the_bare_one(capsys):
     assert run["busy"] == 0 and run["frames"] == 181 and run["round"] == 0
     assert run["sum_us"] == run["median_frame_us"] + run["mean_record_us"]
     assert 0 < run["bare_median_us"] < 1e5 and run["mean_record_us"] > 0
+
+
+def test_bare_with_another_mode_is_a_usage_error(capsys):
+    with pytest.raises(SystemExit) as exc:
+        record_under_load.main(["--bare", "--cpu"])
+    assert exc.value.code == 2 and "--bare goes with the default runs" in capsys.readouterr().err
