@@ -15,7 +15,8 @@ import sys
 
 import numpy as np
 
-__all__ = ["read_sequence", "default_track_sequence", "fit_sequence_to_frames", "track_sequence", "NOMINAL_DT", "WFOV_DEG"]
+__all__ = ["read_sequence", "default_track_sequence", "fit_sequence_to_frames", "track_sequence",
+           "NOMINAL_DT", "WFOV_DEG"]
 
 #: UVISI wide field of view across the 256 columns (groundsim's wfov imagers), degrees
 WFOV_DEG = 13.1

@@ -57,9 +57,8 @@ outside it are set to the field's median before the 12-bit mapping and take part
 flag or detection; candidate coordinates stay in the input image's pixels.
 
 Bad frames, measured inside the field on the pixel noise (JSON "flags"; on stderr one line for
-each kind, naming its frames): unusable
-(blank, constant, nan, missing: kept from the TP by track) or a warning (saturated: >= 5 % of the
-field at the maximum). The IP's answer is still given.
+each kind, naming its frames): unusable (blank, constant, nan, missing: kept from the TP by track)
+or a warning (saturated: >= 5 % of the field at the maximum). The IP's answer is still given.
 
 Jobs (--record; the job's sequence follows unless --sequence is given):
   star     (default) point sources: stars, distant satellites, any unresolved spot. Sequence

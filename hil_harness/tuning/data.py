@@ -67,7 +67,8 @@ from hil_harness.fileio import temp_beside
 
 __all__ = ["TrainingSet", "SetSpec", "build_set", "load_set", "load_labels", "object_mask",
            "SET_SCHEMA", "PREDICT_MODES", "OBJECT_RULES", "resolve_path", "scenario_from_entry",
-           "load_sequence", "reshape_sequence", "map_jobs", "deep_merge", "frame_prediction", "real_field"]
+           "load_sequence", "reshape_sequence", "map_jobs", "deep_merge", "frame_prediction",
+           "real_field"]
 
 SET_SCHEMA = "uvisi-tuning-set/1"
 PREDICT_MODES = ("truth", "previous", "centre")
